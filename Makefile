@@ -1,0 +1,38 @@
+# dualpilot: `make run` flies a mission, `make test` runs every test.
+# Both create .venv and install the pinned dependencies on first use.
+PY ?= python3
+VENV := .venv
+BIN := $(VENV)/bin
+STAMP := $(VENV)/.installed
+SEED ?= 7
+OUT ?= runs/latest
+
+.PHONY: setup run test test-fast lint bench figures clean
+
+setup: $(STAMP)
+
+$(STAMP): pyproject.toml
+	test -x $(BIN)/python || $(PY) -m venv $(VENV)
+	$(BIN)/python -m pip install --quiet --upgrade pip
+	$(BIN)/python -m pip install --quiet -e '.[dev]'
+	touch $(STAMP)
+
+run: setup
+	$(BIN)/dualpilot mission --controller cc --seed $(SEED) --timing paper --out $(OUT)
+
+test: setup
+	$(BIN)/python -m pytest -q
+
+test-fast: setup
+	$(BIN)/python -m pytest -q -m "not slow"
+
+lint: setup
+	$(BIN)/ruff check .
+	$(BIN)/mypy dualpilot services tests benchmarks
+
+bench: setup
+	$(BIN)/dualpilot bench system1 --out runs/bench
+	$(BIN)/dualpilot bench system2 --out runs/bench
+
+clean:
+	rm -rf $(VENV) runs .pytest_cache .mypy_cache .ruff_cache *.egg-info

@@ -1,0 +1,95 @@
+"""Agent dynamics, Eq. (1): x_t = Φ x_{t-1} + Γ u_t.
+
+State ``x = [p, v]`` with position p (m) and velocity v (m/s), each of
+dimension ``dim`` (3 in Sec. II-A, 2 in the evaluation of Sec. IV at fixed
+altitude). Control u is the applied force (N).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+Array = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class DynamicsParams:
+    """Sec. IV-A values: ΔT = 1 s, ζ = 0.2, m = 1.05 kg, |u| ≤ 7.5 N, |v| ≤ 15 m/s per axis."""
+
+    dt_s: float = 1.0
+    zeta: float = 0.2
+    mass_kg: float = 1.05
+    u_max_n: float = 7.5
+    v_max_mps: float = 15.0
+    dim: int = 2
+
+    def __post_init__(self) -> None:
+        if not (self.dt_s > 0 and self.mass_kg > 0 and 0 <= self.zeta < 1):
+            raise ValueError(f"invalid dynamics parameters: {self}")
+        if self.dim not in (2, 3):
+            raise ValueError(f"dim must be 2 or 3, got {self.dim}")
+        if not (self.u_max_n > 0 and self.v_max_mps > 0):
+            raise ValueError("force and speed limits must be positive")
+
+    @property
+    def state_dim(self) -> int:
+        return 2 * self.dim
+
+
+def transition_matrices(params: DynamicsParams = DynamicsParams()) -> tuple[Array, Array]:
+    """Return (Φ, Γ) of Eq. (1).
+
+    Φ = [[I, ΔT·I], [0, (1-ζ)·I]],  Γ = [[0], [ΔT/m·I]].
+    """
+    n = params.dim
+    eye = np.eye(n)
+    phi = np.block([[eye, params.dt_s * eye], [np.zeros((n, n)), (1.0 - params.zeta) * eye]])
+    gamma = np.vstack([np.zeros((n, n)), (params.dt_s / params.mass_kg) * eye])
+    return phi, gamma
+
+
+def check_state(x: Array, params: DynamicsParams) -> Array:
+    """Return ``x`` as a float array, or raise ValueError for a wrong shape or non-finite value."""
+    arr = np.asarray(x, dtype=float)
+    if arr.shape != (params.state_dim,):
+        raise ValueError(f"state must have shape ({params.state_dim},), got {arr.shape}")
+    if not np.all(np.isfinite(arr)):
+        raise ValueError(f"state must be finite, got {arr}")
+    return arr
+
+
+def step(x: Array, u: Array, params: DynamicsParams = DynamicsParams()) -> Array:
+    """Advance one ΔT with Eq. (1); u is clipped to U and the velocity to the speed limit.
+
+    The clips model the autopilot's actuator and speed limits (the planners
+    already respect both, so for their plans the clip is a no-op).
+    """
+    x = check_state(x, params)
+    u = np.clip(np.asarray(u, dtype=float), -params.u_max_n, params.u_max_n)
+    if u.shape != (params.dim,) or not np.all(np.isfinite(u)):
+        raise ValueError(f"control must be finite with shape ({params.dim},), got {u}")
+    phi, gamma = transition_matrices(params)
+    nxt = phi @ x + gamma @ u
+    n = params.dim
+    nxt[n:] = np.clip(nxt[n:], -params.v_max_mps, params.v_max_mps)
+    return np.asarray(nxt, dtype=float)
+
+
+def rollout(x0: Array, controls: Array, params: DynamicsParams = DynamicsParams()) -> Array:
+    """States x_0..x_T (shape (T+1, 2·dim)) under Eq. (1) without clipping."""
+    phi, gamma = transition_matrices(params)
+    controls = np.asarray(controls, dtype=float).reshape(-1, params.dim)
+    states = np.empty((len(controls) + 1, params.state_dim))
+    states[0] = check_state(x0, params)
+    for k, u in enumerate(controls):
+        states[k + 1] = phi @ states[k] + gamma @ u
+    return states
+
+
+def hover_state(position: Array, params: DynamicsParams = DynamicsParams()) -> Array:
+    """A state at ``position`` with zero velocity."""
+    pos = np.asarray(position, dtype=float)
+    return check_state(np.concatenate([pos, np.zeros(params.dim)]), params)

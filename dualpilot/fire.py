@@ -1,0 +1,164 @@
+"""Firefront process, Sec. II-B: Bernoulli birth/survival, Gauss–Markov propagation.
+
+One propagation sub-step lasts ``T_f`` seconds. Per sub-step:
+
+* each active front survives with probability p_s (else it is extinguished);
+* a survivor's speed y^ν and direction y^d follow the Gauss–Markov model
+  y_t = γ y_{t-1} + (1-γ) ȳ + sqrt(1-γ²) ŷ,  ŷ ~ N(0, σ),
+  and its centre moves y^ν·T_f metres along y^d (rad, from the +x axis);
+* its extent is a rectangle whose two sides are drawn from U[100, 250] m;
+* with probability p_b a new front is born, centre uniform in the area.
+
+Each front remembers the convex hull of every rectangle it has occupied,
+△(C^i_{1:t}), the region planners must avoid (constraint P1_4).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+from math import ceil, cos, sin, sqrt
+
+import numpy as np
+
+from .geometry import Polytope, Rect
+
+
+@dataclass(frozen=True)
+class FireParams:
+    """Sec. IV-A values. Speeds m/s, angles rad, lengths m, T_f s."""
+
+    p_birth: float = 0.1
+    p_survive: float = 0.75
+    speed_mean_mps: float = 3.0
+    direction_mean_rad: float = np.pi / 4
+    speed_sigma_mps: float = 0.8
+    direction_sigma_rad: float = np.pi / 20
+    gamma: float = 0.8
+    side_min_m: float = 100.0
+    side_max_m: float = 250.0
+    substep_s: float = 0.5
+    area_size_m: float = 1000.0
+    #: Reading of Ĉ_t: False keeps the hulls of active fronts only (an
+    #: extinguished front no longer threatens the UAV); True keeps every hull.
+    keep_extinct_hulls: bool = False
+
+    def __post_init__(self) -> None:
+        for name in ("p_birth", "p_survive", "gamma"):
+            val = getattr(self, name)
+            if not 0.0 <= val <= 1.0:
+                raise ValueError(f"{name} must be in [0, 1], got {val}")
+        if not 0 < self.side_min_m <= self.side_max_m:
+            raise ValueError("need 0 < side_min_m <= side_max_m")
+        if self.substep_s <= 0 or self.area_size_m <= 0:
+            raise ValueError("substep_s and area_size_m must be positive")
+
+
+def substeps_for(planning_time_s: float, params: FireParams = FireParams()) -> int:
+    """⌈T_s / T_f⌉: fire sub-steps that elapse while a plan is computed (at least 1)."""
+    if not np.isfinite(planning_time_s) or planning_time_s < 0:
+        raise ValueError(f"planning time must be finite and >= 0, got {planning_time_s}")
+    return max(1, ceil(planning_time_s / params.substep_s - 1e-12))
+
+
+@dataclass(frozen=True)
+class FireFront:
+    """One active front: its state y = (speed, direction), current region and path hull."""
+
+    front_id: int
+    born_step: int
+    speed_mps: float
+    direction_rad: float
+    region: Rect
+    hull: Polytope
+
+    def advance(self, rng: np.random.Generator, params: FireParams) -> FireFront:
+        """One Gauss–Markov propagation sub-step (Eq. in Sec. II-B)."""
+        g = params.gamma
+        noise = sqrt(1.0 - g * g)
+        speed = (
+            g * self.speed_mps
+            + (1 - g) * params.speed_mean_mps
+            + noise * rng.normal(0.0, params.speed_sigma_mps)
+        )
+        direction = (
+            g * self.direction_rad
+            + (1 - g) * params.direction_mean_rad
+            + noise * rng.normal(0.0, params.direction_sigma_rad)
+        )
+        dist = speed * params.substep_s
+        cx = self.region.center_x + dist * cos(direction)
+        cy = self.region.center_y + dist * sin(direction)
+        region = _draw_rect(cx, cy, rng, params)
+        hull = Polytope.from_vertices(np.vstack([self.hull.vertices, region.corners()]))
+        return replace(self, speed_mps=speed, direction_rad=direction, region=region, hull=hull)
+
+
+def _draw_rect(cx: float, cy: float, rng: np.random.Generator, params: FireParams) -> Rect:
+    w, h = rng.uniform(params.side_min_m, params.side_max_m, size=2)
+    return Rect(cx, cy, float(w), float(h))
+
+
+@dataclass(frozen=True)
+class FireSnapshot:
+    """What the EWS reports at one instant: active regions and the hulls to avoid."""
+
+    regions: tuple[Rect, ...]
+    hulls: tuple[Polytope, ...]
+    front_ids: tuple[int, ...] = ()
+    born_steps: tuple[int, ...] = ()
+
+
+@dataclass
+class FireField:
+    """The set of fronts in the area and their evolution (the EWS's ground truth)."""
+
+    params: FireParams = field(default_factory=FireParams)
+    fronts: list[FireFront] = field(default_factory=list)
+    extinct_hulls: list[Polytope] = field(default_factory=list)
+    substeps_done: int = 0
+    next_id: int = 0
+
+    def spawn(
+        self, rng: np.random.Generator, step: int, center: tuple[float, float] | None = None
+    ) -> FireFront:
+        """Birth of a front: centre uniform in the area (b_t), state from the means."""
+        p = self.params
+        if center is None:
+            cx, cy = (float(v) for v in rng.uniform(0.0, p.area_size_m, size=2))
+        else:
+            cx, cy = center
+        region = _draw_rect(cx, cy, rng, p)
+        front = FireFront(
+            front_id=self.next_id,
+            born_step=step,
+            speed_mps=p.speed_mean_mps,
+            direction_rad=p.direction_mean_rad,
+            region=region,
+            hull=region.polytope(),
+        )
+        self.next_id += 1
+        self.fronts.append(front)
+        return front
+
+    def substep(self, rng: np.random.Generator, step: int) -> list[FireFront]:
+        """One sub-step of T_f: survival, propagation, then birth. Returns the newborn fronts."""
+        p = self.params
+        survivors: list[FireFront] = []
+        for front in self.fronts:
+            if rng.random() < p.p_survive:
+                survivors.append(front.advance(rng, p))
+            elif p.keep_extinct_hulls:
+                self.extinct_hulls.append(front.hull)
+        self.fronts = survivors
+        born = [self.spawn(rng, step)] if rng.random() < p.p_birth else []
+        self.substeps_done += 1
+        return born
+
+    def snapshot(self) -> FireSnapshot:
+        hulls = tuple(f.hull for f in self.fronts) + tuple(self.extinct_hulls)
+        return FireSnapshot(
+            regions=tuple(f.region for f in self.fronts),
+            hulls=hulls,
+            front_ids=tuple(f.front_id for f in self.fronts),
+            born_steps=tuple(f.born_step for f in self.fronts),
+        )

@@ -1,0 +1,328 @@
+"""The closed-loop mission of Sec. IV: supervisor → planner → one control → fires.
+
+Each step t:
+
+1. the EWS snapshot gives the active regions and the hulls △(C^i_{1:t});
+2. the supervisor computes Ξ_t from t and d_t, samples P_t and A_t, updates
+   Ψ_t and picks S_t (``cc``); ``s1`` / ``s2`` run the same supervisor but force
+   the system, so all three controllers see the same attention stream;
+3. the chosen system plans from the current state; while it computes, the UAV
+   hovers and the fires propagate ⌈T_s / T_f⌉ sub-steps (T_s measured, or the
+   paper's 155 ms / 5 s); the mission fails if an active region comes within
+   d_safe of the UAV;
+4. the UAV applies the plan's first control for ΔT (Eq. 1); it fails if its
+   motion passes within d_safe of an active region, succeeds on entering G.
+
+A plan that is not OK is never flown: the other system is asked (fallback),
+and if that fails too the UAV brakes towards a hover.
+"""
+
+from __future__ import annotations
+
+import enum
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .dynamics import Array, DynamicsParams, hover_state, step
+from .fire import FireField, FireParams, FireSnapshot, substeps_for
+from .geometry import Rect
+from .plan import Objective, Plan, Planner, PlanStatus
+from .supervisor import Decision, Supervisor, SupervisorParams
+
+
+class Controller(enum.Enum):
+    CC = "cc"
+    S1 = "s1"
+    S2 = "s2"
+
+
+class Timing(enum.Enum):
+    MEASURED = "measured"
+    PAPER = "paper"
+
+
+@dataclass(frozen=True)
+class MissionParams:
+    """Sec. IV values; ``paper_planning_time_s`` are the paper's S1/S2 averages."""
+
+    d_safe_m: float = 20.0
+    max_steps: int = 150
+    paper_planning_time_s: tuple[float, float] = (0.155, 5.0)
+    #: Fire sub-steps while the UAV moves for ΔT. The paper propagates fires only
+    #: while a plan is computed (0); 2 would also let fires evolve in flight.
+    fire_substeps_per_motion: int = 0
+    #: Reading of d_t in Eq. (KSI): "active" (nearest active region) or
+    #: "newborn" (only regions born at this step; inf otherwise).
+    d_t_reading: str = "active"
+    fallback: bool = True
+
+    def __post_init__(self) -> None:
+        if self.max_steps < 1 or self.d_safe_m < 0:
+            raise ValueError("max_steps >= 1 and d_safe_m >= 0 are required")
+        if self.d_t_reading not in ("active", "newborn"):
+            raise ValueError(f"d_t_reading must be 'active' or 'newborn', not {self.d_t_reading!r}")
+
+
+@dataclass(frozen=True)
+class MissionConfig:
+    """Where the mission starts and ends (Sec. IV-A defaults)."""
+
+    start: tuple[float, float] = (50.0, 50.0)
+    goal: Rect = Rect(900.0, 900.0, 100.0, 100.0)
+    area_size_m: float = 1000.0
+
+    def __post_init__(self) -> None:
+        area = Rect(self.area_size_m / 2, self.area_size_m / 2, self.area_size_m, self.area_size_m)
+        if not self.goal.inside(area):
+            raise ValueError(f"goal {self.goal} lies outside the {self.area_size_m} m area")
+        if not area.contains(np.array(self.start)):
+            raise ValueError(f"start {self.start} lies outside the area")
+
+    @staticmethod
+    def random(rng: np.random.Generator, area_size_m: float = 1000.0) -> MissionConfig:
+        """A random configuration: start near one corner, goal near the opposite one."""
+        start = rng.uniform(25.0, 200.0, size=2)
+        gc = rng.uniform(area_size_m - 250.0, area_size_m - 75.0, size=2)
+        return MissionConfig(
+            start=(float(start[0]), float(start[1])),
+            goal=Rect(float(gc[0]), float(gc[1]), 100.0, 100.0),
+            area_size_m=area_size_m,
+        )
+
+
+@dataclass(frozen=True)
+class StepRecord:
+    """Everything that happened at one step (for steps.csv, trace.json and the figures)."""
+
+    t: int
+    state: Array  # before the control
+    control: Array
+    decision: Decision
+    system: int  # the system whose plan was flown (0: none, braked)
+    plan_status: str
+    planning_time_s: float
+    fire_substeps: int
+    d_t: float
+    fires_active: int
+    planned_positions: Array
+    snapshot: FireSnapshot
+    info: dict[str, object] = field(default_factory=dict)
+
+
+@dataclass
+class MissionResult:
+    controller: str
+    seed: int
+    timing: str
+    config: MissionConfig
+    success: bool = False
+    failure_cause: str = ""
+    steps: int = 0
+    mission_time_s: float = 0.0
+    energy: float = 0.0
+    planning_time_s: dict[str, list[float]] = field(default_factory=lambda: {"s1": [], "s2": []})
+    switches: int = 0
+    records: list[StepRecord] = field(default_factory=list)
+    final_state: Array | None = None
+
+    def summary(self) -> dict[str, object]:
+        return {
+            "controller": self.controller,
+            "seed": self.seed,
+            "timing": self.timing,
+            "success": self.success,
+            "failure_cause": self.failure_cause,
+            "steps": self.steps,
+            "mission_time_s": self.mission_time_s,
+            "energy": self.energy,
+            "planning_time_s": self.planning_time_s,
+            "switches": self.switches,
+            "start": list(self.config.start),
+            "goal": {
+                "center": [self.config.goal.center_x, self.config.goal.center_y],
+                "size": [self.config.goal.width, self.config.goal.height],
+            },
+        }
+
+
+PlannerFactory = Callable[[int], Planner]
+
+
+def nearest_region_distance(position: Array, regions: tuple[Rect, ...]) -> float:
+    """Distance (m) from ``position`` to the nearest region; inf when there is none."""
+    return min((r.polytope().distance(position) for r in regions), default=float("inf"))
+
+
+def _segment_region_distance(p0: Array, p1: Array, regions: tuple[Rect, ...]) -> float:
+    return min((r.polytope().segment_distance(p0, p1) for r in regions), default=float("inf"))
+
+
+def brake_control(state: Array, dyn: DynamicsParams) -> Array:
+    """The force that brings the velocity to zero in one ΔT, clipped to U."""
+    v = state[dyn.dim :]
+    u = -dyn.mass_kg * (1.0 - dyn.zeta) * v / dyn.dt_s
+    return np.asarray(np.clip(u, -dyn.u_max_n, dyn.u_max_n))
+
+
+class Mission:
+    """One mission with one controller. ``run()`` flies it; ``step()`` is one tick."""
+
+    def __init__(
+        self,
+        controller: Controller,
+        planners: dict[int, Planner],
+        seed: int,
+        timing: Timing = Timing.PAPER,
+        config: MissionConfig = MissionConfig(),
+        params: MissionParams = MissionParams(),
+        dynamics: DynamicsParams = DynamicsParams(),
+        fire_params: FireParams = FireParams(),
+        supervisor_params: SupervisorParams = SupervisorParams(),
+    ):
+        self.controller = controller
+        self.planners = planners
+        self.timing = timing
+        self.config = config
+        self.params = params
+        self.dyn = dynamics
+        fire_rng, sup_rng = (
+            np.random.default_rng(s) for s in np.random.SeedSequence(seed).spawn(2)
+        )
+        self.fire_rng = fire_rng
+        self.fires = FireField(params=fire_params)
+        self.supervisor = Supervisor(sup_rng, supervisor_params)
+        self.state = hover_state(np.array(config.start), dynamics)
+        self.prev_control = np.zeros(dynamics.dim)
+        self.result = MissionResult(
+            controller=controller.value, seed=seed, timing=timing.value, config=config
+        )
+        self.done = False
+        snapshot = self.fires.snapshot()
+        if nearest_region_distance(self.state[:2], snapshot.regions) < params.d_safe_m:
+            raise ValueError("the start lies within d_safe of a fire")
+
+    # -- one tick -------------------------------------------------------------------
+    def _d_t(self, t: int, snapshot: FireSnapshot) -> float:
+        if self.params.d_t_reading == "newborn":
+            regions = tuple(
+                r for r, b in zip(snapshot.regions, snapshot.born_steps, strict=True) if b == t
+            )
+        else:
+            regions = snapshot.regions
+        return nearest_region_distance(self.state[:2], regions)
+
+    def _planning_time(self, plan: Plan) -> float:
+        if self.timing is Timing.PAPER:
+            return self.params.paper_planning_time_s[plan.system - 1]
+        return plan.compute_time_s
+
+    def _plan_with(self, system: int, snapshot: FireSnapshot, objective: Objective) -> Plan:
+        planner = self.planners[system]
+        t0 = time.perf_counter()
+        try:
+            plan = planner.plan(self.state, snapshot.hulls, objective, self.prev_control)
+        except ValueError as err:  # bad input to the planner: not flyable, not fatal
+            plan = Plan.failed(system, PlanStatus.INVALID_INPUT, time.perf_counter() - t0, str(err))
+        self.result.planning_time_s[f"s{system}"].append(plan.compute_time_s)
+        return plan
+
+    def _propagate(self, n: int, t: int) -> bool:
+        """Propagate the fires ``n`` sub-steps with the UAV idle; False if it gets caught."""
+        for _ in range(n):
+            self.fires.substep(self.fire_rng, t)
+            d = nearest_region_distance(self.state[:2], self.fires.snapshot().regions)
+            if d < self.params.d_safe_m:
+                return False
+        return True
+
+    def step(self) -> StepRecord | None:
+        """Run one step; returns its record, or None when the mission is over."""
+        if self.done:
+            return None
+        t = self.result.steps
+        snapshot = self.fires.snapshot()
+        d_t = self._d_t(t, snapshot)
+        decision = self.supervisor.decide(t, d_t)
+        wanted = {Controller.CC: decision.system, Controller.S1: 1, Controller.S2: 2}[
+            self.controller
+        ]
+        order = [wanted] + (
+            [3 - wanted] if self.params.fallback and self.controller is Controller.CC else []
+        )
+        plan: Plan | None = None
+        planning_time = 0.0
+        statuses = []
+        for system in order:
+            candidate = self._plan_with(system, snapshot, decision.objective)
+            planning_time += self._planning_time(candidate)
+            statuses.append(f"s{system}:{candidate.status.value}")
+            if candidate.ok:
+                plan = candidate
+                break
+        n_sub = substeps_for(planning_time, self.fires.params)
+        caught = not self._propagate(n_sub, t)
+
+        if plan is not None:
+            control = np.asarray(plan.controls[0], dtype=float)
+            flown = plan.system
+            planned = np.asarray(plan.states[:, : self.dyn.dim])
+            info = dict(plan.info)
+        else:
+            control = brake_control(self.state, self.dyn)
+            flown = 0
+            planned = np.empty((0, self.dyn.dim))
+            info = {}
+        record = StepRecord(
+            t=t,
+            state=self.state.copy(),
+            control=control,
+            decision=decision,
+            system=flown,
+            plan_status=";".join(statuses),
+            planning_time_s=planning_time,
+            fire_substeps=n_sub,
+            d_t=d_t,
+            fires_active=len(snapshot.regions),
+            planned_positions=planned,
+            snapshot=snapshot,
+            info=info,
+        )
+        self.result.records.append(record)
+        if caught:
+            return self._finish(False, "fire_while_planning", record)
+
+        prev_pos = self.state[:2].copy()
+        self.state = step(self.state, control, self.dyn)
+        self.result.energy += float(np.sum((control - self.prev_control) ** 2))
+        self.prev_control = control
+        if self.result.records[:-1] and flown and flown != self.result.records[-2].system:
+            self.result.switches += 1
+        self.result.steps = t + 1
+        self.result.mission_time_s = self.result.steps * self.dyn.dt_s
+        if self.params.fire_substeps_per_motion and not self._propagate(
+            self.params.fire_substeps_per_motion, t
+        ):
+            return self._finish(False, "fire_in_flight", record)
+        regions = self.fires.snapshot().regions
+        if _segment_region_distance(prev_pos, self.state[:2], regions) < self.params.d_safe_m:
+            return self._finish(False, "fire_contact", record)
+        if self.config.goal.contains(self.state[:2]):
+            return self._finish(True, "", record)
+        if self.result.steps >= self.params.max_steps:
+            return self._finish(False, "step_limit", record)
+        return record
+
+    def _finish(self, success: bool, cause: str, record: StepRecord) -> StepRecord:
+        self.done = True
+        self.result.success = success
+        self.result.failure_cause = cause
+        self.result.final_state = self.state.copy()
+        return record
+
+    def run(self) -> MissionResult:
+        while self.step() is not None:
+            pass
+        return self.result
