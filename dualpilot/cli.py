@@ -74,6 +74,19 @@ def _figures(args: argparse.Namespace) -> int:
     return 0
 
 
+def _evaluate(args: argparse.Namespace) -> int:
+    from .evaluate import evaluate
+
+    out = Path(args.out)
+    summary = evaluate(
+        args.missions, out, seed=args.seed, timing=args.timing, jobs=args.jobs,
+        controllers=args.controllers.split(","), s2_method=args.s2_method,
+    )
+    print(json.dumps(summary, indent=2))
+    print(f"results in {out}/: results.csv summary.json fig_r5.png")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="dualpilot", description=__doc__)
     sub = parser.add_subparsers(dest="command", required=True)
@@ -92,6 +105,16 @@ def build_parser() -> argparse.ArgumentParser:
     f.add_argument("--run", required=True, help="run directory with steps.csv and trace.json")
     f.add_argument("--steps", default="", help="comma-separated steps for the Fig. r1 panels")
     f.set_defaults(func=_figures)
+
+    e = sub.add_parser("evaluate", help="Monte-Carlo comparison of CC, S1 and S2 (Fig. r5)")
+    e.add_argument("--missions", type=int, default=200)
+    e.add_argument("--timing", choices=[t.value for t in Timing], default="paper")
+    e.add_argument("--jobs", type=int, default=0, help="worker processes (default: all cores)")
+    e.add_argument("--seed", type=int, default=0)
+    e.add_argument("--controllers", default="cc,s1,s2")
+    e.add_argument("--s2-method", default="fast")
+    e.add_argument("--out", default="runs/eval")
+    e.set_defaults(func=_evaluate)
 
     try:
         from .bench import add_bench_parser
