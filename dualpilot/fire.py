@@ -108,6 +108,24 @@ class FireSnapshot:
     born_steps: tuple[int, ...] = ()
 
 
+    def obstacles_for(self, position: np.ndarray, clearance_m: float) -> tuple[Polytope, ...]:
+        """The regions a planner at ``position`` must avoid, one per front (m).
+
+        Normally the hull △(C^i_{1:t}) of the front's path. Rectangles are
+        redrawn every sub-step, so a hull can grow around a UAV that is far
+        from the fire itself; a UAV cannot be asked to avoid a region it is
+        already in, so such a front is represented by its current region.
+        """
+        out: list[Polytope] = []
+        n_active = len(self.regions)
+        for k, hull in enumerate(self.hulls):
+            if hull.distance(position) >= clearance_m or k >= n_active:
+                out.append(hull)
+            else:
+                out.append(self.regions[k].polytope())
+        return tuple(out)
+
+
 @dataclass
 class FireField:
     """The set of fronts in the area and their evolution (the EWS's ground truth)."""

@@ -49,6 +49,8 @@ class MissionParams:
     """Sec. IV values; ``paper_planning_time_s`` are the paper's S1/S2 averages."""
 
     d_safe_m: float = 20.0
+    #: Clearance the planners keep from hulls (= System1Params.clearance_m, P2's ε).
+    planner_clearance_m: float = 25.0
     max_steps: int = 150
     paper_planning_time_s: tuple[float, float] = (0.155, 5.0)
     #: Fire sub-steps while the UAV moves for ΔT. The paper propagates fires only
@@ -223,7 +225,8 @@ class Mission:
         planner = self.planners[system]
         t0 = time.perf_counter()
         try:
-            plan = planner.plan(self.state, snapshot.hulls, objective, self.prev_control)
+            obstacles = snapshot.obstacles_for(self.state[:2], self.params.planner_clearance_m)
+            plan = planner.plan(self.state, obstacles, objective, self.prev_control)
         except ValueError as err:  # bad input to the planner: not flyable, not fatal
             plan = Plan.failed(system, PlanStatus.INVALID_INPUT, time.perf_counter() - t0, str(err))
         self.result.planning_time_s[f"s{system}"].append(plan.compute_time_s)

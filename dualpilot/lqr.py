@@ -1,0 +1,168 @@
+"""System 1's low-level tracker: discrete-time LQR on Eq. (1) following the reference path.
+
+Sec. III-A: an LQR with gain K tracks the reference x̂_{t+τ|t} from Alg. 1,
+minimising J = Σ (x − x̂)ᵀ Q (x − x̂) + ûᵀ R û with Q = 2·I₄, R = 0.1·I₂
+(Sec. IV-A). K comes from the discrete algebraic Riccati equation of (Φ, Γ).
+
+Our reading, each a parameter:
+
+* The path is a geometric path; we time-parameterise it (positions and
+  velocities per ΔT) at a reference speed along the path with a trapezoidal
+  profile (accelerate from the UAV's current along-path speed, decelerate to
+  rest at the path's end, which lies in G). After the end the reference holds
+  there.
+* The paper writes û = −K(x − x̂). We add the feed-forward u_ff that makes
+  the reference itself satisfy Eq. (1) as far as Γ allows,
+  u_ff,k = (m/ΔT)(v̂_{k+1} − (1 − ζ) v̂_k), which cancels the drag ζ (without
+  it the UAV lags the reference by ζ·m·v/K). ``feedforward=False`` gives the
+  paper's law.
+* u is clipped to U (|u| ≤ 7.5 N per axis) and, per axis, reduced so the next
+  velocity stays within |v| ≤ 15 m/s; states are rolled out with Eq. (1)
+  exactly, so the result passes :func:`dualpilot.verify.verify_trajectory`'s
+  dynamics check.
+
+Indexing follows :class:`dualpilot.plan.Plan`: ``states[k+1] = Φ states[k] + Γ controls[k]``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.linalg import solve_discrete_are
+
+from .dynamics import Array, DynamicsParams, check_state, transition_matrices
+
+
+@dataclass(frozen=True)
+class LqrParams:
+    """Weights Q = q·I, R = r·I (Sec. IV-A: q = 2, r = 0.1) and the reference profile.
+
+    ``accel_mps2`` and ``decel_mps2`` shape the reference speed profile along
+    the path (m/s²); ``feedforward`` adds the drag-compensating u_ff.
+    """
+
+    q: float = 2.0
+    r: float = 0.1
+    feedforward: bool = True
+    accel_mps2: float = 3.0
+    decel_mps2: float = 2.0
+
+    def __post_init__(self) -> None:
+        if not (self.q > 0 and self.r > 0):
+            raise ValueError(f"LQR weights must be positive, got q={self.q}, r={self.r}")
+        if not (self.accel_mps2 > 0 and self.decel_mps2 > 0):
+            raise ValueError("accel_mps2 and decel_mps2 must be positive")
+
+
+def lqr_gain(dynamics: DynamicsParams = DynamicsParams(), q: float = 2.0,
+             r: float = 0.1) -> tuple[Array, Array]:
+    """Infinite-horizon discrete LQR for Eq. (1): returns (K, P).
+
+    P solves the DARE P = ΦᵀPΦ − ΦᵀPΓ(R + ΓᵀPΓ)⁻¹ΓᵀPΦ + Q and
+    K = (R + ΓᵀPΓ)⁻¹ΓᵀPΦ, so that u = −K x.
+    """
+    if not (q > 0 and r > 0):
+        raise ValueError(f"LQR weights must be positive, got q={q}, r={r}")
+    phi, gamma = transition_matrices(dynamics)
+    qm = q * np.eye(dynamics.state_dim)
+    rm = r * np.eye(dynamics.dim)
+    p = solve_discrete_are(phi, gamma, qm, rm)
+    k = np.linalg.solve(rm + gamma.T @ p @ gamma, gamma.T @ p @ phi)
+    return np.asarray(k, dtype=float), np.asarray(p, dtype=float)
+
+
+def _check_path(path: Array, dim: int) -> Array:
+    pts = np.asarray(path, dtype=float)
+    if pts.ndim != 2 or pts.shape[1] != dim or len(pts) < 1:
+        raise ValueError(f"path must have shape (k >= 1, {dim}), got {pts.shape}")
+    if not np.all(np.isfinite(pts)):
+        raise ValueError("path must be finite")
+    return pts
+
+
+def speed_profile(
+    length_m: float, horizon: int, speed_mps: float, dt_s: float,
+    v0_mps: float = 0.0, accel_mps2: float = 3.0, decel_mps2: float = 2.0,
+) -> Array:
+    """Arc length s_k (m), k = 0..horizon+1, along a path of ``length_m``.
+
+    Speed starts at ``v0_mps`` (clipped to [0, speed]; the UAV's speed along
+    the path), rises at ``accel_mps2`` to ``speed_mps`` and falls at
+    ``decel_mps2`` so that the reference comes to rest at the end of the
+    path, then holds there. As in Eq. (1), s_{k+1} = s_k + ΔT·v_k.
+    """
+    if not (speed_mps > 0 and np.isfinite(speed_mps)):
+        raise ValueError(f"reference speed must be positive, got {speed_mps}")
+    if horizon < 1:
+        raise ValueError(f"horizon must be >= 1, got {horizon}")
+    s = np.empty(horizon + 2)
+    s[0] = 0.0
+    v = float(np.clip(v0_mps, 0.0, speed_mps))
+    for k in range(horizon + 1):
+        # Eq. (1) moves the position by ΔT times the speed at the start of the step
+        s[k + 1] = min(length_m, s[k] + v * dt_s)
+        remaining = length_m - s[k + 1]
+        v = min(speed_mps, v + accel_mps2 * dt_s, np.sqrt(2.0 * decel_mps2 * remaining))
+    return s
+
+
+def reference_states(
+    path: Array, horizon: int, speed_mps: float,
+    dynamics: DynamicsParams = DynamicsParams(), v0_mps: float = 0.0,
+    params: LqrParams = LqrParams(),
+) -> Array:
+    """Time-parameterised reference x̂_k = [p̂_k, v̂_k], k = 0..horizon (shape (horizon+1, 2·dim)).
+
+    p̂_k is the point at arc length s_k of :func:`speed_profile` on the
+    polyline ``path`` (k, dim) and v̂_k = (p̂_{k+1} − p̂_k)/ΔT, so the
+    reference positions follow p̂_{k+1} = p̂_k + ΔT·v̂_k exactly.
+    """
+    pts = _check_path(path, dynamics.dim)
+    seg = np.diff(pts, axis=0)
+    seg_len = np.linalg.norm(seg, axis=1)
+    cum = np.concatenate([[0.0], np.cumsum(seg_len)])
+    s = speed_profile(float(cum[-1]), horizon, speed_mps, dynamics.dt_s, v0_mps,
+                      params.accel_mps2, params.decel_mps2)
+    pos = np.empty((len(s), dynamics.dim))
+    for d in range(dynamics.dim):
+        pos[:, d] = np.interp(s, cum, pts[:, d]) if len(pts) > 1 else pts[0, d]
+    vel = np.diff(pos, axis=0) / dynamics.dt_s
+    return np.hstack([pos[:-1], vel])
+
+
+def track(
+    x0: Array, reference: Array, gain: Array,
+    dynamics: DynamicsParams = DynamicsParams(), feedforward: bool = True,
+) -> tuple[Array, Array]:
+    """Closed loop u_k = u_ff,k − K(x_k − x̂_k), clipped to U and to the speed limit.
+
+    Returns (states (T+1, 2·dim), controls (T, dim)) with T = len(reference) − 1
+    and states[0] = x0; the states follow Eq. (1) exactly under the controls.
+    """
+    x = check_state(x0, dynamics)
+    ref = np.asarray(reference, dtype=float)
+    n = dynamics.dim
+    if ref.ndim != 2 or ref.shape[1] != 2 * n or len(ref) < 2:
+        raise ValueError(f"reference must have shape (T+1 >= 2, {2 * n}), got {ref.shape}")
+    phi, gamma = transition_matrices(dynamics)
+    horizon = len(ref) - 1
+    m_dt = dynamics.mass_kg / dynamics.dt_s
+    decay = 1.0 - dynamics.zeta
+    states = np.empty((horizon + 1, 2 * n))
+    controls = np.empty((horizon, n))
+    states[0] = x
+    for k in range(horizon):
+        u = -gain @ (x - ref[k])
+        if feedforward:
+            u = u + m_dt * (ref[k + 1, n:] - decay * ref[k, n:])
+        u = np.clip(u, -dynamics.u_max_n, dynamics.u_max_n)
+        # keep |v_{k+1}| ≤ v_max per axis: v_{k+1} = (1-ζ) v_k + u ΔT/m
+        v_free = decay * x[n:]
+        u_hi = (dynamics.v_max_mps - v_free) * m_dt
+        u_lo = (-dynamics.v_max_mps - v_free) * m_dt
+        u = np.clip(np.minimum(np.maximum(u, u_lo), u_hi), -dynamics.u_max_n, dynamics.u_max_n)
+        x = phi @ x + gamma @ u
+        controls[k] = u
+        states[k + 1] = x
+    return states, controls

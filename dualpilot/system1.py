@@ -1,0 +1,308 @@
+"""System 1, Sec. III-A: the fast, human-like planner (operator waypoints or Alg. 1, then LQR).
+
+Each call of :meth:`System1.plan` picks a reference path from the UAV's
+position into the goal region G and tracks it with the LQR of
+:mod:`dualpilot.lqr` over the horizon T, giving a predicted trajectory.
+Where the reference path comes from, in order:
+
+1. **Operator waypoints** (:meth:`System1.set_waypoints`), the paper's
+   first responder, when every segment of current position → remaining
+   waypoints keeps ``clearance_m`` from every hull (exact checks).
+2. **The previous RRT path**, from the point nearest the UAV onward, while
+   it stays free and the UAV is within ``reuse_max_offset_m`` of it
+   (``reuse_path``): an operator keeps a path while it is safe.
+3. **A fresh RRT path** (Alg. 1, :func:`dualpilot.rrt.plan_path`).
+
+The predicted trajectory is verified independently
+(:func:`dualpilot.verify.verify_trajectory` with d_safe = 20 m): a trajectory
+that cuts a corner too close is retried at a lower reference speed, then
+with a fresh RRT path; a plan that never verifies is returned as UNSAFE,
+never as OK. The attention's objective does not change System 1 (it
+optimises response time only); ``prev_control`` is unused.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from .dynamics import Array, DynamicsParams, check_state
+from .geometry import Polytope, Rect
+from .lqr import LqrParams, lqr_gain, reference_states, track
+from .plan import Objective, Plan, PlanStatus
+from .rrt import RrtParams, RrtResult, SegmentChecker, plan_path
+from .verify import verify_trajectory
+
+
+@dataclass(frozen=True)
+class System1Params:
+    """Sec. IV-A values (step 15 m, Q = 2·I, R = 0.1·I, T = 80) and our readings.
+
+    ``max_iterations`` is 2000 instead of the paper's 500 (see
+    :class:`dualpilot.rrt.RrtParams`); ``max_wall_s`` bounds the RRT's time.
+    ``ref_speed_mps`` is the speed along the path (≤ 15 m/s per axis holds
+    for any heading); ``speed_retries`` halvings are tried when the tracked
+    trajectory fails verification at ``verify_clearance_m`` (d_safe).
+    """
+
+    step_size_m: float = 15.0
+    max_iterations: int = 2000
+    clearance_m: float = 25.0
+    horizon: int = 80
+    ref_speed_mps: float = 12.0
+    q_lqr: float = 2.0
+    r_lqr: float = 0.1
+    goal_bias: float = 0.05
+    max_wall_s: float = 2.0
+    verify_clearance_m: float = 20.0
+    speed_retries: int = 2
+    feedforward: bool = True
+    accel_mps2: float = 3.0
+    decel_mps2: float = 2.0
+    reuse_path: bool = True
+    reuse_max_offset_m: float = 50.0
+    shortcut: bool = True
+    aim_goal_center: bool = True
+
+    def __post_init__(self) -> None:
+        if self.horizon < 1:
+            raise ValueError(f"horizon must be >= 1, got {self.horizon}")
+        if not (self.ref_speed_mps > 0 and self.speed_retries >= 0):
+            raise ValueError("ref_speed_mps > 0 and speed_retries >= 0 are required")
+        if not 0 <= self.verify_clearance_m <= self.clearance_m:
+            raise ValueError("need 0 <= verify_clearance_m <= clearance_m")
+        if self.reuse_max_offset_m < 0:
+            raise ValueError("reuse_max_offset_m must be >= 0")
+        self.rrt_params()  # validates the RRT fields
+        self.lqr_params()
+
+    def rrt_params(self) -> RrtParams:
+        return RrtParams(
+            step_size_m=self.step_size_m, max_iterations=self.max_iterations,
+            clearance_m=self.clearance_m, goal_bias=self.goal_bias, max_wall_s=self.max_wall_s,
+            shortcut=self.shortcut, aim_goal_center=self.aim_goal_center,
+        )
+
+    def lqr_params(self) -> LqrParams:
+        return LqrParams(q=self.q_lqr, r=self.r_lqr, feedforward=self.feedforward,
+                         accel_mps2=self.accel_mps2, decel_mps2=self.decel_mps2)
+
+
+class _TrackedPath:
+    """A stored polyline and the UAV's progress along it (monotone segment index)."""
+
+    def __init__(self, points: Array):
+        self.points = np.asarray(points, dtype=float).reshape(-1, 2)
+        self.segment = 0
+
+    def remaining(self, pos: Array) -> tuple[Array, float]:
+        """Reference pos → nearest path point (at/after the progress) → rest, and the offset (m)."""
+        pts = self.points
+        if len(pts) == 1:
+            return _dedup(np.vstack([pos, pts])), float(np.hypot(*(pts[0] - pos)))
+        a, c = pts[self.segment:-1], pts[self.segment + 1:]
+        ac = c - a
+        len2 = np.einsum("ij,ij->i", ac, ac)
+        t = np.clip(np.einsum("ij,ij->i", pos - a, ac) / np.where(len2 > 0, len2, 1.0), 0, 1)
+        proj = a + t[:, None] * ac
+        dist = np.linalg.norm(proj - pos, axis=1)
+        j = int(len(dist) - 1 - np.argmin(dist[::-1]))  # ties: the later segment
+        self.segment += j
+        ref = np.vstack([pos, proj[j], pts[self.segment + 1:]])
+        return _dedup(ref), float(dist[j])
+
+
+def _dedup(points: Array, tol: float = 1e-6) -> Array:
+    keep = np.concatenate([[True], np.linalg.norm(np.diff(points, axis=0), axis=1) > tol])
+    return np.asarray(points[keep])
+
+
+class System1:
+    """The fast planner: operator waypoints or an RRT path, tracked by LQR.
+
+    Parameters
+    ----------
+    goal : Rect
+        The goal region G (local frame, m); must lie inside the area.
+    rng : numpy.random.Generator
+        Drives every RRT sample; the same seed reproduces the same plans.
+    """
+
+    system = 1
+
+    def __init__(self, goal: Rect, rng: np.random.Generator,
+                 params: System1Params = System1Params(),
+                 dynamics: DynamicsParams = DynamicsParams(), area_size_m: float = 1000.0):
+        if dynamics.dim != 2:
+            raise ValueError("System 1 plans in the plane (dynamics.dim == 2)")
+        if not (np.isfinite(area_size_m) and area_size_m > 0):
+            raise ValueError(f"area_size_m must be positive, got {area_size_m}")
+        self.area = Rect(area_size_m / 2, area_size_m / 2, area_size_m, area_size_m)
+        if not goal.inside(self.area):
+            raise ValueError(f"goal {goal} lies outside the {area_size_m} m area")
+        self.goal = goal
+        self.rng = rng
+        self.params = params
+        self.dyn = dynamics
+        self.area_size_m = area_size_m
+        self.gain, _ = lqr_gain(dynamics, params.q_lqr, params.r_lqr)
+        self._rrt_params = params.rrt_params()
+        self._lqr_params = params.lqr_params()
+        self._waypoints: Array | None = None
+        self._operator: _TrackedPath | None = None
+        self._rrt_path: _TrackedPath | None = None
+
+    # -- operator input -------------------------------------------------------------
+    def set_waypoints(self, waypoints: Array | None) -> None:
+        """Operator waypoints (k, 2) in the local frame (m); None clears them.
+
+        Raises ValueError for an empty list, a wrong shape, non-finite values
+        or a waypoint outside the area. Whether they are safe is judged at
+        each :meth:`plan` against the hulls of the moment.
+        """
+        if waypoints is None:
+            self._waypoints = None
+            self._operator = None
+            return
+        wps = np.asarray(waypoints, dtype=float)
+        if wps.ndim != 2 or wps.shape[1] != 2 or len(wps) == 0:
+            raise ValueError(f"waypoints must have shape (k >= 1, 2), got {wps.shape}")
+        if not np.all(np.isfinite(wps)):
+            raise ValueError("waypoints must be finite")
+        if not all(self.area.contains(w) for w in wps):
+            raise ValueError(f"waypoints must lie inside the {self.area_size_m} m area")
+        self._waypoints = wps.copy()
+        self._operator = None  # anchored at the UAV's position at the next plan()
+
+    @property
+    def waypoints(self) -> Array | None:
+        return None if self._waypoints is None else self._waypoints.copy()
+
+    # -- planning -------------------------------------------------------------------
+    def plan(
+        self,
+        state: Array,
+        hulls: tuple[Polytope, ...],
+        objective: Objective = Objective.MISSION_TIME,
+        prev_control: Array | None = None,
+    ) -> Plan:
+        """Plan from ``state`` [px, py, vx, vy] avoiding ``hulls`` (see the module docstring).
+
+        Raises ValueError for a malformed or non-finite state, a position
+        outside the area, or one nearer than ``verify_clearance_m`` to a hull.
+        Status NO_PATH when Alg. 1 finds no path within its caps, UNSAFE when
+        no tracked trajectory passes verification.
+        """
+        t0 = time.perf_counter()
+        p = self.params
+        x = check_state(state, self.dyn)
+        pos = x[:2].copy()
+        if not self.area.contains(pos):
+            raise ValueError(f"position {pos} lies outside the {self.area_size_m} m area")
+        checker = SegmentChecker(hulls)
+        d_start = checker.point_distance(pos)
+        if d_start < p.verify_clearance_m:
+            raise ValueError(
+                f"position {pos} lies {d_start:.1f} m from a fire hull "
+                f"(System 1 needs {p.verify_clearance_m} m)"
+            )
+        first_need = min(p.clearance_m, d_start)
+        info: dict[str, object] = {"rrt_iterations": 0, "reused": False}
+
+        candidates: list[tuple[str, Array]] = []
+        if self._waypoints is not None:
+            if self._operator is None:
+                self._operator = _TrackedPath(np.vstack([pos, self._waypoints]))
+            ref, _ = self._operator.remaining(pos)
+            if self._path_free(ref, checker, first_need):
+                candidates.append(("operator", ref))
+            else:
+                info["operator_rejected"] = "a segment comes within clearance_m of a hull"
+        if not candidates and p.reuse_path and self._rrt_path is not None:
+            ref, offset = self._rrt_path.remaining(pos)
+            if offset <= p.reuse_max_offset_m and self._path_free(ref, checker, first_need):
+                candidates.append(("reuse", ref))
+            else:
+                self._rrt_path = None
+
+        attempts: list[str] = []
+        fresh_tried = False
+        while True:
+            if not candidates:
+                if fresh_tried:
+                    break
+                fresh_tried = True
+                result = self._run_rrt(pos, hulls, checker)
+                info.update(rrt_iterations=result.iterations, rrt_status=result.status,
+                            rrt_time_s=result.time_s)
+                if result.path is None:
+                    self._rrt_path = None
+                    return self._failed(PlanStatus.NO_PATH, t0, info,
+                                        f"RRT found no path ({result.status}, "
+                                        f"{result.iterations} iterations)")
+                candidates.append(("rrt", result.path))
+            source, ref = candidates.pop(0)
+            traj = self._track(x, ref, hulls, attempts, source)
+            if traj is None:
+                continue
+            states, controls, speed, clearance = traj
+            if source == "rrt":
+                self._rrt_path = _TrackedPath(ref)
+            info.update(source="operator" if source == "operator" else "rrt",
+                        reused=source == "reuse", ref_speed_mps=speed,
+                        clearance_m=clearance, attempts=attempts)
+            return Plan(
+                system=self.system, status=PlanStatus.OK, states=states, controls=controls,
+                compute_time_s=time.perf_counter() - t0, path=ref,
+                message=f"{info['source']} path tracked at {speed:g} m/s", info=info,
+            )
+        self._rrt_path = None
+        info["attempts"] = attempts
+        return self._failed(PlanStatus.UNSAFE, t0, info,
+                            "no tracked trajectory kept d_safe: " + "; ".join(attempts))
+
+    # -- helpers --------------------------------------------------------------------
+    def _path_free(self, ref: Array, checker: SegmentChecker, first_need: float) -> bool:
+        if len(ref) < 2:
+            return checker.point_distance(ref[0]) >= first_need
+        need = np.full(len(ref) - 1, self.params.clearance_m)
+        need[0] = first_need
+        return bool(np.all(checker.distances(ref[:-1], ref[1:]) >= need))
+
+    def _run_rrt(self, pos: Array, hulls: Sequence[Polytope],
+                 checker: SegmentChecker) -> RrtResult:
+        return plan_path(pos, self.goal, hulls, self.rng, self._rrt_params, self.area_size_m,
+                         start_clearance_m=self.params.verify_clearance_m, checker=checker)
+
+    def _track(self, x: Array, ref: Array, hulls: Sequence[Polytope], attempts: list[str],
+               source: str) -> tuple[Array, Array, float, float] | None:
+        """LQR-track ``ref`` at the reference speed, halving it on failed verification."""
+        p = self.params
+        # current speed along the path, measured towards the point 15 m ahead on it
+        # (the first segment can be a short hop back onto a reused path)
+        seg_len = np.linalg.norm(np.diff(ref, axis=0), axis=1)
+        cum = np.concatenate([[0.0], np.cumsum(seg_len)])
+        s_ahead = min(float(cum[-1]), 15.0)
+        ahead = np.array([np.interp(s_ahead, cum, ref[:, d]) for d in range(2)])
+        direction = ahead - ref[0]
+        norm = float(np.hypot(*direction))
+        v0 = float(x[2:] @ direction / norm) if norm > 0 else 0.0
+        speed = p.ref_speed_mps
+        for _ in range(p.speed_retries + 1):
+            reference = reference_states(ref, p.horizon, speed, self.dyn, v0, self._lqr_params)
+            states, controls = track(x, reference, self.gain, self.dyn, p.feedforward)
+            verdict = verify_trajectory(states, controls, hulls, self.dyn, p.verify_clearance_m)
+            if verdict.ok:
+                return states, controls, speed, verdict.clearance_m
+            attempts.append(f"{source}@{speed:g}m/s: {verdict.reason}")
+            speed /= 2.0
+        return None
+
+    def _failed(self, status: PlanStatus, t0: float, info: dict[str, object],
+                message: str) -> Plan:
+        plan = Plan.failed(self.system, status, time.perf_counter() - t0, message, self.dyn.dim)
+        plan.info.update(info)
+        return plan
