@@ -1,0 +1,115 @@
+"""The closed loop of Sec. IV with the real System 1 (System 2 tests live with System 2)."""
+
+import csv
+import json
+
+import numpy as np
+import pytest
+
+from dualpilot.dynamics import DynamicsParams
+from dualpilot.factory import make_system1
+from dualpilot.fire import FireParams
+from dualpilot.mission import (
+    Controller,
+    Mission,
+    MissionConfig,
+    MissionParams,
+    Timing,
+    brake_control,
+    nearest_region_distance,
+)
+from dualpilot.records import STEP_COLUMNS, write_all
+
+
+def s1_mission(seed, fire_params=FireParams(), controller=Controller.S1, **kw):
+    cfg = MissionConfig()
+    s1 = make_system1(cfg, seed)
+    return Mission(
+        controller,
+        {1: s1, 2: s1},
+        seed=seed,
+        timing=Timing.PAPER,
+        config=cfg,
+        fire_params=fire_params,
+        **kw,
+    )
+
+
+def test_open_sky_mission_reaches_goal_and_energy_is_sum_of_control_changes():
+    result = s1_mission(3, FireParams(p_birth=0.0)).run()
+    assert result.success and result.failure_cause == ""
+    assert MissionConfig().goal.contains(result.final_state[:2])
+    controls = np.array([r.control for r in result.records])
+    du = np.diff(np.vstack([np.zeros(2), controls]), axis=0)
+    assert result.energy == pytest.approx(float(np.sum(du**2)))
+    assert result.mission_time_s == result.steps * 1.0
+    # paper timing: System 1's 155 ms is one fire sub-step per step
+    assert {r.fire_substeps for r in result.records} == {1}
+
+
+def test_same_seed_reproduces_the_mission_exactly():
+    a = s1_mission(5).run()
+    b = s1_mission(5).run()
+    assert a.steps == b.steps and a.success == b.success
+    assert np.array_equal(
+        np.array([r.state for r in a.records]), np.array([r.state for r in b.records])
+    )
+    assert [r.decision.attention for r in a.records] == [r.decision.attention for r in b.records]
+
+
+def test_fire_born_on_the_uav_fails_the_mission():
+    m = s1_mission(1, FireParams(p_birth=0.0, p_survive=1.0))
+    m.fires.spawn(m.fire_rng, 0, center=(60.0, 60.0))
+    m.step()
+    assert m.done and not m.result.success
+    assert m.result.failure_cause == "fire_while_planning"
+
+
+def test_start_inside_fire_is_rejected():
+    cfg = MissionConfig()
+    with pytest.raises(ValueError, match="outside"):
+        MissionConfig(goal=cfg.goal.__class__(990.0, 990.0, 100.0, 100.0))
+    with pytest.raises(ValueError, match="start"):
+        MissionConfig(start=(-5.0, 10.0))
+
+
+def test_flown_path_never_comes_within_d_safe_of_a_fire_before_the_end():
+    for seed in range(4):
+        result = s1_mission(seed).run()
+        recs = result.records
+        last = len(recs) - 1 if not result.success else len(recs)
+        for r in recs[:last]:
+            assert nearest_region_distance(r.state[:2], r.snapshot.regions) >= 20.0
+
+
+def test_step_limit_and_brake():
+    result = s1_mission(2, FireParams(p_birth=0.0), params=MissionParams(max_steps=5)).run()
+    assert not result.success and result.failure_cause == "step_limit" and result.steps == 5
+    u = brake_control(np.array([0, 0, 10.0, -2.0]), DynamicsParams())
+    # -m (1 - ζ) v / ΔT = -1.05 * 0.8 * [10, -2] = [-8.4, 1.68] -> clipped to ±7.5 N
+    assert u == pytest.approx([-7.5, 1.68])
+
+
+def test_records_on_disk(tmp_path):
+    result = s1_mission(4).run()
+    write_all(result, tmp_path)
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    for key in (
+        "success",
+        "steps",
+        "mission_time_s",
+        "energy",
+        "controller",
+        "seed",
+        "timing",
+        "planning_time_s",
+        "switches",
+    ):
+        assert key in summary
+    with (tmp_path / "steps.csv").open() as fh:
+        rows = list(csv.DictReader(fh))
+    assert list(rows[0].keys()) == STEP_COLUMNS
+    assert len(rows) == len(result.records)
+    assert {r["system"] for r in rows} <= {"0", "1"}
+    trace = json.loads((tmp_path / "trace.json").read_text())
+    assert len(trace["steps"]) == len(rows)
