@@ -6,8 +6,9 @@ BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 SEED ?= 7
 OUT ?= runs/latest
+SPEED ?= 20
 
-.PHONY: setup run test test-fast lint bench figures clean
+.PHONY: setup run run-stack proto test test-fast lint bench figures clean
 
 setup: $(STAMP)
 
@@ -19,6 +20,14 @@ $(STAMP): pyproject.toml
 
 run: setup
 	$(BIN)/dualpilot mission --controller cc --seed $(SEED) --timing paper --out $(OUT)
+
+# the distributed stack (services over Zenoh + MAVLink; services/launch.py reads docker-compose.yml)
+run-stack: setup
+	$(BIN)/python -m services.launch --controller cc --seed $(SEED) --timing paper --speed-factor $(SPEED) --out $(OUT)
+
+# regenerate services/msgs from proto/ (a test fails when they differ)
+proto: setup
+	$(BIN)/python -m services.protogen --clean
 
 test: setup
 	$(BIN)/python -m pytest -q

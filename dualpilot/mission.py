@@ -158,7 +158,8 @@ def nearest_region_distance(position: Array, regions: tuple[Rect, ...]) -> float
     return min((r.polytope().distance(position) for r in regions), default=float("inf"))
 
 
-def _segment_region_distance(p0: Array, p1: Array, regions: tuple[Rect, ...]) -> float:
+def segment_region_distance(p0: Array, p1: Array, regions: tuple[Rect, ...]) -> float:
+    """Distance (m) from the flown segment p0–p1 to the nearest region; inf when there is none."""
     return min((r.polytope().segment_distance(p0, p1) for r in regions), default=float("inf"))
 
 
@@ -310,7 +311,7 @@ class Mission:
         ):
             return self._finish(False, "fire_in_flight", record)
         regions = self.fires.snapshot().regions
-        if _segment_region_distance(prev_pos, self.state[:2], regions) < self.params.d_safe_m:
+        if segment_region_distance(prev_pos, self.state[:2], regions) < self.params.d_safe_m:
             return self._finish(False, "fire_contact", record)
         if self.config.goal.contains(self.state[:2]):
             return self._finish(True, "", record)

@@ -1,0 +1,34 @@
+# One image for every dualpilot service (see docker-compose.yml):
+#   docker compose up --build
+# The project and its pinned dependencies (pyproject.toml) on python:3.11-slim.
+FROM python:3.11-slim
+
+ENV PYTHONUNBUFFERED=1 \
+    PYTHONDONTWRITEBYTECODE=1 \
+    PIP_NO_CACHE_DIR=1 \
+    PIP_DISABLE_PIP_VERSION_CHECK=1 \
+    MAVLINK20=1 \
+    MPLBACKEND=Agg
+
+WORKDIR /app
+
+# OpenMP runtime for the solver wheels (SCIP, HiGHS, OSQP); the rest ships in the wheels
+RUN apt-get update \
+    && apt-get install -y --no-install-recommends libgomp1 \
+    && rm -rf /var/lib/apt/lists/*
+
+# dependencies first (a layer that survives source edits), then the sources
+COPY pyproject.toml README.md ./
+RUN mkdir -p dualpilot services \
+    && touch dualpilot/__init__.py services/__init__.py \
+    && pip install . \
+    && pip uninstall -y dualpilot
+COPY proto ./proto
+COPY dualpilot ./dualpilot
+COPY services ./services
+# runs as root so the supervisor can write to the ./runs bind mount of any host user
+RUN pip install --no-deps . && mkdir -p /app/runs
+
+# MAVLink: offboard link (supervisor → uavsim) and ground station
+EXPOSE 14540/udp 14550/udp
+CMD ["python", "-m", "services.supervisor", "--help"]

@@ -1,0 +1,1 @@
+"""What every service shares: keys, bus, codec, clock, CLI settings and logging."""

@@ -1,0 +1,94 @@
+"""Zenoh key expressions of the stack, all namespaced by vehicle id.
+
+``dualpilot/<uav>/…``: every key of one vehicle's mission lives under its
+namespace, so several vehicles can share a router (and one vehicle's keys
+never match another's).
+
+======================  ==========  =====================================
+key                     kind        payload (dualpilot.v1)
+======================  ==========  =====================================
+ews/fires               pub/sub     FireState, every T_f of simulated time
+ews/forecast            pub/sub     FireForecast
+ews/command             queryable   FireCommand → FireUpdate
+plan/system1, …/system2 queryable   PlanRequest → Plan (errors: Error)
+supervisor/decision     pub/sub     Decision, every step
+vehicle/state           pub/sub     VehicleState read over MAVLink
+mission/event           pub/sub     MissionEvent (started, step, ended)
+operator/waypoints      pub/sub     OperatorWaypoints for System 1
+clock                   pub/sub     Clock, the simulated clock's anchor
+alive/<service>         liveliness  token while the service runs
+======================  ==========  =====================================
+"""
+
+from __future__ import annotations
+
+import re
+
+ROOT = "dualpilot"
+SERVICES = ("ews", "system1", "system2", "supervisor", "uavsim")
+_ID = re.compile(r"^[A-Za-z0-9_\-]{1,64}$")
+
+
+def check_id(uav: str) -> str:
+    """A vehicle id is 1–64 characters of [A-Za-z0-9_-] (no key-expression syntax)."""
+    if not _ID.match(uav):
+        raise ValueError(f"vehicle id must match {_ID.pattern}, got {uav!r}")
+    return uav
+
+
+def ns(uav: str) -> str:
+    return f"{ROOT}/{check_id(uav)}"
+
+
+def fires(uav: str) -> str:
+    return f"{ns(uav)}/ews/fires"
+
+
+def forecast(uav: str) -> str:
+    return f"{ns(uav)}/ews/forecast"
+
+
+def fire_command(uav: str) -> str:
+    return f"{ns(uav)}/ews/command"
+
+
+def plan(uav: str, system: int) -> str:
+    if system not in (1, 2):
+        raise ValueError(f"system must be 1 or 2, got {system}")
+    return f"{ns(uav)}/plan/system{system}"
+
+
+def decision(uav: str) -> str:
+    return f"{ns(uav)}/supervisor/decision"
+
+
+def vehicle_state(uav: str) -> str:
+    return f"{ns(uav)}/vehicle/state"
+
+
+def mission_event(uav: str) -> str:
+    return f"{ns(uav)}/mission/event"
+
+
+def waypoints(uav: str) -> str:
+    return f"{ns(uav)}/operator/waypoints"
+
+
+def clock(uav: str) -> str:
+    return f"{ns(uav)}/clock"
+
+
+def alive(uav: str, service: str) -> str:
+    """Liveliness token of ``service`` (one of :data:`SERVICES` or a test's own name)."""
+    if not _ID.match(service):
+        raise ValueError(f"bad service name {service!r}")
+    return f"{ns(uav)}/alive/{service}"
+
+
+def alive_all(uav: str) -> str:
+    return f"{ns(uav)}/alive/*"
+
+
+def service_of(alive_key: str) -> str:
+    """The service name at the end of a liveliness key."""
+    return str(alive_key).rsplit("/", 1)[-1]

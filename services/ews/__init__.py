@@ -1,0 +1,1 @@
+"""The EWS service: owns the fire process (``python -m services.ews``)."""

@@ -1,0 +1,155 @@
+"""EWS service: the fire process of Sec. II-B behind a Zenoh command queryable.
+
+* ``<ns>/ews/command`` (queryable, FireCommand → FireUpdate): ``reset`` starts
+  a mission's fire process from its seed (the fire stream of
+  ``SeedSequence(seed).spawn(2)[0]``, as the in-process mission); ``advance``
+  propagates n sub-steps for mission step t. Sub-step k is published on
+  ``<ns>/ews/fires`` when the stack's clock (carried in the command) reaches
+  ``τ_t + k·T_f``: the fires propagate while the plan is computed (see
+  services/common/clock.py). The reply carries every sub-step's state.
+* ``<ns>/ews/forecast``: after each command, the mean-motion forecast of each
+  front over ``--forecast-horizon-s`` (services/ews/forecast.py).
+
+Bad commands get an error reply (dualpilot.v1.Error), never a crash.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import sys
+import threading
+
+import numpy as np
+import zenoh
+
+from dualpilot.fire import FireField, FireParams
+from services.common import bus, codec, keys
+from services.common import cli as common_cli
+from services.common.log import fields
+from services.msgs import common_pb2, fire_pb2
+
+from .forecast import envelope, forecast_regions
+
+log = logging.getLogger("services.ews")
+
+
+class Ews:
+    """The fire process of one vehicle's mission, driven by FireCommands."""
+
+    def __init__(self, session: zenoh.Session, uav: str, params: FireParams,
+                 forecast_horizon_s: float, stop: threading.Event):
+        self.session = session
+        self.uav = uav
+        self.params = params
+        self.stop = stop
+        self.forecast_substeps = max(0, math.ceil(forecast_horizon_s / params.substep_s))
+        self.stamper = codec.Stamper("ews", uav)
+        self.fires_pub = session.declare_publisher(keys.fires(uav))
+        self.forecast_pub = session.declare_publisher(keys.forecast(uav))
+        self.field: FireField | None = None
+        self.rng: np.random.Generator | None = None
+        self.mission_id = ""
+        self.step = 0
+        self.sim_time_s = 0.0
+
+    def state_msg(self) -> fire_pb2.FireState:
+        assert self.field is not None
+        f = self.field
+        return codec.fire_state_msg(f.fronts, f.extinct_hulls, self.step, f.substeps_done,
+                                    self.params.substep_s, self.stamper, self.sim_time_s)
+
+    def handle(self, cmd: codec.FireCommand) -> fire_pb2.FireUpdate:
+        update = fire_pb2.FireUpdate()
+        if cmd.kind == "reset":
+            self.field = FireField(params=self.params)
+            self.rng = np.random.default_rng(np.random.SeedSequence(cmd.seed).spawn(2)[0])
+            self.mission_id, self.step, self.sim_time_s = cmd.mission_id, 0, 0.0
+            state = self.state_msg()
+            bus.put(self.fires_pub, "", state)
+            update.states.append(state)
+            log.info("fire process reset", extra=fields(mission=cmd.mission_id, seed=cmd.seed))
+        else:
+            if self.field is None or self.rng is None or cmd.mission_id != self.mission_id:
+                raise codec.invalid(f"no fire process for mission {cmd.mission_id!r} "
+                                    f"(current {self.mission_id!r}): send reset first")
+            if cmd.step < self.step:
+                raise codec.invalid(f"step {cmd.step} is before the current step {self.step}")
+            self.step = cmd.step
+            anchor = cmd.anchor
+            t0 = anchor.sim_time_s if anchor is not None else self.sim_time_s
+            waited = 0.0
+            for k in range(1, cmd.substeps + 1):
+                self.field.substep(self.rng, cmd.step)
+                self.sim_time_s = t0 + k * self.params.substep_s
+                if anchor is not None:
+                    waited += anchor.sleep_until(self.sim_time_s, self.stop)
+                state = self.state_msg()
+                bus.put(self.fires_pub, "", state)
+                update.states.append(state)
+            update.paced_wait_s = waited
+        self.stamper.stamp(update.header, self.sim_time_s)
+        return update
+
+    def publish_forecast(self) -> None:
+        assert self.field is not None
+        m = fire_pb2.FireForecast(substeps_done=self.field.substeps_done,
+                                  substep_s=self.params.substep_s,
+                                  horizon_s=self.forecast_substeps * self.params.substep_s)
+        self.stamper.stamp(m.header, self.sim_time_s)
+        for front in self.field.fronts:
+            regions = forecast_regions(front, self.params, self.forecast_substeps)
+            fm = m.fronts.add(front_id=front.front_id)
+            for r in regions:
+                codec.rect_to_msg(r, fm.regions.add())
+            codec.polygon_to_msg(envelope(front, regions), fm.envelope)
+        bus.put(self.forecast_pub, "", m)
+
+
+def body(ctx: bus.Context, params: FireParams, forecast_horizon_s: float) -> None:
+    assert ctx.session is not None
+    uav = ctx.settings.uav_id
+    ews = Ews(ctx.session, uav, params, forecast_horizon_s, ctx.stop)
+    inbox = bus.Inbox()
+    queryable = ctx.session.declare_queryable(keys.fire_command(uav), inbox.on_query)
+    ctx.announce()
+    while not ctx.stop.is_set():
+        item = inbox.get(timeout=0.2)
+        if item is None or item.query is None:
+            continue
+        try:
+            cmd = codec.fire_command_from_msg(
+                codec.parse(item.payload, fire_pb2.FireCommand, item.encoding))
+            bus.reply(item.query, ews.handle(cmd))
+            ews.publish_forecast()  # after the reply: the supervisor is waiting for it
+        except codec.CodecError as err:
+            codec.rejected("FireCommand", err, log)
+            bus.reply_error(item.query, codec.error_msg(ews.stamper, err.code, str(err)))
+        except Exception as err:  # a bug must not take the fire process down with it
+            log.exception("fire command failed")
+            bus.reply_error(item.query, codec.error_msg(
+                ews.stamper, common_pb2.ERROR_CODE_INTERNAL, f"{type(err).__name__}: {err}"))
+    queryable.undeclare()
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = common_cli.parser("ews", "EWS fire forecaster (Sec. II-B) over Zenoh.")
+    p.add_argument("--substep-s", type=float,
+                   default=common_cli.env("FIRE_SUBSTEP_S", str(FireParams().substep_s)),
+                   help="fire propagation sub-step T_f in s [FIRE_SUBSTEP_S]")
+    p.add_argument("--forecast-horizon-s", type=float,
+                   default=common_cli.env("FORECAST_HORIZON_S", "80"),
+                   help="forecast horizon in simulated s [FORECAST_HORIZON_S]")
+    args = p.parse_args(argv)
+    try:
+        settings = common_cli.settings("ews", args)
+        params = FireParams(substep_s=args.substep_s)
+        if not (math.isfinite(args.forecast_horizon_s) and args.forecast_horizon_s >= 0):
+            raise ValueError("--forecast-horizon-s must be finite and >= 0")
+    except ValueError as err:
+        p.error(str(err))
+    return bus.run_service(settings, lambda ctx: body(ctx, params, args.forecast_horizon_s))
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,1 @@
+"""Generated protobuf messages of dualpilot.v1 (``make proto``; do not edit)."""

@@ -1,0 +1,102 @@
+from services.msgs import common_pb2 as _common_pb2
+from google.protobuf.internal import containers as _containers
+from google.protobuf import descriptor as _descriptor
+from google.protobuf import message as _message
+from collections.abc import Iterable as _Iterable, Mapping as _Mapping
+from typing import ClassVar as _ClassVar, Optional as _Optional, Union as _Union
+
+DESCRIPTOR: _descriptor.FileDescriptor
+
+class FireFront(_message.Message):
+    __slots__ = ("front_id", "born_step", "speed_mps", "direction_rad", "region", "hull")
+    FRONT_ID_FIELD_NUMBER: _ClassVar[int]
+    BORN_STEP_FIELD_NUMBER: _ClassVar[int]
+    SPEED_MPS_FIELD_NUMBER: _ClassVar[int]
+    DIRECTION_RAD_FIELD_NUMBER: _ClassVar[int]
+    REGION_FIELD_NUMBER: _ClassVar[int]
+    HULL_FIELD_NUMBER: _ClassVar[int]
+    front_id: int
+    born_step: int
+    speed_mps: float
+    direction_rad: float
+    region: _common_pb2.Rect
+    hull: _common_pb2.Polygon
+    def __init__(self, front_id: _Optional[int] = ..., born_step: _Optional[int] = ..., speed_mps: _Optional[float] = ..., direction_rad: _Optional[float] = ..., region: _Optional[_Union[_common_pb2.Rect, _Mapping]] = ..., hull: _Optional[_Union[_common_pb2.Polygon, _Mapping]] = ...) -> None: ...
+
+class FireState(_message.Message):
+    __slots__ = ("header", "step", "substeps_done", "substep_s", "fronts", "extinct_hulls")
+    HEADER_FIELD_NUMBER: _ClassVar[int]
+    STEP_FIELD_NUMBER: _ClassVar[int]
+    SUBSTEPS_DONE_FIELD_NUMBER: _ClassVar[int]
+    SUBSTEP_S_FIELD_NUMBER: _ClassVar[int]
+    FRONTS_FIELD_NUMBER: _ClassVar[int]
+    EXTINCT_HULLS_FIELD_NUMBER: _ClassVar[int]
+    header: _common_pb2.Header
+    step: int
+    substeps_done: int
+    substep_s: float
+    fronts: _containers.RepeatedCompositeFieldContainer[FireFront]
+    extinct_hulls: _containers.RepeatedCompositeFieldContainer[_common_pb2.Polygon]
+    def __init__(self, header: _Optional[_Union[_common_pb2.Header, _Mapping]] = ..., step: _Optional[int] = ..., substeps_done: _Optional[int] = ..., substep_s: _Optional[float] = ..., fronts: _Optional[_Iterable[_Union[FireFront, _Mapping]]] = ..., extinct_hulls: _Optional[_Iterable[_Union[_common_pb2.Polygon, _Mapping]]] = ...) -> None: ...
+
+class FireForecast(_message.Message):
+    __slots__ = ("header", "substeps_done", "substep_s", "horizon_s", "fronts")
+    HEADER_FIELD_NUMBER: _ClassVar[int]
+    SUBSTEPS_DONE_FIELD_NUMBER: _ClassVar[int]
+    SUBSTEP_S_FIELD_NUMBER: _ClassVar[int]
+    HORIZON_S_FIELD_NUMBER: _ClassVar[int]
+    FRONTS_FIELD_NUMBER: _ClassVar[int]
+    header: _common_pb2.Header
+    substeps_done: int
+    substep_s: float
+    horizon_s: float
+    fronts: _containers.RepeatedCompositeFieldContainer[FrontForecast]
+    def __init__(self, header: _Optional[_Union[_common_pb2.Header, _Mapping]] = ..., substeps_done: _Optional[int] = ..., substep_s: _Optional[float] = ..., horizon_s: _Optional[float] = ..., fronts: _Optional[_Iterable[_Union[FrontForecast, _Mapping]]] = ...) -> None: ...
+
+class FrontForecast(_message.Message):
+    __slots__ = ("front_id", "regions", "envelope")
+    FRONT_ID_FIELD_NUMBER: _ClassVar[int]
+    REGIONS_FIELD_NUMBER: _ClassVar[int]
+    ENVELOPE_FIELD_NUMBER: _ClassVar[int]
+    front_id: int
+    regions: _containers.RepeatedCompositeFieldContainer[_common_pb2.Rect]
+    envelope: _common_pb2.Polygon
+    def __init__(self, front_id: _Optional[int] = ..., regions: _Optional[_Iterable[_Union[_common_pb2.Rect, _Mapping]]] = ..., envelope: _Optional[_Union[_common_pb2.Polygon, _Mapping]] = ...) -> None: ...
+
+class FireReset(_message.Message):
+    __slots__ = ("seed",)
+    SEED_FIELD_NUMBER: _ClassVar[int]
+    seed: int
+    def __init__(self, seed: _Optional[int] = ...) -> None: ...
+
+class FireAdvance(_message.Message):
+    __slots__ = ("step", "substeps", "clock")
+    STEP_FIELD_NUMBER: _ClassVar[int]
+    SUBSTEPS_FIELD_NUMBER: _ClassVar[int]
+    CLOCK_FIELD_NUMBER: _ClassVar[int]
+    step: int
+    substeps: int
+    clock: _common_pb2.Clock
+    def __init__(self, step: _Optional[int] = ..., substeps: _Optional[int] = ..., clock: _Optional[_Union[_common_pb2.Clock, _Mapping]] = ...) -> None: ...
+
+class FireCommand(_message.Message):
+    __slots__ = ("header", "mission_id", "reset", "advance")
+    HEADER_FIELD_NUMBER: _ClassVar[int]
+    MISSION_ID_FIELD_NUMBER: _ClassVar[int]
+    RESET_FIELD_NUMBER: _ClassVar[int]
+    ADVANCE_FIELD_NUMBER: _ClassVar[int]
+    header: _common_pb2.Header
+    mission_id: str
+    reset: FireReset
+    advance: FireAdvance
+    def __init__(self, header: _Optional[_Union[_common_pb2.Header, _Mapping]] = ..., mission_id: _Optional[str] = ..., reset: _Optional[_Union[FireReset, _Mapping]] = ..., advance: _Optional[_Union[FireAdvance, _Mapping]] = ...) -> None: ...
+
+class FireUpdate(_message.Message):
+    __slots__ = ("header", "states", "paced_wait_s")
+    HEADER_FIELD_NUMBER: _ClassVar[int]
+    STATES_FIELD_NUMBER: _ClassVar[int]
+    PACED_WAIT_S_FIELD_NUMBER: _ClassVar[int]
+    header: _common_pb2.Header
+    states: _containers.RepeatedCompositeFieldContainer[FireState]
+    paced_wait_s: float
+    def __init__(self, header: _Optional[_Union[_common_pb2.Header, _Mapping]] = ..., states: _Optional[_Iterable[_Union[FireState, _Mapping]]] = ..., paced_wait_s: _Optional[float] = ...) -> None: ...

@@ -1,0 +1,109 @@
+from services.msgs import common_pb2 as _common_pb2
+from services.msgs import fire_pb2 as _fire_pb2
+from services.msgs import vehicle_pb2 as _vehicle_pb2
+from google.protobuf.internal import containers as _containers
+from google.protobuf.internal import enum_type_wrapper as _enum_type_wrapper
+from google.protobuf import descriptor as _descriptor
+from google.protobuf import message as _message
+from collections.abc import Iterable as _Iterable, Mapping as _Mapping
+from typing import ClassVar as _ClassVar, Optional as _Optional, Union as _Union
+
+DESCRIPTOR: _descriptor.FileDescriptor
+
+class Objective(int, metaclass=_enum_type_wrapper.EnumTypeWrapper):
+    __slots__ = ()
+    OBJECTIVE_UNSPECIFIED: _ClassVar[Objective]
+    OBJECTIVE_MISSION_TIME: _ClassVar[Objective]
+    OBJECTIVE_ENERGY: _ClassVar[Objective]
+
+class PlanStatus(int, metaclass=_enum_type_wrapper.EnumTypeWrapper):
+    __slots__ = ()
+    PLAN_STATUS_UNSPECIFIED: _ClassVar[PlanStatus]
+    PLAN_STATUS_OK: _ClassVar[PlanStatus]
+    PLAN_STATUS_INFEASIBLE: _ClassVar[PlanStatus]
+    PLAN_STATUS_TIMEOUT: _ClassVar[PlanStatus]
+    PLAN_STATUS_NO_PATH: _ClassVar[PlanStatus]
+    PLAN_STATUS_UNSAFE: _ClassVar[PlanStatus]
+    PLAN_STATUS_INVALID_INPUT: _ClassVar[PlanStatus]
+    PLAN_STATUS_ERROR: _ClassVar[PlanStatus]
+OBJECTIVE_UNSPECIFIED: Objective
+OBJECTIVE_MISSION_TIME: Objective
+OBJECTIVE_ENERGY: Objective
+PLAN_STATUS_UNSPECIFIED: PlanStatus
+PLAN_STATUS_OK: PlanStatus
+PLAN_STATUS_INFEASIBLE: PlanStatus
+PLAN_STATUS_TIMEOUT: PlanStatus
+PLAN_STATUS_NO_PATH: PlanStatus
+PLAN_STATUS_UNSAFE: PlanStatus
+PLAN_STATUS_INVALID_INPUT: PlanStatus
+PLAN_STATUS_ERROR: PlanStatus
+
+class MissionSpec(_message.Message):
+    __slots__ = ("mission_id", "seed", "goal", "area_size_m", "operator_waypoints")
+    MISSION_ID_FIELD_NUMBER: _ClassVar[int]
+    SEED_FIELD_NUMBER: _ClassVar[int]
+    GOAL_FIELD_NUMBER: _ClassVar[int]
+    AREA_SIZE_M_FIELD_NUMBER: _ClassVar[int]
+    OPERATOR_WAYPOINTS_FIELD_NUMBER: _ClassVar[int]
+    mission_id: str
+    seed: int
+    goal: _common_pb2.Rect
+    area_size_m: float
+    operator_waypoints: _containers.RepeatedCompositeFieldContainer[_common_pb2.Vec2]
+    def __init__(self, mission_id: _Optional[str] = ..., seed: _Optional[int] = ..., goal: _Optional[_Union[_common_pb2.Rect, _Mapping]] = ..., area_size_m: _Optional[float] = ..., operator_waypoints: _Optional[_Iterable[_Union[_common_pb2.Vec2, _Mapping]]] = ...) -> None: ...
+
+class PlanRequest(_message.Message):
+    __slots__ = ("header", "mission", "step", "system", "objective", "state", "prev_control", "fires", "deadline_s", "prepare")
+    HEADER_FIELD_NUMBER: _ClassVar[int]
+    MISSION_FIELD_NUMBER: _ClassVar[int]
+    STEP_FIELD_NUMBER: _ClassVar[int]
+    SYSTEM_FIELD_NUMBER: _ClassVar[int]
+    OBJECTIVE_FIELD_NUMBER: _ClassVar[int]
+    STATE_FIELD_NUMBER: _ClassVar[int]
+    PREV_CONTROL_FIELD_NUMBER: _ClassVar[int]
+    FIRES_FIELD_NUMBER: _ClassVar[int]
+    DEADLINE_S_FIELD_NUMBER: _ClassVar[int]
+    PREPARE_FIELD_NUMBER: _ClassVar[int]
+    header: _common_pb2.Header
+    mission: MissionSpec
+    step: int
+    system: int
+    objective: Objective
+    state: _vehicle_pb2.VehicleState
+    prev_control: _common_pb2.Force2
+    fires: _fire_pb2.FireState
+    deadline_s: float
+    prepare: bool
+    def __init__(self, header: _Optional[_Union[_common_pb2.Header, _Mapping]] = ..., mission: _Optional[_Union[MissionSpec, _Mapping]] = ..., step: _Optional[int] = ..., system: _Optional[int] = ..., objective: _Optional[_Union[Objective, str]] = ..., state: _Optional[_Union[_vehicle_pb2.VehicleState, _Mapping]] = ..., prev_control: _Optional[_Union[_common_pb2.Force2, _Mapping]] = ..., fires: _Optional[_Union[_fire_pb2.FireState, _Mapping]] = ..., deadline_s: _Optional[float] = ..., prepare: _Optional[bool] = ...) -> None: ...
+
+class Plan(_message.Message):
+    __slots__ = ("header", "step", "system", "status", "states", "controls", "compute_time_s", "objective", "cost", "path_m", "message", "info_json", "request_seq", "service_time_s")
+    HEADER_FIELD_NUMBER: _ClassVar[int]
+    STEP_FIELD_NUMBER: _ClassVar[int]
+    SYSTEM_FIELD_NUMBER: _ClassVar[int]
+    STATUS_FIELD_NUMBER: _ClassVar[int]
+    STATES_FIELD_NUMBER: _ClassVar[int]
+    CONTROLS_FIELD_NUMBER: _ClassVar[int]
+    COMPUTE_TIME_S_FIELD_NUMBER: _ClassVar[int]
+    OBJECTIVE_FIELD_NUMBER: _ClassVar[int]
+    COST_FIELD_NUMBER: _ClassVar[int]
+    PATH_M_FIELD_NUMBER: _ClassVar[int]
+    MESSAGE_FIELD_NUMBER: _ClassVar[int]
+    INFO_JSON_FIELD_NUMBER: _ClassVar[int]
+    REQUEST_SEQ_FIELD_NUMBER: _ClassVar[int]
+    SERVICE_TIME_S_FIELD_NUMBER: _ClassVar[int]
+    header: _common_pb2.Header
+    step: int
+    system: int
+    status: PlanStatus
+    states: _containers.RepeatedScalarFieldContainer[float]
+    controls: _containers.RepeatedScalarFieldContainer[float]
+    compute_time_s: float
+    objective: Objective
+    cost: float
+    path_m: _containers.RepeatedScalarFieldContainer[float]
+    message: str
+    info_json: str
+    request_seq: int
+    service_time_s: float
+    def __init__(self, header: _Optional[_Union[_common_pb2.Header, _Mapping]] = ..., step: _Optional[int] = ..., system: _Optional[int] = ..., status: _Optional[_Union[PlanStatus, str]] = ..., states: _Optional[_Iterable[float]] = ..., controls: _Optional[_Iterable[float]] = ..., compute_time_s: _Optional[float] = ..., objective: _Optional[_Union[Objective, str]] = ..., cost: _Optional[float] = ..., path_m: _Optional[_Iterable[float]] = ..., message: _Optional[str] = ..., info_json: _Optional[str] = ..., request_seq: _Optional[int] = ..., service_time_s: _Optional[float] = ...) -> None: ...

@@ -1,0 +1,38 @@
+"""A Zenoh router in a Python process: the local stand-in for ``zenohd``.
+
+No package here ships zenohd; a zenoh-python session in ``router`` mode
+routes for clients just the same (ARCHITECTURE §10). ``docker compose`` uses
+the ``eclipse/zenoh`` image instead. ``python -m services.router --listen
+tcp/127.0.0.1:7447``.
+"""
+
+from __future__ import annotations
+
+import sys
+
+from services.common import bus
+from services.common import cli as common_cli
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = common_cli.parser("router", __doc__.splitlines()[0])
+    p.set_defaults(zenoh_mode="router", zenoh_connect="",
+                   zenoh_listen=common_cli.env("ZENOH_LISTEN", "tcp/127.0.0.1:7447"))
+    args = p.parse_args(argv)
+    args.zenoh_mode = "router"
+    try:
+        settings = common_cli.settings("router", args)
+    except ValueError as err:
+        p.error(str(err))
+    if not settings.zenoh_listen:
+        p.error("a router needs --zenoh-listen")
+
+    def body(ctx: bus.Context) -> None:
+        ctx.announce()
+        ctx.stop.wait()
+
+    return bus.run_service(settings, body)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

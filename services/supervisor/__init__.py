@@ -1,0 +1,1 @@
+"""The supervisor service: decision loop, offboard companion (``python -m services.supervisor``)."""

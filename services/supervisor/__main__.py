@@ -1,0 +1,158 @@
+"""Supervisor service: the cognitive controller's decision loop, the vehicle's offboard companion.
+
+Waits for the EWS, the planners it needs and the vehicle (liveliness tokens
+and a MAVLink heartbeat), flies one mission (services/supervisor/loop.py),
+writes its records to ``--out`` and announces the end on ``mission/event``.
+It then keeps streaming the last setpoint until stopped (or exits with
+``--exit-after-mission``).
+"""
+
+from __future__ import annotations
+
+import logging
+import sys
+import time
+from pathlib import Path
+
+from dualpilot.geometry import Rect
+from dualpilot.mission import Controller, MissionParams, Timing
+from services.common import bus, codec, keys
+from services.common import cli as common_cli
+from services.common.clock import SimClock
+from services.common.log import fields
+
+from .link import VehicleLink
+from .loop import Aborted, StackMission, StackParams
+
+log = logging.getLogger("services.supervisor")
+
+
+def needed_services(controller: Controller) -> set[str]:
+    planners = {Controller.CC: {"system1", "system2"}, Controller.S1: {"system1"},
+                Controller.S2: {"system2"}}[controller]
+    return {"ews", "uavsim"} | planners
+
+
+def parse_goal(text: str) -> Rect:
+    try:
+        cx, cy, w, h = (float(v) for v in text.split(","))
+    except ValueError as err:
+        raise ValueError(f"--goal must be 'east,north,width,height', got {text!r}") from err
+    return Rect(cx, cy, w, h)
+
+
+def main(argv: list[str] | None = None) -> int:
+    env = common_cli.env
+    p = common_cli.parser("supervisor", __doc__.splitlines()[0],
+                          mavlink_default="udpout:127.0.0.1:14540")
+    g = p.add_argument_group("mission")
+    g.add_argument("--controller", default=env("CONTROLLER", "cc"),
+                   choices=[c.value for c in Controller], help="[CONTROLLER]")
+    g.add_argument("--seed", type=int, default=env("MISSION_SEED", "7"), help="[MISSION_SEED]")
+    g.add_argument("--timing", default=env("TIMING", "paper"), choices=[t.value for t in Timing],
+                   help="planning time T_s: the paper's 155 ms / 5 s or measured [TIMING]")
+    g.add_argument("--goal", default=env("GOAL", "900,900,100,100"),
+                   help="goal rectangle 'east,north,width,height' in m [GOAL]")
+    g.add_argument("--area-size-m", type=float, default=env("AREA_SIZE_M", "1000"),
+                   help="[AREA_SIZE_M]")
+    g.add_argument("--max-steps", type=int, default=env("MAX_STEPS", "150"),
+                   help="[MAX_STEPS]")
+    g.add_argument("--waypoints", default=env("OPERATOR_WAYPOINTS", ""),
+                   help="System 1's operator waypoints 'e1,n1;e2,n2' [OPERATOR_WAYPOINTS]")
+    g.add_argument("--mission-id", default=env("MISSION_ID", ""),
+                   help="default: <uav>-<seed>-<unix time> [MISSION_ID]")
+    g.add_argument("--out", default=env("RUN_DIR", ""),
+                   help="write summary.json, steps.csv, trace.json, latency.csv here [RUN_DIR]")
+    g.add_argument("--exit-after-mission", action="store_true",
+                   default=env("EXIT_AFTER_MISSION", "0") == "1", help="[EXIT_AFTER_MISSION=1]")
+    s = p.add_argument_group("stack")
+    s.add_argument("--wait-services-s", type=float, default=env("WAIT_SERVICES_S", "120"),
+                   help="how long to wait for the other services [WAIT_SERVICES_S]")
+    s.add_argument("--plan-deadline-s", default=env("PLAN_DEADLINE_S", "30,120"),
+                   help="'s1,s2' wall seconds a plan request waits [PLAN_DEADLINE_S]")
+    s.add_argument("--setpoint-rate-hz", type=float, default=env("SETPOINT_RATE_HZ", "20"),
+                   help="setpoint stream rate, >= 10 [SETPOINT_RATE_HZ]")
+    s.add_argument("--sysid", type=int, default=env("MAV_SYSID", "1"),
+                   help="the vehicle's MAVLink system id [MAV_SYSID]")
+    s.add_argument("--altitude-m", type=float, default=env("UAV_ALTITUDE_M", "50"),
+                   help="[UAV_ALTITUDE_M]")
+    s.add_argument("--signing-passphrase", default=env("MAVLINK_SIGNING_PASSPHRASE", ""),
+                   help="sign the offboard link [MAVLINK_SIGNING_PASSPHRASE]")
+    args = p.parse_args(argv)
+    try:
+        settings = common_cli.settings("supervisor", args)
+        controller, timing = Controller(args.controller), Timing(args.timing)
+        goal = parse_goal(args.goal)
+        waypoints = codec.parse_waypoints(args.waypoints)
+        deadlines = tuple(float(v) for v in args.plan_deadline_s.split(","))
+        if len(deadlines) != 2 or min(deadlines) <= 0:
+            raise ValueError("--plan-deadline-s must be two positive numbers 's1,s2'")
+        params = MissionParams(max_steps=args.max_steps)
+        stack = StackParams(plan_deadline_s=(deadlines[0], deadlines[1]),
+                            altitude_m=args.altitude_m)
+        SimClock(settings.speed_factor)
+    except ValueError as err:
+        p.error(str(err))
+    mission_id = args.mission_id or f"{settings.uav_id}-{args.seed}-{int(time.time())}"
+    keys.check_id(mission_id)
+
+    def body(ctx: bus.Context) -> None:
+        assert ctx.session is not None
+        link = VehicleLink(settings.mavlink_url, args.sysid, args.altitude_m,
+                           args.setpoint_rate_hz, args.signing_passphrase)
+        link.start()
+        live = bus.Liveliness(ctx.session, settings.uav_id)
+        ctx.announce()
+        try:
+            needed = needed_services(controller)
+            log.info("waiting for services", extra=fields(services=",".join(sorted(needed))))
+            if not live.wait_for(needed, args.wait_services_s, ctx.stop):
+                if not ctx.stop.is_set():
+                    log.error("services missing", extra=fields(
+                        missing=",".join(sorted(live.missing(needed)))))
+                    ctx.exit_code = 1
+                return
+            if not link.wait_vehicle(args.wait_services_s, ctx.stop):
+                if not ctx.stop.is_set():
+                    log.error("no heartbeat from the vehicle",
+                              extra=fields(url=settings.mavlink_url))
+                    ctx.exit_code = 1
+                return
+            mission = StackMission(
+                ctx.session, link, settings.uav_id, mission_id, controller, args.seed, timing,
+                SimClock(settings.speed_factor), ctx.stop, goal=goal,
+                area_size_m=args.area_size_m, waypoints=waypoints, params=params, stack=stack)
+            t0 = time.perf_counter()
+            aborted = ""
+            try:
+                mission.run()
+            except Aborted as err:
+                aborted = str(err)
+                if not ctx.stop.is_set():
+                    log.error("mission aborted", extra=fields(reason=aborted))
+                    ctx.exit_code = 1
+            wall = time.perf_counter() - t0
+            out = Path(args.out) if args.out else None
+            if out is not None and mission.result is not None and mission.result.records:
+                paths = mission.write(out, {"wall_time_s": round(wall, 3),
+                                            "aborted": aborted or None})
+                log.info("records written", extra=fields(files=",".join(p.name for p in paths)))
+            mission.announce_end(str(out or ""), aborted)
+            r = mission.result
+            if r is not None and not aborted:
+                log.info("summary", extra=fields(
+                    success=r.success, cause=r.failure_cause, steps=r.steps,
+                    mission_time_s=r.mission_time_s, energy=round(r.energy, 3),
+                    switches=r.switches, wall_s=round(wall, 2),
+                    **{f"overhead_{k}": round(v, 3)
+                       for k, v in mission.latency.overhead_ms().items()}))
+            if not args.exit_after_mission:
+                ctx.stop.wait()
+        finally:
+            link.close()
+
+    return bus.run_service(settings, body)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

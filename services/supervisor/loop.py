@@ -1,0 +1,496 @@
+"""The distributed mission loop: :class:`dualpilot.mission.Mission`'s step over Zenoh and MAVLink.
+
+Same step semantics as the in-process loop (see its docstring), with the
+fires in the EWS, the planners in their services and the vehicle behind
+MAVLink. Step t, at simulated time τ_t (services/common/clock.py):
+
+1. the fire state is the EWS's last FireState; the vehicle state x_t the last
+   LOCAL_POSITION_NED (republished on ``vehicle/state``);
+2. Ξ_t, P_t, A_t, Ψ_t, S_t from :meth:`Supervisor.decide` (published on
+   ``supervisor/decision``); ``s1``/``s2`` force the system;
+3. the chosen system is queried (``plan/system<k>``), then the other one if
+   the plan is not OK (``cc`` only); planning takes T_s — the planners'
+   reported compute times (``--timing measured``) or the paper's 155 ms / 5 s
+   (``--timing paper``);
+4. the plan's next state x_{t+1|t} leaves at once as SET_POSITION_TARGET_LOCAL_NED
+   (type_mask 3520), due at τ_t + n·T_f + ΔT with n = ⌈T_s/T_f⌉; no OK plan:
+   the braking state;
+5. the EWS propagates the n sub-steps of the planning interval (a
+   FireAdvance query); the mission fails if a region came within d_safe of
+   the idle vehicle (its step towards the setpoint then does not count);
+6. the vehicle flies one step of Eq. (1) and reports x_{t+1}: success on
+   entering G, failure when the motion passes within d_safe of a region
+   (exact segment distance) or at the step limit.
+
+Records (:class:`MissionResult` / :class:`StepRecord`) are the in-process
+ones, so ``summary.json``, ``steps.csv`` and ``trace.json`` have the same
+format and :func:`dualpilot.plots.make_figures` draws them; ``latency.csv``
+adds the tick → setpoint latency of every step.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import logging
+import threading
+import time
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+import numpy as np
+import zenoh
+
+from dualpilot.dynamics import Array, DynamicsParams, step
+from dualpilot.fire import FireParams, FireSnapshot, substeps_for
+from dualpilot.mission import (
+    Controller,
+    MissionConfig,
+    MissionParams,
+    MissionResult,
+    StepRecord,
+    Timing,
+    segment_region_distance,
+    brake_control,
+    nearest_region_distance,
+)
+from dualpilot.plan import Objective, Plan, PlanStatus
+from dualpilot.supervisor import Decision, Supervisor, SupervisorParams
+from services.common import bus, codec, keys
+from services.common.clock import SimClock
+from services.common.log import fields
+from services.msgs import common_pb2, fire_pb2, plan_pb2, supervisor_pb2, vehicle_pb2
+
+from .link import VehicleLink
+
+log = logging.getLogger(__name__)
+
+LATENCY_COLUMNS = ["t", "tick_to_setpoint_s", "compute_s", "overhead_s", "requests",
+                   "request_wall_s", "service_s"]
+
+
+class Aborted(RuntimeError):
+    """The stack could not finish the mission (a service or the vehicle stopped answering)."""
+
+
+@dataclass(frozen=True)
+class StackParams:
+    """How the supervisor talks to the stack."""
+
+    plan_deadline_s: tuple[float, float] = (30.0, 120.0)  # System 1, System 2 (wall s)
+    fire_timeout_s: float = 30.0
+    vehicle_timeout_s: float = 10.0
+    altitude_m: float = 50.0
+
+
+@dataclass
+class Latency:
+    """Per step: tick → setpoint on the wire (s), the planners' compute (s), the rest (s).
+
+    The tick is the start of the step (after the previous step's pacing); the
+    setpoint has left when pymavlink's send returns. ``overhead`` = total −
+    compute: decision, Zenoh round trips, encoding and validation;
+    ``request_wall`` is the time spent in plan requests (round trip, the
+    planner service's decoding and encoding, and compute), ``service`` the
+    part of it the planner services report (decode, plan, encode).
+    """
+
+    rows: list[tuple[int, float, float, float, int, float, float]] = field(default_factory=list)
+
+    def add(self, t: int, total: float, compute: float, requests: int, request_wall: float,
+            service: float) -> None:
+        self.rows.append((t, total, compute, total - compute, requests, request_wall, service))
+
+    def overhead_ms(self) -> dict[str, float]:
+        if not self.rows:
+            return {}
+        o = np.array([r[3] for r in self.rows]) * 1e3
+        return {"median_ms": float(np.median(o)), "p99_ms": float(np.percentile(o, 99)),
+                "max_ms": float(o.max()), "n": float(len(o))}
+
+    def write(self, out: Path) -> Path:
+        path = out / "latency.csv"
+        with path.open("w", newline="") as fh:
+            w = csv.writer(fh)
+            w.writerow(LATENCY_COLUMNS)
+            for t, total, compute, overhead, requests, wall, service in self.rows:
+                w.writerow([t, f"{total:.6f}", f"{compute:.6f}", f"{overhead:.6f}", requests,
+                            f"{wall:.6f}", f"{service:.6f}"])
+        return path
+
+
+class StackMission:
+    """One mission flown through the services; ``run()`` flies it, ``step()`` is one tick."""
+
+    def __init__(
+        self,
+        session: zenoh.Session,
+        link: VehicleLink,
+        uav: str,
+        mission_id: str,
+        controller: Controller,
+        seed: int,
+        timing: Timing,
+        clock: SimClock,
+        stop: threading.Event,
+        goal: codec.Rect = MissionConfig().goal,
+        area_size_m: float = 1000.0,
+        waypoints: Array | None = None,
+        params: MissionParams = MissionParams(),
+        dynamics: DynamicsParams = DynamicsParams(),
+        supervisor_params: SupervisorParams = SupervisorParams(),
+        stack: StackParams = StackParams(),
+    ):
+        self.session = session
+        self.link = link
+        self.uav = uav
+        self.mission_id = mission_id
+        self.controller = controller
+        self.seed = seed
+        self.timing = timing
+        self.clock = clock
+        self.stop = stop
+        self.params = params
+        self.dyn = dynamics
+        self.stack = stack
+        self.goal = goal
+        self.area_size_m = area_size_m
+        self.waypoints = waypoints
+        self.stamper = codec.Stamper("supervisor", uav)
+        # the supervisor's stream of SeedSequence(seed).spawn(2), as the in-process mission
+        sup_rng = np.random.default_rng(np.random.SeedSequence(seed).spawn(2)[1])
+        self.supervisor = Supervisor(sup_rng, supervisor_params)
+        self.pubs = {
+            name: session.declare_publisher(key) for name, key in (
+                ("decision", keys.decision(uav)), ("state", keys.vehicle_state(uav)),
+                ("event", keys.mission_event(uav)), ("clock", keys.clock(uav)))
+        }
+        self.latency = Latency()
+        self.request_wall = self.service_time = 0.0
+        self.fire_params = FireParams()
+        self.fire_msg: fire_pb2.FireState | None = None
+        self.snapshot = FireSnapshot(regions=(), hulls=())
+        self.state = np.zeros(4)
+        self.base_ms = 0
+        self.prev_control = np.zeros(dynamics.dim)
+        self.result: MissionResult | None = None
+        self.done = False
+
+    # -- bus helpers ------------------------------------------------------------------------------
+    def _now(self) -> float:
+        return self.clock.now_s
+
+    def _fire_command(self, cmd: fire_pb2.FireCommand) -> fire_pb2.FireUpdate:
+        cmd.mission_id = self.mission_id
+        self.stamper.stamp(cmd.header, self._now())
+        try:
+            payload, enc = bus.request(self.session, keys.fire_command(self.uav), cmd,
+                                       self.stack.fire_timeout_s, self.stop)
+            update = codec.parse(payload, fire_pb2.FireUpdate, enc)
+        except (TimeoutError, bus.QueryError, codec.CodecError) as err:
+            raise Aborted(f"EWS: {err}") from err
+        if not update.states:
+            raise Aborted("EWS replied without a fire state")
+        return update
+
+    def _take_fires(self, msg: fire_pb2.FireState) -> FireSnapshot:
+        try:
+            snap = codec.snapshot_from_msg(msg)
+        except codec.CodecError as err:
+            codec.rejected("FireState", err, log)
+            raise Aborted(f"EWS sent an invalid fire state: {err}") from err
+        self.fire_msg, self.snapshot = msg, snap
+        return snap
+
+    def _publish_state(self, t: int) -> None:
+        m = vehicle_pb2.VehicleState()
+        self.stamper.stamp(m.header, self._now())
+        codec.state_to_msg(self.state, t, m, self.stack.altitude_m)
+        bus.put(self.pubs["state"], "", m)
+
+    def _event(self, kind: supervisor_pb2.MissionEventKind, **kw: object) -> None:
+        m = supervisor_pb2.MissionEvent(kind=kind, mission_id=self.mission_id,
+                                        controller=self.controller.value, seed=self.seed)
+        self.stamper.stamp(m.header, self._now())
+        pos = kw.pop("position", None)
+        for k, v in kw.items():
+            setattr(m, k, v)
+        if pos is not None:
+            m.position.east_m, m.position.north_m = (float(v) for v in np.asarray(pos)[:2])
+        bus.put(self.pubs["event"], "", m)
+
+    def _read_state(self, min_ms: int) -> Array:
+        got = self.link.wait_state(min_ms, self.stack.vehicle_timeout_s, self.stop)
+        if got is None:
+            raise Aborted(f"no vehicle state at or after {min_ms} ms")
+        return got[1]
+
+    # -- start ------------------------------------------------------------------------------------
+    def start(self) -> None:
+        """Read the vehicle's state, reset the EWS and announce the mission."""
+        got = self.link.wait_state(0, self.stack.vehicle_timeout_s, self.stop)
+        if got is None:
+            raise Aborted("no LOCAL_POSITION_NED from the vehicle")
+        self.base_ms, x0 = got
+        self.state = x0  # at rest at boot: the in-process mission's hover_state(start)
+        config = MissionConfig(start=(float(x0[0]), float(x0[1])), goal=self.goal,
+                               area_size_m=self.area_size_m)
+        self.result = MissionResult(controller=self.controller.value, seed=self.seed,
+                                    timing=self.timing.value, config=config)
+        reset = fire_pb2.FireCommand()
+        reset.reset.seed = self.seed
+        first = self._fire_command(reset).states[0]
+        self.fire_params = replace(FireParams(), substep_s=first.substep_s)
+        snap = self._take_fires(first)
+        if nearest_region_distance(self.state[:2], snap.regions) < self.params.d_safe_m:
+            raise Aborted("the start lies within d_safe of a fire")
+        self._prepare({Controller.CC: [1, 2], Controller.S1: [1],
+                       Controller.S2: [2]}[self.controller])
+        self._publish_state(0)
+        self._event(supervisor_pb2.MISSION_EVENT_KIND_STARTED, position=self.state,
+                    message=f"timing={self.timing.value} speed_factor={self.clock.speed_factor}")
+        log.info("mission started", extra=fields(
+            mission=self.mission_id, controller=self.controller.value, seed=self.seed,
+            timing=self.timing.value, start_east_m=float(x0[0]), start_north_m=float(x0[1])))
+
+    # -- one tick -------------------------------------------------------------------------------
+    def _d_t(self, t: int, snapshot: FireSnapshot) -> float:
+        if self.params.d_t_reading == "newborn":
+            regions = tuple(
+                r for r, b in zip(snapshot.regions, snapshot.born_steps, strict=True) if b == t
+            )
+        else:
+            regions = snapshot.regions
+        return nearest_region_distance(self.state[:2], regions)
+
+    def _planning_time(self, plan: Plan) -> float:
+        if self.timing is Timing.PAPER:
+            return self.params.paper_planning_time_s[plan.system - 1]
+        return plan.compute_time_s
+
+    def _plan_request(self, system: int, t: int, objective: Objective,
+                      prepare: bool = False) -> plan_pb2.PlanRequest:
+        assert self.fire_msg is not None
+        req = codec.PlanRequest(
+            seq=0,
+            mission=codec.MissionSpec(self.mission_id, self.seed, self.goal, self.area_size_m,
+                                      self.waypoints),
+            step=t, system=system, objective=objective, state=self.state,
+            prev_control=self.prev_control, fires=self.snapshot,
+            deadline_s=self.stack.plan_deadline_s[system - 1], prepare=prepare)
+        return codec.plan_request_msg(req, self.fire_msg, self.stamper, self._now())
+
+    def _prepare(self, systems: list[int]) -> None:
+        """Warm-up: each planner service builds this mission's planner before step 0."""
+        for system in systems:
+            msg = self._plan_request(system, 0, Objective.MISSION_TIME, prepare=True)
+            try:
+                payload, enc = bus.request(self.session, keys.plan(self.uav, system), msg,
+                                           self.stack.plan_deadline_s[system - 1], self.stop)
+                codec.parse(payload, plan_pb2.Plan, enc)
+            except (TimeoutError, bus.QueryError, codec.CodecError) as err:
+                raise Aborted(f"system{system} could not prepare the mission: {err}") from err
+
+    def _plan_with(self, system: int, t: int, decision: Decision) -> Plan:
+        assert self.result is not None
+        deadline = self.stack.plan_deadline_s[system - 1]
+        msg = self._plan_request(system, t, decision.objective)
+        t0 = time.perf_counter()
+        try:
+            payload, enc = bus.request(self.session, keys.plan(self.uav, system), msg, deadline,
+                                       self.stop)
+            reply = codec.parse(payload, plan_pb2.Plan, enc)
+            plan = codec.plan_from_msg(reply, system)
+            self.service_time += reply.service_time_s
+        except TimeoutError as err:
+            plan = Plan.failed(system, PlanStatus.TIMEOUT, time.perf_counter() - t0, str(err))
+        except bus.QueryError as err:
+            status = (PlanStatus.INVALID_INPUT if err.code == common_pb2.ERROR_CODE_INVALID
+                      else PlanStatus.ERROR)
+            plan = Plan.failed(system, status, time.perf_counter() - t0, f"system{system}: {err}")
+        except codec.CodecError as err:
+            codec.rejected("Plan", err, log)
+            plan = Plan.failed(system, PlanStatus.ERROR, time.perf_counter() - t0, str(err))
+        self.request_wall += time.perf_counter() - t0
+        if self.stop.is_set():
+            raise Aborted("stopped")
+        self.result.planning_time_s[f"s{system}"].append(plan.compute_time_s)
+        return plan
+
+    def _caught(self, update: fire_pb2.FireUpdate) -> bool:
+        """Take each sub-step's state; True if a region came within d_safe of the idle vehicle."""
+        last = len(update.states) - 1
+        for k, msg in enumerate(update.states):
+            try:  # the intermediate sub-steps only matter through their regions
+                regions = (self._take_fires(msg).regions if k == last
+                           else codec.regions_from_msg(msg))
+            except codec.CodecError as err:
+                codec.rejected("FireState", err, log)
+                raise Aborted(f"EWS sent an invalid fire state: {err}") from err
+            if nearest_region_distance(self.state[:2], regions) < self.params.d_safe_m:
+                if k != last:
+                    self._take_fires(msg)
+                return True
+        return False
+
+    def _advance(self, t: int, n: int) -> bool:
+        """Propagate ``n`` fire sub-steps from τ_t (now); True if the idle vehicle got caught."""
+        cmd = fire_pb2.FireCommand()
+        cmd.advance.step, cmd.advance.substeps = t, n
+        self._clock_msg(cmd.advance.clock)  # sub-step k is due at τ_t + k·T_f
+        update = self._fire_command(cmd)
+        self.clock.advance(n * self.fire_params.substep_s)
+        return self._caught(update)
+
+    def _publish_step_start(self, decision: Decision, wanted: int) -> None:
+        clock_msg = common_pb2.Clock()
+        self._clock_msg(clock_msg)
+        self.stamper.stamp(clock_msg.header, self._now())
+        bus.put(self.pubs["clock"], "", clock_msg)
+        bus.put(self.pubs["decision"], "",
+                codec.decision_to_msg(decision, wanted, self.stamper, self._now()))
+
+    def _clock_msg(self, out: common_pb2.Clock) -> None:
+        """``out`` as the anchor that maps the current τ_t to the wall clock."""
+        a = self.clock.anchor
+        out.speed_factor = a.speed_factor
+        out.sim_time_s = self.clock.now_s
+        out.anchor_wall_ns = int(a.wall_at(self.clock.now_s) * 1e9) if a.speed_factor else a.wall_ns
+
+    def step(self) -> StepRecord | None:
+        """Run one step; returns its record, or None when the mission is over."""
+        if self.done:
+            return None
+        assert self.result is not None
+        t = self.result.steps
+        tick = time.perf_counter()
+        self.clock.start_step()
+
+        snapshot = self.snapshot
+        d_t = self._d_t(t, snapshot)
+        decision = self.supervisor.decide(t, d_t)
+        wanted = {Controller.CC: decision.system, Controller.S1: 1,
+                  Controller.S2: 2}[self.controller]
+        order = [wanted] + ([3 - wanted] if self.params.fallback
+                            and self.controller is Controller.CC else [])
+        plan: Plan | None = None
+        planning_time = compute = self.request_wall = self.service_time = 0.0
+        statuses = []
+        for system in order:
+            candidate = self._plan_with(system, t, decision)
+            planning_time += self._planning_time(candidate)
+            compute += candidate.compute_time_s
+            statuses.append(f"s{system}:{candidate.status.value}")
+            if candidate.ok:
+                plan = candidate
+                break
+        n_sub = substeps_for(planning_time, self.fire_params)
+
+        if plan is not None:
+            control = np.asarray(plan.controls[0], dtype=float)
+            target = np.asarray(plan.states[1, : 2 * self.dyn.dim], dtype=float)
+            flown = plan.system
+            planned = np.asarray(plan.states[:, : 2 * self.dyn.dim])
+            info = dict(plan.info)
+        else:
+            control = brake_control(self.state, self.dyn)
+            target = step(self.state, control, self.dyn)
+            flown = 0
+            planned = np.empty((0, 2 * self.dyn.dim))
+            info = {}
+        # The setpoint leaves as soon as the plan is known, stamped with the simulated time
+        # it is due (after the planning interval and one ΔT of flight). The fire propagation
+        # of the planning interval is the simulated world catching up, not the control path:
+        # if it reaches the idle vehicle the mission has failed (Sec. IV), and the vehicle's
+        # step towards this setpoint is not counted.
+        due_ms = self.base_ms + round(
+            (self.clock.now_s + n_sub * self.fire_params.substep_s + self.dyn.dt_s) * 1000)
+        sent = self.link.send_setpoint(target, due_ms)
+        self.latency.add(t, sent - tick, compute, len(statuses), self.request_wall,
+                         self.service_time)
+        self._publish_step_start(decision, wanted)  # observers: off the control path
+        caught = self._advance(t, n_sub)
+        record = StepRecord(
+            t=t, state=self.state.copy(), control=control, decision=decision, system=flown,
+            plan_status=";".join(statuses), planning_time_s=planning_time, fire_substeps=n_sub,
+            d_t=d_t, fires_active=len(snapshot.regions), planned_positions=planned,
+            snapshot=snapshot, info=info,
+        )
+        self.result.records.append(record)
+        if caught:
+            return self._finish(False, "fire_while_planning", record)
+
+        prev_pos = self.state[:2].copy()
+        self.state = self._read_state(due_ms)
+        self.clock.advance(self.dyn.dt_s)
+        self.result.energy += float(np.sum((control - self.prev_control) ** 2))
+        self.prev_control = control
+        if self.result.records[:-1] and flown and flown != self.result.records[-2].system:
+            self.result.switches += 1
+        self.result.steps = t + 1
+        self.result.mission_time_s = self.result.steps * self.dyn.dt_s
+        self._publish_state(t + 1)
+        self.clock.sleep_until_now(self.stop)  # the flight lasts ΔT of simulated time
+        if self.params.fire_substeps_per_motion and self._advance(
+                t, self.params.fire_substeps_per_motion):
+            return self._finish(False, "fire_in_flight", record)
+        regions = self.snapshot.regions
+        if segment_region_distance(prev_pos, self.state[:2], regions) < self.params.d_safe_m:
+            return self._finish(False, "fire_contact", record)
+        if self.result.config.goal.contains(self.state[:2]):
+            return self._finish(True, "", record)
+        if self.result.steps >= self.params.max_steps:
+            return self._finish(False, "step_limit", record)
+        self._event(supervisor_pb2.MISSION_EVENT_KIND_STEP, step=t, flown_system=flown,
+                    position=self.state, fires_active=len(regions),
+                    plan_status=record.plan_status, mission_time_s=self.result.mission_time_s)
+        return record
+
+    def _finish(self, success: bool, cause: str, record: StepRecord) -> StepRecord:
+        assert self.result is not None
+        self.done = True
+        self.result.success = success
+        self.result.failure_cause = cause
+        self.result.final_state = self.state.copy()
+        self._event(supervisor_pb2.MISSION_EVENT_KIND_STEP, step=record.t,
+                    flown_system=record.system, position=self.state,
+                    fires_active=len(self.snapshot.regions), plan_status=record.plan_status,
+                    mission_time_s=self.result.mission_time_s)
+        log.info("mission ended", extra=fields(success=success, cause=cause,
+                                               steps=self.result.steps))
+        return record
+
+    def run(self) -> MissionResult:
+        self.start()
+        while self.step() is not None:
+            pass
+        assert self.result is not None
+        return self.result
+
+    def announce_end(self, run_dir: str, aborted: str = "") -> None:
+        r = self.result
+        if aborted or r is None:
+            self._event(supervisor_pb2.MISSION_EVENT_KIND_ABORTED, message=aborted[:1000],
+                        success=False, failure_cause="aborted")
+            return
+        self._event(supervisor_pb2.MISSION_EVENT_KIND_ENDED, step=r.steps, success=r.success,
+                    failure_cause=r.failure_cause, mission_time_s=r.mission_time_s,
+                    position=self.state, message=run_dir)
+
+    def write(self, out: Path, extra: dict[str, object]) -> list[Path]:
+        """summary.json, steps.csv, trace.json (dualpilot.records) and latency.csv."""
+        from dualpilot.records import write_all
+
+        assert self.result is not None
+        paths = write_all(self.result, out)
+        summary = json.loads((out / "summary.json").read_text())
+        summary["stack"] = {
+            "mission_id": self.mission_id, "transport": "zenoh + mavlink",
+            "speed_factor": self.clock.speed_factor or "unpaced",
+            "setpoint_overhead": self.latency.overhead_ms(),
+            "setpoints_sent": self.link.sent, "rejected_messages": dict(codec.REJECTIONS),
+            **extra,
+        }
+        (out / "summary.json").write_text(json.dumps(summary, indent=2, default=str) + "\n")
+        paths.append(self.latency.write(out))
+        return paths

@@ -1,0 +1,37 @@
+"""System 1 service: operator waypoints or RRT (Alg. 1) tracked by LQR, as a Zenoh queryable.
+
+Answers PlanRequests on ``<ns>/plan/system1`` (services/common/planning.py)
+with :class:`dualpilot.system1.System1`, one instance per mission, seeded as
+:func:`dualpilot.factory.make_system1` does in-process. Operator waypoints
+come with the mission (PlanRequest.mission) and as live updates on
+``<ns>/operator/waypoints``.
+"""
+
+from __future__ import annotations
+
+import sys
+
+from dualpilot.factory import make_system1
+from dualpilot.mission import MissionConfig
+from dualpilot.plan import Planner
+from services.common import bus, codec, planning
+from services.common import cli as common_cli
+
+
+def make(mission: codec.MissionSpec) -> Planner:
+    config = MissionConfig(goal=mission.goal, area_size_m=mission.area_size_m)
+    return make_system1(config, mission.seed)
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = common_cli.parser("system1", __doc__.splitlines()[0])
+    args = p.parse_args(argv)
+    try:
+        settings = common_cli.settings("system1", args)
+    except ValueError as err:
+        p.error(str(err))
+    return bus.run_service(settings, lambda ctx: planning.run(ctx, 1, make))
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,221 @@
+"""The wire contract: generated code is current, and the codec converts and validates.
+
+No processes here: these are the checks every service relies on.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+from dualpilot.dynamics import DynamicsParams, step
+from dualpilot.fire import FireField, FireParams
+from dualpilot.geometry import Polytope, Rect
+from dualpilot.plan import Objective, Plan, PlanStatus
+from dualpilot.supervisor import Supervisor
+from services import protogen
+from services.common import codec
+from services.msgs import common_pb2, fire_pb2, plan_pb2, supervisor_pb2
+
+pytestmark = pytest.mark.timeout(60)
+
+
+def test_generated_messages_are_up_to_date(tmp_path: Path) -> None:
+    """Regenerate from proto/ into a temporary directory: services/msgs must be identical."""
+    fresh = {p.name: p.read_text() for p in protogen.generate(tmp_path)}
+    committed = {p.name: p.read_text() for p in protogen.MSGS_DIR.iterdir()
+                 if p.suffix in (".py", ".pyi")}
+    stale = sorted(n for n in fresh if committed.get(n) != fresh[n])
+    extra = sorted(set(committed) - set(fresh))
+    assert not stale and not extra, (
+        f"services/msgs is out of date (stale {stale}, extra {extra}): run `make proto`")
+
+
+def test_every_message_has_a_header_and_enums_start_unspecified() -> None:
+    from services.msgs import vehicle_pb2
+
+    bus_messages: list[Any] = [fire_pb2.FireState, fire_pb2.FireForecast, fire_pb2.FireCommand,
+                    fire_pb2.FireUpdate, plan_pb2.PlanRequest, plan_pb2.Plan,
+                    supervisor_pb2.Decision, supervisor_pb2.MissionEvent,
+                    vehicle_pb2.VehicleState, vehicle_pb2.OperatorWaypoints, common_pb2.Clock,
+                    common_pb2.Error]
+    for cls in bus_messages:
+        assert "header" in cls.DESCRIPTOR.fields_by_name, cls.DESCRIPTOR.full_name
+    for module in (common_pb2, plan_pb2, supervisor_pb2):
+        for enum in module.DESCRIPTOR.enum_types_by_name.values():
+            assert enum.values[0].number == 0 and enum.values[0].name.endswith("_UNSPECIFIED")
+
+
+def _fires(seed: int = 3, substeps: int = 12) -> FireField:
+    rng = np.random.default_rng(seed)
+    field = FireField(params=FireParams(p_survive=1.0))  # every front survives: rich hulls
+    for _ in range(4):
+        field.spawn(rng, 0)
+    for _ in range(substeps):
+        field.substep(rng, 0)
+    return field
+
+
+def test_fire_state_round_trip_is_exact() -> None:
+    field = _fires()
+    snap = field.snapshot()
+    assert snap.regions, "the seed should leave some fronts alive"
+    msg = codec.fire_state_msg(field.fronts, field.extinct_hulls, 2, field.substeps_done, 0.5,
+                               codec.Stamper("ews", "uav1"), 1.5)
+    back = codec.snapshot_from_msg(codec.parse(msg.SerializeToString(), fire_pb2.FireState))
+    assert back.regions == snap.regions
+    assert back.front_ids == snap.front_ids and back.born_steps == snap.born_steps
+    for a, b in zip(back.hulls, snap.hulls, strict=True):
+        assert np.array_equal(a.vertices, b.vertices)
+        assert np.array_equal(a.A, b.A) and np.array_equal(a.b, b.b)
+
+
+def test_fast_hull_decoding_equals_from_vertices() -> None:
+    rng = np.random.default_rng(0)
+    for _ in range(300):
+        pts = rng.normal(size=(int(rng.integers(3, 25)), 2)) * 200 + 500
+        poly = Polytope.from_vertices(pts)
+        m = common_pb2.Polygon()
+        codec.polygon_to_msg(poly, m)
+        back = codec.polygon_from_msg(m)
+        assert np.array_equal(back.A, poly.A) and np.array_equal(back.b, poly.b)
+        # the same vertices in another order still decode to the same polygon (slow path)
+        m2 = common_pb2.Polygon()
+        m2.vertices_m.extend(np.roll(poly.vertices, 1, axis=0)[::-1].ravel().tolist())
+        assert np.allclose(codec.polygon_from_msg(m2).vertices, poly.vertices)
+
+
+def test_plan_round_trip_keeps_the_trajectory() -> None:
+    dyn = DynamicsParams()
+    x0 = np.array([50.0, 50.0, 1.0, -2.0])
+    controls = np.array([[3.0, 1.0], [-1.0, 2.0], [0.5, -7.5]])
+    states = [x0]
+    for u in controls:
+        states.append(step(states[-1], u, dyn))
+    plan = Plan(system=2, status=PlanStatus.OK, states=np.array(states), controls=controls,
+                compute_time_s=0.042, objective=Objective.ENERGY, cost=12.5,
+                path=np.array([[50.0, 50.0], [900.0, 900.0]]), message="ok",
+                info={"source": "mpc", "iters": np.int64(3), "arr": np.zeros(2)})
+    msg = codec.plan_to_msg(plan, 7, 99, codec.Stamper("system2", "uav1"))
+    back = codec.plan_from_msg(codec.parse(msg.SerializeToString(), plan_pb2.Plan), 2)
+    assert np.array_equal(back.states, plan.states)
+    assert np.array_equal(back.controls, plan.controls)
+    assert back.status is PlanStatus.OK and back.objective is Objective.ENERGY
+    assert back.cost == 12.5 and back.compute_time_s == 0.042
+    assert back.info == {"source": "mpc", "iters": 3, "arr": [0.0, 0.0]}
+    assert msg.request_seq == 99 and msg.step == 7
+
+
+def test_decision_round_trip() -> None:
+    sup = Supervisor(np.random.default_rng(1))
+    d = sup.decide(3, 120.0)
+    msg = codec.decision_to_msg(d, 2, codec.Stamper("supervisor", "uav1"), 4.5)
+    back = codec.decision_from_msg(codec.parse(msg.SerializeToString(), supervisor_pb2.Decision))
+    assert back.t == 3 and back.system == d.system and back.attention == d.attention
+    assert np.array_equal(back.xi, d.xi) and np.array_equal(back.psi, d.psi)
+    assert msg.commanded_system == 2
+    no_fire = codec.decision_to_msg(sup.decide(4, math.inf), 1, codec.Stamper("s", "u"), 0.0)
+    assert codec.decision_from_msg(no_fire).d_t == math.inf
+
+
+def _request(**changes: object) -> plan_pb2.PlanRequest:
+    field = _fires()
+    stamper = codec.Stamper("supervisor", "uav1")
+    fires = codec.fire_state_msg(field.fronts, [], 0, 1, 0.5, stamper, 0.0)
+    req = codec.PlanRequest(
+        seq=0, mission=codec.MissionSpec("m-1", 7, Rect(900, 900, 100, 100), 1000.0, None),
+        step=0, system=1, objective=Objective.MISSION_TIME,
+        state=np.array([50.0, 50.0, 0.0, 0.0]), prev_control=np.zeros(2),
+        fires=codec.snapshot_from_msg(fires), deadline_s=5.0)
+    msg = codec.plan_request_msg(req, fires, stamper, 0.0)
+    for path, value in changes.items():
+        obj: object = msg
+        *parents, leaf = path.split("__")
+        for p in parents:
+            obj = getattr(obj, p)
+        setattr(obj, leaf, value)
+    return msg
+
+
+def test_plan_request_round_trip() -> None:
+    req = codec.plan_request_from_msg(_request())
+    assert req.system == 1 and req.mission.goal == Rect(900, 900, 100, 100)
+    assert np.array_equal(req.state, [50.0, 50.0, 0.0, 0.0]) and req.deadline_s == 5.0
+
+
+@pytest.mark.parametrize(
+    ("changes", "match"),
+    [
+        ({"header__schema_version": 2}, "schema_version"),
+        ({"state__east_m": math.nan}, "finite"),
+        ({"state__velocity_north_mps": 1e9}, "within"),
+        ({"system": 3}, "system must be 1 or 2"),
+        ({"deadline_s": 0.0}, "deadline_s"),
+        ({"mission__goal__width_m": -1.0}, "positive"),
+        ({"objective": 0}, "objective"),
+        ({"prev_control__east_n": math.inf}, "finite"),
+    ],
+)
+def test_invalid_plan_requests_are_rejected(changes: dict[str, object], match: str) -> None:
+    with pytest.raises(codec.CodecError, match=match) as info:
+        codec.plan_request_from_msg(codec.parse(_request(**changes).SerializeToString(),
+                                                plan_pb2.PlanRequest))
+    assert info.value.code == common_pb2.ERROR_CODE_INVALID
+
+
+def test_bad_geometry_and_sizes_are_rejected() -> None:
+    msg = _request()
+    msg.fires.fronts[0].hull.vertices_m[:] = [0.0, 0.0, 1.0, 1.0, 2.0, 2.0]  # collinear
+    with pytest.raises(codec.CodecError, match="hull"):
+        codec.plan_request_from_msg(msg)
+    msg = _request()
+    msg.fires.fronts[0].hull.vertices_m.append(1.0)  # odd number of coordinates
+    with pytest.raises(codec.CodecError, match="multiple of 2"):
+        codec.plan_request_from_msg(msg)
+    msg = _request()
+    for _ in range(codec.MAX_FRONTS + 1):
+        msg.fires.fronts.add()
+    with pytest.raises(codec.CodecError, match="fronts"):
+        codec.plan_request_from_msg(msg)
+
+
+def test_garbage_is_malformed_and_counted() -> None:
+    before = codec.REJECTIONS["PlanRequest-test"]
+    with pytest.raises(codec.CodecError) as info:
+        codec.parse(b"\xff\xff\xff\x00garbage", plan_pb2.PlanRequest)
+    assert info.value.code == common_pb2.ERROR_CODE_MALFORMED
+    codec.rejected("PlanRequest-test", info.value)
+    assert codec.REJECTIONS["PlanRequest-test"] == before + 1
+    with pytest.raises(codec.CodecError, match="expected dualpilot.v1.Plan"):
+        codec.parse(b"", plan_pb2.Plan, "application/protobuf;dualpilot.v1.Decision")
+
+
+def test_an_ok_plan_must_be_consistent() -> None:
+    msg = plan_pb2.Plan(system=1, status=plan_pb2.PLAN_STATUS_OK, compute_time_s=0.1)
+    msg.states.extend([0.0] * 8)
+    msg.controls.extend([0.0] * 4)  # two controls for two states
+    with pytest.raises(codec.CodecError, match="T\\+1 states"):
+        codec.plan_from_msg(msg)
+    with pytest.raises(codec.CodecError, match="expected 2"):
+        codec.plan_from_msg(plan_pb2.Plan(system=1, status=plan_pb2.PLAN_STATUS_OK), 2)
+
+
+def test_ned_mapping_swaps_axes_and_flips_altitude() -> None:
+    x = np.array([100.0, 200.0, 3.0, -4.0])  # east, north, v_east, v_north
+    n, e, d, vn, ve, vd = codec.state_to_ned(x, 50.0)
+    assert (n, e, d, vn, ve, vd) == (200.0, 100.0, -50.0, -4.0, 3.0, 0.0)
+    assert np.array_equal(codec.state_from_ned(n, e, vn, ve), x)
+    with pytest.raises(codec.CodecError, match="finite"):
+        codec.state_from_ned(math.nan, 0.0, 0.0, 0.0)
+
+
+def test_parse_waypoints() -> None:
+    wps = codec.parse_waypoints("100,200; 300,400")
+    assert wps is not None and np.array_equal(wps, [[100, 200], [300, 400]])
+    assert codec.parse_waypoints("  ") is None
+    with pytest.raises(ValueError, match="waypoints"):
+        codec.parse_waypoints("1,2,3")

@@ -1,0 +1,88 @@
+"""docker-compose.yml validated offline, and the local launcher's reading of it.
+
+No Docker engine runs here and Debian's ``docker-compose config -q`` is not
+installed, so :func:`services.launch.check_compose` checks the structure the
+stack relies on (pinned router image, one image for every service, commands
+that name existing service modules, string environments connecting to the
+router by name); these tests also check that the launcher maps the same
+file onto loopback, so the two ways of running cannot drift apart.
+"""
+
+from __future__ import annotations
+
+import copy
+from pathlib import Path
+from typing import Any
+
+import pytest
+import yaml
+
+from services import launch
+from services.common import keys
+
+pytestmark = pytest.mark.timeout(30)
+
+
+@pytest.fixture(scope="module")
+def doc() -> dict[str, Any]:
+    return launch.load_compose()
+
+
+def test_compose_file_is_valid(doc: dict[str, Any]) -> None:
+    services = doc["services"]
+    assert services["zenoh"]["image"] == "eclipse/zenoh:1.10.2"
+    assert set(services) == {"zenoh", *keys.SERVICES}
+    assert "14550:14550/udp" in services["uavsim"]["ports"]
+    assert services["supervisor"]["environment"]["MAVLINK_URL"] == "udpout:uavsim:14540"
+    assert services["uavsim"]["environment"]["MAVLINK_URL"] == "udpin:0.0.0.0:14540"
+
+
+@pytest.mark.parametrize(
+    ("edit", "match"),
+    [
+        (lambda d: d["services"]["zenoh"].update(image="eclipse/zenoh:latest"), "pinned"),
+        (lambda d: d["services"]["ews"].pop("command"), "missing command"),
+        (lambda d: d["services"]["ews"].update(command=["python", "-m", "services.nope"]),
+         "not a service module"),
+        (lambda d: d["services"]["system1"]["environment"].update(SPEED_FACTOR=1),
+         "strings"),
+        (lambda d: d["services"]["system2"]["environment"].update(
+            ZENOH_CONNECT="tcp/localhost:7447"), "ZENOH_CONNECT"),
+        (lambda d: d["services"]["uavsim"].update(image="other:1"), "one image"),
+        (lambda d: d["services"]["uavsim"].update(ports=["14550"]), "port"),
+        (lambda d: d["services"]["ews"].update(depends_on=[]), "depend_on"),
+    ],
+)
+def test_check_compose_rejects_drift(doc: dict[str, Any], edit: Any, match: str) -> None:
+    bad = copy.deepcopy(doc)
+    edit(bad)
+    with pytest.raises(ValueError, match=match):
+        launch.check_compose(bad)
+
+
+def test_launcher_maps_compose_onto_loopback(tmp_path: Path) -> None:
+    stack = launch.Stack(launch.StackConfig(run_dir=tmp_path, free_ports=True, seed=11,
+                                            speed_factor=0, controller="s1"))
+    assert stack.service_names() == ["ews", "system1", "system2", "uavsim", "supervisor"]
+    sup, uav = stack.service_env("supervisor"), stack.service_env("uavsim")
+    for env in (sup, uav, stack.service_env("ews")):
+        assert env["ZENOH_CONNECT"] == stack.endpoint
+        assert env["MISSION_SEED"] == "11" and env["CONTROLLER"] == "s1"
+    sup_port = sup["MAVLINK_URL"].rsplit(":", 1)[1]
+    assert sup["MAVLINK_URL"] == f"udpout:127.0.0.1:{sup_port}"
+    assert uav["MAVLINK_URL"] == f"udpin:127.0.0.1:{sup_port}"  # the same offboard link
+    assert uav["GCS_URL"].startswith("udpin:127.0.0.1:")
+    assert stack.argv("ews")[1:] == ["-m", "services.ews"]
+
+
+def test_yaml_and_launcher_agree_on_every_variable(doc: dict[str, Any], tmp_path: Path) -> None:
+    """Every compose variable reaches the local process (endpoints rewritten, rest verbatim)."""
+    raw = yaml.safe_load(launch.COMPOSE.read_text())
+    stack = launch.Stack(launch.StackConfig(run_dir=tmp_path, free_ports=True))
+    overridden = set(stack.overrides())
+    for name in stack.service_names():
+        env = stack.service_env(name)
+        for key, value in raw["services"][name]["environment"].items():
+            if key in launch.ENDPOINT_KEYS or key in overridden:
+                continue
+            assert env[key] == value, (name, key)

@@ -1,0 +1,110 @@
+"""The EWS service: the fire process of the in-process mission, published on Zenoh."""
+
+from __future__ import annotations
+
+import queue
+import time
+from typing import Any
+
+import numpy as np
+import pytest
+
+from dualpilot.fire import FireField
+from services.common import bus, codec, keys
+from services.common.clock import Anchor
+from services.msgs import common_pb2, fire_pb2
+
+pytestmark = pytest.mark.timeout(90)
+
+
+@pytest.fixture(scope="module")
+def ews(services: Any, liveliness: bus.Liveliness) -> Any:
+    services.start("ews")
+    assert liveliness.wait_for(["ews"], 60), services.log("ews")[-2000:]
+    return services
+
+
+def command(session: Any, uav: str, mission: str, **kind: Any) -> fire_pb2.FireUpdate:
+    cmd = fire_pb2.FireCommand(mission_id=mission)
+    codec.Stamper("test", uav).stamp(cmd.header)
+    if "seed" in kind:
+        cmd.reset.seed = kind["seed"]
+    else:
+        cmd.advance.step, cmd.advance.substeps = kind["step"], kind["substeps"]
+        if "anchor" in kind:
+            codec.clock_to_msg(kind["anchor"], cmd.advance.clock)
+    payload, enc = bus.request(session, keys.fire_command(uav), cmd, 30.0)
+    return codec.parse(payload, fire_pb2.FireUpdate, enc)
+
+
+def test_fires_match_the_in_process_fire_stream(ews: Any, session: Any) -> None:
+    seed = 26
+    published: queue.Queue[fire_pb2.FireState] = queue.Queue()
+    sub = session.declare_subscriber(keys.fires(ews.uav), lambda s: published.put(
+        fire_pb2.FireState.FromString(s.payload.to_bytes())))
+    first = command(session, ews.uav, "m1", seed=seed)
+    assert len(first.states) == 1 and not first.states[0].fronts
+    # the in-process mission's fire stream: SeedSequence(seed).spawn(2)[0]
+    rng = np.random.default_rng(np.random.SeedSequence(seed).spawn(2)[0])
+    field = FireField()
+    for t, n in enumerate([10, 1, 1, 10, 3, 10, 10]):
+        update = command(session, ews.uav, "m1", step=t, substeps=n)
+        assert len(update.states) == n
+        for state in update.states:
+            field.substep(rng, t)
+            got = codec.snapshot_from_msg(state)
+            want = field.snapshot()
+            assert got.regions == want.regions and got.front_ids == want.front_ids
+            assert all(np.array_equal(a.vertices, b.vertices)
+                       for a, b in zip(got.hulls, want.hulls, strict=True))
+            assert state.step == t and state.substeps_done == field.substeps_done
+    assert field.substeps_done == 45 and field.next_id > 0, "the seed should give some fires"
+    seen: list[int] = []
+    deadline = time.monotonic() + 10
+    while len(seen) < 46 and time.monotonic() < deadline:
+        try:
+            seen.append(published.get(timeout=0.5).substeps_done)
+        except queue.Empty:
+            continue
+    sub.undeclare()
+    assert seen == list(range(46)), "every sub-step is published once, in order"
+
+
+def test_publications_follow_the_clock(ews: Any, session: Any) -> None:
+    """At speed factor 10, 6 sub-steps of 0.5 s take 0.3 s of wall time."""
+    command(session, ews.uav, "m2", seed=1)
+    anchor = Anchor(sim_time_s=0.0, wall_ns=time.time_ns(), speed_factor=10.0)
+    t0 = time.monotonic()
+    update = command(session, ews.uav, "m2", step=0, substeps=6, anchor=anchor)
+    assert time.monotonic() - t0 >= 0.29
+    assert update.paced_wait_s > 0.2
+
+
+def test_forecast_is_published(ews: Any, session: Any) -> None:
+    forecasts: queue.Queue[fire_pb2.FireForecast] = queue.Queue()
+    sub = session.declare_subscriber(keys.forecast(ews.uav), lambda s: forecasts.put(
+        fire_pb2.FireForecast.FromString(s.payload.to_bytes())))
+    command(session, ews.uav, "m3", seed=26)
+    command(session, ews.uav, "m3", step=0, substeps=10)
+    last = None
+    deadline = time.monotonic() + 10
+    while time.monotonic() < deadline:
+        try:
+            last = forecasts.get(timeout=0.5)
+        except queue.Empty:
+            break
+    sub.undeclare()
+    assert last is not None and last.horizon_s == 80.0
+    for front in last.fronts:
+        assert len(front.regions) == 160 and len(front.envelope.vertices_m) >= 8
+
+
+def test_bad_commands_get_error_replies(ews: Any, session: Any) -> None:
+    with pytest.raises(bus.QueryError, match="send reset first") as info:
+        command(session, ews.uav, "never-reset", step=0, substeps=1)
+    assert info.value.code == common_pb2.ERROR_CODE_INVALID
+    with pytest.raises(bus.QueryError, match="neither reset nor advance"):
+        cmd = fire_pb2.FireCommand(mission_id="x")
+        codec.Stamper("test", ews.uav).stamp(cmd.header)
+        bus.request(session, keys.fire_command(ews.uav), cmd, 10.0)
+    command(session, ews.uav, "m4", seed=2)  # still serving

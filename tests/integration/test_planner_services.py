@@ -1,0 +1,124 @@
+"""The planner services over Zenoh: plans for valid requests, error replies for bad ones."""
+
+from __future__ import annotations
+
+import queue
+from typing import Any
+
+import numpy as np
+import pytest
+import zenoh
+
+from dualpilot.dynamics import DynamicsParams
+from dualpilot.fire import FireField, FireParams
+from dualpilot.geometry import Rect
+from dualpilot.plan import Objective, PlanStatus
+from dualpilot.verify import verify_trajectory
+from services.common import bus, codec, keys
+from services.msgs import common_pb2, plan_pb2
+
+pytestmark = pytest.mark.timeout(120)
+
+
+@pytest.fixture(scope="module")
+def planners(services: Any, liveliness: bus.Liveliness) -> Any:
+    services.start("system1")
+    services.start("system2")
+    assert liveliness.wait_for(["system1", "system2"], 90), (
+        services.log("system1")[-2000:] + services.log("system2")[-2000:])
+    return services
+
+
+def raw_query(session: Any, key: str, payload: bytes, timeout_s: float = 30.0) -> Any:
+    """Send raw bytes as a query; return the first Reply."""
+    replies: queue.Queue[Any] = queue.Queue()
+    session.get(key, zenoh.handlers.Callback(replies.put, lambda: replies.put(None)),
+                payload=payload, timeout=timeout_s)
+    reply = replies.get(timeout=timeout_s + 5)
+    assert reply is not None, f"no reply on {key}"
+    return reply
+
+
+def request(system: int, mission_id: str = "itest-mission", **state: float) -> bytes:
+    rng = np.random.default_rng(5)
+    field = FireField(params=FireParams(p_survive=1.0))
+    field.spawn(rng, 0, center=(500.0, 500.0))
+    stamper = codec.Stamper("test", "itest")
+    fires = codec.fire_state_msg(field.fronts, [], 0, 1, 0.5, stamper, 0.0)
+    x = np.array([state.get("east", 50.0), state.get("north", 50.0), 0.0, 0.0])
+    req = codec.PlanRequest(
+        seq=0, mission=codec.MissionSpec(mission_id, 7, Rect(900, 900, 100, 100), 1000.0, None),
+        step=0, system=system, objective=Objective.MISSION_TIME, state=x,
+        prev_control=np.zeros(2), fires=codec.snapshot_from_msg(fires), deadline_s=60.0)
+    return codec.plan_request_msg(req, fires, stamper, 0.0).SerializeToString()
+
+
+@pytest.mark.parametrize("system", [1, 2])
+def test_malformed_payload_gets_an_error_reply(planners: Any, session: Any,
+                                               liveliness: bus.Liveliness, system: int) -> None:
+    key = keys.plan(planners.uav, system)
+    reply = raw_query(session, key, b"\x0a\xff\xff\xff not a protobuf")
+    assert reply.ok is None, "a malformed request must not get a plan"
+    err = common_pb2.Error.FromString(reply.err.payload.to_bytes())
+    assert err.code == common_pb2.ERROR_CODE_MALFORMED
+    assert "does not parse" in err.message
+    assert str(reply.err.encoding) == "application/protobuf;dualpilot.v1.Error"
+    # still alive and answering
+    assert f"system{system}" in liveliness.alive
+    reply = raw_query(session, key, request(system))
+    assert reply.ok is not None
+
+
+def test_invalid_values_get_an_error_reply(planners: Any, session: Any) -> None:
+    msg = plan_pb2.PlanRequest.FromString(request(1))
+    msg.state.east_m = float("nan")
+    reply = raw_query(session, keys.plan(planners.uav, 1), msg.SerializeToString())
+    err = common_pb2.Error.FromString(reply.err.payload.to_bytes())
+    assert err.code == common_pb2.ERROR_CODE_INVALID and "finite" in err.message
+    msg = plan_pb2.PlanRequest.FromString(request(2))  # a System 2 request sent to System 1
+    reply = raw_query(session, keys.plan(planners.uav, 1), msg.SerializeToString())
+    assert "sent to system 1" in common_pb2.Error.FromString(reply.err.payload.to_bytes()).message
+    assert "rejected PlanRequest" in planners.log("system1")
+
+
+@pytest.mark.parametrize("system", [1, 2])
+def test_valid_request_gets_a_verified_plan(planners: Any, session: Any, system: int) -> None:
+    reply = raw_query(session, keys.plan(planners.uav, system), request(system))
+    plan = codec.plan_from_msg(plan_pb2.Plan.FromString(reply.ok.payload.to_bytes()), system)
+    assert plan.status is PlanStatus.OK, plan.message
+    assert plan.compute_time_s > 0
+    assert np.array_equal(plan.states[0], [50.0, 50.0, 0.0, 0.0])
+    hulls = tuple(f.hull for f in _one_fire())
+    verdict = verify_trajectory(plan.states, plan.controls, hulls, DynamicsParams(), 20.0)
+    assert verdict.ok, verdict.reason
+
+
+def test_a_planner_value_error_is_an_invalid_input_plan(planners: Any, session: Any) -> None:
+    """A state inside a fire reaches System 1, which refuses it: INVALID_INPUT, not a crash."""
+    reply = raw_query(session, keys.plan(planners.uav, 1), request(1, east=500.0, north=500.0))
+    plan = codec.plan_from_msg(plan_pb2.Plan.FromString(reply.ok.payload.to_bytes()), 1)
+    assert plan.status is PlanStatus.INVALID_INPUT
+    assert not plan.ok and len(plan.states) == 0
+
+
+def test_operator_waypoints_reach_system1(planners: Any, session: Any, wait_until: Any) -> None:
+    """Waypoints published on operator/waypoints are used at System 1's next plan."""
+    wps = np.array([[900.0, 100.0], [900.0, 900.0]])  # around the fire at (500, 500)
+    msg = codec.waypoints_msg(wps, codec.Stamper("operator", planners.uav))
+
+    def published_and_seen() -> bool:  # re-publish until the service logs it (no fixed sleep)
+        bus.put(session, keys.waypoints(planners.uav), msg)
+        return "operator waypoints" in planners.log("system1")
+
+    assert wait_until(published_and_seen, 10)
+    reply = raw_query(session, keys.plan(planners.uav, 1), request(1, mission_id="with-operator"))
+    plan = codec.plan_from_msg(plan_pb2.Plan.FromString(reply.ok.payload.to_bytes()), 1)
+    assert plan.status is PlanStatus.OK and plan.info.get("source") == "operator"
+    assert plan.path is not None and np.allclose(plan.path[1:], wps)
+
+
+def _one_fire() -> list[Any]:
+    rng = np.random.default_rng(5)
+    field = FireField(params=FireParams(p_survive=1.0))
+    field.spawn(rng, 0, center=(500.0, 500.0))
+    return field.fronts

@@ -1,0 +1,50 @@
+"""Every service starts, announces its liveliness token and stops cleanly on SIGINT within 2 s."""
+
+from __future__ import annotations
+
+import time
+from typing import Any
+
+import pytest
+
+from services.common import bus, keys
+from services.launch import free_port
+from services.msgs import supervisor_pb2
+
+pytestmark = pytest.mark.timeout(180)
+
+
+def test_services_announce_liveliness_and_stop_on_sigint(
+    services: Any, session: Any, liveliness: bus.Liveliness, wait_until: Any,
+) -> None:
+    offboard, gcs = free_port("udp"), free_port("udp")
+    services.start("ews")
+    services.start("system1")
+    services.start("system2")
+    services.start("uavsim", MAVLINK_URL=f"udpin:127.0.0.1:{offboard}",
+                   GCS_URL=f"udpin:127.0.0.1:{gcs}")
+    # the supervisor flies a paced mission once everyone is up: it is stopped mid-flight
+    services.start("supervisor", MAVLINK_URL=f"udpout:127.0.0.1:{offboard}", SPEED_FACTOR="5",
+                   TIMING="paper", RUN_DIR="")
+    names = list(keys.SERVICES)
+    assert liveliness.wait_for(names, 90), (
+        f"not alive: {liveliness.missing(names)}\n"
+        + "\n".join(f"--- {n}\n{services.log(n)[-2000:]}" for n in names))
+    steps: list[int] = []
+    sub = session.declare_subscriber(
+        keys.mission_event(services.uav),
+        lambda s: steps.append(supervisor_pb2.MissionEvent.FromString(s.payload.to_bytes()).kind))
+    assert wait_until(lambda: supervisor_pb2.MISSION_EVENT_KIND_STEP in steps, 60), (
+        services.log("supervisor")[-3000:])
+    sub.undeclare()
+
+    for proc in sorted(services.group.procs, key=lambda p: p.name != "supervisor"):
+        t0 = time.monotonic()
+        code = services.group.stop(proc, grace_s=5.0)  # SIGKILL only after 5 s
+        elapsed = time.monotonic() - t0
+        log = services.log(proc.name)
+        assert code == 0, f"{proc.name} exited {code}\n{log[-3000:]}"
+        assert elapsed < 2.0, f"{proc.name} took {elapsed:.2f} s to stop\n{log[-3000:]}"
+        assert "stopped" in log, log[-2000:]
+        assert wait_until(lambda p=proc: p.name not in liveliness.alive, 5.0), (
+            f"{proc.name}'s liveliness token outlived it")
