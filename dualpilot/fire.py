@@ -137,15 +137,26 @@ class FireField:
     next_id: int = 0
 
     def spawn(
-        self, rng: np.random.Generator, step: int, center: tuple[float, float] | None = None
+        self,
+        rng: np.random.Generator,
+        step: int,
+        center: tuple[float, float] | None = None,
+        keep_out: tuple[np.ndarray, float] | None = None,
     ) -> FireFront:
-        """Birth of a front: centre uniform in the area (b_t), state from the means."""
+        """Birth of a front: centre uniform in the area (b_t), state from the means.
+
+        ``keep_out = (position, radius_m)`` makes b_t uniform over the places
+        whose region stays ``radius_m`` from ``position`` (redrawn until it does).
+        """
         p = self.params
-        if center is None:
-            cx, cy = (float(v) for v in rng.uniform(0.0, p.area_size_m, size=2))
-        else:
-            cx, cy = center
-        region = _draw_rect(cx, cy, rng, p)
+        for _ in range(1000):
+            if center is None:
+                cx, cy = (float(v) for v in rng.uniform(0.0, p.area_size_m, size=2))
+            else:
+                cx, cy = center
+            region = _draw_rect(cx, cy, rng, p)
+            if keep_out is None or region.polytope().distance(keep_out[0]) >= keep_out[1]:
+                break
         front = FireFront(
             front_id=self.next_id,
             born_step=step,
@@ -158,8 +169,16 @@ class FireField:
         self.fronts.append(front)
         return front
 
-    def substep(self, rng: np.random.Generator, step: int) -> list[FireFront]:
-        """One sub-step of T_f: survival, propagation, then birth. Returns the newborn fronts."""
+    def substep(
+        self,
+        rng: np.random.Generator,
+        step: int,
+        keep_out: tuple[np.ndarray, float] | None = None,
+    ) -> list[FireFront]:
+        """One sub-step of T_f: survival, propagation, then birth. Returns the newborn fronts.
+
+        ``keep_out`` is passed to :meth:`spawn` for the birth.
+        """
         p = self.params
         survivors: list[FireFront] = []
         for front in self.fronts:
@@ -168,7 +187,7 @@ class FireField:
             elif p.keep_extinct_hulls:
                 self.extinct_hulls.append(front.hull)
         self.fronts = survivors
-        born = [self.spawn(rng, step)] if rng.random() < p.p_birth else []
+        born = [self.spawn(rng, step, keep_out=keep_out)] if rng.random() < p.p_birth else []
         self.substeps_done += 1
         return born
 

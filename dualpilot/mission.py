@@ -60,6 +60,12 @@ class MissionParams:
     #: "newborn" (only regions born at this step; inf otherwise).
     d_t_reading: str = "active"
     fallback: bool = True
+    #: None: fronts ignite anywhere (b_t uniform over the area), so one can
+    #: ignite on the UAV, a failure no planner can avoid. A distance (m): no
+    #: front ignites with its region that close to the UAV, so failures are
+    #: only those the paper attributes to slow planning (a front reaching the
+    #: hovering UAV). See the README's evaluation section.
+    ignition_clearance_m: float | None = None
 
     def __post_init__(self) -> None:
         if self.max_steps < 1 or self.d_safe_m < 0:
@@ -235,8 +241,10 @@ class Mission:
 
     def _propagate(self, n: int, t: int) -> bool:
         """Propagate the fires ``n`` sub-steps with the UAV idle; False if it gets caught."""
+        clear = self.params.ignition_clearance_m
+        keep_out = None if clear is None else (self.state[:2].copy(), clear)
         for _ in range(n):
-            self.fires.substep(self.fire_rng, t)
+            self.fires.substep(self.fire_rng, t, keep_out=keep_out)
             d = nearest_region_distance(self.state[:2], self.fires.snapshot().regions)
             if d < self.params.d_safe_m:
                 return False

@@ -83,3 +83,12 @@ def test_bad_fire_parameters():
         FireParams(p_birth=1.5)
     with pytest.raises(ValueError, match="side"):
         FireParams(side_min_m=300.0)
+
+
+def test_keep_out_births_stay_clear_of_the_uav():
+    field = FireField(params=FireParams(p_birth=1.0, p_survive=0.0))
+    rng = np.random.default_rng(9)
+    uav = np.array([500.0, 500.0])
+    for k in range(300):
+        (born,) = field.substep(rng, k, keep_out=(uav, 20.0))
+        assert born.region.polytope().distance(uav) >= 20.0
