@@ -1,0 +1,85 @@
+"""The Monte-Carlo runner: files, resume, error rows, identical configurations."""
+
+import csv
+import json
+
+import pytest
+
+from dualpilot.evaluate import evaluate, mean_interval, mission_config, wilson_interval
+
+
+def rows(path):
+    with (path / "results.csv").open() as fh:
+        return list(csv.DictReader(fh))
+
+
+@pytest.fixture(scope="module")
+def small_run(tmp_path_factory):
+    out = tmp_path_factory.mktemp("eval")
+    summary = evaluate(2, out, seed=3, timing="paper", jobs=2, progress=False)
+    return out, summary
+
+
+def test_files_and_summary(small_run):
+    out, summary = small_run
+    assert (out / "fig_r5.png").stat().st_size > 5000
+    on_disk = json.loads((out / "summary.json").read_text())
+    assert on_disk["missions"] == 2 and on_disk["timing"] == "paper"
+    for c in ("cc", "s1", "s2"):
+        ctrl = on_disk["controllers"][c]
+        assert ctrl["n"] == 2
+        for key in ("success_rate", "mission_time_s_mean", "energy_mean", "planning_time_s_median"):
+            assert key in ctrl
+    assert len(rows(out)) == 6
+
+
+def test_three_controllers_see_identical_configurations(small_run):
+    out, _ = small_run
+    by_mission = {}
+    for r in rows(out):
+        key = (r["seed"], r["start_x"], r["start_y"], r["goal_x"], r["goal_y"])
+        by_mission.setdefault(r["mission"], set()).add(key)
+    assert all(len(v) == 1 for v in by_mission.values())
+    cfg = mission_config(3, 0)
+    r0 = next(r for r in rows(out) if r["mission"] == "0")
+    assert float(r0["start_x"]) == pytest.approx(cfg.start[0])
+
+
+def test_rerun_skips_recorded_missions(small_run):
+    out, _ = small_run
+    before = rows(out)
+    evaluate(2, out, seed=3, timing="paper", jobs=1, progress=False)
+    assert rows(out) == before
+    evaluate(3, out, seed=3, timing="paper", jobs=1, controllers=["s1"], progress=False)
+    after = rows(out)
+    assert len(after) == 7 and after[:6] == before and after[6]["mission"] == "2"
+
+
+def test_a_mission_that_raises_becomes_an_error_row(tmp_path):
+    evaluate(
+        1,
+        tmp_path,
+        seed=1,
+        timing="paper",
+        jobs=1,
+        controllers=["s2"],
+        s2_method="no-such-method",
+        progress=False,
+    )
+    (row,) = rows(tmp_path)
+    assert row["failure_cause"] == "error" and "no-such-method" in row["error"]
+    assert row["success"] == "0"
+
+
+def test_timing_mismatch_is_refused(small_run):
+    out, _ = small_run
+    with pytest.raises(ValueError, match="timing"):
+        evaluate(2, out, seed=3, timing="measured", jobs=1, progress=False)
+
+
+def test_intervals_by_hand():
+    lo, hi = wilson_interval(8, 10)
+    # Wilson, z = 1.96: centre (0.8 + 0.19208) / 1.38416, half 1.96 sqrt(0.016 + 0.0096) / 1.38416
+    assert lo == pytest.approx(0.4902, abs=1e-4) and hi == pytest.approx(0.9433, abs=1e-4)
+    m, a, b = mean_interval([1.0, 2.0, 3.0])
+    assert m == 2.0 and b - m == pytest.approx(1.96 / 3**0.5)
