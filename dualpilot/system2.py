@@ -1,0 +1,628 @@
+"""System 2, the exact reference: Problem (P2) as a mixed-integer QP in cvxpy.
+
+Eq. (S2) objective, Eq. (P2_1)-(P2_6) constraints, solved to optimality by
+SCIP (or Gurobi when a working licence is present). The problem is built once
+with DPP parameters and re-solved each tick by updating ``.value``.
+
+Readings and choices (see also the README):
+
+* Avoidance, Eq. (P2_3)-(P2_4), is written for a general H-polytope with F
+  faces: α_{i,l}·p_τ ≥ β_{i,l} + ε − M b_{τ,i,l}, Σ_l b_{τ,i,l} ≤ F − 1, for
+  τ = 1..T (x_{t|t} is given, not planned). α are unit outward normals, so a
+  position satisfying it lies at least ε from the hull.
+* Fixed slots (``max_hulls`` × ``max_faces``) keep one compiled problem: a
+  padded face slot of a hull gets α = 0, β = M/2, which forces its b to 1 so
+  Σ_l b ≤ F − 1 still demands one real face (exact; repeating a real face
+  instead made SCIP branch over symmetric copies and ran ~2x slower); an
+  unused hull slot gets α = 0, β = −M (the constraint is vacuous). A hull with
+  more than ``max_faces`` faces is replaced by a containing polygon made by
+  greedily dropping the edge whose removal adds the least area (conservative).
+* Hulls that no position x_{t+τ|t} can reach within the horizon at the speed
+  limit are dropped (exact). If more than ``max_hulls`` reachable hulls remain
+  the plan is refused with INVALID_INPUT and a message (construct with a larger
+  ``System2Params.max_hulls``); no hull that matters is ever dropped silently.
+* The returned states are the roll-out of Eq. (1) under the solver's controls
+  (clipped to U by at most the solver tolerance), so a plan is exactly
+  dynamically consistent; every plan is verified with
+  :func:`dualpilot.verify.verify_trajectory` at d_safe before it is OK.
+* The objective is divided by a constant internally (``objective_scale``) for
+  the solver's numerics; ``Plan.cost`` is the true Eq. (S2) value.
+* SCIP's time limit is soft (a single cut round once ran 40 s past it) and
+  SCIP 10 corrupted its heap on one instance (abort or hang). ``isolate=True``
+  runs the solver in a persistent worker process with a hard deadline: a
+  crash becomes an ERROR plan, an overrun a TIMEOUT, and the worker restarts.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import dataclasses
+import math
+import multiprocessing
+import time
+import warnings
+import weakref
+from collections.abc import Mapping, Sequence
+from multiprocessing.connection import Connection
+from typing import Any
+
+import cvxpy as cp
+import numpy as np
+
+from .dynamics import Array, DynamicsParams, rollout, transition_matrices
+from .geometry import Polytope, Rect
+from .p2 import System2Params, p2_cost
+from .plan import Objective, Plan, PlanStatus
+from .verify import verify_trajectory
+
+D_SAFE_M = 20.0
+"""Sec. IV-A: a mission fails within d_safe of an active fire region (m)."""
+
+_SOLVERS = ("auto", "SCIP", "GUROBI")
+
+DEFAULT_SCIP_OPTIONS: dict[str, Any] = {
+    "separating/maxroundsroot": 15,
+    "separating/maxrounds": 2,
+}
+"""Fewer cut rounds: SCIP's root cut loop on the outer approximation of the
+quadratic objective otherwise ate the whole budget (T = 80: 1 hull 23 s -> ~13 s,
+3 hulls 45 s limit with 3 % gap -> optimal in 7-15 s). User options override."""
+
+
+def gurobi_available() -> bool:
+    """True if gurobipy imports and cvxpy lists Gurobi (the licence is tried on first solve)."""
+    try:
+        import gurobipy  # noqa: F401
+    except ImportError:
+        return False
+    return "GUROBI" in cp.installed_solvers()
+
+
+def face_inflated(poly: Polytope, eps: float) -> Polytope:
+    """{p : α_l·p ≤ β_l + ε ∀l}: every face pushed out by ``eps`` (m).
+
+    This is the region that Eq. (P2_3)-(P2_4) forbid; it extends beyond the
+    ε-distance offset at sharp vertices. Computed as a halfspace intersection
+    (pairwise line intersections kept if they satisfy every face).
+    """
+    if eps <= 0:
+        return poly
+    A, b = poly.A, poly.b + eps
+    pts = []
+    for i in range(len(b)):
+        for j in range(i + 1, len(b)):
+            mat = A[[i, j]]
+            if abs(np.linalg.det(mat)) < 1e-12:
+                continue
+            p = np.linalg.solve(mat, b[[i, j]])
+            if np.all(A @ p <= b + 1e-7 * (1.0 + np.abs(b))):
+                pts.append(p)
+    return Polytope.from_vertices(np.array(pts))
+
+
+def outer_simplify(poly: Polytope, max_faces: int) -> Polytope:
+    """A polygon with at most ``max_faces`` faces that contains ``poly``.
+
+    Greedily removes the edge whose removal (extending its two neighbours to
+    their intersection) adds the least area; only edges whose neighbours
+    meet on the outside (turn < π) are removable, so the result stays bounded.
+    """
+    if max_faces < 4:
+        raise ValueError(f"max_faces must be >= 4, got {max_faces}")
+    verts = [np.asarray(p, dtype=float) for p in poly.vertices]
+    while len(verts) > max_faces:
+        k = len(verts)
+        best: tuple[float, int, Array] | None = None
+        for i in range(k):
+            # edge i runs verts[i] -> verts[i+1]; its neighbours are a0->a1 and b0->b1
+            a0, a1 = verts[i - 1], verts[i]
+            b0, b1 = verts[(i + 1) % k], verts[(i + 2) % k]
+            da, db = a1 - a0, b1 - b0
+            den = da[0] * db[1] - da[1] * db[0]
+            if den <= 1e-12 * np.linalg.norm(da) * np.linalg.norm(db):
+                continue  # neighbours parallel or diverging: removal would be unbounded
+            s = ((b0 - a0)[0] * db[1] - (b0 - a0)[1] * db[0]) / den
+            r = ((b0 - a0)[0] * da[1] - (b0 - a0)[1] * da[0]) / den
+            if s < 1.0 - 1e-12 or r > 1e-12:
+                continue  # the extended neighbours would not meet outside edge i
+            apex = a0 + s * da
+            area = 0.5 * abs((b0 - a1)[0] * (apex - a1)[1] - (b0 - a1)[1] * (apex - a1)[0])
+            if best is None or area < best[0]:
+                best = (area, i, apex)
+        if best is None:  # cannot happen for a convex polygon with > 4 edges
+            raise ValueError("cannot simplify polygon conservatively")
+        _, i, apex = best
+        j = (i + 1) % k
+        # replace verts[i] and verts[j] by the apex
+        verts = [apex] + verts[1:i] if j == 0 else verts[:i] + [apex] + verts[j + 1 :]
+    return Polytope.from_vertices(np.array(verts))
+
+
+class ExactSystem2:
+    """Problem (P2) solved exactly (MIQP, big-M avoidance) with SCIP or Gurobi.
+
+    Parameters
+    ----------
+    goal : Rect
+        Goal region G; its centre is G_o of Eq. (S2). Must lie inside the area.
+    params : System2Params
+        Horizon T, M, ε, κ, slots, time limit (s).
+    dynamics : DynamicsParams
+        Eq. (1) and the bounds U, X (planar, dim = 2).
+    solver : {"auto", "SCIP", "GUROBI"}
+        "auto" tries Gurobi when available and falls back to SCIP for good
+        if Gurobi fails (e.g. a size-limited licence).
+    clearance_m : float
+        Clearance every returned plan is verified against (d_safe = 20 m).
+    objective_scale : float
+        The solver minimises J / objective_scale (numerics only: with SCIP's
+        outer approximation of the quadratic objective, 10 solved the T = 80
+        instances we tried 1.5-2x faster than 1 or 1e3).
+    solver_options : mapping, optional
+        Extra native parameters (SCIP names such as ``"limits/gap"``, or
+        Gurobi names), merged over the time limit and ``DEFAULT_SCIP_OPTIONS``.
+    isolate : bool
+        Solve in a persistent worker process with a hard deadline (see the
+        module notes). The worker is spawned on the first plan (~2 s; a
+        script using it needs the usual ``if __name__ == "__main__":`` guard)
+        and stopped by :meth:`close` or when the planner is garbage-collected.
+    hard_timeout_s : float, optional
+        With ``isolate``, the worker is killed after this long per solve
+        (default 1.5 × time_limit_s + 10 s, which covers the first compile).
+    """
+
+    system = 2
+
+    def __init__(
+        self,
+        goal: Rect,
+        params: System2Params = System2Params(),
+        dynamics: DynamicsParams = DynamicsParams(),
+        solver: str = "auto",
+        *,
+        clearance_m: float = D_SAFE_M,
+        objective_scale: float = 10.0,
+        solver_options: Mapping[str, Any] | None = None,
+        isolate: bool = False,
+        hard_timeout_s: float | None = None,
+    ) -> None:
+        if dynamics.dim != 2:
+            raise ValueError(f"ExactSystem2 plans in 2-D (Sec. IV); got dim={dynamics.dim}")
+        area = Rect(params.area_size_m / 2, params.area_size_m / 2,
+                    params.area_size_m, params.area_size_m)
+        if not goal.inside(area):
+            raise ValueError(f"goal {goal} lies outside the area [0, {params.area_size_m}]^2")
+        if params.max_hulls < 1 or params.max_faces < 4:
+            raise ValueError("need max_hulls >= 1 and max_faces >= 4")
+        if solver.upper() not in ("AUTO", "SCIP", "GUROBI"):
+            raise ValueError(f"solver must be one of {_SOLVERS}, got {solver!r}")
+        if not (clearance_m >= 0 and objective_scale > 0):
+            raise ValueError("clearance_m >= 0 and objective_scale > 0 are required")
+        if hard_timeout_s is not None and not hard_timeout_s > 0:
+            raise ValueError(f"hard_timeout_s must be positive, got {hard_timeout_s}")
+        solver = solver.upper()
+        if solver == "GUROBI" and not gurobi_available():
+            raise ValueError("solver='GUROBI' but gurobipy is not installed")
+        if solver == "SCIP" and "SCIP" not in cp.installed_solvers():
+            raise ValueError("solver='SCIP' but pyscipopt is not installed")
+        self.goal = goal
+        self.params = params
+        self.dynamics = dynamics
+        self.clearance_m = float(clearance_m)
+        self.objective_scale = float(objective_scale)
+        self.solver_options = dict(solver_options or {})
+        self.fallback_reason = ""
+        if solver == "AUTO":
+            self._solvers = ["GUROBI", "SCIP"] if gurobi_available() else ["SCIP"]
+        else:
+            self._solvers = [solver]
+        self.hard_timeout_s = (
+            1.5 * params.time_limit_s + 10.0 if hard_timeout_s is None else float(hard_timeout_s)
+        )
+        self._build()
+        self._worker: _SolverProcess | None = None
+        if isolate:
+            self._worker = _SolverProcess(
+                (goal, params, dynamics, self.objective_scale, self.solver_options)
+            )
+            self._finalizer = weakref.finalize(self, self._worker.close)
+
+    def close(self) -> None:
+        """Stop the worker process, if any (the planner stays usable; it restarts)."""
+        if self._worker is not None:
+            self._worker.close()
+
+    def __enter__(self) -> ExactSystem2:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    # ------------------------------------------------------------------ build
+    def _build(self) -> None:
+        """Compile (P2) once; every tick only sets parameter values."""
+        p, d = self.params, self.dynamics
+        T, H, F = p.horizon, p.max_hulls, p.max_faces
+        phi, gamma = transition_matrices(d)
+        big_m, eps = p.big_m, p.epsilon_m
+
+        self._x0 = cp.Parameter(4, name="x0")
+        # sqrt-weights keep the objective DPP: ‖w1 p − w1 G_o‖² = κ1/s ‖p − G_o‖²
+        self._w1 = cp.Parameter(nonneg=True, name="w1")
+        self._w1_goal = cp.Parameter(2, name="w1_goal")
+        self._w2 = cp.Parameter(nonneg=True, name="w2")
+        self._w2_uprev = cp.Parameter(2, name="w2_uprev")
+        self._alpha = cp.Parameter((H * F, 2), name="alpha")
+        self._beta = cp.Parameter((H * F, 1), name="beta")
+
+        inf = np.inf
+        pos_lo, pos_hi = (0.0, p.area_size_m) if p.keep_in_area else (-inf, inf)
+        lo = np.tile([pos_lo, pos_lo, -d.v_max_mps, -d.v_max_mps], (T, 1))
+        hi = np.tile([pos_hi, pos_hi, d.v_max_mps, d.v_max_mps], (T, 1))
+        self._X = cp.Variable((T, 4), name="X", bounds=[lo, hi])  # x_{t+1|t}..x_{t+T|t}
+        self._U = cp.Variable((T, 2), name="U", bounds=[-d.u_max_n, d.u_max_n])
+        self._B = cp.Variable((H * F, T), boolean=True, name="b")
+        xs, us, bs = self._X, self._U, self._B
+        pos = xs[:, :2]
+
+        cons = [
+            xs[0] == phi @ self._x0 + gamma @ us[0],  # Eq. (P2_1)-(P2_2)
+            xs[1:] == xs[:-1] @ phi.T + us[1:] @ gamma.T,
+            # Eq. (P2_3): α·p_τ − β ≥ ε − M b
+            self._alpha @ pos.T - self._beta @ np.ones((1, T)) >= eps - big_m * bs,
+            # Eq. (P2_4): Σ_l b ≤ F − 1 per hull and τ
+            np.kron(np.eye(H), np.ones((1, F))) @ bs <= F - 1,
+        ]
+        dist = self._w1 * pos - np.ones((T, 1)) @ cp.reshape(self._w1_goal, (1, 2), order="C")
+        du0 = self._w2 * us[0] - self._w2_uprev
+        du = self._w2 * (us[1:] - us[:-1])
+        objective = cp.sum_squares(dist) + cp.sum_squares(du0) + cp.sum_squares(du)
+        self.problem = cp.Problem(cp.Minimize(objective), cons)
+        if not self.problem.is_dpp():
+            raise RuntimeError("P2 is not DPP")  # pragma: no cover - construction bug
+        # neutral values so the first compile succeeds
+        self._alpha.value = np.zeros((H * F, 2))
+        self._beta.value = np.full((H * F, 1), -big_m)
+        self._x0.value = np.zeros(4)
+        self._w1.value = 1.0
+        self._w1_goal.value = np.zeros(2)
+        self._w2.value = 1.0
+        self._w2_uprev.value = np.zeros(2)
+
+    # -------------------------------------------------------------- helpers
+    def _reach_radius(self, v0: Array) -> float:
+        """Upper bound on ‖p_{t+τ|t} − p_t‖ for τ ≤ T (m)."""
+        d = self.dynamics
+        return d.dt_s * (float(np.linalg.norm(v0))
+                         + (self.params.horizon - 1) * d.v_max_mps * math.sqrt(2.0))
+
+    def _select_hulls(
+        self, state: Array, hulls: Sequence[Polytope]
+    ) -> tuple[list[tuple[int, Polytope]], list[int]]:
+        """Reachable hulls (index, polygon ≤ max_faces) sorted by distance; simplified indices."""
+        eps = self.params.epsilon_m
+        reach = self._reach_radius(state[2:])
+        kept: list[tuple[float, int, Polytope]] = []
+        simplified: list[int] = []
+        for i, hull in enumerate(hulls):
+            poly = hull
+            if poly.n_faces > self.params.max_faces:
+                poly = outer_simplify(poly, self.params.max_faces)
+                simplified.append(i)
+            dist = face_inflated(poly, eps).distance(state[:2])
+            if dist <= reach + 1e-6:
+                kept.append((dist, i, poly))
+        kept.sort(key=lambda item: item[0])
+        return [(i, poly) for _, i, poly in kept], simplified
+
+    def _set_hull_params(self, polys: Sequence[Polytope]) -> None:
+        H, F, big_m = self.params.max_hulls, self.params.max_faces, self.params.big_m
+        alpha = np.zeros((H * F, 2))
+        beta = np.full((H * F, 1), -big_m)
+        for k, poly in enumerate(polys):
+            nf = poly.n_faces
+            alpha[k * F:k * F + nf] = poly.A
+            beta[k * F:k * F + nf, 0] = poly.b
+            # padded face slot: 0 ≥ M/2 + ε − M b forces b = 1, so Σ_l b ≤ F − 1
+            # leaves at least one real face with b = 0 (the disjunction is exact and,
+            # unlike repeating a face, adds no symmetric choices for branching)
+            beta[k * F + nf:(k + 1) * F, 0] = big_m / 2
+        self._alpha.value = alpha
+        self._beta.value = beta
+
+    def _big_m_ok(self, state: Array, polys: Sequence[Polytope]) -> bool:
+        """M must relax Eq. (P2_3) everywhere a planned position can be."""
+        p = self.params
+        if p.keep_in_area:
+            lo, hi = np.zeros(2), np.full(2, p.area_size_m)
+        else:
+            r = self._reach_radius(state[2:])
+            lo, hi = state[:2] - r, state[:2] + r
+        corners = np.array([[lo[0], lo[1]], [hi[0], lo[1]], [hi[0], hi[1]], [lo[0], hi[1]]])
+        for poly in polys:
+            need = np.max(poly.b[:, None] + p.epsilon_m - poly.A @ corners.T)
+            if need > p.big_m:
+                return False
+        return True
+
+    # ----------------------------------------------------------------- plan
+    def plan(
+        self,
+        state: Array,
+        hulls: Sequence[Polytope],
+        objective: Objective = Objective.MISSION_TIME,
+        prev_control: Array | None = None,
+    ) -> Plan:
+        """Solve (P2) from ``state`` avoiding ``hulls``; ``prev_control`` is u_{t|t} (N)."""
+        t0 = time.perf_counter()
+
+        def fail(status: PlanStatus, msg: str, **info: object) -> Plan:
+            plan = Plan.failed(self.system, status, time.perf_counter() - t0, msg)
+            return dataclasses.replace(plan, objective=objective, info=dict(info))
+
+        x0 = np.asarray(state, dtype=float)
+        if x0.shape != (4,) or not np.all(np.isfinite(x0)):
+            return fail(PlanStatus.INVALID_INPUT, f"state must be 4 finite numbers, got {state}")
+        u_prev = np.zeros(2) if prev_control is None else np.asarray(prev_control, dtype=float)
+        if u_prev.shape != (2,) or not np.all(np.isfinite(u_prev)):
+            return fail(PlanStatus.INVALID_INPUT,
+                        f"prev_control must be 2 finite numbers, got {prev_control}")
+        if not isinstance(objective, Objective):
+            return fail(PlanStatus.INVALID_INPUT, f"unknown objective {objective!r}")
+        hulls = tuple(hulls)
+        if not all(isinstance(h, Polytope) for h in hulls):
+            return fail(PlanStatus.INVALID_INPUT, "hulls must be Polytope instances")
+
+        # The start is given (not planned): within d_safe no plan can verify.
+        for i, hull in enumerate(hulls):
+            dist = hull.distance(x0[:2])
+            if dist < self.clearance_m:
+                return fail(PlanStatus.INVALID_INPUT,
+                            f"start {x0[:2]} is {dist:.2f} m from hull {i} "
+                            f"(< d_safe {self.clearance_m} m): no safe plan can start here")
+
+        selected, simplified = self._select_hulls(x0, hulls)
+        info: dict[str, object] = {
+            "n_hulls": len(selected), "n_hulls_input": len(hulls),
+            "simplified_hulls": simplified,
+        }
+        if len(selected) > self.params.max_hulls:
+            return fail(PlanStatus.INVALID_INPUT,
+                        f"{len(selected)} hulls are reachable within the horizon but the "
+                        f"compiled problem has max_hulls={self.params.max_hulls}; construct "
+                        "ExactSystem2 with a larger System2Params.max_hulls", **info)
+        polys = [poly for _, poly in selected]
+        if not self._big_m_ok(x0, polys):
+            return fail(PlanStatus.INVALID_INPUT,
+                        f"big_m={self.params.big_m} is too small for this geometry", **info)
+
+        # x_{t+1|t}'s position is p_t + ΔT v_t whatever the control: check it first.
+        p1 = x0[:2] + self.dynamics.dt_s * x0[2:]
+        eps = self.params.epsilon_m
+        for i, hull in enumerate(hulls):
+            margin = float(np.max(hull.A @ p1 - hull.b))
+            if margin < eps:
+                return fail(PlanStatus.INFEASIBLE,
+                            f"x_(t+1|t) position {p1} is fixed by the current velocity and "
+                            f"lies within ε={eps} m of hull {i} (max_l α·p−β = {margin:.2f}): "
+                            "(P2) is infeasible", **info)
+        if self.params.keep_in_area and not (
+            np.all(p1 >= 0.0) and np.all(p1 <= self.params.area_size_m)
+        ):
+            return fail(PlanStatus.INFEASIBLE,
+                        f"x_(t+1|t) position {p1} is fixed by the current velocity and "
+                        "lies outside the area: (P2) is infeasible", **info)
+        first_gap = min((h.segment_distance(x0[:2], p1) for h in hulls), default=math.inf)
+        if first_gap < self.clearance_m:
+            return fail(PlanStatus.UNSAFE,
+                        f"the first segment, fixed by the current velocity, passes "
+                        f"{first_gap:.2f} m from a hull (< {self.clearance_m} m)", **info)
+
+        # parameter values
+        k1, k2 = self.params.kappa(objective)
+        s = self.objective_scale
+        w1, w2 = math.sqrt(k1 / s), math.sqrt(k2 / s)
+        self._x0.value = x0
+        self._w1.value = w1
+        self._w1_goal.value = w1 * self.goal.center
+        self._w2.value = w2
+        self._w2_uprev.value = w2 * u_prev
+        self._set_hull_params(polys)
+
+        result = self._solve()
+        info.update({k: v for k, v in result.items() if k not in ("U", "X", "value")})
+        status = str(result.get("solver_status"))
+        if "error" in result:
+            if result.get("timeout"):
+                return fail(PlanStatus.TIMEOUT,
+                            f"no incumbent within the time limit: {result['error']}", **info)
+            return fail(PlanStatus.ERROR, f"solver failed: {result['error']}", **info)
+        if status in (cp.INFEASIBLE, cp.INFEASIBLE_INACCURATE):
+            if result.get("timeout"):
+                return fail(PlanStatus.TIMEOUT,
+                            f"no incumbent within {self.params.time_limit_s} s", **info)
+            msg = "(P2) is infeasible: no safe trajectory over the horizon"
+            if simplified:
+                msg += f" (hulls {simplified} were enlarged to {self.params.max_faces} faces)"
+            return fail(PlanStatus.INFEASIBLE, msg, **info)
+        u_sol, x_sol = result.get("U"), result.get("X")
+        has_solution = status in (cp.OPTIMAL, cp.OPTIMAL_INACCURATE, cp.USER_LIMIT)
+        if not has_solution or u_sol is None or x_sol is None:
+            return fail(PlanStatus.ERROR, f"solver returned status {status}", **info)
+
+        controls = np.clip(np.asarray(u_sol, dtype=float),
+                           -self.dynamics.u_max_n, self.dynamics.u_max_n)
+        states = rollout(x0, controls, self.dynamics)
+        info["dyn_residual"] = float(np.max(np.abs(states[1:] - np.asarray(x_sol))))
+        info["optimal"] = status == cp.OPTIMAL
+        cost = p2_cost(states, controls, self.goal.center, (k1, k2), u_prev)
+        value = result.get("value")
+        if isinstance(value, float) and math.isfinite(value):
+            info["solver_objective"] = value * s
+        verdict = verify_trajectory(states, controls, hulls, self.dynamics,
+                                    clearance_m=self.clearance_m)
+        info["clearance_m"] = verdict.clearance_m
+        elapsed = time.perf_counter() - t0
+        if not verdict.ok:
+            return Plan(system=self.system, status=PlanStatus.UNSAFE,
+                        states=np.empty((0, 4)), controls=np.empty((0, 2)),
+                        compute_time_s=elapsed, objective=objective, cost=cost,
+                        message=f"solver plan ({status}) failed verification: {verdict.reason}",
+                        info=info)
+        return Plan(system=self.system, status=PlanStatus.OK, states=states, controls=controls,
+                    compute_time_s=elapsed, objective=objective, cost=cost,
+                    message="" if info["optimal"] else f"time limit hit: incumbent ({status})",
+                    info=info)
+
+    def _solve(self) -> dict[str, object]:
+        """Solve with the first solver that works; returns status, solution and statistics."""
+        while True:
+            name = self._solvers[0]
+            if self._worker is not None:
+                values = {prm.name(): prm.value for prm in self.problem.parameters()}
+                out = self._worker.solve(values, name, self.hard_timeout_s)
+            else:
+                out = self._solve_with(name)
+            if "error" in out and len(self._solvers) > 1 and not out.get("timeout"):
+                # e.g. a size-limited Gurobi licence: fall back for good
+                self._solvers.pop(0)
+                self.fallback_reason = f"{name}: {out['error']}"
+                continue
+            if self.fallback_reason:
+                out["fallback"] = self.fallback_reason
+            return out
+
+    def _solve_with(self, name: str) -> dict[str, object]:
+        """One in-process solve of the compiled problem with solver ``name``."""
+        tl = self.params.time_limit_s
+        opts: dict[str, Any]
+        if name == "SCIP":
+            opts = {"scip_params": {**DEFAULT_SCIP_OPTIONS, "limits/time": tl,
+                                    **self.solver_options}}
+        else:
+            opts = {"TimeLimit": tl, **self.solver_options}
+        out: dict[str, object] = {"solver": name}
+        t_solve = time.perf_counter()
+        try:
+            with warnings.catch_warnings():
+                # cvxpy's bound inference multiplies inf by 0 on first compile
+                warnings.simplefilter("ignore", RuntimeWarning)
+                data, chain, inv = self.problem.get_problem_data(name, enforce_dpp=True)
+            raw = chain.solve_via_data(self.problem, data, False, False, opts)
+        except Exception as exc:  # noqa: BLE001 - any solver crash becomes an ERROR plan
+            out["solver_time_s"] = time.perf_counter() - t_solve
+            out["error"] = f"{type(exc).__name__}: {exc}"
+            return out
+        solver_time = time.perf_counter() - t_solve
+        out["solver_time_s"] = solver_time
+        native = None
+        if isinstance(raw, dict):
+            native = raw.get("scip_status")
+            model = raw.pop("model", None)  # drop the SCIP model once read
+            if model is not None:
+                with contextlib.suppress(Exception):
+                    gap = float(model.getGap())
+                    out["mip_gap"] = gap if gap < 1e19 else math.inf  # 1e20: no incumbent
+                    out["scip_time_s"] = float(model.getSolvingTime())
+        out["native_status"] = native
+        timed_out = native == "timelimit" or (native is None and solver_time >= 0.99 * tl)
+        out["timeout"] = timed_out
+        try:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")  # "solution may be inaccurate": we verify it
+                self.problem.unpack_results(raw, chain, inv)
+        except cp.error.SolverError as exc:
+            out["error"] = str(exc)
+            return out
+        out["solver_status"] = self.problem.status
+        if "mip_gap" not in out:
+            with contextlib.suppress(Exception):
+                gurobi_model: Any = self.problem.solver_stats.extra_stats
+                out["mip_gap"] = float(gurobi_model.MIPGap)
+        if self._U.value is not None and self._X.value is not None:
+            out["U"] = np.array(self._U.value, dtype=float)
+            out["X"] = np.array(self._X.value, dtype=float)
+            val = self.problem.value
+            out["value"] = float(val) if val is not None else math.nan  # type: ignore[arg-type]
+        return out
+
+
+def _worker_main(conn: Connection, args: tuple[Any, ...]) -> None:
+    """Worker process: build (P2) once, then solve each parameter set sent by the parent."""
+    goal, params, dynamics, scale, options = args
+    planner = ExactSystem2(goal, params, dynamics, objective_scale=scale,
+                           solver_options=options)
+    by_name = {prm.name(): prm for prm in planner.problem.parameters()}
+    conn.send("ready")
+    while True:
+        try:
+            msg = conn.recv()
+        except (EOFError, OSError):
+            return
+        if msg is None:
+            return
+        values, name = msg
+        for key, val in values.items():
+            by_name[key].value = val
+        conn.send(planner._solve_with(name))
+
+
+class _SolverProcess:
+    """A persistent solver process with a hard per-solve deadline (spawned, not forked)."""
+
+    def __init__(self, args: tuple[Any, ...]) -> None:
+        self._args = args
+        self._proc: multiprocessing.process.BaseProcess | None = None
+        self._conn: Connection | None = None
+
+    @property
+    def pid(self) -> int | None:
+        return self._proc.pid if self._proc is not None else None
+
+    def _start(self) -> None:
+        ctx = multiprocessing.get_context("spawn")
+        parent, child = ctx.Pipe()
+        proc = ctx.Process(target=_worker_main, args=(child, self._args), daemon=True,
+                           name="dualpilot-system2-solver")
+        proc.start()
+        child.close()
+        self._proc, self._conn = proc, parent
+        if not parent.poll(120.0):
+            self.close()
+            raise RuntimeError("solver process did not start within 120 s")
+        parent.recv()  # "ready" (EOFError if it died while starting)
+
+    def solve(self, values: dict[str, Any], name: str, deadline_s: float) -> dict[str, object]:
+        try:
+            if self._proc is None or not self._proc.is_alive():
+                self.close()
+                self._start()  # start-up (imports) does not count against the deadline
+            assert self._conn is not None
+            self._conn.send((values, name))
+            ready = self._conn.poll(deadline_s)
+        except (EOFError, OSError, RuntimeError) as exc:
+            self.close()
+            return {"solver": name, "error": f"solver process unavailable: {exc}"}
+        if not ready:
+            self.close()
+            return {"solver": name, "timeout": True,
+                    "error": f"solver process killed after the hard deadline {deadline_s:.1f} s"}
+        try:
+            out: dict[str, object] = self._conn.recv()
+        except (EOFError, OSError):
+            code = self._proc.exitcode if self._proc is not None else None
+            self.close()
+            return {"solver": name, "error": f"solver process died (exit code {code})"}
+        return out
+
+    def close(self) -> None:
+        if self._conn is not None:
+            with contextlib.suppress(Exception):
+                self._conn.send(None)
+            self._conn.close()
+        if self._proc is not None:
+            self._proc.join(timeout=0.5)
+            if self._proc.is_alive():
+                self._proc.kill()
+                self._proc.join(timeout=5.0)
+        self._proc, self._conn = None, None
