@@ -4,11 +4,11 @@ PY ?= python3
 VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
-SEED ?= 7
+SEED ?= 26
 OUT ?= runs/latest
 SPEED ?= 20
 
-.PHONY: setup run run-stack proto test test-fast lint bench figures clean
+.PHONY: setup run mission proto test test-fast lint bench figures clean
 
 setup: $(STAMP)
 
@@ -18,12 +18,15 @@ $(STAMP): pyproject.toml
 	$(BIN)/python -m pip install --quiet -e '.[dev]'
 	touch $(STAMP)
 
+# the distributed stack: a Zenoh router and the five services as processes on loopback
+# (services/launch.py reads docker-compose.yml, the one description of the services)
 run: setup
-	$(BIN)/dualpilot mission --controller cc --seed $(SEED) --timing paper --out $(OUT)
+	$(BIN)/python -m services.launch --controller cc --seed $(SEED) --timing paper \
+		--speed-factor $(SPEED) --out $(OUT)
 
-# the distributed stack (services over Zenoh + MAVLink; services/launch.py reads docker-compose.yml)
-run-stack: setup
-	$(BIN)/python -m services.launch --controller cc --seed $(SEED) --timing paper --speed-factor $(SPEED) --out $(OUT)
+# the same mission in one process (no Zenoh, no MAVLink)
+mission: setup
+	$(BIN)/dualpilot mission --controller cc --seed $(SEED) --timing paper --out $(OUT)
 
 # regenerate services/msgs from proto/ (a test fails when they differ)
 proto: setup
