@@ -73,7 +73,8 @@ def main(n: int) -> None:
         f" p95 {np.percentile(t_rrt[found], 95):.3f} s"
     )
     # System1.plan with the defaults, first plan from a hover state
-    times, statuses = [], {}
+    times: list[float] = []
+    statuses: dict[str, int] = {}
     for i in range(n):
         hulls, start, _ = instance(i)
         pl = System1(goal, np.random.default_rng(i)).plan(hover_state(start), hulls)

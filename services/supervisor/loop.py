@@ -50,9 +50,9 @@ from dualpilot.mission import (
     MissionResult,
     StepRecord,
     Timing,
-    segment_region_distance,
     brake_control,
     nearest_region_distance,
+    segment_region_distance,
 )
 from dualpilot.plan import Objective, Plan, PlanStatus
 from dualpilot.supervisor import Decision, Supervisor, SupervisorParams

@@ -35,7 +35,7 @@ def test_files_and_summary(small_run):
 
 def test_three_controllers_see_identical_configurations(small_run):
     out, _ = small_run
-    by_mission = {}
+    by_mission: dict[str, set[tuple[str, ...]]] = {}
     for r in rows(out):
         key = (r["seed"], r["start_x"], r["start_y"], r["goal_x"], r["goal_y"])
         by_mission.setdefault(r["mission"], set()).add(key)
