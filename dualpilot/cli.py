@@ -79,8 +79,14 @@ def _evaluate(args: argparse.Namespace) -> int:
 
     out = Path(args.out)
     summary = evaluate(
-        args.missions, out, seed=args.seed, timing=args.timing, jobs=args.jobs,
-        controllers=args.controllers.split(","), s2_method=args.s2_method,
+        args.missions,
+        out,
+        seed=args.seed,
+        timing=args.timing,
+        jobs=args.jobs,
+        controllers=args.controllers.split(","),
+        s2_method=args.s2_method,
+        ignition_clearance_m=args.ignition_clearance,
     )
     print(json.dumps(summary, indent=2))
     print(f"results in {out}/: results.csv summary.json fig_r5.png")
@@ -98,6 +104,13 @@ def build_parser() -> argparse.ArgumentParser:
     m.add_argument("--s2-method", default="fast", help="System 2 solver: fast or exact")
     m.add_argument("--out", default="runs/latest")
     m.add_argument("--no-figures", action="store_true")
+    m.add_argument(
+        "--ignition-clearance",
+        type=float,
+        default=None,
+        metavar="M",
+        help="no front ignites within M m of the UAV (default: anywhere)",
+    )
     m.add_argument("--quiet", action="store_true")
     m.set_defaults(func=_mission)
 
@@ -113,6 +126,13 @@ def build_parser() -> argparse.ArgumentParser:
     e.add_argument("--seed", type=int, default=0)
     e.add_argument("--controllers", default="cc,s1,s2")
     e.add_argument("--s2-method", default="fast")
+    e.add_argument(
+        "--ignition-clearance",
+        type=float,
+        default=None,
+        metavar="M",
+        help="no front ignites within M m of the UAV (default: anywhere, as the paper states)",
+    )
     e.add_argument("--out", default="runs/eval")
     e.set_defaults(func=_evaluate)
 

@@ -68,6 +68,7 @@ class Task:
     controller: str
     timing: str
     s2_method: str
+    ignition_clearance_m: float | None = None
 
 
 def run_task(task: Task) -> dict[str, object]:
@@ -190,6 +191,7 @@ def evaluate(
     controllers: Iterable[str] = CONTROLLERS,
     s2_method: str = "fast",
     progress: bool = True,
+    ignition_clearance_m: float | None = None,
 ) -> dict[str, object]:
     """Run (or resume) the evaluation in ``out``; returns the summary it writes."""
     out.mkdir(parents=True, exist_ok=True)
@@ -201,7 +203,7 @@ def evaluate(
             raise ValueError(f"{path} holds timing={row.get('timing')!r}; use another --out")
     done_keys = {(int(r["mission"]), r["controller"]) for r in recorded}
     tasks = [
-        Task(i, seed, c, timing, s2_method)
+        Task(i, seed, c, timing, s2_method, ignition_clearance_m)
         for i in range(missions)
         for c in controllers
         if (i, c) not in done_keys
@@ -224,6 +226,8 @@ def evaluate(
             sys.stderr.write("\n")
     rows = [r for r in read_results(path) if int(r["mission"]) < missions]
     summary = summarize(rows, missions, timing, wall_s=time.perf_counter() - t0)
+    summary["ignition_clearance_m"] = ignition_clearance_m
+    summary["s2_method"] = s2_method
     (out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
     from .plots_eval import plot_fig_r5
 
