@@ -1,0 +1,526 @@
+"""Benchmarks of System 2 (fast vs exact) and System 1: ``dualpilot bench system2|system1``.
+
+Instances follow the paper's fire setup (Sec. IV-A, :class:`FireParams`): a
+:class:`FireField` runs for a random number of sub-steps from a seeded RNG;
+to reach the instance's hull count (1–10, cycled over the instances) extra
+fronts are spawned and propagated with the same Gauss–Markov model (they are
+not extinguished, so their hulls △(C^i_{1:t}) grow as the paper's do). The
+UAV is placed somewhere free near the start–goal diagonal with a random
+velocity; the objective and u_{t|t} are drawn too.
+
+Every method is timed from state in to verified plan out. The exact MIQP is
+the reference: it runs in a worker process that is killed past its time
+limit, so a solver crash or hang costs one reference, never the benchmark.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import json
+import math
+import sys
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .dynamics import Array, DynamicsParams
+from .fire import FireField, FireParams
+from .geometry import Polytope, Rect
+from .p2 import System2Params
+from .plan import Objective, Plan
+
+START = np.array([50.0, 50.0])
+GOAL = Rect(900.0, 900.0, 100.0, 100.0)
+
+
+@dataclass(frozen=True)
+class Instance:
+    """One planning query: state, hulls, objective and u_{t|t}."""
+
+    index: int
+    seed: int
+    state: Array
+    hulls: tuple[Polytope, ...]
+    objective: Objective
+    prev_control: Array
+    substeps: int
+
+    @property
+    def n_hulls(self) -> int:
+        return len(self.hulls)
+
+
+def make_instance(index: int, seed: int, n_hulls: int, fire: FireParams = FireParams(),
+                  clearance_m: float = 25.0) -> Instance:
+    """A seeded instance with exactly ``n_hulls`` active fronts and a free UAV state."""
+    rng = np.random.default_rng(np.random.SeedSequence([seed, index]))
+    for _attempt in range(200):
+        field = FireField(fire)
+        substeps = int(rng.integers(1, 60))
+        for k in range(substeps):
+            field.substep(rng, k)
+        while len(field.fronts) > n_hulls:
+            field.fronts.pop(int(rng.integers(len(field.fronts))))
+        # top up: spawned fronts propagate for a random number of sub-steps
+        while len(field.fronts) < n_hulls:
+            front = field.spawn(rng, substeps)
+            field.fronts.pop()
+            for _ in range(int(rng.integers(0, 60))):
+                front = front.advance(rng, fire)
+            field.fronts.append(front)
+        hulls = field.snapshot().hulls
+        if any(h.contains(START, margin=clearance_m + 5.0) for h in hulls):
+            continue
+        state = _free_state(rng, hulls, clearance_m)
+        if state is None:
+            continue
+        objective = Objective.MISSION_TIME if rng.random() < 0.5 else Objective.ENERGY
+        prev_control = rng.uniform(-3.0, 3.0, size=2)
+        return Instance(index, seed, state, hulls, objective, prev_control, substeps)
+    raise RuntimeError(f"could not draw instance {index} with {n_hulls} hulls")
+
+
+def _free_state(rng: np.random.Generator, hulls: Sequence[Polytope],
+                clearance_m: float) -> Array | None:
+    for _ in range(200):
+        s = rng.uniform(0.0, 0.85)
+        pos = START + s * (GOAL.center - START) + rng.normal(0.0, 120.0, size=2)
+        if np.any(pos < 20.0) or np.any(pos > 980.0):
+            continue
+        vel = rng.uniform(-10.0, 10.0, size=2)
+        p1 = pos + vel
+        if any(h.distance(pos) < clearance_m + 10.0 or float(np.max(h.A @ p1 - h.b))
+               < clearance_m + 5.0 for h in hulls):
+            continue
+        return np.concatenate([pos, vel])
+    return None
+
+
+# ------------------------------------------------------------------ helpers
+def percentile(values: Sequence[float], q: float) -> float | None:
+    vals = [v for v in values if v is not None and math.isfinite(v)]
+    return float(np.percentile(vals, q)) if vals else None
+
+
+def stats(rows: Sequence[dict[str, Any]]) -> dict[str, Any]:
+    """The issue's summary fields for one method over some instance rows."""
+    times = [r["time_s"] for r in rows if r.get("time_s") is not None]
+    gaps = [r["gap"] for r in rows if r.get("gap") is not None]
+    ver = [bool(r.get("verified")) for r in rows]
+    return {
+        "n": len(rows),
+        "time_s_median": percentile(times, 50),
+        "time_s_p95": percentile(times, 95),
+        "cpu_s_median": percentile([r["cpu_s"] for r in rows if r.get("cpu_s") is not None], 50),
+        "gap_median": percentile(gaps, 50),
+        "gap_p95": percentile(gaps, 95),
+        "gap_max": percentile(gaps, 100),
+        "certified_gap_median": percentile(
+            [r["certified_gap"] for r in rows if r.get("certified_gap") is not None], 50),
+        "n_gaps": len(gaps),
+        "verified_fraction": float(np.mean(ver)) if ver else None,
+    }
+
+
+def check_plan(plan: Plan, inst: Instance, dynamics: DynamicsParams,
+               epsilon_m: float | None) -> tuple[bool, str]:
+    """Independent verification of a returned plan (dynamics, bounds, clearance, ε-disjunction)."""
+    from .system2_fast import verify_p2_plan
+    from .verify import verify_trajectory
+
+    if not plan.ok:
+        return False, f"status {plan.status.value}"
+    if epsilon_m is None:
+        verdict = verify_trajectory(plan.states, plan.controls, inst.hulls, dynamics,
+                                    clearance_m=20.0)
+    else:
+        verdict = verify_p2_plan(plan.states, plan.controls, inst.hulls, dynamics, epsilon_m,
+                                 20.0, 1000.0, tol=1e-3)
+    return verdict.ok, verdict.reason
+
+
+def _timed(planner: Any, inst: Instance) -> tuple[Plan, float, float]:
+    c0, t0 = time.thread_time(), time.perf_counter()
+    plan = planner.plan(inst.state, inst.hulls, inst.objective, inst.prev_control)
+    return plan, time.perf_counter() - t0, time.thread_time() - c0
+
+
+def _instances(n: int, seed: int, max_hulls: int) -> list[Instance]:
+    return [make_instance(i, seed, 1 + i % max_hulls) for i in range(n)]
+
+
+def _bins(rows_by_method: dict[str, list[dict[str, Any]]]) -> dict[str, dict[str, Any]]:
+    out: dict[str, dict[str, Any]] = {}
+    for method, rows in rows_by_method.items():
+        by: dict[int, list[dict[str, Any]]] = {}
+        for r in rows:
+            by.setdefault(int(r["n_hulls"]), []).append(r)
+        out[method] = {str(k): stats(v) for k, v in sorted(by.items())}
+    return out
+
+
+# ---------------------------------------------------------------- system 2
+def run_system2(n_instances: int, seed: int, out_dir: Path, reference_timeout: float,
+                methods: Sequence[str], horizon: int = 80, max_hulls: int = 10,
+                reference_cache: Path | None = None, seeded_reference: bool = True,
+                anytime_budget_s: float = 2.0, log: Any = print) -> dict[str, Any]:
+    """Benchmark System 2 methods against the exact MIQP; writes out_dir/system2.json.
+
+    Per instance: every method in ``methods`` except "exact" runs in-process
+    and is timed; "exact" (the cvxpy + SCIP MIQP of :mod:`dualpilot.system2`)
+    and, with ``seeded_reference``, SCIP seeded with the fast plan
+    (:mod:`dualpilot.s2_scip`) run in worker processes killed past
+    ``reference_timeout`` (+ 60 s for start-up). The reference cost is the
+    proven optimum when either exact solve proves it, else the best verified
+    cost any method found; gaps are (cost − reference) / reference. The best
+    dual bound also gives a certified gap bound for each method.
+    """
+    from .system2_fast import ExactWorker, _ExactFactory, _SeededFactory, make_system2
+
+    dyn = DynamicsParams()
+    params = System2Params(horizon=horizon)
+    ref_params = System2Params(horizon=horizon, time_limit_s=reference_timeout)
+    insts = _instances(n_instances, seed, max_hulls)
+    cache: dict[str, Any] = {}
+    if reference_cache is not None and reference_cache.exists():
+        cache = json.loads(reference_cache.read_text())
+    workers = {"exact": ExactWorker(_ExactFactory(GOAL, ref_params, dyn))}
+    if seeded_reference:
+        workers["exact-seeded"] = ExactWorker(_SeededFactory(GOAL, ref_params, dyn))
+    planners: dict[str, Any] = {}
+    for m in methods:
+        if m == "fast+exact":
+            from .system2_fast import AnytimeSystem2
+
+            planners[m] = AnytimeSystem2(GOAL, params, dyn, exact_budget_s=anytime_budget_s)
+        elif m != "exact":
+            planners[m] = make_system2(m, GOAL, params, dyn)
+    fast_seed = planners.get("fast") or make_system2("fast", GOAL, params, dyn)
+    rows: list[dict[str, Any]] = []
+    try:
+        for p in planners.values():  # warm-up: imports, caches, worker start
+            p.plan(insts[0].state, insts[0].hulls, insts[0].objective, insts[0].prev_control)
+        for inst in insts:
+            row: dict[str, Any] = {"index": inst.index, "n_hulls": inst.n_hulls,
+                                   "objective": inst.objective.value,
+                                   "faces": [h.n_faces for h in inst.hulls], "methods": {}}
+            results: dict[str, Any] = {}
+            for name, planner in planners.items():
+                if hasattr(planner, "reset"):
+                    planner.reset()
+                plan, wall, cpu = _timed(planner, inst)
+                ok, why = check_plan(plan, inst, dyn, params.epsilon_m)
+                if plan.ok and not ok:
+                    why = "RETURNED OK BUT FAILED VERIFICATION: " + why
+                results[name] = {"time_s": wall, "cpu_s": cpu, "status": plan.status.value,
+                                 "cost": plan.cost if plan.ok else None, "verified": ok,
+                                 "why": why, "info": _small(plan.info), "_plan": plan}
+            seed_plan = results["fast"]["_plan"] if "fast" in results else fast_seed.plan(
+                inst.state, inst.hulls, inst.objective, inst.prev_control)
+            refs: dict[str, Any] = {}
+            for name, worker in workers.items():
+                key = f"{name}/{seed}/{inst.index}/{horizon}/{reference_timeout}"
+                if key in cache:
+                    refs[name] = cache[key]
+                    continue
+                request: tuple[Any, ...] = (inst.state, inst.hulls, inst.objective,
+                                            inst.prev_control)
+                if name == "exact-seeded":
+                    request += (seed_plan.controls if seed_plan.ok else None,)
+                t0 = time.perf_counter()
+                answer, outcome = worker.solve(request, reference_timeout + 60.0)
+                ref = {"outcome": outcome, "time_s": time.perf_counter() - t0, "status": None,
+                       "cost": None, "optimal": False, "verified": False, "dual_bound": None}
+                if answer is not None:
+                    ok, why = check_plan(answer, inst, dyn, params.epsilon_m)
+                    ref.update(status=answer.status.value, cost=answer.cost if ok else None,
+                               optimal=bool(answer.info.get("optimal")) and ok, verified=ok,
+                               why=why, time_s=answer.compute_time_s,
+                               simplified=answer.info.get("simplified_hulls", []),
+                               dual_bound=answer.info.get("dual_bound"))
+                refs[name] = cache[key] = ref
+                if reference_cache is not None:
+                    reference_cache.parent.mkdir(parents=True, exist_ok=True)
+                    reference_cache.write_text(json.dumps(cache, default=_json_default))
+            for name, ref in refs.items():
+                if name == "exact" and "exact" not in methods:
+                    continue
+                results[name] = {"time_s": ref["time_s"], "cpu_s": None,
+                                 "status": ref["status"] or ref["outcome"], "cost": ref["cost"],
+                                 "verified": ref["verified"], "optimal": ref["optimal"]}
+            row["references"] = refs
+            costs = {k: v["cost"] for k, v in results.items()
+                     if v["verified"] and v["cost"] is not None}
+            proven = [r["cost"] for r in refs.values() if r["optimal"] and r["cost"] is not None]
+            # a method whose plan is the relaxation's optimum (no hull binds) proves it too
+            proven += [v["cost"] for v in results.values() if v["verified"]
+                       and v.get("info", {}).get("optimal") and v["cost"] is not None]
+            if proven:
+                best, source = min(proven), "proven optimum"
+            elif costs:
+                source = min(costs, key=lambda k: costs[k])
+                best, source = costs[source], f"best found ({source})"
+            else:
+                best, source = None, "none"
+            bounds = [float(r["dual_bound"]) for r in refs.values()
+                      if r.get("dual_bound") is not None and math.isfinite(r["dual_bound"])
+                      and r["dual_bound"] > -1e19]
+            # the no-hull QP (every fast plan reports it) is a relaxation of (P2): a bound too
+            bounds += [float(v["info"]["lower_bound"]) for v in results.values()
+                       if v.get("info", {}).get("lower_bound") is not None]
+            lower = max(bounds, default=None)
+            if proven:
+                lower = max(lower or -math.inf, best)
+            row["reference_cost"], row["reference_source"] = best, source
+            row["reference_optimal"] = bool(proven)
+            row["lower_bound"] = lower
+            for v in results.values():
+                v.pop("_plan", None)
+                v["gap"] = (None if best is None or v["cost"] is None or not v["verified"]
+                            else (v["cost"] - best) / abs(best))
+                v["certified_gap"] = (None if lower is None or v["cost"] is None
+                                      or not v["verified"]
+                                      else max(0.0, (v["cost"] - lower) / abs(v["cost"])))
+            row["methods"] = results
+            rows.append(row)
+            log(_line(row))
+    finally:
+        for w in workers.values():
+            w.stop()
+        for p in planners.values():
+            if hasattr(p, "close"):
+                p.close()
+    names = list(rows[0]["methods"]) if rows else list(methods)
+    per_method = {m: [dict(r["methods"][m], n_hulls=r["n_hulls"]) for r in rows
+                      if m in r["methods"]] for m in names}
+    result = {
+        "command": f"dualpilot bench system2 --instances {n_instances} --seed {seed} "
+                   f"--reference-timeout {reference_timeout:g} --methods {','.join(methods)}"
+                   + (f" --horizon {horizon}" if horizon != 80 else ""),
+        "horizon": horizon,
+        "reference_timeout_s": reference_timeout,
+        "default": "fast",
+        "summary": {m: _issue_fields(stats(v)) for m, v in per_method.items()},
+        "summary_detail": {m: stats(v) for m, v in per_method.items()},
+        "by_hulls": _bins(per_method),
+        "reference_optimal_fraction": float(np.mean([r["reference_optimal"] for r in rows]))
+        if rows else None,
+        "instances": rows,
+        "machine": _machine(),
+    }
+    out_dir.mkdir(parents=True, exist_ok=True)
+    (out_dir / "system2.json").write_text(json.dumps(result, indent=1, default=_json_default))
+    return result
+
+
+def _issue_fields(s: dict[str, Any]) -> dict[str, Any]:
+    keys = ("time_s_median", "time_s_p95", "gap_median", "gap_p95", "verified_fraction")
+    return {k: s[k] for k in keys}
+
+
+def _small(info: dict[str, object]) -> dict[str, object]:
+    keep = ("n_qp", "homotopy", "homotopies", "cfs_iterations", "bound_gap", "source",
+            "exact_outcome", "n_hulls", "optimal", "dual_bound", "lower_bound")
+    return {k: info[k] for k in keep if k in info}
+
+
+def _line(row: dict[str, Any]) -> str:
+    parts = [f"#{row['index']:3d} hulls={row['n_hulls']:2d} {row['objective'][:6]:6s}",
+             f"ref={row['reference_source']}"]
+    for name, m in row["methods"].items():
+        gap = "  -  " if m["gap"] is None else f"{100 * m['gap']:+.3f}%"
+        t = m["time_s"]
+        ts = "-" if t is None else (f"{1e3 * t:.1f}ms" if t < 10 else f"{t:.1f}s")
+        parts.append(f"{name}: {ts} {m['status']} {gap}")
+    return " | ".join(parts)
+
+
+def _machine() -> dict[str, Any]:
+    import os
+    import platform
+
+    return {"cpus": os.cpu_count(), "python": platform.python_version(),
+            "loadavg": os.getloadavg() if hasattr(os, "getloadavg") else None}
+
+
+def _json_default(obj: Any) -> Any:
+    if isinstance(obj, np.generic):
+        return obj.item()
+    if isinstance(obj, np.ndarray):
+        return obj.tolist()
+    return str(obj)
+
+
+# ---------------------------------------------------------------- system 1
+def run_system1(n_instances: int, seed: int, out_dir: Path, max_hulls: int = 10,
+                log: Any = print) -> dict[str, Any]:
+    """Benchmark System 1 (RRT + shortcut + LQR); writes out_dir/system1.json.
+
+    ``gap`` is System 1's Eq. (S2) cost relative to the fast System 2 plan on
+    the same instance (how much optimality the fast heuristic gives up);
+    ``verified`` is the d_safe check of :func:`verify_trajectory` (System 1
+    does not promise P2's ε-disjunction).
+    """
+    from .p2 import p2_cost
+    from .system1 import System1
+    from .system2_fast import FastSystem2
+
+    dyn = DynamicsParams()
+    params = System2Params()
+    insts = _instances(n_instances, seed, max_hulls)
+    s2 = FastSystem2(GOAL, params, dyn)
+    rows: list[dict[str, Any]] = []
+    for inst in insts:
+        planner = System1(GOAL, np.random.default_rng(np.random.SeedSequence([seed, inst.index,
+                                                                             1])), dynamics=dyn)
+        if not rows:  # warm-up (imports, OMPL setup)
+            with contextlib.suppress(ValueError):
+                System1(GOAL, np.random.default_rng(0), dynamics=dyn).plan(
+                    inst.state, inst.hulls, inst.objective, inst.prev_control)
+        try:
+            plan, wall, cpu = _timed(planner, inst)
+        except ValueError as err:
+            rows.append({"index": inst.index, "n_hulls": inst.n_hulls, "time_s": None,
+                         "cpu_s": None, "status": "invalid_input", "cost": None, "gap": None,
+                         "verified": False, "why": str(err)})
+            continue
+        ok, why = check_plan(plan, inst, dyn, None)
+        kappa = params.kappa(inst.objective)
+        cost = (p2_cost(plan.states, plan.controls, GOAL.center, kappa, inst.prev_control)
+                if plan.ok else None)
+        ref = s2.plan(inst.state, inst.hulls, inst.objective, inst.prev_control)
+        gap = (None if cost is None or not ref.ok or ref.cost is None
+               else (cost - ref.cost) / abs(ref.cost))
+        row = {"index": inst.index, "n_hulls": inst.n_hulls, "objective": inst.objective.value,
+               "time_s": wall, "cpu_s": cpu, "status": plan.status.value, "cost": cost,
+               "gap": gap, "verified": ok, "why": why,
+               "rrt_iterations": plan.info.get("rrt_iterations")}
+        rows.append(row)
+        log(f"#{inst.index:3d} hulls={inst.n_hulls:2d} system1: {1e3 * wall:6.1f} ms "
+            f"{plan.status.value} gap vs fast S2 "
+            f"{'-' if gap is None else f'{100 * gap:+.1f}%'}")
+    result = {
+        "command": f"dualpilot bench system1 --instances {n_instances} --seed {seed}",
+        "default": "system1",
+        "gap_reference": "fast System 2 plan on the same instance",
+        "summary": {"system1": _issue_fields(stats(rows))},
+        "summary_detail": {"system1": stats(rows)},
+        "by_hulls": _bins({"system1": rows}),
+        "instances": rows,
+        "machine": _machine(),
+    }
+    out_dir.mkdir(parents=True, exist_ok=True)
+    (out_dir / "system1.json").write_text(json.dumps(result, indent=1, default=_json_default))
+    return result
+
+
+# --------------------------------------------------------------------- CLI
+def markdown_table(result: dict[str, Any], bins: Sequence[tuple[int, int]] = ((1, 3), (4, 6),
+                                                                              (7, 10))) -> str:
+    """Method × hull-count table (median / p95 time, median gap, verified) for the README."""
+    lines = ["| method | hulls | n | median time | p95 time | median gap | p95 gap | verified |",
+             "|---|---|---|---|---|---|---|---|"]
+    for method in result["summary"]:
+        rows_all = [dict(r["methods"][method], n_hulls=r["n_hulls"]) for r in result["instances"]
+                    ] if "methods" in result["instances"][0] else [
+                        r for r in result["instances"]]
+        for lo, hi in [*bins, (1, 10)]:
+            sel = [r for r in rows_all if lo <= r["n_hulls"] <= hi]
+            if not sel:
+                continue
+            s = stats(sel)
+            lines.append(
+                f"| {method} | {lo}–{hi}{' (all)' if (lo, hi) == (1, 10) else ''} | {s['n']} | "
+                f"{_ms(s['time_s_median'])} | {_ms(s['time_s_p95'])} | {_pct(s['gap_median'])} | "
+                f"{_pct(s['gap_p95'])} | {_frac(s['verified_fraction'])} |")
+    return "\n".join(lines)
+
+
+def _ms(v: float | None) -> str:
+    if v is None:
+        return "–"
+    return f"{1e3 * v:.1f} ms" if v < 1 else f"{v:.2f} s"
+
+
+def _pct(v: float | None) -> str:
+    return "–" if v is None else f"{100 * v:.3f} %"
+
+
+def _frac(v: float | None) -> str:
+    return "–" if v is None else f"{100 * v:.0f} %"
+
+
+def add_bench_parser(subparsers: Any) -> None:
+    """``bench system2 …`` and ``bench system1 …`` under the ``dualpilot`` command."""
+    b = subparsers.add_parser("bench", help="benchmark System 2 (fast vs exact) or System 1")
+    sub = b.add_subparsers(dest="bench_target", required=True)
+    s2 = sub.add_parser("system2", help="System 2 methods against the exact MIQP")
+    s2.add_argument("--instances", type=int, default=30)
+    s2.add_argument("--seed", type=int, default=1)
+    s2.add_argument("--out", default="runs/bench")
+    s2.add_argument("--reference-timeout", type=float, default=120.0,
+                    help="time limit of each exact (reference) solve, s")
+    s2.add_argument("--methods", default="fast,exact",
+                    help="comma-separated: fast, exact, fast+exact, thorough")
+    s2.add_argument("--horizon", type=int, default=80)
+    s2.add_argument("--max-hulls", type=int, default=10)
+    s2.add_argument("--reference-cache", default="",
+                    help="JSON file that keeps exact solves between runs (optional)")
+    s2.add_argument("--no-seeded-reference", action="store_true",
+                    help="skip SCIP seeded with the fast plan (the reference improver)")
+    s2.add_argument("--anytime-budget", type=float, default=2.0,
+                    help="exact budget of the fast+exact method, s")
+    s2.set_defaults(func=_cli_system2)
+    s1 = sub.add_parser("system1", help="System 1 (RRT + shortcut + LQR)")
+    s1.add_argument("--instances", type=int, default=30)
+    s1.add_argument("--seed", type=int, default=1)
+    s1.add_argument("--out", default="runs/bench")
+    s1.add_argument("--max-hulls", type=int, default=10)
+    s1.set_defaults(func=_cli_system1)
+
+
+def _cli_system2(args: argparse.Namespace) -> int:
+    methods = [m.strip() for m in args.methods.split(",") if m.strip()]
+    from .system2_fast import METHODS
+
+    bad = [m for m in methods if m not in METHODS]
+    if bad or not methods:
+        raise ValueError(f"unknown methods {bad}; choose from {METHODS}")
+    if args.instances < 1 or args.reference_timeout <= 0:
+        raise ValueError("--instances >= 1 and --reference-timeout > 0 are required")
+    cache = Path(args.reference_cache) if args.reference_cache else None
+    result = run_system2(args.instances, args.seed, Path(args.out), args.reference_timeout,
+                         methods, horizon=args.horizon, max_hulls=args.max_hulls,
+                         reference_cache=cache, seeded_reference=not args.no_seeded_reference,
+                         anytime_budget_s=args.anytime_budget)
+    print(json.dumps(result["summary"], indent=1))
+    print(markdown_table(result))
+    print(f"wrote {Path(args.out) / 'system2.json'}")
+    return 0
+
+
+def _cli_system1(args: argparse.Namespace) -> int:
+    if args.instances < 1:
+        raise ValueError("--instances must be >= 1")
+    result = run_system1(args.instances, args.seed, Path(args.out), max_hulls=args.max_hulls)
+    print(json.dumps(result["summary"], indent=1))
+    print(markdown_table(result))
+    print(f"wrote {Path(args.out) / 'system1.json'}")
+    return 0
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="python -m dualpilot.bench", description=__doc__)
+    sub = parser.add_subparsers(dest="command", required=True)
+    add_bench_parser(sub)
+    args = parser.parse_args(["bench", *(argv if argv is not None else sys.argv[1:])])
+    return int(args.func(args))
+
+
+if __name__ == "__main__":
+    sys.exit(main())

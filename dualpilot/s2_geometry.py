@@ -1,0 +1,347 @@
+"""Geometry for the fast System 2: ε-inflated hulls, supporting half-planes, homotopies.
+
+The avoidance disjunction of Eq. (P2_3)-(P2_4) says that p_τ lies outside
+Q_i = {p : α_{i,l}·p ≤ β_{i,l} + ε ∀l}, the hull with every face pushed out by
+ε (sharp corners). For a point r outside Q_i, the half-plane through the
+point c of Q_i nearest to r with normal (r − c)/‖r − c‖ supports Q_i, so every
+position in it satisfies the disjunction: fixing one such half-plane per
+(τ, i) gives a convex restriction of (P2). Re-choosing the half-planes at the
+restriction's optimum never loses the current point, so the cost can only go
+down (the convex-feasible-set iteration).
+
+Which side of each hull the trajectory passes (its homotopy class) is chosen
+here with a visibility graph on the vertices of the inflated hulls: one
+Dijkstra over the graph lifted by the ray-crossing parity of the nearby hulls
+(an h-signature) gives the shortest path in every class at once.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import scipy.sparse as sp
+from numpy.typing import NDArray
+from scipy.sparse.csgraph import dijkstra
+
+from .geometry import Polytope
+
+Array = NDArray[Any]  # float, int or bool arrays
+
+def inflate(poly: Polytope, eps: float) -> Array:
+    """Vertices (CCW) of {p : α_l·p ≤ β_l + eps ∀l}; vertex k joins faces k−1 and k (m)."""
+    v = poly.vertices
+    n = poly.A  # row l is the normal of the edge v[l] -> v[l+1]
+    n_prev = np.roll(n, 1, axis=0)
+    c = np.einsum("ij,ij->i", n_prev, n)
+    return np.asarray(v + eps * (n_prev + n) / (1.0 + c)[:, None])
+
+
+@dataclass(frozen=True)
+class Inflated:
+    """One hull and its ε-inflation Q in both forms (normals A, offsets b + ε, vertices W)."""
+
+    hull: Polytope
+    A: Array
+    b: Array  # β + ε
+    W: Array  # vertices of Q, CCW
+    lo: Array  # bounding box of Q
+    hi: Array
+    E: Array  # edge vectors W[l+1] − W[l] (edge l lies on face l)
+    len2: Array  # their squared lengths
+
+    @staticmethod
+    def make(hull: Polytope, eps: float) -> Inflated:
+        w = inflate(hull, eps)
+        e = np.roll(w, -1, axis=0) - w
+        len2 = np.maximum(np.einsum("ij,ij->i", e, e), 1e-12)
+        return Inflated(hull, hull.A, hull.b + eps, w, w.min(axis=0), w.max(axis=0), e, len2)
+
+    def margin(self, points: Array) -> Array:
+        """max_l (α_l·p − β_l − ε) per point: ≥ 0 means the disjunction holds (m)."""
+        pts = np.asarray(points, dtype=float).reshape(-1, 2)
+        return np.asarray(np.max(pts @ self.A.T - self.b, axis=1))
+
+    def nearest(self, points: Array) -> tuple[Array, Array]:
+        """Nearest boundary point of Q and the distance to it, per point."""
+        pts = np.asarray(points, dtype=float).reshape(-1, 2)
+        a, e = self.W, self.E
+        rel = pts[:, None, :] - a[None, :, :]
+        t = np.clip(np.einsum("kfi,fi->kf", rel, e) / self.len2, 0.0, 1.0)
+        c = a[None, :, :] + t[:, :, None] * e[None, :, :]
+        d2 = np.sum((pts[:, None, :] - c) ** 2, axis=2)
+        j = np.argmin(d2, axis=1)
+        k = np.arange(len(pts))
+        return c[k, j], np.sqrt(d2[k, j])
+
+    def support(self, points: Array) -> tuple[Array, Array, Array]:
+        """Supporting half-planes n·p ≥ c of Q at the projections of ``points``.
+
+        Returns (normals (k,2), offsets (k,), outside mask). For a point inside
+        Q (or on its boundary) the face with the largest α·p − β is used.
+        """
+        pts = np.asarray(points, dtype=float).reshape(-1, 2)
+        margins = pts @ self.A.T - self.b
+        face = np.argmax(margins, axis=1)
+        normals = self.A[face].copy()
+        offsets = self.b[face].copy()
+        outside = margins[np.arange(len(pts)), face] > 1e-9
+        # a point whose foot on its max-margin face lies on that edge projects onto it
+        # (the face itself supports there); only the others need the vertex search
+        foot = np.einsum("ki,ki->k", pts - self.W[face], self.E[face]) / self.len2[face]
+        vertex_region = outside & ((foot < 0.0) | (foot > 1.0))
+        if np.any(vertex_region):
+            outside_v = vertex_region
+            c, d = self.nearest(pts[outside_v])
+            good = d > 1e-6
+            nrm = np.where(good[:, None], (pts[outside_v] - c) / np.where(good, d, 1.0)[:, None],
+                           normals[outside_v])
+            normals[outside_v] = nrm
+            offsets[outside_v] = np.where(good, np.einsum("ij,ij->i", nrm, c),
+                                          offsets[outside_v])
+        return normals, offsets, outside
+
+
+def support_toward(poly: Inflated, points: Array, desired: Array,
+                   lambdas: tuple[float, ...] = (1.0, 0.5, 0.25), slack: float = 0.0
+                   ) -> tuple[Array, Array, Array]:
+    """Supporting half-planes that contain ``points`` and lean towards ``desired``.
+
+    For each point p (outside Q) the support is taken at the projection of
+    p + λ(d − p) for the largest λ whose half-plane still contains p with
+    ``slack``; λ = 0 is the plain support at p. Returns (normals, offsets,
+    outside mask of the points).
+    """
+    pts = np.asarray(points, dtype=float).reshape(-1, 2)
+    nrm, off, outside = poly.support(pts)
+    done = np.logical_not(outside)
+    for lam in lambdas:
+        if np.all(done):
+            break
+        todo = np.flatnonzero(~done)
+        x = pts[todo] + lam * (desired[todo] - pts[todo])
+        n2, o2, out2 = poly.support(x)
+        ok = out2 & (np.einsum("ij,ij->i", n2, pts[todo]) >= o2 + slack)
+        sel = todo[ok]
+        nrm[sel] = n2[ok]
+        off[sel] = o2[ok]
+        done[sel] = True
+    return nrm, off, outside
+
+
+def disjunction_margin(points: Array, hulls: Sequence[Polytope], eps: float) -> float:
+    """min over points and hulls of max_l (α_l·p − β_l) − ε: ≥ 0 iff Eq. (P2_3)-(P2_4) hold (m)."""
+    pts = np.asarray(points, dtype=float).reshape(-1, 2)
+    worst = float("inf")
+    for h in hulls:
+        worst = min(worst, float(np.min(np.max(pts @ h.A.T - h.b, axis=1))) - eps)
+    return worst
+
+
+# --------------------------------------------------------------- homotopies
+def _segments_blocked(p: Array, q: Array, polys: Sequence[Inflated]) -> Array:
+    """True where segment p[k]–q[k] meets the interior of some Q (Cyrus–Beck, vectorised)."""
+    blocked = np.zeros(len(p), dtype=bool)
+    if not len(p):
+        return blocked
+    d = q - p
+    seg_lo, seg_hi = np.minimum(p, q), np.maximum(p, q)
+    for poly in polys:
+        cand = ~blocked & np.all(seg_hi > poly.lo, axis=1) & np.all(seg_lo < poly.hi, axis=1)
+        if not np.any(cand):
+            continue
+        pc, dc = p[cand], d[cand]
+        num = poly.b[None, :] - pc @ poly.A.T  # (k, F) ; inside where A(p+td) < b
+        den = dc @ poly.A.T
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t = num / den
+        t_lo = np.max(np.where(den < -1e-12, t, -np.inf), axis=1)
+        t_hi = np.min(np.where(den > 1e-12, t, np.inf), axis=1)
+        parallel_out = np.any((np.abs(den) <= 1e-12) & (num <= 1e-9), axis=1)
+        lo = np.maximum(t_lo, 0.0)
+        hi = np.minimum(t_hi, 1.0)
+        # an open interior crossing of positive length (touching the boundary is fine)
+        hit = (hi - lo > 1e-7) & ~parallel_out
+        blocked[np.flatnonzero(cand)[hit]] = True
+    return blocked
+
+
+def _ray_crossings(p: Array, q: Array, origins: Array, direction: Array) -> Array:
+    """(k, r) 1 where segment p[k]–q[k] crosses the ray origins[j] + s·direction, s ≥ 0.
+
+    Each endpoint is put on one side of the ray's line by a fixed predicate
+    (cross ≥ 0), so a path vertex lying exactly on a ray is counted once.
+    """
+    side_p = ((p[:, None, 0] - origins[None, :, 0]) * direction[1]
+              - (p[:, None, 1] - origins[None, :, 1]) * direction[0]) >= 0.0
+    side_q = ((q[:, None, 0] - origins[None, :, 0]) * direction[1]
+              - (q[:, None, 1] - origins[None, :, 1]) * direction[0]) >= 0.0
+    d = q - p
+    w = origins[None, :, :] - p[:, None, :]
+    cross_dd = d[:, 0] * direction[1] - d[:, 1] * direction[0]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        s = (w[..., 0] * d[:, None, 1] - w[..., 1] * d[:, None, 0]) / cross_dd[:, None]
+    return ((side_p != side_q) & (s >= 0.0)).astype(np.int64)
+
+
+def homotopy_paths(
+    start: Array,
+    target: Array,
+    polys: Sequence[Inflated],
+    *,
+    node_margin: float = 1.0,
+    area: float | None = None,
+    max_paths: int = 4,
+    max_signature_hulls: int = 5,
+    length_slack: float = 0.5,
+) -> list[Array]:
+    """Shortest start→target polylines outside every Q, one per homotopy class.
+
+    Nodes are the vertices of each Q pushed out by ``node_margin``; edges join
+    mutually visible nodes (bitangent at polygon vertices). The graph is lifted
+    by the crossing parity of a ray from each of the ``max_signature_hulls``
+    hulls nearest the start–target segment, and one Dijkstra gives the shortest
+    path of every parity class. Classes longer than (1 + length_slack) times
+    the shortest are dropped; at most ``max_paths`` are returned, shortest first.
+    """
+    start = np.asarray(start, dtype=float)
+    target = np.asarray(target, dtype=float)
+    node_list = [start[None, :], target[None, :]]
+    prev_idx: list[Array] = [np.array([-1]), np.array([-1])]
+    next_idx: list[Array] = [np.array([-1]), np.array([-1])]
+    count = 2
+    for poly in polys:
+        w = _offset(poly, node_margin)
+        k = len(w)
+        idx = np.arange(count, count + k)
+        node_list.append(w)
+        prev_idx.append(np.roll(idx, 1))
+        next_idx.append(np.roll(idx, -1))
+        count += k
+    nodes = np.vstack(node_list)
+    prv = np.concatenate(prev_idx)
+    nxt = np.concatenate(next_idx)
+    keep = np.ones(len(nodes), dtype=bool)
+    for poly in polys:
+        keep[2:] &= np.max(nodes[2:] @ poly.A.T - poly.b, axis=1) > 0.0
+    if area is not None:
+        keep[2:] &= np.all((nodes[2:] >= 0.0) & (nodes[2:] <= area), axis=1)
+    n = len(nodes)
+    iu, ju = np.triu_indices(n, k=1)
+    mask = keep[iu] & keep[ju]
+    iu, ju = iu[mask], ju[mask]
+    # bitangency at polygon vertices: both neighbours on one side of the edge line
+    sel = np.ones(len(iu), dtype=bool)
+    for a_idx, b_idx in ((iu, ju), (ju, iu)):
+        has = prv[a_idx] >= 0
+        a = nodes[a_idx[has]]
+        dvec = nodes[b_idx[has]] - a
+        cp = _cross2(dvec, nodes[prv[a_idx[has]]] - a)
+        cn = _cross2(dvec, nodes[nxt[a_idx[has]]] - a)
+        sel[np.flatnonzero(has)[cp * cn < -1e-9]] = False
+    iu, ju = iu[sel], ju[sel]
+    vis = ~_segments_blocked(nodes[iu], nodes[ju], polys)
+    iu, ju = iu[vis], ju[vis]
+    if not len(iu):
+        return []
+    lengths = np.linalg.norm(nodes[ju] - nodes[iu], axis=1)
+    # plain shortest path first: bounds the relevant hulls
+    g0 = sp.coo_matrix((lengths, (iu, ju)), shape=(n, n)).tocsr()
+    dist0 = dijkstra(g0, directed=False, indices=0)
+    if not np.isfinite(dist0[1]):
+        # the target is enclosed: aim for the reachable node nearest to it
+        reach = np.flatnonzero(np.isfinite(dist0))
+        reach = reach[reach != 0]
+        if not len(reach):
+            return []
+        j = int(reach[np.argmin(np.linalg.norm(nodes[reach] - target, axis=1))])
+        nodes[[1, j]] = nodes[[j, 1]]
+        target = nodes[1].copy()
+        perm = np.arange(n)
+        perm[1], perm[j] = j, 1
+        iu, ju = perm[iu], perm[ju]
+        g0 = sp.coo_matrix((lengths, (iu, ju)), shape=(n, n)).tocsr()
+        dist0 = dijkstra(g0, directed=False, indices=0)
+    l_star = float(dist0[1])
+    # hulls near enough to matter: inside the ellipse |x−start| + |x−target| ≤ (1+slack) L*
+    bound = (1.0 + length_slack) * l_star
+    scores = []
+    for k, poly in enumerate(polys):
+        c = poly.W.mean(axis=0)
+        near = float(np.min(np.linalg.norm(poly.W - start, axis=1))
+                     + np.min(np.linalg.norm(poly.W - target, axis=1)))
+        if near <= bound + 1e-9:
+            scores.append((_point_segment(c, start, target), k))
+    scores.sort()
+    sig = [k for _, k in scores[:max_signature_hulls]]
+    r = len(sig)
+    if r == 0:
+        return [_reconstruct(g0, nodes, 0, 1)]
+    axis = target - start
+    nrm = float(np.linalg.norm(axis))
+    direction = np.array([-axis[1], axis[0]]) / nrm if nrm > 1e-9 else np.array([0.0, 1.0])
+    origins = np.array([polys[k].hull.vertices.mean(axis=0) for k in sig])
+    cross = _ray_crossings(nodes[iu], nodes[ju], origins, direction)
+    masks = cross @ (1 << np.arange(r))
+    layers = 1 << r
+    lay = np.arange(layers)
+    src = (lay[:, None] * n + iu[None, :]).ravel()
+    dst = ((lay[:, None] ^ masks[None, :]) * n + ju[None, :]).ravel()
+    w = np.tile(lengths, layers)
+    big = sp.coo_matrix((w, (src, dst)), shape=(layers * n, layers * n)).tocsr()
+    dist, pred = dijkstra(big, directed=False, indices=0, return_predecessors=True)
+    ends = lay * n + 1
+    order = np.argsort(dist[ends])
+    out: list[Array] = []
+    for li in order:
+        d_end = dist[ends[li]]
+        if not np.isfinite(d_end) or d_end > bound or len(out) >= max_paths:
+            break
+        path = [int(ends[li])]
+        while path[-1] != 0:
+            path.append(int(pred[path[-1]]))
+            if path[-1] < 0:
+                break
+        if path[-1] != 0:
+            continue
+        out.append(nodes[np.array(path[::-1]) % n])
+    return out
+
+
+def _offset(poly: Inflated, margin: float) -> Array:
+    """Vertices of Q pushed out face-wise by ``margin`` more (m)."""
+    n = poly.A
+    n_prev = np.roll(n, 1, axis=0)
+    c = np.einsum("ij,ij->i", n_prev, n)
+    return np.asarray(poly.W + margin * (n_prev + n) / (1.0 + c)[:, None])
+
+
+def _cross2(a: Array, b: Array) -> Array:
+    return np.asarray(a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0])
+
+
+def _point_segment(p: Array, a: Array, b: Array) -> float:
+    ab = b - a
+    len2 = float(ab @ ab)
+    t = 0.0 if len2 <= 0 else float(np.clip((p - a) @ ab / len2, 0.0, 1.0))
+    return float(np.linalg.norm(p - (a + t * ab)))
+
+
+def _reconstruct(graph: sp.csr_matrix, nodes: Array, i: int, j: int) -> Array:
+    _, pred = dijkstra(graph, directed=False, indices=i, return_predecessors=True)
+    path = [j]
+    while path[-1] != i:
+        path.append(int(pred[path[-1]]))
+    return nodes[np.array(path[::-1])]
+
+
+def resample(path: Array, arc: Array) -> Array:
+    """Points at arc lengths ``arc`` (m) along a polyline (clamped to its ends)."""
+    seg = np.linalg.norm(np.diff(path, axis=0), axis=1)
+    cum = np.concatenate([[0.0], np.cumsum(seg)])
+    s = np.clip(arc, 0.0, cum[-1])
+    x = np.interp(s, cum, path[:, 0])
+    y = np.interp(s, cum, path[:, 1])
+    return np.column_stack([x, y])

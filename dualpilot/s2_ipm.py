@@ -1,0 +1,225 @@
+"""A small primal-dual interior-point QP solver for banded problems (Mehrotra predictor-corrector).
+
+Solves  min ½ zᵀHz + qᵀz  s.t.  lo ≤ L z ≤ hi  (row-wise, ±inf allowed),
+where H is symmetric positive definite with lower bandwidth ``bw`` and every
+row of L has at most three nonzeros within ``bw`` of each other. Then the
+Newton matrix H + Lᵀ D L is banded too, and each iteration costs one banded
+Cholesky factorisation (LAPACK ``dpbtrf``) and two solves — O(n·bw²) — which
+is what makes the convex restrictions of Problem (P2) cheap: n = 2T = 160.
+
+Rows are kept in a padded form: ``cols`` and ``vals`` of shape (R, 3).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import scipy.sparse as sp
+from numpy.typing import NDArray
+from scipy.linalg.lapack import dpbtrf, dpbtrs
+
+Array = NDArray[Any]  # float, int or bool arrays
+
+@dataclass(frozen=True)
+class Rows:
+    """Rows lo ≤ Σ_k vals[r,k]·z[cols[r,k]] ≤ hi, each row scaled to unit norm."""
+
+    cols: Array  # (R, 3) int
+    vals: Array  # (R, 3)
+    lo: Array
+    hi: Array
+
+    @staticmethod
+    def make(cols: Array, vals: Array, lo: Array, hi: Array) -> Rows:
+        cols = np.asarray(cols, dtype=np.int64)
+        vals = np.asarray(vals, dtype=float)
+        norm = np.linalg.norm(vals, axis=1)
+        norm = np.where(norm > 0, norm, 1.0)
+        return Rows(cols, vals / norm[:, None], np.asarray(lo, dtype=float) / norm,
+                    np.asarray(hi, dtype=float) / norm)
+
+    @staticmethod
+    def stack(parts: list[Rows]) -> Rows:
+        return Rows(np.vstack([p.cols for p in parts]), np.vstack([p.vals for p in parts]),
+                    np.concatenate([p.lo for p in parts]), np.concatenate([p.hi for p in parts]))
+
+    def __len__(self) -> int:
+        return len(self.lo)
+
+
+@dataclass(frozen=True)
+class IpmResult:
+    ok: bool
+    status: str
+    z: Array
+    iterations: int
+
+
+_PAIRS = [(0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2)]
+
+
+def band_pairs(rows: Rows, n: int) -> tuple[Array, Array, Array]:
+    """Flat band indices d·n + min(i, j), coefficients and row ids of every LᵀDL term.
+
+    Row-major: the six terms of row r are entries 6r … 6r + 5, so the terms of
+    stacked row sets are the concatenation of their terms.
+    """
+    i = rows.cols[:, [p for p, _ in _PAIRS]]
+    j = rows.cols[:, [q for _, q in _PAIRS]]
+    c = rows.vals[:, [p for p, _ in _PAIRS]] * rows.vals[:, [q for _, q in _PAIRS]]
+    idx = np.abs(i - j) * n + np.minimum(i, j)
+    rid = np.repeat(np.arange(len(rows.cols)), len(_PAIRS))
+    return idx.ravel(), c.ravel(), rid
+
+
+class BandedQp:
+    """The fixed part of a banded QP (objective and fixed rows), ready for many solves.
+
+    Every :meth:`solve` appends one-sided rows ``extra`` (lo ≤ L z) — the
+    half-planes of Problem (P2) — to the fixed rows and runs
+    :func:`solve_qp`'s Mehrotra iterations; the fixed rows' sparse matrices
+    and Newton-matrix terms are built once.
+    """
+
+    def __init__(self, h_band: Array, q: Array, rows: Rows,
+                 pairs: tuple[Array, Array, Array]) -> None:
+        self.bw1, self.n = h_band.shape
+        n = self.n
+        c_obj = float(np.max(h_band[0]))
+        c_obj = c_obj if c_obj > 0 else 1.0
+        self.h_band = h_band / c_obj
+        self.q = q / c_obj
+        self.h_flat = self.h_band.ravel()
+        h_dense = np.diag(self.h_band[0])
+        for d in range(1, self.bw1):
+            off = np.diag(self.h_band[d, : n - d], -d)
+            h_dense += off + off.T
+        self.h_dense = h_dense
+        il = np.flatnonzero(np.isfinite(rows.lo))
+        iu = np.flatnonzero(np.isfinite(rows.hi))
+        ridx = np.concatenate([il, iu])
+        sg = np.concatenate([-np.ones(len(il)), np.ones(len(iu))])
+        self.h = np.concatenate([-rows.lo[il], rows.hi[iu]])
+        self.m = m = len(self.h)
+        gcols = rows.cols[ridx]
+        gvals = rows.vals[ridx] * sg[:, None]
+        self.g = sp.csr_matrix((gvals.ravel(), (np.repeat(np.arange(m), gcols.shape[1]),
+                                                gcols.ravel())), shape=(m, n))
+        self.gt = self.g.T.tocsr()
+        p_idx, p_coef, _ = pairs
+        n_pairs = len(_PAIRS)
+        g_pair = (ridx[:, None] * n_pairs + np.arange(n_pairs)[None, :]).ravel()
+        rowid = np.repeat(np.arange(m), n_pairs)
+        coef = p_coef[g_pair]
+        nz = coef != 0.0  # padding terms add nothing
+        self.p_idx, self.p_coef, self.p_row = p_idx[g_pair][nz], coef[nz], rowid[nz]
+
+    def solve(self, extra: Rows | None = None, *, max_iter: int = 40, tol: float = 1e-9,
+              z0: Array | None = None, slack0: float = 1.0,
+              detect_infeasible: bool = True) -> IpmResult:
+        """Mehrotra predictor-corrector with the fixed rows plus ``extra`` (lower bounds)."""
+        n, bw1 = self.n, self.bw1
+        if extra is not None and len(extra.cols):
+            k = len(extra.cols)
+            e_cols, e_vals = extra.cols, -extra.vals  # lo ≤ L z  ⇔  −L z ≤ −lo
+            h = np.concatenate([self.h, -extra.lo])
+            ep = band_pairs(extra, n)
+            nz = ep[1] != 0.0
+            p_idx = np.concatenate([self.p_idx, ep[0][nz]])
+            p_coef = np.concatenate([self.p_coef, ep[1][nz]])
+            p_row = np.concatenate([self.p_row, ep[2][nz] + self.m])
+        else:
+            k = 0
+            e_cols, e_vals = np.zeros((0, 3), dtype=np.int64), np.zeros((0, 3))
+            h, p_idx, p_coef, p_row = self.h, self.p_idx, self.p_coef, self.p_row
+        mf = self.m
+        m = mf + k
+        g, gt, h_dense = self.g, self.gt, self.h_dense
+        e_flat = e_cols.ravel()
+
+        def gmul(z: Array) -> Array:
+            if not k:
+                return np.asarray(g @ z)
+            return np.concatenate([g @ z, np.einsum("rk,rk->r", e_vals, z[e_cols])])
+
+        def gtmul(v: Array) -> Array:
+            out = np.asarray(gt @ v[:mf])
+            if k:
+                out = out + np.bincount(e_flat, weights=(e_vals * v[mf:, None]).ravel(),
+                                        minlength=n)
+            return out
+
+        q = self.q
+        z = np.zeros(n) if z0 is None else np.asarray(z0, dtype=float).copy()
+        s = np.maximum(h - gmul(z), slack0)
+        lam = np.ones(m)
+        history: list[float] = []
+        q_norm = 1.0 + float(np.max(np.abs(q), initial=0.0))
+        b_norm = 1.0 + float(np.max(np.abs(h), initial=0.0))
+        status = "max_iter"
+        it = 0
+        for it in range(1, max_iter + 1):  # noqa: B007 - `it` is reported
+            r_d = h_dense @ z + q + gtmul(lam)
+            r_p = gmul(z) + s - h
+            mu = float(s @ lam) / max(m, 1)
+            res_p = float(np.abs(r_p).max()) if m else 0.0
+            res_d = float(np.abs(r_d).max())
+            if res_p <= tol * b_norm and res_d <= tol * q_norm and mu <= tol:
+                status = "solved"
+                break
+            if not (np.isfinite(mu) and np.isfinite(res_d)) or mu > 1e14:
+                status = "diverged"
+                break
+            history.append(res_p)
+            if (detect_infeasible and it >= 12 and res_p > 1e-4 * b_norm
+                    and res_p > 0.5 * history[-6]):
+                status = "stalled (likely infeasible)"
+                break
+            w = lam / s
+            mband = self.h_flat + np.bincount(p_idx, weights=w[p_row] * p_coef,
+                                              minlength=bw1 * n)
+            cb, info = dpbtrf(mband.reshape(bw1, n), lower=1)
+            if info != 0:
+                status = f"factorization failed ({info})"
+                break
+
+            def newton(rc: Array, r_d: Array = r_d, r_p: Array = r_p, s: Array = s,
+                       w: Array = w, cb: Array = cb) -> tuple[Array, Array, Array]:
+                # (H + GᵀWG)Δz = −r_d + Gᵀ(S⁻¹r_c − W r_p); Δs = −r_p − GΔz; Δλ = −S⁻¹r_c − WΔs
+                rhs = -r_d + gtmul(rc / s - w * r_p)
+                dz, _ = dpbtrs(cb, rhs, lower=1)
+                ds = -r_p - gmul(dz)
+                return dz, ds, -rc / s - w * ds
+
+            dz_a, ds_a, dl_a = newton(s * lam)
+            a_aff = _step(s, lam, ds_a, dl_a)
+            mu_aff = float((s + a_aff * ds_a) @ (lam + a_aff * dl_a)) / max(m, 1)
+            sigma = (mu_aff / mu) ** 3 if mu > 0 else 0.0
+            dz, ds, dl = newton(s * lam + ds_a * dl_a - sigma * mu)
+            a = min(1.0, 0.99 * _step(s, lam, ds, dl))
+            z = z + a * dz
+            s = s + a * ds
+            lam = lam + a * dl
+        return IpmResult(status == "solved", status, z, it)
+
+
+def solve_qp(h_band: Array, q: Array, rows: Rows, pairs: tuple[Array, Array, Array],
+             *, max_iter: int = 40, tol: float = 1e-9, z0: Array | None = None,
+             slack0: float = 1.0, detect_infeasible: bool = True) -> IpmResult:
+    """Solve  min ½ zᵀHz + qᵀz  s.t.  rows  (``h_band`` is (bw+1, n) lower band form).
+
+    Inequalities G z + s = h, s ≥ 0 stack the finite lower bounds (G = −L) and
+    upper bounds (G = L). The objective is scaled so that max diag H = 1.
+    With ``detect_infeasible`` a primal residual that stops shrinking ends the
+    solve early as "stalled (likely infeasible)".
+    """
+    return BandedQp(h_band, q, rows, pairs).solve(
+        max_iter=max_iter, tol=tol, z0=z0, slack0=slack0, detect_infeasible=detect_infeasible)
+
+
+def _step(s: Array, lam: Array, ds: Array, dl: Array) -> float:
+    """Largest step in (0, 1] keeping s + αΔs ≥ 0 and λ + αΔλ ≥ 0 (s, λ > 0)."""
+    worst = max(float((-ds / s).max(initial=0.0)), float((-dl / lam).max(initial=0.0)), 1.0)
+    return 1.0 / worst

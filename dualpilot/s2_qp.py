@@ -1,0 +1,353 @@
+"""Problem (P2) with one fixed half-plane per (τ, hull): a convex QP in native Clarabel form.
+
+Fixing, for every planned position p_τ and hull i, one half-plane
+n·p_τ ≥ c that lies outside the ε-inflated hull turns the MIQP (P2) into a
+convex QP whose every solution is feasible for (P2). This module builds that
+QP once per horizon and dynamics with numpy/scipy.sparse and, per solve, only
+stacks the half-plane rows and updates vectors.
+
+Variables are the positions p_{t+2|t} … p_{t+T+1|t} (scaled by ``scale``):
+p_{t+1|t} = p_t + ΔT v_t is fixed by the current state and p_{t+T+1|t} is
+virtual (it defines v_{t+T|t}). Eq. (1) then gives, exactly and linearly,
+
+* v_τ = (p_{τ+1} − p_τ) / ΔT,
+* u_τ = m / ΔT · (v_τ − (1 − ζ) v_{τ−1}),
+
+so the dynamics need no equality constraints and every constraint row
+(U, X, area, half-planes) touches at most three consecutive positions.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from typing import Any
+
+import clarabel
+import numpy as np
+import scipy.sparse as sp
+from numpy.typing import NDArray
+
+from .dynamics import DynamicsParams
+from .s2_ipm import BandedQp, Rows, band_pairs
+
+Array = NDArray[Any]  # float, int or bool arrays
+
+@dataclass(frozen=True)
+class QpResult:
+    """One QP solve: positions p_{t+1|t}..p_{t+T+1|t} (m), the controls, status and cost."""
+
+    ok: bool
+    status: str
+    positions: Array  # (T+1, 2): p_1 .. p_{T+1}
+    controls: Array  # (T, 2): u_1 .. u_T (N), unclipped
+    objective: float  # the QP's Eq. (S2) value (true units)
+    iterations: int
+    solve_time_s: float
+
+
+class P2Qp:
+    """The convex restriction of (P2) for a fixed set of half-planes.
+
+    Parameters
+    ----------
+    horizon : int
+        T of Eq. (P2).
+    dynamics : DynamicsParams
+        Eq. (1) and the bounds U, X (2-D).
+    area_size_m : float or None
+        Keep p_{t+τ|t} in [0, area]² (τ = 1..T); None for no area constraint.
+    v_margin, u_margin, area_margin : float
+        The QP uses bounds tightened by these (m/s, N, m) so that the solver's
+        tolerance never shows as a violation of the true bounds.
+    scale : float
+        Positions are solved in units of ``scale`` metres (numerics only).
+    """
+
+    def __init__(self, horizon: int, dynamics: DynamicsParams, area_size_m: float | None,
+                 *, v_margin: float = 1e-4, u_margin: float = 1e-5, area_margin: float = 1e-3,
+                 scale: float = 100.0, tol: float = 1e-8, backend: str = "ipm") -> None:
+        if backend not in ("ipm", "clarabel"):
+            raise ValueError(f"backend must be 'ipm' or 'clarabel', got {backend!r}")
+        if dynamics.dim != 2:
+            raise ValueError(f"the P2 QP is planar, got dim={dynamics.dim}")
+        if horizon < 2:
+            raise ValueError(f"horizon must be >= 2, got {horizon}")
+        self.T = T = int(horizon)
+        self.dyn = dynamics
+        self.area = area_size_m
+        self.scale = s = float(scale)
+        self.n = n = 2 * T
+        self._vmax = dynamics.v_max_mps - v_margin
+        self._umax = dynamics.u_max_n - u_margin
+        self._area_margin = area_margin
+        dt, a, mass = dynamics.dt_s, 1.0 - dynamics.zeta, dynamics.mass_kg
+        eye2 = sp.identity(2, format="csr")
+        # P = [p_1; p_2..p_{T+1}] = M z + e, e = [p_1; 0]
+        m_pos = sp.vstack([sp.csr_matrix((2, n)), s * sp.identity(n, format="csr")]).tocsr()
+        d_v = sp.kron(sp.diags([-np.ones(T), np.ones(T)], [0, 1], shape=(T, T + 1)), eye2) / dt
+        self._V = (d_v @ m_pos).tocsr()  # v_1..v_T (without the p_1 offset)
+        self._dv = d_v.tocsr()
+        shift = sp.kron(sp.diags([np.ones(T - 1)], [-1], shape=(T, T)), eye2).tocsr()
+        self._shift = shift
+        self._U = ((mass / dt) * (self._V - a * (shift @ self._V))).tocsr()
+        diff = sp.kron(sp.diags([np.ones(T), -np.ones(T - 1)], [0, -1], shape=(T, T)), eye2)
+        self._diff = diff.tocsr()
+        self._dU = (self._diff @ self._U).tocsr()
+        # costed positions p_1..p_T: p_1 constant, p_2..p_T = s z[:2(T-1)]
+        sel = sp.hstack([s * sp.identity(2 * (T - 1)), sp.csr_matrix((2 * (T - 1), 2))]).tocsr()
+        self._sel = sel
+        self._H_pos = (sel.T @ sel).tocsc()
+        self._H_du = (self._dU.T @ self._dU).tocsc()
+        self._box = sp.vstack([self._U, -self._U, self._V, -self._V]).tocsr()
+        self._H_cache: dict[tuple[float, float], sp.csc_matrix] = {}
+        self._settings = clarabel.DefaultSettings()
+        self._settings.verbose = False
+        self._settings.tol_gap_abs = tol
+        self._settings.tol_gap_rel = tol
+        self._settings.tol_feas = tol
+        self._settings.max_threads = 1
+        self._settings.max_iter = 60
+        self._settings.equilibrate_enable = False
+        self.backend = backend
+        # padded rows of the banded interior-point solver: U, V (two-sided) and the area
+        self._fixed_rows = [self._padded(self._U), self._padded(self._V)]
+        if area_size_m is not None:
+            j = np.arange(2 * (T - 1))
+            cols = np.column_stack([j, j, j])
+            vals = np.column_stack([np.full(len(j), s), np.zeros(len(j)), np.zeros(len(j))])
+            self._fixed_rows.append((cols, vals))
+        self._fixed_norm = [np.linalg.norm(v, axis=1) for _, v in self._fixed_rows]
+        self._fixed = Rows(np.vstack([c for c, _ in self._fixed_rows]),
+                           np.vstack([v / nr[:, None] for (_, v), nr in
+                                      zip(self._fixed_rows, self._fixed_norm, strict=True)]),
+                           np.zeros(0), np.zeros(0))
+        self._fixed_pairs = band_pairs(self._fixed, n)
+        self._band_cache: dict[tuple[float, float], Array] = {}
+        self._ctx: BandedQp | None = None
+        self._ctx_key: tuple[bytes, bytes, float, float] | None = None
+        self.bw = 6
+
+    # ----------------------------------------------------------------- maps
+    def offsets(self, x0: Array, u_prev: Array) -> tuple[Array, Array, Array, Array]:
+        """Constant parts (from the state and u_{t|t}) of v, u and Δu, and p_{t+1|t}."""
+        T = self.T
+        dt, a, mass = self.dyn.dt_s, 1.0 - self.dyn.zeta, self.dyn.mass_kg
+        p1 = x0[:2] + dt * x0[2:]
+        e = np.zeros(2 * (T + 1))
+        e[:2] = p1
+        vc = self._dv @ e
+        vprev = self._shift @ vc
+        vprev[:2] += x0[2:]
+        uc = (mass / dt) * (vc - a * vprev)
+        duc = self._diff @ uc
+        duc[:2] -= u_prev
+        return vc, uc, duc, p1
+
+    def hessian(self, kappa: tuple[float, float]) -> sp.csc_matrix:
+        key = (float(kappa[0]), float(kappa[1]))
+        h = self._H_cache.get(key)
+        if h is None:
+            h = sp.triu(2.0 * key[0] * self._H_pos + 2.0 * key[1] * self._H_du).tocsc()
+            self._H_cache[key] = h
+        return h
+
+    @staticmethod
+    def _padded(mat: sp.csr_matrix) -> tuple[Array, Array]:
+        """(cols, vals) of shape (rows, 3) for a CSR matrix with ≤ 3 nonzeros per row."""
+        mat = mat.tocsr(copy=True)
+        mat.eliminate_zeros()
+        mat.sort_indices()
+        nnz = np.diff(mat.indptr)
+        if np.any(nnz > 3):
+            raise ValueError("rows with more than 3 nonzeros")
+        rows = mat.shape[0]
+        cols = np.zeros((rows, 3), dtype=np.int64)
+        vals = np.zeros((rows, 3))
+        for k in range(3):
+            has = nnz > k
+            pos = mat.indptr[:-1][has] + k
+            cols[has, k] = mat.indices[pos]
+            vals[has, k] = mat.data[pos]
+        # padding repeats the first column with value 0 (keeps band offsets small)
+        for k in range(1, 3):
+            pad = nnz <= k
+            cols[pad, k] = cols[pad, 0]
+        return cols, vals
+
+    def hessian_band(self, kappa: tuple[float, float]) -> Array:
+        """H of the QP in lower band form (bw+1, n)."""
+        key = (float(kappa[0]), float(kappa[1]))
+        band = self._band_cache.get(key)
+        if band is None:
+            h = (2.0 * key[0] * self._H_pos + 2.0 * key[1] * self._H_du).tocsr()
+            n, bw = self.n, self.bw
+            band = np.zeros((bw + 1, n))
+            for d in range(bw + 1):
+                band[d, : n - d] = h.diagonal(-d)
+            coo = h.tocoo()
+            if np.any(np.abs(coo.row - coo.col) > bw):
+                raise AssertionError("QP Hessian is not within the band")  # pragma: no cover
+            self._band_cache[key] = band
+        return band
+
+    def _context(self, x0: Array, u_prev: Array, q: Array,
+                 kappa: tuple[float, float]) -> BandedQp:
+        """The fixed part of the interior-point QP for one (state, u_{t|t}, κ), cached."""
+        key = (x0.tobytes(), u_prev.tobytes(), float(kappa[0]), float(kappa[1]))
+        if self._ctx_key == key and self._ctx is not None:
+            return self._ctx
+        T = self.T
+        vc, uc, _, _ = self.offsets(x0, u_prev)
+        nu, nv = self._fixed_norm[0], self._fixed_norm[1]
+        lo = [(-self._umax - uc) / nu, (-self._vmax - vc) / nv]
+        hi = [(self._umax - uc) / nu, (self._vmax - vc) / nv]
+        if self.area is not None:
+            # a side of the area that p_τ cannot reach (per-axis reach at the limits) is
+            # left out: its bound is infinite, so it adds no inequality
+            from .s2_scip import reach_boxes
+
+            r_lo, r_hi = reach_boxes(x0, T, self.dyn)
+            na = self._fixed_norm[2]
+            a_lo = np.where(r_lo[1:].ravel() < self._area_margin + 1.0, self._area_margin,
+                            -np.inf)
+            a_hi = np.where(r_hi[1:].ravel() > self.area - self._area_margin - 1.0,
+                            self.area - self._area_margin, np.inf)
+            lo.append(a_lo / na)
+            hi.append(a_hi / na)
+        fixed = Rows(self._fixed.cols, self._fixed.vals, np.concatenate(lo), np.concatenate(hi))
+        self._ctx = BandedQp(self.hessian_band(kappa), q, fixed, self._fixed_pairs)
+        self._ctx_key = key
+        return self._ctx
+
+    def _solve_ipm(self, x0: Array, u_prev: Array, q: Array, kappa: tuple[float, float],
+                   tau: Array, normals: Array, rhs: Array, z0: Array | None = None,
+                   detect_infeasible: bool = True) -> tuple[bool, str, Array, int]:
+        ctx = self._context(x0, u_prev, q, kappa)
+        m = len(tau)
+        extra = None
+        if m:
+            j = 2 * (np.asarray(tau, dtype=np.int64) - 2)
+            nrm = np.asarray(normals, dtype=float)
+            scale_n = np.linalg.norm(nrm, axis=1)
+            cols = np.column_stack([j, j + 1, j])
+            vals = np.column_stack([nrm[:, 0], nrm[:, 1], np.zeros(m)]) / scale_n[:, None]
+            extra = Rows(cols, vals, np.asarray(rhs, dtype=float) / (self.scale * scale_n),
+                         np.full(m, np.inf))
+        res = ctx.solve(extra, z0=z0, detect_infeasible=detect_infeasible)
+        return res.ok, f"ipm {res.status}", res.z, res.iterations
+
+    def positions(self, z: Array, x0: Array) -> Array:
+        """p_1..p_{T+1} (m) from the scaled variables."""
+        p1 = x0[:2] + self.dyn.dt_s * x0[2:]
+        return np.vstack([p1, self.scale * z.reshape(-1, 2)])
+
+    def controls(self, z: Array, x0: Array, u_prev: Array) -> Array:
+        _, uc, _, _ = self.offsets(x0, u_prev)
+        return np.asarray(self._U @ z + uc).reshape(-1, 2)
+
+    def cost(self, positions: Array, controls: Array, goal: Array,
+             kappa: tuple[float, float], u_prev: Array) -> float:
+        """Eq. (S2) for p_1..p_T (rows 0..T-1 of ``positions``) and u_1..u_T."""
+        pos = positions[: self.T]
+        du = np.diff(np.vstack([u_prev, controls]), axis=0)
+        return float(kappa[0] * np.sum((pos - goal) ** 2) + kappa[1] * np.sum(du**2))
+
+    # ---------------------------------------------------------------- solve
+    def solve(self, x0: Array, u_prev: Array, goal: Array, kappa: tuple[float, float],
+              tau: Array, normals: Array, rhs: Array, area_rows: Array | None = None,
+              elastic: float | None = None, *, z0: Array | None = None,
+              confirm: bool = False) -> QpResult:
+        """Solve the QP with half-planes normals[k]·p_{tau[k]} ≥ rhs[k] (τ in 2..T).
+
+        ``area_rows`` is an (r, 3) int array of (τ, axis, side) with side 0 for
+        p ≥ 0 and 1 for p ≤ area; None adds every area row. With ``elastic``
+        the half-planes are soft: a violation of σ m costs ``elastic``·σ.
+        ``z0`` (positions p_2..p_{T+1}, m) starts the interior-point solver; if it
+        fails, Clarabel decides only when ``confirm`` (else the result is not ok);
+        ``confirm`` is for QPs known to be feasible (no early infeasibility guess).
+        """
+        T, s = self.T, self.scale
+        m = len(tau)
+        n_sl = m if elastic is not None else 0
+        n = self.n + n_sl
+        vc, uc, duc, _ = self.offsets(x0, u_prev)
+        h = self.hessian(kappa)
+        goal_vec = np.tile(goal, T - 1)
+        q = -2.0 * kappa[0] * (self._sel.T @ goal_vec) + 2.0 * kappa[1] * (self._dU.T @ duc)
+        if self.backend == "ipm" and not n_sl:
+            t_start = time.perf_counter()
+            zs = None if z0 is None else np.asarray(z0, dtype=float).ravel() / s
+            ok, status, z, iters = self._solve_ipm(x0, u_prev, q, kappa, tau, normals, rhs, zs,
+                                                   detect_infeasible=not confirm)
+            if not ok and not confirm:
+                empty = np.empty((0, 2))
+                return QpResult(False, status, empty, empty, float("inf"), iters,
+                                time.perf_counter() - t_start)
+            if ok:
+                pos = self.positions(z, x0)
+                ctrl = np.asarray(self._U @ z + uc).reshape(-1, 2)
+                cost = self.cost(pos, ctrl, goal, kappa, u_prev)
+                return QpResult(True, status, pos, ctrl, cost, iters,
+                                time.perf_counter() - t_start)
+            area_rows = None  # Clarabel decides, with every area row
+        box = self._box
+        if n_sl:
+            h = sp.block_diag([h, sp.csc_matrix((n_sl, n_sl))], format="csc")
+            q = np.concatenate([q, np.full(n_sl, float(elastic or 0.0))])
+            box = sp.hstack([box, sp.csr_matrix((box.shape[0], n_sl))], format="csr")
+        blocks: list[sp.spmatrix] = [box]
+        bs = [self._umax - uc, self._umax + uc, self._vmax - vc, self._vmax + vc]
+        if m:
+            tau = np.asarray(tau, dtype=int)
+            if np.any(tau < 2) or np.any(tau > T):
+                raise ValueError("half-planes apply to p_2..p_T")
+            cols = np.column_stack([2 * (tau - 2), 2 * (tau - 2) + 1]).ravel()
+            rows = np.repeat(np.arange(m), 2)
+            vals = (-s * np.asarray(normals, dtype=float)).ravel()
+            if n_sl:
+                cols = np.concatenate([cols, self.n + np.arange(m)])
+                rows = np.concatenate([rows, np.arange(m)])
+                vals = np.concatenate([vals, -np.ones(m)])
+                blocks.append(sp.csr_matrix((vals, (rows, cols)), shape=(m, n)))
+                blocks.append(sp.csr_matrix((-np.ones(m), (np.arange(m), self.n + np.arange(m))),
+                                            shape=(m, n)))
+                bs.extend([-np.asarray(rhs, dtype=float), np.zeros(m)])
+            else:
+                blocks.append(sp.csr_matrix((vals, (rows, cols)), shape=(m, n)))
+                bs.append(-np.asarray(rhs, dtype=float))
+        if self.area is not None:
+            ar = self._area_rows(area_rows)
+            if len(ar):
+                col = 2 * (ar[:, 0] - 2) + ar[:, 1]
+                sign = np.where(ar[:, 2] == 0, -1.0, 1.0)
+                blocks.append(sp.csr_matrix((sign * s, (np.arange(len(ar)), col)),
+                                            shape=(len(ar), n)))
+                bs.append(np.where(ar[:, 2] == 0, -self._area_margin,
+                                   self.area - self._area_margin))
+        A = sp.vstack(blocks, format="csc")
+        b = np.concatenate(bs)
+        solver = clarabel.DefaultSolver(h, q, A, b, [clarabel.NonnegativeConeT(A.shape[0])],
+                                        self._settings)
+        sol = solver.solve()
+        status = str(sol.status)
+        ok = status in ("Solved", "AlmostSolved")
+        z = np.asarray(sol.x, dtype=float)[: self.n]
+        if not ok or not np.all(np.isfinite(z)):
+            empty = np.empty((0, 2))
+            return QpResult(False, status, empty, empty, float("inf"), int(sol.iterations),
+                            float(sol.solve_time))
+        pos = self.positions(z, x0)
+        ctrl = np.asarray(self._U @ z + uc).reshape(-1, 2)
+        cost = self.cost(pos, ctrl, goal, kappa, u_prev)
+        if n_sl:
+            slack = float(np.max(np.asarray(sol.x)[self.n:], initial=0.0))
+            status += f" (elastic, slack {slack:.3g} m)"
+        return QpResult(True, status, pos, ctrl, cost, int(sol.iterations), float(sol.solve_time))
+
+    def _area_rows(self, area_rows: Array | None) -> Array:
+        if area_rows is None:
+            tau = np.arange(2, self.T + 1)
+            grid = np.array(np.meshgrid(tau, [0, 1], [0, 1], indexing="ij")).reshape(3, -1).T
+            return grid.astype(int)
+        return np.asarray(area_rows, dtype=int).reshape(-1, 3)

@@ -1,0 +1,214 @@
+"""Problem (P2) as an MIQP in native SCIP (PySCIPOpt), seeded with an incumbent.
+
+The same problem as :class:`dualpilot.system2.ExactSystem2` — Eq. (S2) with
+Eq. (P2_1)-(P2_6) and big-M avoidance over every face of every hull — with
+three differences that help the branch and bound, none of which changes the
+optimum:
+
+* the true hull faces are used (no slots, so no conservative simplification);
+* each big-M is the tightest valid one, M_{i,l} = β_{i,l} + ε − min_{p∈area} α_{i,l}·p,
+  and (τ, i) pairs that no p_τ can reach are dropped (per-axis reach at the
+  speed and force limits);
+* a verified plan (the fast method's) is added as the starting incumbent, so
+  every node worse than it is pruned from the start.
+
+The quadratic objective is moved into one convex constraint J(X, U) ≤ t.
+SCIP's dual bound gives a certified lower bound on the optimum even when the
+time limit stops it.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from .dynamics import DynamicsParams, transition_matrices
+from .geometry import Polytope
+from .p2 import System2Params
+
+Array = NDArray[Any]
+
+
+@dataclass(frozen=True)
+class ScipResult:
+    """Best controls found (None if none), status, objective, dual bound and time (s)."""
+
+    controls: Array | None
+    status: str
+    objective: float
+    dual_bound: float
+    optimal: bool
+    time_s: float
+    n_binaries: int
+
+
+def reach_boxes(x0: Array, horizon: int, dyn: DynamicsParams) -> tuple[Array, Array]:
+    """Per-axis bounds on p_{t+τ|t}, τ = 1..T, under |u| ≤ u_max and |v| ≤ v_max (m)."""
+    keep = 1.0 - dyn.zeta
+    acc = dyn.dt_s / dyn.mass_kg * dyn.u_max_n
+    v_hi = x0[2:].copy()
+    v_lo = x0[2:].copy()
+    p_hi = x0[:2] + dyn.dt_s * v_hi
+    p_lo = p_hi.copy()
+    lo, hi = [p_lo.copy()], [p_hi.copy()]
+    for _ in range(horizon - 1):
+        v_hi = np.minimum(keep * v_hi + acc, dyn.v_max_mps)
+        v_lo = np.maximum(keep * v_lo - acc, -dyn.v_max_mps)
+        p_hi = p_hi + dyn.dt_s * v_hi
+        p_lo = p_lo + dyn.dt_s * v_lo
+        lo.append(p_lo.copy())
+        hi.append(p_hi.copy())
+    return np.array(lo), np.array(hi)
+
+
+def solve_seeded(x0: Array, hulls: Sequence[Polytope], goal: Array, kappa: tuple[float, float],
+                 u_prev: Array, params: System2Params, dyn: DynamicsParams,
+                 incumbent: Array | None, time_limit_s: float) -> ScipResult:
+    """Solve (P2) with SCIP from the incumbent controls (T, 2); see the module docstring."""
+    from pyscipopt import Model, quicksum
+
+    t0 = time.perf_counter()
+    T = params.horizon
+    eps = params.epsilon_m
+    area = params.area_size_m if params.keep_in_area else None
+    phi, gamma = transition_matrices(dyn)
+    m = Model("P2")
+    m.hideOutput()
+    m.setParam("limits/time", max(0.1, float(time_limit_s)))
+    inf = m.infinity()
+    u = [[m.addVar(lb=-dyn.u_max_n, ub=dyn.u_max_n, name=f"u{k}_{a}") for a in range(2)]
+         for k in range(T)]
+    pos_lb, pos_ub = (0.0, area) if area is not None else (-inf, inf)
+    x = [[m.addVar(lb=pos_lb if a < 2 else -dyn.v_max_mps,
+                   ub=pos_ub if a < 2 else dyn.v_max_mps, name=f"x{k}_{a}")
+          for a in range(4)] for k in range(T)]
+    for k in range(T):
+        prev = [float(v) for v in x0] if k == 0 else x[k - 1]
+        for r in range(4):
+            m.addCons(x[k][r] == quicksum(phi[r, c] * prev[c] for c in range(4) if phi[r, c])
+                      + quicksum(gamma[r, c] * u[k][c] for c in range(2) if gamma[r, c]))
+    lo, hi = reach_boxes(x0, T, dyn)
+    if area is not None:
+        lo, hi = np.maximum(lo, 0.0), np.minimum(hi, area)
+    binaries: list[tuple[int, int, int, Any]] = []
+    for i, h in enumerate(hulls):
+        for k in range(T):
+            # the least α·p over the reach box of p_{k+1}: the tightest valid big-M
+            mins = np.minimum(h.A * lo[k], h.A * hi[k]).sum(axis=1)
+            need = h.b + eps - mins  # > 0 where face l can be violated inside the box
+            if np.any(need <= 0):
+                continue  # some face holds everywhere in the box: the pair is always safe
+            bs = []
+            for l_ in range(h.n_faces):
+                b = m.addVar(vtype="B", name=f"b{k}_{i}_{l_}")
+                m.addCons(h.A[l_, 0] * x[k][0] + h.A[l_, 1] * x[k][1]
+                          >= h.b[l_] + eps - need[l_] * b)
+                bs.append(b)
+                binaries.append((k, i, l_, b))
+            m.addCons(quicksum(bs) <= h.n_faces - 1)
+    t = m.addVar(lb=0.0, ub=inf, name="J")
+    k1, k2 = kappa
+    expr = quicksum(k1 * ((x[k][0] - goal[0]) ** 2 + (x[k][1] - goal[1]) ** 2) for k in range(T))
+    expr += quicksum(k2 * ((u[0][a] - float(u_prev[a])) ** 2) for a in range(2))
+    expr += quicksum(k2 * ((u[k][a] - u[k - 1][a]) ** 2) for k in range(1, T) for a in range(2))
+    m.addCons(expr <= t)
+    m.setObjective(t, "minimize")
+    if incumbent is not None:
+        _add_incumbent(m, incumbent, x0, hulls, goal, kappa, u_prev, eps, dyn, u, x, binaries,
+                       t)
+    m.optimize()
+    status = str(m.getStatus())
+    controls: Array | None = None
+    obj = math.inf
+    if m.getNSols() > 0:
+        sol = m.getBestSol()
+        controls = np.array([[m.getSolVal(sol, u[k][a]) for a in range(2)] for k in range(T)])
+        obj = float(m.getSolObjVal(sol))
+    try:
+        dual = float(m.getDualbound())
+    except Exception:  # noqa: BLE001 - no bound when nothing was solved
+        dual = -math.inf
+    return ScipResult(controls, status, obj, dual, status == "optimal",
+                      time.perf_counter() - t0, len(binaries))
+
+
+def _add_incumbent(m: Any, controls: Array, x0: Array, hulls: Sequence[Polytope], goal: Array,
+                   kappa: tuple[float, float], u_prev: Array, eps: float, dyn: DynamicsParams,
+                   u: list[list[Any]], x: list[list[Any]],
+                   binaries: list[tuple[int, int, int, Any]], t: Any) -> None:
+    from .dynamics import rollout
+    from .p2 import p2_cost
+
+    ctrl = np.clip(np.asarray(controls, dtype=float), -dyn.u_max_n, dyn.u_max_n)
+    states = rollout(x0, ctrl, dyn)
+    sol = m.createSol()
+    for k in range(len(ctrl)):
+        for a in range(2):
+            m.setSolVal(sol, u[k][a], float(ctrl[k, a]))
+        for r in range(4):
+            m.setSolVal(sol, x[k][r], float(states[k + 1, r]))
+    for k, i, l_, b in binaries:
+        h = hulls[i]
+        ok = float(h.A[l_] @ states[k + 1, :2]) >= h.b[l_] + eps - 1e-9
+        m.setSolVal(sol, b, 0.0 if ok else 1.0)
+    m.setSolVal(sol, t, p2_cost(states, ctrl, goal, kappa, u_prev) * (1 + 1e-9) + 1e-9)
+    m.addSol(sol, free=True)
+
+
+class SeededExactSystem2:
+    """(P2) solved by SCIP from an incumbent plan; ``plan`` takes the incumbent's controls.
+
+    Used in a worker process (see :class:`dualpilot.system2_fast.ExactWorker`):
+    ``plan(state, hulls, objective, prev_control, incumbent)``. The returned
+    plan is verified like every System 2 plan; ``info`` carries SCIP's status,
+    dual bound and whether it proved optimality.
+    """
+
+    system = 2
+    method = "exact-seeded"
+
+    def __init__(self, goal: Any, params: System2Params = System2Params(),
+                 dynamics: DynamicsParams = DynamicsParams(), clearance_m: float = 20.0) -> None:
+        self.goal, self.params, self.dynamics = goal, params, dynamics
+        self.clearance_m = clearance_m
+
+    def plan(self, state: Array, hulls: Sequence[Polytope], objective: Any = None,
+             prev_control: Array | None = None, incumbent: Array | None = None) -> Any:
+        from .dynamics import rollout
+        from .p2 import p2_cost
+        from .plan import Objective, Plan, PlanStatus
+        from .system2_fast import verify_p2_plan
+
+        t0 = time.perf_counter()
+        objective = Objective.MISSION_TIME if objective is None else objective
+        x0 = np.asarray(state, dtype=float)
+        u_prev = np.zeros(2) if prev_control is None else np.asarray(prev_control, dtype=float)
+        kappa = self.params.kappa(objective)
+        res = solve_seeded(x0, tuple(hulls), self.goal.center, kappa, u_prev, self.params,
+                           self.dynamics, incumbent, self.params.time_limit_s)
+        info: dict[str, object] = {"solver_status": res.status, "optimal": res.optimal,
+                                   "dual_bound": res.dual_bound, "n_binaries": res.n_binaries,
+                                   "solver_objective": res.objective}
+        if res.controls is None:
+            status = PlanStatus.INFEASIBLE if res.status == "infeasible" else PlanStatus.TIMEOUT
+            plan = Plan.failed(2, status, time.perf_counter() - t0, f"SCIP: {res.status}")
+            return Plan(**{**plan.__dict__, "objective": objective, "info": info})
+        controls = np.clip(res.controls, -self.dynamics.u_max_n, self.dynamics.u_max_n)
+        states = rollout(x0, controls, self.dynamics)
+        area = self.params.area_size_m if self.params.keep_in_area else None
+        verdict = verify_p2_plan(states, controls, tuple(hulls), self.dynamics,
+                                 self.params.epsilon_m, self.clearance_m, area, tol=1e-3)
+        cost = p2_cost(states, controls, self.goal.center, kappa, u_prev)
+        if not verdict.ok:
+            plan = Plan.failed(2, PlanStatus.UNSAFE, time.perf_counter() - t0,
+                               f"SCIP plan failed verification: {verdict.reason}")
+            return Plan(**{**plan.__dict__, "objective": objective, "info": info})
+        return Plan(system=2, status=PlanStatus.OK, states=states, controls=controls,
+                    compute_time_s=time.perf_counter() - t0, objective=objective, cost=cost,
+                    info=info)

@@ -1,0 +1,983 @@
+"""System 2 in real time: a fast, verified, near-optimal solver for Problem (P2).
+
+Method ("fast", the service default):
+
+1. **Restriction.** For every planned position p_τ (τ = 2..T; p_1 = p_t + ΔT v_t
+   is fixed by the state) and every hull i near it, fix one half-plane outside
+   the ε-inflated hull Q_i (a face, or a line through a vertex of Q_i). (P2)
+   becomes a convex QP in the positions only (:class:`dualpilot.s2_qp.P2Qp`),
+   whose Newton systems are banded; a small Mehrotra interior-point solver
+   (:mod:`dualpilot.s2_ipm`) solves it in a few ms. Every QP solution is
+   feasible for (P2).
+2. **Relaxation first.** The QP with no hull at all is solved first; if it
+   already satisfies the disjunction it is the global optimum of (P2).
+3. **Homotopies.** Shortest paths around the hulls, one per homotopy class
+   (:func:`dualpilot.s2_geometry.homotopy_paths`), the relaxation pushed out
+   of the hulls through their nearest faces ("projected", which also finds
+   dead ends near a covered goal), and the previous plan shifted by one step
+   are time-parametrised within Eq. (1)'s limits; each fixes the first
+   half-planes. A reference whose QP is infeasible is re-timed slower.
+4. **Convex-feasible-set iteration.** Re-choose each half-plane as a support
+   of Q_i through the current position, leaning towards the relaxation's
+   position, and re-solve; the cost never increases. Only (τ, i) pairs within
+   ``near_m`` of Q_i are in the QP; a missing pair that a solution violates
+   is added. Screening: every homotopy gets one QP, the cheapest is iterated
+   to convergence, the others only while they can still win.
+5. **Verification.** A candidate is returned only if its rolled-out states
+   pass :func:`verify_p2_plan`: :func:`dualpilot.verify.verify_trajectory`
+   at d_safe (Eq. (1), U, X, exact segment clearance) and the ε-disjunction
+   at every τ against the true hull faces, and the area. The cheapest
+   verified candidate is returned; an unverified plan never is (status
+   UNSAFE instead). If no homotopy yields a feasible plan, braking to a
+   hover seeds one last run.
+
+``method="fast+exact"`` (:class:`AnytimeSystem2`) then runs SCIP seeded with the
+fast plan (:mod:`dualpilot.s2_scip`) in a killable worker process with a hard
+time limit and returns the better verified plan. ``method="exact"`` is the cvxpy
+MIQP of :mod:`dualpilot.system2`. :func:`make_system2` builds any of them.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import math
+import multiprocessing as mp
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from multiprocessing.connection import Connection
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from .dynamics import Array, DynamicsParams, rollout
+from .geometry import Polytope, Rect
+from .p2 import System2Params, p2_cost
+from .plan import Objective, Plan, PlanStatus
+from .s2_geometry import Inflated, disjunction_margin, homotopy_paths, resample, support_toward
+from .s2_qp import P2Qp, QpResult
+from .verify import Verdict, verify_trajectory
+
+D_SAFE_M = 20.0
+"""Sec. IV-A: a mission fails within d_safe of an active fire region (m)."""
+
+METHODS = ("fast", "exact", "fast+exact", "thorough")
+
+
+@dataclass(frozen=True)
+class FastParams:
+    """Knobs of the fast method.
+
+    ``max_homotopies`` shortest paths (one per homotopy class, within
+    ``length_slack`` of the shortest, classes told apart by the rays of the
+    ``max_signature_hulls`` hulls nearest the start–target line);
+    ``max_iterations`` QPs per homotopy; a run stops when a QP improves the
+    cost by less than ``rel_tol``; half-planes are kept for (τ, i) pairs
+    within ``near_m`` m of Q_i, each ``eps_margin_m`` m beyond Q_i (the
+    solver's tolerance never shows as a violation); homotopies whose cost
+    exceeds the best by more than ``screen_slack`` are not iterated;
+    references move at ``speed_factor`` of the speed and force limits;
+    once a feasible plan exists, no improving QP is started after ``max_qp``
+    QPs in all (deterministic) or ``time_budget_s`` (a safety net under load).
+    """
+
+    max_homotopies: int = 4
+    max_iterations: int = 12
+    rel_tol: float = 5e-4
+    near_m: float = 60.0
+    eps_margin_m: float = 0.01
+    length_slack: float = 1.0
+    max_signature_hulls: int = 5
+    use_previous: bool = True
+    screen_slack: float = 0.3
+    speed_factor: float = 0.85
+    max_qp: int = 14
+    time_budget_s: float = 0.5
+    max_prefeasible: int = 5
+    warm_start: bool = True
+
+    def __post_init__(self) -> None:
+        if self.max_homotopies < 1 or self.max_iterations < 1:
+            raise ValueError("max_homotopies and max_iterations must be >= 1")
+        if not (self.near_m > 0 and self.eps_margin_m >= 0 and self.length_slack >= 0):
+            raise ValueError("near_m > 0, eps_margin_m >= 0 and length_slack >= 0 required")
+
+
+THOROUGH = FastParams(max_homotopies=16, max_signature_hulls=8, length_slack=1.5,
+                      max_iterations=40, rel_tol=1e-9, screen_slack=100.0, time_budget_s=10.0,
+                      max_prefeasible=8, max_qp=1000)
+"""FastParams of the "thorough" method: no screening, no time budget."""
+
+
+@dataclass
+class _Candidate:
+    name: str
+    positions: Array  # rows p_{t+1|t} .. p_{t+T+1|t}: p_τ is row τ − 1
+    controls: Array
+    cost: float
+    iterations: int
+
+
+class _Cfs:
+    """Convex-feasible-set iterations for one homotopy, advanced one QP at a time.
+
+    The first half-planes come from the reference ``ref`` (the homotopy). If
+    that QP is infeasible (the reference's timing asks too much of Eq. (1)),
+    the reference is re-timed slower (``retime``) and tried again; with
+    ``max_elastic`` > 0 a last attempt is elastic (exact L1 penalty on
+    half-plane violations). Once an iterate is feasible, each half-plane is
+    re-chosen as a support of Q_i that contains the current point and leans
+    towards the relaxation's point, so the cost never rises. The run stops
+    when the cost stalls or when the supports of the active half-planes no
+    longer change (the last solution then also solves the next QP).
+    """
+
+    def __init__(self, owner: FastSystem2, name: str, ref: Array, polys: list[Inflated],
+                 desired: Array, solve: Callable[..., QpResult], kappa: tuple[float, float],
+                 retime: Callable[[float], Array] | None = None, max_elastic: int = 0) -> None:
+        self.o, self.name, self.ref, self.polys = owner, name, ref, polys
+        self.desired, self.solve, self.kappa = desired, solve, kappa
+        self.retime, self.max_elastic = retime, max_elastic
+        self.slowdowns = [0.6, 0.35] if retime is not None else []
+        f, T = owner.fast, owner.params.horizon
+        self.T = T
+        self.taus = np.arange(2, T + 1)
+        self.active = np.zeros((len(polys), T + 1), dtype=bool)
+        self._activate(ref)
+        self.cur = ref.copy()
+        self.best: _Candidate | None = None
+        self.last_cost = math.inf  # the latest QP's cost, feasible for (P2) or not
+        self.penalty = 3e4 * kappa[0] + 3e3 * kappa[1]
+        self.elastic = False
+        self.n_elastic = 0
+        self.feasible_seen = False
+        self.done = False
+        self.iterations = 0
+        self.last_rows: tuple[Array, Array, Array] | None = None
+        self.last_hull_ids = np.zeros(0, dtype=np.int64)
+        self.escapes = 0
+        self.converged = False
+        self._f = f
+
+    @property
+    def cost(self) -> float:
+        return self.best.cost if self.best is not None else math.inf
+
+    def _activate(self, pos: Array) -> None:
+        T = self.T
+        for i, q in enumerate(self.polys):
+            self.active[i, 2:T + 1] |= q.margin(pos[1:T]) < self.o.fast.near_m
+
+    def _rows(self) -> tuple[Array, Array, Array]:
+        f, T = self.o.fast, self.T
+        tau_l, nrm_l, rhs_l, hid_l = [], [], [], []
+        for i, q in enumerate(self.polys):
+            tt = self.taus[self.active[i, 2:T + 1]]
+            if not len(tt):
+                continue
+            pts = self.cur[tt - 1]
+            if self.feasible_seen:
+                nrm, off, _ = support_toward(q, pts, self.desired[tt - 1],
+                                             slack=f.eps_margin_m)
+            elif not self.elastic and self.n_elastic == 0:
+                # until an iterate is feasible the homotopy reference fixes the sides
+                nrm, off, _ = q.support(self.ref[tt - 1])
+            else:
+                # after an elastic solve: supports at its points, the reference's inside Q
+                nrm, off, outside = q.support(pts)
+                use = np.logical_not(outside) & (q.margin(self.ref[tt - 1]) > 0)
+                if np.any(use):
+                    n2, o2, _ = q.support(self.ref[tt[use] - 1])
+                    nrm[use] = n2
+                    off[use] = o2
+            tau_l.append(tt)
+            nrm_l.append(nrm)
+            rhs_l.append(off + f.eps_margin_m)
+            hid_l.append(np.full(len(tt), i))
+        if not tau_l:
+            self.last_hull_ids = np.zeros(0, dtype=np.int64)
+            return np.zeros(0, dtype=np.int64), np.zeros((0, 2)), np.zeros(0)
+        self.last_hull_ids = np.concatenate(hid_l)
+        return np.concatenate(tau_l), np.vstack(nrm_l), np.concatenate(rhs_l)
+
+    def _corner_escape(self, rows: tuple[Array, Array, Array]
+                       ) -> tuple[Array, Array, Array] | None:
+        """Swap each active vertex support for the face of Q_i the point is most outside of.
+
+        A fixed point of the iteration where a position is held by a line through
+        a vertex of Q_i is not a local optimum of (P2): the disjunction allows the
+        whole half-plane of either adjacent face, which contains the position.
+        Returns the new rows, or None if no active row is a vertex support.
+        """
+        tau, nrm, rhs = rows
+        hid = self.last_hull_ids
+        pts = self.cur[tau - 1]
+        slack = np.einsum("ij,ij->i", nrm, pts) - rhs
+        nrm, rhs = nrm.copy(), rhs.copy()
+        changed = False
+        for k in np.flatnonzero(slack < 1e-3):
+            q = self.polys[int(hid[k])]
+            margins = q.A @ pts[k] - q.b
+            face = int(np.argmax(margins))
+            if np.all(np.abs(q.A[face] - nrm[k]) < 1e-9):
+                continue
+            if margins[face] < 0.25 * self.o.fast.eps_margin_m:
+                continue
+            nrm[k] = q.A[face]
+            # keep the current position feasible (it may sit a hair inside the margin)
+            rhs[k] = q.b[face] + min(self.o.fast.eps_margin_m, float(margins[face]))
+            changed = True
+        return (tau, nrm, rhs) if changed else None
+
+    def _unchanged(self, rows: tuple[Array, Array, Array]) -> bool:
+        """True if the active half-planes at the current solution are those it solved."""
+        if self.last_rows is None or len(rows[0]) != len(self.last_rows[0]):
+            return False
+        tau, nrm, rhs = rows
+        tau0, nrm0, rhs0 = self.last_rows
+        if not np.array_equal(tau, tau0):
+            return False
+        slack = np.einsum("ij,ij->i", nrm0, self.cur[tau0 - 1]) - rhs0
+        act = slack < 1e-3
+        return bool(np.all(np.abs(nrm[act] - nrm0[act]) < 1e-7)
+                    and np.all(np.abs(rhs[act] - rhs0[act]) < 1e-5))
+
+    def step(self) -> None:
+        """One QP; sets ``done`` when converged, stuck or out of iterations."""
+        if self.done:
+            return
+        o, f = self.o, self.o.fast
+        rows = self._rows()
+        if self.feasible_seen and (self.converged or self._unchanged(rows)):
+            # converged: one more QP only if a vertex support holds a position
+            escape = self._corner_escape(rows) if self.escapes < 2 else None
+            if escape is None:
+                self.done = True
+                return
+            self.escapes += 1
+            self.converged = False
+            rows = escape
+        self.iterations += 1
+        warm = self.cur[1:] if f.warm_start else None
+        # after a feasible iterate the QP is feasible by construction (its solution
+        # satisfies the new half-planes): a solver failure then is numerical
+        res = self.solve(*rows, warm, self.penalty if self.elastic else None,
+                         self.feasible_seen)
+        if self.elastic:
+            self.n_elastic += 1
+        if not res.ok:
+            if self.feasible_seen:
+                self.done = True
+            elif self.slowdowns and self.retime is not None:
+                self.ref = self.retime(self.slowdowns.pop(0))
+                self.cur = self.ref.copy()
+                self._activate(self.ref)
+            elif self.n_elastic < self.max_elastic:
+                self.elastic = True
+            else:
+                self.done = True
+            return
+        pos = res.positions
+        self.last_cost = res.objective
+        feasible = o._violations(pos, self.polys).size == 0 and o._in_area(pos)
+        self.last_rows = rows
+        if feasible:
+            self.elastic = False
+            self.feasible_seen = True
+            prev = self.cost
+            if res.objective < prev:
+                self.best = _Candidate(self.name, pos, res.controls, res.objective,
+                                       self.iterations)
+            if prev - res.objective <= f.rel_tol * abs(res.objective):
+                self.converged = True
+        elif self.elastic and self.n_elastic >= self.max_elastic:
+            self.done = True
+        self._activate(pos)
+        if feasible or not self.feasible_seen:
+            self.cur = pos if o.area is None else np.clip(pos, 0.0, o.area)
+        # else: the solution broke a (τ, i) pair that was not in the QP; keep the last
+        # feasible iterate, whose supports of the newly added pairs keep the QP feasible
+        if self.iterations >= f.max_iterations:
+            self.done = True
+
+
+class FastSystem2:
+    """Problem (P2) by homotopy-seeded convex restrictions (see the module docstring).
+
+    Parameters
+    ----------
+    goal : Rect
+        Goal region G; its centre is G_o of Eq. (S2).
+    params : System2Params
+        T, ε, κ, area; ``max_hulls`` does not limit this method.
+    dynamics : DynamicsParams
+        Eq. (1) and the bounds U, X (planar).
+    fast : FastParams
+        Method knobs.
+    clearance_m : float
+        Clearance every returned plan is verified against (d_safe = 20 m).
+    """
+
+    system = 2
+    method = "fast"
+
+    def __init__(
+        self,
+        goal: Rect,
+        params: System2Params = System2Params(),
+        dynamics: DynamicsParams = DynamicsParams(),
+        fast: FastParams = FastParams(),
+        *,
+        clearance_m: float = D_SAFE_M,
+    ) -> None:
+        if dynamics.dim != 2:
+            raise ValueError(f"FastSystem2 plans in 2-D (Sec. IV); got dim={dynamics.dim}")
+        if params.horizon < 2:
+            raise ValueError("FastSystem2 needs a horizon of at least 2 steps")
+        self.goal = goal
+        self.params = params
+        self.dynamics = dynamics
+        self.fast = fast
+        self.clearance_m = float(clearance_m)
+        self.area = params.area_size_m if params.keep_in_area else None
+        self.qp = P2Qp(params.horizon, dynamics, self.area)
+        self._last: Plan | None = None
+        self.stats: dict[str, Any] = {}
+
+    # ---------------------------------------------------------------- public
+    def reset(self) -> None:
+        """Forget the previous plan (its shifted copy seeds the next call)."""
+        self._last = None
+
+    def plan(
+        self,
+        state: Array,
+        hulls: Sequence[Polytope],
+        objective: Objective = Objective.MISSION_TIME,
+        prev_control: Array | None = None,
+    ) -> Plan:
+        """Plan from ``state`` avoiding ``hulls``; ``prev_control`` is u_{t|t} (N)."""
+        t0 = time.perf_counter()
+        checked = _check_inputs(state, hulls, objective, prev_control)
+        if isinstance(checked, str):
+            return _failed(PlanStatus.INVALID_INPUT, checked, t0, objective)
+        x0, u_prev, hull_t = checked
+        early = _start_checks(x0, hull_t, self.params, self.dynamics, self.clearance_m)
+        if early is not None:
+            return _failed(early[0], early[1], t0, objective)
+        try:
+            plan = self._plan(x0, hull_t, objective, u_prev, t0)
+        except Exception as exc:  # noqa: BLE001 - a crash becomes an ERROR plan, never a raise
+            plan = _failed(PlanStatus.ERROR, f"{type(exc).__name__}: {exc}", t0, objective)
+        self._last = plan if plan.ok else None
+        return plan
+
+    # --------------------------------------------------------------- method
+    def _plan(self, x0: Array, hulls: tuple[Polytope, ...], objective: Objective,
+              u_prev: Array, t0: float) -> Plan:
+        p, f = self.params, self.fast
+        kappa = p.kappa(objective)
+        goal = self.goal.center
+        T = p.horizon
+        eps = p.epsilon_m
+        reach = _reach_radius(x0, p.horizon, self.dynamics)
+        polys = [Inflated.make(h, eps) for h in hulls]
+        polys = [q for q in polys if float(np.max(q.margin(x0[:2]))) <= reach]
+        info: dict[str, object] = {"n_hulls": len(polys), "n_hulls_input": len(hulls)}
+        n_qp = 0
+
+        def solve(tau: Array, nrm: Array, rhs: Array, z0: Array | None = None,
+                  elastic: float | None = None, confirm: bool = False) -> QpResult:
+            nonlocal n_qp
+            n_qp += 1
+            return self.qp.solve(x0, u_prev, goal, kappa, tau, nrm, rhs, None, elastic,
+                                 z0=z0, confirm=confirm)
+
+        # 1. the relaxation: no hulls
+        free = solve(np.zeros(0, int), np.zeros((0, 2)), np.zeros(0), confirm=True)
+        if not free.ok:
+            return _failed(PlanStatus.ERROR, f"relaxed QP failed: {free.status}", t0, objective,
+                           info)
+        lower_bound = free.objective
+        info["lower_bound"] = lower_bound
+        candidates: list[_Candidate] = []
+        if self._violations(free.positions, polys).size == 0 and self._in_area(free.positions):
+            candidates.append(_Candidate("relaxation", free.positions, free.controls,
+                                         free.objective, 0))
+        else:
+            refs = self._references(x0, free.positions, polys, kappa)
+            info["homotopies"] = [name for name, _, _ in refs]
+            runs = [_Cfs(self, name, ref, polys, free.positions, solve, kappa, retime)
+                    for name, ref, retime in refs]
+            # screening: one QP each; then always the run with the lowest cost (its
+            # feasible cost, or its last QP's while it is not feasible yet) while it
+            # can still win
+            for run in runs:
+                run.step()
+
+            def key(r: _Cfs) -> float:
+                return r.cost if r.best is not None else r.last_cost
+
+            while True:
+                best_cost = min(r.cost for r in runs)  # inf while nothing is feasible
+                cands = [r for r in runs if not r.done and (
+                    r.best is not None or r.iterations < f.max_prefeasible)]
+                if not cands or best_cost <= lower_bound * (1.0 + 1e-6) + 1e-9:
+                    break  # done, or as good as the relaxation (optimal)
+                if math.isfinite(best_cost) and (n_qp >= f.max_qp
+                                                 or time.perf_counter() - t0 > f.time_budget_s):
+                    info["budget_hit"] = True
+                    break  # anytime: keep the best verified plan found so far
+                run = min(cands, key=key)
+                if math.isfinite(best_cost) and key(run) > (1.0 + f.screen_slack) * best_cost:
+                    break  # no homotopy left that can still win
+                run.step()
+            if not any(r.best is not None for r in runs):
+                # fallback seed: braking to a hover is feasible whenever its path is clear
+                brake = _Cfs(self, "brake", _braking(x0, T, self.dynamics), polys,
+                             free.positions, solve, kappa, max_elastic=2)
+                while not brake.done:
+                    brake.step()
+                runs.append(brake)
+            candidates.extend(r.best for r in runs if r.best is not None)
+        info["n_qp"] = n_qp
+        candidates.sort(key=lambda c: c.cost)
+        reasons: list[str] = []
+        for cand in candidates:
+            plan = self._finish(cand, x0, hulls, objective, kappa, u_prev, t0, info, reasons)
+            if plan is not None:
+                return plan
+        msg = "no verified candidate" + (f": {'; '.join(reasons[:3])}" if reasons else "")
+        return _failed(PlanStatus.UNSAFE, msg, t0, objective, info)
+
+    def _finish(self, cand: _Candidate, x0: Array, hulls: tuple[Polytope, ...],
+                objective: Objective, kappa: tuple[float, float], u_prev: Array, t0: float,
+                info: dict[str, object], reasons: list[str]) -> Plan | None:
+        """Roll out, verify and package one candidate; None (with a reason) if it fails."""
+        d = self.dynamics
+        controls = np.clip(cand.controls, -d.u_max_n, d.u_max_n)
+        states = rollout(x0, controls, d)
+        verdict = verify_p2_plan(states, controls, hulls, d, self.params.epsilon_m,
+                                 self.clearance_m, self.area)
+        if not verdict.ok:
+            reasons.append(f"{cand.name}: {verdict.reason}")
+            return None
+        margin = disjunction_margin(states[1:, :2], hulls, self.params.epsilon_m)
+        cost = p2_cost(states, controls, self.goal.center, kappa, u_prev)
+        out = dict(info)
+        out.update(homotopy=cand.name, cfs_iterations=cand.iterations,
+                   clearance_m=verdict.clearance_m, disjunction_margin_m=margin,
+                   optimal=cand.name == "relaxation")
+        lb = out.get("lower_bound")
+        if isinstance(lb, float) and cost > 0:
+            out["bound_gap"] = max(0.0, (cost - lb) / cost)
+        return Plan(system=self.system, status=PlanStatus.OK, states=states, controls=controls,
+                    compute_time_s=time.perf_counter() - t0, objective=objective, cost=cost,
+                    info=out)
+
+    # ------------------------------------------------------------ homotopies
+    def _references(self, x0: Array, free_pos: Array, polys: list[Inflated],
+                    kappa: tuple[float, float]
+                    ) -> list[tuple[str, Array, Callable[[float], Array] | None]]:
+        """Reference positions p_1..p_{T+1} (one per homotopy) to pick the first half-planes.
+
+        Each comes with a function that re-times it slower by a factor (None
+        for the previous plan, whose timing was feasible).
+        """
+        f = self.fast
+        T = self.params.horizon
+        p1 = free_pos[0]
+        speeds = np.linalg.norm(np.diff(free_pos, axis=0), axis=1) / self.dynamics.dt_s
+        target = self._target(polys)
+        refs: list[tuple[str, Array, Callable[[float], Array] | None]] = []
+        v0 = x0[2:]
+
+        def timed(path: Array) -> tuple[Array, Callable[[float], Array]]:
+            return (resample(path, self._timing(path, speeds, v0)),
+                    lambda fac: resample(path, self._timing(path, speeds, v0, fac)))
+
+        last = self._last
+        if f.use_previous and last is not None and last.ok and len(last.states) == T + 1:
+            prev_pos = last.states[:, :2]
+            if np.linalg.norm(prev_pos[1] - x0[:2]) < 30.0:
+                shifted = np.vstack([prev_pos[2:], prev_pos[-1:], prev_pos[-1:]])
+                shifted[0] = p1
+                refs.append(("previous", shifted, None))
+        paths = homotopy_paths(p1, target, polys, area=self.area,
+                               max_paths=f.max_homotopies,
+                               max_signature_hulls=f.max_signature_hulls,
+                               length_slack=f.length_slack)
+        for k, path in enumerate(paths):
+            refs.append((f"path{k}", *timed(path)))
+        path_len = (float(np.linalg.norm(np.diff(paths[0], axis=0), axis=1).sum())
+                    if paths else 0.0)
+        if (paths and kappa[0] < kappa[1]
+                and self._timing(paths[0], speeds, v0)[-1] < path_len - 1.0):
+            # timed by a slow energy-saving relaxation (κ1 < κ2), the shortest path is not
+            # finished within the horizon, which can leave the plan short of the
+            # target: also try the path at the speed the limits allow
+            fast_speeds = np.full_like(speeds, np.inf)
+            path = paths[0]
+            refs.append(("path0-brisk", resample(path, self._timing(path, fast_speeds, v0)),
+                         lambda fac: resample(path, self._timing(path, fast_speeds, v0, fac))))
+        # the relaxation itself: each point leaves Q through its nearest face (dead ends too)
+        _, slower = timed(free_pos)
+        refs.append(("projected", free_pos, slower))
+        return refs
+
+    def _timing(self, path: Array, speeds: Array, v0: Array, factor: float = 1.0) -> Array:
+        """Arc lengths s(τ), τ = 1..T+1, along ``path``.
+
+        The speed is the relaxation's, capped by a point-mass profile that
+        starts from v_t's component along the path and respects Eq. (1)'s drag
+        and the per-axis bounds on u and v in each segment's direction
+        (times ``speed_factor``), so that the first half-planes are reachable.
+        """
+        rho = self.fast.speed_factor * factor
+        dyn = self.dynamics
+        d = np.diff(path, axis=0)
+        seg = np.linalg.norm(d, axis=1)
+        good = seg > 1e-9
+        if not np.any(good):
+            return np.zeros(len(speeds) + 1)
+        d, seg = d[good], seg[good]
+        cum = np.concatenate([[0.0], np.cumsum(seg)])
+        axis_factor = seg / np.maximum(np.max(np.abs(d), axis=1), 1e-9)  # 1..√2
+        v_cap = rho * dyn.v_max_mps * axis_factor
+        a_cap = rho * dyn.u_max_n / dyn.mass_kg * axis_factor
+        keep = 1.0 - dyn.zeta
+        dt = dyn.dt_s
+        sigma = max(0.0, float(v0 @ d[0]) / seg[0])
+        s = np.zeros(len(speeds) + 1)
+        for k, v in enumerate(speeds):
+            j = min(max(int(np.searchsorted(cum, s[k], side="right")) - 1, 0), len(seg) - 1)
+            sigma = min(v_cap[j], keep * sigma + a_cap[j] * dt, factor * max(float(v), 0.0))
+            s[k + 1] = min(cum[-1], s[k] + dt * sigma)
+        return s
+
+    def _target(self, polys: list[Inflated]) -> Array:
+        """G_o, or the free point nearest to it when G_o is covered by inflated hulls.
+
+        Candidates are G_o's projections onto every edge of every Q and the
+        vertices of every Q, each pushed 2 m outwards; the nearest that lies
+        outside every Q (and in the area) is the target.
+        """
+        g = self.goal.center
+        if all(q.margin(g)[0] > 0 for q in polys):
+            return g
+        cands = []
+        for q in polys:
+            a = q.W
+            e = np.roll(a, -1, axis=0) - a
+            len2 = np.maximum(np.einsum("ij,ij->i", e, e), 1e-12)
+            t = np.clip(((g - a) * e).sum(axis=1) / len2, 0.0, 1.0)
+            proj = a + t[:, None] * e
+            cands.append(proj + 2.0 * q.A)
+            n_prev = np.roll(q.A, 1, axis=0)
+            bis = n_prev + q.A
+            cands.append(a + 2.0 * bis / np.maximum(np.linalg.norm(bis, axis=1), 1e-9)[:, None])
+        pts = np.vstack(cands)
+        free = np.ones(len(pts), dtype=bool)
+        for q in polys:
+            free &= q.margin(pts) > 0
+        if self.area is not None:
+            free &= np.all((pts >= 0.0) & (pts <= self.area), axis=1)
+        if not np.any(free):
+            return g
+        pts = pts[free]
+        return np.asarray(pts[np.argmin(np.linalg.norm(pts - g, axis=1))])
+
+    # ------------------------------------------------------------------ CFS
+    def _in_area(self, pos: Array) -> bool:
+        if self.area is None:
+            return True
+        p = pos[1:self.params.horizon]
+        return bool(np.all(p >= -1e-6) and np.all(p <= self.area + 1e-6))
+
+    def _violations(self, pos: Array, polys: list[Inflated]) -> NDArray[np.int64]:
+        """(τ, i) pairs (τ = 2..T) where the disjunction fails."""
+        T = self.params.horizon
+        bad: list[tuple[int, int]] = []
+        for i, q in enumerate(polys):
+            m = q.margin(pos[1:T])
+            tt = np.flatnonzero(m < 0) + 2
+            bad.extend((int(t), i) for t in tt)
+        return np.array(bad, dtype=np.int64).reshape(-1, 2)
+
+
+# ------------------------------------------------------------------ helpers
+def verify_p2_plan(states: Array, controls: Array, hulls: Sequence[Polytope],
+                   dynamics: DynamicsParams, epsilon_m: float,
+                   clearance_m: float = D_SAFE_M, area_size_m: float | None = None,
+                   tol: float = 1e-6) -> Verdict:
+    """Every check a System 2 plan must pass before it is returned as OK.
+
+    :func:`dualpilot.verify.verify_trajectory` (Eq. (1), U and X, exact
+    segment clearance ≥ ``clearance_m``), then Eq. (P2_3)-(P2_4) at every
+    planned position p_{t+1|t}..p_{t+T|t} against the true hull faces
+    (max_l α·p − β ≥ ε − tol), then the area bounds if ``area_size_m``.
+    Hulls provably clear of every segment (by a bounding-box lower bound) are
+    skipped by the segment check only.
+    """
+    pts = np.asarray(states, dtype=float).reshape(-1, 4)[:, :2]
+    if len(pts) > 1 and np.all(np.isfinite(pts)):
+        # skip hulls that provably keep the clearance: every point of segment k lies
+        # within L_k / 2 of an end, so dist(segment, hull) ≥ min(d_k, d_k+1) − L_k / 2
+        # with d the (smaller) distance of each sample to the hull's bounding box
+        half = 0.5 * np.linalg.norm(np.diff(pts, axis=0), axis=1)
+        kept: list[Polytope] = []
+        for h in hulls:
+            gap = np.maximum(0.0, np.maximum(h.vertices.min(axis=0) - pts,
+                                             pts - h.vertices.max(axis=0)))
+            d = np.hypot(gap[:, 0], gap[:, 1])
+            if float(np.min(np.minimum(d[:-1], d[1:]) - half)) < clearance_m + 1.0:
+                kept.append(h)
+    else:
+        kept = list(hulls)
+    verdict = verify_trajectory(states, controls, kept, dynamics, clearance_m=clearance_m)
+    if not verdict.ok:
+        return verdict
+    pos = np.asarray(states, dtype=float)[1:, :2]
+    margin = disjunction_margin(pos, hulls, epsilon_m)
+    if margin < -tol:
+        return Verdict(False, f"ε-disjunction of (P2) violated by {-margin:.3g} m",
+                       verdict.clearance_m)
+    if area_size_m is not None and (np.any(pos < -tol) or np.any(pos > area_size_m + tol)):
+        return Verdict(False, "a planned position leaves the area", verdict.clearance_m)
+    return verdict
+
+
+def _braking(x0: Array, horizon: int, dyn: DynamicsParams) -> Array:
+    """Positions p_1..p_{T+1} (m) when braking to a hover as hard as U allows."""
+    keep = 1.0 - dyn.zeta
+    v = x0[2:].copy()
+    p = x0[:2] + dyn.dt_s * v
+    out = [p.copy()]
+    for _ in range(horizon):
+        u = np.clip(-keep * v * dyn.mass_kg / dyn.dt_s, -dyn.u_max_n, dyn.u_max_n)
+        v = keep * v + dyn.dt_s / dyn.mass_kg * u
+        p = p + dyn.dt_s * v
+        out.append(p.copy())
+    return np.array(out)
+
+
+def _reach_radius(x0: Array, horizon: int, dyn: DynamicsParams) -> float:
+    """Upper bound on ‖p_{t+τ|t} − p_t‖ for τ ≤ T, plus the slack of a face-wise margin (m)."""
+    return dyn.dt_s * (float(np.linalg.norm(x0[2:])) + (horizon - 1) * dyn.v_max_mps * math.sqrt(2))
+
+
+def _check_inputs(state: Array, hulls: Sequence[Polytope], objective: Objective,
+                  prev_control: Array | None) -> tuple[Array, Array, tuple[Polytope, ...]] | str:
+    x0 = np.asarray(state, dtype=float)
+    if x0.shape != (4,) or not np.all(np.isfinite(x0)):
+        return f"state must be 4 finite numbers, got {state}"
+    u_prev = np.zeros(2) if prev_control is None else np.asarray(prev_control, dtype=float)
+    if u_prev.shape != (2,) or not np.all(np.isfinite(u_prev)):
+        return f"prev_control must be 2 finite numbers, got {prev_control}"
+    if not isinstance(objective, Objective):
+        return f"unknown objective {objective!r}"
+    hull_t = tuple(hulls)
+    if not all(isinstance(h, Polytope) for h in hull_t):
+        return "hulls must be Polytope instances"
+    return x0, u_prev, hull_t
+
+
+def _start_checks(x0: Array, hulls: tuple[Polytope, ...], params: System2Params,
+                  dyn: DynamicsParams, clearance_m: float) -> tuple[PlanStatus, str] | None:
+    """The statuses ExactSystem2 gives before solving, for the same reasons."""
+    for i, hull in enumerate(hulls):
+        dist = hull.distance(x0[:2])
+        if dist < clearance_m:
+            return (PlanStatus.INVALID_INPUT,
+                    f"start {x0[:2]} is {dist:.2f} m from hull {i} (< d_safe {clearance_m} m): "
+                    "no safe plan can start here")
+    p1 = x0[:2] + dyn.dt_s * x0[2:]
+    for i, hull in enumerate(hulls):
+        margin = float(np.max(hull.A @ p1 - hull.b))
+        if margin < params.epsilon_m:
+            return (PlanStatus.INFEASIBLE,
+                    f"x_(t+1|t) position {p1} is fixed by the current velocity and lies within "
+                    f"ε={params.epsilon_m} m of hull {i}: (P2) is infeasible")
+    if params.keep_in_area and not (np.all(p1 >= 0.0) and np.all(p1 <= params.area_size_m)):
+        return (PlanStatus.INFEASIBLE,
+                f"x_(t+1|t) position {p1} is fixed by the current velocity and lies outside "
+                "the area: (P2) is infeasible")
+    first_gap = min((h.segment_distance(x0[:2], p1) for h in hulls), default=math.inf)
+    if first_gap < clearance_m:
+        return (PlanStatus.UNSAFE,
+                f"the first segment, fixed by the current velocity, passes {first_gap:.2f} m "
+                f"from a hull (< {clearance_m} m)")
+    return None
+
+
+def _failed(status: PlanStatus, msg: str, t0: float, objective: Objective | None,
+            info: dict[str, object] | None = None) -> Plan:
+    plan = Plan.failed(2, status, time.perf_counter() - t0, msg)
+    return Plan(**{**plan.__dict__, "objective": objective, "info": dict(info or {})})
+
+
+# ------------------------------------------------------- exact in a worker
+PlannerFactory = Callable[[], Any]
+
+
+def _exact_factory(goal: Rect, params: System2Params, dynamics: DynamicsParams) -> Any:
+    from .system2 import ExactSystem2
+
+    return ExactSystem2(goal, params, dynamics)
+
+
+class _ExactFactory:
+    """Picklable factory of ExactSystem2 (for spawn-started workers)."""
+
+    def __init__(self, goal: Rect, params: System2Params, dynamics: DynamicsParams) -> None:
+        self.goal, self.params, self.dynamics = goal, params, dynamics
+
+    def __call__(self) -> Any:
+        return _exact_factory(self.goal, self.params, self.dynamics)
+
+
+class _SeededFactory(_ExactFactory):
+    """Picklable factory of :class:`dualpilot.s2_scip.SeededExactSystem2`."""
+
+    def __call__(self) -> Any:
+        from .s2_scip import SeededExactSystem2
+
+        return SeededExactSystem2(self.goal, self.params, self.dynamics)
+
+
+def _exit_with_parent(parent_pid: int) -> None:
+    """Watchdog thread: a worker never outlives the process that started it."""
+    import os
+
+    while True:
+        time.sleep(0.5)
+        if os.getppid() != parent_pid:
+            os._exit(0)
+
+
+def _worker_main(factory: PlannerFactory, conn: Connection, parent_pid: int) -> None:
+    """Worker loop: build the planner once, answer (state, hulls, objective, u_prev) requests."""
+    import threading
+
+    threading.Thread(target=_exit_with_parent, args=(parent_pid,), daemon=True).start()
+    planner = factory()
+    conn.send("ready")
+    while True:
+        try:
+            req = conn.recv()
+        except EOFError:
+            return
+        if req is None:
+            return
+        plan = planner.plan(*req)
+        conn.send(plan)
+
+
+class ExactWorker:
+    """A planner (the exact MIQP by default) in its own process, killed past a deadline.
+
+    A solver that crashes the process (e.g. glibc "double free") or exceeds the
+    deadline costs one answer: :meth:`solve` returns None and the next call
+    starts a fresh process. The service's own process never runs the solver.
+
+    Parameters
+    ----------
+    factory : callable
+        Builds the planner inside the worker (must be picklable for "spawn").
+    context : str
+        multiprocessing start method; "spawn" is safe in threaded services.
+    """
+
+    def __init__(self, factory: PlannerFactory, context: str = "spawn",
+                 startup_timeout_s: float = 120.0) -> None:
+        self.factory = factory
+        self.ctx: Any = mp.get_context(context)
+        self.startup_timeout_s = float(startup_timeout_s)
+        self._proc: Any = None
+        self._conn: Connection | None = None
+        self._ready = False
+        self.restarts = 0
+
+    def start(self) -> None:
+        """Start the worker now (it builds its planner in the background)."""
+        if not self.alive():
+            self.stop()
+            self._start()
+
+    def _wait_ready(self) -> str | None:
+        """Wait for the worker's planner to be built; None when ready, else why not."""
+        if self._ready:
+            return None
+        assert self._conn is not None
+        t_end = time.monotonic() + self.startup_timeout_s
+        while time.monotonic() < t_end:
+            if self._conn.poll(0.05):
+                msg = self._conn.recv()
+                self._ready = msg == "ready"
+                return None if self._ready else f"bad start message {msg!r}"
+            if not self._proc.is_alive():
+                return f"crashed at start (exit code {self._proc.exitcode})"
+        return f"not ready after {self.startup_timeout_s:.0f} s"
+
+    def _start(self) -> None:
+        parent, child = self.ctx.Pipe()
+        import os
+
+        proc = self.ctx.Process(target=_worker_main, args=(self.factory, child, os.getpid()),
+                                daemon=True)
+        proc.start()
+        child.close()
+        self._proc, self._conn = proc, parent
+        self._ready = False
+        self.restarts += 1
+
+    def alive(self) -> bool:
+        return self._proc is not None and self._proc.is_alive()
+
+    def solve(self, request: tuple[Any, ...], deadline_s: float) -> tuple[Plan | None, str]:
+        """Send one plan request; the plan, or None and why ("crashed", "killed", …).
+
+        The deadline counts from the moment the worker is ready (a fresh worker
+        first builds its planner, bounded by ``startup_timeout_s``).
+        """
+        self.start()
+        assert self._conn is not None
+        try:
+            why = self._wait_ready()
+        except (EOFError, OSError) as exc:
+            why = f"crashed at start ({type(exc).__name__})"
+        if why is not None:
+            self.stop()
+            return None, why
+        t_end = time.monotonic() + deadline_s
+        try:
+            self._conn.send(request)
+            while True:
+                left = t_end - time.monotonic()
+                if left <= 0:
+                    self.stop()
+                    return None, f"killed after {deadline_s:.1f} s"
+                if self._conn.poll(min(left, 0.05)):
+                    plan = self._conn.recv()
+                    return (plan, "ok") if isinstance(plan, Plan) else (None, "bad answer")
+                if not self._proc.is_alive():
+                    code = self._proc.exitcode
+                    self.stop()
+                    return None, f"crashed (exit code {code})"
+        except (EOFError, OSError, BrokenPipeError) as exc:
+            self.stop()
+            return None, f"crashed ({type(exc).__name__})"
+
+    def stop(self) -> None:
+        """Kill the worker process (if any); the next :meth:`solve` starts a new one."""
+        proc, conn = self._proc, self._conn
+        self._proc, self._conn, self._ready = None, None, False
+        if conn is not None:
+            conn.close()
+        if proc is not None:
+            if proc.is_alive():
+                proc.kill()
+            proc.join(timeout=5.0)
+
+    def __del__(self) -> None:  # pragma: no cover - best effort at interpreter exit
+        with contextlib.suppress(Exception):
+            self.stop()
+
+
+class AnytimeSystem2:
+    """"fast+exact": the fast plan, then SCIP seeded with it in a killable worker.
+
+    The worker solves (P2) exactly (:class:`dualpilot.s2_scip.SeededExactSystem2`:
+    native SCIP, tight big-M, the fast plan as the starting incumbent) within
+    ``exact_budget_s`` (its time limit is set a little below); the better
+    verified plan is returned. A worker crash or overrun leaves the fast plan
+    as the answer. Not the default: its latency is the exact budget whenever
+    SCIP cannot prove optimality quickly.
+    """
+
+    system = 2
+    method = "fast+exact"
+
+    def __init__(self, goal: Rect, params: System2Params = System2Params(),
+                 dynamics: DynamicsParams = DynamicsParams(), *, exact_budget_s: float = 2.0,
+                 worker: ExactWorker | None = None, fast: FastParams = FastParams()) -> None:
+        if exact_budget_s <= 0:
+            raise ValueError("exact_budget_s must be positive")
+        self.goal, self.params, self.dynamics = goal, params, dynamics
+        self.exact_budget_s = float(exact_budget_s)
+        self.fast_planner = FastSystem2(goal, params, dynamics, fast)
+        if worker is None:
+            limit = max(0.2, 0.8 * exact_budget_s)
+            exact_params = _replace_time_limit(params, limit)
+            worker = ExactWorker(_SeededFactory(goal, exact_params, dynamics))
+        self.worker = worker
+        worker.start()  # imports and model set-up happen before the first request
+
+    def plan(self, state: Array, hulls: Sequence[Polytope],
+             objective: Objective = Objective.MISSION_TIME,
+             prev_control: Array | None = None) -> Plan:
+        t0 = time.perf_counter()
+        fast = self.fast_planner.plan(state, hulls, objective, prev_control)
+        if fast.status in (PlanStatus.INVALID_INPUT, PlanStatus.INFEASIBLE):
+            return fast
+        if fast.ok and fast.info.get("optimal"):
+            # the relaxation's optimum is feasible: nothing to improve
+            return Plan(**{**fast.__dict__, "compute_time_s": time.perf_counter() - t0,
+                           "info": {**fast.info, "source": "fast",
+                                    "exact_outcome": "skipped (fast plan proven optimal)"}})
+        request = (np.asarray(state, dtype=float), tuple(hulls), objective, prev_control,
+                   fast.controls if fast.ok else None)
+        left = max(0.05, self.exact_budget_s - (time.perf_counter() - t0))
+        exact, why = self.worker.solve(request, left)
+        best = fast
+        if exact is not None and exact.ok and exact.cost is not None:
+            d = self.dynamics
+            area = self.params.area_size_m if self.params.keep_in_area else None
+            verdict = verify_p2_plan(exact.states, exact.controls, tuple(hulls), d,
+                                     self.params.epsilon_m, D_SAFE_M, area, tol=1e-3)
+            if verdict.ok and (
+                    not fast.ok or fast.cost is None or exact.cost < fast.cost):
+                best = exact
+        info = dict(best.info)
+        info.update(source="exact" if best is exact else "fast", exact_outcome=why,
+                    exact_status=None if exact is None else exact.status.value,
+                    fast_cost=fast.cost)
+        return Plan(system=2, status=best.status, states=best.states, controls=best.controls,
+                    compute_time_s=time.perf_counter() - t0, objective=objective,
+                    cost=best.cost, message=best.message, info=info)
+
+    def close(self) -> None:
+        self.worker.stop()
+
+
+def _replace_time_limit(params: System2Params, limit_s: float) -> System2Params:
+    from dataclasses import replace
+
+    return replace(params, time_limit_s=float(limit_s))
+
+
+def make_system2(method: str, goal: Rect, params: System2Params = System2Params(),
+                 dynamics: DynamicsParams = DynamicsParams()) -> Any:
+    """System 2 planner by name.
+
+    "fast" (the service default), "exact" (the cvxpy MIQP, the reference),
+    "fast+exact" (fast, then SCIP seeded with it in a killable worker) and
+    "thorough" (the fast method with every homotopy iterated to convergence:
+    slower, used as one more reference in the benchmark).
+    """
+    if method == "fast":
+        return FastSystem2(goal, params, dynamics)
+    if method == "exact":
+        from .system2 import ExactSystem2
+
+        planner = ExactSystem2(goal, params, dynamics)
+        planner.method = "exact"  # type: ignore[attr-defined]
+        return planner
+    if method == "fast+exact":
+        return AnytimeSystem2(goal, params, dynamics)
+    if method == "thorough":
+        thorough = FastSystem2(goal, params, dynamics, THOROUGH)
+        thorough.method = "thorough"
+        return thorough
+    raise ValueError(f"unknown System 2 method {method!r}; choose from {METHODS}")
