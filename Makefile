@@ -44,7 +44,7 @@ lint: setup
 
 bench: setup
 	$(BIN)/dualpilot bench system1 --out runs/bench
-	$(BIN)/dualpilot bench system2 --out runs/bench
+	$(BIN)/dualpilot bench system2 --instances 20 --reference-timeout 30 --out runs/bench
 
 clean:
 	rm -rf $(VENV) runs .pytest_cache .mypy_cache .ruff_cache *.egg-info
