@@ -47,17 +47,12 @@ def plot_fig_r5(summary: dict[str, Any], path: Path) -> Path:
         ax.set_xticks(x, [LABELS[c] for c in names])
         ax.set_title(title)
         ax.set_ylabel(ylabel)
-        for xi, v in zip(x, vals, strict=True):
+        for xi, v, top in zip(x, vals, ci[:, 1], strict=True):
             if np.isfinite(v):
-                ax.annotate(
-                    f"{v:.3g}",
-                    (xi, v),
-                    textcoords="offset points",
-                    xytext=(0, 3),
-                    ha="center",
-                    va="bottom",
-                    fontsize=9,
-                )
+                y = top if np.isfinite(top) else v
+                ax.annotate(f"{v:.3g}", (xi, y), textcoords="offset points", xytext=(0, 4),
+                            ha="center", va="bottom", fontsize=9)
+        ax.margins(y=0.12)
         ax.grid(axis="y", alpha=0.3)
     axes[0].set_ylim(0, 105)
     fig.suptitle(
