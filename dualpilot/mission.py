@@ -310,7 +310,9 @@ class Mission:
         self.state = step(self.state, control, self.dyn)
         self.result.energy += float(np.sum((control - self.prev_control) ** 2))
         self.prev_control = control
-        if self.result.records[:-1] and flown and flown != self.result.records[-2].system:
+        # a switch is a change of the system in control; braking steps (0) do not count
+        earlier = [r.system for r in self.result.records[:-1] if r.system]
+        if flown and earlier and flown != earlier[-1]:
             self.result.switches += 1
         self.result.steps = t + 1
         self.result.mission_time_s = self.result.steps * self.dyn.dt_s

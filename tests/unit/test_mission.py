@@ -113,3 +113,8 @@ def test_records_on_disk(tmp_path):
     assert {r["system"] for r in rows} <= {"0", "1"}
     trace = json.loads((tmp_path / "trace.json").read_text())
     assert len(trace["steps"]) == len(rows)
+
+
+def test_single_system_controllers_never_switch():
+    for seed in range(3):
+        assert s1_mission(seed).run().switches == 0
