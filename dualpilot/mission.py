@@ -169,6 +169,25 @@ def segment_region_distance(p0: Array, p1: Array, regions: tuple[Rect, ...]) -> 
     return min((r.polytope().segment_distance(p0, p1) for r in regions), default=float("inf"))
 
 
+def attention_distance(
+    position: Array, snapshot: FireSnapshot, t: int, params: MissionParams
+) -> float:
+    """d_t of Eq. (KSI) under ``params.d_t_reading`` (m; inf when no region counts)."""
+    regions = snapshot.regions
+    if params.d_t_reading == "newborn":
+        regions = tuple(
+            r for r, b in zip(snapshot.regions, snapshot.born_steps, strict=True) if b == t
+        )
+    return nearest_region_distance(position, regions)
+
+
+def planning_time(plan: Plan, timing: Timing, params: MissionParams) -> float:
+    """T_s of a plan: measured, or the paper's 155 ms / 5 s for System 1 / 2."""
+    if timing is Timing.PAPER:
+        return params.paper_planning_time_s[plan.system - 1]
+    return plan.compute_time_s
+
+
 def brake_control(state: Array, dyn: DynamicsParams) -> Array:
     """The force that brings the velocity to zero in one ΔT, clipped to U."""
     v = state[dyn.dim :]
@@ -215,18 +234,10 @@ class Mission:
 
     # -- one tick -------------------------------------------------------------------
     def _d_t(self, t: int, snapshot: FireSnapshot) -> float:
-        if self.params.d_t_reading == "newborn":
-            regions = tuple(
-                r for r, b in zip(snapshot.regions, snapshot.born_steps, strict=True) if b == t
-            )
-        else:
-            regions = snapshot.regions
-        return nearest_region_distance(self.state[:2], regions)
+        return attention_distance(self.state[:2], snapshot, t, self.params)
 
     def _planning_time(self, plan: Plan) -> float:
-        if self.timing is Timing.PAPER:
-            return self.params.paper_planning_time_s[plan.system - 1]
-        return plan.compute_time_s
+        return planning_time(plan, self.timing, self.params)
 
     def _plan_with(self, system: int, snapshot: FireSnapshot, objective: Objective) -> Plan:
         planner = self.planners[system]

@@ -50,8 +50,10 @@ from dualpilot.mission import (
     MissionResult,
     StepRecord,
     Timing,
+    attention_distance,
     brake_control,
     nearest_region_distance,
+    planning_time,
     segment_region_distance,
 )
 from dualpilot.plan import Objective, Plan, PlanStatus
@@ -255,18 +257,10 @@ class StackMission:
 
     # -- one tick -------------------------------------------------------------------------------
     def _d_t(self, t: int, snapshot: FireSnapshot) -> float:
-        if self.params.d_t_reading == "newborn":
-            regions = tuple(
-                r for r, b in zip(snapshot.regions, snapshot.born_steps, strict=True) if b == t
-            )
-        else:
-            regions = snapshot.regions
-        return nearest_region_distance(self.state[:2], regions)
+        return attention_distance(self.state[:2], snapshot, t, self.params)
 
     def _planning_time(self, plan: Plan) -> float:
-        if self.timing is Timing.PAPER:
-            return self.params.paper_planning_time_s[plan.system - 1]
-        return plan.compute_time_s
+        return planning_time(plan, self.timing, self.params)
 
     def _plan_request(self, system: int, t: int, objective: Objective,
                       prepare: bool = False) -> plan_pb2.PlanRequest:
