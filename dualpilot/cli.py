@@ -8,7 +8,7 @@ import sys
 import time
 from pathlib import Path
 
-from .mission import Controller, Mission, MissionConfig, Timing
+from .mission import Controller, Mission, MissionConfig, MissionParams, Timing
 
 
 def _mission(args: argparse.Namespace) -> int:
@@ -23,6 +23,7 @@ def _mission(args: argparse.Namespace) -> int:
         seed=args.seed,
         timing=Timing(args.timing),
         config=config,
+        params=MissionParams(ignition_clearance_m=args.ignition_clearance),
     )
     t0 = time.perf_counter()
     for record in iter(mission.step, None):

@@ -24,7 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .mission import Controller, Mission, MissionConfig, Timing
+from .mission import Controller, Mission, MissionConfig, MissionParams, Timing
 
 CONTROLLERS = ("cc", "s1", "s2")
 COLUMNS = [
@@ -97,6 +97,7 @@ def run_task(task: Task) -> dict[str, object]:
             seed=mseed,
             timing=Timing(task.timing),
             config=config,
+            params=MissionParams(ignition_clearance_m=task.ignition_clearance_m),
         ).run()
         times = result.planning_time_s["s1"] + result.planning_time_s["s2"]
         row.update(

@@ -83,3 +83,14 @@ def test_intervals_by_hand():
     assert lo == pytest.approx(0.4902, abs=1e-4) and hi == pytest.approx(0.9433, abs=1e-4)
     m, a, b = mean_interval([1.0, 2.0, 3.0])
     assert m == 2.0 and b - m == pytest.approx(1.96 / 3**0.5)
+
+
+def test_ignition_clearance_reaches_the_mission(tmp_path):
+    # Configuration 0 of seed 0 ends at step 1 when a front ignites next to the hovering
+    # UAV; with no ignition within 200 m of it the same configuration is flown on.
+    from dualpilot.evaluate import Task, run_task
+
+    strict = run_task(Task(0, 0, "s2", "paper", "fast"))
+    clear = run_task(Task(0, 0, "s2", "paper", "fast", ignition_clearance_m=200.0))
+    assert strict["failure_cause"] == "fire_while_planning" and strict["steps"] == 1
+    assert int(clear["steps"]) > 1
