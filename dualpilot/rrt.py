@@ -36,7 +36,7 @@ from ompl import geometric as og
 from ompl import util as ou
 
 from .dynamics import Array
-from .geometry import Polytope, Rect
+from .geometry import Polytope, Rect, SegmentChecker
 
 
 @dataclass(frozen=True)
@@ -83,133 +83,6 @@ class RrtResult:
     @property
     def found(self) -> bool:
         return self.path is not None
-
-
-class SegmentChecker:
-    """Exact segment-to-hulls distances, vectorised over segments and hull edges.
-
-    For a segment that neither crosses an edge nor starts inside a hull, the
-    distance to a convex polygon is the smallest of its endpoints' distances
-    to the polygon's edges and the polygon's vertices' distances to the
-    segment; otherwise it is 0. This equals ``Polytope.segment_distance``
-    (the unit tests check that) at a fraction of the cost.
-    """
-
-    def __init__(self, hulls: Sequence[Polytope]):
-        self.n_hulls = len(hulls)
-        self._parts = [_HullEdges([h]) for h in hulls]
-        self._all = _HullEdges(hulls) if hulls else None
-        lo = [h.vertices.min(axis=0) for h in hulls]
-        hi = [h.vertices.max(axis=0) for h in hulls]
-        self._boxes = [(float(a[0]), float(a[1]), float(b[0]), float(b[1]))
-                       for a, b in zip(lo, hi, strict=True)]
-        self._box_lo = np.array(lo).reshape(-1, 2)
-        self._box_hi = np.array(hi).reshape(-1, 2)
-
-    def segment_clear(self, x0: float, y0: float, x1: float, y1: float, need_m: float) -> bool:
-        """Whether the single segment (x0, y0)–(x1, y1) keeps ``need_m`` from every hull.
-
-        Bounding boxes settle most segments in plain Python; only the hulls
-        whose box is nearer than ``need_m`` get the exact distance.
-        """
-        lox, hix = (x0, x1) if x0 <= x1 else (x1, x0)
-        loy, hiy = (y0, y1) if y0 <= y1 else (y1, y0)
-        need2 = need_m * need_m
-        p0 = p1 = np.empty((0, 2))
-        for i, (bx0, by0, bx1, by1) in enumerate(self._boxes):
-            gx = max(0.0, bx0 - hix, lox - bx1)
-            gy = max(0.0, by0 - hiy, loy - by1)
-            if gx * gx + gy * gy >= need2:
-                continue
-            if not len(p0):
-                p0, p1 = np.array([[x0, y0]]), np.array([[x1, y1]])
-            if self._parts[i].distances(p0, p1)[0] < need_m:
-                return False
-        return True
-
-    def clear(self, p0: Array, p1: Array, need_m: float) -> Array:
-        """Whether each segment p0[i]–p1[i] keeps ``need_m`` from every hull (bool (n,))."""
-        p0 = np.atleast_2d(np.asarray(p0, dtype=float))
-        p1 = np.atleast_2d(np.asarray(p1, dtype=float))
-        if self.n_hulls == 0:
-            return np.ones(len(p0), dtype=bool)
-        seg_lo = np.minimum(p0, p1)[:, None]
-        seg_hi = np.maximum(p0, p1)[:, None]
-        gap = np.maximum(0.0, np.maximum(self._box_lo[None] - seg_hi, seg_lo - self._box_hi[None]))
-        lower = np.sqrt(np.min(np.sum(gap * gap, axis=-1), axis=1))
-        ok = lower >= need_m
-        todo = np.nonzero(~ok)[0]
-        if len(todo):
-            ok[todo] = self.distances(p0[todo], p1[todo]) >= need_m
-        return ok
-
-    def distances(self, p0: Array, p1: Array) -> Array:
-        """Distance from each segment p0[i]–p1[i] (arrays (n, 2)) to the nearest hull (or inf)."""
-        p0 = np.atleast_2d(np.asarray(p0, dtype=float))
-        p1 = np.atleast_2d(np.asarray(p1, dtype=float))
-        if self._all is None:
-            return np.full(len(p0), np.inf)
-        return self._all.distances(p0, p1)
-
-    def point_distance(self, p: Array) -> float:
-        """Distance from point p to the nearest hull (inf if none)."""
-        q = np.asarray(p, dtype=float)[:2]
-        return float(self.distances(q[None], q[None])[0])
-
-    def path_clearance(self, points: Array) -> float:
-        """Smallest distance from the polyline through ``points`` (k, 2) to any hull."""
-        pts = np.asarray(points, dtype=float).reshape(-1, 2)
-        if len(pts) == 1:
-            return self.point_distance(pts[0])
-        return float(np.min(self.distances(pts[:-1], pts[1:])))
-
-
-class _HullEdges:
-    """Edges and faces of one or more hulls as flat arrays (components split for speed)."""
-
-    def __init__(self, hulls: Sequence[Polytope]):
-        a = np.vstack([h.vertices for h in hulls])
-        c = np.vstack([np.roll(h.vertices, -1, axis=0) for h in hulls])
-        self.ax, self.ay = a[:, 0].copy(), a[:, 1].copy()
-        self.dx, self.dy = c[:, 0] - a[:, 0], c[:, 1] - a[:, 1]
-        len2 = self.dx**2 + self.dy**2
-        self.inv_len2 = 1.0 / np.where(len2 > 0, len2, 1.0)
-        normals = np.vstack([h.A for h in hulls])
-        self.nx, self.ny = normals[:, 0].copy(), normals[:, 1].copy()
-        self.offsets = np.concatenate([h.b for h in hulls])
-        self.starts = np.cumsum([0] + [h.n_faces for h in hulls[:-1]])
-
-    def distances(self, p0: Array, p1: Array) -> Array:
-        x0, y0 = p0[:, :1], p0[:, 1:2]  # (n, 1)
-        x1, y1 = p1[:, :1], p1[:, 1:2]
-        ax, ay, dx, dy = self.ax, self.ay, self.dx, self.dy  # (m,)
-        d2 = np.minimum(_pt_seg2(x0, y0, ax, ay, dx, dy, self.inv_len2),
-                        _pt_seg2(x1, y1, ax, ay, dx, dy, self.inv_len2))
-        sx, sy = x1 - x0, y1 - y0
-        slen2 = sx * sx + sy * sy
-        inv = 1.0 / np.where(slen2 > 0, slen2, 1.0)
-        d2 = np.minimum(d2, _pt_seg2(ax, ay, x0, y0, sx, sy, inv))
-        d = np.sqrt(d2.min(axis=1))
-        # proper crossings of the segment with a hull edge (orientation tests)
-        o1 = sx * (ay - y0) - sy * (ax - x0)
-        o2 = sx * (ay + dy - y0) - sy * (ax + dx - x0)
-        o3 = dx * (y0 - ay) - dy * (x0 - ax)
-        o4 = dx * (y1 - ay) - dy * (x1 - ax)
-        crossing = ((o1 * o2) < 0) & ((o3 * o4) < 0)
-        # a segment wholly inside a hull crosses nothing: test one endpoint
-        slack = x0 * self.nx + y0 * self.ny - self.offsets  # (n, faces)
-        inside = np.maximum.reduceat(slack, self.starts, axis=1) <= 0.0
-        hit = crossing.any(axis=1) | inside.any(axis=1)
-        return np.where(hit, 0.0, d)
-
-
-def _pt_seg2(px: Array, py: Array, ax: Array, ay: Array, dx: Array, dy: Array,
-             inv_len2: Array) -> Array:
-    """Broadcast squared distance from points (px, py) to segments a → a + d."""
-    t = np.minimum(np.maximum(((px - ax) * dx + (py - ay) * dy) * inv_len2, 0.0), 1.0)
-    ex = px - ax - t * dx
-    ey = py - ay - t * dy
-    return np.asarray(ex * ex + ey * ey)
 
 
 def shortcut(path: Array, checker: SegmentChecker, clearance_m: float,
