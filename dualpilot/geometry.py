@@ -53,6 +53,12 @@ class Rect:
         p = np.asarray(p, dtype=float)[:2]
         return bool(np.all(p >= self.lo - margin) and np.all(p <= self.hi + margin))
 
+    def distance(self, p: ArrayLike) -> float:
+        """Euclidean distance from p to the rectangle (0 inside)."""
+        q = np.asarray(p, dtype=float)[:2]
+        gap = np.maximum(0.0, np.maximum(self.lo - q, q - self.hi))
+        return float(np.hypot(gap[0], gap[1]))
+
     def inside(self, outer: Rect) -> bool:
         """True if this rectangle lies within ``outer``."""
         return bool(np.all(self.lo >= outer.lo) and np.all(self.hi <= outer.hi))

@@ -136,6 +136,20 @@ class MissionResult:
     records: list[StepRecord] = field(default_factory=list)
     final_state: Array | None = None
 
+    def add_flight(self, control: Array, prev_control: Array, dt_s: float) -> None:
+        """Account one flown step (its record already appended): energy, switches, time.
+
+        Energy is Σ‖u_t − u_{t−1}‖²; a switch is a change of the system in
+        control, braking steps (system 0) do not count.
+        """
+        self.energy += float(np.sum((np.asarray(control) - np.asarray(prev_control)) ** 2))
+        flown = self.records[-1].system
+        earlier = next((r.system for r in reversed(self.records[:-1]) if r.system), 0)
+        if flown and earlier and flown != earlier:
+            self.switches += 1
+        self.steps += 1
+        self.mission_time_s = self.steps * dt_s
+
     def summary(self) -> dict[str, object]:
         return {
             "controller": self.controller,
@@ -161,7 +175,7 @@ PlannerFactory = Callable[[int], Planner]
 
 def nearest_region_distance(position: Array, regions: tuple[Rect, ...]) -> float:
     """Distance (m) from ``position`` to the nearest region; inf when there is none."""
-    return min((r.polytope().distance(position) for r in regions), default=float("inf"))
+    return min((r.distance(position) for r in regions), default=float("inf"))
 
 
 def segment_region_distance(p0: Array, p1: Array, regions: tuple[Rect, ...]) -> float:
@@ -186,6 +200,31 @@ def planning_time(plan: Plan, timing: Timing, params: MissionParams) -> float:
     if timing is Timing.PAPER:
         return params.paper_planning_time_s[plan.system - 1]
     return plan.compute_time_s
+
+
+def planning_order(controller: Controller, chosen: int, params: MissionParams) -> list[int]:
+    """Systems to ask this step: the one in control, then (CC with fallback) the other."""
+    wanted = {Controller.CC: chosen, Controller.S1: 1, Controller.S2: 2}[controller]
+    fallback = params.fallback and controller is Controller.CC
+    return [wanted, 3 - wanted] if fallback else [wanted]
+
+
+def flight_outcome(
+    p0: Array,
+    p1: Array,
+    regions: tuple[Rect, ...],
+    steps: int,
+    config: MissionConfig,
+    params: MissionParams,
+) -> str | None:
+    """After flying p0 → p1: a failure cause, "" for success (in G), None to go on."""
+    if segment_region_distance(p0, p1, regions) < params.d_safe_m:
+        return "fire_contact"
+    if config.goal.contains(p1):
+        return ""
+    if steps >= params.max_steps:
+        return "step_limit"
+    return None
 
 
 def brake_control(state: Array, dyn: DynamicsParams) -> Array:
@@ -269,12 +308,7 @@ class Mission:
         snapshot = self.fires.snapshot()
         d_t = self._d_t(t, snapshot)
         decision = self.supervisor.decide(t, d_t)
-        wanted = {Controller.CC: decision.system, Controller.S1: 1, Controller.S2: 2}[
-            self.controller
-        ]
-        order = [wanted] + (
-            [3 - wanted] if self.params.fallback and self.controller is Controller.CC else []
-        )
+        order = planning_order(self.controller, decision.system, self.params)
         plan: Plan | None = None
         planning_time = 0.0
         statuses = []
@@ -319,26 +353,17 @@ class Mission:
 
         prev_pos = self.state[:2].copy()
         self.state = step(self.state, control, self.dyn)
-        self.result.energy += float(np.sum((control - self.prev_control) ** 2))
+        self.result.add_flight(control, self.prev_control, self.dyn.dt_s)
         self.prev_control = control
-        # a switch is a change of the system in control; braking steps (0) do not count
-        earlier = [r.system for r in self.result.records[:-1] if r.system]
-        if flown and earlier and flown != earlier[-1]:
-            self.result.switches += 1
-        self.result.steps = t + 1
-        self.result.mission_time_s = self.result.steps * self.dyn.dt_s
         if self.params.fire_substeps_per_motion and not self._propagate(
             self.params.fire_substeps_per_motion, t
         ):
             return self._finish(False, "fire_in_flight", record)
-        regions = self.fires.snapshot().regions
-        if segment_region_distance(prev_pos, self.state[:2], regions) < self.params.d_safe_m:
-            return self._finish(False, "fire_contact", record)
-        if self.config.goal.contains(self.state[:2]):
-            return self._finish(True, "", record)
-        if self.result.steps >= self.params.max_steps:
-            return self._finish(False, "step_limit", record)
-        return record
+        outcome = flight_outcome(
+            prev_pos, self.state[:2], self.fires.snapshot().regions, self.result.steps,
+            self.config, self.params,
+        )
+        return record if outcome is None else self._finish(outcome == "", outcome, record)
 
     def _finish(self, success: bool, cause: str, record: StepRecord) -> StepRecord:
         self.done = True

@@ -52,9 +52,10 @@ from dualpilot.mission import (
     Timing,
     attention_distance,
     brake_control,
+    flight_outcome,
     nearest_region_distance,
+    planning_order,
     planning_time,
-    segment_region_distance,
 )
 from dualpilot.plan import Objective, Plan, PlanStatus
 from dualpilot.supervisor import Decision, Supervisor, SupervisorParams
@@ -363,10 +364,8 @@ class StackMission:
         snapshot = self.snapshot
         d_t = self._d_t(t, snapshot)
         decision = self.supervisor.decide(t, d_t)
-        wanted = {Controller.CC: decision.system, Controller.S1: 1,
-                  Controller.S2: 2}[self.controller]
-        order = [wanted] + ([3 - wanted] if self.params.fallback
-                            and self.controller is Controller.CC else [])
+        order = planning_order(self.controller, decision.system, self.params)
+        wanted = order[0]
         plan: Plan | None = None
         planning_time = compute = self.request_wall = self.service_time = 0.0
         statuses = []
@@ -417,24 +416,18 @@ class StackMission:
         prev_pos = self.state[:2].copy()
         self.state = self._read_state(due_ms)
         self.clock.advance(self.dyn.dt_s)
-        self.result.energy += float(np.sum((control - self.prev_control) ** 2))
+        self.result.add_flight(control, self.prev_control, self.dyn.dt_s)
         self.prev_control = control
-        if self.result.records[:-1] and flown and flown != self.result.records[-2].system:
-            self.result.switches += 1
-        self.result.steps = t + 1
-        self.result.mission_time_s = self.result.steps * self.dyn.dt_s
         self._publish_state(t + 1)
         self.clock.sleep_until_now(self.stop)  # the flight lasts ΔT of simulated time
         if self.params.fire_substeps_per_motion and self._advance(
                 t, self.params.fire_substeps_per_motion):
             return self._finish(False, "fire_in_flight", record)
         regions = self.snapshot.regions
-        if segment_region_distance(prev_pos, self.state[:2], regions) < self.params.d_safe_m:
-            return self._finish(False, "fire_contact", record)
-        if self.result.config.goal.contains(self.state[:2]):
-            return self._finish(True, "", record)
-        if self.result.steps >= self.params.max_steps:
-            return self._finish(False, "step_limit", record)
+        outcome = flight_outcome(prev_pos, self.state[:2], regions, self.result.steps,
+                                 self.result.config, self.params)
+        if outcome is not None:
+            return self._finish(outcome == "", outcome, record)
         self._event(supervisor_pb2.MISSION_EVENT_KIND_STEP, step=t, flown_system=flown,
                     position=self.state, fires_active=len(regions),
                     plan_status=record.plan_status, mission_time_s=self.result.mission_time_s)

@@ -118,3 +118,36 @@ def test_records_on_disk(tmp_path):
 def test_single_system_controllers_never_switch():
     for seed in range(3):
         assert s1_mission(seed).run().switches == 0
+
+
+def test_flight_outcome_rules_and_planning_order():
+    from dualpilot.geometry import Rect
+    from dualpilot.mission import flight_outcome, planning_order
+
+    cfg, params = MissionConfig(), MissionParams(max_steps=10)
+    fire = (Rect(100.0, 0.0, 20.0, 20.0),)  # x in [90, 110]
+    # passing 15 m from the fire's edge is contact (< d_safe = 20 m)
+    assert (
+        flight_outcome(np.array([80.0, 25.0]), np.array([120.0, 25.0]), fire, 1, cfg, params)
+        == "fire_contact"
+    )
+    assert (
+        flight_outcome(np.array([880.0, 880.0]), np.array([900.0, 900.0]), (), 1, cfg, params) == ""
+    )
+    assert (
+        flight_outcome(np.array([0.0, 0.0]), np.array([1.0, 1.0]), (), 10, cfg, params)
+        == "step_limit"
+    )
+    assert flight_outcome(np.array([0.0, 0.0]), np.array([1.0, 1.0]), (), 9, cfg, params) is None
+    assert planning_order(Controller.CC, 2, MissionParams()) == [2, 1]
+    assert planning_order(Controller.S1, 2, MissionParams()) == [1]
+    assert planning_order(Controller.CC, 1, MissionParams(fallback=False)) == [1]
+
+
+def test_rect_distance_matches_the_polytope_distance():
+    from dualpilot.geometry import Rect
+
+    r = Rect(10.0, -5.0, 40.0, 20.0)
+    rng = np.random.default_rng(0)
+    for p in rng.uniform(-100, 100, size=(200, 2)):
+        assert r.distance(p) == pytest.approx(r.polytope().distance(p), abs=1e-9)
