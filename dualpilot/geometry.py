@@ -215,7 +215,6 @@ class SegmentChecker:
 
     def __init__(self, hulls: Sequence[Polytope]):
         self.n_hulls = len(hulls)
-        self._parts = [_HullEdges([h]) for h in hulls]
         self._all = _HullEdges(hulls) if hulls else None
         lo = [h.vertices.min(axis=0) for h in hulls]
         hi = [h.vertices.max(axis=0) for h in hulls]
@@ -223,25 +222,32 @@ class SegmentChecker:
                        for a, b in zip(lo, hi, strict=True)]
         self._box_lo = np.array(lo).reshape(-1, 2)
         self._box_hi = np.array(hi).reshape(-1, 2)
+        # plain-float faces (nx, ny, β) and vertices for the scalar test
+        self._faces = [list(zip(h.A[:, 0].tolist(), h.A[:, 1].tolist(), h.b.tolist(),
+                                strict=True)) for h in hulls]
+        self._verts = [[(float(x), float(y)) for x, y in h.vertices.tolist()] for h in hulls]
 
     def segment_clear(self, x0: float, y0: float, x1: float, y1: float, need_m: float) -> bool:
         """Whether the single segment (x0, y0)–(x1, y1) keeps ``need_m`` from every hull.
 
-        Bounding boxes settle most segments in plain Python; only the hulls
-        whose box is nearer than ``need_m`` get the exact distance.
+        Plain Python (one segment is too small for numpy): bounding boxes
+        settle most hulls, a face line with both endpoints ``need_m`` beyond it
+        most of the rest, and only segments near a hull get the exact test
+        (:func:`_segment_near_polygon`).
         """
         lox, hix = (x0, x1) if x0 <= x1 else (x1, x0)
         loy, hiy = (y0, y1) if y0 <= y1 else (y1, y0)
         need2 = need_m * need_m
-        p0 = p1 = np.empty((0, 2))
         for i, (bx0, by0, bx1, by1) in enumerate(self._boxes):
             gx = max(0.0, bx0 - hix, lox - bx1)
             gy = max(0.0, by0 - hiy, loy - by1)
             if gx * gx + gy * gy >= need2:
                 continue
-            if not len(p0):
-                p0, p1 = np.array([[x0, y0]]), np.array([[x1, y1]])
-            if self._parts[i].distances(p0, p1)[0] < need_m:
+            faces = self._faces[i]
+            if any(nx * x0 + ny * y0 - b >= need_m and nx * x1 + ny * y1 - b >= need_m
+                   for nx, ny, b in faces):
+                continue
+            if _segment_near_polygon(x0, y0, x1, y1, faces, self._verts[i], need_m):
                 return False
         return True
 
@@ -282,12 +288,61 @@ class SegmentChecker:
         return float(np.min(self.distances(pts[:-1], pts[1:])))
 
 
+def _segment_near_polygon(x0: float, y0: float, x1: float, y1: float,
+                          faces: list[tuple[float, float, float]],
+                          verts: list[tuple[float, float]], need_m: float) -> bool:
+    """Whether segment p0–p1 comes nearer than ``need_m`` to a convex polygon (plain floats).
+
+    True when the segment meets the polygon (Cyrus–Beck clipping against the
+    faces) or when an endpoint-to-edge or vertex-to-segment distance, the
+    candidates of :class:`_HullEdges`, is below ``need_m``; it stops at the
+    first such pair.
+    """
+    t_in, t_out = 0.0, 1.0
+    sx, sy = x1 - x0, y1 - y0
+    for nx, ny, b in faces:
+        s0 = nx * x0 + ny * y0 - b
+        ds = nx * sx + ny * sy
+        if ds == 0.0:
+            if s0 > 0.0:
+                t_in = 2.0  # parallel and outside this face: no intersection
+        elif ds < 0.0:
+            if -s0 / ds > t_in:
+                t_in = -s0 / ds
+        elif -s0 / ds < t_out:
+            t_out = -s0 / ds
+        if t_in > t_out:
+            break
+    else:
+        return True  # the clipped interval is not empty: the segment meets the polygon
+    need2 = need_m * need_m
+    s2 = sx * sx + sy * sy
+    k = len(verts)
+    for j in range(k):
+        ax, ay = verts[j]
+        bx, by = verts[j + 1 if j + 1 < k else 0]
+        ex, ey = bx - ax, by - ay
+        e2 = ex * ex + ey * ey
+        for px, py in ((x0, y0), (x1, y1)):
+            t = ((px - ax) * ex + (py - ay) * ey) / e2 if e2 > 0.0 else 0.0
+            t = 0.0 if t < 0.0 else 1.0 if t > 1.0 else t
+            dx, dy = px - ax - t * ex, py - ay - t * ey
+            if dx * dx + dy * dy < need2:
+                return True
+        t = ((ax - x0) * sx + (ay - y0) * sy) / s2 if s2 > 0.0 else 0.0
+        t = 0.0 if t < 0.0 else 1.0 if t > 1.0 else t
+        dx, dy = ax - x0 - t * sx, ay - y0 - t * sy
+        if dx * dx + dy * dy < need2:
+            return True
+    return False
+
+
 class _HullEdges:
     """Edges and faces of one or more hulls as flat arrays (components split for speed)."""
 
     def __init__(self, hulls: Sequence[Polytope]):
         a = np.vstack([h.vertices for h in hulls])
-        c = np.vstack([np.roll(h.vertices, -1, axis=0) for h in hulls])
+        c = np.vstack([np.vstack([h.vertices[1:], h.vertices[:1]]) for h in hulls])
         self.ax, self.ay = a[:, 0].copy(), a[:, 1].copy()
         self.dx, self.dy = c[:, 0] - a[:, 0], c[:, 1] - a[:, 1]
         len2 = self.dx**2 + self.dy**2

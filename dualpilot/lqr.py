@@ -27,6 +27,7 @@ Indexing follows :class:`dualpilot.plan.Plan`: ``states[k+1] = Φ states[k] + Γ
 from __future__ import annotations
 
 from dataclasses import dataclass
+from operator import mul
 
 import numpy as np
 from scipy.linalg import solve_discrete_are
@@ -145,24 +146,34 @@ def track(
     n = dynamics.dim
     if ref.ndim != 2 or ref.shape[1] != 2 * n or len(ref) < 2:
         raise ValueError(f"reference must have shape (T+1 >= 2, {2 * n}), got {ref.shape}")
-    phi, gamma = transition_matrices(dynamics)
+    # Plain floats: at T = 80 a Python loop over lists is ~10x faster than numpy
+    # on 4-vectors. Φ, Γ have the block form of dynamics.transition_matrices.
     horizon = len(ref) - 1
-    m_dt = dynamics.mass_kg / dynamics.dt_s
-    decay = 1.0 - dynamics.zeta
-    states = np.empty((horizon + 1, 2 * n))
-    controls = np.empty((horizon, n))
-    states[0] = x
+    dt, decay = dynamics.dt_s, 1.0 - dynamics.zeta
+    m_dt = dynamics.mass_kg / dt
+    dt_m = dt / dynamics.mass_kg
+    u_max, v_max = dynamics.u_max_n, dynamics.v_max_mps
+    k_rows = np.asarray(gain, dtype=float).tolist()
+    refs = ref.tolist()
+    xs = x.tolist()
+    states = [xs]
+    controls = []
     for k in range(horizon):
-        u = -gain @ (x - ref[k])
-        if feedforward:
-            u = u + m_dt * (ref[k + 1, n:] - decay * ref[k, n:])
-        u = np.clip(u, -dynamics.u_max_n, dynamics.u_max_n)
-        # keep |v_{k+1}| ≤ v_max per axis: v_{k+1} = (1-ζ) v_k + u ΔT/m
-        v_free = decay * x[n:]
-        u_hi = (dynamics.v_max_mps - v_free) * m_dt
-        u_lo = (-dynamics.v_max_mps - v_free) * m_dt
-        u = np.clip(np.minimum(np.maximum(u, u_lo), u_hi), -dynamics.u_max_n, dynamics.u_max_n)
-        x = phi @ x + gamma @ u
-        controls[k] = u
-        states[k + 1] = x
-    return states, controls
+        r, r_next = refs[k], refs[k + 1]
+        err = [xi - ri for xi, ri in zip(xs, r, strict=True)]
+        u = []
+        for i in range(n):
+            ui = -sum(map(mul, k_rows[i], err))
+            if feedforward:
+                ui += m_dt * (r_next[n + i] - decay * r[n + i])
+            # clip to U, then keep |v_{k+1}| ≤ v_max: v_{k+1} = (1-ζ) v_k + u ΔT/m
+            v_free = decay * xs[n + i]
+            lo = max(-u_max, (-v_max - v_free) * m_dt)
+            hi = min(u_max, (v_max - v_free) * m_dt)
+            ui = min(max(ui, lo), hi)
+            u.append(min(max(ui, -u_max), u_max))  # U wins when |v_k| > v_max
+        xs = ([xs[i] + dt * xs[n + i] for i in range(n)]
+              + [decay * xs[n + i] + dt_m * u[i] for i in range(n)])
+        controls.append(u)
+        states.append(xs)
+    return np.array(states, dtype=float), np.array(controls, dtype=float).reshape(horizon, n)

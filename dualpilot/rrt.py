@@ -17,6 +17,10 @@ paper's loose points, each a parameter of :class:`RrtParams`:
   goal bias to 1 and hand RRT a goal whose ``sampleGoal`` draws a uniform
   state of the area (or, with probability ``goal_bias``, a state of G). RRT's
   internal RNG then decides nothing, and the same seed gives the same path.
+* Before growing a tree, a grid test (:mod:`dualpilot.reach`) looks for a
+  proof that G cannot be reached with the clearance; with one, the answer is
+  "no path" at once instead of after ``max_iterations`` samples. The test is
+  conservative, so it never hides a path (``reach_check``).
 * The raw tree path is shortcut greedily (exact checks), as an operator would
   not zig-zag, and it ends at G's centre when that is reachable in a straight
   free segment (else at the first tree state inside G).
@@ -37,6 +41,7 @@ from ompl import util as ou
 
 from .dynamics import Array
 from .geometry import Polytope, Rect, SegmentChecker
+from .reach import certainly_unreachable
 
 
 @dataclass(frozen=True)
@@ -47,6 +52,8 @@ class RrtParams:
     random fire fields of Sec. IV-A with a path to G, 500 samples failed on
     30 % of instances and 2000 on 2 % (median 370, p95 ≈ 1100 iterations;
     README, "System 1 iteration cap"). ``max_wall_s`` is a safety cap.
+    ``reach_check`` runs :func:`dualpilot.reach.certainly_unreachable` on a
+    grid of ``reach_cell_m`` cells before the tree is grown.
     """
 
     step_size_m: float = 15.0
@@ -57,10 +64,13 @@ class RrtParams:
     shortcut: bool = True
     aim_goal_center: bool = True
     try_direct: bool = True
+    reach_check: bool = True
+    reach_cell_m: float = 10.0
 
     def __post_init__(self) -> None:
-        if not (self.step_size_m > 0 and self.max_iterations >= 1 and self.max_wall_s > 0):
-            raise ValueError("step_size_m > 0, max_iterations >= 1 and max_wall_s > 0 are required")
+        if not (self.step_size_m > 0 and self.max_iterations >= 1 and self.max_wall_s > 0
+                and self.reach_cell_m > 0):
+            raise ValueError("step_size_m, max_iterations, max_wall_s and reach_cell_m must be > 0")
         if self.clearance_m < 0 or not 0.0 <= self.goal_bias <= 1.0:
             raise ValueError("clearance_m >= 0 and goal_bias in [0, 1] are required")
 
@@ -71,7 +81,8 @@ class RrtResult:
 
     ``path`` (k, 2) runs from the start to a point inside G, or is None when
     no path was found; ``status`` is "direct" (straight segment free),
-    "exact" (RRT reached G), "iteration_cap" or "time_cap".
+    "exact" (RRT reached G), "unreachable" (proved that no path exists,
+    :mod:`dualpilot.reach`), "iteration_cap" or "time_cap".
     """
 
     path: Array | None
@@ -145,8 +156,15 @@ class _NumpyDrivenGoal(ob.GoalSampleableRegion):
         self._area = float(area_size_m)
         self._rng = rng
         self._bias = bias
-        self._block: list[tuple[float, float]] = []
+        self._block: list[list[float]] = []
         self.count = 0
+        self._cap = 1 << 62
+        self._ptc: ob.PlannerTerminationCondition | None = None
+
+    def stop_after(self, samples: int, ptc: ob.PlannerTerminationCondition) -> None:
+        """End the solve run by ``ptc`` once ``samples`` samples have been drawn."""
+        self._cap = samples
+        self._ptc = ptc
 
     def _refill(self, n: int = 256) -> None:
         # Drawn in blocks for speed; the sequence of samples depends only on the rng.
@@ -155,10 +173,12 @@ class _NumpyDrivenGoal(ob.GoalSampleableRegion):
         lo = np.where(to_goal[:, None], np.array(self._lo), 0.0)
         span = np.where(to_goal[:, None], np.array(self._hi) - np.array(self._lo), self._area)
         pts = lo + u[:, 1:] * span
-        self._block = [(float(x), float(y)) for x, y in pts[::-1]]
+        self._block = pts[::-1].tolist()
 
     def sampleGoal(self, st: ob.State) -> None:  # noqa: N802 (OMPL API)
         self.count += 1
+        if self.count >= self._cap and self._ptc is not None:
+            self._ptc.terminate()  # this sample is the last one RRT uses
         if not self._block:
             self._refill()
         st[0], st[1] = self._block.pop()
@@ -237,6 +257,11 @@ def plan_path(
         if checker.clear(p[None], target[None], root_clearance)[0]:
             return finish(np.vstack([p, target]), "direct", 0, None)
 
+    if params.reach_check and certainly_unreachable(
+            p, goal, hulls, params.clearance_m, area_size_m, params.reach_cell_m,
+            start_clearance_m=root_clearance, start_radius_m=params.step_size_m):
+        return RrtResult(None, "unreachable", 0, time.perf_counter() - t0, None)
+
     ou.setLogLevel(ou.LOG_WARN)
     space = ob.RealVectorStateSpace(2)
     bounds = ob.RealVectorBounds(2)
@@ -259,21 +284,15 @@ def plan_path(
     rrt.setGoalBias(1.0)  # every sample goes through goal_obj.sampleGoal (our rng)
     rrt.setProblemDefinition(pdef)
     rrt.setup()
-    deadline = t0 + params.max_wall_s
-    timed_out = [False]
-
-    def stop() -> bool:
-        if goal_obj.count >= params.max_iterations:
-            return True
-        if time.perf_counter() > deadline:
-            timed_out[0] = True
-            return True
-        return False
-
-    status = rrt.solve(ob.PlannerTerminationCondition(stop))
+    # The wall-clock cap is OMPL's own (no Python call per iteration); the
+    # sampler ends the solve itself once it has drawn max_iterations samples.
+    ptc = ob.timedPlannerTerminationCondition(max(params.max_wall_s - (time.perf_counter() - t0),
+                                                  1e-6))
+    goal_obj.stop_after(params.max_iterations, ptc)
+    status = rrt.solve(ptc)
     iterations = goal_obj.count
     if status.getStatus() != ob.PlannerStatus.EXACT_SOLUTION:
-        cause = "time_cap" if timed_out[0] else "iteration_cap"
+        cause = "iteration_cap" if iterations >= params.max_iterations else "time_cap"
         return RrtResult(None, cause, iterations, time.perf_counter() - t0, None)
     sol = pdef.getSolutionPath()
     tree = np.array([[sol.getState(i)[0], sol.getState(i)[1]] for i in range(sol.getStateCount())])

@@ -46,6 +46,8 @@ class System1Params:
     ``ref_speed_mps`` is the speed along the path (≤ 15 m/s per axis holds
     for any heading); ``speed_retries`` halvings are tried when the tracked
     trajectory fails verification at ``verify_clearance_m`` (d_safe).
+    ``reach_check`` lets the RRT answer "no path" at once when a grid proves
+    G unreachable (:mod:`dualpilot.reach`).
     """
 
     step_size_m: float = 15.0
@@ -66,6 +68,7 @@ class System1Params:
     reuse_max_offset_m: float = 50.0
     shortcut: bool = True
     aim_goal_center: bool = True
+    reach_check: bool = True
 
     def __post_init__(self) -> None:
         if self.horizon < 1:
@@ -84,6 +87,7 @@ class System1Params:
             step_size_m=self.step_size_m, max_iterations=self.max_iterations,
             clearance_m=self.clearance_m, goal_bias=self.goal_bias, max_wall_s=self.max_wall_s,
             shortcut=self.shortcut, aim_goal_center=self.aim_goal_center,
+            reach_check=self.reach_check,
         )
 
     def lqr_params(self) -> LqrParams:
@@ -245,7 +249,7 @@ class System1:
                                         f"{result.iterations} iterations)")
                 candidates.append(("rrt", result.path))
             source, ref = candidates.pop(0)
-            traj = self._track(x, ref, hulls, attempts, source)
+            traj = self._track(x, ref, hulls, attempts, source, checker)
             if traj is None:
                 continue
             states, controls, speed, clearance = traj
@@ -278,7 +282,7 @@ class System1:
                          start_clearance_m=self.params.verify_clearance_m, checker=checker)
 
     def _track(self, x: Array, ref: Array, hulls: Sequence[Polytope], attempts: list[str],
-               source: str) -> tuple[Array, Array, float, float] | None:
+               source: str, checker: SegmentChecker) -> tuple[Array, Array, float, float] | None:
         """LQR-track ``ref`` at the reference speed, halving it on failed verification."""
         p = self.params
         # current speed along the path, measured towards the point 15 m ahead on it
@@ -294,7 +298,8 @@ class System1:
         for _ in range(p.speed_retries + 1):
             reference = reference_states(ref, p.horizon, speed, self.dyn, v0, self._lqr_params)
             states, controls = track(x, reference, self.gain, self.dyn, p.feedforward)
-            verdict = verify_trajectory(states, controls, hulls, self.dyn, p.verify_clearance_m)
+            verdict = verify_trajectory(states, controls, hulls, self.dyn, p.verify_clearance_m,
+                                        checker=checker)
             if verdict.ok:
                 return states, controls, speed, verdict.clearance_m
             attempts.append(f"{source}@{speed:g}m/s: {verdict.reason}")

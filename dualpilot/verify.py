@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .dynamics import Array, DynamicsParams, rollout
-from .geometry import Polytope, path_clearance
+from .geometry import Polytope, SegmentChecker, path_clearance
 
 
 @dataclass(frozen=True)
@@ -31,8 +31,12 @@ def verify_trajectory(
     dynamics: DynamicsParams,
     clearance_m: float,
     tol: float = 1e-3,
+    checker: SegmentChecker | None = None,
 ) -> Verdict:
-    """Check dynamics, bounds and exact clearance of a planned trajectory."""
+    """Check dynamics, bounds and exact clearance of a planned trajectory.
+
+    ``checker`` may carry a :class:`SegmentChecker` already built for ``hulls``.
+    """
     states = np.asarray(states, dtype=float)
     controls = np.asarray(controls, dtype=float)
     n = dynamics.dim
@@ -49,7 +53,8 @@ def verify_trajectory(
         return Verdict(False, f"control exceeds {dynamics.u_max_n} N", float("nan"))
     if np.any(np.abs(states[1:, n:]) > dynamics.v_max_mps + tol):
         return Verdict(False, f"velocity exceeds {dynamics.v_max_mps} m/s", float("nan"))
-    clearance = path_clearance(states[:, :2], hulls)
+    clearance = (path_clearance(states[:, :2], hulls) if checker is None
+                 else checker.path_clearance(states[:, :2]))
     if clearance < clearance_m - tol:
         return Verdict(False, f"clearance {clearance:.2f} m < {clearance_m} m", clearance)
     return Verdict(True, "ok", clearance)

@@ -135,12 +135,14 @@ def test_direct_line_when_free_and_start_in_goal() -> None:
 
 def test_goal_covered_by_fire_is_a_result_not_an_error() -> None:
     hulls = (Rect(900.0, 900.0, 200.0, 200.0).polytope(),)
-    params = RrtParams(max_iterations=300)
+    proved = plan_path(START, GOAL, hulls, np.random.default_rng(0))
+    assert proved.path is None and proved.status == "unreachable" and proved.iterations == 0
+    params = RrtParams(max_iterations=300, reach_check=False)
     result = plan_path(START, GOAL, hulls, np.random.default_rng(0), params)
     assert result.path is None and not result.found
     assert result.status == "iteration_cap" and result.iterations == 300
     timed = plan_path(START, GOAL, hulls, np.random.default_rng(0),
-                      RrtParams(max_iterations=10_000, max_wall_s=1e-9))
+                      RrtParams(max_iterations=10_000, max_wall_s=1e-9, reach_check=False))
     assert timed.status == "time_cap" and timed.path is None
 
 

@@ -130,7 +130,11 @@ def test_no_path_is_a_status_not_an_exception() -> None:
     plan = planner(max_iterations=200).plan(hover_state(np.array([50.0, 50.0])), (covering,))
     assert plan.status is PlanStatus.NO_PATH and not plan.ok
     assert plan.states.shape == (0, 4) and plan.controls.shape == (0, 2)
-    assert plan.info["rrt_iterations"] == 200 and plan.compute_time_s > 0
+    assert plan.info["rrt_status"] == "unreachable" and plan.info["rrt_iterations"] == 0
+    assert plan.compute_time_s > 0
+    capped = planner(max_iterations=200, reach_check=False).plan(
+        hover_state(np.array([50.0, 50.0])), (covering,))
+    assert capped.status is PlanStatus.NO_PATH and capped.info["rrt_iterations"] == 200
 
 
 def test_an_unverified_trajectory_is_never_ok(monkeypatch: pytest.MonkeyPatch) -> None:
