@@ -65,18 +65,16 @@ def possibly_free(hulls: Sequence[Polytope], clearance_m: float, area_size_m: fl
     return free
 
 
-def certainly_unreachable(start: Array, goal: Rect, hulls: Sequence[Polytope],
-                          clearance_m: float, area_size_m: float = 1000.0, cell_m: float = 10.0,
-                          start_clearance_m: float | None = None,
-                          start_radius_m: float = 15.0) -> bool:
-    """True only if no path from ``start`` into ``goal`` keeps ``clearance_m`` from every hull.
+def start_component(start: Array, goal: Rect, hulls: Sequence[Polytope], clearance_m: float,
+                    area_size_m: float = 1000.0, cell_m: float = 10.0,
+                    start_clearance_m: float | None = None,
+                    start_radius_m: float = 15.0) -> tuple[BoolArray, bool]:
+    """The possibly-free cells 8-connected to the start's cell, and whether they meet G.
 
-    ``start_clearance_m`` (default ``clearance_m``) applies to points within
-    ``start_radius_m`` of the start (the first RRT edge, one step long).
-    False means "a path may exist", not that one does.
+    Every point of a path from ``start`` that keeps the clearance lies in
+    these cells. ``start_clearance_m`` (default ``clearance_m``) applies to
+    points within ``start_radius_m`` of the start (the first RRT edge).
     """
-    if not hulls:
-        return False
     p = np.asarray(start, dtype=float)[:2]
     free = possibly_free(hulls, clearance_m, area_size_m, cell_m)
     n = free.shape[0]
@@ -91,10 +89,25 @@ def certainly_unreachable(start: Array, goal: Rect, hulls: Sequence[Polytope],
     si, sj = (np.clip((p // cell_m).astype(int), 0, n - 1))
     free[sj, si] = True  # the start itself is free (the caller checked it)
     labels, _ = ndimage.label(free, structure=_EIGHT)
-    start_label = labels[sj, si]
+    component = labels == labels[sj, si]
     gi0, gj0 = np.clip((goal.lo // cell_m).astype(int), 0, n - 1)
     gi1, gj1 = np.clip((np.ceil(goal.hi / cell_m) - 1).astype(int), 0, n - 1)
-    return not bool(np.any(labels[gj0:gj1 + 1, gi0:gi1 + 1] == start_label))
+    return component, bool(np.any(component[gj0:gj1 + 1, gi0:gi1 + 1]))
+
+
+def certainly_unreachable(start: Array, goal: Rect, hulls: Sequence[Polytope],
+                          clearance_m: float, area_size_m: float = 1000.0, cell_m: float = 10.0,
+                          start_clearance_m: float | None = None,
+                          start_radius_m: float = 15.0) -> bool:
+    """True only if no path from ``start`` into ``goal`` keeps ``clearance_m`` from every hull.
+
+    False means "a path may exist", not that one does (see :func:`start_component`).
+    """
+    if not hulls:
+        return False
+    _, meets_goal = start_component(start, goal, hulls, clearance_m, area_size_m, cell_m,
+                                    start_clearance_m, start_radius_m)
+    return not meets_goal
 
 
 def _within(points: Array, hull: Polytope, dist_m: float) -> BoolArray:
