@@ -16,7 +16,6 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-import scipy.sparse as sp
 from numpy.typing import NDArray
 from scipy.linalg.lapack import dpbtrf, dpbtrs
 
@@ -103,11 +102,10 @@ class BandedQp:
         sg = np.concatenate([-np.ones(len(il)), np.ones(len(iu))])
         self.h = np.concatenate([-rows.lo[il], rows.hi[iu]])
         self.m = m = len(self.h)
-        gcols = rows.cols[ridx]
-        gvals = rows.vals[ridx] * sg[:, None]
-        self.g = sp.csr_matrix((gvals.ravel(), (np.repeat(np.arange(m), gcols.shape[1]),
-                                                gcols.ravel())), shape=(m, n))
-        self.gt = self.g.T.tocsr()
+        # G in the padded row form (≤ 3 entries a row): G z is a gather, Gᵀ v a bincount,
+        # both far cheaper than scipy.sparse's per-call overhead at this size
+        self.g_cols = rows.cols[ridx]
+        self.g_vals = rows.vals[ridx] * sg[:, None]
         p_idx, p_coef, _ = pairs
         n_pairs = len(_PAIRS)
         g_pair = (ridx[:, None] * n_pairs + np.arange(n_pairs)[None, :]).ravel()
@@ -122,8 +120,9 @@ class BandedQp:
         """Mehrotra predictor-corrector with the fixed rows plus ``extra`` (lower bounds)."""
         n, bw1 = self.n, self.bw1
         if extra is not None and len(extra.cols):
-            k = len(extra.cols)
-            e_cols, e_vals = extra.cols, -extra.vals  # lo ≤ L z  ⇔  −L z ≤ −lo
+            # lo ≤ L z  ⇔  −L z ≤ −lo
+            g_cols = np.vstack([self.g_cols, extra.cols])
+            g_vals = np.vstack([self.g_vals, -extra.vals])
             h = np.concatenate([self.h, -extra.lo])
             ep = band_pairs(extra, n)
             nz = ep[1] != 0.0
@@ -131,25 +130,17 @@ class BandedQp:
             p_coef = np.concatenate([self.p_coef, ep[1][nz]])
             p_row = np.concatenate([self.p_row, ep[2][nz] + self.m])
         else:
-            k = 0
-            e_cols, e_vals = np.zeros((0, 3), dtype=np.int64), np.zeros((0, 3))
+            g_cols, g_vals = self.g_cols, self.g_vals
             h, p_idx, p_coef, p_row = self.h, self.p_idx, self.p_coef, self.p_row
-        mf = self.m
-        m = mf + k
-        g, gt, h_dense = self.g, self.gt, self.h_dense
-        e_flat = e_cols.ravel()
+        m = len(h)
+        h_dense = self.h_dense
+        g_flat = g_cols.ravel()
 
         def gmul(z: Array) -> Array:
-            if not k:
-                return np.asarray(g @ z)
-            return np.concatenate([g @ z, np.einsum("rk,rk->r", e_vals, z[e_cols])])
+            return np.asarray(np.einsum("rk,rk->r", g_vals, z[g_cols]))
 
         def gtmul(v: Array) -> Array:
-            out = np.asarray(gt @ v[:mf])
-            if k:
-                out = out + np.bincount(e_flat, weights=(e_vals * v[mf:, None]).ravel(),
-                                        minlength=n)
-            return out
+            return np.bincount(g_flat, weights=(g_vals * v[:, None]).ravel(), minlength=n)
 
         q = self.q
         z = np.zeros(n) if z0 is None else np.asarray(z0, dtype=float).copy()
