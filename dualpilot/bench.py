@@ -112,6 +112,10 @@ def stats(rows: Sequence[dict[str, Any]]) -> dict[str, Any]:
     times = [r["time_s"] for r in rows if r.get("time_s") is not None]
     gaps = [r["gap"] for r in rows if r.get("gap") is not None]
     ver = [bool(r.get("verified")) for r in rows]
+    ver_ok = [bool(r.get("verified")) for r in rows if r.get("status") == "ok"]
+    statuses: dict[str, int] = {}
+    for r in rows:
+        statuses[str(r.get("status"))] = statuses.get(str(r.get("status")), 0) + 1
     return {
         "n": len(rows),
         "time_s_median": percentile(times, 50),
@@ -124,6 +128,8 @@ def stats(rows: Sequence[dict[str, Any]]) -> dict[str, Any]:
             [r["certified_gap"] for r in rows if r.get("certified_gap") is not None], 50),
         "n_gaps": len(gaps),
         "verified_fraction": float(np.mean(ver)) if ver else None,
+        "verified_fraction_of_ok": float(np.mean(ver_ok)) if ver_ok else None,
+        "statuses": statuses,
     }
 
 
@@ -399,7 +405,8 @@ def run_system1(n_instances: int, seed: int, out_dir: Path, max_hulls: int = 10,
         row = {"index": inst.index, "n_hulls": inst.n_hulls, "objective": inst.objective.value,
                "time_s": wall, "cpu_s": cpu, "status": plan.status.value, "cost": cost,
                "gap": gap, "verified": ok, "why": why,
-               "rrt_iterations": plan.info.get("rrt_iterations")}
+               "rrt_iterations": plan.info.get("rrt_iterations"),
+               "rrt_status": plan.info.get("rrt_status")}
         rows.append(row)
         log(f"#{inst.index:3d} hulls={inst.n_hulls:2d} system1: {1e3 * wall:6.1f} ms "
             f"{plan.status.value} gap vs fast S2 "
