@@ -14,7 +14,8 @@ one). The ``eclipse/zenoh`` router is replaced by ``python -m services.router``
 The launcher follows the mission on ``mission/event``, prints progress and a
 summary, stops every process (SIGINT, then SIGKILL after 2 s) and leaves
 ``runs/<id>/`` with ``summary.json``, ``steps.csv``, ``trace.json``,
-``latency.csv``, the figures and ``logs/<service>.log``.
+``latency.csv``, ``vehicle.tlog`` (the vehicle's MAVLink traffic), the figures
+and ``logs/<service>.log``.
 """
 
 from __future__ import annotations
@@ -282,6 +283,7 @@ class Stack:
             "MAX_STEPS": str(c.max_steps), "RUN_DIR": str(c.run_dir),
             "MISSION_ID": c.mission_id or c.run_dir.name, "EXIT_AFTER_MISSION": "0",
             "OPERATOR_WAYPOINTS": c.waypoints, "LOG_FORMAT": c.log_format,
+            "TLOG_PATH": str(c.run_dir / "vehicle.tlog"),
             "LOG_LEVEL": c.log_level, "PYTHONUNBUFFERED": "1",
         }
 
@@ -390,6 +392,11 @@ def follow(stack: Stack, timeout_s: float, quiet: bool = False) -> Outcome:
                     print(f"t={ev.step:3d} S{ev.flown_system} pos=({ev.position.east_m:6.1f},"
                           f"{ev.position.north_m:6.1f}) fires={ev.fires_active} "
                           f"plan={ev.plan_status}", flush=True)
+                elif kind in (supervisor_pb2.MISSION_EVENT_KIND_PAUSED,
+                              supervisor_pb2.MISSION_EVENT_KIND_RESUMED,
+                              supervisor_pb2.MISSION_EVENT_KIND_WAYPOINTS) and not quiet:
+                    name = supervisor_pb2.MissionEventKind.Name(kind).rsplit("_", 1)[-1].lower()
+                    print(f"t={ev.step:3d} {name}: {ev.message}", flush=True)
                 elif kind == supervisor_pb2.MISSION_EVENT_KIND_ENDED:
                     return Outcome(True, ev.success, ev.failure_cause, ev.step, ev.message)
                 elif kind == supervisor_pb2.MISSION_EVENT_KIND_ABORTED:

@@ -26,17 +26,17 @@ from services.msgs import common_pb2 as dualpilot_dot_v1_dot_common__pb2
 from services.msgs import plan_pb2 as dualpilot_dot_v1_dot_plan__pb2
 
 
-DESCRIPTOR = _descriptor_pool.Default().AddSerializedFile(b'\n\x1d\x64ualpilot/v1/supervisor.proto\x12\x0c\x64ualpilot.v1\x1a\x19\x64ualpilot/v1/common.proto\x1a\x17\x64ualpilot/v1/plan.proto\"\xda\x01\n\x08\x44\x65\x63ision\x12$\n\x06header\x18\x01 \x01(\x0b\x32\x14.dualpilot.v1.Header\x12\x0c\n\x04step\x18\x02 \x01(\r\x12\r\n\x05\x64_t_m\x18\x03 \x01(\x01\x12\n\n\x02xi\x18\x04 \x03(\x01\x12\t\n\x01p\x18\x05 \x03(\x01\x12\x11\n\tattention\x18\x06 \x01(\r\x12\x0b\n\x03psi\x18\x07 \x03(\x01\x12\x0e\n\x06system\x18\x08 \x01(\r\x12*\n\tobjective\x18\t \x01(\x0e\x32\x17.dualpilot.v1.Objective\x12\x18\n\x10\x63ommanded_system\x18\n \x01(\r\"\xde\x02\n\x0cMissionEvent\x12$\n\x06header\x18\x01 \x01(\x0b\x32\x14.dualpilot.v1.Header\x12,\n\x04kind\x18\x02 \x01(\x0e\x32\x1e.dualpilot.v1.MissionEventKind\x12\x12\n\nmission_id\x18\x03 \x01(\t\x12\x12\n\ncontroller\x18\x04 \x01(\t\x12\x0c\n\x04seed\x18\x05 \x01(\x04\x12\x0c\n\x04step\x18\x06 \x01(\r\x12\x0f\n\x07success\x18\x07 \x01(\x08\x12\x15\n\rfailure_cause\x18\x08 \x01(\t\x12\x16\n\x0emission_time_s\x18\t \x01(\x01\x12\x14\n\x0c\x66lown_system\x18\n \x01(\r\x12$\n\x08position\x18\x0b \x01(\x0b\x32\x12.dualpilot.v1.Vec2\x12\x14\n\x0c\x66ires_active\x18\x0c \x01(\r\x12\x13\n\x0bplan_status\x18\r \x01(\t\x12\x0f\n\x07message\x18\x0e \x01(\t*\xb1\x01\n\x10MissionEventKind\x12\"\n\x1eMISSION_EVENT_KIND_UNSPECIFIED\x10\x00\x12\x1e\n\x1aMISSION_EVENT_KIND_STARTED\x10\x01\x12\x1b\n\x17MISSION_EVENT_KIND_STEP\x10\x02\x12\x1c\n\x18MISSION_EVENT_KIND_ENDED\x10\x03\x12\x1e\n\x1aMISSION_EVENT_KIND_ABORTED\x10\x04\x62\x06proto3')
+DESCRIPTOR = _descriptor_pool.Default().AddSerializedFile(b'\n\x1d\x64ualpilot/v1/supervisor.proto\x12\x0c\x64ualpilot.v1\x1a\x19\x64ualpilot/v1/common.proto\x1a\x17\x64ualpilot/v1/plan.proto\"\xbd\x02\n\x08\x44\x65\x63ision\x12$\n\x06header\x18\x01 \x01(\x0b\x32\x14.dualpilot.v1.Header\x12\x0c\n\x04step\x18\x02 \x01(\r\x12\r\n\x05\x64_t_m\x18\x03 \x01(\x01\x12\n\n\x02xi\x18\x04 \x03(\x01\x12\t\n\x01p\x18\x05 \x03(\x01\x12\x11\n\tattention\x18\x06 \x01(\r\x12\x0b\n\x03psi\x18\x07 \x03(\x01\x12\x0e\n\x06system\x18\x08 \x01(\r\x12*\n\tobjective\x18\t \x01(\x0e\x32\x17.dualpilot.v1.Objective\x12\x18\n\x10\x63ommanded_system\x18\n \x01(\r\x12\x13\n\x0bplan_source\x18\x0b \x01(\t\x12\x19\n\x11operator_rejected\x18\x0c \x01(\x08\x12\x1a\n\x12operator_waypoints\x18\r \x01(\r\x12\x15\n\roperator_note\x18\x0e \x01(\t\"\xde\x02\n\x0cMissionEvent\x12$\n\x06header\x18\x01 \x01(\x0b\x32\x14.dualpilot.v1.Header\x12,\n\x04kind\x18\x02 \x01(\x0e\x32\x1e.dualpilot.v1.MissionEventKind\x12\x12\n\nmission_id\x18\x03 \x01(\t\x12\x12\n\ncontroller\x18\x04 \x01(\t\x12\x0c\n\x04seed\x18\x05 \x01(\x04\x12\x0c\n\x04step\x18\x06 \x01(\r\x12\x0f\n\x07success\x18\x07 \x01(\x08\x12\x15\n\rfailure_cause\x18\x08 \x01(\t\x12\x16\n\x0emission_time_s\x18\t \x01(\x01\x12\x14\n\x0c\x66lown_system\x18\n \x01(\r\x12$\n\x08position\x18\x0b \x01(\x0b\x32\x12.dualpilot.v1.Vec2\x12\x14\n\x0c\x66ires_active\x18\x0c \x01(\r\x12\x13\n\x0bplan_status\x18\r \x01(\t\x12\x0f\n\x07message\x18\x0e \x01(\t*\x92\x02\n\x10MissionEventKind\x12\"\n\x1eMISSION_EVENT_KIND_UNSPECIFIED\x10\x00\x12\x1e\n\x1aMISSION_EVENT_KIND_STARTED\x10\x01\x12\x1b\n\x17MISSION_EVENT_KIND_STEP\x10\x02\x12\x1c\n\x18MISSION_EVENT_KIND_ENDED\x10\x03\x12\x1e\n\x1aMISSION_EVENT_KIND_ABORTED\x10\x04\x12\x1d\n\x19MISSION_EVENT_KIND_PAUSED\x10\x05\x12\x1e\n\x1aMISSION_EVENT_KIND_RESUMED\x10\x06\x12 \n\x1cMISSION_EVENT_KIND_WAYPOINTS\x10\x07\x62\x06proto3')
 
 _globals = globals()
 _builder.BuildMessageAndEnumDescriptors(DESCRIPTOR, _globals)
 _builder.BuildTopDescriptorsAndMessages(DESCRIPTOR, 'dualpilot.v1.supervisor_pb2', _globals)
 if not _descriptor._USE_C_DESCRIPTORS:
   DESCRIPTOR._loaded_options = None
-  _globals['_MISSIONEVENTKIND']._serialized_start=674
-  _globals['_MISSIONEVENTKIND']._serialized_end=851
+  _globals['_MISSIONEVENTKIND']._serialized_start=773
+  _globals['_MISSIONEVENTKIND']._serialized_end=1047
   _globals['_DECISION']._serialized_start=100
-  _globals['_DECISION']._serialized_end=318
-  _globals['_MISSIONEVENT']._serialized_start=321
-  _globals['_MISSIONEVENT']._serialized_end=671
+  _globals['_DECISION']._serialized_end=417
+  _globals['_MISSIONEVENT']._serialized_start=420
+  _globals['_MISSIONEVENT']._serialized_end=770
 # @@protoc_insertion_point(module_scope)

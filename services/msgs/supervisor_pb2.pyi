@@ -16,14 +16,20 @@ class MissionEventKind(int, metaclass=_enum_type_wrapper.EnumTypeWrapper):
     MISSION_EVENT_KIND_STEP: _ClassVar[MissionEventKind]
     MISSION_EVENT_KIND_ENDED: _ClassVar[MissionEventKind]
     MISSION_EVENT_KIND_ABORTED: _ClassVar[MissionEventKind]
+    MISSION_EVENT_KIND_PAUSED: _ClassVar[MissionEventKind]
+    MISSION_EVENT_KIND_RESUMED: _ClassVar[MissionEventKind]
+    MISSION_EVENT_KIND_WAYPOINTS: _ClassVar[MissionEventKind]
 MISSION_EVENT_KIND_UNSPECIFIED: MissionEventKind
 MISSION_EVENT_KIND_STARTED: MissionEventKind
 MISSION_EVENT_KIND_STEP: MissionEventKind
 MISSION_EVENT_KIND_ENDED: MissionEventKind
 MISSION_EVENT_KIND_ABORTED: MissionEventKind
+MISSION_EVENT_KIND_PAUSED: MissionEventKind
+MISSION_EVENT_KIND_RESUMED: MissionEventKind
+MISSION_EVENT_KIND_WAYPOINTS: MissionEventKind
 
 class Decision(_message.Message):
-    __slots__ = ("header", "step", "d_t_m", "xi", "p", "attention", "psi", "system", "objective", "commanded_system")
+    __slots__ = ("header", "step", "d_t_m", "xi", "p", "attention", "psi", "system", "objective", "commanded_system", "plan_source", "operator_rejected", "operator_waypoints", "operator_note")
     HEADER_FIELD_NUMBER: _ClassVar[int]
     STEP_FIELD_NUMBER: _ClassVar[int]
     D_T_M_FIELD_NUMBER: _ClassVar[int]
@@ -34,6 +40,10 @@ class Decision(_message.Message):
     SYSTEM_FIELD_NUMBER: _ClassVar[int]
     OBJECTIVE_FIELD_NUMBER: _ClassVar[int]
     COMMANDED_SYSTEM_FIELD_NUMBER: _ClassVar[int]
+    PLAN_SOURCE_FIELD_NUMBER: _ClassVar[int]
+    OPERATOR_REJECTED_FIELD_NUMBER: _ClassVar[int]
+    OPERATOR_WAYPOINTS_FIELD_NUMBER: _ClassVar[int]
+    OPERATOR_NOTE_FIELD_NUMBER: _ClassVar[int]
     header: _common_pb2.Header
     step: int
     d_t_m: float
@@ -44,7 +54,11 @@ class Decision(_message.Message):
     system: int
     objective: _plan_pb2.Objective
     commanded_system: int
-    def __init__(self, header: _Optional[_Union[_common_pb2.Header, _Mapping]] = ..., step: _Optional[int] = ..., d_t_m: _Optional[float] = ..., xi: _Optional[_Iterable[float]] = ..., p: _Optional[_Iterable[float]] = ..., attention: _Optional[int] = ..., psi: _Optional[_Iterable[float]] = ..., system: _Optional[int] = ..., objective: _Optional[_Union[_plan_pb2.Objective, str]] = ..., commanded_system: _Optional[int] = ...) -> None: ...
+    plan_source: str
+    operator_rejected: bool
+    operator_waypoints: int
+    operator_note: str
+    def __init__(self, header: _Optional[_Union[_common_pb2.Header, _Mapping]] = ..., step: _Optional[int] = ..., d_t_m: _Optional[float] = ..., xi: _Optional[_Iterable[float]] = ..., p: _Optional[_Iterable[float]] = ..., attention: _Optional[int] = ..., psi: _Optional[_Iterable[float]] = ..., system: _Optional[int] = ..., objective: _Optional[_Union[_plan_pb2.Objective, str]] = ..., commanded_system: _Optional[int] = ..., plan_source: _Optional[str] = ..., operator_rejected: _Optional[bool] = ..., operator_waypoints: _Optional[int] = ..., operator_note: _Optional[str] = ...) -> None: ...
 
 class MissionEvent(_message.Message):
     __slots__ = ("header", "kind", "mission_id", "controller", "seed", "step", "success", "failure_cause", "mission_time_s", "flown_system", "position", "fires_active", "plan_status", "message")

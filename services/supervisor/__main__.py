@@ -1,7 +1,9 @@
 """Supervisor service: the cognitive controller's decision loop, the vehicle's offboard companion.
 
 Waits for the EWS, the planners it needs and the vehicle (liveliness tokens
-and a MAVLink heartbeat), flies one mission (services/supervisor/loop.py),
+and a MAVLink heartbeat), takes the vehicle in MAVSDK/PX4 order (setpoints,
+offboard mode, arm; services/supervisor/link.py), takes the vehicle's mission
+as System 1's operator waypoints, flies one mission (services/supervisor/loop.py),
 writes its records to ``--out`` and announces the end on ``mission/event``.
 It then keeps streaming the last setpoint until stopped (or exits with
 ``--exit-after-mission``).
@@ -16,7 +18,7 @@ from pathlib import Path
 
 from dualpilot.geometry import Rect
 from dualpilot.mission import Controller, MissionParams, Timing
-from services.common import bus, codec, keys
+from services.common import bus, codec, keys, mav
 from services.common import cli as common_cli
 from services.common.clock import SimClock
 from services.common.log import fields
@@ -78,6 +80,12 @@ def main(argv: list[str] | None = None) -> int:
                    help="[UAV_ALTITUDE_M]")
     s.add_argument("--signing-passphrase", default=env("MAVLINK_SIGNING_PASSPHRASE", ""),
                    help="sign the offboard link [MAVLINK_SIGNING_PASSPHRASE]")
+    s.add_argument("--signing-key-file", default=env("MAVLINK_SIGNING_KEY_FILE", ""),
+                   help="sign the offboard link: 32 raw bytes, or a passphrase (sha256, as "
+                        "MAVProxy) [MAVLINK_SIGNING_KEY_FILE]")
+    s.add_argument("--vehicle-lost-s", type=float, default=env("VEHICLE_LOST_S", "3"),
+                   help="pause the mission after this long without a vehicle heartbeat "
+                        "[VEHICLE_LOST_S]")
     args = p.parse_args(argv)
     try:
         settings = common_cli.settings("supervisor", args)
@@ -91,7 +99,10 @@ def main(argv: list[str] | None = None) -> int:
         stack = StackParams(plan_deadline_s=(deadlines[0], deadlines[1]),
                             altitude_m=args.altitude_m)
         SimClock(settings.speed_factor)
-    except ValueError as err:
+        key = mav.resolve_key(args.signing_passphrase, args.signing_key_file)
+        if not args.vehicle_lost_s > 0:
+            raise ValueError("--vehicle-lost-s must be > 0")
+    except (ValueError, OSError) as err:
         p.error(str(err))
     mission_id = args.mission_id or f"{settings.uav_id}-{args.seed}-{int(time.time())}"
     keys.check_id(mission_id)
@@ -99,7 +110,7 @@ def main(argv: list[str] | None = None) -> int:
     def body(ctx: bus.Context) -> None:
         assert ctx.session is not None
         link = VehicleLink(settings.mavlink_url, args.sysid, args.altitude_m,
-                           args.setpoint_rate_hz, args.signing_passphrase)
+                           args.setpoint_rate_hz, key=key, lost_after_s=args.vehicle_lost_s)
         link.start()
         live = bus.Liveliness(ctx.session, settings.uav_id)
         ctx.announce()

@@ -1,17 +1,29 @@
-"""The supervisor's MAVLink link to the vehicle: the offboard companion's side.
+"""The supervisor's MAVLink link to the vehicle: an offboard companion, in MAVSDK/PX4 order.
 
-A reader thread keeps the newest LOCAL_POSITION_NED (with its
-``time_boot_ms``, the vehicle's simulated clock); a streamer thread re-sends
-the current SET_POSITION_TARGET_LOCAL_NED at ``rate_hz`` (≥ 10 Hz; PX4 needs
-≥ 2 Hz) and a HEARTBEAT at 1 Hz (5 Hz until the vehicle answers: a ``udpout``
-end must speak first). :meth:`VehicleLink.send_setpoint` sends a new setpoint
-at once from the caller's thread, so a decision reaches the vehicle without
-waiting for the stream.
+Threads: a reader keeps the newest LOCAL_POSITION_NED (with its
+``time_boot_ms``, the vehicle's simulated clock), the vehicle's mode and
+arming from its HEARTBEAT, COMMAND_ACKs, the geodetic origin
+(GPS_GLOBAL_ORIGIN) and the mission id (parameter ``MIS_ID``); a streamer
+re-sends the current SET_POSITION_TARGET_LOCAL_NED at ``rate_hz`` (≥ 10 Hz;
+PX4 needs ≥ 2 Hz) and a HEARTBEAT at 1 Hz (5 Hz until the vehicle answers: a
+``udpout`` end must speak first); a mission watcher downloads the vehicle's
+mission (MISSION_REQUEST_LIST → MISSION_COUNT → MISSION_REQUEST_INT for
+each item → MISSION_ACK, with retries) whenever ``MIS_ID`` changes.
+
+:meth:`VehicleLink.start_offboard` is the MAVSDK/PX4 start: wait for a
+heartbeat and a valid position, stream setpoints that hold the current state,
+switch to offboard (GUIDED), arm; a refused command is logged and retried
+(``command_attempts``), then the start fails with :class:`OffboardError`.
+The vehicle counts as lost after ``lost_after_s`` (3 s) without a heartbeat.
+:meth:`VehicleLink.send_setpoint` sends a new setpoint at once from the
+caller's thread, so a decision reaches the vehicle without waiting for the stream.
 """
 
 from __future__ import annotations
 
 import logging
+import math
+import queue
 import select
 import threading
 import time
@@ -26,29 +38,61 @@ from services.common.log import fields
 log = logging.getLogger(__name__)
 m = mav.mavlink
 
+MISSION = m.MAV_MISSION_TYPE_MISSION
+
+
+class OffboardError(RuntimeError):
+    """The vehicle could not be put under offboard control."""
+
+
+def result_name(result: int) -> str:
+    if result < 0:
+        return "NO_ANSWER"
+    entry = m.enums["MAV_RESULT"].get(result)
+    return entry.name if entry is not None else str(result)
+
 
 class VehicleLink:
     """Offboard link to one vehicle (system ``target_system``, component 1)."""
 
     def __init__(self, url: str, target_system: int = 1, altitude_m: float = 50.0,
-                 rate_hz: float = 20.0, passphrase: str = ""):
+                 rate_hz: float = 20.0, passphrase: str = "", key: bytes | None = None,
+                 lost_after_s: float = 3.0, command_attempts: int = 3,
+                 command_timeout_s: float = 1.0):
         if rate_hz < 10:
             raise ValueError(f"setpoints are streamed at >= 10 Hz, got {rate_hz}")
-        self.conn = mav.connect(url, target_system, mav.MAV_COMP_ID_ONBOARD_COMPUTER, passphrase)
+        self.conn = mav.connect(url, target_system, mav.MAV_COMP_ID_ONBOARD_COMPUTER, passphrase,
+                                key=key)
         self.send = mav.Sender(self.conn)
         self.target_system = target_system
+        self.target = (target_system, mav.MAV_COMP_ID_AUTOPILOT1)
         self.altitude_m = altitude_m
         self.period_s = 1.0 / rate_hz
+        self.lost_after_s = lost_after_s
+        self.command_attempts = command_attempts
+        self.command_timeout_s = command_timeout_s
         self.cond = threading.Condition()
         self.state: Array | None = None
         self.state_time_ms = -1
+        self.global_ok = False
         self.seen = threading.Event()
+        self.last_heartbeat = 0.0
+        self.mode = -1
+        self.armed = False
+        self.origin: tuple[float, float] | None = None
         self.setpoint: tuple[Array, int] | None = None
         self.sent = 0
+        self.acks: dict[int, int] = {}
+        self.mission_id_seen: float | None = None
+        self.mission_id_loaded: float | None = None
+        self.mission_items: list[mav.MissionItem] | None = None
+        self.mission_rev = 0
+        self._mission_q: queue.Queue[Any] = queue.Queue()
         self._stop = threading.Event()
         self._threads = [
             threading.Thread(target=self._read, name="mav-reader", daemon=True),
             threading.Thread(target=self._stream, name="mav-streamer", daemon=True),
+            threading.Thread(target=self._watch_mission, name="mav-mission", daemon=True),
         ]
 
     def start(self) -> None:
@@ -63,6 +107,21 @@ class VehicleLink:
                 th.join(1.0)
         self.conn.close()
 
+    # -- vehicle status -------------------------------------------------------------------------
+    def alive(self) -> bool:
+        """A heartbeat from the vehicle within ``lost_after_s``."""
+        return self.seen.is_set() and time.monotonic() - self.last_heartbeat <= self.lost_after_s
+
+    def offboard(self) -> bool:
+        """Alive, armed and in offboard mode (GUIDED): the setpoints fly it."""
+        return self.alive() and self.armed and self.mode == mav.MODE_GUIDED
+
+    def status(self) -> str:
+        if not self.alive():
+            return "lost"
+        armed = "armed" if self.armed else "disarmed"
+        return f"{mav.MODE_NAMES.get(self.mode, self.mode)}, {armed}"
+
     # -- outgoing -------------------------------------------------------------------------------
     def _heartbeat(self) -> None:
         self.send("heartbeat", m.MAV_TYPE_ONBOARD_CONTROLLER, m.MAV_AUTOPILOT_INVALID, 0, 0,
@@ -70,8 +129,8 @@ class VehicleLink:
 
     def _send_target(self, target: Array, due_ms: int) -> None:
         n, e, d, vn, ve, vd = codec.state_to_ned(target, self.altitude_m)
-        self.send("set_position_target_local_ned", int(due_ms), self.target_system,
-                  mav.MAV_COMP_ID_AUTOPILOT1, codec.MAV_FRAME_LOCAL_NED, codec.TYPE_MASK_POS_VEL,
+        self.send("set_position_target_local_ned", int(due_ms), *self.target,
+                  codec.MAV_FRAME_LOCAL_NED, codec.TYPE_MASK_POS_VEL,
                   n, e, d, vn, ve, vd, 0.0, 0.0, 0.0, 0.0, 0.0)
         self.sent += 1
 
@@ -86,18 +145,95 @@ class VehicleLink:
         self._send_target(target, due_ms)
         return time.perf_counter()
 
+    def hold(self) -> None:
+        """Stream the vehicle's current state, due now: keeps the stream alive, moves nothing."""
+        with self.cond:
+            if self.state is not None and self.setpoint is None:
+                self.setpoint = (self.state.copy(), self.state_time_ms)
+
     def _stream(self) -> None:
-        next_hb = 0.0
+        next_hb = next_poll = 0.0
         while not self._stop.is_set():
             now = time.monotonic()
             if now >= next_hb:
                 self._heartbeat()
-                next_hb = now + (1.0 if self.seen.is_set() else 0.2)
+                next_hb = now + (1.0 if self.alive() else 0.2)
+            if now >= next_poll and self.seen.is_set():
+                self.send("param_request_read", *self.target, b"MIS_ID", -1)
+                if self.origin is None:
+                    self.send("command_long", *self.target, m.MAV_CMD_REQUEST_MESSAGE, 0,
+                              m.MAVLINK_MSG_ID_GPS_GLOBAL_ORIGIN, 0, 0, 0, 0, 0, 0)
+                next_poll = now + 1.0
             with self.cond:
                 sp = self.setpoint
             if sp is not None:
                 self._send_target(*sp)
             self._stop.wait(self.period_s)
+
+    def command(self, cmd: int, *params: float, stop: threading.Event | None = None) -> int:
+        """COMMAND_LONG, re-sent (``confirmation`` + 1) until a COMMAND_ACK arrives; the result,
+        or -1 if none came after ``command_attempts`` tries."""
+        p = [float(v) for v in params] + [0.0] * (7 - len(params))
+        for confirmation in range(self.command_attempts):
+            with self.cond:
+                self.acks.pop(cmd, None)
+            self.send("command_long", *self.target, cmd, confirmation, *p)
+            deadline = time.monotonic() + self.command_timeout_s
+            with self.cond:
+                while True:
+                    result = self.acks.get(cmd)
+                    if result is not None and result != m.MAV_RESULT_IN_PROGRESS:
+                        return int(result)
+                    remaining = deadline - time.monotonic()
+                    if remaining <= 0 or (stop is not None and stop.is_set()):
+                        break
+                    self.cond.wait(min(remaining, 0.1))
+            if stop is not None and stop.is_set():
+                break
+        return -1
+
+    def start_offboard(self, stop: threading.Event, timeout_s: float = 30.0,
+                       retry_wait_s: float = 0.5) -> None:
+        """Heartbeat, a valid position, setpoints, offboard mode, arm (MAVSDK/PX4 order).
+
+        Steps already satisfied are skipped, so it also re-takes a vehicle that
+        came back. Raises OffboardError when the vehicle refuses (after
+        ``command_attempts`` tries with ``retry_wait_s`` between them) or
+        ``timeout_s`` passes; returns early when ``stop`` is set.
+        """
+        deadline = time.monotonic() + timeout_s
+        if not self.wait_vehicle(timeout_s, stop):
+            raise OffboardError("no heartbeat from the vehicle")
+        while not (self.global_ok and self.state is not None):
+            if stop.wait(0.05) or time.monotonic() > deadline:
+                raise OffboardError("no valid position from the vehicle")
+        self.hold()
+        stop.wait(5 * self.period_s)  # PX4 accepts offboard only with the stream already live
+        steps = (
+            ("offboard mode", lambda: self.mode == mav.MODE_GUIDED, m.MAV_CMD_DO_SET_MODE,
+             (float(m.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED), float(mav.MODE_GUIDED))),
+            ("arm", lambda: self.armed, m.MAV_CMD_COMPONENT_ARM_DISARM, (1.0,)),
+        )
+        for what, done, cmd, params in steps:
+            for attempt in range(1, self.command_attempts + 1):
+                if done() or stop.is_set():
+                    break
+                result = self.command(cmd, *params, stop=stop)
+                if result == m.MAV_RESULT_ACCEPTED:
+                    log.info("vehicle accepted", extra=fields(command=what))
+                    break
+                log.warning("vehicle refused a command", extra=fields(
+                    command=what, result=result_name(result), attempt=attempt,
+                    of=self.command_attempts))
+                if result == m.MAV_RESULT_UNSUPPORTED:
+                    raise OffboardError(f"{what}: UNSUPPORTED")
+                stop.wait(retry_wait_s)
+            else:
+                raise OffboardError(f"{what} refused {self.command_attempts} times")
+        while not (self.offboard() or stop.is_set()):  # the heartbeat confirms it
+            if time.monotonic() > deadline:
+                raise OffboardError(f"vehicle not under offboard control ({self.status()})")
+            stop.wait(0.05)
 
     # -- incoming -------------------------------------------------------------------------------
     def _read(self) -> None:
@@ -111,13 +247,24 @@ class VehicleLink:
 
     def _on(self, msg: Any) -> None:
         kind = msg.get_type()
-        if msg.get_srcSystem() != self.target_system or kind == "BAD_DATA":
+        if kind == "BAD_DATA" or msg.get_srcSystem() != self.target_system:
             return
-        if kind == "HEARTBEAT" and msg.get_srcComponent() == mav.MAV_COMP_ID_AUTOPILOT1:
-            if not self.seen.is_set():
-                log.info("vehicle heartbeat", extra=fields(sysid=self.target_system,
-                                                           mav_type=msg.type))
-            self.seen.set()
+        if msg.get_srcComponent() != mav.MAV_COMP_ID_AUTOPILOT1:
+            return
+        if kind == "HEARTBEAT":
+            with self.cond:
+                if not self.seen.is_set() or not self.alive():
+                    log.info("vehicle heartbeat", extra=fields(sysid=self.target_system,
+                                                               mav_type=msg.type))
+                self.last_heartbeat = time.monotonic()
+                mode, armed = int(msg.custom_mode), bool(
+                    msg.base_mode & m.MAV_MODE_FLAG_SAFETY_ARMED)
+                if (mode, armed) != (self.mode, self.armed) and self.seen.is_set():
+                    log.info("vehicle mode", extra=fields(
+                        mode=mav.MODE_NAMES.get(mode, mode), armed=armed))
+                self.mode, self.armed = mode, armed
+                self.seen.set()
+                self.cond.notify_all()
         elif kind == "LOCAL_POSITION_NED":
             try:
                 x = codec.state_from_ned(msg.x, msg.y, msg.vx, msg.vy)
@@ -128,6 +275,20 @@ class VehicleLink:
                 if msg.time_boot_ms >= self.state_time_ms:
                     self.state, self.state_time_ms = x, int(msg.time_boot_ms)
                     self.cond.notify_all()
+        elif kind == "GLOBAL_POSITION_INT":
+            self.global_ok = msg.lat != 0 or msg.lon != 0
+        elif kind == "GPS_GLOBAL_ORIGIN":
+            lat, lon = msg.latitude / 1e7, msg.longitude / 1e7
+            if math.isfinite(lat) and abs(lat) < 85 and abs(lon) <= 180:
+                self.origin = (lat, lon)
+        elif kind == "COMMAND_ACK":
+            with self.cond:
+                self.acks[int(msg.command)] = int(msg.result)
+                self.cond.notify_all()
+        elif kind == "PARAM_VALUE" and msg.param_id == "MIS_ID":
+            self.mission_id_seen = float(msg.param_value)
+        elif kind in ("MISSION_COUNT", "MISSION_ITEM_INT", "MISSION_ACK"):
+            self._mission_q.put(msg)
 
     def wait_vehicle(self, timeout_s: float, stop: threading.Event) -> bool:
         deadline = time.monotonic() + timeout_s
@@ -147,3 +308,80 @@ class VehicleLink:
                     return None
                 self.cond.wait(min(remaining, 0.1))
             return self.state_time_ms, self.state.copy()
+
+    # -- the operator's mission -------------------------------------------------------------------
+    def _expect(self, kind: str, timeout_s: float, seq: int | None = None) -> Any:
+        deadline = time.monotonic() + timeout_s
+        while (remaining := deadline - time.monotonic()) > 0 and not self._stop.is_set():
+            try:
+                msg = self._mission_q.get(timeout=min(remaining, 0.1))
+            except queue.Empty:
+                continue
+            if msg.get_type() == kind and (seq is None or msg.seq == seq) and int(
+                    getattr(msg, "mission_type", MISSION)) == MISSION:
+                return msg
+        return None
+
+    def download_mission(self, timeout_s: float = 0.5, retries: int = 5) -> list[mav.MissionItem]:
+        """The vehicle's mission, item by item (mission protocol, re-requesting lost ones)."""
+        while not self._mission_q.empty():
+            self._mission_q.get_nowait()
+        count_msg = None
+        for _ in range(retries):
+            self.send("mission_request_list", *self.target, MISSION)
+            if (count_msg := self._expect("MISSION_COUNT", timeout_s)) is not None:
+                break
+        if count_msg is None:
+            raise TimeoutError("no MISSION_COUNT from the vehicle")
+        items: list[mav.MissionItem] = []
+        for seq in range(int(count_msg.count)):
+            for _ in range(retries):
+                self.send("mission_request_int", *self.target, seq, MISSION)
+                if (item := self._expect("MISSION_ITEM_INT", timeout_s, seq)) is not None:
+                    items.append(mav.MissionItem.from_msg(item))
+                    break
+            else:
+                raise TimeoutError(f"no MISSION_ITEM_INT {seq} from the vehicle")
+        self.send("mission_ack", *self.target, m.MAV_MISSION_ACCEPTED, MISSION)
+        return items
+
+    def _watch_mission(self) -> None:
+        while not self._stop.wait(0.05):
+            seen = self.mission_id_seen
+            if seen is None or seen == self.mission_id_loaded:
+                continue
+            try:
+                items = self.download_mission()
+            except TimeoutError as err:
+                log.warning("mission download failed", extra=fields(error=str(err)))
+                continue
+            with self.cond:
+                self.mission_items, self.mission_id_loaded = items, seen
+                self.mission_rev += 1
+                self.cond.notify_all()
+            log.info("mission downloaded", extra=fields(mission_id=seen, items=len(items),
+                                                        waypoints=sum(i.is_waypoint()
+                                                                      for i in items)))
+
+    def wait_mission(self, timeout_s: float, stop: threading.Event) -> bool:
+        """Wait until the vehicle's current mission (its MIS_ID) has been downloaded."""
+        deadline = time.monotonic() + timeout_s
+        with self.cond:
+            while self.mission_id_seen is None or self.mission_id_loaded != self.mission_id_seen:
+                remaining = deadline - time.monotonic()
+                if remaining <= 0 or stop.is_set():
+                    return False
+                self.cond.wait(min(remaining, 0.1))
+            return True
+
+    def operator_waypoints(self) -> tuple[int, Array | None, float | None]:
+        """(revision, local waypoints (k, 2) east/north m or None, mission id) of the newest
+        downloaded mission; revision 0 means none downloaded yet."""
+        with self.cond:
+            rev, items, mid = self.mission_rev, self.mission_items, self.mission_id_loaded
+        if not rev or items is None:
+            return rev, None, mid
+        if self.origin is None:
+            return 0, None, None  # not convertible yet: the next step tries again
+        wps = mav.waypoints_local(items, self.origin)
+        return rev, (np.array(wps, dtype=float) if wps else None), mid

@@ -22,10 +22,25 @@ MAVLink. Step t, at simulated time τ_t (services/common/clock.py):
    entering G, failure when the motion passes within d_safe of a region
    (exact segment distance) or at the step limit.
 
+Before step 0 the supervisor takes the vehicle (services/supervisor/link.py:
+setpoints, offboard mode, arm) and downloads its mission. Before every step
+(and while it waits for the vehicle's state) it checks that the vehicle is
+still flying offboard: a vehicle lost for 3 s, or put in hold by the operator
+or the failsafe, pauses the mission (MissionEvent PAUSED; nothing advances:
+the clock is lockstep) until it is back (RESUMED; a vehicle that was lost is
+taken again). A new mission on the vehicle (uploaded from a ground station)
+becomes System 1's operator waypoints at the next step: they go with every
+PlanRequest (``mission.operator_waypoints``) and, once the planners are
+prepared, on ``operator/waypoints``. A mission that was never uploaded
+(``MIS_ID`` 0) keeps the ``--waypoints`` flag's.
+
 Records (:class:`MissionResult` / :class:`StepRecord`) are the in-process
 ones, so ``summary.json``, ``steps.csv`` and ``trace.json`` have the same
 format and :func:`dualpilot.plots.make_figures` draws them; ``latency.csv``
-adds the tick → setpoint latency of every step.
+adds the tick → setpoint latency of every step. Which path System 1 used is
+in the published Decision (``plan_source``, ``operator_rejected``,
+``operator_waypoints``), in ``steps.csv`` (``source`` plus the columns
+``operator_waypoints`` and ``operator_rejected``) and in ``trace.json``.
 """
 
 from __future__ import annotations
@@ -64,7 +79,7 @@ from services.common.clock import SimClock
 from services.common.log import fields
 from services.msgs import common_pb2, fire_pb2, plan_pb2, supervisor_pb2, vehicle_pb2
 
-from .link import VehicleLink
+from .link import OffboardError, VehicleLink
 
 log = logging.getLogger(__name__)
 
@@ -84,6 +99,20 @@ class StackParams:
     fire_timeout_s: float = 30.0
     vehicle_timeout_s: float = 10.0
     altitude_m: float = 50.0
+    offboard_timeout_s: float = 30.0  # taking the vehicle (heartbeat, position, mode, arm)
+    mission_wait_s: float = 5.0       # downloading the vehicle's mission before step 0
+    pause_limit_s: float = 300.0      # abort when paused for longer
+
+
+@dataclass(frozen=True)
+class OperatorRecord:
+    """Per step: which reference path System 1 used and whether the operator's was refused."""
+
+    t: int
+    waypoints: int
+    source: str
+    rejected: bool
+    note: str
 
 
 @dataclass
@@ -166,8 +195,12 @@ class StackMission:
         self.pubs = {
             name: session.declare_publisher(key) for name, key in (
                 ("decision", keys.decision(uav)), ("state", keys.vehicle_state(uav)),
-                ("event", keys.mission_event(uav)), ("clock", keys.clock(uav)))
+                ("event", keys.mission_event(uav)), ("clock", keys.clock(uav)),
+                ("waypoints", keys.waypoints(uav)))
         }
+        self.waypoints_rev = 0
+        self.prepared = False
+        self.operator: list[OperatorRecord] = []
         self.latency = Latency()
         self.request_wall = self.service_time = 0.0
         self.fire_params = FireParams()
@@ -223,14 +256,96 @@ class StackMission:
         bus.put(self.pubs["event"], "", m)
 
     def _read_state(self, min_ms: int) -> Array:
-        got = self.link.wait_state(min_ms, self.stack.vehicle_timeout_s, self.stop)
-        if got is None:
-            raise Aborted(f"no vehicle state at or after {min_ms} ms")
-        return got[1]
+        """The vehicle's state at or after ``min_ms``; pauses while the vehicle is not flying
+        offboard (lost, or holding), aborts after ``vehicle_timeout_s`` without it otherwise."""
+        deadline = time.monotonic() + self.stack.vehicle_timeout_s
+        while True:
+            got = self.link.wait_state(min_ms, 0.25, self.stop)
+            if got is not None:
+                return got[1]
+            if self.stop.is_set():
+                raise Aborted("stopped")
+            if not self.link.offboard():
+                self._ensure_offboard()
+                deadline = time.monotonic() + self.stack.vehicle_timeout_s
+            elif time.monotonic() > deadline:
+                raise Aborted(f"no vehicle state at or after {min_ms} ms")
+
+    # -- the vehicle ------------------------------------------------------------------------------
+    def _take_vehicle(self) -> None:
+        try:
+            self.link.start_offboard(self.stop, self.stack.offboard_timeout_s)
+        except OffboardError as err:
+            raise Aborted(f"vehicle: {err}") from err
+        if self.stop.is_set():
+            raise Aborted("stopped")
+        log.info("vehicle under offboard control", extra=fields(status=self.link.status()))
+
+    def _ensure_offboard(self) -> None:
+        """Pause while the vehicle is not flying offboard; take it again when it comes back."""
+        if self.link.offboard():
+            return
+        t0 = time.monotonic()
+        lost = not self.link.alive()
+        reason = ("vehicle lost: no heartbeat for 3 s" if lost
+                  else f"vehicle not flying offboard ({self.link.status()})")
+        log.warning("mission paused", extra=fields(reason=reason))
+        self._event(supervisor_pb2.MISSION_EVENT_KIND_PAUSED, message=reason,
+                    step=self.result.steps if self.result else 0)
+        while not self.link.offboard():
+            if self.stop.is_set():
+                raise Aborted("stopped")
+            if time.monotonic() - t0 > self.stack.pause_limit_s:
+                raise Aborted(f"paused for more than {self.stack.pause_limit_s:g} s: {reason}")
+            if not self.link.alive():
+                lost = True
+            elif lost:  # back after a loss: take it again (the steps it still needs)
+                lost = False
+                try:
+                    self.link.start_offboard(self.stop, self.stack.offboard_timeout_s)
+                except OffboardError as err:
+                    log.warning("could not take the vehicle back", extra=fields(error=str(err)))
+            self.stop.wait(0.05)
+        paused = time.monotonic() - t0
+        log.info("mission resumed", extra=fields(paused_s=round(paused, 3)))
+        self._event(supervisor_pb2.MISSION_EVENT_KIND_RESUMED,
+                    message=f"paused {paused:.1f} s", step=self.result.steps if self.result else 0)
+
+    def _update_waypoints(self) -> None:
+        """Take a newly downloaded mission as the operator waypoints (module docstring)."""
+        rev, wps, mission_id = self.link.operator_waypoints()
+        if rev == 0 or rev == self.waypoints_rev:
+            return
+        self.waypoints_rev = rev
+        if not mission_id:
+            return  # never uploaded: the --waypoints flag's stay
+        if wps is not None and not all(0.0 <= v <= self.area_size_m for v in wps.ravel()):
+            log.error("operator waypoints outside the area ignored", extra=fields(
+                mission_id=mission_id, n=len(wps)))
+            return
+        same = (wps is None and self.waypoints is None) or (
+            wps is not None and self.waypoints is not None and wps.shape == self.waypoints.shape
+            and np.allclose(wps, self.waypoints))
+        if same:
+            return
+        self.waypoints = wps
+        n = 0 if wps is None else len(wps)
+        log.info("operator waypoints from the vehicle", extra=fields(
+            mission_id=mission_id, n=n, waypoints=";".join(
+                f"{e:.1f},{north:.1f}" for e, north in (wps if wps is not None else []))))
+        if self.prepared:  # System 1 applies them at its next plan (the requests carry them too)
+            bus.put(self.pubs["waypoints"], "", codec.waypoints_msg(wps, self.stamper))
+        self._event(supervisor_pb2.MISSION_EVENT_KIND_WAYPOINTS,
+                    message=f"{n} operator waypoints (mission {mission_id:g})",
+                    step=self.result.steps if self.result else 0)
 
     # -- start ------------------------------------------------------------------------------------
     def start(self) -> None:
         """Read the vehicle's state, reset the EWS and announce the mission."""
+        self._take_vehicle()
+        if not self.link.wait_mission(self.stack.mission_wait_s, self.stop):
+            log.warning("the vehicle's mission was not downloaded before the start")
+        self._update_waypoints()
         got = self.link.wait_state(0, self.stack.vehicle_timeout_s, self.stop)
         if got is None:
             raise Aborted("no LOCAL_POSITION_NED from the vehicle")
@@ -249,6 +364,7 @@ class StackMission:
             raise Aborted("the start lies within d_safe of a fire")
         self._prepare({Controller.CC: [1, 2], Controller.S1: [1],
                        Controller.S2: [2]}[self.controller])
+        self.prepared = True
         self._publish_state(0)
         self._event(supervisor_pb2.MISSION_EVENT_KIND_STARTED, position=self.state,
                     message=f"timing={self.timing.value} speed_factor={self.clock.speed_factor}")
@@ -337,13 +453,15 @@ class StackMission:
         self.clock.advance(n * self.fire_params.substep_s)
         return self._caught(update)
 
-    def _publish_step_start(self, decision: Decision, wanted: int) -> None:
+    def _publish_step_start(self, decision: Decision, wanted: int, op: OperatorRecord) -> None:
         clock_msg = common_pb2.Clock()
         self._clock_msg(clock_msg)
         self.stamper.stamp(clock_msg.header, self._now())
         bus.put(self.pubs["clock"], "", clock_msg)
-        bus.put(self.pubs["decision"], "",
-                codec.decision_to_msg(decision, wanted, self.stamper, self._now()))
+        msg = codec.decision_to_msg(decision, wanted, self.stamper, self._now())
+        msg.plan_source, msg.operator_rejected = op.source, op.rejected
+        msg.operator_waypoints, msg.operator_note = op.waypoints, op.note[:500]
+        bus.put(self.pubs["decision"], "", msg)
 
     def _clock_msg(self, out: common_pb2.Clock) -> None:
         """``out`` as the anchor that maps the current τ_t to the wall clock."""
@@ -358,6 +476,8 @@ class StackMission:
             return None
         assert self.result is not None
         t = self.result.steps
+        self._ensure_offboard()
+        self._update_waypoints()
         tick = time.perf_counter()
         self.clock.start_step()
 
@@ -369,8 +489,11 @@ class StackMission:
         plan: Plan | None = None
         planning_time = compute = self.request_wall = self.service_time = 0.0
         statuses = []
+        s1_info: dict[str, object] = {}
         for system in order:
             candidate = self._plan_with(system, t, decision)
+            if system == 1:
+                s1_info = dict(candidate.info)
             planning_time += self._planning_time(candidate)
             compute += candidate.compute_time_s
             statuses.append(f"s{system}:{candidate.status.value}")
@@ -401,7 +524,12 @@ class StackMission:
         sent = self.link.send_setpoint(target, due_ms)
         self.latency.add(t, sent - tick, compute, len(statuses), self.request_wall,
                          self.service_time)
-        self._publish_step_start(decision, wanted)  # observers: off the control path
+        rejected = s1_info.get("operator_rejected")
+        op = OperatorRecord(t, 0 if self.waypoints is None else len(self.waypoints),
+                            str(info.get("source", "")) if flown == 1 else "",
+                            bool(rejected), str(rejected or ""))
+        self.operator.append(op)
+        self._publish_step_start(decision, wanted, op)  # observers: off the control path
         caught = self._advance(t, n_sub)
         record = StepRecord(
             t=t, state=self.state.copy(), control=control, decision=decision, system=flown,
@@ -464,12 +592,35 @@ class StackMission:
                     failure_cause=r.failure_cause, mission_time_s=r.mission_time_s,
                     position=self.state, message=run_dir)
 
+    def _write_operator(self, out: Path) -> None:
+        """Add the operator columns to steps.csv and trace.json (one row/entry per step)."""
+        by_t = {op.t: op for op in self.operator}
+        path = out / "steps.csv"
+        with path.open(newline="") as fh:
+            rows = list(csv.reader(fh))
+        if rows:
+            rows[0] += ["operator_waypoints", "operator_rejected"]
+            for row in rows[1:]:
+                op = by_t.get(int(row[0]))
+                row += [str(op.waypoints), str(int(op.rejected))] if op else ["0", "0"]
+            with path.open("w", newline="") as fh:
+                csv.writer(fh).writerows(rows)
+        trace_path = out / "trace.json"
+        trace = json.loads(trace_path.read_text())
+        for entry in trace.get("steps", []):
+            op = by_t.get(int(entry["t"]))
+            if op is not None:
+                entry.update(source=op.source, operator_waypoints=op.waypoints,
+                             operator_rejected=op.note if op.rejected else None)
+        trace_path.write_text(json.dumps(trace) + "\n")
+
     def write(self, out: Path, extra: dict[str, object]) -> list[Path]:
         """summary.json, steps.csv, trace.json (dualpilot.records) and latency.csv."""
         from dualpilot.records import write_all
 
         assert self.result is not None
         paths = write_all(self.result, out)
+        self._write_operator(out)
         summary = json.loads((out / "summary.json").read_text())
         summary["stack"] = {
             "mission_id": self.mission_id, "transport": "zenoh + mavlink",

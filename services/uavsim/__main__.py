@@ -1,27 +1,40 @@
 """uavsim: a simulated vehicle that speaks MAVLink like an autopilot and flies Eq. (1).
 
-Links (pymavlink, MAVLink 2, system ``--sysid``, component 1):
+Links (pymavlink, MAVLink 2, system ``--sysid``, component 1), like PX4 SITL:
 
 * offboard (``--mavlink-url``, default ``udpin:0.0.0.0:14540``): the
   supervisor, the vehicle's offboard companion, streams
   SET_POSITION_TARGET_LOCAL_NED (frame LOCAL_NED, type_mask 3520 or 3576);
-  optionally signed (``--signing-passphrase``: unsigned frames are rejected);
+  signed with ``--signing-key-file`` (32 raw bytes, or a passphrase hashed
+  with sha256 as MAVProxy does) or ``--signing-passphrase``: unsigned and
+  wrongly signed frames are then ignored and counted (log, STATUSTEXT,
+  parameter ``SIG_REJECTED``, SYS_STATUS ``errors_comm``);
 * ground station (``--gcs-url``, default ``udpin:0.0.0.0:14550``): MAVProxy or
   QGroundControl connect here (send first, e.g. ``mavproxy.py
   --master=udpout:127.0.0.1:14550``).
 
-Both links get HEARTBEAT at 1 Hz (MAV_TYPE_QUADROTOR, component 1),
-LOCAL_POSITION_NED and GLOBAL_POSITION_INT at 10 Hz and after every step,
-and answers to PARAM_REQUEST_LIST/READ/SET, COMMAND_LONG (COMMAND_ACK) and the
-mission protocol (an empty mission: operator waypoints reach System 1 over
-Zenoh), so a GCS connects cleanly.
+Both links get HEARTBEAT at 1 Hz (MAV_TYPE_QUADROTOR, component 1, the mode
+of services/common/mav.py: GUIDED = offboard, LOITER = hold), SYS_STATUS
+(battery, services/uavsim/vehicle.py), GPS_RAW_INT, EXTENDED_SYS_STATE and
+MISSION_CURRENT at 1 Hz, LOCAL_POSITION_NED, GLOBAL_POSITION_INT and ATTITUDE
+at 10 Hz and after every step, HOME_POSITION and GPS_GLOBAL_ORIGIN every 5 s.
+They answer PARAM_REQUEST_LIST/READ and PARAM_SET (parameters that drive the
+simulation: :data:`PARAMS`), COMMAND_LONG with COMMAND_ACK (arm, disarm,
+takeoff, mode change, request message; the rest UNSUPPORTED or DENIED) and
+the mission protocol (services/uavsim/mission.py). The geodetic origin
+(``--home``) is the local frame's (0, 0), the area's south-west corner.
 
-Time is lockstep (services/common/clock.py): each new setpoint, stamped with
-the simulated time it is due (``time_boot_ms``), is one ΔT step of Eq. (1)
-under the controller of services/uavsim/vehicle.py; repeats of it are the
-keep-alive stream. Without setpoints for ``--offboard-loss-s`` of wall time
-the vehicle reports HOLD (custom_mode 1) until the next new setpoint.
-uavsim publishes nothing on Zenoh: it only holds a liveliness token.
+Flight: the vehicle boots disarmed on the ground in LOITER. The offboard
+sequence (PX4/MAVSDK): stream setpoints, switch to GUIDED (denied without a
+live setpoint stream), arm — it is then airborne at ``SIM_ALT_M`` (Sec. IV
+is 2-D) and each new setpoint, stamped with the simulated time it is due
+(``time_boot_ms``), is one ΔT step of Eq. (1); repeats are the keep-alive
+stream (lockstep, services/common/clock.py). Without setpoints for
+``COM_OF_LOSS_T`` s of wall time it brakes to a stop and reports LOITER (the
+failsafe); setpoints take control back only once the stream has been live
+again for ``COM_OF_RSM_T`` s. ``--tlog`` records every frame received and sent
+(telemetry once) in MAVProxy's ``.tlog`` format. uavsim publishes nothing on
+Zenoh: it only holds a liveliness token.
 """
 
 from __future__ import annotations
@@ -32,80 +45,195 @@ import select
 import sys
 import threading
 import time
+from collections.abc import Callable
+from dataclasses import dataclass
 from typing import Any
 
 from services.common import bus, codec, mav
 from services.common import cli as common_cli
 from services.common.log import fields
 
-from .vehicle import Vehicle, to_geodetic
+from .mission import MissionServer
+from .vehicle import Vehicle
 
 log = logging.getLogger("services.uavsim")
 m = mav.mavlink
 
-MODE_OFFBOARD = 0
-MODE_HOLD = 1
 TELEMETRY_PERIOD_S = 0.1
+SLOW_PERIOD_S = 1.0
+HOME_PERIOD_S = 5.0
+FORCE_DISARM_MAGIC = 21196  # MAV_CMD_COMPONENT_ARM_DISARM param2: disarm even in the air
+
+
+@dataclass
+class Param:
+    """A vehicle parameter: value, allowed range (None: read-only) and what it sets."""
+
+    value: float
+    low: float | None = None
+    high: float | None = None
+    doc: str = ""
+
+
+#: name → (default, low, high, meaning); low/high None = read-only. Defaults set by flags win.
+PARAMS: dict[str, tuple[float, float | None, float | None, str]] = {
+    "MAV_SYS_ID": (1.0, None, None, "system id (--sysid)"),
+    "COM_OF_LOSS_T": (1.0, 0.1, 60.0, "s without a setpoint before the failsafe hold (PX4)"),
+    "COM_OF_RSM_T": (0.5, 0.0, 10.0, "s of live setpoint stream before it resumes control"),
+    "MPC_XY_VEL_MAX": (15.0, 0.1, 15.0, "speed limit per axis, m/s (paper: 15)"),
+    "SIM_U_MAX_N": (7.5, 0.1, 7.5, "force limit per axis, N (paper: 7.5)"),
+    "SIM_KP": (0.5, 0.0, 1.0, "position gain of the tracking controller"),
+    "SIM_ALT_M": (50.0, 1.0, 500.0, "flight altitude above home, m"),
+    "BAT_CAP_NS": (1000.0, 1.0, 1e6, "battery capacity as impulse Σ‖u‖ΔT, N·s"),
+    "MIS_ACC_RAD": (15.0, 1.0, 200.0, "a mission waypoint counts as reached within this, m"),
+    "MIS_ID": (0.0, None, None, "mission version, +1 on every upload or clear"),
+    "SIG_REJECTED": (0.0, None, None, "unsigned or wrongly signed frames ignored (offboard)"),
+}
 
 
 class Endpoint:
-    """The vehicle's MAVLink side: links, message handlers, periodic telemetry."""
+    """The vehicle's MAVLink side: links, message handlers, modes, periodic telemetry."""
 
     def __init__(self, vehicle: Vehicle, links: dict[str, Any], sysid: int, altitude_m: float,
-                 home: tuple[float, float], offboard_loss_s: float):
+                 home: tuple[float, float], offboard_loss_s: float, area_size_m: float = 1000.0,
+                 tlog: mav.Tlog | None = None):
         self.vehicle = vehicle
         self.links = links
-        self.send = {name: mav.Sender(conn) for name, conn in links.items()}
+        self.tlog = tlog
+        self.send = {name: mav.Sender(conn, tlog) for name, conn in links.items()}
         self.sysid = sysid
-        self.altitude_m = altitude_m
-        self.home = home
-        self.offboard_loss_s = offboard_loss_s
-        self.mode = MODE_HOLD
+        self.origin = home
+        self.params: dict[str, Param] = {
+            name: Param(default, low, high, doc) for name, (default, low, high, doc)
+            in PARAMS.items()}
+        self.params["MAV_SYS_ID"].value = float(sysid)
+        self.params["COM_OF_LOSS_T"].value = float(offboard_loss_s)
+        self.params["SIM_ALT_M"].value = float(altitude_m)
+        self.params["SIM_KP"].value = float(vehicle.kp)
+        self.params["BAT_CAP_NS"].value = float(vehicle.capacity_ns)
+        self.mode = mav.MODE_LOITER
+        self.armed = False
+        self.airborne = False
+        self.failsafe = False
         self.last_setpoint = 0.0
+        self.stream_since = 0.0
+        self.ignored_setpoints = 0
+        self.rejected_seen = 0
+        self.last_reject_note = 0.0
         self.peers: set[tuple[str, int, int]] = set()
-        self.boot = time.monotonic()
-        self.params: dict[str, float] = {
-            "MAV_SYS_ID": float(sysid),
-            "COM_OF_LOSS_T": float(offboard_loss_s),
-            "SIM_KP": float(vehicle.kp),
-            "SIM_ALT_M": float(altitude_m),
-        }
+        self._after_ack: Callable[[], None] | None = None
+        self.home_local = (float(vehicle.state[0]), float(vehicle.state[1]))
+        self.mission = MissionServer(self.send, home, area_size_m, on_change=self.mission_changed)
+
+    # -- helpers ----------------------------------------------------------------------------------
+    def p(self, name: str) -> float:
+        return self.params[name].value
+
+    @property
+    def altitude_m(self) -> float:
+        return self.p("SIM_ALT_M") if self.airborne else 0.0
+
+    def broadcast(self, name: str, *args: Any) -> None:
+        """Send on every link; the tlog gets the frame once."""
+        for k, send in enumerate(self.send.values()):
+            send.message(getattr(send.mav, f"{name}_encode")(*args), log=k == 0)
+
+    def base_mode(self) -> int:
+        base = m.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED | m.MAV_MODE_FLAG_STABILIZE_ENABLED
+        if self.mode == mav.MODE_GUIDED:
+            base |= m.MAV_MODE_FLAG_GUIDED_ENABLED
+        if self.armed:
+            base |= m.MAV_MODE_FLAG_SAFETY_ARMED
+        return int(base)
+
+    def set_mode(self, mode: int, why: str) -> None:
+        if mode != self.mode:
+            self.mode = mode
+            log.info("mode", extra=fields(mode=mav.MODE_NAMES.get(mode, str(mode)), why=why))
+            self.statustext(f"{mav.MODE_NAMES.get(mode, mode)}: {why}")
+            self.heartbeat()
 
     # -- outgoing -----------------------------------------------------------------------------
     def heartbeat(self) -> None:
-        base = (m.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED | m.MAV_MODE_FLAG_GUIDED_ENABLED
-                | m.MAV_MODE_FLAG_SAFETY_ARMED)
-        for send in self.send.values():
-            send("heartbeat", m.MAV_TYPE_QUADROTOR, m.MAV_AUTOPILOT_GENERIC, base, self.mode,
-                 m.MAV_STATE_ACTIVE)
+        state = m.MAV_STATE_ACTIVE if self.armed else m.MAV_STATE_STANDBY
+        self.broadcast("heartbeat", m.MAV_TYPE_QUADROTOR, m.MAV_AUTOPILOT_GENERIC,
+                       self.base_mode(), self.mode, state)
 
     def telemetry(self) -> None:
         x = self.vehicle.state
-        n, e, d, vn, ve, vd = codec.state_to_ned(x, self.altitude_m)
-        lat, lon = to_geodetic(float(x[0]), float(x[1]), self.home)
+        alt = self.altitude_m
+        n, e, d, vn, ve, vd = codec.state_to_ned(x, alt)
+        lat, lon = mav.to_geodetic(float(x[0]), float(x[1]), self.origin)
         t_ms = self.vehicle.time_ms
         hdg = int(math.degrees(math.atan2(ve, vn)) % 360 * 100) if (vn or ve) else 65535
-        for send in self.send.values():
-            send("local_position_ned", t_ms, n, e, d, vn, ve, vd)
-            send("global_position_int", t_ms, int(lat * 1e7), int(lon * 1e7),
-                 int(self.altitude_m * 1000), int(self.altitude_m * 1000),
-                 int(vn * 100), int(ve * 100), int(vd * 100), hdg)
+        roll, pitch, yaw = self.vehicle.attitude()
+        self.broadcast("local_position_ned", t_ms, n, e, d, vn, ve, vd)
+        self.broadcast("global_position_int", t_ms, int(lat * 1e7), int(lon * 1e7),
+                       int(alt * 1000), int(alt * 1000), int(vn * 100), int(ve * 100),
+                       int(vd * 100), hdg)
+        self.broadcast("attitude", t_ms, roll, pitch, yaw, 0.0, 0.0, 0.0)
+
+    def slow_telemetry(self) -> None:
+        v = self.vehicle
+        sensors = (m.MAV_SYS_STATUS_SENSOR_3D_GYRO | m.MAV_SYS_STATUS_SENSOR_3D_ACCEL
+                   | m.MAV_SYS_STATUS_SENSOR_3D_MAG | m.MAV_SYS_STATUS_SENSOR_GPS
+                   | m.MAV_SYS_STATUS_SENSOR_BATTERY)
+        self.broadcast("sys_status", sensors, sensors, sensors, 100, int(v.voltage_v * 1000), -1,
+                       int(round(v.battery_fraction * 100)), 0,
+                       min(int(self.p("SIG_REJECTED")), 65535), 0, 0, 0, 0)
+        x = v.state
+        lat, lon = mav.to_geodetic(float(x[0]), float(x[1]), self.origin)
+        speed = math.hypot(float(x[2]), float(x[3]))
+        cog = int(math.degrees(math.atan2(float(x[2]), float(x[3]))) % 360 * 100) if speed else 0
+        self.broadcast("gps_raw_int", v.time_ms * 1000, m.GPS_FIX_TYPE_3D_FIX, int(lat * 1e7),
+                       int(lon * 1e7), int(self.altitude_m * 1000), 80, 120,
+                       int(speed * 100), cog, 14)
+        landed = m.MAV_LANDED_STATE_IN_AIR if self.airborne else m.MAV_LANDED_STATE_ON_GROUND
+        self.broadcast("extended_sys_state", m.MAV_VTOL_STATE_UNDEFINED, landed)
+        self.mission.send_current()
+
+    def home_position(self, link: str | None = None) -> None:
+        lat, lon = mav.to_geodetic(*self.home_local, self.origin)
+        args = (int(lat * 1e7), int(lon * 1e7), 0, self.home_local[1], self.home_local[0], 0.0,
+                [1.0, 0.0, 0.0, 0.0], 0.0, 0.0, 0.0, self.vehicle.time_ms * 1000)
+        origin = (int(self.origin[0] * 1e7), int(self.origin[1] * 1e7), 0,
+                  self.vehicle.time_ms * 1000)
+        if link is None:
+            self.broadcast("home_position", *args)
+            self.broadcast("gps_global_origin", *origin)
+        else:
+            self.send[link]("home_position", *args)
+            self.send[link]("gps_global_origin", *origin)
 
     def statustext(self, text: str, severity: int = m.MAV_SEVERITY_INFO) -> None:
-        for send in self.send.values():
-            send("statustext", severity, text.encode()[:50])
+        self.broadcast("statustext", severity, text.encode()[:50])
 
-    def param_value(self, link: str, name: str) -> None:
+    def param_value(self, link: str | None, name: str) -> None:
         names = list(self.params)
-        self.send[link]("param_value", name.encode(), self.params[name],
-                        m.MAV_PARAM_TYPE_REAL32, len(names), names.index(name))
+        args = (name.encode(), self.params[name].value, m.MAV_PARAM_TYPE_REAL32, len(names),
+                names.index(name))
+        if link is None:
+            self.broadcast("param_value", *args)
+        else:
+            self.send[link]("param_value", *args)
+
+    def set_param(self, name: str, value: float) -> None:
+        """Change a parameter internally (read-only ones too) and announce it on every link."""
+        self.params[name].value = float(value)
+        self.param_value(None, name)
 
     # -- incoming -----------------------------------------------------------------------------
     def handle(self, link: str, msg: Any) -> None:
         kind = msg.get_type()
         if kind == "BAD_DATA":
-            codec.rejected("mavlink", codec.invalid(f"bad or unsigned frame on {link}"), log)
+            why = str(getattr(msg, "reason", ""))
+            if "signature" in why.lower():
+                self.count_rejected(link)
+            else:
+                codec.rejected("mavlink", codec.invalid(f"bad frame on {link}: {why}"), log)
             return
+        if self.tlog is not None:
+            self.tlog.message(msg)
         if kind == "HEARTBEAT":
             peer = (link, msg.get_srcSystem(), msg.get_srcComponent())
             if peer not in self.peers:
@@ -117,8 +245,14 @@ class Endpoint:
         target = getattr(msg, "target_system", None)
         if target not in (None, 0, self.sysid):
             return
+        comp = getattr(msg, "target_component", None)
+        if comp not in (None, 0, mav.MAV_COMP_ID_AUTOPILOT1):
+            return
+        now = time.monotonic()
+        if self.mission.handle(link, msg, now):
+            return
         if kind == "SET_POSITION_TARGET_LOCAL_NED":
-            self.on_setpoint(msg)
+            self.on_setpoint(msg, now)
         elif kind == "PARAM_REQUEST_LIST":
             for name in self.params:
                 self.param_value(link, name)
@@ -130,61 +264,210 @@ class Endpoint:
             if name in self.params:
                 self.param_value(link, name)
         elif kind == "PARAM_SET":
-            pid = msg.param_id if isinstance(msg.param_id, str) else msg.param_id.decode()
-            name = pid.rstrip("\x00")
-            if name in self.params and math.isfinite(msg.param_value):
-                self.params[name] = float(msg.param_value)
-                self.param_value(link, name)
+            self.on_param_set(link, msg)
         elif kind == "COMMAND_LONG":
             self.on_command(link, msg)
-        elif kind == "MISSION_REQUEST_LIST":
-            self.send[link]("mission_count", msg.get_srcSystem(), msg.get_srcComponent(), 0,
-                            msg.mission_type)
-        elif kind in ("MISSION_COUNT", "MISSION_CLEAR_ALL"):
-            count = getattr(msg, "count", 0)
-            result = m.MAV_MISSION_ACCEPTED if count == 0 else m.MAV_MISSION_DENIED
-            self.send[link]("mission_ack", msg.get_srcSystem(), msg.get_srcComponent(), result,
-                            msg.mission_type)
-            if count:
-                self.statustext("waypoints go to System 1 over Zenoh", m.MAV_SEVERITY_WARNING)
+        elif kind == "COMMAND_INT":
+            self.send[link]("command_ack", msg.command, m.MAV_RESULT_UNSUPPORTED, 0, 0,
+                            msg.get_srcSystem(), msg.get_srcComponent())
+        elif kind == "SET_MODE":  # the legacy message (MAVProxy's ``mode``): acked as ArduPilot
+            result = self.mode_request(int(msg.base_mode), int(msg.custom_mode))
+            self.send[link]("command_ack", m.MAVLINK_MSG_ID_SET_MODE, result, 0, 0,
+                            msg.get_srcSystem(), msg.get_srcComponent())
 
-    def on_setpoint(self, msg: Any) -> None:
+    def count_rejected(self, link: str) -> None:
+        total = sum(mav.rejected_frames(conn) for conn in self.links.values())
+        codec.rejected("mavlink", codec.invalid(f"unsigned or wrongly signed frame on {link}"),
+                       log)
+        if total != self.rejected_seen:
+            self.rejected_seen = total
+            self.params["SIG_REJECTED"].value = float(total)
+            now = time.monotonic()
+            if now - self.last_reject_note > 2.0:
+                self.last_reject_note = now
+                self.statustext(f"signing: {total} frames rejected", m.MAV_SEVERITY_WARNING)
+
+    def on_param_set(self, link: str, msg: Any) -> None:
+        pid = msg.param_id if isinstance(msg.param_id, str) else msg.param_id.decode()
+        name = pid.rstrip("\x00")
+        param = self.params.get(name)
+        if param is None:
+            return  # unknown: no PARAM_VALUE, as PX4 (the GCS times out)
+        value = float(msg.param_value)
+        ok = (param.low is not None and param.high is not None and math.isfinite(value)
+              and param.low <= value <= param.high)
+        if not ok:
+            log.warning("param refused", extra=fields(name=name, value=value))
+            self.statustext(f"{name}: refused {value:g}", m.MAV_SEVERITY_WARNING)
+            self.param_value(link, name)  # the unchanged value tells the GCS it was refused
+            return
+        param.value = value
+        if name == "MPC_XY_VEL_MAX":
+            self.vehicle.set_limits(v_max_mps=value)
+        elif name == "SIM_U_MAX_N":
+            self.vehicle.set_limits(u_max_n=value)
+        elif name == "SIM_KP":
+            self.vehicle.kp = value
+        elif name == "BAT_CAP_NS":
+            self.vehicle.capacity_ns = value
+        log.info("param set", extra=fields(name=name, value=value))
+        self.param_value(None, name)
+
+    def on_setpoint(self, msg: Any, now: float) -> None:
         try:
             target = codec.setpoint_from_mavlink(msg)
         except codec.CodecError as err:
             codec.rejected("setpoint", err, log)
             return
-        self.last_setpoint = time.monotonic()
-        if self.mode != MODE_OFFBOARD:
-            self.mode = MODE_OFFBOARD
-            log.info("offboard", extra=fields(time_ms=msg.time_boot_ms))
+        if now - self.last_setpoint > self.p("COM_OF_LOSS_T"):
+            self.stream_since = now  # a new stream starts
+        self.last_setpoint = now
+        if not (self.mode == mav.MODE_GUIDED and self.armed and self.airborne):
+            self.ignored_setpoints += 1
+            return
         if self.vehicle.apply(target, int(msg.time_boot_ms)):
-            self.telemetry()
-            x = self.vehicle.state
-            log.debug("step", extra=fields(time_ms=self.vehicle.time_ms, east_m=float(x[0]),
-                                           north_m=float(x[1])))
+            self.after_step()
+
+    def after_step(self) -> None:
+        self.telemetry()
+        x = self.vehicle.state
+        log.debug("step", extra=fields(time_ms=self.vehicle.time_ms, east_m=float(x[0]),
+                                       north_m=float(x[1])))
+        reached = self.mission.progress(float(x[0]), float(x[1]), self.p("MIS_ACC_RAD"))
+        for seq in reached:
+            self.broadcast("mission_item_reached", seq)
+        if reached:
+            self.mission.send_current()
+
+    def mission_changed(self) -> None:
+        self.set_param("MIS_ID", float(self.mission.version))
+        waypoints = sum(it.is_waypoint() for it in self.mission.items)
+        self.statustext(f"mission {self.mission.version}: {waypoints} waypoints")
+        self.mission.send_current()
+
+    # -- commands -------------------------------------------------------------------------------
+    def stream_live(self, now: float) -> bool:
+        return bool(self.last_setpoint) and now - self.last_setpoint <= self.p("COM_OF_LOSS_T")
+
+    def mode_request(self, base_mode: int, custom_mode: int) -> int:
+        if not base_mode & m.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED:
+            return int(m.MAV_RESULT_UNSUPPORTED)
+        if custom_mode == mav.MODE_GUIDED:
+            if not self.stream_live(time.monotonic()):
+                self.statustext("GUIDED refused: no setpoint stream", m.MAV_SEVERITY_WARNING)
+                return int(m.MAV_RESULT_DENIED)
+            self.failsafe = False
+            if self.armed:
+                self.airborne = True
+            self.set_mode(mav.MODE_GUIDED, "offboard control")
+            return int(m.MAV_RESULT_ACCEPTED)
+        if custom_mode == mav.MODE_LOITER:
+            self.failsafe = False
+            if self.mode != mav.MODE_LOITER:
+                self.vehicle.brake()
+            self.set_mode(mav.MODE_LOITER, "hold (commanded)")
+            return int(m.MAV_RESULT_ACCEPTED)
+        return int(m.MAV_RESULT_UNSUPPORTED)
+
+    def arm(self, arm: bool, force: bool) -> int:
+        if arm:
+            if self.vehicle.battery_fraction <= 0:
+                self.statustext("arming refused: battery empty", m.MAV_SEVERITY_WARNING)
+                return int(m.MAV_RESULT_DENIED)
+            if not self.armed:
+                self.armed = True
+                if self.mode == mav.MODE_GUIDED:
+                    self.airborne = True  # offboard take-off straight to SIM_ALT_M (2-D)
+                log.info("armed", extra=fields(mode=mav.MODE_NAMES[self.mode]))
+                self.statustext("armed")
+                self.heartbeat()
+            return int(m.MAV_RESULT_ACCEPTED)
+        if self.airborne and not force:
+            self.statustext("disarm refused: in the air", m.MAV_SEVERITY_WARNING)
+            return int(m.MAV_RESULT_DENIED)
+        if self.armed:
+            self.armed = self.airborne = False
+            self.vehicle.brake()
+            log.info("disarmed", extra=fields(forced=force))
+            self.statustext("disarmed")
+            self.heartbeat()
+        return int(m.MAV_RESULT_ACCEPTED)
+
+    def request_message(self, link: str, msg_id: int) -> int:
+        senders: dict[int, Callable[[], None]] = {
+            m.MAVLINK_MSG_ID_AUTOPILOT_VERSION: lambda: self.autopilot_version(link),
+            m.MAVLINK_MSG_ID_HOME_POSITION: lambda: self.home_position(link),
+            m.MAVLINK_MSG_ID_GPS_GLOBAL_ORIGIN: lambda: self.home_position(link),
+            m.MAVLINK_MSG_ID_HEARTBEAT: self.heartbeat,
+            m.MAVLINK_MSG_ID_LOCAL_POSITION_NED: self.telemetry,
+            m.MAVLINK_MSG_ID_GLOBAL_POSITION_INT: self.telemetry,
+            m.MAVLINK_MSG_ID_ATTITUDE: self.telemetry,
+            m.MAVLINK_MSG_ID_SYS_STATUS: self.slow_telemetry,
+            m.MAVLINK_MSG_ID_GPS_RAW_INT: self.slow_telemetry,
+            m.MAVLINK_MSG_ID_EXTENDED_SYS_STATE: self.slow_telemetry,
+            m.MAVLINK_MSG_ID_MISSION_CURRENT: lambda: self.mission.send_current(link),
+        }
+        fn = senders.get(msg_id)
+        if fn is None:
+            return int(m.MAV_RESULT_UNSUPPORTED)
+        self._after_ack = fn
+        return int(m.MAV_RESULT_ACCEPTED)
+
+    def autopilot_version(self, link: str) -> None:
+        caps = (m.MAV_PROTOCOL_CAPABILITY_MAVLINK2 | m.MAV_PROTOCOL_CAPABILITY_MISSION_INT
+                | m.MAV_PROTOCOL_CAPABILITY_SET_POSITION_TARGET_LOCAL_NED)
+        self.send[link]("autopilot_version", caps, 1, 0, 0, 0, [0] * 8, [0] * 8, [0] * 8,
+                        0, 0, self.sysid)
 
     def on_command(self, link: str, msg: Any) -> None:
-        cmd = msg.command
-        result = m.MAV_RESULT_UNSUPPORTED
-        if cmd in (m.MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES, m.MAV_CMD_REQUEST_MESSAGE):
-            result = m.MAV_RESULT_ACCEPTED
-        elif cmd == m.MAV_CMD_SET_MESSAGE_INTERVAL:
-            result = m.MAV_RESULT_ACCEPTED  # telemetry rates are fixed; accepted for the GCS
+        cmd = int(msg.command)
+        self._after_ack = None
+        result = int(m.MAV_RESULT_UNSUPPORTED)
+        if cmd == m.MAV_CMD_COMPONENT_ARM_DISARM:
+            result = self.arm(msg.param1 >= 0.5, int(msg.param2) == FORCE_DISARM_MAGIC)
+        elif cmd == m.MAV_CMD_NAV_TAKEOFF:
+            if not self.armed:
+                result = int(m.MAV_RESULT_DENIED)
+            else:  # 2-D evaluation: the climb to SIM_ALT_M is instantaneous
+                self.airborne = True
+                result = int(m.MAV_RESULT_ACCEPTED)
+        elif cmd == m.MAV_CMD_DO_SET_MODE:
+            result = self.mode_request(int(msg.param1), int(msg.param2))
+        elif cmd == m.MAV_CMD_REQUEST_MESSAGE:
+            result = self.request_message(link, int(msg.param1))
+        elif cmd == m.MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES:
+            result = self.request_message(link, m.MAVLINK_MSG_ID_AUTOPILOT_VERSION)
+        elif cmd == m.MAV_CMD_GET_HOME_POSITION:
+            result = self.request_message(link, m.MAVLINK_MSG_ID_HOME_POSITION)
+        elif cmd in (m.MAV_CMD_NAV_LAND, m.MAV_CMD_NAV_RETURN_TO_LAUNCH, m.MAV_CMD_MISSION_START):
+            result = int(m.MAV_RESULT_DENIED)  # operator missions are flown by System 1
         self.send[link]("command_ack", cmd, result, 0, 0, msg.get_srcSystem(),
                         msg.get_srcComponent())
-        wants_version = cmd == m.MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES or (
-            cmd == m.MAV_CMD_REQUEST_MESSAGE
-            and int(msg.param1) == m.MAVLINK_MSG_ID_AUTOPILOT_VERSION)
-        if wants_version:
-            caps = (m.MAV_PROTOCOL_CAPABILITY_MAVLINK2
-                    | m.MAV_PROTOCOL_CAPABILITY_SET_POSITION_TARGET_LOCAL_NED)
-            self.send[link]("autopilot_version", caps, 1, 0, 0, 0, [0] * 8, [0] * 8, [0] * 8,
-                            0, 0, self.sysid)
+        if result != m.MAV_RESULT_ACCEPTED:
+            log.info("command refused", extra=fields(
+                link=link, command=m.enums["MAV_CMD"][cmd].name if cmd in m.enums["MAV_CMD"]
+                else cmd, result=m.enums["MAV_RESULT"][result].name))
+        if self._after_ack is not None:
+            self._after_ack()
+            self._after_ack = None
 
     # -- loop -----------------------------------------------------------------------------------
+    def check_offboard(self, now: float) -> None:
+        """The offboard-loss failsafe and the return of the stream."""
+        if self.mode == mav.MODE_GUIDED and self.last_setpoint and not self.stream_live(now):
+            self.failsafe = True
+            self.vehicle.brake()
+            log.warning("offboard setpoints lost: holding", extra=fields(
+                silence_s=round(now - self.last_setpoint, 3)))
+            self.set_mode(mav.MODE_LOITER, "offboard lost, holding")
+        elif (self.failsafe and self.mode == mav.MODE_LOITER and self.stream_live(now)
+              and now - self.stream_since >= self.p("COM_OF_RSM_T")):
+            self.failsafe = False
+            log.info("offboard setpoints back: resuming")
+            self.set_mode(mav.MODE_GUIDED, "offboard stream back")
+
     def run(self, stop: threading.Event) -> None:
-        next_hb = next_tel = time.monotonic()
+        next_hb = next_tel = next_slow = next_home = time.monotonic()
         self.statustext("dualpilot uavsim ready")
         fds = {conn.fd: name for name, conn in self.links.items()}
         while not stop.is_set():
@@ -195,12 +478,15 @@ class Endpoint:
             if now >= next_tel:
                 self.telemetry()
                 next_tel = now + TELEMETRY_PERIOD_S
-            if (self.mode == MODE_OFFBOARD and self.last_setpoint
-                    and now - self.last_setpoint > self.offboard_loss_s):
-                self.mode = MODE_HOLD
-                log.warning("offboard setpoints lost: holding", extra=fields(
-                    silence_s=round(now - self.last_setpoint, 3)))
-            timeout = max(0.0, min(next_hb, next_tel, now + 0.2) - time.monotonic())
+            if now >= next_slow:
+                self.slow_telemetry()
+                next_slow = now + SLOW_PERIOD_S
+            if now >= next_home:
+                self.home_position()
+                next_home = now + HOME_PERIOD_S
+            self.check_offboard(now)
+            self.mission.poll(now)
+            timeout = max(0.0, min(next_hb, next_tel, now + 0.05) - time.monotonic())
             ready, _, _ = select.select(list(fds), [], [], timeout)
             for fd in ready:
                 name = fds[fd]
@@ -231,45 +517,62 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--altitude-m", type=float, default=env("UAV_ALTITUDE_M", "50"),
                    help="fixed flight altitude (Sec. IV is 2-D) [UAV_ALTITUDE_M]")
     p.add_argument("--home", default=env("UAV_HOME", "35.1450,33.4110"),
-                   help="'lat,lon' of the local origin, for GLOBAL_POSITION_INT [UAV_HOME]")
+                   help="'lat,lon' of the local frame's origin (the area's south-west corner) "
+                        "[UAV_HOME]")
+    p.add_argument("--area-size-m", type=float, default=env("AREA_SIZE_M", "1000"),
+                   help="mission waypoints must lie in [0, area]² [AREA_SIZE_M]")
     p.add_argument("--kp", type=float, default=env("UAV_KP", "0.5"),
                    help="position gain of the controller [UAV_KP]")
     p.add_argument("--offboard-loss-s", type=float, default=env("COM_OF_LOSS_T", "1.0"),
                    help="hold after this long without setpoints (PX4 COM_OF_LOSS_T) "
                         "[COM_OF_LOSS_T]")
+    p.add_argument("--signing-key-file", default=env("MAVLINK_SIGNING_KEY_FILE", ""),
+                   help="sign the offboard link: 32 raw bytes, or a passphrase (sha256, as "
+                        "MAVProxy) [MAVLINK_SIGNING_KEY_FILE]")
     p.add_argument("--signing-passphrase", default=env("MAVLINK_SIGNING_PASSPHRASE", ""),
                    help="sign the offboard link (sha256 of the passphrase) "
                         "[MAVLINK_SIGNING_PASSPHRASE]")
+    p.add_argument("--tlog", default=env("TLOG_PATH", ""),
+                   help="record the vehicle's MAVLink traffic here (.tlog) [TLOG_PATH]")
     args = p.parse_args(argv)
     try:
         settings = common_cli.settings("uavsim", args)
         start = parse_pair(args.start, "--start")
         home = parse_pair(args.home, "--home")
+        if not (abs(home[0]) < 85 and abs(home[1]) <= 180):
+            raise ValueError("--home must be a latitude in (-85, 85) and a longitude")
         if not 1 <= args.sysid <= 255:
             raise ValueError("--sysid must be in 1..255")
-        if not (0 <= args.kp <= 1 and args.offboard_loss_s > 0):
-            raise ValueError("need 0 <= --kp <= 1 and --offboard-loss-s > 0")
+        if not (0 <= args.kp <= 1 and 0.1 <= args.offboard_loss_s <= 60):
+            raise ValueError("need 0 <= --kp <= 1 and 0.1 <= --offboard-loss-s <= 60")
+        if not 0 < args.area_size_m <= 1e5:
+            raise ValueError("--area-size-m must be in (0, 1e5]")
+        key = mav.resolve_key(args.signing_passphrase, args.signing_key_file)
         vehicle = Vehicle.at(*start)
         vehicle.kp = args.kp
-    except ValueError as err:
+    except (ValueError, OSError) as err:
         p.error(str(err))
 
     def body(ctx: bus.Context) -> None:
+        tlog = mav.Tlog(args.tlog) if args.tlog else None
         links = {"offboard": mav.connect(settings.mavlink_url, args.sysid,
-                                         mav.MAV_COMP_ID_AUTOPILOT1, args.signing_passphrase)}
+                                         mav.MAV_COMP_ID_AUTOPILOT1, key=key)}
         if args.gcs_url:
             links["gcs"] = mav.connect(args.gcs_url, args.sysid, mav.MAV_COMP_ID_AUTOPILOT1)
         log.info("mavlink links open", extra=fields(
-            offboard=settings.mavlink_url, gcs=args.gcs_url, signed=bool(args.signing_passphrase),
-            east_m=start[0], north_m=start[1]))
+            offboard=settings.mavlink_url, gcs=args.gcs_url, signed=key is not None,
+            east_m=start[0], north_m=start[1], tlog=args.tlog))
         endpoint = Endpoint(vehicle, links, args.sysid, args.altitude_m, home,
-                            args.offboard_loss_s)
+                            args.offboard_loss_s, args.area_size_m, tlog)
         ctx.announce()
         try:
             endpoint.run(ctx.stop)
         finally:
             for conn in links.values():
                 conn.close()
+            if tlog is not None:
+                tlog.close()
+                log.info("tlog closed", extra=fields(path=args.tlog, frames=tlog.frames))
 
     return bus.run_service(settings, body)
 

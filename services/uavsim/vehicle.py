@@ -1,4 +1,4 @@
-"""The simulated vehicle's physics and position/velocity controller (no I/O here).
+"""The simulated vehicle's physics, controller, battery and attitude (no I/O here).
 
 Physics: Eq. (1), x_t = Φ x_{t−1} + Γ u_t with ΔT = 1 s (:func:`dualpilot.dynamics.step`,
 which clips u to U and v to the speed limit, like an autopilot's limits).
@@ -12,18 +12,32 @@ v_cmd = v* + k_p (p* − (p + ΔT v)) / ΔT and solves Eq. (1) for the force,
 
 On a planned trajectory (x* = Φ x + Γ u_plan) the correction term is 0 and u
 equals the plan's control: the vehicle flies exactly what was planned.
+
+Battery: the charge used is the impulse Σ‖u_t‖ΔT (N·s) of the flown controls
+against a capacity of ``BATTERY_CAPACITY_NS`` = 1000 N·s (about five of the
+paper's missions: cruising at 12 m/s against the drag ζ costs ‖u‖ ≈ 2.5 N).
+The voltage falls linearly from 16.8 V (4S full) to 13.2 V (empty).
+
+Attitude: a multirotor tilts its thrust to make the horizontal force u; with
+thrust ≈ m·g the roll is atan(u_east / m g) and the pitch −atan(u_north / m g)
+(nose north-east-down frame); the yaw follows the velocity.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from dualpilot.dynamics import Array, DynamicsParams, hover_state, step
+from services.common.mav import to_geodetic, to_local
 
-EARTH_RADIUS_M = 6_378_137.0
+__all__ = ["Vehicle", "tracking_control", "to_geodetic", "to_local"]
+
+BATTERY_CAPACITY_NS = 1000.0
+VOLT_FULL_V, VOLT_EMPTY_V = 16.8, 13.2
+GRAVITY_MPS2 = 9.81
 
 
 def tracking_control(x: Array, target: Array, dyn: DynamicsParams, kp: float = 0.5) -> Array:
@@ -38,13 +52,16 @@ def tracking_control(x: Array, target: Array, dyn: DynamicsParams, kp: float = 0
 
 @dataclass
 class Vehicle:
-    """State, clock (ms since boot) and the last setpoint of the simulated vehicle."""
+    """State, clock (ms since boot), the last control and the charge used by the vehicle."""
 
     state: Array
     time_ms: int = 0
     dyn: DynamicsParams = DynamicsParams()
     kp: float = 0.5
     steps: int = 0
+    impulse_ns: float = 0.0
+    capacity_ns: float = BATTERY_CAPACITY_NS
+    control: Array = field(default_factory=lambda: np.zeros(2))
 
     @staticmethod
     def at(east_m: float, north_m: float, dyn: DynamicsParams = DynamicsParams()) -> Vehicle:
@@ -61,14 +78,37 @@ class Vehicle:
             return False
         u = tracking_control(self.state, np.asarray(target, dtype=float), self.dyn, self.kp)
         self.state = step(self.state, u, self.dyn)
+        self.control = u
+        self.impulse_ns += float(np.linalg.norm(u)) * self.dyn.dt_s
         self.time_ms = int(due_ms)
         self.steps += 1
         return True
 
+    def brake(self) -> None:
+        """Hold: stop where it is (a multirotor's position hold), keeping the clock."""
+        self.state = hover_state(self.state[: self.dyn.dim], self.dyn)
+        self.control = np.zeros(self.dyn.dim)
 
-def to_geodetic(east_m: float, north_m: float, home: tuple[float, float]) -> tuple[float, float]:
-    """Flat-earth conversion of local metres to (lat, lon) degrees around ``home``."""
-    lat0, lon0 = home
-    lat = lat0 + math.degrees(north_m / EARTH_RADIUS_M)
-    lon = lon0 + math.degrees(east_m / (EARTH_RADIUS_M * math.cos(math.radians(lat0))))
-    return lat, lon
+    def set_limits(self, u_max_n: float | None = None, v_max_mps: float | None = None) -> None:
+        """New force/speed limits (parameters); raises ValueError if not positive."""
+        self.dyn = replace(self.dyn, u_max_n=self.dyn.u_max_n if u_max_n is None else u_max_n,
+                           v_max_mps=self.dyn.v_max_mps if v_max_mps is None else v_max_mps)
+
+    # -- battery ------------------------------------------------------------------------------
+    @property
+    def battery_fraction(self) -> float:
+        """Charge left, 0..1."""
+        return max(0.0, 1.0 - self.impulse_ns / self.capacity_ns)
+
+    @property
+    def voltage_v(self) -> float:
+        return VOLT_EMPTY_V + (VOLT_FULL_V - VOLT_EMPTY_V) * self.battery_fraction
+
+    # -- attitude -----------------------------------------------------------------------------
+    def attitude(self) -> tuple[float, float, float]:
+        """(roll, pitch, yaw) in rad from the last control and the velocity (module docstring)."""
+        ue, un = (float(v) for v in self.control[:2])
+        weight = self.dyn.mass_kg * GRAVITY_MPS2
+        ve, vn = (float(v) for v in self.state[self.dyn.dim: self.dyn.dim + 2])
+        yaw = math.atan2(ve, vn) if (ve or vn) else 0.0
+        return math.atan2(ue, weight), -math.atan2(un, weight), yaw

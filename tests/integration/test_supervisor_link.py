@@ -1,0 +1,208 @@
+"""The supervisor's offboard link against a real uavsim (and a scripted vehicle for refusals).
+
+MAVSDK/PX4 order (heartbeat, position, setpoints, offboard, arm), refused
+commands retried then given up cleanly, a vehicle that disappears for more
+than 3 s and comes back, and the operator's mission downloaded and converted
+to the local frame.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import threading
+import time
+from collections.abc import Iterator
+from typing import Any
+
+import numpy as np
+import pytest
+
+from services.common import bus, mav
+from services.launch import free_port
+from services.supervisor.link import OffboardError, VehicleLink
+
+pytestmark = pytest.mark.timeout(120)
+m = mav.mavlink
+HOME = (35.1450, 33.4110)
+
+
+@pytest.fixture(scope="module")
+def vehicle(services: Any, session: Any) -> Any:
+    ports = {"offboard": free_port("udp"), "gcs": free_port("udp")}
+    proc = services.start("uavsim-link", module="services.uavsim", UAV_ID="itest-link",
+                          MAVLINK_URL=f"udpin:127.0.0.1:{ports['offboard']}",
+                          GCS_URL=f"udpin:127.0.0.1:{ports['gcs']}", UAV_START="80,90")
+    link_live = bus.Liveliness(session, "itest-link")
+    assert link_live.wait_for(["uavsim"], 60), services.log("uavsim-link")[-2000:]
+    services.link_ports, services.link_proc = ports, proc
+    return services
+
+
+@pytest.fixture()
+def link(vehicle: Any) -> Iterator[VehicleLink]:
+    lk = VehicleLink(f"udpout:127.0.0.1:{vehicle.link_ports['offboard']}")
+    lk.start()
+    try:
+        yield lk
+    finally:
+        lk.close()
+
+
+def until(pred: Any, timeout_s: float) -> bool:
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        if pred():
+            return True
+        time.sleep(0.02)
+    return bool(pred())
+
+
+def test_offboard_start_and_a_vehicle_that_disappears(vehicle: Any, link: VehicleLink) -> None:
+    stop = threading.Event()
+    assert link.command(m.MAV_CMD_DO_SET_MODE, m.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED,
+                        mav.MODE_GUIDED) == m.MAV_RESULT_DENIED  # no setpoint stream yet
+    link.start_offboard(stop, timeout_s=20)
+    assert link.offboard() and link.status() == "GUIDED, armed"
+    t, x = link.wait_state(0, 5, stop) or (0, None)
+    assert x is not None and np.allclose(x[:2], [80.0, 90.0])
+    assert link.origin is not None and np.allclose(link.origin, HOME)
+
+    pid = vehicle.link_proc.popen.pid
+    os.kill(pid, signal.SIGSTOP)  # the vehicle disappears
+    try:
+        t0 = time.monotonic()
+        assert until(lambda: not link.alive(), 6)
+        assert 2.5 < time.monotonic() - t0 < 4.5 and not link.offboard()
+    finally:
+        os.kill(pid, signal.SIGCONT)
+    # back (a frozen process finds the queued setpoints first, so its failsafe may not trip)
+    assert until(link.alive, 5)
+    assert until(link.offboard, 5), link.status()
+    start_again = time.monotonic()
+    link.start_offboard(stop, timeout_s=5)  # nothing left to do
+    assert time.monotonic() - start_again < 1.0
+
+
+def test_operator_mission_is_downloaded_in_the_local_frame(vehicle: Any,
+                                                           link: VehicleLink) -> None:
+    stop = threading.Event()
+    assert link.wait_mission(10, stop)
+    rev0, wps, _ = link.operator_waypoints()
+    gcs = mav.connect(f"udpout:127.0.0.1:{vehicle.link_ports['gcs']}", 255, 190)
+    gcs.mav.heartbeat_send(m.MAV_TYPE_GCS, m.MAV_AUTOPILOT_INVALID, 0, 0, 0)
+    local = [(200.0, 300.0), (650.5, 720.25)]
+    items = []
+    for seq, (e, n) in enumerate(local):
+        lat, lon = mav.to_geodetic(e, n, HOME)
+        items.append(m.MAVLink_mission_item_int_message(
+            1, 1, seq, m.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT, m.MAV_CMD_NAV_WAYPOINT, 0, 1,
+            0, 0, 0, 0, round(lat * 1e7), round(lon * 1e7), 50.0, 0))
+    gcs.mav.mission_count_send(1, 1, len(items), 0)
+    deadline = time.monotonic() + 10
+    ack = None
+    while ack is None and time.monotonic() < deadline:
+        msg = gcs.recv_match(type=["MISSION_REQUEST_INT", "MISSION_ACK"], blocking=True,
+                             timeout=0.2)
+        if msg is not None and msg.get_type() == "MISSION_REQUEST_INT":
+            gcs.mav.send(items[msg.seq])
+        elif msg is not None:
+            ack = msg
+    assert ack is not None and ack.type == m.MAV_MISSION_ACCEPTED
+    gcs.close()
+    assert until(lambda: link.operator_waypoints()[0] > rev0, 10)
+    _, wps, mission_id = link.operator_waypoints()
+    assert mission_id and wps is not None
+    assert np.allclose(wps, local, atol=0.05)  # degE7 is ≈ 1 cm
+
+
+class ScriptedVehicle:
+    """A pymavlink vehicle that answers DO_SET_MODE DENIED ``deny_mode`` times, then ACCEPTED,
+    and the arm command with ``arm_result``."""
+
+    def __init__(self, port: int, deny_mode: int, arm_result: int):
+        self.conn = mav.connect(f"udpin:127.0.0.1:{port}", 1, 1)
+        self.deny_mode, self.arm_result = deny_mode, arm_result
+        self.mode, self.armed = mav.MODE_LOITER, False
+        self.commands: list[tuple[int, int]] = []
+        self.stop = threading.Event()
+        self.thread = threading.Thread(target=self.run, daemon=True)
+        self.thread.start()
+
+    def run(self) -> None:
+        next_t = 0.0
+        while not self.stop.is_set():
+            if time.monotonic() >= next_t and self.conn.clients:
+                base = m.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED | (
+                    m.MAV_MODE_FLAG_SAFETY_ARMED if self.armed else 0)
+                self.conn.mav.heartbeat_send(m.MAV_TYPE_QUADROTOR, m.MAV_AUTOPILOT_GENERIC, base,
+                                             self.mode, m.MAV_STATE_ACTIVE)
+                self.conn.mav.local_position_ned_send(0, 10.0, 20.0, -50.0, 0, 0, 0)
+                self.conn.mav.global_position_int_send(0, 351450000, 334110000, 50000, 50000,
+                                                       0, 0, 0, 0)
+                next_t = time.monotonic() + 0.1
+            msg = self.conn.recv_match(blocking=True, timeout=0.05)
+            if msg is None or msg.get_type() != "COMMAND_LONG":
+                continue
+            self.commands.append((int(msg.command), int(msg.confirmation)))
+            if msg.command == m.MAV_CMD_DO_SET_MODE:
+                result = m.MAV_RESULT_DENIED if self.deny_mode > 0 else m.MAV_RESULT_ACCEPTED
+                self.deny_mode -= 1
+                if result == m.MAV_RESULT_ACCEPTED:
+                    self.mode = int(msg.param2)
+            elif msg.command == m.MAV_CMD_COMPONENT_ARM_DISARM:
+                result = self.arm_result
+                self.armed = result == m.MAV_RESULT_ACCEPTED
+            else:
+                continue
+            self.conn.mav.command_ack_send(msg.command, result, 0, 0, msg.get_srcSystem(),
+                                           msg.get_srcComponent())
+
+    def close(self) -> None:
+        self.stop.set()
+        self.thread.join(2)
+        self.conn.close()
+
+
+@pytest.mark.parametrize(("deny_mode", "arm_result", "error"), [
+    (2, m.MAV_RESULT_ACCEPTED, None),                       # refused twice, then accepted
+    (0, m.MAV_RESULT_DENIED, "arm refused 3 times"),        # gives up cleanly
+    (0, m.MAV_RESULT_UNSUPPORTED, "arm: UNSUPPORTED"),      # no point retrying
+])
+def test_refused_commands_are_retried_then_given_up(deny_mode: int, arm_result: int,
+                                                    error: str | None) -> None:
+    port = free_port("udp")
+    fake = ScriptedVehicle(port, deny_mode, arm_result)
+    lk = VehicleLink(f"udpout:127.0.0.1:{port}", command_timeout_s=0.3)
+    lk.start()
+    try:
+        stop = threading.Event()
+        if error is None:
+            lk.start_offboard(stop, timeout_s=10, retry_wait_s=0.05)
+            assert lk.offboard()
+            modes = [c for c in fake.commands if c[0] == m.MAV_CMD_DO_SET_MODE]
+            assert len(modes) == 3
+        else:
+            with pytest.raises(OffboardError, match=error):
+                lk.start_offboard(stop, timeout_s=10, retry_wait_s=0.05)
+            assert not lk.offboard()
+    finally:
+        lk.close()
+        fake.close()
+
+
+def test_a_vehicle_that_never_answers_commands(vehicle: Any) -> None:
+    """COMMAND_LONG is re-sent with a rising ``confirmation``; no answer gives -1."""
+    port = free_port("udp")
+    silent = mav.connect(f"udpin:127.0.0.1:{port}", 1, 1)
+    lk = VehicleLink(f"udpout:127.0.0.1:{port}", command_timeout_s=0.2)
+    lk.start()
+    try:
+        assert lk.command(m.MAV_CMD_COMPONENT_ARM_DISARM, 1) == -1
+        seen = []
+        while (msg := silent.recv_match(type="COMMAND_LONG", blocking=True, timeout=0.5)):
+            seen.append(int(msg.confirmation))
+        assert seen == [0, 1, 2]
+    finally:
+        lk.close()
+        silent.close()
