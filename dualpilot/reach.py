@@ -56,12 +56,12 @@ def possibly_free(hulls: Sequence[Polytope], clearance_m: float, area_size_m: fl
         i1, j1 = np.minimum(np.ceil(hi / cell_m - 0.5).astype(int), (b1, c1))
         if i0 > i1 or j0 > j1:
             continue
-        xs = (np.arange(i0, i1 + 1) + 0.5) * cell_m
-        ys = (np.arange(j0, j1 + 1) + 0.5) * cell_m
-        gx, gy = np.meshgrid(xs, ys)
-        centres = np.column_stack([gx.ravel(), gy.ravel()])
-        near = _within(centres, hull, threshold)
-        free[j0:j1 + 1, i0:i1 + 1] &= ~near.reshape(gx.shape)
+        block = free[j0:j1 + 1, i0:i1 + 1]  # a view: cells other hulls blocked are skipped
+        rows, cols = np.nonzero(block)
+        if not len(rows):
+            continue
+        centres = np.column_stack([cols + i0 + 0.5, rows + j0 + 0.5]) * cell_m
+        block[rows, cols] = ~_within(centres, hull, threshold)
     return free
 
 

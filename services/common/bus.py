@@ -8,6 +8,14 @@ are declared, so whoever waits on the token can use them at once.
 :func:`run_service` is every service's ``main``: it opens the session in a
 worker thread (a client blocks in ``zenoh.open`` until the router answers),
 keeps the main thread free for SIGINT/SIGTERM, and exits within 2 s of one.
+
+Bad input: every service counts the inputs it rejects per key and reason
+(:data:`codec.REJECTED`, filled by :func:`codec.rejected` and by a full
+:class:`Inbox`) and serves them, with no code of its own, on the queryable
+``<ns>/status/<service>`` (:func:`keys.status`) that :func:`run_service`
+declares: a JSON object (:func:`status`). :func:`alias` maps a service's
+label for a message kind to the key it arrives on; :func:`accept` decodes a
+received sample or query, counting and logging a rejection.
 """
 
 from __future__ import annotations
@@ -23,7 +31,7 @@ import time
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from types import FrameType
-from typing import Any
+from typing import Any, TypeVar
 
 import zenoh
 from google.protobuf.message import Message
@@ -36,6 +44,14 @@ log = logging.getLogger(__name__)
 
 #: Seconds between SIGINT/SIGTERM and a forced exit.
 STOP_GRACE_S = 1.5
+#: An inbox holds at most this many items and bytes; what arrives beyond is dropped and
+#: counted (reason ``overflow``): a flood costs bounded memory.
+INBOX_MAX_ITEMS = 1000
+INBOX_MAX_BYTES = 64 * 1024 * 1024
+STATUS_ENCODING = "application/json"
+
+T = TypeVar("T")
+M = TypeVar("M", bound=Message)
 
 
 def zenoh_config(s: Settings) -> zenoh.Config:
@@ -78,13 +94,36 @@ class Received:
 
 
 class Inbox:
-    """A thread-safe queue fed by Zenoh callbacks (the callbacks only enqueue)."""
+    """A thread-safe, bounded queue fed by Zenoh callbacks (the callbacks only enqueue).
 
-    def __init__(self) -> None:
+    ``key``, when given, is the key expression this inbox was declared on;
+    it names the entry point in the rejection counters (else the key of the
+    sample or query). An item that would exceed ``max_items`` or
+    ``max_bytes`` is dropped and counted as an ``overflow`` rejection (a
+    dropped query is finalized without a reply).
+    """
+
+    def __init__(self, key: str | None = None, max_items: int = INBOX_MAX_ITEMS,
+                 max_bytes: int = INBOX_MAX_BYTES) -> None:
+        self.key = key
         self.q: queue.Queue[Received] = queue.Queue()
+        self.max_items = max_items
+        self.max_bytes = max_bytes
+        self._bytes = 0
+        self._lock = threading.Lock()
 
     def _push(self, item: Received) -> None:
-        self.q.put(item)
+        with self._lock:
+            full = (self.q.qsize() >= self.max_items
+                    or self._bytes + len(item.payload) > self.max_bytes)
+            if not full:
+                self._bytes += len(item.payload)
+                self.q.put(item)
+        if full:
+            codec.rejected("input", codec.invalid(
+                f"inbox full ({self.q.qsize()} items, {self._bytes} bytes): "
+                f"{len(item.payload)} bytes dropped", codec.Reason.OVERFLOW),
+                log, key=self.key or item.key)
 
     def on_sample(self, sample: zenoh.Sample) -> None:
         self._push(Received(str(sample.key_expr), sample.payload.to_bytes(),
@@ -97,9 +136,32 @@ class Inbox:
 
     def get(self, timeout: float | None = None) -> Received | None:
         try:
-            return self.q.get(timeout=timeout)
+            item = self.q.get(timeout=timeout)
         except queue.Empty:
             return None
+        with self._lock:
+            self._bytes -= len(item.payload)
+        return item
+
+    def entry(self, item: Received) -> str:
+        """The key a rejection of ``item`` is counted under."""
+        return self.key or item.key
+
+
+def alias(label: str, key: str) -> None:
+    """Count rejections reported as ``label`` (``codec.rejected(label, …)``) under ``key``."""
+    codec.REJECTED.alias(label, key)
+
+
+def accept(item: Received, cls: type[M], convert: Callable[[M], T], key: str | None = None,
+           logger: logging.Logger = log) -> T | None:
+    """``convert(parse(item))``, or None after counting and logging the rejection under
+    ``key`` (default: the item's key)."""
+    try:
+        return convert(codec.parse(item.payload, cls, item.encoding))
+    except codec.CodecError as err:
+        codec.rejected(codec.full_name(cls).rsplit(".", 1)[-1], err, logger, key=key or item.key)
+        return None
 
 
 def reply(query: zenoh.Query, msg: Message) -> None:
@@ -158,9 +220,10 @@ def request(session: zenoh.Session, key: str, msg: Message, timeout_s: float,
         err_bytes = item.err.payload.to_bytes()
         try:
             err = codec.parse(err_bytes, codec.common_pb2.Error)
-            raise QueryError(err.code, err.message)
-        except codec.CodecError:
-            raise QueryError(0, err_bytes.decode("utf-8", "replace")) from None
+        except codec.CodecError as bad:
+            codec.rejected("Error", bad, log, key=key)  # an error reply we cannot read
+            raise QueryError(0, err_bytes[:500].decode("utf-8", "replace")) from None
+        raise QueryError(err.code, err.message)
 
 
 class Liveliness:
@@ -198,6 +261,75 @@ class Liveliness:
             return set(services) - self.alive
 
 
+# -- status -------------------------------------------------------------------------------------
+def status(settings: Settings, started: float) -> dict[str, Any]:
+    """The service's status: who it is and what it rejected (per key and reason)."""
+    rejected = codec.REJECTED.snapshot()
+    return {
+        "service": settings.service, "uav": settings.uav_id, "pid": os.getpid(),
+        "uptime_s": round(time.monotonic() - started, 3),
+        "schema_version": codec.SCHEMA_VERSION,
+        "rejected_total": sum(sum(c.values()) for c in rejected.values()),
+        "rejected": rejected,
+        "reasons": [r.value for r in codec.Reason],
+        "log_lines_suppressed": codec.REJECTED.suppressed_total,
+    }
+
+
+def serve_status(session: zenoh.Session, settings: Settings, stop: threading.Event,
+                 started: float) -> Callable[[], None]:
+    """Answer ``keys.status(uav, service)`` from a thread of its own; returns the closer.
+
+    The query's payload is ignored (whatever it is). The callback only
+    enqueues; the thread replies.
+    """
+    key = keys.status(settings.uav_id, settings.service)
+    inbox = Inbox(key, max_items=64, max_bytes=1024 * 1024)
+    queryable = session.declare_queryable(key, inbox.on_query)
+    done = threading.Event()
+
+    def loop() -> None:
+        while not (stop.is_set() or done.is_set()):
+            item = inbox.get(timeout=0.2)
+            if item is None or item.query is None:
+                continue
+            try:
+                body = json.dumps(status(settings, started)).encode()
+                item.query.reply(key, body, encoding=zenoh.Encoding(STATUS_ENCODING))
+            except Exception:  # a status reply must never take the service down
+                log.exception("status reply failed")
+            finally:
+                item.query.drop()
+
+    thread = threading.Thread(target=loop, name=f"{settings.service}-status", daemon=True)
+    thread.start()
+
+    def close() -> None:
+        done.set()
+        thread.join(1.0)
+        queryable.undeclare()
+
+    return close
+
+
+def query_status(session: zenoh.Session, uav: str, service: str,
+                 timeout_s: float = 5.0) -> dict[str, Any]:
+    """Ask a service for its status (raises TimeoutError if it does not answer)."""
+    q: queue.Queue[Any] = queue.Queue()
+    session.get(keys.status(uav, service), zenoh.handlers.Callback(q.put, lambda: q.put(_END)),
+                timeout=timeout_s)
+    while True:
+        try:
+            item = q.get(timeout=timeout_s + 1.0)
+        except queue.Empty:
+            item = _END
+        if item is _END:
+            raise TimeoutError(f"no status from {service} within {timeout_s:.3g} s")
+        if item.ok is not None:
+            doc: dict[str, Any] = json.loads(item.ok.payload.to_bytes())
+            return doc
+
+
 # -- the service runner ---------------------------------------------------------------------------
 @dataclass
 class Context:
@@ -227,6 +359,7 @@ def run_service(settings: Settings, body: Body, zenoh_session: bool = True) -> i
     finished :data:`STOP_GRACE_S` after a signal the process exits anyway.
     """
     logsetup.configure(settings.service, settings.uav_id, settings.log_level, settings.log_format)
+    started = time.monotonic()
     stop = threading.Event()
     ctx = Context(settings, stop)
     signals: list[int] = []
@@ -252,7 +385,11 @@ def run_service(settings: Settings, body: Body, zenoh_session: bool = True) -> i
                 log.info("zenoh session open", extra=logsetup.fields(
                     mode=settings.zenoh_mode, connect=",".join(settings.zenoh_connect),
                     zid=str(session.info.zid())))
-                body(ctx)
+                close_status = serve_status(session, settings, stop, started)
+                try:
+                    body(ctx)
+                finally:
+                    close_status()
                 if ctx.token is not None:
                     ctx.token.undeclare()
         except Exception:
@@ -272,7 +409,7 @@ def run_service(settings: Settings, body: Body, zenoh_session: bool = True) -> i
         log.warning("body still busy after the stop grace period; exiting anyway")
     log.info("stopped", extra=logsetup.fields(
         signal=signals[0] if signals else 0, exit_code=code,
-        rejections=sum(codec.REJECTIONS.values())))
+        rejections=codec.REJECTED.total()))
     logging.shutdown()
     sys.stdout.flush()
     sys.stderr.flush()

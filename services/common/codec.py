@@ -4,8 +4,11 @@ Every decoder checks what the core would otherwise trust: the schema version,
 finite numbers, ranges (positions within ``MAX_ABS_M`` of the origin, speeds,
 forces) and sizes (fronts, hull vertices, horizon). A bad message raises
 :class:`CodecError` (a ValueError) with a code (MALFORMED: does not parse;
-INVALID: parses but fails validation); services call :func:`rejected`, which
-logs one line and counts it in :data:`REJECTIONS`, and never crash on input.
+INVALID: parses but fails validation) and a ``reason`` from the closed set
+:class:`Reason` (why, for counters); services call :func:`rejected`, which
+counts it per input key and reason in :data:`REJECTED` (served as each
+service's status, services/common/bus.py) and logs one line per rejection,
+rate-limited so a flood cannot fill the disk. Services never crash on input.
 
 Frames: the core's local frame is (east, north) in metres, state
 x = [p_east, p_north, v_east, v_north] (Sec. IV, 2-D at fixed altitude).
@@ -19,9 +22,11 @@ import collections
 import json
 import logging
 import math
+import threading
 import time
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
+from enum import StrEnum
 from typing import Any, TypeVar, cast
 
 import numpy as np
@@ -45,7 +50,11 @@ from .clock import Anchor, check_speed_factor
 log = logging.getLogger(__name__)
 
 SCHEMA_VERSION = 1
+MAX_PAYLOAD_BYTES = 8 * 1024 * 1024  # any one message on the bus (a mission's are ≪ 1 MB)
 MAX_ABS_M = 1.0e5  # positions and fire geometry (m)
+#: A plan request's positions, goal, waypoints and fires lie within the mission's area
+#: [0, A]² grown by this many A on every side: "far outside the area" is rejected.
+AREA_MARGIN = 1.0
 MAX_SPEED_MPS = 1.0e3
 MAX_FORCE_N = 1.0e4
 MAX_FRONTS = 256
@@ -53,35 +62,141 @@ MAX_VERTICES = 1024
 MAX_HORIZON = 10_000
 MAX_WAYPOINTS = 1000
 MAX_SUBSTEPS = 10_000
+MAX_SUBSTEP_S = 60.0  # T_f (s)
 MAX_TEXT = 65_536
-
-#: Rejected messages by kind since the process started (process-wide metric).
-REJECTIONS: collections.Counter[str] = collections.Counter()
+MIN_SPEED_FACTOR = 1.0e-3  # a paced clock: at least 1 simulated ms per wall s
+MAX_CLOCK_SKEW_S = 86_400.0  # a clock anchor within a day of the receiver's wall clock
+#: Encodings a payload may carry besides ``application/protobuf;<its type>``
+#: (a sender that does not name the type, e.g. a raw ``zenoh/bytes`` query).
+NEUTRAL_ENCODINGS = frozenset({"", "zenoh/bytes", "application/octet-stream",
+                               "application/protobuf"})
 
 M = TypeVar("M", bound=Message)
 
 
-class CodecError(ValueError):
-    """A message that cannot be used; ``code`` is an ErrorCode value."""
+class Reason(StrEnum):
+    """Why an input was rejected: the closed set the counters use."""
 
-    def __init__(self, code: common_pb2.ErrorCode, message: str):
+    MALFORMED = "malformed"            # does not parse
+    TOO_LARGE = "too_large"            # payload over MAX_PAYLOAD_BYTES
+    WRONG_TYPE = "wrong_type"          # encoding names another message type
+    SCHEMA_VERSION = "schema_version"  # header from another version of the contract
+    NOT_FINITE = "not_finite"          # NaN or ±inf where a number is needed
+    OUT_OF_RANGE = "out_of_range"      # a number or coordinate outside its range or the area
+    SIZE = "size"                      # too many or too few items, a wrong length
+    INVALID = "invalid"                # anything else: missing field, unknown enum, geometry...
+    OVERFLOW = "overflow"              # dropped: the service's inbox was full
+
+
+class CodecError(ValueError):
+    """A message that cannot be used; ``code`` is an ErrorCode value, ``reason`` a Reason."""
+
+    def __init__(self, code: common_pb2.ErrorCode, message: str,
+                 reason: Reason = Reason.INVALID):
         super().__init__(message)
         self.code = code
+        self.reason = reason
 
 
-def invalid(message: str) -> CodecError:
-    return CodecError(common_pb2.ERROR_CODE_INVALID, message)
+def invalid(message: str, reason: Reason = Reason.INVALID) -> CodecError:
+    return CodecError(common_pb2.ERROR_CODE_INVALID, message, reason)
 
 
-def rejected(what: str, err: Exception, logger: logging.Logger = log) -> None:
-    """Count and log a rejected message (never raises)."""
-    REJECTIONS[what] += 1
-    code = getattr(err, "code", common_pb2.ERROR_CODE_INVALID)
-    logger.warning(
-        "rejected %s: %s", what, err,
-        extra={"fields": {"what": what, "code": common_pb2.ErrorCode.Name(code),
-                          "rejections": REJECTIONS[what]}},
-    )
+class Rejections:
+    """Rejected inputs of this process per key and :class:`Reason` (thread-safe).
+
+    ``key`` is the Zenoh key the input came in on; a caller that does not
+    know it passes a label (the message kind), which :meth:`alias` can map to
+    the key. At most ``max_keys`` keys are kept, the rest count under
+    ``"(other)"``. Log lines are a token bucket (``log_burst`` lines, then
+    ``log_per_s`` a second); the lines it holds back are counted and reported
+    on the next line that is written.
+    """
+
+    OTHER = "(other)"
+
+    def __init__(self, max_keys: int = 256, log_burst: float = 20.0, log_per_s: float = 2.0):
+        self.max_keys = max_keys
+        self.log_burst = log_burst
+        self.log_per_s = log_per_s
+        self._lock = threading.Lock()
+        self._counts: dict[str, collections.Counter[str]] = {}
+        self._aliases: dict[str, str] = {}
+        #: rejections by the label callers passed (the message kind), as before keys existed
+        self.by_label: collections.Counter[str] = collections.Counter()
+        self._tokens = log_burst
+        self._refilled = time.monotonic()
+        self.suppressed = 0  # log lines held back since the last one written
+        self.suppressed_total = 0
+
+    def alias(self, label: str, key: str) -> None:
+        """Count rejections reported under ``label`` as rejections on ``key``."""
+        with self._lock:
+            self._aliases[label] = key
+
+    def add(self, key: str, reason: str, label: str | None = None) -> tuple[str, int, int]:
+        """Count one rejection; returns (key counted under, its total, lines to log: 0 or
+        1 + the number held back before it)."""
+        with self._lock:
+            self.by_label[label or key] += 1
+            key = self._aliases.get(key, key)
+            if key not in self._counts and len(self._counts) >= self.max_keys:
+                key = self.OTHER
+            counts = self._counts.setdefault(key, collections.Counter())
+            counts[reason] += 1
+            now = time.monotonic()
+            self._tokens = min(self.log_burst,
+                               self._tokens + (now - self._refilled) * self.log_per_s)
+            self._refilled = now
+            if self._tokens < 1.0:
+                self.suppressed += 1
+                self.suppressed_total += 1
+                return key, sum(counts.values()), 0
+            self._tokens -= 1.0
+            held, self.suppressed = self.suppressed, 0
+            return key, sum(counts.values()), 1 + held
+
+    def snapshot(self) -> dict[str, dict[str, int]]:
+        """{key: {reason: count}} (a copy)."""
+        with self._lock:
+            return {k: dict(c) for k, c in self._counts.items()}
+
+    def total(self) -> int:
+        with self._lock:
+            return sum(sum(c.values()) for c in self._counts.values())
+
+    def clear(self) -> None:
+        with self._lock:
+            self._counts.clear()
+            self.by_label.clear()
+
+
+#: Rejected inputs of this process per key and reason (each service serves it as its status).
+REJECTED = Rejections()
+#: Rejected messages by kind (the label passed to :func:`rejected`) since the process started.
+REJECTIONS = REJECTED.by_label
+
+
+def rejected(what: str, err: Exception, logger: logging.Logger = log, key: str | None = None,
+             reason: str | None = None) -> None:
+    """Count a rejected input under ``key`` (default: ``what``, or its alias) and log it.
+
+    Never raises. The log line is rate-limited (see :class:`Rejections`);
+    the counters are exact.
+    """
+    try:
+        why = str(reason or getattr(err, "reason", Reason.INVALID))
+        counted, n, lines = REJECTED.add(key or what, why, what)
+        if lines:
+            code = getattr(err, "code", common_pb2.ERROR_CODE_INVALID)
+            logger.warning(
+                "rejected %s on %s (%s): %s", what, counted, why, str(err)[:500],
+                extra={"fields": {"what": what, "key": counted, "reason": why,
+                                  "code": common_pb2.ErrorCode.Name(code),
+                                  "rejections": n, "suppressed_before": lines - 1}},
+            )
+    except Exception:  # counting must never take a service down
+        log.exception("could not count a rejection")
 
 
 # -- bytes ↔ messages -----------------------------------------------------------------------------
@@ -94,16 +209,26 @@ def encoding_name(msg_or_cls: Message | type[Message]) -> str:
     return f"application/protobuf;{full_name(msg_or_cls)}"
 
 
-def parse(payload: bytes, cls: type[M], encoding: str | None = None) -> M:
-    """Parse ``payload`` as ``cls`` and check its header; raises CodecError."""
-    if encoding and encoding.startswith("application/protobuf;") and encoding != encoding_name(cls):
-        raise invalid(f"expected {full_name(cls)}, got encoding {encoding}")
+def parse(payload: bytes, cls: type[M], encoding: str | None = None,
+          max_bytes: int = MAX_PAYLOAD_BYTES) -> M:
+    """Parse ``payload`` as ``cls`` and check its header; raises CodecError.
+
+    Rejects a payload over ``max_bytes``, an ``encoding`` other than
+    ``application/protobuf;<cls>`` or a neutral one (:data:`NEUTRAL_ENCODINGS`),
+    bytes that do not parse, and a header of another schema version.
+    """
+    if len(payload) > max_bytes:
+        raise invalid(f"{full_name(cls)} payload of {len(payload)} bytes exceeds {max_bytes}",
+                      Reason.TOO_LARGE)
+    if encoding and encoding not in NEUTRAL_ENCODINGS and encoding != encoding_name(cls):
+        raise invalid(f"expected {full_name(cls)}, got encoding {encoding[:200]}",
+                      Reason.WRONG_TYPE)
     msg = cls()
     try:
         msg.ParseFromString(bytes(payload))
-    except (DecodeError, RuntimeError, ValueError) as err:
+    except (DecodeError, RuntimeError, ValueError, RecursionError) as err:
         raise CodecError(common_pb2.ERROR_CODE_MALFORMED,
-                         f"{full_name(cls)} does not parse: {err}") from err
+                         f"{full_name(cls)} does not parse: {err}", Reason.MALFORMED) from err
     if "header" in cls.DESCRIPTOR.fields_by_name:
         check_header(msg.header)  # type: ignore[attr-defined]
     return msg
@@ -111,9 +236,11 @@ def parse(payload: bytes, cls: type[M], encoding: str | None = None) -> M:
 
 def check_header(h: common_pb2.Header) -> None:
     if h.schema_version != SCHEMA_VERSION:
-        raise invalid(f"schema_version {h.schema_version}, this build speaks {SCHEMA_VERSION}")
-    if not (math.isfinite(h.sim_time_s) and h.sim_time_s >= 0):
-        raise invalid(f"header sim_time_s must be finite and >= 0, got {h.sim_time_s}")
+        raise invalid(f"schema_version {h.schema_version}, this build speaks {SCHEMA_VERSION}",
+                      Reason.SCHEMA_VERSION)
+    _check_floats([h.sim_time_s], "header sim_time_s", 1e12)
+    if h.sim_time_s < 0:
+        raise invalid(f"header sim_time_s must be >= 0, got {h.sim_time_s}", Reason.OUT_OF_RANGE)
     _text(h.source, "header.source", 256)
     _text(h.vehicle_id, "header.vehicle_id", 256)
 
@@ -148,9 +275,10 @@ def _check_floats(vals: list[float], what: str, bound: float) -> list[float]:
     # plain Python: for the few numbers of a message this beats numpy's per-call overhead
     for v in vals:
         if not math.isfinite(v):
-            raise invalid(f"{what} must be finite, got {vals[:8]}")
+            raise invalid(f"{what} must be finite, got {vals[:8]}", Reason.NOT_FINITE)
         if abs(v) > bound:
-            raise invalid(f"{what} must lie within ±{bound:g}, got {vals[:8]}")
+            raise invalid(f"{what} must lie within ±{bound:g}, got {vals[:8]}",
+                          Reason.OUT_OF_RANGE)
     return vals
 
 
@@ -160,13 +288,20 @@ def _finite(values: Iterable[float], what: str, bound: float) -> Array:
 
 def _count(n: int, what: str, limit: int, minimum: int = 0) -> None:
     if not minimum <= n <= limit:
-        raise invalid(f"{what}: {n} items, allowed {minimum}..{limit}")
+        raise invalid(f"{what}: {n} items, allowed {minimum}..{limit}", Reason.SIZE)
 
 
 def _text(s: str, what: str, limit: int = MAX_TEXT) -> str:
     if len(s) > limit:
-        raise invalid(f"{what} longer than {limit} characters")
+        raise invalid(f"{what} longer than {limit} characters", Reason.SIZE)
     return s
+
+
+def _in_box(points: Array, lo: float, hi: float, what: str) -> None:
+    """Every (east, north) row of ``points`` lies in [lo, hi]² (m)."""
+    if len(points) and (points.min() < lo or points.max() > hi):
+        raise invalid(f"{what} lies outside [{lo:g}, {hi:g}] m (far outside the area)",
+                      Reason.OUT_OF_RANGE)
 
 
 # -- geometry -------------------------------------------------------------------------------------
@@ -180,7 +315,7 @@ def rect_from_msg(m: common_pb2.Rect, what: str = "rect") -> Rect:
     cx, cy, w, h = _check_floats([m.center_east_m, m.center_north_m, m.width_m, m.height_m],
                                  what, MAX_ABS_M)
     if w <= 0 or h <= 0:
-        raise invalid(f"{what} sides must be positive, got {w} x {h}")
+        raise invalid(f"{what} sides must be positive, got {w} x {h}", Reason.OUT_OF_RANGE)
     return Rect(float(cx), float(cy), float(w), float(h))
 
 
@@ -206,7 +341,7 @@ def packed_from_msg(values: Sequence[float], what: str, width: int, limit: int,
     """A packed repeated double field as (k, width) rows; checks count, finiteness and range."""
     n = len(values)
     if n % width:
-        raise invalid(f"{what}: {n} values is not a multiple of {width}")
+        raise invalid(f"{what}: {n} values is not a multiple of {width}", Reason.SIZE)
     _count(n // width, what, limit)
     return np.array(_check_floats(list(values), what, bound), dtype=float).reshape(-1, width)
 
@@ -219,14 +354,14 @@ def polygon_to_msg(poly: Polytope, out: common_pb2.Polygon) -> common_pb2.Polygo
 def polygon_from_msg(m: common_pb2.Polygon, what: str = "polygon") -> Polytope:
     pts = packed_from_msg(m.vertices_m, what, 2, MAX_VERTICES, MAX_ABS_M)
     if len(pts) < 3:
-        raise invalid(f"{what} needs at least 3 vertices, got {len(pts)}")
-    fast = _ccw_polytope(pts)
-    if fast is not None:
-        return fast
+        raise invalid(f"{what} needs at least 3 vertices, got {len(pts)}", Reason.SIZE)
     try:
-        return Polytope.from_vertices(pts)
-    except ValueError as err:
+        poly = _ccw_polytope(pts) or Polytope.from_vertices(pts)
+    except (ValueError, ArithmeticError) as err:
         raise invalid(f"{what}: {err}") from err
+    if not (np.all(np.isfinite(poly.A)) and np.all(np.isfinite(poly.b))):
+        raise invalid(f"{what}: degenerate polygon (no finite face normals)")
+    return poly
 
 
 def _ccw_polytope(v: Array) -> Polytope | None:
@@ -263,7 +398,7 @@ def _ccw_polytope(v: Array) -> Polytope | None:
 def check_state_values(x: Array, what: str = "state") -> Array:
     x = np.asarray(x, dtype=float)
     if x.shape != (4,):
-        raise invalid(f"{what} must have 4 entries, got shape {x.shape}")
+        raise invalid(f"{what} must have 4 entries, got shape {x.shape}", Reason.SIZE)
     _finite(x[:2], f"{what} position", MAX_ABS_M)
     _finite(x[2:], f"{what} velocity", MAX_SPEED_MPS)
     return x
@@ -309,8 +444,9 @@ def snapshot_from_msg(m: fire_pb2.FireState) -> FireSnapshot:
     """A FireState as the core's FireSnapshot (front hulls first, then extinct hulls)."""
     _count(len(m.fronts), "fronts", MAX_FRONTS)
     _count(len(m.extinct_hulls), "extinct hulls", MAX_FRONTS)
-    if not (math.isfinite(m.substep_s) and m.substep_s > 0):
-        raise invalid(f"substep_s must be positive, got {m.substep_s}")
+    _check_floats([m.substep_s], "substep_s", MAX_SUBSTEP_S)
+    if m.substep_s <= 0:
+        raise invalid(f"substep_s must be positive, got {m.substep_s}", Reason.OUT_OF_RANGE)
     regions, hulls, ids, born = [], [], [], []
     for i, f in enumerate(m.fronts):
         regions.append(rect_from_msg(f.region, f"front {i} region"))
@@ -340,15 +476,27 @@ def clock_to_msg(anchor: Anchor, out: common_pb2.Clock) -> common_pb2.Clock:
     return out
 
 
-def clock_from_msg(m: common_pb2.Clock) -> Anchor:
-    if not (math.isfinite(m.sim_time_s) and m.sim_time_s >= 0):
-        raise invalid(f"clock sim_time_s must be finite and >= 0, got {m.sim_time_s}")
+def clock_from_msg(m: common_pb2.Clock, now_ns: int | None = None) -> Anchor:
+    """A Clock as an Anchor; a paced clock's anchor must lie within
+    :data:`MAX_CLOCK_SKEW_S` of ``now_ns`` (default: this machine's wall clock)."""
+    _check_floats([m.sim_time_s], "clock sim_time_s", 1e12)
+    if m.sim_time_s < 0:
+        raise invalid(f"clock sim_time_s must be >= 0, got {m.sim_time_s}", Reason.OUT_OF_RANGE)
+    if math.isnan(m.speed_factor):
+        raise invalid("clock speed_factor is NaN", Reason.NOT_FINITE)
     try:
         factor = check_speed_factor(m.speed_factor)
     except ValueError as err:
-        raise invalid(str(err)) from err
+        raise invalid(str(err), Reason.OUT_OF_RANGE) from err
+    if factor and not MIN_SPEED_FACTOR <= factor <= 1e9:
+        raise invalid(f"clock speed_factor must be 0 (unpaced) or in [{MIN_SPEED_FACTOR:g}, 1e9],"
+                      f" got {factor}", Reason.OUT_OF_RANGE)
     if m.anchor_wall_ns < 0:
-        raise invalid("clock anchor must be >= 0")
+        raise invalid("clock anchor must be >= 0", Reason.OUT_OF_RANGE)
+    now_ns = time.time_ns() if now_ns is None else now_ns
+    if factor and abs(m.anchor_wall_ns - now_ns) > MAX_CLOCK_SKEW_S * 1e9:
+        raise invalid(f"clock anchor {m.anchor_wall_ns} ns is more than {MAX_CLOCK_SKEW_S:g} s "
+                      "from this machine's clock", Reason.OUT_OF_RANGE)
     return Anchor(float(m.sim_time_s), int(m.anchor_wall_ns), factor)
 
 
@@ -456,30 +604,49 @@ def plan_request_msg(
 
 
 def plan_request_from_msg(m: plan_pb2.PlanRequest) -> PlanRequest:
+    """A PlanRequest in core types.
+
+    Besides the field checks, everything must lie near the mission's area
+    [0, A]²: the goal inside it, the state, waypoints and fire geometry
+    within ``AREA_MARGIN``·A of it (anything farther is not this mission's).
+    """
     if m.system not in (1, 2):
-        raise invalid(f"system must be 1 or 2, got {m.system}")
+        raise invalid(f"system must be 1 or 2, got {m.system}", Reason.OUT_OF_RANGE)
     for sub in ("mission", "state", "fires"):
         if not m.HasField(sub):
             raise invalid(f"plan request without {sub}")
     ms = m.mission
-    area = float(ms.area_size_m)
-    if not (math.isfinite(area) and 0 < area <= MAX_ABS_M):
-        raise invalid(f"area_size_m must be in (0, {MAX_ABS_M:g}], got {area}")
+    area = _check_floats([ms.area_size_m], "area_size_m", MAX_ABS_M)[0]
+    if area <= 0:
+        raise invalid(f"area_size_m must be in (0, {MAX_ABS_M:g}], got {area}",
+                      Reason.OUT_OF_RANGE)
     goal = rect_from_msg(ms.goal, "goal")
+    if not goal.inside(Rect(area / 2, area / 2, area, area)):
+        raise invalid(f"goal {goal} lies outside the {area:g} m area", Reason.OUT_OF_RANGE)
+    lo, hi = -AREA_MARGIN * area, (1 + AREA_MARGIN) * area
     wps = points_from_msg(ms.operator_waypoints, "operator waypoints", MAX_WAYPOINTS)
-    if not (math.isfinite(m.deadline_s) and 0 < m.deadline_s <= 3600):
-        raise invalid(f"deadline_s must be in (0, 3600], got {m.deadline_s}")
+    _in_box(wps, lo, hi, "an operator waypoint")
+    _check_floats([m.deadline_s], "deadline_s", 3600)
+    if m.deadline_s <= 0:
+        raise invalid(f"deadline_s must be in (0, 3600], got {m.deadline_s}", Reason.OUT_OF_RANGE)
     check_header(m.state.header)
     check_header(m.fires.header)
     objective = objective_from_msg(m.objective)
     assert objective is not None
+    state = state_from_msg(m.state)
+    _in_box(state[None, :2], lo, hi, "the vehicle state")
+    fires = snapshot_from_msg(m.fires)
+    for i, h in enumerate(fires.hulls):
+        _in_box(h.vertices, lo, hi, f"fire hull {i}")
+    for i, r in enumerate(fires.regions):
+        _in_box(r.corners(), lo, hi, f"fire region {i}")
     return PlanRequest(
         seq=int(m.header.seq),
         mission=MissionSpec(_text(ms.mission_id, "mission_id", 256), int(ms.seed), goal, area,
                             wps if len(wps) else None),
         step=int(m.step), system=int(m.system), objective=objective,
-        state=state_from_msg(m.state), prev_control=force_from_msg(m.prev_control, "prev_control"),
-        fires=snapshot_from_msg(m.fires), deadline_s=float(m.deadline_s), prepare=m.prepare,
+        state=state, prev_control=force_from_msg(m.prev_control, "prev_control"),
+        fires=fires, deadline_s=float(m.deadline_s), prepare=m.prepare,
     )
 
 
@@ -505,35 +672,49 @@ def plan_to_msg(plan: Plan, step: int, request_seq: int, stamper: Stamper,
     if plan.path is not None:
         packed_to_msg(plan.path, m.path_m)
     try:
-        m.info_json = json.dumps(plan.info, default=_json_default, allow_nan=True)[:MAX_TEXT]
-    except (TypeError, ValueError):
-        m.info_json = "{}"
+        info = json.dumps(plan.info, default=_json_default, allow_nan=True)
+    except (TypeError, ValueError, RecursionError):
+        info = '{"info_unserializable": true}'
+    # cut JSON is no JSON: a too-long info is replaced, never truncated
+    m.info_json = info if len(info) <= MAX_TEXT else '{"info_truncated": true}'
     return m
 
 
 def plan_from_msg(m: plan_pb2.Plan, expected_system: int | None = None) -> Plan:
     if m.system not in (1, 2) or (expected_system is not None and m.system != expected_system):
-        raise invalid(f"plan from system {m.system}, expected {expected_system}")
+        raise invalid(f"plan from system {m.system}, expected {expected_system}",
+                      Reason.OUT_OF_RANGE)
     status = status_from_msg(m.status)
     states = packed_from_msg(m.states, "plan states", 4, MAX_HORIZON + 1, MAX_ABS_M)
     controls = packed_from_msg(m.controls, "plan controls", 2, MAX_HORIZON, MAX_FORCE_N)
     if status is PlanStatus.OK and (len(controls) < 1 or len(states) != len(controls) + 1):
         raise invalid(f"an OK plan needs T >= 1 controls and T+1 states, got "
-                      f"{len(controls)} / {len(states)}")
-    if not (math.isfinite(m.compute_time_s) and m.compute_time_s >= 0):
-        raise invalid(f"compute_time_s must be finite and >= 0, got {m.compute_time_s}")
+                      f"{len(controls)} / {len(states)}", Reason.SIZE)
+    _check_floats([m.compute_time_s], "compute_time_s", 1e6)
+    if m.compute_time_s < 0:
+        raise invalid(f"compute_time_s must be >= 0, got {m.compute_time_s}",
+                      Reason.OUT_OF_RANGE)
+    _check_floats([m.service_time_s], "service_time_s", 1e6)
+    if m.service_time_s < 0:
+        raise invalid(f"service_time_s must be >= 0, got {m.service_time_s}",
+                      Reason.OUT_OF_RANGE)
+    if m.HasField("cost"):
+        _check_floats([m.cost], "plan cost", math.inf)
     path = (packed_from_msg(m.path_m, "plan path", 2, MAX_HORIZON * 10, MAX_ABS_M)
             if len(m.path_m) else None)
+    info_json = _text(m.info_json, "plan info_json")
     try:
-        info = json.loads(m.info_json) if m.info_json else {}
-    except json.JSONDecodeError:
-        info = {}
+        info = json.loads(info_json) if info_json else {}
+    except (ValueError, RecursionError) as err:
+        raise invalid(f"plan info_json is not JSON: {str(err)[:200]}") from err
+    if not isinstance(info, dict):
+        raise invalid(f"plan info_json must be a JSON object, got {type(info).__name__}")
     return Plan(
         system=int(m.system), status=status, states=states, controls=controls,
         compute_time_s=float(m.compute_time_s),
         objective=objective_from_msg(m.objective, required=False),
         cost=float(m.cost) if m.HasField("cost") else None, path=path,
-        message=_text(m.message, "plan message"), info=info if isinstance(info, dict) else {},
+        message=_text(m.message, "plan message"), info=info,
     )
 
 
@@ -552,14 +733,21 @@ def decision_to_msg(d: Decision, commanded_system: int, stamper: Stamper,
 
 def decision_from_msg(m: supervisor_pb2.Decision) -> Decision:
     if len(m.xi) != 3 or len(m.p) != 3 or len(m.psi) != 2:
-        raise invalid("a decision has 3 ξ, 3 p and 2 ψ")
+        raise invalid("a decision has 3 ξ, 3 p and 2 ψ", Reason.SIZE)
     xi = _finite(m.xi, "xi", 1e6)
     p = _finite(m.p, "p", 1.0)
     psi = _finite(m.psi, "psi", 1e6)
-    if math.isnan(m.d_t_m) or m.d_t_m < 0:
-        raise invalid(f"d_t must be >= 0 (inf allowed), got {m.d_t_m}")
+    if np.any(xi <= 0):
+        raise invalid(f"ξ (Dirichlet concentrations) must be > 0, got {xi}", Reason.OUT_OF_RANGE)
+    if np.any(p < 0) or abs(float(p.sum()) - 1.0) > 1e-6:
+        raise invalid(f"p must be a probability vector, got {p}", Reason.OUT_OF_RANGE)
+    if math.isnan(m.d_t_m):
+        raise invalid("d_t is NaN", Reason.NOT_FINITE)
+    if m.d_t_m < 0:
+        raise invalid(f"d_t must be >= 0 (inf allowed), got {m.d_t_m}", Reason.OUT_OF_RANGE)
     if m.attention not in (1, 2, 3) or m.system not in (1, 2):
-        raise invalid(f"attention {m.attention} / system {m.system} out of range")
+        raise invalid(f"attention {m.attention} / system {m.system} out of range",
+                      Reason.OUT_OF_RANGE)
     objective = objective_from_msg(m.objective)
     assert objective is not None
     return Decision(t=int(m.step), d_t=float(m.d_t_m), xi=xi, p=p, attention=int(m.attention),

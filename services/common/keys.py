@@ -92,3 +92,14 @@ def alive_all(uav: str) -> str:
 def service_of(alive_key: str) -> str:
     """The service name at the end of a liveliness key."""
     return str(alive_key).rsplit("/", 1)[-1]
+
+
+def status(uav: str, service: str) -> str:
+    """Queryable of ``service``'s status (JSON: rejected inputs per key and reason, uptime)."""
+    if not _ID.match(service):
+        raise ValueError(f"bad service name {service!r}")
+    return f"{ns(uav)}/status/{service}"
+
+
+def status_all(uav: str) -> str:
+    return f"{ns(uav)}/status/*"

@@ -10,7 +10,10 @@
 * ``<ns>/ews/forecast``: after each command, the mean-motion forecast of each
   front over ``--forecast-horizon-s`` (services/ews/forecast.py).
 
-Bad commands get an error reply (dualpilot.v1.Error), never a crash.
+Bad commands get an error reply (dualpilot.v1.Error), never a crash; each is
+counted per key and reason in the status served on ``<ns>/status/ews``
+(services/common/bus.py). An advance whose clock would keep the EWS pacing
+for more than ``MAX_PACED_WAIT_S`` is refused, so no command can stall it.
 """
 
 from __future__ import annotations
@@ -19,6 +22,7 @@ import logging
 import math
 import sys
 import threading
+import time
 
 import numpy as np
 import zenoh
@@ -32,6 +36,9 @@ from services.msgs import common_pb2, fire_pb2
 from .forecast import envelope, forecast_regions
 
 log = logging.getLogger("services.ews")
+
+#: Longest wall time one advance may keep the EWS pacing its sub-steps (s).
+MAX_PACED_WAIT_S = 600.0
 
 
 class Ews:
@@ -75,9 +82,15 @@ class Ews:
                                     f"(current {self.mission_id!r}): send reset first")
             if cmd.step < self.step:
                 raise codec.invalid(f"step {cmd.step} is before the current step {self.step}")
-            self.step = cmd.step
             anchor = cmd.anchor
             t0 = anchor.sim_time_s if anchor is not None else self.sim_time_s
+            if anchor is not None:
+                wait = anchor.wall_at(t0 + cmd.substeps * self.params.substep_s) - time.time()
+                if wait > MAX_PACED_WAIT_S:
+                    raise codec.invalid(f"the clock would pace this advance for {wait:.3g} s "
+                                        f"(at most {MAX_PACED_WAIT_S:g})",
+                                        codec.Reason.OUT_OF_RANGE)
+            self.step = cmd.step
             waited = 0.0
             for k in range(1, cmd.substeps + 1):
                 self.field.substep(self.rng, cmd.step)
@@ -110,8 +123,9 @@ def body(ctx: bus.Context, params: FireParams, forecast_horizon_s: float) -> Non
     assert ctx.session is not None
     uav = ctx.settings.uav_id
     ews = Ews(ctx.session, uav, params, forecast_horizon_s, ctx.stop)
-    inbox = bus.Inbox()
-    queryable = ctx.session.declare_queryable(keys.fire_command(uav), inbox.on_query)
+    key = keys.fire_command(uav)
+    inbox = bus.Inbox(key)
+    queryable = ctx.session.declare_queryable(key, inbox.on_query)
     ctx.announce()
     while not ctx.stop.is_set():
         item = inbox.get(timeout=0.2)
@@ -123,7 +137,7 @@ def body(ctx: bus.Context, params: FireParams, forecast_horizon_s: float) -> Non
             bus.reply(item.query, ews.handle(cmd))
             ews.publish_forecast()  # after the reply: the supervisor is waiting for it
         except codec.CodecError as err:
-            codec.rejected("FireCommand", err, log)
+            codec.rejected("FireCommand", err, log, key=key)
             bus.reply_error(item.query, codec.error_msg(ews.stamper, err.code, str(err)))
         except Exception as err:  # a bug must not take the fire process down with it
             log.exception("fire command failed")

@@ -4,7 +4,8 @@ Answers PlanRequests on ``<ns>/plan/system1`` (services/common/planning.py)
 with :class:`dualpilot.system1.System1`, one instance per mission, seeded as
 :func:`dualpilot.factory.make_system1` does in-process. Operator waypoints
 come with the mission (PlanRequest.mission) and as live updates on
-``<ns>/operator/waypoints``.
+``<ns>/operator/waypoints``. Rejected inputs are counted per key and reason
+in the status served on ``<ns>/status/system1``.
 """
 
 from __future__ import annotations
@@ -14,7 +15,7 @@ import sys
 from dualpilot.factory import make_system1
 from dualpilot.mission import MissionConfig
 from dualpilot.plan import Planner
-from services.common import bus, codec, planning
+from services.common import bus, codec, keys, planning
 from services.common import cli as common_cli
 
 
@@ -30,7 +31,15 @@ def main(argv: list[str] | None = None) -> int:
         settings = common_cli.settings("system1", args)
     except ValueError as err:
         p.error(str(err))
-    return bus.run_service(settings, lambda ctx: planning.run(ctx, 1, make))
+    return bus.run_service(settings, lambda ctx: body(ctx, 1, make))
+
+
+def body(ctx: bus.Context, system: int, make: planning.PlannerMaker) -> None:
+    """planning.run, with its rejections counted under the keys they arrive on."""
+    uav = ctx.settings.uav_id
+    bus.alias("PlanRequest", keys.plan(uav, system))
+    bus.alias("OperatorWaypoints", keys.waypoints(uav))
+    planning.run(ctx, system, make)
 
 
 if __name__ == "__main__":

@@ -3,7 +3,8 @@
 Answers PlanRequests on ``<ns>/plan/system2`` (services/common/planning.py)
 with :func:`dualpilot.factory.make_system2_planner` (``--method`` one of
 :data:`dualpilot.system2_fast.METHODS`), built once per mission and re-solved
-each request.
+each request. Rejected inputs are counted per key and reason in the status
+served on ``<ns>/status/system2``.
 """
 
 from __future__ import annotations
@@ -16,7 +17,7 @@ from dualpilot.mission import MissionConfig
 from dualpilot.p2 import System2Params
 from dualpilot.plan import Planner
 from dualpilot.system2_fast import METHODS
-from services.common import bus, codec, planning
+from services.common import bus, codec, keys, planning
 from services.common import cli as common_cli
 
 
@@ -39,7 +40,13 @@ def main(argv: list[str] | None = None) -> int:
         return make_system2_planner(config, args.method, replace(params,
                                                                  area_size_m=mission.area_size_m))
 
-    return bus.run_service(settings, lambda ctx: planning.run(ctx, 2, make))
+    def body(ctx: bus.Context) -> None:
+        uav = ctx.settings.uav_id  # rejections counted under the keys they arrive on
+        bus.alias("PlanRequest", keys.plan(uav, 2))
+        bus.alias("OperatorWaypoints", keys.waypoints(uav))
+        planning.run(ctx, 2, make)
+
+    return bus.run_service(settings, body)
 
 
 if __name__ == "__main__":

@@ -1,0 +1,72 @@
+"""Planners under load: 50 active fire fronts against 1–9, in one run.
+
+For each instance (``dualpilot.bench.make_instance``: the paper's fire
+process, a free UAV state), the fast System 2 and System 1 plan once; every
+OK plan is checked independently (``dualpilot.bench.check_plan``). Prints the
+median and p95 wall time per group, the ratio of the medians, and how many
+plans were OK and verified.
+
+    .venv/bin/python benchmarks/load_fifty_fronts.py --instances 20 --seed 5
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import numpy as np
+
+from dualpilot.bench import GOAL, check_plan, make_instance
+from dualpilot.dynamics import DynamicsParams
+from dualpilot.p2 import System2Params
+from dualpilot.system1 import System1
+from dualpilot.system2_fast import FastSystem2
+
+
+def run(n_instances: int, seed: int) -> None:
+    dyn = DynamicsParams()
+    params = System2Params()
+    s2 = FastSystem2(GOAL, params, dyn)
+    groups = {"1-9 fronts": [1 + i % 9 for i in range(n_instances)],
+              "50 fronts": [50] * n_instances}
+    warm = make_instance(0, seed, 3)
+    s2.plan(warm.state, warm.hulls, warm.objective, warm.prev_control)
+    medians: dict[str, dict[str, float]] = {}
+    for group, counts in groups.items():
+        times: dict[str, list[float]] = {"system2": [], "system1": []}
+        ok = {"system2": 0, "system1": 0}
+        verified = {"system2": 0, "system1": 0}
+        for i, n_hulls in enumerate(counts):
+            inst = make_instance(i, seed, n_hulls)
+            s1 = System1(GOAL, np.random.default_rng(np.random.SeedSequence([seed, i])),
+                         dynamics=dyn)
+            for name, planner, eps in (("system2", s2, params.epsilon_m),
+                                       ("system1", s1, None)):
+                t0 = time.perf_counter()
+                plan = planner.plan(inst.state, inst.hulls, inst.objective, inst.prev_control)
+                times[name].append(time.perf_counter() - t0)
+                if plan.ok:
+                    ok[name] += 1
+                    verified[name] += check_plan(plan, inst, dyn, eps)[0]
+        medians[group] = {}
+        for name, ts in times.items():
+            med = float(np.median(ts))
+            medians[group][name] = med
+            print(f"{group:11s} {name}: median {1e3 * med:6.1f} ms, "
+                  f"p95 {1e3 * float(np.percentile(ts, 95)):6.1f} ms, "
+                  f"OK {ok[name]}/{len(ts)}, verified {verified[name]}/{ok[name]}")
+    for name in ("system2", "system1"):
+        ratio = medians["50 fronts"][name] / medians["1-9 fronts"][name]
+        print(f"{name}: median with 50 fronts / median with 1-9 = {ratio:.2f}")
+
+
+def main() -> None:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--instances", type=int, default=20)
+    p.add_argument("--seed", type=int, default=5)
+    args = p.parse_args()
+    run(args.instances, args.seed)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,89 @@
+"""A mission flown through the whole stack while a fuzzer floods every Zenoh entry point.
+
+The stack (router + five services, as docker-compose.yml) flies the seeded
+mission of test_mission.py; from the moment the services are alive until the
+mission ends, the test process throws bad input (tests/integration/test_fuzz.py's
+corpus: random/truncated bytes, wrong types, NaN, far-outside coordinates,
+unknown schema versions, 10 MB payloads) at ``ews/command``, ``plan/system1``,
+``plan/system2``, ``operator/waypoints`` and every ``status/<service>``.
+The mission must still reach the goal, every process exit cleanly, and every
+rejection be counted in the status of the service that received it.
+"""
+
+from __future__ import annotations
+
+import socket
+import threading
+import time
+from typing import Any
+
+import pytest
+from integration.conftest import _wait_until
+from integration.test_fuzz import FloodResult, check_counted, counters, flood
+
+from e2e.conftest import successful_seed
+from services import launch
+from services.common import bus
+
+pytestmark = [pytest.mark.slow, pytest.mark.timeout(420)]
+
+SPEED_FACTOR = 100.0
+SERVICES = ("ews", "system1", "system2", "supervisor", "uavsim")
+
+
+def _wait_router(endpoint: str) -> None:
+    host, port = endpoint.removeprefix("tcp/").rsplit(":", 1)
+    deadline = time.monotonic() + 30
+    while True:
+        try:
+            socket.create_connection((host, int(port)), timeout=0.5).close()
+            return
+        except OSError:
+            assert time.monotonic() < deadline, "router did not start"
+            time.sleep(0.05)
+
+
+def test_mission_succeeds_under_a_fuzz_flood(tmp_path: Any) -> None:
+    seed, _ = successful_seed()
+    run_dir = tmp_path / f"fuzz-cc-s{seed}"
+    cfg = launch.StackConfig(run_dir=run_dir, seed=seed, speed_factor=SPEED_FACTOR,
+                             controller="cc", timing="paper", free_ports=True, uav_id="fuzz",
+                             log_format="text")
+    stack = launch.Stack(cfg)
+    stop = threading.Event()
+    floods: list[FloodResult] = []
+    errors: list[BaseException] = []
+    with stack:
+        _wait_router(stack.endpoint)
+        with launch.client_session(stack.endpoint) as session:
+            live = bus.Liveliness(session, cfg.uav_id)
+            assert live.wait_for(["ews", "system1", "system2"], 90), live.missing(SERVICES)
+            before = counters(session, cfg.uav_id)
+
+            def fuzz() -> None:
+                try:
+                    floods.append(flood(session, cfg.uav_id, 10**9, huge=2, seed=7, stop=stop,
+                                        status_services=SERVICES))
+                except BaseException as err:  # reported by the main thread
+                    errors.append(err)
+
+            fuzzer = threading.Thread(target=fuzz, name="fuzzer", daemon=True)
+            fuzzer.start()
+            outcome = launch.follow(stack, timeout_s=300.0, quiet=True)
+            stop.set()
+            fuzzer.join(180)
+            assert not errors, errors
+            assert floods, "the fuzzer did not finish"
+            result = floods[0]
+            check_counted(session, cfg.uav_id, before, result, _wait_until)
+            statuses = {s: bus.query_status(session, cfg.uav_id, s) for s in SERVICES}
+    codes = {p.name: int(p.popen.returncode) for p in stack.group.procs}
+    logs = {n: (run_dir / "logs" / f"{n}.log").read_text() for n in SERVICES}
+    assert outcome.ended and outcome.success, (outcome, {n: t[-2000:] for n, t in logs.items()})
+    assert codes == dict.fromkeys(codes, 0), codes
+    sent = sum(result.sent.values())
+    assert min(result.sent.values()) > 100, result.sent
+    for name in ("ews", "system1", "system2"):
+        assert statuses[name]["rejected_total"] > 0, statuses[name]
+    print(f"\nfuzz during the mission: {sent} inputs in {result.wall_s:.1f} s "
+          f"({result.sent}); mission {outcome.steps} steps, success")
