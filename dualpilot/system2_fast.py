@@ -52,10 +52,17 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .dynamics import Array, DynamicsParams, rollout
-from .geometry import Polytope, Rect
+from .geometry import Polytope, Rect, SegmentChecker
 from .p2 import System2Params, p2_cost
 from .plan import Objective, Plan, PlanStatus
-from .s2_geometry import Inflated, disjunction_margin, homotopy_paths, resample, support_toward
+from .s2_geometry import (
+    FaceStack,
+    Inflated,
+    disjunction_margin,
+    homotopy_paths,
+    resample,
+    support_toward,
+)
 from .s2_qp import P2Qp, QpResult
 from .verify import Verdict, verify_trajectory
 
@@ -137,6 +144,7 @@ class _Cfs:
                  desired: Array, solve: Callable[..., QpResult], kappa: tuple[float, float],
                  retime: Callable[[float], Array] | None = None, max_elastic: int = 0) -> None:
         self.o, self.name, self.ref, self.polys = owner, name, ref, polys
+        self.faces = FaceStack.of(polys)
         self.desired, self.solve, self.kappa = desired, solve, kappa
         self.retime, self.max_elastic = retime, max_elastic
         self.slowdowns = [0.6, 0.35] if retime is not None else []
@@ -166,8 +174,7 @@ class _Cfs:
 
     def _activate(self, pos: Array) -> None:
         T = self.T
-        for i, q in enumerate(self.polys):
-            self.active[i, 2:T + 1] |= q.margin(pos[1:T]) < self.o.fast.near_m
+        self.active[:, 2:T + 1] |= (self.faces.margins(pos[1:T]) < self.o.fast.near_m).T
 
     def _rows(self) -> tuple[Array, Array, Array]:
         f, T = self.o.fast, self.T
@@ -383,7 +390,8 @@ class FastSystem2:
         eps = p.epsilon_m
         reach = _reach_radius(x0, p.horizon, self.dynamics)
         polys = [Inflated.make(h, eps) for h in hulls]
-        polys = [q for q in polys if float(np.max(q.margin(x0[:2]))) <= reach]
+        polys = [q for q, m in zip(polys, FaceStack.of(polys).margins(x0[:2])[0], strict=True)
+                 if m <= reach]
         info: dict[str, object] = {"n_hulls": len(polys), "n_hulls_input": len(hulls)}
         n_qp = 0
 
@@ -564,7 +572,8 @@ class FastSystem2:
         outside every Q (and in the area) is the target.
         """
         g = self.goal.center
-        if all(q.margin(g)[0] > 0 for q in polys):
+        faces = FaceStack.of(polys)
+        if np.all(faces.margins(g) > 0):
             return g
         cands = []
         for q in polys:
@@ -578,9 +587,7 @@ class FastSystem2:
             bis = n_prev + q.A
             cands.append(a + 2.0 * bis / np.maximum(np.linalg.norm(bis, axis=1), 1e-9)[:, None])
         pts = np.vstack(cands)
-        free = np.ones(len(pts), dtype=bool)
-        for q in polys:
-            free &= q.margin(pts) > 0
+        free = np.all(faces.margins(pts) > 0, axis=1)
         if self.area is not None:
             free &= np.all((pts >= 0.0) & (pts <= self.area), axis=1)
         if not np.any(free):
@@ -598,12 +605,8 @@ class FastSystem2:
     def _violations(self, pos: Array, polys: list[Inflated]) -> NDArray[np.int64]:
         """(τ, i) pairs (τ = 2..T) where the disjunction fails."""
         T = self.params.horizon
-        bad: list[tuple[int, int]] = []
-        for i, q in enumerate(polys):
-            m = q.margin(pos[1:T])
-            tt = np.flatnonzero(m < 0) + 2
-            bad.extend((int(t), i) for t in tt)
-        return np.array(bad, dtype=np.int64).reshape(-1, 2)
+        hull, tt = np.nonzero(FaceStack.of(polys).margins(pos[1:T]).T < 0)  # hull-major
+        return np.column_stack([tt + 2, hull]).astype(np.int64).reshape(-1, 2)
 
 
 # ------------------------------------------------------------------ helpers
@@ -686,13 +689,16 @@ def _check_inputs(state: Array, hulls: Sequence[Polytope], objective: Objective,
 def _start_checks(x0: Array, hulls: tuple[Polytope, ...], params: System2Params,
                   dyn: DynamicsParams, clearance_m: float) -> tuple[PlanStatus, str] | None:
     """The statuses ExactSystem2 gives before solving, for the same reasons."""
-    for i, hull in enumerate(hulls):
-        dist = hull.distance(x0[:2])
-        if dist < clearance_m:
-            return (PlanStatus.INVALID_INPUT,
-                    f"start {x0[:2]} is {dist:.2f} m from hull {i} (< d_safe {clearance_m} m): "
-                    "no safe plan can start here")
+    p0 = x0[:2]
     p1 = x0[:2] + dyn.dt_s * x0[2:]
+    checker = SegmentChecker(hulls)
+    if checker.point_distance(p0) < clearance_m:  # all hulls at once; the loop names one
+        for i, hull in enumerate(hulls):
+            dist = hull.distance(p0)
+            if dist < clearance_m:
+                return (PlanStatus.INVALID_INPUT,
+                        f"start {p0} is {dist:.2f} m from hull {i} (< d_safe {clearance_m} m): "
+                        "no safe plan can start here")
     for i, hull in enumerate(hulls):
         margin = float(np.max(hull.A @ p1 - hull.b))
         if margin < params.epsilon_m:
@@ -703,7 +709,7 @@ def _start_checks(x0: Array, hulls: tuple[Polytope, ...], params: System2Params,
         return (PlanStatus.INFEASIBLE,
                 f"x_(t+1|t) position {p1} is fixed by the current velocity and lies outside "
                 "the area: (P2) is infeasible")
-    first_gap = min((h.segment_distance(x0[:2], p1) for h in hulls), default=math.inf)
+    first_gap = float(checker.distances(p0[None], p1[None])[0])
     if first_gap < clearance_m:
         return (PlanStatus.UNSAFE,
                 f"the first segment, fixed by the current velocity, passes {first_gap:.2f} m "
