@@ -1,20 +1,33 @@
-"""Mission records on disk: summary.json, steps.csv and trace.json.
+"""Mission records on disk: summary.json, steps.csv and trace.json, and steps.jsonl.
 
 ``steps.csv`` has one row per step (``system`` and ``attention`` 1-based as in
 the paper; ``system`` 0 means no plan was flown and the UAV braked).
 ``trace.json`` keeps what the figures need: per step the planned positions
-and the fire regions and hulls the planners saw.
+and the fire regions and hulls the planners saw. Those three are written when a mission ends;
+``steps.jsonl`` (:class:`StepLog`) is written as the mission goes, one JSON
+line per step, flushed at once, so it survives a crash of the writer (at
+most the line being written is lost) and a mission can be rebuilt from it
+(:func:`result_from_log`).
 """
 
 from __future__ import annotations
 
 import csv
+import enum
 import json
+import os
+import time
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
-from .mission import MissionResult
+from .dynamics import Array
+from .fire import FireSnapshot
+from .geometry import Polytope, Rect
+from .mission import MissionConfig, MissionResult, StepRecord
+from .plan import Objective
+from .supervisor import Decision
 
 STEP_COLUMNS = [
     "t",
@@ -133,3 +146,177 @@ def read_steps_csv(path: Path) -> dict[str, np.ndarray]:
         except ValueError:
             cols[name] = np.array(vals, dtype=object)
     return cols
+
+
+# -- the incremental record: steps.jsonl ----------------------------------------------------------
+#: Name of the incremental record next to steps.csv.
+STEP_LOG = "steps.jsonl"
+
+
+def _floats(a: object) -> list[object]:
+    """Full precision (a float's repr round-trips); non-finite values as text."""
+    return [_num(float(v)) for v in np.asarray(a, dtype=float).ravel()]
+
+
+def _back(vals: list[Any]) -> Array:
+    return np.array([float(v) for v in vals])  # float("inf") / float("nan") parse
+
+
+def record_to_json(r: StepRecord) -> dict[str, object]:
+    """One :class:`StepRecord` as a JSON-able dict (state, control and decision exact; the
+    plan and fire geometry to 1e-3 m; inf/nan as text)."""
+    d = r.decision
+    return {
+        "t": r.t, "state": _floats(r.state), "control": _floats(r.control), "system": r.system,
+        "plan_status": r.plan_status, "planning_time_s": r.planning_time_s,
+        "fire_substeps": r.fire_substeps, "d_t": _num(r.d_t), "fires_active": r.fires_active,
+        "decision": {"t": d.t, "d_t": _num(d.d_t), "xi": _floats(d.xi), "p": _floats(d.p),
+                     "attention": d.attention, "psi": _floats(d.psi), "system": d.system,
+                     "objective": d.objective.value},
+        "plan": np.round(np.asarray(r.planned_positions, dtype=float), 3).tolist(),
+        "regions": [[rc.center_x, rc.center_y, rc.width, rc.height] for rc in r.snapshot.regions],
+        "hulls": [np.round(h.vertices, 3).tolist() for h in r.snapshot.hulls],
+        "front_ids": list(r.snapshot.front_ids), "born_steps": list(r.snapshot.born_steps),
+        "info": json.loads(json.dumps(r.info, default=str)),
+    }
+
+
+def record_from_json(doc: dict[str, Any]) -> StepRecord:
+    """The inverse of :func:`record_to_json`."""
+    d = doc["decision"]
+    decision = Decision(t=int(d["t"]), d_t=float(d["d_t"]), xi=_back(d["xi"]), p=_back(d["p"]),
+                        attention=int(d["attention"]), psi=_back(d["psi"]),
+                        system=int(d["system"]), objective=Objective(d["objective"]))
+    plan = np.asarray(doc["plan"], dtype=float)
+    snapshot = FireSnapshot(
+        regions=tuple(Rect(*(float(v) for v in rc)) for rc in doc["regions"]),
+        hulls=tuple(Polytope.from_vertices(np.asarray(h, dtype=float)) for h in doc["hulls"]),
+        front_ids=tuple(int(v) for v in doc.get("front_ids", [])),
+        born_steps=tuple(int(v) for v in doc.get("born_steps", [])))
+    return StepRecord(
+        t=int(doc["t"]), state=_back(doc["state"]), control=_back(doc["control"]),
+        decision=decision, system=int(doc["system"]), plan_status=str(doc["plan_status"]),
+        planning_time_s=float(doc["planning_time_s"]), fire_substeps=int(doc["fire_substeps"]),
+        d_t=float(doc["d_t"]), fires_active=int(doc["fires_active"]),
+        planned_positions=plan if plan.size else np.empty((0, 4)), snapshot=snapshot,
+        info=dict(doc.get("info", {})))
+
+
+class StepLog:
+    """An append-only JSON-lines record, one object per line, flushed as it goes.
+
+    Each :meth:`write` appends one line ``{"kind": …, …}`` and flushes it to
+    the operating system at once (``flush_every_s`` = 0, the default) or when
+    the previous flush is at least ``flush_every_s`` old, so a SIGKILL of the
+    writing process loses at most the lines of the last ``flush_every_s``
+    seconds (with 0: at most the line being written, which
+    :func:`read_step_log` skips). ``fsync_every_s`` also asks the disk to
+    keep them (against power loss; None: never).
+    """
+
+    def __init__(self, path: Path, flush_every_s: float = 0.0,
+                 fsync_every_s: float | None = None):
+        if flush_every_s < 0 or (fsync_every_s is not None and fsync_every_s < 0):
+            raise ValueError("flush_every_s and fsync_every_s must be >= 0")
+        self.path = Path(path)
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        self.fh = self.path.open("a", encoding="utf-8")
+        self.flush_every_s = flush_every_s
+        self.fsync_every_s = fsync_every_s
+        self._flushed = self._synced = time.monotonic()
+        self.lines = 0
+
+    def write(self, kind: str, **fields: object) -> None:
+        """Append ``{"kind": kind, **fields}`` as one line."""
+        line = json.dumps(_clean({"kind": kind, **fields}), allow_nan=False)
+        self.fh.write(line + "\n")
+        self.lines += 1
+        now = time.monotonic()
+        if now - self._flushed >= self.flush_every_s:
+            self.fh.flush()
+            self._flushed = now
+            if self.fsync_every_s is not None and now - self._synced >= self.fsync_every_s:
+                os.fsync(self.fh.fileno())
+                self._synced = now
+
+    def step(self, record: StepRecord, **extra: object) -> None:
+        """Append one step: the record (:func:`record_to_json`) and ``extra`` fields."""
+        self.write("step", **record_to_json(record), **extra)
+
+    def close(self) -> None:
+        if not self.fh.closed:
+            self.fh.flush()
+            self.fh.close()
+
+    def __enter__(self) -> StepLog:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+def _clean(v: Any) -> Any:
+    """JSON-able: arrays as lists, enums as values, non-finite floats as "inf"/"-inf"/"nan"."""
+    if isinstance(v, dict):
+        return {str(k): _clean(x) for k, x in v.items()}
+    if isinstance(v, list | tuple):
+        return [_clean(x) for x in v]
+    if isinstance(v, np.ndarray):
+        return _clean(v.tolist())
+    if isinstance(v, np.generic):
+        return _clean(v.item())
+    if isinstance(v, enum.Enum):
+        return _clean(v.value)
+    if isinstance(v, float):
+        return v if np.isfinite(v) else ("nan" if v != v else "inf" if v > 0 else "-inf")
+    if v is None or isinstance(v, str | int | bool):
+        return v
+    return str(v)
+
+
+def read_step_log(path: Path) -> list[dict[str, Any]]:
+    """Every complete line of a :class:`StepLog` (a torn last line, from a crash, is skipped)."""
+    out: list[dict[str, Any]] = []
+    with Path(path).open(encoding="utf-8") as fh:
+        for line in fh:
+            if not line.endswith("\n"):
+                break  # the line being written when the writer died
+            try:
+                out.append(json.loads(line))
+            except json.JSONDecodeError:
+                break
+    return out
+
+
+def result_from_log(entries: list[dict[str, Any]], dt_s: float = 1.0) -> MissionResult:
+    """Rebuild a mission's result from its record: the ``mission`` line, then its steps.
+
+    Energy, switches and time are re-accounted with :meth:`MissionResult.add_flight`
+    over the steps that were flown: a step line's ``flown`` (default: every step but
+    a final one caught while planning).
+    """
+    head = next((e for e in entries if e.get("kind") == "mission"), None)
+    if head is None:
+        raise ValueError("the record has no 'mission' line")
+    g = head["goal"]
+    config = MissionConfig(start=(float(head["start"][0]), float(head["start"][1])),
+                           goal=Rect(*(float(v) for v in g)),
+                           area_size_m=float(head["area_size_m"]))
+    result = MissionResult(controller=str(head["controller"]), seed=int(head["seed"]),
+                           timing=str(head["timing"]), config=config)
+    steps = [e for e in entries if e.get("kind") == "step"]
+    end = next((e for e in reversed(entries) if e.get("kind") == "end"), None)
+    caught = end is not None and end.get("failure_cause") == "fire_while_planning"
+    prev = np.zeros(2)
+    for i, e in enumerate(steps):
+        rec = record_from_json(e)
+        result.records.append(rec)
+        if e.get("flown", not (caught and i == len(steps) - 1)):
+            result.add_flight(rec.control, prev, dt_s)
+            prev = rec.control
+    if end is not None:
+        result.success = bool(end["success"])
+        result.failure_cause = str(end["failure_cause"])
+        if end.get("final_state") is not None:
+            result.final_state = _back(end["final_state"])
+    return result

@@ -20,6 +20,7 @@ import time
 from collections import OrderedDict
 from collections.abc import Callable
 
+import numpy as np
 import zenoh
 
 from dualpilot.plan import Plan, Planner, PlanStatus
@@ -33,6 +34,12 @@ log = logging.getLogger(__name__)
 PlannerMaker = Callable[[codec.MissionSpec], Planner]
 
 
+def _same(a: codec.Array | None, b: codec.Array | None) -> bool:
+    if a is None or b is None:
+        return a is None and b is None
+    return a.shape == b.shape and bool(np.array_equal(a, b))
+
+
 class PlannerService:
     """Answers plan requests for one system with planners made per mission."""
 
@@ -44,18 +51,30 @@ class PlannerService:
         self.keep = keep_missions
         self.waypoints: codec.Array | None = None
         self.waypoints_changed = False
+        self.requested: dict[str, codec.Array | None] = {}  # last requests' waypoints
 
     def planner_for(self, mission: codec.MissionSpec) -> Planner:
-        planner = self.planners.get(mission.mission_id)
+        """The mission's planner (made on its first request), with operator waypoints applied
+        whenever they change: the requests' (each carries the supervisor's current ones; a
+        new planner, e.g. after a restart of this service, gets them at once) and, between
+        two requests, an update on ``operator/waypoints`` (kept until the requests' change)."""
+        mid = mission.mission_id
+        planner = self.planners.get(mid)
+        fresh = planner is None
         if planner is None:
             planner = self.make(mission)
-            if mission.waypoints is not None and hasattr(planner, "set_waypoints"):
-                planner.set_waypoints(mission.waypoints)
-            self.planners[mission.mission_id] = planner
+            self.planners[mid] = planner
             while len(self.planners) > self.keep:
-                self.planners.popitem(last=False)
-            log.info("planner ready", extra=fields(mission=mission.mission_id, seed=mission.seed))
-        if self.waypoints_changed and hasattr(planner, "set_waypoints"):
+                old, _ = self.planners.popitem(last=False)
+                self.requested.pop(old, None)
+            log.info("planner ready", extra=fields(mission=mid, seed=mission.seed))
+        if not hasattr(planner, "set_waypoints"):
+            return planner
+        if fresh or not _same(mission.waypoints, self.requested.get(mid)):
+            self.requested[mid] = None if mission.waypoints is None else mission.waypoints.copy()
+            if mission.waypoints is not None or not fresh:
+                planner.set_waypoints(mission.waypoints)
+        if self.waypoints_changed:  # an operator update on operator/waypoints
             planner.set_waypoints(self.waypoints)
             self.waypoints_changed = False
         return planner
@@ -139,7 +158,7 @@ def run(ctx: bus.Context, system: int, make: PlannerMaker) -> None:
                 service.set_operator_waypoints(codec.waypoints_from_msg(msg))
                 log.info("operator waypoints", extra=fields(n=len(msg.waypoints)))
             except codec.CodecError as err:
-                codec.rejected("OperatorWaypoints", err, log)
+                codec.rejected("OperatorWaypoints", err, log, key=keys.waypoints(uav))
         if item is None or item.query is None:
             continue
         out = service.handle(item.payload, item.encoding)

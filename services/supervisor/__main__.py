@@ -12,7 +12,6 @@ It then keeps streaming the last setpoint until stopped (or exits with
 from __future__ import annotations
 
 import logging
-import sys
 import time
 from pathlib import Path
 
@@ -132,7 +131,8 @@ def main(argv: list[str] | None = None) -> int:
             mission = StackMission(
                 ctx.session, link, settings.uav_id, mission_id, controller, args.seed, timing,
                 SimClock(settings.speed_factor), ctx.stop, goal=goal,
-                area_size_m=args.area_size_m, waypoints=waypoints, params=params, stack=stack)
+                area_size_m=args.area_size_m, waypoints=waypoints, params=params, stack=stack,
+                live=live, record_dir=Path(args.out) if args.out else None)
             t0 = time.perf_counter()
             aborted = ""
             try:
@@ -142,6 +142,8 @@ def main(argv: list[str] | None = None) -> int:
                 if not ctx.stop.is_set():
                     log.error("mission aborted", extra=fields(reason=aborted))
                     ctx.exit_code = 1
+            finally:
+                mission.close_record()
             wall = time.perf_counter() - t0
             out = Path(args.out) if args.out else None
             if out is not None and mission.result is not None and mission.result.records:
@@ -166,4 +168,4 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    bus.leave(main())

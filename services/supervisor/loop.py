@@ -34,6 +34,17 @@ PlanRequest (``mission.operator_waypoints``) and, once the planners are
 prepared, on ``operator/waypoints``. A mission that was never uploaded
 (``MIS_ID`` 0) keeps the ``--waypoints`` flag's.
 
+Faults (README, Tests → Faults): a planner whose liveliness token is gone is
+not asked (``s<k>:unavailable``); with none alive the step brakes and, once
+at rest, the mission pauses until one is back. A plan reply older than its
+deadline, or for another step, is never flown. FireAdvance sub-steps the EWS
+does not confirm are owed; the data is then stale and the planners avoid the
+last known hulls grown by the fastest credible spread
+(services/supervisor/faults.py) until an EWS is reset and replayed. Every
+step is appended to ``steps.jsonl`` as it happens (dualpilot.records.StepLog);
+a supervisor restarted with the same mission id and run directory resumes
+from it (:meth:`StackMission._resume`).
+
 Records (:class:`MissionResult` / :class:`StepRecord`) are the in-process
 ones, so ``summary.json``, ``steps.csv`` and ``trace.json`` have the same
 format and :func:`dualpilot.plots.make_figures` draws them; ``latency.csv``
@@ -73,12 +84,20 @@ from dualpilot.mission import (
     planning_time,
 )
 from dualpilot.plan import Objective, Plan, PlanStatus
+from dualpilot.records import (
+    STEP_LOG,
+    StepLog,
+    read_step_log,
+    record_to_json,
+    result_from_log,
+)
 from dualpilot.supervisor import Decision, Supervisor, SupervisorParams
 from services.common import bus, codec, keys
 from services.common.clock import SimClock
 from services.common.log import fields
 from services.msgs import common_pb2, fire_pb2, plan_pb2, supervisor_pb2, vehicle_pb2
 
+from .faults import StaleFireParams, credible_margin_m, grown_fire_msg
 from .link import OffboardError, VehicleLink
 
 log = logging.getLogger(__name__)
@@ -101,7 +120,12 @@ class StackParams:
     altitude_m: float = 50.0
     offboard_timeout_s: float = 30.0  # taking the vehicle (heartbeat, position, mode, arm)
     mission_wait_s: float = 5.0       # downloading the vehicle's mission before step 0
+    prepare_timeout_s: float = 60.0   # a planner's warm-up (not a flight plan: no deadline)
     pause_limit_s: float = 300.0      # abort when paused for longer
+    #: fire data at least this old (simulated s) is stale (services/supervisor/faults.py)
+    stale: StaleFireParams = StaleFireParams()
+    #: flush the step record (steps.jsonl) at most this long after a line (s); 0: every line
+    record_flush_s: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -172,8 +196,18 @@ class StackMission:
         dynamics: DynamicsParams = DynamicsParams(),
         supervisor_params: SupervisorParams = SupervisorParams(),
         stack: StackParams = StackParams(),
+        live: bus.Liveliness | None = None,
+        record_dir: Path | None = None,
     ):
         self.session = session
+        self.live = live
+        self.record_dir = record_dir
+        self.step_log: StepLog | None = None
+        #: (step, sub-steps) of every FireAdvance the fire world should have had, in order
+        self.fire_history: list[tuple[int, int]] = []
+        self.fire_owed = 0  # sub-steps the EWS did not confirm (the fire data's age / T_f)
+        self.resumed_at: int | None = None
+        self.holding = ""
         self.link = link
         self.uav = uav
         self.mission_id = mission_id
@@ -219,11 +253,15 @@ class StackMission:
     def _fire_command(self, cmd: fire_pb2.FireCommand) -> fire_pb2.FireUpdate:
         cmd.mission_id = self.mission_id
         self.stamper.stamp(cmd.header, self._now())
+        key = keys.fire_command(self.uav)
         try:
-            payload, enc = bus.request(self.session, keys.fire_command(self.uav), cmd,
-                                       self.stack.fire_timeout_s, self.stop)
+            payload, enc = bus.request(self.session, key, cmd, self.stack.fire_timeout_s,
+                                       self.stop)
             update = codec.parse(payload, fire_pb2.FireUpdate, enc)
-        except (TimeoutError, bus.QueryError, codec.CodecError) as err:
+        except codec.CodecError as err:
+            codec.rejected("FireUpdate", err, log, key=key)
+            raise Aborted(f"EWS: {err}") from err
+        except (TimeoutError, bus.QueryError) as err:
             raise Aborted(f"EWS: {err}") from err
         if not update.states:
             raise Aborted("EWS replied without a fire state")
@@ -244,7 +282,22 @@ class StackMission:
         codec.state_to_msg(self.state, t, m, self.stack.altitude_m)
         bus.put(self.pubs["state"], "", m)
 
+    def _alive(self, service: str) -> bool:
+        """The service's liveliness token is up (always True without a tracker)."""
+        return self.live is None or not self.live.missing({service})
+
+    def _record(self, kind: str, **fields_: object) -> None:
+        """Append a line to the step record (steps.jsonl), if there is one."""
+        if self.step_log is not None and not self.step_log.fh.closed:
+            try:
+                self.step_log.write(kind, wall_time_s=round(time.time(), 3), **fields_)
+            except (OSError, ValueError) as err:  # a full disk must not stop the vehicle
+                log.error("step record not written", extra=fields(error=str(err)))
+
     def _event(self, kind: supervisor_pb2.MissionEventKind, **kw: object) -> None:
+        if kind != supervisor_pb2.MISSION_EVENT_KIND_STEP:
+            self._record("event", event=supervisor_pb2.MissionEventKind.Name(kind).rsplit(
+                "_", 1)[-1].lower(), **{k: v for k, v in kw.items() if k != "position"})
         m = supervisor_pb2.MissionEvent(kind=kind, mission_id=self.mission_id,
                                         controller=self.controller.value, seed=self.seed)
         self.stamper.stamp(m.header, self._now())
@@ -349,6 +402,10 @@ class StackMission:
         got = self.link.wait_state(0, self.stack.vehicle_timeout_s, self.stop)
         if got is None:
             raise Aborted("no LOCAL_POSITION_NED from the vehicle")
+        prior = self._prior_record()
+        if prior is not None:
+            self._resume(prior, got)
+            return
         self.base_ms, x0 = got
         self.state = x0  # at rest at boot: the in-process mission's hover_state(start)
         config = MissionConfig(start=(float(x0[0]), float(x0[1])), goal=self.goal,
@@ -365,12 +422,168 @@ class StackMission:
         self._prepare({Controller.CC: [1, 2], Controller.S1: [1],
                        Controller.S2: [2]}[self.controller])
         self.prepared = True
+        self._open_record()
         self._publish_state(0)
         self._event(supervisor_pb2.MISSION_EVENT_KIND_STARTED, position=self.state,
                     message=f"timing={self.timing.value} speed_factor={self.clock.speed_factor}")
         log.info("mission started", extra=fields(
             mission=self.mission_id, controller=self.controller.value, seed=self.seed,
             timing=self.timing.value, start_east_m=float(x0[0]), start_north_m=float(x0[1])))
+
+    # -- the step record and a restarted supervisor ----------------------------------------------
+    def _open_record(self) -> None:
+        """Start ``steps.jsonl`` in the run directory: the mission line first."""
+        if self.record_dir is None or self.result is None:
+            return
+        path = self.record_dir / STEP_LOG
+        fresh = self.resumed_at is None
+        if fresh and path.exists():
+            path.replace(path.with_suffix(f".{int(time.time())}.jsonl"))  # another mission's
+        self.step_log = StepLog(path, flush_every_s=self.stack.record_flush_s)
+        if fresh:
+            c = self.result.config
+            self._record("mission", mission_id=self.mission_id, controller=self.controller.value,
+                         seed=self.seed, timing=self.timing.value, start=list(c.start),
+                         goal=[c.goal.center_x, c.goal.center_y, c.goal.width, c.goal.height],
+                         area_size_m=c.area_size_m, substep_s=self.fire_params.substep_s,
+                         dt_s=self.dyn.dt_s, speed_factor=self.clock.speed_factor)
+
+    def _prior_record(self) -> list[dict[str, object]] | None:
+        """This mission's record left by a supervisor that stopped before its end, if any."""
+        if self.record_dir is None or not (self.record_dir / STEP_LOG).is_file():
+            return None
+        try:
+            entries = read_step_log(self.record_dir / STEP_LOG)
+        except (OSError, UnicodeDecodeError) as err:
+            log.warning("unreadable step record: a new mission", extra=fields(error=str(err)))
+            return None
+        head = next((e for e in entries if e.get("kind") == "mission"), None)
+        if head is None or head.get("mission_id") != self.mission_id or any(
+                e.get("kind") == "end" for e in entries):
+            return None
+        return entries
+
+    def _resume(self, entries: list[dict[str, object]], got: tuple[int, Array]) -> None:
+        """Pick the mission up where its record ends, from the vehicle's state now.
+
+        The record gives the steps flown (rebuilt into :attr:`result`), the
+        attention stream (each recorded decision is replayed, so the supervisor's
+        random stream and Ψ continue as if it had never stopped), the fire
+        history (the EWS is reset and replayed to the same fire world) and the
+        simulated time; the vehicle (holding since the failsafe) gives x_t.
+        """
+        self.result = result_from_log(entries, self.dyn.dt_s)  # type: ignore[arg-type]
+        head = next(e for e in entries if e.get("kind") == "mission")
+        steps = [e for e in entries if e.get("kind") == "step"]
+        for rec in self.result.records:
+            self.supervisor.decide(rec.t, rec.d_t)
+        if self.result.records:
+            self.prev_control = np.asarray(self.result.records[-1].control, dtype=float)
+        self.fire_history = [(int(e["t"]), int(e["fire_substeps"]))  # type: ignore[call-overload]
+                             for e in steps]
+        sim_s = float(steps[-1].get("sim_time_s", 0.0)) if steps else 0.0  # type: ignore[arg-type]
+        self.clock.now_s = sim_s
+        vehicle_ms, self.state = got
+        self.base_ms = vehicle_ms - round(sim_s * 1000)
+        self.fire_params = replace(FireParams(), substep_s=float(
+            head.get("substep_s", FireParams().substep_s)))  # type: ignore[arg-type]
+        self.resumed_at = self.result.steps
+        self._replay_fires()
+        self._prepare({Controller.CC: [1, 2], Controller.S1: [1],
+                       Controller.S2: [2]}[self.controller])
+        self.prepared = True
+        self._open_record()
+        self._publish_state(self.result.steps)
+        msg = (f"supervisor restarted: mission picked up at step {self.result.steps} from the "
+               f"vehicle's state ({self.state[0]:.1f}, {self.state[1]:.1f})")
+        log.info("mission resumed from its record", extra=fields(
+            mission=self.mission_id, step=self.result.steps, fire_substeps=sum(
+                n for _, n in self.fire_history)))
+        self._event(supervisor_pb2.MISSION_EVENT_KIND_RESUMED, message=msg,
+                    step=self.result.steps, position=self.state)
+
+    # -- fires the supervisor cannot see ----------------------------------------------------------
+    def _replay_fires(self) -> None:
+        """Reset the EWS and replay every recorded advance (unpaced): the fire world the
+        mission had, whatever the EWS lost. Raises Aborted when the EWS does not answer."""
+        reset = fire_pb2.FireCommand()
+        reset.reset.seed = self.seed
+        last = self._fire_command(reset).states[-1]
+        for t, n in self.fire_history:
+            if n:
+                cmd = fire_pb2.FireCommand()
+                cmd.advance.step, cmd.advance.substeps = t, n
+                last = self._fire_command(cmd).states[-1]
+        self._take_fires(last)
+        self.fire_owed = 0
+
+    def _catch_up_fires(self) -> bool:
+        """With sub-steps owed and the EWS alive: replay; True if the caught-up fires are
+        within d_safe of the vehicle (the mission has failed)."""
+        if not self.fire_owed or not self._alive("ews"):
+            return False
+        owed = self.fire_owed
+        try:
+            self._replay_fires()
+        except Aborted as err:
+            if self.stop.is_set():
+                raise
+            log.warning("EWS not caught up yet", extra=fields(error=str(err)))
+            return False
+        log.info("fire data fresh again: EWS caught up", extra=fields(owed_substeps=owed))
+        self._record("fires_caught_up", owed_substeps=owed, fires_active=len(
+            self.snapshot.regions))
+        return nearest_region_distance(self.state[:2], self.snapshot.regions) < \
+            self.params.d_safe_m
+
+    def fire_age_s(self) -> float:
+        """Simulated s the fire process should have advanced beyond the last FireState."""
+        return self.fire_owed * self.fire_params.substep_s
+
+    def fire_stale(self) -> bool:
+        return self.fire_age_s() >= self.stack.stale.stale_after_s
+
+    def fire_margin_m(self) -> float:
+        """The margin the planners' hulls are grown by (0 while the data is fresh)."""
+        if not self.fire_stale():
+            return 0.0
+        return credible_margin_m(self.fire_age_s(), self.fire_params, self.stack.stale)
+
+    # -- planners that are gone ------------------------------------------------------------------
+    def _systems(self) -> list[int]:
+        return {Controller.CC: [1, 2], Controller.S1: [1], Controller.S2: [2]}[self.controller]
+
+    def _hold_without_planners(self) -> None:
+        """No planner of this controller alive and the vehicle at rest: pause (the vehicle holds,
+        the lockstep clock and the fires wait) until one is back."""
+        if self.live is None or any(self._alive(f"system{k}") for k in self._systems()):
+            return
+        if np.linalg.norm(self.state[self.dyn.dim:]) > 0.05:
+            return  # still moving: this step brakes (no plan to fly)
+        gone = ", ".join(f"system{k}" for k in self._systems())
+        reason = f"holding: no planner alive ({gone}: liveliness token gone)"
+        self.holding = reason
+        t0 = time.monotonic()
+        log.warning("mission paused", extra=fields(reason=reason))
+        self._event(supervisor_pb2.MISSION_EVENT_KIND_PAUSED, message=reason,
+                    step=self.result.steps if self.result else 0)
+        while not any(self._alive(f"system{k}") for k in self._systems()):
+            if self.stop.is_set():
+                raise Aborted("stopped")
+            if time.monotonic() - t0 > self.stack.pause_limit_s:
+                raise Aborted(f"paused for more than {self.stack.pause_limit_s:g} s: {reason}")
+            self.live.wait_any([f"system{k}" for k in self._systems()], 0.25, self.stop)
+        back = [f"system{k}" for k in self._systems() if self._alive(f"system{k}")]
+        try:  # a planner that came back has a fresh service: build this mission's planner
+            self._prepare([int(b[-1]) for b in back])
+        except Aborted as err:
+            log.warning("planner back but not ready", extra=fields(error=str(err)))
+        self.holding = ""
+        paused = time.monotonic() - t0
+        log.info("mission resumed", extra=fields(paused_s=round(paused, 3), back=",".join(back)))
+        self._event(supervisor_pb2.MISSION_EVENT_KIND_RESUMED,
+                    message=f"{', '.join(back)} back after {paused:.1f} s",
+                    step=self.result.steps if self.result else 0)
 
     # -- one tick -------------------------------------------------------------------------------
     def _d_t(self, t: int, snapshot: FireSnapshot) -> float:
@@ -389,7 +602,11 @@ class StackMission:
             step=t, system=system, objective=objective, state=self.state,
             prev_control=self.prev_control, fires=self.snapshot,
             deadline_s=self.stack.plan_deadline_s[system - 1], prepare=prepare)
-        return codec.plan_request_msg(req, self.fire_msg, self.stamper, self._now())
+        fires = self.fire_msg
+        margin = self.fire_margin_m()
+        if margin > 0:  # stale: the last known fronts grown by the fastest credible spread
+            fires = grown_fire_msg(fires, margin)
+        return codec.plan_request_msg(req, fires, self.stamper, self._now())
 
     def _prepare(self, systems: list[int]) -> None:
         """Warm-up: each planner service builds this mission's planner before step 0."""
@@ -397,7 +614,8 @@ class StackMission:
             msg = self._plan_request(system, 0, Objective.MISSION_TIME, prepare=True)
             try:
                 payload, enc = bus.request(self.session, keys.plan(self.uav, system), msg,
-                                           self.stack.plan_deadline_s[system - 1], self.stop)
+                                           max(self.stack.plan_deadline_s[system - 1],
+                                               self.stack.prepare_timeout_s), self.stop)
                 codec.parse(payload, plan_pb2.Plan, enc)
             except (TimeoutError, bus.QueryError, codec.CodecError) as err:
                 raise Aborted(f"system{system} could not prepare the mission: {err}") from err
@@ -407,12 +625,23 @@ class StackMission:
         deadline = self.stack.plan_deadline_s[system - 1]
         msg = self._plan_request(system, t, decision.objective)
         t0 = time.perf_counter()
+        key = keys.plan(self.uav, system)
         try:
-            payload, enc = bus.request(self.session, keys.plan(self.uav, system), msg, deadline,
-                                       self.stop)
+            payload, enc = bus.request(self.session, key, msg, deadline, self.stop)
             reply = codec.parse(payload, plan_pb2.Plan, enc)
             plan = codec.plan_from_msg(reply, system)
             self.service_time += reply.service_time_s
+            age = time.perf_counter() - t0
+            if reply.step != t or reply.request_seq != msg.header.seq:
+                plan = Plan.failed(system, PlanStatus.ERROR, plan.compute_time_s,
+                                   f"system{system} answered step {reply.step} request "
+                                   f"{reply.request_seq}, not step {t} request {msg.header.seq}")
+            elif age > deadline:  # a plan older than its deadline is never flown
+                log.warning("late plan not flown", extra=fields(
+                    system=system, step=t, age_s=round(age, 4), deadline_s=deadline))
+                plan = Plan.failed(system, PlanStatus.TIMEOUT, plan.compute_time_s,
+                                   f"plan {age:.3f} s old, past its {deadline:g} s deadline")
+                plan.info["late_s"] = round(age, 4)
         except TimeoutError as err:
             plan = Plan.failed(system, PlanStatus.TIMEOUT, time.perf_counter() - t0, str(err))
         except bus.QueryError as err:
@@ -420,7 +649,7 @@ class StackMission:
                       else PlanStatus.ERROR)
             plan = Plan.failed(system, status, time.perf_counter() - t0, f"system{system}: {err}")
         except codec.CodecError as err:
-            codec.rejected("Plan", err, log)
+            codec.rejected("Plan", err, log, key=key)
             plan = Plan.failed(system, PlanStatus.ERROR, time.perf_counter() - t0, str(err))
         self.request_wall += time.perf_counter() - t0
         if self.stop.is_set():
@@ -445,13 +674,37 @@ class StackMission:
         return False
 
     def _advance(self, t: int, n: int) -> bool:
-        """Propagate ``n`` fire sub-steps from τ_t (now); True if the idle vehicle got caught."""
+        """Propagate ``n`` fire sub-steps from τ_t (now); True if the idle vehicle got caught.
+
+        When the EWS is gone (no liveliness token, or no answer) the sub-steps
+        are owed: the fire data ages (:meth:`fire_age_s`) until the EWS is back
+        and :meth:`_catch_up_fires` replays them.
+        """
+        self.fire_history.append((t, n))
+        if self.fire_owed or not self._alive("ews"):
+            self.fire_owed += n
+            self._pace(n)
+            return False
         cmd = fire_pb2.FireCommand()
         cmd.advance.step, cmd.advance.substeps = t, n
         self._clock_msg(cmd.advance.clock)  # sub-step k is due at τ_t + k·T_f
-        update = self._fire_command(cmd)
+        try:
+            update = self._fire_command(cmd)
+        except Aborted as err:
+            if self.stop.is_set():
+                raise
+            log.warning("EWS did not advance the fires: data ageing", extra=fields(
+                step=t, substeps=n, error=str(err)))
+            self.fire_owed += n
+            self._pace(n)
+            return False
         self.clock.advance(n * self.fire_params.substep_s)
         return self._caught(update)
+
+    def _pace(self, n: int) -> None:
+        """The planning interval's n sub-steps pass on the clock without the EWS."""
+        self.clock.advance(n * self.fire_params.substep_s)
+        self.clock.sleep_until_now(self.stop)
 
     def _publish_step_start(self, decision: Decision, wanted: int, op: OperatorRecord) -> None:
         clock_msg = common_pb2.Clock()
@@ -478,8 +731,13 @@ class StackMission:
         t = self.result.steps
         self._ensure_offboard()
         self._update_waypoints()
+        self._hold_without_planners()
+        if self._catch_up_fires() and self.result.records:
+            return self._finish(False, "fire_while_stale", self.result.records[-1])
         tick = time.perf_counter()
         self.clock.start_step()
+        stale, age, margin = self.fire_stale(), self.fire_age_s(), self.fire_margin_m()
+        alive = [k for k in (1, 2) if self._alive(f"system{k}")]
 
         snapshot = self.snapshot
         d_t = self._d_t(t, snapshot)
@@ -491,6 +749,9 @@ class StackMission:
         statuses = []
         s1_info: dict[str, object] = {}
         for system in order:
+            if system not in alive:  # its liveliness token is gone: not asked
+                statuses.append(f"s{system}:unavailable")
+                continue
             candidate = self._plan_with(system, t, decision)
             if system == 1:
                 s1_info = dict(candidate.info)
@@ -538,7 +799,15 @@ class StackMission:
             snapshot=snapshot, info=info,
         )
         self.result.records.append(record)
+        why = {"fire_age_s": age, "fire_stale": stale, "fire_margin_m": round(margin, 3),
+               "planners_alive": [f"system{k}" for k in alive], "ews_alive": self._alive("ews"),
+               "commanded_system": wanted}
+        if flown == 0:
+            why["hold_reason"] = ("no planner alive" if not any(k in alive for k in order)
+                                  else "no OK plan")
         if caught:
+            self._record("step", **self._step_json(record), flown=False,
+                         sim_time_s=self.clock.now_s, **why)
             return self._finish(False, "fire_while_planning", record)
 
         prev_pos = self.state[:2].copy()
@@ -547,6 +816,8 @@ class StackMission:
         self.result.add_flight(control, self.prev_control, self.dyn.dt_s)
         self.prev_control = control
         self._publish_state(t + 1)
+        self._record("step", **self._step_json(record), flown=True, sim_time_s=self.clock.now_s,
+                     after=[float(v) for v in self.state], **why)
         self.clock.sleep_until_now(self.stop)  # the flight lasts ΔT of simulated time
         if self.params.fire_substeps_per_motion and self._advance(
                 t, self.params.fire_substeps_per_motion):
@@ -556,10 +827,18 @@ class StackMission:
                                  self.result.config, self.params)
         if outcome is not None:
             return self._finish(outcome == "", outcome, record)
+        note = (f"fire data stale: {age:g} s old, hulls grown by {margin:.1f} m" if stale else "")
+        if flown == 0:
+            note = "; ".join(filter(None, [note, f"braking: {why['hold_reason']}"]))
         self._event(supervisor_pb2.MISSION_EVENT_KIND_STEP, step=t, flown_system=flown,
                     position=self.state, fires_active=len(regions),
-                    plan_status=record.plan_status, mission_time_s=self.result.mission_time_s)
+                    plan_status=record.plan_status, mission_time_s=self.result.mission_time_s,
+                    message=note)
         return record
+
+    @staticmethod
+    def _step_json(record: StepRecord) -> dict[str, object]:
+        return record_to_json(record)
 
     def _finish(self, success: bool, cause: str, record: StepRecord) -> StepRecord:
         assert self.result is not None
@@ -567,6 +846,8 @@ class StackMission:
         self.result.success = success
         self.result.failure_cause = cause
         self.result.final_state = self.state.copy()
+        self._record("end", success=success, failure_cause=cause, steps=self.result.steps,
+                     final_state=[float(v) for v in self.state])
         self._event(supervisor_pb2.MISSION_EVENT_KIND_STEP, step=record.t,
                     flown_system=record.system, position=self.state,
                     fires_active=len(self.snapshot.regions), plan_status=record.plan_status,
@@ -581,6 +862,10 @@ class StackMission:
             pass
         assert self.result is not None
         return self.result
+
+    def close_record(self) -> None:
+        if self.step_log is not None:
+            self.step_log.close()
 
     def announce_end(self, run_dir: str, aborted: str = "") -> None:
         r = self.result
