@@ -86,6 +86,12 @@ class Reason(StrEnum):
     SIZE = "size"                      # too many or too few items, a wrong length
     INVALID = "invalid"                # anything else: missing field, unknown enum, geometry...
     OVERFLOW = "overflow"              # dropped: the service's inbox was full
+    # MAVLink links of the vehicle (services/uavsim): frames that are not usable MAVLink 2
+    BAD_CRC = "bad_crc"                # a frame whose checksum does not match
+    UNKNOWN_MESSAGE = "unknown_message"  # a message id the dialect does not define
+    MAVLINK1 = "mavlink1"              # a MAVLink 1 frame (only its HEARTBEAT is accepted)
+    WRONG_TARGET = "wrong_target"      # addressed to another system or component
+    UNSIGNED = "unsigned"              # unsigned or wrongly signed on a signed link
 
 
 class CodecError(ValueError):
@@ -800,16 +806,68 @@ def state_from_ned(n: float, e: float, vn: float, ve: float) -> Array:
     return check_state_values(np.array([e, n, ve, vn], dtype=float), "MAVLink state")
 
 
-def setpoint_from_mavlink(msg: Any) -> Array:
+def setpoint_from_mavlink(msg: Any, area_size_m: float | None = None,
+                          lead_ms: int | None = None) -> Array:
     """A SET_POSITION_TARGET_LOCAL_NED as the core target state [p_e, p_n, v_e, v_n].
 
     Accepts LOCAL_NED with type_mask 3520 (position + velocity) or 3576
-    (position only; velocity target 0).
+    (position only; velocity target 0). With ``area_size_m`` the position must
+    lie in the area [0, A]² grown by :data:`SETPOINT_AREA_MARGIN` × A, the
+    velocity within :data:`MAX_SETPOINT_SPEED_MPS` per axis and the altitude
+    (``-z``) within [0, :data:`MAX_SETPOINT_ALT_M`]; with ``lead_ms`` (the
+    setpoint's ``time_boot_ms`` minus the vehicle's clock) it must be due at
+    most :data:`MAX_SETPOINT_LEAD_S` ahead. Raises CodecError (reasons
+    ``invalid``, ``not_finite``, ``out_of_range``).
     """
     if msg.coordinate_frame != MAV_FRAME_LOCAL_NED:
         raise invalid(f"setpoint frame {msg.coordinate_frame}, only LOCAL_NED (1) is supported")
     if msg.type_mask == TYPE_MASK_POS_VEL:
-        return state_from_ned(msg.x, msg.y, msg.vx, msg.vy)
-    if msg.type_mask == TYPE_MASK_POS:
-        return state_from_ned(msg.x, msg.y, 0.0, 0.0)
-    raise invalid(f"setpoint type_mask {msg.type_mask}: only 3520 and 3576 are supported")
+        x = state_from_ned(msg.x, msg.y, msg.vx, msg.vy)
+    elif msg.type_mask == TYPE_MASK_POS:
+        x = state_from_ned(msg.x, msg.y, 0.0, 0.0)
+    else:
+        raise invalid(f"setpoint type_mask {msg.type_mask}: only 3520 and 3576 are supported")
+    if area_size_m is not None:
+        _finite([msg.z], "setpoint z", MAX_SETPOINT_ALT_M)
+        margin = SETPOINT_AREA_MARGIN * area_size_m
+        if not (np.all(x[:2] >= -margin) and np.all(x[:2] <= area_size_m + margin)):
+            raise invalid(f"setpoint position ({x[0]:.6g}, {x[1]:.6g}) m is outside the area "
+                          f"[0, {area_size_m:g}]² grown by {margin:g} m", Reason.OUT_OF_RANGE)
+        if np.any(np.abs(x[2:]) > MAX_SETPOINT_SPEED_MPS) or not -msg.z >= 0.0:
+            raise invalid(f"setpoint velocity ({x[2]:.6g}, {x[3]:.6g}) m/s or altitude "
+                          f"{-msg.z:.6g} m out of range", Reason.OUT_OF_RANGE)
+    if lead_ms is not None and lead_ms > MAX_SETPOINT_LEAD_S * 1000:
+        raise invalid(f"setpoint due {lead_ms / 1000:.6g} s after the vehicle's clock "
+                      f"(at most {MAX_SETPOINT_LEAD_S:g} s)", Reason.OUT_OF_RANGE)
+    return x
+
+
+#: A setpoint may lie at most this fraction of the area outside it (a braking target near the
+#: edge can overshoot; planners keep their plans inside).
+SETPOINT_AREA_MARGIN = 0.1
+MAX_SETPOINT_SPEED_MPS = 100.0
+MAX_SETPOINT_ALT_M = 10_000.0
+#: The longest a setpoint may be stamped ahead of the vehicle's clock (s of simulated time):
+#: one step is ΔT plus the planning interval, at most the supervisor's plan deadline.
+MAX_SETPOINT_LEAD_S = 600.0
+#: The largest UDP datagram a vehicle link parses (one MAVLink 2 frame is at most 280 bytes;
+#: a sender may pack a few); larger ones are rejected unread (``too_large``).
+MAX_MAVLINK_DATAGRAM = 4096
+
+
+def mavlink_frame_reason(bad_data_reason: str) -> Reason:
+    """The :class:`Reason` for a frame pymavlink could not decode (its BAD_DATA ``reason``)."""
+    why = bad_data_reason.lower()
+    if "signature" in why or "signed" in why:
+        return Reason.UNSIGNED
+    if "crc" in why:
+        return Reason.BAD_CRC
+    return Reason.MALFORMED
+
+
+def check_finite_fields(msg: Any, names: Iterable[str], what: str) -> None:
+    """Raise CodecError (``not_finite``) if any of the float fields ``names`` is NaN or ±inf."""
+    for name in names:
+        value = getattr(msg, name)
+        if not math.isfinite(value):
+            raise invalid(f"{what}.{name} is {value}", Reason.NOT_FINITE)

@@ -12,15 +12,17 @@
 
 Bad commands get an error reply (dualpilot.v1.Error), never a crash; each is
 counted per key and reason in the status served on ``<ns>/status/ews``
-(services/common/bus.py). An advance whose clock would keep the EWS pacing
-for more than ``MAX_PACED_WAIT_S`` is refused, so no command can stall it.
+(services/common/bus.py). ``--uav-ids`` serves a fleet (services/common/fleet.py):
+one fire process per vehicle id, each seeded by its own supervisor's reset, so
+every vehicle's fires are those of its in-process mission. An advance whose
+clock would keep the EWS pacing for more than ``MAX_PACED_WAIT_S`` is refused,
+so no command can stall it.
 """
 
 from __future__ import annotations
 
 import logging
 import math
-import sys
 import threading
 import time
 
@@ -28,7 +30,7 @@ import numpy as np
 import zenoh
 
 from dualpilot.fire import FireField, FireParams
-from services.common import bus, codec, keys
+from services.common import bus, codec, fleet, keys
 from services.common import cli as common_cli
 from services.common.log import fields
 from services.msgs import common_pb2, fire_pb2
@@ -154,16 +156,19 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--forecast-horizon-s", type=float,
                    default=common_cli.env("FORECAST_HORIZON_S", "80"),
                    help="forecast horizon in simulated s [FORECAST_HORIZON_S]")
+    fleet.add_argument(p)
     args = p.parse_args(argv)
     try:
         settings = common_cli.settings("ews", args)
+        uavs = fleet.uav_ids(args.uav_ids, settings.uav_id)
         params = FireParams(substep_s=args.substep_s)
         if not (math.isfinite(args.forecast_horizon_s) and args.forecast_horizon_s >= 0):
             raise ValueError("--forecast-horizon-s must be finite and >= 0")
     except ValueError as err:
         p.error(str(err))
-    return bus.run_service(settings, lambda ctx: body(ctx, params, args.forecast_horizon_s))
+    return bus.run_service(settings, lambda ctx: fleet.for_each(
+        ctx, uavs, lambda sub: body(sub, params, args.forecast_horizon_s)))
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    bus.leave(main())

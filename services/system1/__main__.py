@@ -5,17 +5,16 @@ with :class:`dualpilot.system1.System1`, one instance per mission, seeded as
 :func:`dualpilot.factory.make_system1` does in-process. Operator waypoints
 come with the mission (PlanRequest.mission) and as live updates on
 ``<ns>/operator/waypoints``. Rejected inputs are counted per key and reason
-in the status served on ``<ns>/status/system1``.
+in the status served on ``<ns>/status/system1``. ``--uav-ids`` serves a fleet
+(services/common/fleet.py): one planner loop per vehicle id.
 """
 
 from __future__ import annotations
 
-import sys
-
 from dualpilot.factory import make_system1
 from dualpilot.mission import MissionConfig
 from dualpilot.plan import Planner
-from services.common import bus, codec, keys, planning
+from services.common import bus, codec, fleet, keys, planning
 from services.common import cli as common_cli
 
 
@@ -26,21 +25,26 @@ def make(mission: codec.MissionSpec) -> Planner:
 
 def main(argv: list[str] | None = None) -> int:
     p = common_cli.parser("system1", __doc__.splitlines()[0])
+    fleet.add_argument(p)
     args = p.parse_args(argv)
     try:
         settings = common_cli.settings("system1", args)
+        uavs = fleet.uav_ids(args.uav_ids, settings.uav_id)
     except ValueError as err:
         p.error(str(err))
-    return bus.run_service(settings, lambda ctx: body(ctx, 1, make))
+    return bus.run_service(settings, lambda ctx: fleet.for_each(
+        ctx, uavs, lambda sub: body(sub, 1, make, alias=len(uavs) == 1)))
 
 
-def body(ctx: bus.Context, system: int, make: planning.PlannerMaker) -> None:
-    """planning.run, with its rejections counted under the keys they arrive on."""
+def body(ctx: bus.Context, system: int, make: planning.PlannerMaker, alias: bool = True) -> None:
+    """planning.run, with its rejections counted under the keys they arrive on (for a fleet,
+    ``alias=False``: under the message kind, as the labels cannot tell the vehicles apart)."""
     uav = ctx.settings.uav_id
-    bus.alias("PlanRequest", keys.plan(uav, system))
-    bus.alias("OperatorWaypoints", keys.waypoints(uav))
+    if alias:
+        bus.alias("PlanRequest", keys.plan(uav, system))
+        bus.alias("OperatorWaypoints", keys.waypoints(uav))
     planning.run(ctx, system, make)
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    bus.leave(main())

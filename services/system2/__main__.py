@@ -4,12 +4,12 @@ Answers PlanRequests on ``<ns>/plan/system2`` (services/common/planning.py)
 with :func:`dualpilot.factory.make_system2_planner` (``--method`` one of
 :data:`dualpilot.system2_fast.METHODS`), built once per mission and re-solved
 each request. Rejected inputs are counted per key and reason in the status
-served on ``<ns>/status/system2``.
+served on ``<ns>/status/system2``. ``--uav-ids`` serves a fleet
+(services/common/fleet.py): one planner loop per vehicle id.
 """
 
 from __future__ import annotations
 
-import sys
 from dataclasses import replace
 
 from dualpilot.factory import make_system2_planner
@@ -17,7 +17,7 @@ from dualpilot.mission import MissionConfig
 from dualpilot.p2 import System2Params
 from dualpilot.plan import Planner
 from dualpilot.system2_fast import METHODS
-from services.common import bus, codec, keys, planning
+from services.common import bus, codec, fleet
 from services.common import cli as common_cli
 
 
@@ -28,9 +28,11 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--time-limit-s", type=float,
                    default=common_cli.env("S2_TIME_LIMIT_S", str(System2Params().time_limit_s)),
                    help="solver time limit per plan [S2_TIME_LIMIT_S]")
+    fleet.add_argument(p)
     args = p.parse_args(argv)
     try:
         settings = common_cli.settings("system2", args)
+        uavs = fleet.uav_ids(args.uav_ids, settings.uav_id)
         params = replace(System2Params(), time_limit_s=args.time_limit_s)
     except ValueError as err:
         p.error(str(err))
@@ -40,14 +42,11 @@ def main(argv: list[str] | None = None) -> int:
         return make_system2_planner(config, args.method, replace(params,
                                                                  area_size_m=mission.area_size_m))
 
-    def body(ctx: bus.Context) -> None:
-        uav = ctx.settings.uav_id  # rejections counted under the keys they arrive on
-        bus.alias("PlanRequest", keys.plan(uav, 2))
-        bus.alias("OperatorWaypoints", keys.waypoints(uav))
-        planning.run(ctx, 2, make)
+    from services.system1.__main__ import body  # one planner loop per vehicle id
 
-    return bus.run_service(settings, body)
+    return bus.run_service(settings, lambda ctx: fleet.for_each(
+        ctx, uavs, lambda sub: body(sub, 2, make, alias=len(uavs) == 1)))
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    bus.leave(main())

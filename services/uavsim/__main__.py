@@ -42,7 +42,7 @@ from __future__ import annotations
 import logging
 import math
 import select
-import sys
+import socket
 import threading
 import time
 from collections.abc import Callable
@@ -63,6 +63,28 @@ TELEMETRY_PERIOD_S = 0.1
 SLOW_PERIOD_S = 1.0
 HOME_PERIOD_S = 5.0
 FORCE_DISARM_MAGIC = 21196  # MAV_CMD_COMPONENT_ARM_DISARM param2: disarm even in the air
+#: UDP peers a ``udpin`` link sends to (those that sent a usable frame), the least recently
+#: heard dropped first; a peer silent for CLIENT_TIMEOUT_S is dropped (one is always kept).
+MAX_CLIENTS = 8
+#: datagrams read from one link before the loop sends telemetry again (a flood cannot starve it)
+MAX_DATAGRAMS_PER_POLL = 200
+CLIENT_TIMEOUT_S = 10.0
+#: Messages a ground station sends that the vehicle ignores without counting them as bad
+#: input (housekeeping of MAVProxy and QGroundControl).
+GCS_CHATTER = frozenset({
+    "REQUEST_DATA_STREAM", "SYSTEM_TIME", "TIMESYNC", "PING", "MANUAL_CONTROL",
+    "RC_CHANNELS_OVERRIDE", "PARAM_EXT_REQUEST_LIST", "PARAM_EXT_REQUEST_READ",
+    "FILE_TRANSFER_PROTOCOL", "LOG_REQUEST_LIST", "COMMAND_ACK", "STATUSTEXT",
+    "GPS_RTCM_DATA", "GPS_INJECT_DATA", "RADIO_STATUS",
+})
+#: Messages the vehicle acts on (besides the mission protocol, services/uavsim/mission.py).
+HANDLED = frozenset({
+    "HEARTBEAT", "SET_POSITION_TARGET_LOCAL_NED", "PARAM_REQUEST_LIST", "PARAM_REQUEST_READ",
+    "PARAM_SET", "COMMAND_LONG", "COMMAND_INT", "SET_MODE",
+    "MISSION_COUNT", "MISSION_ITEM_INT", "MISSION_ITEM", "MISSION_REQUEST_LIST",
+    "MISSION_REQUEST_INT", "MISSION_REQUEST", "MISSION_CLEAR_ALL", "MISSION_SET_CURRENT",
+    "MISSION_ACK",
+})
 
 
 @dataclass
@@ -123,7 +145,9 @@ class Endpoint:
         self.peers: set[tuple[str, int, int]] = set()
         self._after_ack: Callable[[], None] | None = None
         self.home_local = (float(vehicle.state[0]), float(vehicle.state[1]))
-        self.mission = MissionServer(self.send, home, area_size_m, on_change=self.mission_changed)
+        self.area_size_m = area_size_m
+        self.mission = MissionServer(self.send, home, area_size_m, on_change=self.mission_changed,
+                                     on_reject=self.reject)
 
     # -- helpers ----------------------------------------------------------------------------------
     def p(self, name: str) -> float:
@@ -223,36 +247,135 @@ class Endpoint:
         self.param_value(None, name)
 
     # -- incoming -----------------------------------------------------------------------------
-    def handle(self, link: str, msg: Any) -> None:
+    def reject(self, link: str, err: codec.CodecError, what: str = "mavlink") -> None:
+        """Count and log (rate-limited) a rejected MAVLink input under ``mavlink/<link>``."""
+        codec.rejected(what, err, log, key=f"mavlink/{link}")
+
+    def receive(self, link: str) -> None:
+        """Read every waiting datagram of ``link`` and handle its frames (never raises).
+
+        A datagram is parsed on its own (a truncated frame never swallows the
+        next datagram's bytes); at most one framing problem is counted per
+        datagram. Only a peer that sent a usable frame becomes a client that
+        telemetry goes to.
+        """
+        conn = self.links[link]
+        port = getattr(conn, "port", None)
+        if not isinstance(port, socket.socket) or not getattr(conn, "udp_server", False):
+            while (msg := conn.recv_msg()) is not None:  # not a udpin link: pymavlink reads
+                self.handle(link, msg)
+            return
+        for _ in range(MAX_DATAGRAMS_PER_POLL):  # then telemetry and the failsafe get a turn
+            try:
+                data, addr = port.recvfrom(65536)
+            except (BlockingIOError, InterruptedError):
+                return
+            except OSError as err:  # e.g. ICMP port unreachable reported on the socket
+                log.debug("recv failed", extra=fields(link=link, error=str(err)))
+                return
+            try:
+                if self.datagram(link, conn, data):
+                    self.add_client(conn, addr)
+            except Exception:  # a bug must not take the vehicle down: count it, go on
+                log.exception("frame handling failed")
+                self.reject(link, codec.invalid("frame handling failed (internal error)"))
+
+    def datagram(self, link: str, conn: Any, data: bytes) -> bool:
+        """Parse and handle one datagram; True if it held at least one usable frame."""
+        if len(data) > codec.MAX_MAVLINK_DATAGRAM:
+            self.reject(link, codec.invalid(
+                f"datagram of {len(data)} bytes (at most {codec.MAX_MAVLINK_DATAGRAM})",
+                codec.Reason.TOO_LARGE))
+            return False
+        parser = conn.mav
+        parser.buf, parser.buf_index = bytearray(), 0
+        parser.expected_length = mav.mavlink.HEADER_LEN_V1 + 2
+        framing: codec.CodecError | None = None
+        usable = False
+        msgs = parser.parse_buffer(data) or []
+        if parser.buf_len() > 0:
+            framing = codec.invalid(f"truncated frame: {parser.buf_len()} bytes left over",
+                                    codec.Reason.MALFORMED)
+            parser.buf, parser.buf_index = bytearray(), 0
+        for msg in msgs:
+            kind = msg.get_type()
+            if kind == "BAD_DATA":
+                why = str(getattr(msg, "reason", ""))
+                reason = codec.mavlink_frame_reason(why)
+                if reason is codec.Reason.UNSIGNED:
+                    self.count_unsigned(link)
+                if framing is None:
+                    framing = codec.invalid(f"bad frame: {why}", reason)
+                continue
+            if kind.startswith("UNKNOWN_"):
+                if framing is None:
+                    framing = codec.invalid(f"message id {kind[8:]} is not in the dialect",
+                                            codec.Reason.UNKNOWN_MESSAGE)
+                continue
+            if msg.get_msgbuf()[0] == mav.mavlink.PROTOCOL_MARKER_V1 and kind != "HEARTBEAT":
+                if framing is None:  # a MAVLink 1 HEARTBEAT is how a GCS finds us, then v2
+                    framing = codec.invalid(f"MAVLink 1 {kind}: this vehicle speaks MAVLink 2",
+                                            codec.Reason.MAVLINK1)
+                continue
+            usable = self.handle(link, msg) or usable
+        if framing is not None:
+            self.reject(link, framing)
+        return usable
+
+    @staticmethod
+    def add_client(conn: Any, addr: tuple[str, int]) -> None:
+        """Send telemetry to ``addr`` from now on (bounded: the least recently heard goes)."""
+        now = time.time()
+        conn.timeout = CLIENT_TIMEOUT_S
+        conn.clients.add(addr)
+        conn.clients_last_alive[addr] = now
+        while len(conn.clients) > MAX_CLIENTS:
+            oldest = min(conn.clients, key=lambda a: conn.clients_last_alive.get(a, 0.0))
+            conn.clients.discard(oldest)
+            conn.clients_last_alive.pop(oldest, None)
+
+    def handle(self, link: str, msg: Any) -> bool:
+        """Act on one decoded frame; False (after counting it) if it was rejected."""
         kind = msg.get_type()
         if kind == "BAD_DATA":
             why = str(getattr(msg, "reason", ""))
-            if "signature" in why.lower():
-                self.count_rejected(link)
-            else:
-                codec.rejected("mavlink", codec.invalid(f"bad frame on {link}: {why}"), log)
-            return
+            reason = codec.mavlink_frame_reason(why)
+            if reason is codec.Reason.UNSIGNED:
+                self.count_unsigned(link)
+            self.reject(link, codec.invalid(f"bad frame on {link}: {why}", reason))
+            return False
         if self.tlog is not None:
             self.tlog.message(msg)
         if kind == "HEARTBEAT":
             peer = (link, msg.get_srcSystem(), msg.get_srcComponent())
             if peer not in self.peers:
+                if len(self.peers) >= 4 * MAX_CLIENTS:
+                    self.peers.clear()  # bounded: only used to answer a new peer at once
                 self.peers.add(peer)
                 log.info("peer", extra=fields(link=link, sysid=peer[1], compid=peer[2],
                                               mav_type=msg.type))
                 self.heartbeat()  # answer at once: the peer waits for us before it starts
-            return
+            return True
+        if kind in GCS_CHATTER:
+            return True
+        if kind not in HANDLED:
+            self.reject(link, codec.invalid(f"{kind} is not a message the vehicle accepts",
+                                            codec.Reason.WRONG_TYPE))
+            return False
         target = getattr(msg, "target_system", None)
-        if target not in (None, 0, self.sysid):
-            return
         comp = getattr(msg, "target_component", None)
-        if comp not in (None, 0, mav.MAV_COMP_ID_AUTOPILOT1):
-            return
+        if (target not in (None, 0, self.sysid)
+                or comp not in (None, 0, mav.MAV_COMP_ID_AUTOPILOT1)):
+            self.reject(link, codec.invalid(
+                f"{kind} for system {target} component {comp} (this is {self.sysid}:1)",
+                codec.Reason.WRONG_TARGET))
+            return False
         now = time.monotonic()
-        if self.mission.handle(link, msg, now):
-            return
+        handled = self.mission.handle(link, msg, now)
+        if handled is not None:
+            return handled
         if kind == "SET_POSITION_TARGET_LOCAL_NED":
-            self.on_setpoint(msg, now)
+            return self.on_setpoint(link, msg, now)
         elif kind == "PARAM_REQUEST_LIST":
             for name in self.params:
                 self.param_value(link, name)
@@ -264,21 +387,32 @@ class Endpoint:
             if name in self.params:
                 self.param_value(link, name)
         elif kind == "PARAM_SET":
-            self.on_param_set(link, msg)
+            return self.on_param_set(link, msg)
         elif kind == "COMMAND_LONG":
-            self.on_command(link, msg)
+            return self.on_command(link, msg)
         elif kind == "COMMAND_INT":
-            self.send[link]("command_ack", msg.command, m.MAV_RESULT_UNSUPPORTED, 0, 0,
+            result = m.MAV_RESULT_UNSUPPORTED
+            try:
+                codec.check_finite_fields(msg, ("param1", "param2", "param3", "param4", "z"),
+                                          "COMMAND_INT")
+            except codec.CodecError as err:
+                self.reject(link, err)
+                result = m.MAV_RESULT_DENIED
+            self.send[link]("command_ack", msg.command, result, 0, 0,
                             msg.get_srcSystem(), msg.get_srcComponent())
+            return result != m.MAV_RESULT_DENIED
         elif kind == "SET_MODE":  # the legacy message (MAVProxy's ``mode``): acked as ArduPilot
             result = self.mode_request(int(msg.base_mode), int(msg.custom_mode))
             self.send[link]("command_ack", m.MAVLINK_MSG_ID_SET_MODE, result, 0, 0,
                             msg.get_srcSystem(), msg.get_srcComponent())
+        return True
 
-    def count_rejected(self, link: str) -> None:
+    def count_unsigned(self, link: str) -> None:
+        """An unsigned or wrongly signed frame on a signed link: SIG_REJECTED, a STATUSTEXT.
+
+        The caller counts the rejection itself (reason ``unsigned``).
+        """
         total = sum(mav.rejected_frames(conn) for conn in self.links.values())
-        codec.rejected("mavlink", codec.invalid(f"unsigned or wrongly signed frame on {link}"),
-                       log)
         if total != self.rejected_seen:
             self.rejected_seen = total
             self.params["SIG_REJECTED"].value = float(total)
@@ -287,20 +421,29 @@ class Endpoint:
                 self.last_reject_note = now
                 self.statustext(f"signing: {total} frames rejected", m.MAV_SEVERITY_WARNING)
 
-    def on_param_set(self, link: str, msg: Any) -> None:
-        pid = msg.param_id if isinstance(msg.param_id, str) else msg.param_id.decode()
+    def on_param_set(self, link: str, msg: Any) -> bool:
+        pid = msg.param_id if isinstance(msg.param_id, str) else msg.param_id.decode(
+            "ascii", "replace")
         name = pid.rstrip("\x00")
         param = self.params.get(name)
-        if param is None:
-            return  # unknown: no PARAM_VALUE, as PX4 (the GCS times out)
+        if param is None:  # unknown: no PARAM_VALUE, as PX4 (the GCS times out)
+            self.reject(link, codec.invalid(f"PARAM_SET of unknown parameter {name[:16]!r}"),
+                        "PARAM_SET")
+            return False
         value = float(msg.param_value)
-        ok = (param.low is not None and param.high is not None and math.isfinite(value)
-              and param.low <= value <= param.high)
-        if not ok:
-            log.warning("param refused", extra=fields(name=name, value=value))
+        err: codec.CodecError | None = None
+        if not math.isfinite(value):
+            err = codec.invalid(f"PARAM_SET {name} = {value}", codec.Reason.NOT_FINITE)
+        elif param.low is None or param.high is None:
+            err = codec.invalid(f"PARAM_SET {name}: read-only")
+        elif not param.low <= value <= param.high:
+            err = codec.invalid(f"PARAM_SET {name} = {value:g} outside [{param.low:g}, "
+                                f"{param.high:g}]", codec.Reason.OUT_OF_RANGE)
+        if err is not None:
+            self.reject(link, err, "PARAM_SET")
             self.statustext(f"{name}: refused {value:g}", m.MAV_SEVERITY_WARNING)
             self.param_value(link, name)  # the unchanged value tells the GCS it was refused
-            return
+            return False
         param.value = value
         if name == "MPC_XY_VEL_MAX":
             self.vehicle.set_limits(v_max_mps=value)
@@ -312,21 +455,26 @@ class Endpoint:
             self.vehicle.capacity_ns = value
         log.info("param set", extra=fields(name=name, value=value))
         self.param_value(None, name)
+        return True
 
-    def on_setpoint(self, msg: Any, now: float) -> None:
+    def on_setpoint(self, link: str, msg: Any, now: float) -> bool:
+        """A setpoint that is not finite, far outside the area or due too far ahead is refused:
+        the vehicle keeps its last target (or holds) and the stream is not kept alive."""
         try:
-            target = codec.setpoint_from_mavlink(msg)
+            target = codec.setpoint_from_mavlink(
+                msg, self.area_size_m, int(msg.time_boot_ms) - self.vehicle.time_ms)
         except codec.CodecError as err:
-            codec.rejected("setpoint", err, log)
-            return
+            self.reject(link, err, "setpoint")
+            return False
         if now - self.last_setpoint > self.p("COM_OF_LOSS_T"):
             self.stream_since = now  # a new stream starts
         self.last_setpoint = now
         if not (self.mode == mav.MODE_GUIDED and self.armed and self.airborne):
             self.ignored_setpoints += 1
-            return
+            return True
         if self.vehicle.apply(target, int(msg.time_boot_ms)):
             self.after_step()
+        return True
 
     def after_step(self) -> None:
         self.telemetry()
@@ -419,10 +567,17 @@ class Endpoint:
         self.send[link]("autopilot_version", caps, 1, 0, 0, 0, [0] * 8, [0] * 8, [0] * 8,
                         0, 0, self.sysid)
 
-    def on_command(self, link: str, msg: Any) -> None:
+    def on_command(self, link: str, msg: Any) -> bool:
         cmd = int(msg.command)
         self._after_ack = None
         result = int(m.MAV_RESULT_UNSUPPORTED)
+        try:
+            codec.check_finite_fields(msg, [f"param{k}" for k in range(1, 8)], "COMMAND_LONG")
+        except codec.CodecError as err:  # NaN/inf where the vehicle needs a number: refused
+            self.reject(link, err, "COMMAND_LONG")
+            self.send[link]("command_ack", cmd, m.MAV_RESULT_DENIED, 0, 0,
+                            msg.get_srcSystem(), msg.get_srcComponent())
+            return False
         if cmd == m.MAV_CMD_COMPONENT_ARM_DISARM:
             result = self.arm(msg.param1 >= 0.5, int(msg.param2) == FORCE_DISARM_MAGIC)
         elif cmd == m.MAV_CMD_NAV_TAKEOFF:
@@ -450,6 +605,7 @@ class Endpoint:
         if self._after_ack is not None:
             self._after_ack()
             self._after_ack = None
+        return True
 
     # -- loop -----------------------------------------------------------------------------------
     def check_offboard(self, now: float) -> None:
@@ -489,10 +645,7 @@ class Endpoint:
             timeout = max(0.0, min(next_hb, next_tel, now + 0.05) - time.monotonic())
             ready, _, _ = select.select(list(fds), [], [], timeout)
             for fd in ready:
-                name = fds[fd]
-                conn = self.links[name]
-                while (msg := conn.recv_msg()) is not None:
-                    self.handle(name, msg)
+                self.receive(fds[fd])
 
 
 def parse_pair(text: str, what: str) -> tuple[float, float]:
@@ -578,4 +731,4 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    bus.leave(main())

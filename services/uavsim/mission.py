@@ -22,6 +22,12 @@ more than ``max_items``            MAV_MISSION_NO_SPACE
 fence / rally mission types        MAV_MISSION_UNSUPPORTED
 =================================  =============================================
 
+Every refused item (and a MISSION_COUNT over ``max_items``) is also reported
+to ``on_reject`` (link, :class:`services.common.codec.CodecError`) so the
+vehicle counts it as bad input (reasons ``not_finite``, ``out_of_range``,
+``invalid``, ``size``); so is a bad item that arrives outside an upload,
+which is otherwise ignored as a late duplicate.
+
 The area is the square [0, area]² of local metres east/north of the geodetic
 origin. Item 0 in MAV_FRAME_GLOBAL(_INT) is ArduPilot's home slot (files
 saved by MAVProxy ``wp save`` start with it): it is kept and downloaded, not
@@ -40,7 +46,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
-from services.common import mav
+from services.common import codec, mav
 from services.common.log import fields
 
 log = logging.getLogger(__name__)
@@ -50,6 +56,18 @@ MAX_ITEMS = 500
 MISSION = m.MAV_MISSION_TYPE_MISSION
 _PARAM_RESULT = (m.MAV_MISSION_INVALID_PARAM1, m.MAV_MISSION_INVALID_PARAM2,
                  m.MAV_MISSION_INVALID_PARAM3, m.MAV_MISSION_INVALID_PARAM4)
+#: the counter reason of each refusal (MAV_MISSION_* result)
+_REASON = {
+    int(m.MAV_MISSION_UNSUPPORTED): codec.Reason.INVALID,
+    int(m.MAV_MISSION_UNSUPPORTED_FRAME): codec.Reason.INVALID,
+    int(m.MAV_MISSION_INVALID_PARAM1): codec.Reason.NOT_FINITE,
+    int(m.MAV_MISSION_INVALID_PARAM2): codec.Reason.NOT_FINITE,
+    int(m.MAV_MISSION_INVALID_PARAM3): codec.Reason.NOT_FINITE,
+    int(m.MAV_MISSION_INVALID_PARAM4): codec.Reason.NOT_FINITE,
+    int(m.MAV_MISSION_INVALID_PARAM7): codec.Reason.NOT_FINITE,
+    int(m.MAV_MISSION_INVALID_PARAM5_X): codec.Reason.OUT_OF_RANGE,
+    int(m.MAV_MISSION_INVALID_PARAM6_Y): codec.Reason.OUT_OF_RANGE,
+}
 
 
 @dataclass
@@ -73,8 +91,10 @@ class MissionServer:
 
     def __init__(self, senders: dict[str, mav.Sender], origin: tuple[float, float],
                  area_size_m: float, on_change: Callable[[], None] = lambda: None,
-                 max_items: int = MAX_ITEMS, item_timeout_s: float = 0.5, retries: int = 5):
+                 max_items: int = MAX_ITEMS, item_timeout_s: float = 0.5, retries: int = 5,
+                 on_reject: Callable[[str, codec.CodecError], None] = lambda _l, _e: None):
         self.senders = senders
+        self.on_reject = on_reject
         self.origin = origin
         self.area_size_m = area_size_m
         self.on_change = on_change
@@ -113,8 +133,9 @@ class MissionServer:
         return int(m.MAV_MISSION_ACCEPTED)
 
     # -- messages ---------------------------------------------------------------------------------
-    def handle(self, link: str, msg: Any, now: float) -> bool:
-        """Handle a mission-protocol message from ``link``; False if ``msg`` is not one."""
+    def handle(self, link: str, msg: Any, now: float) -> bool | None:
+        """Handle a mission-protocol message from ``link``: None if ``msg`` is not one, False if
+        it was refused as bad input (and reported to ``on_reject``), else True."""
         kind = msg.get_type()
         handler = {
             "MISSION_COUNT": self._on_count, "MISSION_ITEM_INT": self._on_item,
@@ -124,9 +145,8 @@ class MissionServer:
             "MISSION_ACK": self._on_ack,
         }.get(kind)
         if handler is None:
-            return False
-        handler(link, msg, now)
-        return True
+            return None
+        return handler(link, msg, now) is not False
 
     def _peer(self, msg: Any) -> tuple[int, int]:
         return int(msg.get_srcSystem()), int(msg.get_srcComponent())
@@ -139,54 +159,73 @@ class MissionServer:
         self.senders[up.link]("mission_request_int", up.peer[0], up.peer[1], len(up.items),
                               MISSION)
 
-    def _on_count(self, link: str, msg: Any, now: float) -> None:
+    def _on_count(self, link: str, msg: Any, now: float) -> bool:
         peer = self._peer(msg)
         mission_type = int(getattr(msg, "mission_type", MISSION))
         if mission_type != MISSION:
             self._ack(link, peer, m.MAV_MISSION_UNSUPPORTED, mission_type)
-            return
+            return True
         self.uploads.pop(link, None)  # a new count restarts the transfer
         if msg.count > self.max_items:
+            self.on_reject(link, codec.invalid(
+                f"MISSION_COUNT {msg.count} (at most {self.max_items} items)", codec.Reason.SIZE))
             self._ack(link, peer, m.MAV_MISSION_NO_SPACE, MISSION)
-            return
+            return False
         if msg.count == 0:
             self._commit([])
             self._ack(link, peer, m.MAV_MISSION_ACCEPTED, MISSION)
-            return
+            return True
         up = Upload(link, peer, int(msg.count))
         self.uploads[link] = up
         log.info("mission upload", extra=fields(link=link, count=up.count, sysid=peer[0]))
         self._request(up, now)
+        return True
 
-    def _on_item(self, link: str, msg: Any, now: float) -> None:
-        up = self.uploads.get(link)
-        if up is None or int(getattr(msg, "mission_type", MISSION)) != MISSION:
-            return  # not uploading (a late duplicate): ignore, as PX4 does
-        if msg.seq != len(up.items):
-            if msg.seq > len(up.items):
-                self._request(up, now)  # out of order: ask again for the one we need
-            return
+    def _result(self, msg: Any) -> tuple[int, mav.MissionItem | None]:
+        """The MAV_MISSION_* result for an item message, and the item if it converts."""
         try:
             item = mav.MissionItem.from_msg(msg)
         except ValueError as err:
-            result = (m.MAV_MISSION_INVALID_PARAM5_X if str(err) == "x"
-                      else m.MAV_MISSION_INVALID_PARAM6_Y)
-        else:
-            result = self.check(item)
-        if result != m.MAV_MISSION_ACCEPTED:
+            return (int(m.MAV_MISSION_INVALID_PARAM5_X) if str(err) == "x"
+                    else int(m.MAV_MISSION_INVALID_PARAM6_Y)), None
+        return self.check(item), item
+
+    def _refused(self, link: str, msg: Any, result: int) -> None:
+        name = m.enums["MAV_MISSION_RESULT"][result].name
+        reason = _REASON.get(result, codec.Reason.INVALID)
+        if not all(math.isfinite(float(v)) for v in (msg.x, msg.y)):
+            reason = codec.Reason.NOT_FINITE  # MISSION_ITEM's float lat/lon
+        self.on_reject(link, codec.invalid(
+            f"{msg.get_type()} seq {int(msg.seq)}: {name} (x={msg.x!r}, y={msg.y!r}, "
+            f"z={msg.z!r})", reason))
+
+    def _on_item(self, link: str, msg: Any, now: float) -> bool:
+        up = self.uploads.get(link)
+        if up is None or int(getattr(msg, "mission_type", MISSION)) != MISSION:
+            result, _ = self._result(msg)  # not uploading (a late duplicate): ignored, as PX4
+            if result != m.MAV_MISSION_ACCEPTED:  # does; a bad one is still counted
+                self._refused(link, msg, result)
+                return False
+            return True
+        if msg.seq != len(up.items):
+            if msg.seq > len(up.items):
+                self._request(up, now)  # out of order: ask again for the one we need
+            return True
+        result, item = self._result(msg)
+        if result != m.MAV_MISSION_ACCEPTED or item is None:
             del self.uploads[link]
-            log.warning("mission item rejected", extra=fields(
-                link=link, seq=int(msg.seq), result=m.enums["MAV_MISSION_RESULT"][result].name))
+            self._refused(link, msg, result)
             self._ack(link, up.peer, result, MISSION)
-            return
+            return False
         up.items.append(item)
         up.retries = 0
         if len(up.items) < up.count:
             self._request(up, now)
-            return
+            return True
         del self.uploads[link]
         self._commit(up.items)
         self._ack(link, up.peer, m.MAV_MISSION_ACCEPTED, MISSION)
+        return True
 
     def _on_request_list(self, link: str, msg: Any, now: float) -> None:
         mission_type = int(getattr(msg, "mission_type", MISSION))

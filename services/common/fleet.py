@@ -1,0 +1,79 @@
+"""One service process for several vehicles: the shared EWS and planner services of a fleet.
+
+Keys are namespaced by vehicle id (services/common/keys.py), so serving a
+fleet is serving each id's keys: ``--uav-ids uav1,uav2,…`` (``UAV_IDS``) runs
+the service's body once per id, each in a thread of its own over the one
+Zenoh session, with its own state (one fire field, one planner cache per
+vehicle) and its own liveliness token. Without the flag the service serves
+``--uav-id`` alone, exactly as before. The status queryable stays the one of
+``--uav-id``; it counts the rejections of every id's keys.
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import threading
+from collections.abc import Callable
+from dataclasses import replace
+
+from . import bus, keys
+from .cli import env
+from .log import fields
+
+log = logging.getLogger(__name__)
+
+MAX_VEHICLES = 64
+
+
+def add_argument(p: argparse.ArgumentParser) -> None:
+    """The ``--uav-ids`` flag (default ``UAV_IDS``; empty: ``--uav-id`` alone)."""
+    p.add_argument("--uav-ids", default=env("UAV_IDS", ""),
+                   help="serve these comma-separated vehicle ids (a fleet sharing this "
+                        "service); empty: --uav-id alone [UAV_IDS]")
+
+
+def uav_ids(text: str, default: str) -> tuple[str, ...]:
+    """The vehicle ids to serve: ``text`` split on commas (checked, de-duplicated, in order), or
+    ``(default,)`` when empty. Raises ValueError for a bad id or more than MAX_VEHICLES."""
+    ids = [keys.check_id(t.strip()) for t in text.split(",") if t.strip()]
+    ids = list(dict.fromkeys(ids)) or [keys.check_id(default)]
+    if len(ids) > MAX_VEHICLES:
+        raise ValueError(f"at most {MAX_VEHICLES} vehicle ids, got {len(ids)}")
+    return tuple(ids)
+
+
+def for_each(ctx: bus.Context, ids: tuple[str, ...], body: Callable[[bus.Context], None]) -> None:
+    """Run ``body`` for every vehicle id: directly for one id, else one thread per id.
+
+    Each thread gets a :class:`bus.Context` whose settings carry its id and
+    share the session and the stop event; an exception in one body stops
+    them all and is re-raised here (the service then exits non-zero).
+    """
+    if ids == (ctx.settings.uav_id,):
+        body(ctx)
+        return
+    subs = [bus.Context(replace(ctx.settings, uav_id=uav), ctx.stop, ctx.session) for uav in ids]
+    errors: list[BaseException] = []
+
+    def run(sub: bus.Context) -> None:
+        try:
+            body(sub)
+        except BaseException as err:  # re-raised by the caller's thread
+            log.exception("vehicle body failed", extra=fields(uav=sub.settings.uav_id))
+            errors.append(err)
+            ctx.stop.set()
+
+    threads = [threading.Thread(target=run, args=(sub,), daemon=True,
+                                name=f"{ctx.settings.service}-{sub.settings.uav_id}")
+               for sub in subs]
+    for th in threads:
+        th.start()
+    log.info("serving vehicles", extra=fields(uavs=",".join(ids)))
+    for th in threads:
+        th.join()
+    for sub in subs:
+        if sub.token is not None:
+            sub.token.undeclare()
+    if errors:
+        raise errors[0]

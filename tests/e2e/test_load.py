@@ -1,0 +1,52 @@
+"""Load: 10 vehicles share one EWS and one pair of planner services (benchmarks/load_vehicles.py).
+
+Each vehicle has its own uavsim and supervisor and flies the cognitive
+controller with the paper's timing on its own seed; the shared EWS keeps one
+fire process per vehicle id, so every mission must end exactly as the
+in-process mission of its seed (success and step count), every record be
+written and every process exit cleanly. The planner latency under that load
+is printed (and measured by the benchmark, not asserted).
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import json
+import sys
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+pytestmark = [pytest.mark.slow, pytest.mark.timeout(420)]
+
+REPO = Path(__file__).resolve().parents[2]
+VEHICLES = 10
+
+
+def _bench(name: str) -> Any:
+    """A script of benchmarks/ as a module (benchmarks/ is not a package)."""
+    full = f"benchmarks_{name}"
+    if full in sys.modules:
+        return sys.modules[full]
+    spec = importlib.util.spec_from_file_location(full, REPO / "benchmarks" / f"{name}.py")
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[full] = module  # dataclasses look their module up while the class is built
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_ten_vehicles_share_one_ews_and_one_planner_pair(tmp_path: Path) -> None:
+    bench = _bench("load_vehicles")
+    result = bench.run_load(VEHICLES, tmp_path, speed_factor=200.0, timeout_s=300.0)
+    assert set(result.outcomes) == {f"uav{k + 1}" for k in range(VEHICLES)}
+    for uav, outcome in result.outcomes.items():
+        ref = bench.in_process(result.seeds[uav])
+        assert outcome.ended, (uav, outcome)
+        assert (outcome.success, outcome.steps) == (ref.success, ref.steps), (uav, outcome)
+        assert result.recorded[uav], uav
+    assert all(code == 0 for code in result.codes.values()), result.codes
+    assert result.steps >= VEHICLES * 50
+    print(f"\n{VEHICLES} vehicles, {result.steps} steps in {result.wall_s:.1f} s: "
+          + json.dumps(result.stats()))
