@@ -8,8 +8,6 @@ tcp/127.0.0.1:7447``.
 
 from __future__ import annotations
 
-import sys
-
 from services.common import bus
 from services.common import cli as common_cli
 
@@ -35,4 +33,4 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    bus.leave(main())
