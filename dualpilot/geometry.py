@@ -276,9 +276,23 @@ class SegmentChecker:
         return self._all.distances(p0, p1)
 
     def point_distance(self, p: Array) -> float:
-        """Distance from point p to the nearest hull (inf if none)."""
-        q = np.asarray(p, dtype=float)[:2]
-        return float(self.distances(q[None], q[None])[0])
+        """Distance from point p to the nearest hull (inf if none), in plain floats.
+
+        Hulls are visited nearest bounding box first; one whose box is already
+        farther than the best distance so far cannot be nearer.
+        """
+        x, y = float(p[0]), float(p[1])
+        boxes = []
+        for i, (bx0, by0, bx1, by1) in enumerate(self._boxes):
+            gx = max(0.0, bx0 - x, x - bx1)
+            gy = max(0.0, by0 - y, y - by1)
+            boxes.append((gx * gx + gy * gy, i))
+        best2 = float("inf")
+        for box2, i in sorted(boxes):
+            if box2 >= best2:
+                break
+            best2 = min(best2, _point_polygon_distance2(x, y, self._faces[i], self._verts[i]))
+        return best2 ** 0.5
 
     def path_clearance(self, points: Array) -> float:
         """Smallest distance from the polyline through ``points`` (k, 2) to any hull."""
@@ -286,6 +300,25 @@ class SegmentChecker:
         if len(pts) == 1:
             return self.point_distance(pts[0])
         return float(np.min(self.distances(pts[:-1], pts[1:])))
+
+
+def _point_polygon_distance2(x: float, y: float, faces: list[tuple[float, float, float]],
+                             verts: list[tuple[float, float]]) -> float:
+    """Squared distance (m²) from (x, y) to a convex polygon: 0 inside, else to the nearest edge."""
+    if all(nx * x + ny * y - b <= 0.0 for nx, ny, b in faces):
+        return 0.0
+    best = float("inf")
+    k = len(verts)
+    for j in range(k):
+        ax, ay = verts[j]
+        bx, by = verts[j + 1 if j + 1 < k else 0]
+        ex, ey = bx - ax, by - ay
+        e2 = ex * ex + ey * ey
+        t = ((x - ax) * ex + (y - ay) * ey) / e2 if e2 > 0.0 else 0.0
+        t = 0.0 if t < 0.0 else 1.0 if t > 1.0 else t
+        dx, dy = x - ax - t * ex, y - ay - t * ey
+        best = min(best, dx * dx + dy * dy)
+    return best
 
 
 def _segment_near_polygon(x0: float, y0: float, x1: float, y1: float,

@@ -26,8 +26,8 @@ Indexing follows :class:`dualpilot.plan.Plan`: ``states[k+1] = Φ states[k] + Γ
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
-from operator import mul
 
 import numpy as np
 from scipy.linalg import solve_discrete_are
@@ -97,15 +97,13 @@ def speed_profile(
         raise ValueError(f"reference speed must be positive, got {speed_mps}")
     if horizon < 1:
         raise ValueError(f"horizon must be >= 1, got {horizon}")
-    s = np.empty(horizon + 2)
-    s[0] = 0.0
+    s = [0.0]
     v = float(np.clip(v0_mps, 0.0, speed_mps))
-    for k in range(horizon + 1):
+    for _ in range(horizon + 1):
         # Eq. (1) moves the position by ΔT times the speed at the start of the step
-        s[k + 1] = min(length_m, s[k] + v * dt_s)
-        remaining = length_m - s[k + 1]
-        v = min(speed_mps, v + accel_mps2 * dt_s, np.sqrt(2.0 * decel_mps2 * remaining))
-    return s
+        s.append(min(length_m, s[-1] + v * dt_s))
+        v = min(speed_mps, v + accel_mps2 * dt_s, math.sqrt(2.0 * decel_mps2 * (length_m - s[-1])))
+    return np.array(s)
 
 
 def reference_states(
@@ -140,40 +138,42 @@ def track(
 
     Returns (states (T+1, 2·dim), controls (T, dim)) with T = len(reference) − 1
     and states[0] = x0; the states follow Eq. (1) exactly under the controls.
+    K must have the form [k_p·I, k_v·I] that :func:`lqr_gain` returns (Φ, Γ
+    and Q = q·I, R = r·I act on each axis alike, so the axes decouple); the
+    loop then runs per axis in plain floats, ~10x faster than numpy on
+    4-vectors at T = 80.
     """
     x = check_state(x0, dynamics)
     ref = np.asarray(reference, dtype=float)
     n = dynamics.dim
     if ref.ndim != 2 or ref.shape[1] != 2 * n or len(ref) < 2:
         raise ValueError(f"reference must have shape (T+1 >= 2, {2 * n}), got {ref.shape}")
-    # Plain floats: at T = 80 a Python loop over lists is ~10x faster than numpy
-    # on 4-vectors. Φ, Γ have the block form of dynamics.transition_matrices.
+    k = np.asarray(gain, dtype=float)
+    kp, kv = float(k[0, 0]), float(k[0, n])
+    if k.shape != (n, 2 * n) or not np.allclose(k, np.hstack([kp * np.eye(n), kv * np.eye(n)])):
+        raise ValueError(f"gain must be [k_p·I, k_v·I] of shape ({n}, {2 * n}), got {k}")
     horizon = len(ref) - 1
     dt, decay = dynamics.dt_s, 1.0 - dynamics.zeta
     m_dt = dynamics.mass_kg / dt
     dt_m = dt / dynamics.mass_kg
     u_max, v_max = dynamics.u_max_n, dynamics.v_max_mps
-    k_rows = np.asarray(gain, dtype=float).tolist()
-    refs = ref.tolist()
-    xs = x.tolist()
-    states = [xs]
-    controls = []
-    for k in range(horizon):
-        r, r_next = refs[k], refs[k + 1]
-        err = [xi - ri for xi, ri in zip(xs, r, strict=True)]
-        u = []
-        for i in range(n):
-            ui = -sum(map(mul, k_rows[i], err))
-            if feedforward:
-                ui += m_dt * (r_next[n + i] - decay * r[n + i])
+    ff = 1.0 if feedforward else 0.0
+    states = np.empty((horizon + 1, 2 * n))
+    controls = np.empty((horizon, n))
+    for i in range(n):
+        rp, rv = ref[:, i].tolist(), ref[:, n + i].tolist()
+        p, v = float(x[i]), float(x[n + i])
+        ps, vs, us = [p], [v], []
+        for t in range(horizon):
+            u = -kp * (p - rp[t]) - kv * (v - rv[t]) + ff * m_dt * (rv[t + 1] - decay * rv[t])
             # clip to U, then keep |v_{k+1}| ≤ v_max: v_{k+1} = (1-ζ) v_k + u ΔT/m
-            v_free = decay * xs[n + i]
+            v_free = decay * v
             lo = max(-u_max, (-v_max - v_free) * m_dt)
             hi = min(u_max, (v_max - v_free) * m_dt)
-            ui = min(max(ui, lo), hi)
-            u.append(min(max(ui, -u_max), u_max))  # U wins when |v_k| > v_max
-        xs = ([xs[i] + dt * xs[n + i] for i in range(n)]
-              + [decay * xs[n + i] + dt_m * u[i] for i in range(n)])
-        controls.append(u)
-        states.append(xs)
-    return np.array(states, dtype=float), np.array(controls, dtype=float).reshape(horizon, n)
+            u = min(max(min(max(u, lo), hi), -u_max), u_max)  # U wins when |v_k| > v_max
+            p, v = p + dt * v, v_free + dt_m * u
+            ps.append(p)
+            vs.append(v)
+            us.append(u)
+        states[:, i], states[:, n + i], controls[:, i] = ps, vs, us
+    return states, controls

@@ -260,7 +260,8 @@ def plan_path(
     def finish(path: Array, status: str, iterations: int, tree: Array | None) -> RrtResult:
         if params.aim_goal_center and not np.allclose(path[-1], center):
             first = root_clearance if len(path) == 1 else params.clearance_m
-            if checker.clear(path[-1][None], center[None], first)[0]:
+            (x0, y0), (x1, y1) = path[-1].tolist(), center.tolist()
+            if checker.segment_clear(x0, y0, x1, y1, first):
                 path = np.vstack([path, center])
         if params.shortcut:
             path = shortcut(path, checker, params.clearance_m, root_clearance)
@@ -270,7 +271,8 @@ def plan_path(
         return finish(p[None].copy(), "direct", 0, None)
     if params.try_direct:
         target = center if params.aim_goal_center else np.clip(p, goal.lo, goal.hi)
-        if checker.clear(p[None], target[None], root_clearance)[0]:
+        (x0, y0), (x1, y1) = p.tolist(), target.tolist()
+        if checker.segment_clear(x0, y0, x1, y1, root_clearance):
             return finish(np.vstack([p, target]), "direct", 0, None)
 
     component = None
