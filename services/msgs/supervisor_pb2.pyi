@@ -29,7 +29,7 @@ MISSION_EVENT_KIND_RESUMED: MissionEventKind
 MISSION_EVENT_KIND_WAYPOINTS: MissionEventKind
 
 class Decision(_message.Message):
-    __slots__ = ("header", "step", "d_t_m", "xi", "p", "attention", "psi", "system", "objective", "commanded_system", "plan_source", "operator_rejected", "operator_waypoints", "operator_note")
+    __slots__ = ("header", "step", "d_t_m", "xi", "p", "attention", "psi", "system", "objective", "commanded_system", "plan_source", "operator_rejected", "operator_waypoints", "operator_note", "fire_stale", "fire_age_s", "fire_margin_m")
     HEADER_FIELD_NUMBER: _ClassVar[int]
     STEP_FIELD_NUMBER: _ClassVar[int]
     D_T_M_FIELD_NUMBER: _ClassVar[int]
@@ -44,6 +44,9 @@ class Decision(_message.Message):
     OPERATOR_REJECTED_FIELD_NUMBER: _ClassVar[int]
     OPERATOR_WAYPOINTS_FIELD_NUMBER: _ClassVar[int]
     OPERATOR_NOTE_FIELD_NUMBER: _ClassVar[int]
+    FIRE_STALE_FIELD_NUMBER: _ClassVar[int]
+    FIRE_AGE_S_FIELD_NUMBER: _ClassVar[int]
+    FIRE_MARGIN_M_FIELD_NUMBER: _ClassVar[int]
     header: _common_pb2.Header
     step: int
     d_t_m: float
@@ -58,7 +61,10 @@ class Decision(_message.Message):
     operator_rejected: bool
     operator_waypoints: int
     operator_note: str
-    def __init__(self, header: _Optional[_Union[_common_pb2.Header, _Mapping]] = ..., step: _Optional[int] = ..., d_t_m: _Optional[float] = ..., xi: _Optional[_Iterable[float]] = ..., p: _Optional[_Iterable[float]] = ..., attention: _Optional[int] = ..., psi: _Optional[_Iterable[float]] = ..., system: _Optional[int] = ..., objective: _Optional[_Union[_plan_pb2.Objective, str]] = ..., commanded_system: _Optional[int] = ..., plan_source: _Optional[str] = ..., operator_rejected: _Optional[bool] = ..., operator_waypoints: _Optional[int] = ..., operator_note: _Optional[str] = ...) -> None: ...
+    fire_stale: bool
+    fire_age_s: float
+    fire_margin_m: float
+    def __init__(self, header: _Optional[_Union[_common_pb2.Header, _Mapping]] = ..., step: _Optional[int] = ..., d_t_m: _Optional[float] = ..., xi: _Optional[_Iterable[float]] = ..., p: _Optional[_Iterable[float]] = ..., attention: _Optional[int] = ..., psi: _Optional[_Iterable[float]] = ..., system: _Optional[int] = ..., objective: _Optional[_Union[_plan_pb2.Objective, str]] = ..., commanded_system: _Optional[int] = ..., plan_source: _Optional[str] = ..., operator_rejected: _Optional[bool] = ..., operator_waypoints: _Optional[int] = ..., operator_note: _Optional[str] = ..., fire_stale: _Optional[bool] = ..., fire_age_s: _Optional[float] = ..., fire_margin_m: _Optional[float] = ...) -> None: ...
 
 class MissionEvent(_message.Message):
     __slots__ = ("header", "kind", "mission_id", "controller", "seed", "step", "success", "failure_cause", "mission_time_s", "flown_system", "position", "fires_active", "plan_status", "message")

@@ -706,7 +706,8 @@ class StackMission:
         self.clock.advance(n * self.fire_params.substep_s)
         self.clock.sleep_until_now(self.stop)
 
-    def _publish_step_start(self, decision: Decision, wanted: int, op: OperatorRecord) -> None:
+    def _publish_step_start(self, decision: Decision, wanted: int, op: OperatorRecord,
+                            fire: tuple[bool, float, float]) -> None:
         clock_msg = common_pb2.Clock()
         self._clock_msg(clock_msg)
         self.stamper.stamp(clock_msg.header, self._now())
@@ -714,6 +715,7 @@ class StackMission:
         msg = codec.decision_to_msg(decision, wanted, self.stamper, self._now())
         msg.plan_source, msg.operator_rejected = op.source, op.rejected
         msg.operator_waypoints, msg.operator_note = op.waypoints, op.note[:500]
+        msg.fire_stale, msg.fire_age_s, msg.fire_margin_m = fire
         bus.put(self.pubs["decision"], "", msg)
 
     def _clock_msg(self, out: common_pb2.Clock) -> None:
@@ -790,7 +792,8 @@ class StackMission:
                             str(info.get("source", "")) if flown == 1 else "",
                             bool(rejected), str(rejected or ""))
         self.operator.append(op)
-        self._publish_step_start(decision, wanted, op)  # observers: off the control path
+        self._publish_step_start(decision, wanted, op,  # observers: off the control path
+                                 (stale, age, margin))
         caught = self._advance(t, n_sub)
         record = StepRecord(
             t=t, state=self.state.copy(), control=control, decision=decision, system=flown,

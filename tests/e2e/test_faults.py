@@ -61,6 +61,7 @@ class Run:
     live: bus.Liveliness
     events: queue.Queue[Any] = field(default_factory=queue.Queue)
     seen: list[Any] = field(default_factory=list)
+    decisions: list[Any] = field(default_factory=list)  # every published Decision
     restarts: int = 0
 
     @property
@@ -136,10 +137,14 @@ def running(tmp_path: Path, name: str, controller: str = "cc", speed: float = 50
             sub = session.declare_subscriber(
                 keys.mission_event(cfg.uav_id),
                 lambda s: run.events.put(codec.parse(s.payload.to_bytes(), EV.MissionEvent)))
+            dsub = session.declare_subscriber(
+                keys.decision(cfg.uav_id),
+                lambda s: run.decisions.append(codec.parse(s.payload.to_bytes(), EV.Decision)))
             try:
                 yield run
             finally:
                 sub.undeclare()
+                dsub.undeclare()
 
 
 def flown_after(steps: dict[int, dict[str, Any]], t0: int) -> dict[int, int]:
@@ -194,9 +199,18 @@ def test_ews_killed_fire_data_goes_stale_and_planners_avoid_grown_regions(tmp_pa
         assert run.live.wait_for(["ews"], 60)
         end = run.event(lambda e: e.kind == EV.MISSION_EVENT_KIND_ENDED, 150)
         record = run.record()
+        decisions = {d.step: d for d in run.decisions}
     steps = {e["t"]: e for e in record if e["kind"] == "step"}
     stale = [e for e in steps.values() if e["fire_stale"]]
     assert len(stale) >= 3, [(e["t"], e["fire_age_s"]) for e in steps.values()]
+    # the published decisions say so too, with the same age and margin as the record
+    for e in steps.values():
+        d = decisions.get(e["t"])
+        if d is not None:
+            assert d.fire_stale == e["fire_stale"], (e["t"], d)
+            assert d.fire_age_s == pytest.approx(e["fire_age_s"])
+            assert d.fire_margin_m == pytest.approx(e["fire_margin_m"], abs=1e-3)
+    assert any(d.fire_stale for d in decisions.values())
     fire = FireParams()
     for e in stale:
         assert e["fire_age_s"] >= 0.5
