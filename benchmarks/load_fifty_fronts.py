@@ -31,33 +31,37 @@ def run(n_instances: int, seed: int) -> None:
               "50 fronts": [50] * n_instances}
     warm = make_instance(0, seed, 3)
     s2.plan(warm.state, warm.hulls, warm.objective, warm.prev_control)
-    medians: dict[str, dict[str, float]] = {}
-    for group, counts in groups.items():
-        times: dict[str, list[float]] = {"system2": [], "system1": []}
-        ok = {"system2": 0, "system1": 0}
-        verified = {"system2": 0, "system1": 0}
-        for i, n_hulls in enumerate(counts):
-            inst = make_instance(i, seed, n_hulls)
+    names = ("system2", "system1")
+    times: dict[str, dict[str, list[float]]] = {g: {n: [] for n in names} for g in groups}
+    ok = {g: dict.fromkeys(names, 0) for g in groups}
+    verified = {g: dict.fromkeys(names, 0) for g in groups}
+    # the groups alternate instance by instance, so both see the same machine load
+    for i in range(n_instances):
+        for group, counts in groups.items():
+            inst = make_instance(i, seed, counts[i])
             s1 = System1(GOAL, np.random.default_rng(np.random.SeedSequence([seed, i])),
                          dynamics=dyn)
+            s2.reset()  # no "previous plan" carried over from another instance
             for name, planner, eps in (("system2", s2, params.epsilon_m),
                                        ("system1", s1, None)):
                 t0 = time.perf_counter()
                 plan = planner.plan(inst.state, inst.hulls, inst.objective, inst.prev_control)
-                times[name].append(time.perf_counter() - t0)
+                times[group][name].append(time.perf_counter() - t0)
                 if plan.ok:
-                    ok[name] += 1
-                    verified[name] += check_plan(plan, inst, dyn, eps)[0]
-        medians[group] = {}
-        for name, ts in times.items():
-            med = float(np.median(ts))
-            medians[group][name] = med
-            print(f"{group:11s} {name}: median {1e3 * med:6.1f} ms, "
+                    ok[group][name] += 1
+                    verified[group][name] += check_plan(plan, inst, dyn, eps)[0]
+    for group in groups:
+        for name in names:
+            ts = times[group][name]
+            print(f"{group:11s} {name}: median {1e3 * float(np.median(ts)):6.1f} ms, "
                   f"p95 {1e3 * float(np.percentile(ts, 95)):6.1f} ms, "
-                  f"OK {ok[name]}/{len(ts)}, verified {verified[name]}/{ok[name]}")
-    for name in ("system2", "system1"):
-        ratio = medians["50 fronts"][name] / medians["1-9 fronts"][name]
-        print(f"{name}: median with 50 fronts / median with 1-9 = {ratio:.2f}")
+                  f"OK {ok[group][name]}/{len(ts)}, "
+                  f"verified {verified[group][name]}/{ok[group][name]}")
+    for name in names:
+        med = {g: float(np.median(times[g][name])) for g in groups}
+        p95 = {g: float(np.percentile(times[g][name], 95)) for g in groups}
+        print(f"{name}: 50 fronts / 1-9 fronts = {med['50 fronts'] / med['1-9 fronts']:.2f} "
+              f"(median), {p95['50 fronts'] / p95['1-9 fronts']:.2f} (p95)")
 
 
 def main() -> None:

@@ -573,27 +573,38 @@ class FastSystem2:
         """
         g = self.goal.center
         faces = FaceStack.of(polys)
-        if np.all(faces.margins(g) > 0):
+        margin_g = faces.margins(g)[0]
+        if np.all(margin_g > 0):
             return g
-        cands = []
-        for q in polys:
-            a = q.W
-            e = np.roll(a, -1, axis=0) - a
-            len2 = np.maximum(np.einsum("ij,ij->i", e, e), 1e-12)
-            t = np.clip(((g - a) * e).sum(axis=1) / len2, 0.0, 1.0)
-            proj = a + t[:, None] * e
-            cands.append(proj + 2.0 * q.A)
-            n_prev = np.roll(q.A, 1, axis=0)
-            bis = n_prev + q.A
-            cands.append(a + 2.0 * bis / np.maximum(np.linalg.norm(bis, axis=1), 1e-9)[:, None])
-        pts = np.vstack(cands)
-        free = np.all(faces.margins(pts) > 0, axis=1)
-        if self.area is not None:
-            free &= np.all((pts >= 0.0) & (pts <= self.area), axis=1)
-        if not np.any(free):
-            return g
-        pts = pts[free]
-        return np.asarray(pts[np.argmin(np.linalg.norm(pts - g, axis=1))])
+        # A candidate of Q lies 2 m outside Q, so it is at least margin_Q(G_o) − 2 m from
+        # G_o: visit the hulls nearest first and stop once none can beat the best so far.
+        best, best_d = g, math.inf
+        for i in np.argsort(margin_g):
+            if margin_g[i] - 2.0 >= best_d:
+                break
+            pts = self._candidates(polys[i], g)
+            free = np.all(faces.margins(pts) > 0, axis=1)
+            if self.area is not None:
+                free &= np.all((pts >= 0.0) & (pts <= self.area), axis=1)
+            if np.any(free):
+                pts = pts[free]
+                d = np.linalg.norm(pts - g, axis=1)
+                j = int(np.argmin(d))
+                if d[j] < best_d:
+                    best, best_d = pts[j], float(d[j])
+        return np.asarray(best)
+
+    @staticmethod
+    def _candidates(q: Inflated, g: Array) -> Array:
+        """G_o projected onto every edge of Q and Q's vertices, each pushed 2 m outwards."""
+        a = q.W
+        e = np.roll(a, -1, axis=0) - a
+        len2 = np.maximum(np.einsum("ij,ij->i", e, e), 1e-12)
+        t = np.clip(((g - a) * e).sum(axis=1) / len2, 0.0, 1.0)
+        proj = a + t[:, None] * e
+        bis = np.roll(q.A, 1, axis=0) + q.A
+        corners = a + 2.0 * bis / np.maximum(np.linalg.norm(bis, axis=1), 1e-9)[:, None]
+        return np.vstack([proj + 2.0 * q.A, corners])
 
     # ------------------------------------------------------------------ CFS
     def _in_area(self, pos: Array) -> bool:
