@@ -7,7 +7,7 @@ counter-clockwise order. All lengths are metres.
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -302,23 +302,30 @@ class SegmentChecker:
         return float(np.min(self.distances(pts[:-1], pts[1:])))
 
 
+def _point_edge_d2(px: float, py: float, ax: float, ay: float, ex: float, ey: float) -> float:
+    """Squared distance (m²) from (px, py) to the segment a → a + e, in plain floats."""
+    e2 = ex * ex + ey * ey
+    t = ((px - ax) * ex + (py - ay) * ey) / e2 if e2 > 0.0 else 0.0
+    t = 0.0 if t < 0.0 else 1.0 if t > 1.0 else t
+    dx, dy = px - ax - t * ex, py - ay - t * ey
+    return dx * dx + dy * dy
+
+
+def _edges(verts: list[tuple[float, float]]) -> Iterator[tuple[float, float, float, float]]:
+    """(a_x, a_y, e_x, e_y) of every edge a → a + e of a closed polygon."""
+    k = len(verts)
+    for j in range(k):
+        ax, ay = verts[j]
+        bx, by = verts[j + 1 if j + 1 < k else 0]
+        yield ax, ay, bx - ax, by - ay
+
+
 def _point_polygon_distance2(x: float, y: float, faces: list[tuple[float, float, float]],
                              verts: list[tuple[float, float]]) -> float:
     """Squared distance (m²) from (x, y) to a convex polygon: 0 inside, else to the nearest edge."""
     if all(nx * x + ny * y - b <= 0.0 for nx, ny, b in faces):
         return 0.0
-    best = float("inf")
-    k = len(verts)
-    for j in range(k):
-        ax, ay = verts[j]
-        bx, by = verts[j + 1 if j + 1 < k else 0]
-        ex, ey = bx - ax, by - ay
-        e2 = ex * ex + ey * ey
-        t = ((x - ax) * ex + (y - ay) * ey) / e2 if e2 > 0.0 else 0.0
-        t = 0.0 if t < 0.0 else 1.0 if t > 1.0 else t
-        dx, dy = x - ax - t * ex, y - ay - t * ey
-        best = min(best, dx * dx + dy * dy)
-    return best
+    return min(_point_edge_d2(x, y, ax, ay, ex, ey) for ax, ay, ex, ey in _edges(verts))
 
 
 def _segment_near_polygon(x0: float, y0: float, x1: float, y1: float,
@@ -349,23 +356,10 @@ def _segment_near_polygon(x0: float, y0: float, x1: float, y1: float,
     else:
         return True  # the clipped interval is not empty: the segment meets the polygon
     need2 = need_m * need_m
-    s2 = sx * sx + sy * sy
-    k = len(verts)
-    for j in range(k):
-        ax, ay = verts[j]
-        bx, by = verts[j + 1 if j + 1 < k else 0]
-        ex, ey = bx - ax, by - ay
-        e2 = ex * ex + ey * ey
-        for px, py in ((x0, y0), (x1, y1)):
-            t = ((px - ax) * ex + (py - ay) * ey) / e2 if e2 > 0.0 else 0.0
-            t = 0.0 if t < 0.0 else 1.0 if t > 1.0 else t
-            dx, dy = px - ax - t * ex, py - ay - t * ey
-            if dx * dx + dy * dy < need2:
-                return True
-        t = ((ax - x0) * sx + (ay - y0) * sy) / s2 if s2 > 0.0 else 0.0
-        t = 0.0 if t < 0.0 else 1.0 if t > 1.0 else t
-        dx, dy = ax - x0 - t * sx, ay - y0 - t * sy
-        if dx * dx + dy * dy < need2:
+    for ax, ay, ex, ey in _edges(verts):
+        if (_point_edge_d2(x0, y0, ax, ay, ex, ey) < need2
+                or _point_edge_d2(x1, y1, ax, ay, ex, ey) < need2
+                or _point_edge_d2(ax, ay, x0, y0, sx, sy) < need2):
             return True
     return False
 
