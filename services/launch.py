@@ -242,6 +242,23 @@ class ProcessGroup:
         return codes
 
 
+def next_event(events: Any, timeout_s: float = 0.2) -> Any:
+    """The next readable MissionEvent from the queue ``events`` within ``timeout_s``, else None."""
+    import queue
+
+    from services.common import codec
+    from services.msgs import supervisor_pb2
+
+    try:
+        raw = events.get(timeout=timeout_s)
+    except queue.Empty:
+        return None
+    try:
+        return codec.parse(raw, supervisor_pb2.MissionEvent)
+    except codec.CodecError:
+        return None
+
+
 # -- the stack ------------------------------------------------------------------------------------
 @dataclass
 class StackConfig:
@@ -366,7 +383,7 @@ def follow(stack: Stack, timeout_s: float, quiet: bool = False) -> Outcome:
     """Print the mission's progress until it ends, a process dies or ``timeout_s`` passes."""
     import queue
 
-    from services.common import codec, keys
+    from services.common import keys
     from services.msgs import supervisor_pb2
 
     events: queue.Queue[bytes] = queue.Queue()
@@ -380,13 +397,8 @@ def follow(stack: Stack, timeout_s: float, quiet: bool = False) -> Outcome:
                 if dead:
                     names = ", ".join(f"{p.name} (exit {p.popen.returncode})" for p in dead)
                     return Outcome(False, message=f"process ended early: {names}")
-                try:
-                    raw = events.get(timeout=0.2)
-                except queue.Empty:
-                    continue
-                try:
-                    ev = codec.parse(raw, supervisor_pb2.MissionEvent)
-                except codec.CodecError:
+                ev = next_event(events)
+                if ev is None:
                     continue
                 kind = ev.kind
                 if kind == supervisor_pb2.MISSION_EVENT_KIND_STARTED and not quiet:
@@ -542,9 +554,7 @@ class Fleet:
     def wait_end(self, mission_ids: dict[str, str], timeout_s: float) -> dict[str, Outcome]:
         """Wait for the end of the missions {uav: mission id}; a vehicle whose process died or
         that did not end in time gets an Outcome with ``ended=False``."""
-        import queue
 
-        from services.common import codec
         from services.msgs import supervisor_pb2
 
         out: dict[str, Outcome] = {}
@@ -557,13 +567,8 @@ class Fleet:
                 if uav in mission_ids and uav not in out:
                     out[uav] = Outcome(False, message=f"{proc.name} exited "
                                                       f"{proc.popen.returncode}")
-            try:
-                raw = self._events.get(timeout=0.2)
-            except queue.Empty:
-                continue
-            try:
-                ev = codec.parse(raw, supervisor_pb2.MissionEvent)
-            except codec.CodecError:
+            ev = next_event(self._events)
+            if ev is None:
                 continue
             uav = by_mission.get(ev.mission_id)
             if uav is None or uav in out or ev.kind not in ends:
