@@ -56,12 +56,11 @@ in the published Decision (``plan_source``, ``operator_rejected``,
 
 from __future__ import annotations
 
-import csv
 import json
 import logging
 import threading
 import time
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -99,12 +98,9 @@ from services.msgs import common_pb2, fire_pb2, plan_pb2, supervisor_pb2, vehicl
 
 from .faults import StaleFireParams, credible_margin_m, grown_fire_msg
 from .link import OffboardError, VehicleLink
+from .runlog import Latency, OperatorRecord, write_operator_columns
 
 log = logging.getLogger(__name__)
-
-LATENCY_COLUMNS = ["t", "tick_to_setpoint_s", "compute_s", "overhead_s", "requests",
-                   "request_wall_s", "service_s"]
-
 
 class Aborted(RuntimeError):
     """The stack could not finish the mission (a service or the vehicle stopped answering)."""
@@ -126,53 +122,6 @@ class StackParams:
     stale: StaleFireParams = StaleFireParams()
     #: flush the step record (steps.jsonl) at most this long after a line (s); 0: every line
     record_flush_s: float = 0.0
-
-
-@dataclass(frozen=True)
-class OperatorRecord:
-    """Per step: which reference path System 1 used and whether the operator's was refused."""
-
-    t: int
-    waypoints: int
-    source: str
-    rejected: bool
-    note: str
-
-
-@dataclass
-class Latency:
-    """Per step: tick → setpoint on the wire (s), the planners' compute (s), the rest (s).
-
-    The tick is the start of the step (after the previous step's pacing); the
-    setpoint has left when pymavlink's send returns. ``overhead`` = total −
-    compute: decision, Zenoh round trips, encoding and validation;
-    ``request_wall`` is the time spent in plan requests (round trip, the
-    planner service's decoding and encoding, and compute), ``service`` the
-    part of it the planner services report (decode, plan, encode).
-    """
-
-    rows: list[tuple[int, float, float, float, int, float, float]] = field(default_factory=list)
-
-    def add(self, t: int, total: float, compute: float, requests: int, request_wall: float,
-            service: float) -> None:
-        self.rows.append((t, total, compute, total - compute, requests, request_wall, service))
-
-    def overhead_ms(self) -> dict[str, float]:
-        if not self.rows:
-            return {}
-        o = np.array([r[3] for r in self.rows]) * 1e3
-        return {"median_ms": float(np.median(o)), "p99_ms": float(np.percentile(o, 99)),
-                "max_ms": float(o.max()), "n": float(len(o))}
-
-    def write(self, out: Path) -> Path:
-        path = out / "latency.csv"
-        with path.open("w", newline="") as fh:
-            w = csv.writer(fh)
-            w.writerow(LATENCY_COLUMNS)
-            for t, total, compute, overhead, requests, wall, service in self.rows:
-                w.writerow([t, f"{total:.6f}", f"{compute:.6f}", f"{overhead:.6f}", requests,
-                            f"{wall:.6f}", f"{service:.6f}"])
-        return path
 
 
 class StackMission:
@@ -880,35 +829,13 @@ class StackMission:
                     failure_cause=r.failure_cause, mission_time_s=r.mission_time_s,
                     position=self.state, message=run_dir)
 
-    def _write_operator(self, out: Path) -> None:
-        """Add the operator columns to steps.csv and trace.json (one row/entry per step)."""
-        by_t = {op.t: op for op in self.operator}
-        path = out / "steps.csv"
-        with path.open(newline="") as fh:
-            rows = list(csv.reader(fh))
-        if rows:
-            rows[0] += ["operator_waypoints", "operator_rejected"]
-            for row in rows[1:]:
-                op = by_t.get(int(row[0]))
-                row += [str(op.waypoints), str(int(op.rejected))] if op else ["0", "0"]
-            with path.open("w", newline="") as fh:
-                csv.writer(fh).writerows(rows)
-        trace_path = out / "trace.json"
-        trace = json.loads(trace_path.read_text())
-        for entry in trace.get("steps", []):
-            op = by_t.get(int(entry["t"]))
-            if op is not None:
-                entry.update(source=op.source, operator_waypoints=op.waypoints,
-                             operator_rejected=op.note if op.rejected else None)
-        trace_path.write_text(json.dumps(trace) + "\n")
-
     def write(self, out: Path, extra: dict[str, object]) -> list[Path]:
         """summary.json, steps.csv, trace.json (dualpilot.records) and latency.csv."""
         from dualpilot.records import write_all
 
         assert self.result is not None
         paths = write_all(self.result, out)
-        self._write_operator(out)
+        write_operator_columns(self.operator, out)
         summary = json.loads((out / "summary.json").read_text())
         summary["stack"] = {
             "mission_id": self.mission_id, "transport": "zenoh + mavlink",
