@@ -352,6 +352,23 @@ class Stack:
         self.stop()
 
 
+def wait_router(endpoint: str, timeout_s: float = 30.0) -> None:
+    """Wait until the router's TCP ``endpoint`` accepts connections (then zenoh.open is quick).
+
+    Raises TimeoutError after ``timeout_s``.
+    """
+    host, port = endpoint.removeprefix("tcp/").rsplit(":", 1)
+    deadline = time.monotonic() + timeout_s
+    while True:
+        try:
+            socket.create_connection((host, int(port)), timeout=0.5).close()
+            return
+        except OSError:
+            if time.monotonic() > deadline:
+                raise TimeoutError(f"no router at {endpoint} within {timeout_s} s") from None
+            time.sleep(0.05)
+
+
 @contextmanager
 def client_session(endpoint: str) -> Iterator[Any]:
     """A Zenoh client session on ``endpoint`` (blocks until the router answers)."""

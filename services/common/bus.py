@@ -148,11 +148,6 @@ class Inbox:
         return self.key or item.key
 
 
-def alias(label: str, key: str) -> None:
-    """Count rejections reported as ``label`` (``codec.rejected(label, …)``) under ``key``."""
-    codec.REJECTED.alias(label, key)
-
-
 def accept(item: Received, cls: type[M], convert: Callable[[M], T], key: str | None = None,
            logger: logging.Logger = log) -> T | None:
     """``convert(parse(item))``, or None after counting and logging the rejection under

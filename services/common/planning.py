@@ -47,6 +47,7 @@ class PlannerService:
         self.system = system
         self.make = make
         self.stamper = codec.Stamper(f"system{system}", uav)
+        self.key = keys.plan(uav, system)  # where its rejections are counted
         self.planners: OrderedDict[str, Planner] = OrderedDict()
         self.keep = keep_missions
         self.waypoints: codec.Array | None = None
@@ -105,13 +106,13 @@ class PlannerService:
         try:
             req = codec.plan_request_from_msg(codec.parse(payload, plan_pb2.PlanRequest, encoding))
         except codec.CodecError as err:
-            codec.rejected("PlanRequest", err, log)
+            codec.rejected("PlanRequest", err, log, key=self.key)
             return codec.error_msg(self.stamper, err.code, str(err))
         if req.prepare:
             try:
                 self.planner_for(req.mission)
             except ValueError as err:
-                codec.rejected("PlanRequest", err, log)
+                codec.rejected("PlanRequest", err, log, key=self.key)
                 return codec.error_msg(self.stamper, common_pb2.ERROR_CODE_INVALID, str(err))
             prepared = plan_pb2.Plan(step=req.step, system=self.system,
                                      status=plan_pb2.PLAN_STATUS_OK, message="prepared",
@@ -122,7 +123,7 @@ class PlannerService:
         try:
             plan = self.plan(req)
         except codec.CodecError as err:
-            codec.rejected("PlanRequest", err, log)
+            codec.rejected("PlanRequest", err, log, key=self.key)
             return codec.error_msg(self.stamper, err.code, str(err))
         except Exception as err:  # a planner bug must not take the service down
             log.exception("planner failed", extra=fields(step=req.step))

@@ -14,7 +14,7 @@ from __future__ import annotations
 from dualpilot.factory import make_system1
 from dualpilot.mission import MissionConfig
 from dualpilot.plan import Planner
-from services.common import bus, codec, fleet, keys, planning
+from services.common import bus, codec, fleet, planning
 from services.common import cli as common_cli
 
 
@@ -33,17 +33,7 @@ def main(argv: list[str] | None = None) -> int:
     except ValueError as err:
         p.error(str(err))
     return bus.run_service(settings, lambda ctx: fleet.for_each(
-        ctx, uavs, lambda sub: body(sub, 1, make, alias=len(uavs) == 1)))
-
-
-def body(ctx: bus.Context, system: int, make: planning.PlannerMaker, alias: bool = True) -> None:
-    """planning.run, with its rejections counted under the keys they arrive on (for a fleet,
-    ``alias=False``: under the message kind, as the labels cannot tell the vehicles apart)."""
-    uav = ctx.settings.uav_id
-    if alias:
-        bus.alias("PlanRequest", keys.plan(uav, system))
-        bus.alias("OperatorWaypoints", keys.waypoints(uav))
-    planning.run(ctx, system, make)
+        ctx, uavs, lambda sub: planning.run(sub, 1, make)))
 
 
 if __name__ == "__main__":

@@ -17,7 +17,7 @@ from dualpilot.mission import MissionConfig
 from dualpilot.p2 import System2Params
 from dualpilot.plan import Planner
 from dualpilot.system2_fast import METHODS
-from services.common import bus, codec, fleet
+from services.common import bus, codec, fleet, planning
 from services.common import cli as common_cli
 
 
@@ -42,10 +42,8 @@ def main(argv: list[str] | None = None) -> int:
         return make_system2_planner(config, args.method, replace(params,
                                                                  area_size_m=mission.area_size_m))
 
-    from services.system1.__main__ import body  # one planner loop per vehicle id
-
     return bus.run_service(settings, lambda ctx: fleet.for_each(
-        ctx, uavs, lambda sub: body(sub, 2, make, alias=len(uavs) == 1)))
+        ctx, uavs, lambda sub: planning.run(sub, 2, make)))
 
 
 if __name__ == "__main__":

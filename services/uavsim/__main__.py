@@ -251,6 +251,14 @@ class Endpoint:
         """Count and log (rate-limited) a rejected MAVLink input under ``mavlink/<link>``."""
         codec.rejected(what, err, log, key=f"mavlink/{link}")
 
+    def bad_frame(self, link: str, msg: Any) -> codec.CodecError:
+        """The rejection for a BAD_DATA frame (an unsigned one is also counted as such)."""
+        why = str(getattr(msg, "reason", ""))
+        reason = codec.mavlink_frame_reason(why)
+        if reason is codec.Reason.UNSIGNED:
+            self.count_unsigned(link)
+        return codec.invalid(f"bad frame on {link}: {why}", reason)
+
     def receive(self, link: str) -> None:
         """Read every waiting datagram of ``link`` and handle its frames (never raises).
 
@@ -300,12 +308,8 @@ class Endpoint:
         for msg in msgs:
             kind = msg.get_type()
             if kind == "BAD_DATA":
-                why = str(getattr(msg, "reason", ""))
-                reason = codec.mavlink_frame_reason(why)
-                if reason is codec.Reason.UNSIGNED:
-                    self.count_unsigned(link)
-                if framing is None:
-                    framing = codec.invalid(f"bad frame: {why}", reason)
+                bad = self.bad_frame(link, msg)
+                framing = framing or bad
                 continue
             if kind.startswith("UNKNOWN_"):
                 if framing is None:
@@ -338,11 +342,7 @@ class Endpoint:
         """Act on one decoded frame; False (after counting it) if it was rejected."""
         kind = msg.get_type()
         if kind == "BAD_DATA":
-            why = str(getattr(msg, "reason", ""))
-            reason = codec.mavlink_frame_reason(why)
-            if reason is codec.Reason.UNSIGNED:
-                self.count_unsigned(link)
-            self.reject(link, codec.invalid(f"bad frame on {link}: {why}", reason))
+            self.reject(link, self.bad_frame(link, msg))
             return False
         if self.tlog is not None:
             self.tlog.message(msg)

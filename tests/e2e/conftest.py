@@ -10,7 +10,6 @@ republishes, so the checks do not rely on the supervisor's own records.
 from __future__ import annotations
 
 import queue
-import socket
 import time
 from collections.abc import Iterator
 from dataclasses import dataclass, field
@@ -65,7 +64,8 @@ class Recorded:
     decisions: list[supervisor_pb2.Decision] = field(default_factory=list)
 
 
-def _drain(q: queue.Queue[bytes], cls: Any) -> list[Any]:
+def drain_messages(q: queue.Queue[bytes], cls: Any) -> list[Any]:
+    """Every message waiting in ``q`` (payload bytes), parsed as ``cls``."""
     out = []
     while True:
         try:
@@ -85,15 +85,7 @@ def mission(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Recorded]:
     inboxes: dict[str, queue.Queue[bytes]] = {k: queue.Queue() for k in ("f", "s", "d")}
     t0 = time.monotonic()
     with stack:
-        host, port = stack.endpoint.removeprefix("tcp/").rsplit(":", 1)
-        deadline = time.monotonic() + 30
-        while True:  # the router process is up when its port accepts connections
-            try:
-                socket.create_connection((host, int(port)), timeout=0.5).close()
-                break
-            except OSError:
-                assert time.monotonic() < deadline, "router did not start"
-                time.sleep(0.05)
+        launch.wait_router(stack.endpoint)
         with launch.client_session(stack.endpoint) as session:
             subs = [session.declare_subscriber(key, lambda s, q=q: q.put(s.payload.to_bytes()))
                     for key, q in ((keys.fires(cfg.uav_id), inboxes["f"]),
@@ -105,7 +97,7 @@ def mission(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Recorded]:
     wall = time.monotonic() - t0
     codes = {p.name: int(p.popen.returncode) for p in stack.group.procs}
     rec = Recorded(seed, reference, run_dir, outcome, codes, wall,
-                   fires=_drain(inboxes["f"], fire_pb2.FireState),
-                   states=_drain(inboxes["s"], vehicle_pb2.VehicleState),
-                   decisions=_drain(inboxes["d"], supervisor_pb2.Decision))
+                   fires=drain_messages(inboxes["f"], fire_pb2.FireState),
+                   states=drain_messages(inboxes["s"], vehicle_pb2.VehicleState),
+                   decisions=drain_messages(inboxes["d"], supervisor_pb2.Decision))
     yield rec

@@ -43,17 +43,6 @@ TIMING = "measured"
 EV = supervisor_pb2
 
 
-def wait_port(port: int, timeout_s: float = 30.0) -> None:
-    deadline = time.monotonic() + timeout_s
-    while True:
-        try:
-            socket.create_connection(("127.0.0.1", port), timeout=0.5).close()
-            return
-        except OSError:
-            assert time.monotonic() < deadline, f"nothing listens on {port}"
-            time.sleep(0.05)
-
-
 @dataclass
 class Run:
     stack: launch.Stack
@@ -130,7 +119,7 @@ def running(tmp_path: Path, name: str, controller: str = "cc", speed: float = 50
                 env["ZENOH_CONNECT"] = f"tcp/127.0.0.1:{proxy(stack.zenoh_port)}"
                 cfg.extra_env[svc] = env
     with stack:
-        wait_port(stack.zenoh_port)
+        launch.wait_router(stack.endpoint)
         with launch.client_session(stack.endpoint) as session:
             live = bus.Liveliness(session, cfg.uav_id)
             run = Run(stack, session, live)
@@ -277,7 +266,7 @@ def test_router_restarted_every_service_reconnects_and_the_mission_goes_on(
         run.stack.group.start("router", list(router.popen.args),  # type: ignore[arg-type]
                               dict(os.environ, PYTHONPATH=str(launch.REPO)),
                               run.stack.logs / "router-2.log")
-        wait_port(run.stack.zenoh_port)
+        launch.wait_router(run.stack.endpoint)
         assert run.live.wait_for(["ews", "system1", "system2", "supervisor", "uavsim"], 60), (
             run.live.missing(keys.SERVICES))
         end = run.ended()

@@ -12,9 +12,7 @@ rejection be counted in the status of the service that received it.
 
 from __future__ import annotations
 
-import socket
 import threading
-import time
 from typing import Any
 
 import pytest
@@ -31,18 +29,6 @@ SPEED_FACTOR = 100.0
 SERVICES = ("ews", "system1", "system2", "supervisor", "uavsim")
 
 
-def _wait_router(endpoint: str) -> None:
-    host, port = endpoint.removeprefix("tcp/").rsplit(":", 1)
-    deadline = time.monotonic() + 30
-    while True:
-        try:
-            socket.create_connection((host, int(port)), timeout=0.5).close()
-            return
-        except OSError:
-            assert time.monotonic() < deadline, "router did not start"
-            time.sleep(0.05)
-
-
 def test_mission_succeeds_under_a_fuzz_flood(tmp_path: Any) -> None:
     seed, _ = successful_seed()
     run_dir = tmp_path / f"fuzz-cc-s{seed}"
@@ -54,7 +40,7 @@ def test_mission_succeeds_under_a_fuzz_flood(tmp_path: Any) -> None:
     floods: list[FloodResult] = []
     errors: list[BaseException] = []
     with stack:
-        _wait_router(stack.endpoint)
+        launch.wait_router(stack.endpoint)
         with launch.client_session(stack.endpoint) as session:
             live = bus.Liveliness(session, cfg.uav_id)
             assert live.wait_for(["ews", "system1", "system2"], 90), live.missing(SERVICES)

@@ -29,8 +29,9 @@ from typing import Any
 import numpy as np
 import pytest
 
+from e2e.conftest import drain_messages
 from services import launch
-from services.common import codec, keys, mav
+from services.common import keys, mav
 from services.msgs import supervisor_pb2
 
 pytestmark = [pytest.mark.slow, pytest.mark.timeout(300)]
@@ -123,13 +124,6 @@ class Run:
     events: queue.Queue[bytes] = field(default_factory=queue.Queue)
     decisions: queue.Queue[bytes] = field(default_factory=queue.Queue)
 
-    def drain(self, q: queue.Queue[bytes], cls: Any) -> list[Any]:
-        out = []
-        while True:
-            try:
-                out.append(codec.parse(q.get_nowait(), cls))
-            except queue.Empty:
-                return out
 
 
 def wp_file(path: Path) -> Path:
@@ -212,7 +206,7 @@ def test_system1_flies_the_operator_waypoints_while_safe(run: Run) -> None:
     assert armed
     # the first waypoint is reached (MISSION_ITEM_REACHED within MIS_ACC_RAD)
     run.observer.recv("MISSION_ITEM_REACHED", 60, lambda r: r.seq == 1)
-    decisions = until(lambda: [d for d in run.drain(run.decisions, supervisor_pb2.Decision)], 5)
+    decisions = until(lambda: drain_messages(run.decisions, supervisor_pb2.Decision), 5)
     assert decisions and all(d.operator_waypoints == len(ROUTE) for d in decisions)
     assert decisions[0].plan_source == "operator"
     for d in decisions:
@@ -227,13 +221,13 @@ def test_a_vehicle_that_disappears_pauses_the_mission(run: Run) -> None:
     try:
         assert until(lambda: any(
             e.kind == supervisor_pb2.MISSION_EVENT_KIND_PAUSED
-            for e in run.drain(run.events, supervisor_pb2.MissionEvent)), 8)
+            for e in drain_messages(run.events, supervisor_pb2.MissionEvent)), 8)
     finally:
         os.kill(uav.popen.pid, signal.SIGCONT)
     kinds: list[int] = []
 
     def ended() -> bool:
-        kinds.extend(e.kind for e in run.drain(run.events, supervisor_pb2.MissionEvent))
+        kinds.extend(e.kind for e in drain_messages(run.events, supervisor_pb2.MissionEvent))
         return supervisor_pb2.MISSION_EVENT_KIND_ENDED in kinds
 
     assert until(ended, 120), (run.stack.logs / "supervisor.log").read_text()[-3000:]

@@ -23,7 +23,6 @@ import pytest
 from integration.test_mavlink_fuzz import Corpus
 
 from e2e.conftest import successful_seed
-from e2e.test_fuzz_mission import _wait_router
 from services import launch
 from services.common import bus
 
@@ -59,7 +58,7 @@ def test_mission_succeeds_while_both_mavlink_ports_are_flooded(tmp_path: Any) ->
     stop = threading.Event()
     sent: dict[str, int] = {}
     with stack:
-        _wait_router(stack.endpoint)
+        launch.wait_router(stack.endpoint)
         ports = {"offboard": stack.ports.ports[14540], "gcs": stack.ports.ports[14550]}
         with launch.client_session(stack.endpoint) as session:
             live = bus.Liveliness(session, cfg.uav_id)

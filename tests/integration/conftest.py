@@ -8,7 +8,6 @@ liveliness tokens and messages, never on fixed sleeps.
 from __future__ import annotations
 
 import os
-import socket
 import sys
 import time
 from collections.abc import Callable, Iterator
@@ -18,7 +17,7 @@ from typing import Any
 import pytest
 
 from services.common import bus
-from services.launch import REPO, Proc, ProcessGroup, client_session, free_port
+from services.launch import REPO, Proc, ProcessGroup, client_session, free_port, wait_router
 
 UAV = "itest"
 
@@ -51,20 +50,6 @@ class Services:
         return self.group.stop_all()
 
 
-def wait_tcp(endpoint: str, timeout_s: float) -> None:
-    """Wait until the router's TCP port accepts connections (so zenoh.open returns at once)."""
-    host, port = endpoint.removeprefix("tcp/").rsplit(":", 1)
-    deadline = time.monotonic() + timeout_s
-    while True:
-        try:
-            socket.create_connection((host, int(port)), timeout=0.5).close()
-            return
-        except OSError:
-            if time.monotonic() > deadline:
-                raise TimeoutError(f"no router at {endpoint} within {timeout_s} s") from None
-            time.sleep(0.05)
-
-
 @pytest.fixture(scope="module")
 def router(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
     """A zenoh-python router on a free loopback port; yields its endpoint."""
@@ -84,7 +69,7 @@ def router(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
 @pytest.fixture(scope="module")
 def session(router: str) -> Iterator[Any]:
     """A Zenoh client session of the test process on the router."""
-    wait_tcp(router, 30.0)
+    wait_router(router, 30.0)
     with client_session(router) as sess:
         yield sess
 
