@@ -1,78 +1,15 @@
-"""What the supervisor assumes about fires it can no longer see (the EWS is gone or late).
+"""Fire data grown for staleness, as a message: the stack's side of :mod:`dualpilot.stale_fire`.
 
-The fire world advances only on the supervisor's FireAdvance commands
-(lockstep, services/common/clock.py). When a command is not answered (the
-EWS was killed, or the router is down) the sub-steps it should have
-propagated are *owed*: the fire data's **age** is owed sub-steps × T_f of
-simulated time (0 in normal flight). Data at least ``stale_after_s`` old is
-**stale** (:class:`StaleFireParams`; default one sub-step, T_f = 0.5 s).
-
-While the data is stale the planners avoid the last known hulls grown by the
-fastest credible spread over that age, :func:`credible_margin_m`:
-
-    r(a) = (ȳ^ν + k σ^ν) · a + (side_max − side_min) / 2
-
-* the Gauss–Markov speed y_k = γ y_{k−1} + (1 − γ) ȳ + √(1 − γ²) ŷ, ŷ ~ N(0, σ),
-  has the stationary law N(ȳ, σ) (Var = γ² Var + (1 − γ²) σ²), so
-  |y^ν| ≤ ȳ^ν + k σ^ν except with probability ≈ 3·10⁻⁵ per draw for k = 4
-  (3 + 4 · 0.8 = 6.2 m/s with the paper's values): a centre moves at most
-  that speed × a, in any direction;
-* a rectangle is redrawn every sub-step with sides in [side_min, side_max],
-  so a region of width w can grow by (side_max − w)/2 ≤ (side_max − side_min)/2
-  = 75 m on each side at the very next sub-step.
-
-A later region of a front therefore lies inside its current region grown by
-r(a) on every side, and its path hull inside the current hull ⊕ [−r, r]²
-(:func:`grow_polygon`). Fronts born while the EWS is silent cannot be bounded:
-no margin covers them (they are uniform over the area).
+The supervisor owes the EWS fire sub-steps it did not confirm; while the data
+is stale (:class:`dualpilot.stale_fire.StaleFireParams`) the planners get the
+last known fronts grown by :func:`dualpilot.stale_fire.credible_margin_m`.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
-import numpy as np
-
-from dualpilot.fire import FireParams
-from dualpilot.geometry import Polytope
+from dualpilot.stale_fire import grow_polygon
 from services.common import codec
 from services.msgs import fire_pb2
-
-
-@dataclass(frozen=True)
-class StaleFireParams:
-    """When fire data counts as stale (s of simulated time) and how fast fronts may spread."""
-
-    stale_after_s: float = 0.5
-    sigma_bound: float = 4.0  # k in ȳ + k σ
-
-    def __post_init__(self) -> None:
-        if not (self.stale_after_s > 0 and self.sigma_bound >= 0):
-            raise ValueError("stale_after_s must be > 0 and sigma_bound >= 0")
-
-
-def credible_speed_mps(fire: FireParams, params: StaleFireParams = StaleFireParams()) -> float:
-    """ȳ^ν + k σ^ν: the fastest credible front speed (m/s), 6.2 m/s with the paper's values."""
-    return abs(fire.speed_mean_mps) + params.sigma_bound * fire.speed_sigma_mps
-
-
-def credible_margin_m(age_s: float, fire: FireParams,
-                      params: StaleFireParams = StaleFireParams()) -> float:
-    """r(a), the margin (m) by which fire data ``age_s`` old is grown (module docstring)."""
-    if not (np.isfinite(age_s) and age_s >= 0):
-        raise ValueError(f"age must be finite and >= 0, got {age_s}")
-    if age_s == 0:
-        return 0.0
-    return credible_speed_mps(fire, params) * age_s + (fire.side_max_m - fire.side_min_m) / 2
-
-
-def grow_polygon(poly: Polytope, margin_m: float) -> Polytope:
-    """``poly`` ⊕ [−r, r]² (exact: the hull of every vertex moved to the four corners)."""
-    if margin_m <= 0:
-        return poly
-    v = np.asarray(poly.vertices, dtype=float)
-    shifts = np.array([[-1, -1], [1, -1], [1, 1], [-1, 1]], dtype=float) * margin_m
-    return Polytope.from_vertices((v[:, None, :] + shifts[None, :, :]).reshape(-1, 2))
 
 
 def grown_fire_msg(msg: fire_pb2.FireState, margin_m: float) -> fire_pb2.FireState:

@@ -40,7 +40,7 @@ at rest, the mission pauses until one is back. A plan reply older than its
 deadline, or for another step, is never flown. FireAdvance sub-steps the EWS
 does not confirm are owed; the data is then stale and the planners avoid the
 last known hulls grown by the fastest credible spread
-(services/supervisor/faults.py) until an EWS is reset and replayed. Every
+(dualpilot/stale_fire.py) until an EWS is reset and replayed. Every
 step is appended to ``steps.jsonl`` as it happens (dualpilot.records.StepLog);
 a supervisor restarted with the same mission id and run directory resumes
 from it (:meth:`StackMission._resume`).
@@ -90,13 +90,14 @@ from dualpilot.records import (
     record_to_json,
     result_from_log,
 )
+from dualpilot.stale_fire import StaleFireParams, credible_margin_m
 from dualpilot.supervisor import Decision, Supervisor, SupervisorParams
 from services.common import bus, codec, keys
 from services.common.clock import SimClock
 from services.common.log import fields
 from services.msgs import common_pb2, fire_pb2, plan_pb2, supervisor_pb2, vehicle_pb2
 
-from .faults import StaleFireParams, credible_margin_m, grown_fire_msg
+from .faults import grown_fire_msg
 from .link import OffboardError, VehicleLink
 from .runlog import Latency, OperatorRecord, write_operator_columns
 
@@ -118,7 +119,7 @@ class StackParams:
     mission_wait_s: float = 5.0       # downloading the vehicle's mission before step 0
     prepare_timeout_s: float = 60.0   # a planner's warm-up (not a flight plan: no deadline)
     pause_limit_s: float = 300.0      # abort when paused for longer
-    #: fire data at least this old (simulated s) is stale (services/supervisor/faults.py)
+    #: fire data at least this old (simulated s) is stale (dualpilot/stale_fire.py)
     stale: StaleFireParams = StaleFireParams()
     #: flush the step record (steps.jsonl) at most this long after a line (s); 0: every line
     record_flush_s: float = 0.0

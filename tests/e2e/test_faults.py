@@ -29,10 +29,10 @@ import pytest
 from dualpilot.fire import FireParams
 from dualpilot.geometry import Rect
 from dualpilot.records import STEP_LOG, read_step_log
+from dualpilot.stale_fire import credible_margin_m
 from services import launch
 from services.common import bus, codec, keys, mav
 from services.msgs import supervisor_pb2
-from services.supervisor.faults import credible_margin_m
 
 pytestmark = [pytest.mark.slow, pytest.mark.timeout(240)]
 
