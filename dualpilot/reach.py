@@ -26,6 +26,8 @@ from collections.abc import Sequence
 import numpy as np
 from numpy.typing import NDArray
 from scipy import ndimage
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import breadth_first_order
 
 from .dynamics import Array
 from .geometry import Polytope, Rect
@@ -35,16 +37,18 @@ BoolArray = NDArray[np.bool_]
 
 
 def possibly_free(hulls: Sequence[Polytope], clearance_m: float, area_size_m: float,
-                  cell_m: float, cells: tuple[int, int, int, int] | None = None) -> BoolArray:
+                  cell_m: float, cells: tuple[int, int, int, int] | None = None,
+                  candidates: BoolArray | None = None) -> BoolArray:
     """Boolean grid (rows = y, columns = x) of the cells that may hold a point with the clearance.
 
     Each hull only marks the cells whose centre lies within ``clearance_m``
     of its bounding box, so the cost grows with the hulls' size, not the area.
     ``cells`` = (i0, j0, i1, j1), inclusive column/row bounds, limits the
-    work to that block (cells outside it are left True).
+    work to that block (cells outside it are left True). Only cells True in
+    ``candidates`` (default: all) are tested; the others come back False.
     """
     n = int(np.ceil(area_size_m / cell_m))
-    free = np.ones((n, n), dtype=bool)
+    free = np.ones((n, n), dtype=bool) if candidates is None else candidates.copy()
     b0, c0, b1, c1 = (0, 0, n - 1, n - 1) if cells is None else cells
     threshold = clearance_m - cell_m / np.sqrt(2.0)
     if threshold <= 0:
@@ -68,31 +72,82 @@ def possibly_free(hulls: Sequence[Polytope], clearance_m: float, area_size_m: fl
 def start_component(start: Array, goal: Rect, hulls: Sequence[Polytope], clearance_m: float,
                     area_size_m: float = 1000.0, cell_m: float = 10.0,
                     start_clearance_m: float | None = None,
-                    start_radius_m: float = 15.0) -> tuple[BoolArray, bool]:
+                    start_radius_m: float = 15.0,
+                    coarse: BoolArray | None = None) -> tuple[BoolArray, bool]:
     """The possibly-free cells 8-connected to the start's cell, and whether they meet G.
 
     Every point of a path from ``start`` that keeps the clearance lies in
     these cells. ``start_clearance_m`` (default ``clearance_m``) applies to
     points within ``start_radius_m`` of the start (the first RRT edge).
+    ``coarse`` is the component already found on cells of side 2·``cell_m``
+    (same start and clearances): a fine cell outside it cannot be in the
+    fine component (its coarse cell would then hold a point with the
+    clearance, joined to the start), so only the cells inside are tested.
     """
     p = np.asarray(start, dtype=float)[:2]
-    free = possibly_free(hulls, clearance_m, area_size_m, cell_m)
-    n = free.shape[0]
+    n = int(np.ceil(area_size_m / cell_m))
+    candidates = None
+    if coarse is not None:
+        candidates = np.repeat(np.repeat(coarse, 2, axis=0), 2, axis=1)[:n, :n]
+    free = possibly_free(hulls, clearance_m, area_size_m, cell_m, candidates=candidates)
     near = start_clearance_m if start_clearance_m is not None else clearance_m
     if near < clearance_m:
         # cells around the start judged with the start's own clearance
         reach = start_radius_m + cell_m / np.sqrt(2.0)
         lo = np.maximum(np.floor((p - reach) / cell_m).astype(int), 0)
         hi = np.minimum(np.ceil((p + reach) / cell_m).astype(int), n - 1)
-        local = possibly_free(hulls, near, area_size_m, cell_m, (lo[0], lo[1], hi[0], hi[1]))
+        local = possibly_free(hulls, near, area_size_m, cell_m, (lo[0], lo[1], hi[0], hi[1]),
+                              candidates)
         free[lo[1]:hi[1] + 1, lo[0]:hi[0] + 1] |= local[lo[1]:hi[1] + 1, lo[0]:hi[0] + 1]
     si, sj = (np.clip((p // cell_m).astype(int), 0, n - 1))
     free[sj, si] = True  # the start itself is free (the caller checked it)
     labels, _ = ndimage.label(free, structure=_EIGHT)
     component = labels == labels[sj, si]
+    gi0, gj0, gi1, gj1 = _goal_cells(goal, cell_m, n)
+    return component, bool(np.any(component[gj0:gj1 + 1, gi0:gi1 + 1]))
+
+
+def _goal_cells(goal: Rect, cell_m: float, n: int) -> tuple[int, int, int, int]:
+    """Inclusive column/row bounds (i0, j0, i1, j1) of the cells that meet G."""
     gi0, gj0 = np.clip((goal.lo // cell_m).astype(int), 0, n - 1)
     gi1, gj1 = np.clip((np.ceil(goal.hi / cell_m) - 1).astype(int), 0, n - 1)
-    return component, bool(np.any(component[gj0:gj1 + 1, gi0:gi1 + 1]))
+    return int(gi0), int(gj0), int(gi1), int(gj1)
+
+
+def corridor(component: BoolArray, start: Array, goal: Rect, cell_m: float) -> NDArray[np.int64]:
+    """Cells (k, 2) as (column, row) of a fewest-cell 8-connected chain from the start to G.
+
+    A breadth-first search over the cells where ``component`` is True, from
+    the start's cell to the first cell meeting G it reaches. Empty when the
+    component does not meet G. The chain hints where a narrow passage lies;
+    it is not a path (its cells are only *possibly* free).
+    """
+    n = component.shape[0]
+    index = np.full(component.shape, -1, dtype=np.int64)
+    rows, cols = np.nonzero(component)
+    index[rows, cols] = np.arange(len(rows))
+    si, sj = np.clip((np.asarray(start, dtype=float)[:2] // cell_m).astype(int), 0, n - 1)
+    if index[sj, si] < 0:
+        return np.zeros((0, 2), dtype=np.int64)
+    pairs = [(index[:, :-1], index[:, 1:]), (index[:-1, :], index[1:, :]),
+             (index[:-1, :-1], index[1:, 1:]), (index[:-1, 1:], index[1:, :-1])]
+    a = np.concatenate([u[(u >= 0) & (v >= 0)] for u, v in pairs])
+    b = np.concatenate([v[(u >= 0) & (v >= 0)] for u, v in pairs])
+    graph = coo_matrix((np.ones(len(a), dtype=np.int8), (a, b)), shape=(len(rows),) * 2).tocsr()
+    order, pred = breadth_first_order(graph, int(index[sj, si]), directed=False,
+                                      return_predecessors=True)
+    gi0, gj0, gi1, gj1 = _goal_cells(goal, cell_m, n)
+    targets = index[gj0:gj1 + 1, gi0:gi1 + 1].ravel()
+    rank = np.full(len(rows), -1, dtype=np.int64)
+    rank[order] = np.arange(len(order))
+    targets = targets[(targets >= 0) & (rank[np.maximum(targets, 0)] >= 0)]
+    if not len(targets):
+        return np.zeros((0, 2), dtype=np.int64)
+    chain = [int(targets[np.argmin(rank[targets])])]
+    while pred[chain[-1]] >= 0:
+        chain.append(int(pred[chain[-1]]))
+    chain.reverse()
+    return np.column_stack([cols[chain], rows[chain]]).astype(np.int64)
 
 
 def certainly_unreachable(start: Array, goal: Rect, hulls: Sequence[Polytope],

@@ -25,6 +25,13 @@ paper's loose points, each a parameter of :class:`RrtParams`:
   could visit (``sample_reachable``): the paper draws "a point in the
   space"; samples in fire or in pockets the UAV cannot reach only waste
   iterations (about 25 % fewer iterations on solvable instances).
+* **Narrow passages.** If G is not reached after the paper's 500 samples
+  (``guide_after``), the grid test is repeated on cells half as large. A
+  proof then ends the search ("unreachable"). Otherwise samples come from
+  the finer component, and a share ``guide_share`` of them from the cells
+  along a fewest-cell chain from the start to G (:func:`dualpilot.reach.corridor`,
+  widened by one cell): the tree is drawn through the passage an operator
+  would see on the map, instead of filling the open area around it.
 * The raw tree path is shortcut greedily (exact checks), as an operator would
   not zig-zag, and it ends at G's centre when that is reachable in a straight
   free segment (else at the first tree state inside G).
@@ -35,17 +42,18 @@ Lengths are metres, times seconds.
 from __future__ import annotations
 
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import NDArray
 from ompl import base as ob
 from ompl import geometric as og
 from ompl import util as ou
 
 from .dynamics import Array
 from .geometry import Polytope, Rect, SegmentChecker
-from .reach import BoolArray, start_component
+from .reach import BoolArray, corridor, start_component
 
 
 @dataclass(frozen=True)
@@ -72,13 +80,18 @@ class RrtParams:
     reach_check: bool = True
     reach_cell_m: float = 10.0
     sample_reachable: bool = True
+    guide_after: int = 500
+    guide_share: float = 0.5
+    guide_window: int = 5
 
     def __post_init__(self) -> None:
         if not (self.step_size_m > 0 and self.max_iterations >= 1 and self.max_wall_s > 0
-                and self.reach_cell_m > 0):
-            raise ValueError("step_size_m, max_iterations, max_wall_s and reach_cell_m must be > 0")
-        if self.clearance_m < 0 or not 0.0 <= self.goal_bias <= 1.0:
-            raise ValueError("clearance_m >= 0 and goal_bias in [0, 1] are required")
+                and self.reach_cell_m > 0 and self.guide_after >= 1 and self.guide_window >= 1):
+            raise ValueError("step_size_m, max_iterations, max_wall_s, reach_cell_m and "
+                             "guide_after and guide_window must be > 0")
+        if (self.clearance_m < 0 or not 0.0 <= self.goal_bias <= 1.0
+                or not 0.0 <= self.guide_share <= 1.0):
+            raise ValueError("clearance_m >= 0, goal_bias and guide_share in [0, 1] are required")
 
 
 @dataclass(frozen=True)
@@ -139,11 +152,15 @@ class ExactMotionValidator(ob.MotionValidator):
         self._clearance = clearance_m
         self._root = (float(root[0]), float(root[1]))
         self._root_clearance = root_clearance_m
+        self.on_accept: Callable[[float, float], None] | None = None
 
     def checkMotion(self, s1: ob.State, s2: ob.State) -> bool:  # noqa: N802 (OMPL API)
         a = (s1[0], s1[1])
         need = self._root_clearance if a == self._root else self._clearance
-        return self._checker.segment_clear(a[0], a[1], s2[0], s2[1], need)
+        ok = self._checker.segment_clear(a[0], a[1], s2[0], s2[1], need)
+        if ok and self.on_accept is not None:
+            self.on_accept(s2[0], s2[1])  # RRT adds s2 to the tree when its motion is valid
+        return ok
 
 
 class _NumpyDrivenGoal(ob.GoalSampleableRegion):
@@ -151,7 +168,9 @@ class _NumpyDrivenGoal(ob.GoalSampleableRegion):
 
     RRT runs with goal bias 1, so it calls ``sampleGoal`` once per iteration:
     we return a uniform state of the area, or with probability ``bias`` a
-    uniform state of G. ``count`` is the number of iterations so far.
+    uniform state of G, or (once :meth:`guide_along` is set) with
+    probability ``share`` a uniform state of a guide cell. ``count`` is the
+    number of iterations so far.
     """
 
     def __init__(self, si: ob.SpaceInformation, goal: Rect, area_size_m: float,
@@ -162,12 +181,18 @@ class _NumpyDrivenGoal(ob.GoalSampleableRegion):
         self._area = float(area_size_m)
         self._rng = rng
         self._bias = bias
-        self._block: list[list[float]] = []
+        self._block: list[list[float]] = []  # samples (phase 1) or raw uniforms (guided)
         self.count = 0
         self._cap = 1 << 62
         self._ptc: ob.PlannerTerminationCondition | None = None
         self._cells: BoolArray | None = None
         self._cell_m = 1.0
+        self._along: NDArray[np.int64] | None = None
+        self._chain: list[list[float]] = []
+        self._guide_cell_m = 1.0
+        self._share = 0.0
+        self._window = 1
+        self._frontier = 0
 
     def stop_after(self, samples: int, ptc: ob.PlannerTerminationCondition) -> None:
         """End the solve run by ``ptc`` once ``samples`` samples have been drawn."""
@@ -178,6 +203,62 @@ class _NumpyDrivenGoal(ob.GoalSampleableRegion):
         """Draw area samples only from the cells where ``cells`` (rows y, columns x) is True."""
         self._cells = cells
         self._cell_m = cell_m
+        self._block = []  # samples drawn under the old rule are not used
+
+    def guide_along(self, chain: NDArray[np.int64], cell_m: float, share: float,
+                    window: int) -> None:
+        """Draw a share of the samples just ahead of the tree along a chain of cells.
+
+        ``chain`` (k, 2) holds (column, row) cells of side ``cell_m`` from the
+        start to G. The frontier is the farthest chain cell a tree node lies
+        in or next to (:meth:`reached`); a guided sample is uniform in the
+        3×3 block around a chain cell drawn from the ``window`` cells from
+        the frontier on.
+        """
+        if not len(chain):
+            return
+        n = int(np.ceil(self._area / cell_m))
+        along = np.full((n, n), -1, dtype=np.int64)
+        for k, (i, j) in enumerate(chain.tolist()):
+            along[max(j - 1, 0):j + 2, max(i - 1, 0):i + 2] = k
+        self._along = along
+        self._chain = ((chain - 1) * cell_m).tolist()  # corners of the 3×3 blocks
+        self._guide_cell_m = cell_m
+        self._share = share
+        self._window = window
+        self._frontier = 0
+        self._block = []
+
+    def reached(self, x: float, y: float) -> None:
+        """A tree node was added at (x, y): move the frontier if it lies farther along the chain."""
+        if self._along is None:
+            return
+        n = self._along.shape[0]
+        k = int(self._along[min(int(y / self._guide_cell_m), n - 1),
+                            min(int(x / self._guide_cell_m), n - 1)])
+        if k > self._frontier:
+            self._frontier = k
+
+    def _guided_sample(self) -> tuple[float, float]:
+        """One sample of the guided mixture (goal, chain window, area), drawn from our rng."""
+        while True:
+            if not self._block:
+                self._block = self._rng.random((256, 4)).tolist()
+            u0, u1, u2, u3 = self._block.pop()
+            if u0 < self._bias:
+                return (self._lo[0] + u1 * (self._hi[0] - self._lo[0]),
+                        self._lo[1] + u2 * (self._hi[1] - self._lo[1]))
+            if u3 < self._share:
+                k = min(self._frontier + int(u3 / self._share * self._window), len(self._chain) - 1)
+                x = self._chain[k][0] + 3.0 * u1 * self._guide_cell_m
+                y = self._chain[k][1] + 3.0 * u2 * self._guide_cell_m
+                if not (0.0 <= x < self._area and 0.0 <= y < self._area):
+                    continue
+            else:
+                x, y = u1 * self._area, u2 * self._area
+            if self._cells is None or self._cells[min(int(y / self._cell_m), len(self._cells) - 1),
+                                                  min(int(x / self._cell_m), len(self._cells) - 1)]:
+                return x, y
 
     def _refill(self, n: int = 256) -> None:
         # Drawn in blocks for speed; the sequence of samples depends only on the rng.
@@ -195,6 +276,9 @@ class _NumpyDrivenGoal(ob.GoalSampleableRegion):
         self.count += 1
         if self.count >= self._cap and self._ptc is not None:
             self._ptc.terminate()  # this sample is the last one RRT uses
+        if self._along is not None:
+            st[0], st[1] = self._guided_sample()
+            return
         if not self._block:
             self._refill()
         st[0], st[1] = self._block.pop()
@@ -207,6 +291,15 @@ class _NumpyDrivenGoal(ob.GoalSampleableRegion):
         gx = max(0.0, self._lo[0] - x, x - self._hi[0])
         gy = max(0.0, self._lo[1] - y, y - self._hi[1])
         return (gx * gx + gy * gy) ** 0.5
+
+
+def _pool_pairs(cells: BoolArray) -> BoolArray:
+    """Cells twice as large: a coarse cell is True if any of its 2×2 fine cells is."""
+    n = cells.shape[0]
+    m = (n + 1) // 2
+    padded = np.zeros((2 * m, 2 * m), dtype=bool)
+    padded[:n, :n] = cells
+    return np.asarray(padded.reshape(m, 2, m, 2).any(axis=(1, 3)), dtype=bool)
 
 
 def _validate(start: Array, goal: Rect, area_size_m: float) -> Array:
@@ -309,12 +402,37 @@ def plan_path(
     rrt.setup()
     # The wall-clock cap is OMPL's own (no Python call per iteration); the
     # sampler ends the solve itself once it has drawn max_iterations samples.
-    ptc = ob.timedPlannerTerminationCondition(max(params.max_wall_s - (time.perf_counter() - t0),
-                                                  1e-6))
-    goal_obj.stop_after(params.max_iterations, ptc)
-    status = rrt.solve(ptc)
+    guide = component is not None and params.guide_after < params.max_iterations
+
+    def grow(samples: int) -> bool:
+        """Run RRT on the same tree until G is reached, ``samples`` samples or the wall cap."""
+        left = params.max_wall_s - (time.perf_counter() - t0)
+        ptc = ob.timedPlannerTerminationCondition(max(left, 1e-6))
+        goal_obj.stop_after(samples, ptc)
+        status = rrt.solve(ptc)
+        return bool(status.getStatus() == ob.PlannerStatus.EXACT_SOLUTION)
+
+    solved = grow(params.guide_after if guide else params.max_iterations)
+    if not solved and guide and goal_obj.count >= params.guide_after:
+        fine_m = params.reach_cell_m / 2
+        fine, meets_goal = start_component(
+            p, goal, hulls, params.clearance_m, area_size_m, fine_m,
+            start_clearance_m=root_clearance, start_radius_m=params.step_size_m,
+            coarse=component)
+        if not meets_goal:
+            return RrtResult(None, "unreachable", goal_obj.count, time.perf_counter() - t0, None)
+        chain = corridor(_pool_pairs(fine), p, goal, params.reach_cell_m)
+        if params.sample_reachable:
+            goal_obj.restrict_to(fine, fine_m)
+        goal_obj.guide_along(chain, params.reach_cell_m, params.guide_share, params.guide_window)
+        validator.on_accept = goal_obj.reached
+        pdef.clearSolutionPaths()  # RRT's approximate answer from the first run
+        try:
+            solved = grow(params.max_iterations)
+        finally:
+            validator.on_accept = None  # a cycle through OMPL's objects would never be freed
     iterations = goal_obj.count
-    if status.getStatus() != ob.PlannerStatus.EXACT_SOLUTION:
+    if not solved:
         cause = "iteration_cap" if iterations >= params.max_iterations else "time_cap"
         return RrtResult(None, cause, iterations, time.perf_counter() - t0, None)
     sol = pdef.getSolutionPath()

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from dualpilot.geometry import Polytope, Rect
-from dualpilot.reach import certainly_unreachable, possibly_free
+from dualpilot.reach import certainly_unreachable, corridor, possibly_free, start_component
 from dualpilot.rrt import RrtParams, plan_path
 
 GOAL = Rect(900.0, 900.0, 100.0, 100.0)
@@ -73,3 +73,49 @@ def test_never_hides_a_path_the_rrt_finds() -> None:
             found += 1
             assert not certainly_unreachable(START, GOAL, hulls, 25.0)
     assert found >= 5
+
+
+def test_finer_cells_prove_a_gap_the_coarse_grid_cannot() -> None:
+    # Gap 46 m (sides at 477/523). Cells of 5 m: threshold 25 − 2.5√2 ≈ 21.46 m; the gap cells'
+    # centres (492.5 … 507.5) lie at most 20.5 m from a side, so all are blocked. Cells of
+    # 10 m cannot tell (test_gap_widths_worked_by_hand).
+    hulls = wall_with_gap(46.0)
+    assert not certainly_unreachable(START, GOAL, hulls, 25.0, cell_m=10.0)
+    assert certainly_unreachable(START, GOAL, hulls, 25.0, cell_m=5.0)
+    result = plan_path(START, GOAL, hulls, np.random.default_rng(1), RrtParams())
+    # the paper's 500 samples fail, the 5 m grid then proves that no path exists
+    assert (result.status, result.iterations) == ("unreachable", 500)
+
+
+@pytest.mark.parametrize("seed", [3, 11, 29])
+def test_the_coarse_component_only_saves_work(seed: int) -> None:
+    rng = np.random.default_rng(seed)
+    rects = [Rect(*rng.uniform(150, 850, 2), *rng.uniform(100, 250, 2)) for _ in range(8)]
+    hulls = tuple(r.polytope() for r in rects) + wall_with_gap(70.0)
+    coarse, _ = start_component(START, GOAL, hulls, 25.0, cell_m=10.0)
+    fine, meets = start_component(START, GOAL, hulls, 25.0, cell_m=5.0)
+    restricted, meets_restricted = start_component(START, GOAL, hulls, 25.0, cell_m=5.0,
+                                                   coarse=coarse)
+    assert np.array_equal(fine, restricted) and meets == meets_restricted
+    assert not np.any(fine & ~np.repeat(np.repeat(coarse, 2, axis=0), 2, axis=1))
+
+
+def test_corridor_threads_the_gap() -> None:
+    # Gap 60 m centred on x = 150 (sides at 120/180) in a wall at y ∈ [500, 520].
+    left = Rect(60.0, 510.0, 120.0, 20.0).polytope()
+    right = Rect(590.0, 510.0, 820.0, 20.0).polytope()
+    component, meets = start_component(START, GOAL, (left, right), 25.0)
+    assert meets
+    chain = corridor(component, START, GOAL, 10.0)
+    assert tuple(chain[0]) == (5, 5)                                  # the start's cell
+    assert 85 <= chain[-1][0] <= 94 and 85 <= chain[-1][1] <= 94     # a cell meeting G
+    assert np.all(np.abs(np.diff(chain, axis=0)).max(axis=1) == 1)   # 8-connected steps
+    assert np.all(component[chain[:, 1], chain[:, 0]])
+    # Rows 49–52 (centres 495–525 m) lie within 17.93 m of the wall y ∈ [500, 520]; there only
+    # columns 14 and 15 are possibly free (centres 145/155 m keep ≥ 17.93 m from the sides at
+    # 120/180; 135 and 165 m do not).
+    in_wall = chain[(chain[:, 1] >= 49) & (chain[:, 1] <= 52)]
+    assert len(in_wall) == 4 and set(in_wall[:, 0]) <= {14, 15}
+    # Fewest cells, by Chebyshev distance through the gap: (5, 5) → (15, 49) is 44 steps,
+    # (15, 49) → (15, 52) three, (15, 52) → the nearest G cell (85, 85) 70: 117 steps, 118 cells.
+    assert len(chain) == 118

@@ -125,6 +125,33 @@ def test_same_seed_gives_the_same_path() -> None:
     assert not np.array_equal(a.tree_path, c.tree_path)
 
 
+def narrow_gap(gap_m: float, x_m: float) -> tuple[Polytope, ...]:
+    """A 20 m thick wall across the area at y ∈ [500, 520] with a gap of ``gap_m`` centred on x."""
+    half = gap_m / 2
+    return (Rect((x_m - half) / 2, 510.0, x_m - half, 20.0).polytope(),
+            Rect((1000.0 + x_m + half) / 2, 510.0, 1000.0 - x_m - half, 20.0).polytope())
+
+
+def test_guided_samples_thread_a_narrow_passage() -> None:
+    # 56 m gap at x = 150: a path needs 50 m, so the passage leaves 6 m of play. After the
+    # paper's 500 samples the tree is drawn along the grid corridor through the gap.
+    hulls = narrow_gap(56.0, 150.0)
+    plain = RrtParams(guide_after=10**6)
+    guided = [plan_path(START, GOAL, hulls, np.random.default_rng(k)) for k in range(8)]
+    unguided = [plan_path(START, GOAL, hulls, np.random.default_rng(k), plain) for k in range(8)]
+    assert sum(r.found for r in unguided) < 8          # the premise: plain Alg. 1 misses it
+    for result in guided:
+        assert result.status == "exact" and result.path is not None
+        assert result.iterations <= 2000
+        assert GOAL.contains(result.path[-1])
+        assert sampled_min_distance(result.path, hulls) >= CLEAR - 1e-6
+        assert result.tree_path is not None
+        assert path_clearance(result.tree_path, hulls) >= CLEAR - 1e-9
+    again = plan_path(START, GOAL, hulls, np.random.default_rng(3))
+    assert guided[3].tree_path is not None and again.tree_path is not None
+    np.testing.assert_array_equal(again.tree_path, guided[3].tree_path)  # still deterministic
+
+
 def test_direct_line_when_free_and_start_in_goal() -> None:
     direct = plan_path(START, GOAL, (), np.random.default_rng(0))
     assert direct.status == "direct" and direct.iterations == 0
