@@ -185,42 +185,75 @@ class QueryError(RuntimeError):
 _END = object()
 
 
+class Stop(threading.Event):
+    """A stop event that also ends the queries waiting on it (:func:`request`).
+
+    ``set()`` cancels every registered Zenoh query, so a service blocked in a
+    reply channel stops at once instead of at the query's timeout.
+    """
+
+    def __init__(self) -> None:
+        super().__init__()
+        self._lock = threading.RLock()  # set() may run in a signal handler on the main thread
+        self._tokens: set[zenoh.CancellationToken] = set()
+
+    def set(self) -> None:
+        super().set()
+        with self._lock:
+            tokens = list(self._tokens)
+        for token in tokens:
+            token.cancel()
+
+    def watch(self, token: zenoh.CancellationToken) -> None:
+        with self._lock:
+            self._tokens.add(token)
+        if self.is_set():
+            token.cancel()
+
+    def forget(self, token: zenoh.CancellationToken) -> None:
+        with self._lock:
+            self._tokens.discard(token)
+
+
 def request(session: zenoh.Session, key: str, msg: Message, timeout_s: float,
             stop: threading.Event | None = None) -> tuple[bytes, str]:
     """Send a query and return the first reply's (payload, encoding).
 
-    Raises TimeoutError when nobody answers within ``timeout_s`` and
-    QueryError for an error reply.
+    The calling thread waits in Zenoh's own reply channel (no Python callback
+    and no hand-off between threads on the way back). A :class:`Stop` ends
+    the wait when it is set; with a plain Event the wait ends at the timeout.
+    Raises TimeoutError when nobody answers within ``timeout_s`` (or on
+    stop) and QueryError for an error reply.
     """
-    q: queue.Queue[Any] = queue.Queue()
-    session.get(
-        key,
-        zenoh.handlers.Callback(q.put, lambda: q.put(_END)),
-        payload=msg.SerializeToString(), encoding=encoding(msg), timeout=timeout_s,
-        consolidation=zenoh.ConsolidationMode.NONE,
-    )
-    deadline = time.monotonic() + timeout_s + 1.0
-    while True:
-        remaining = deadline - time.monotonic()
-        if remaining <= 0 or (stop is not None and stop.is_set()):
-            raise TimeoutError(f"no reply on {key} within {timeout_s:.3g} s")
+    if stop is not None and stop.is_set():
+        raise TimeoutError(f"stopped before asking {key}")
+    token = zenoh.CancellationToken()
+    if isinstance(stop, Stop):
+        stop.watch(token)
+    try:
+        replies = session.get(key, payload=msg.SerializeToString(), encoding=encoding(msg),
+                              timeout=timeout_s, consolidation=zenoh.ConsolidationMode.NONE,
+                              cancellation_token=token)
         try:
-            item = q.get(timeout=min(remaining, 0.2))
-        except queue.Empty:
-            continue
-        if item is _END:
-            raise TimeoutError(f"no reply on {key} within {timeout_s:.3g} s")
-        if item.ok is not None:
-            return item.ok.payload.to_bytes(), str(item.ok.encoding)
-        err_bytes = item.err.payload.to_bytes()
-        if err_bytes.strip().lower() == b"timeout":  # Zenoh's own reply when `timeout` passed
-            raise TimeoutError(f"no reply on {key} within {timeout_s:.3g} s")
-        try:
-            err = codec.parse(err_bytes, codec.common_pb2.Error)
-        except codec.CodecError as bad:
-            codec.rejected("Error", bad, log, key=key)  # an error reply we cannot read
-            raise QueryError(0, err_bytes[:500].decode("utf-8", "replace")) from None
-        raise QueryError(err.code, err.message)
+            item = replies.recv()
+        except zenoh.ZError:  # the channel closed without a reply: cancelled, or nobody answered
+            why = "stopped" if stop is not None and stop.is_set() else "no reply"
+            raise TimeoutError(f"{why} on {key} within {timeout_s:.3g} s") from None
+    finally:
+        if isinstance(stop, Stop):
+            stop.forget(token)
+    if item.ok is not None:
+        return item.ok.payload.to_bytes(), str(item.ok.encoding)
+    assert item.err is not None  # a reply is either ok or an error
+    err_bytes = item.err.payload.to_bytes()
+    if err_bytes.strip().lower() == b"timeout":  # Zenoh's own reply when `timeout` passed
+        raise TimeoutError(f"no reply on {key} within {timeout_s:.3g} s")
+    try:
+        err = codec.parse(err_bytes, codec.common_pb2.Error)
+    except codec.CodecError as bad:
+        codec.rejected("Error", bad, log, key=key)  # an error reply we cannot read
+        raise QueryError(0, err_bytes[:500].decode("utf-8", "replace")) from None
+    raise QueryError(err.code, err.message)
 
 
 class Liveliness:
@@ -403,7 +436,7 @@ def run_service(settings: Settings, body: Body, zenoh_session: bool = True) -> i
     # budget of a tick. Services are I/O-bound around their one compute thread.
     sys.setswitchinterval(SWITCH_INTERVAL_S)
     started = time.monotonic()
-    stop = threading.Event()
+    stop = Stop()
     ctx = Context(settings, stop)
     signals: list[int] = []
 

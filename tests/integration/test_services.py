@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import threading
 import time
 from typing import Any
 
@@ -48,3 +49,36 @@ def test_services_announce_liveliness_and_stop_on_sigint(
         assert "stopped" in log, log[-2000:]
         assert wait_until(lambda p=proc: p.name not in liveliness.alive, 5.0), (
             f"{proc.name}'s liveliness token outlived it")
+
+
+def test_a_stop_ends_a_pending_request_at_once(session: Any) -> None:
+    # A queryable that holds every query and never answers: without the stop the request
+    # would wait its whole 30 s timeout.
+    held: list[Any] = []
+    queryable = session.declare_queryable("dualpilot-test/silent", held.append)
+    stop = bus.Stop()
+    try:
+        timer = threading.Timer(0.3, stop.set)
+        timer.start()
+        t0 = time.monotonic()
+        with pytest.raises(TimeoutError, match="stopped"):
+            bus.request(session, "dualpilot-test/silent", supervisor_pb2.MissionEvent(), 30.0,
+                        stop)
+        assert 0.3 <= time.monotonic() - t0 < 2.0
+        assert len(held) == 1  # the query did reach the queryable
+        with pytest.raises(TimeoutError, match="stopped"):  # a set stop asks nobody
+            bus.request(session, "dualpilot-test/silent", supervisor_pb2.MissionEvent(), 30.0,
+                        stop)
+        assert len(held) == 1
+    finally:
+        held.clear()
+        queryable.undeclare()
+
+
+def test_a_request_nobody_answers_ends_without_waiting_for_the_timeout(session: Any) -> None:
+    # no queryable matches: Zenoh closes the reply channel at once
+    t0 = time.monotonic()
+    with pytest.raises(TimeoutError, match="no reply"):
+        bus.request(session, "dualpilot-test/nobody", supervisor_pb2.MissionEvent(), 30.0,
+                    bus.Stop())
+    assert time.monotonic() - t0 < 3.0
