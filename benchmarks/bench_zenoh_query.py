@@ -28,7 +28,9 @@ import subprocess
 import sys
 import threading
 import time
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import zenoh
@@ -64,6 +66,7 @@ def serve(mode: str, connect: str, listen: str, style: str) -> None:
         else:
             inbox.put(q)
 
+    qbl: Any
     if style == "channel":  # the main thread waits in Zenoh's own channel
         qbl = session.declare_queryable("bench/**")
 
@@ -129,7 +132,7 @@ def main(argv: list[str] | None = None) -> int:
         time.sleep(1.0)  # the router binds its port
         if router.poll() is not None:
             raise RuntimeError("router did not start")
-        variants: dict[str, tuple[zenoh.Session, str, object]] = {}
+        variants: dict[str, tuple[zenoh.Session, str, Callable[[zenoh.Session, str], None]]] = {}
         for style in ("inbox", "channel", "callback"):
             peer_ep = f"tcp/127.0.0.1:{free_port()}"
             for mode, connect, listen in (("client", router_ep, ""), ("peer", "", peer_ep)):
@@ -144,21 +147,21 @@ def main(argv: list[str] | None = None) -> int:
                 if skey not in sessions:
                     sessions[skey] = zenoh.open(config("client" if mode == "client" else "peer",
                                                        [conn], []))
-                for ask in ("queue", "channel"):
-                    variants[f"{name} replier={style} querier={ask}"] = (
+                for how in ("queue", "channel"):
+                    variants[f"{name} replier={style} querier={how}"] = (
                         sessions[skey], f"bench/{style}/{name}",
-                        ask_queue if ask == "queue" else ask_channel)
+                        ask_queue if how == "queue" else ask_channel)
         time.sleep(1.0)
-        for session, key, ask in variants.values():  # warm-up and route discovery
+        for sess, key, ask in variants.values():  # warm-up and route discovery
             for _ in range(20):
-                ask(session, key)  # type: ignore[operator]
+                ask(sess, key)
         times: dict[str, list[float]] = {name: [] for name in variants}
         period = args.period_ms / 1e3
         while min(len(v) for v in times.values()) < args.queries:
-            for name, (session, key, ask) in variants.items():
+            for name, (sess, key, ask) in variants.items():
                 for _ in range(args.block):
                     t0 = time.perf_counter()
-                    ask(session, key)  # type: ignore[operator]
+                    ask(sess, key)
                     times[name].append(time.perf_counter() - t0)
                     time.sleep(max(0.0, period - (time.perf_counter() - t0)))
         for name, ts in times.items():
