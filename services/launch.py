@@ -44,7 +44,7 @@ from typing import IO, Any
 REPO = Path(__file__).resolve().parent.parent
 COMPOSE = REPO / "docker-compose.yml"
 ROUTER_IMAGE = "eclipse/zenoh"
-ENDPOINT_KEYS = ("ZENOH_CONNECT", "MAVLINK_URL", "GCS_URL")
+ENDPOINT_KEYS = ("ZENOH_CONNECT", "ZENOH_LISTEN", "MAVLINK_URL", "GCS_URL")
 #: ``udpin:host:port`` (pymavlink) or ``tcp/host:port`` (Zenoh endpoint)
 _ENDPOINT = re.compile(r"^(?P<scheme>[a-z]+[:/])(?P<host>[^:/,]+|\[[^\]]+\]):(?P<port>\d{1,5})$")
 STOP_GRACE_S = 2.0
@@ -180,7 +180,8 @@ class PortMap:
             m = _ENDPOINT.match(item)
             if m is None:
                 raise ValueError(f"{key}: cannot map endpoint {item!r} to loopback")
-            out.append(f"{m.group('scheme')}127.0.0.1:{self.local(int(m.group('port')), proto)}")
+            port = int(m.group("port"))  # 0: the system picks one (each process its own)
+            out.append(f"{m.group('scheme')}127.0.0.1:{self.local(port, proto) if port else 0}")
         return ",".join(out)
 
 

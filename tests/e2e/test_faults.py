@@ -334,7 +334,9 @@ def test_plans_older_than_their_deadline_are_never_flown(tmp_path: Path) -> None
         proxies.append(DelayProxy(port, 0.3))
         return proxies[-1].port
 
-    env = {"system2": {"ZENOH_CONNECT": "proxy"},
+    # System 2 is a client reached only through the delaying proxy (as a peer it would open
+    # a direct link to the supervisor around the proxy)
+    env = {"system2": {"ZENOH_CONNECT": "proxy", "ZENOH_MODE": "client", "ZENOH_LISTEN": ""},
            "supervisor": {"PLAN_DEADLINE_S": "30,0.4"}}
     try:
         with running(tmp_path, "late", extra_env=env, proxy=proxy) as run:
