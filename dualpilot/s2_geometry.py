@@ -51,13 +51,41 @@ class Inflated:
     hi: Array
     E: Array  # edge vectors W[l+1] − W[l] (edge l lies on face l)
     len2: Array  # their squared lengths
+    nsum: Array  # α_{l−1} + α_l at vertex l: a vertex moves by δ·nsum/den when faces move by δ
+    den: Array  # 1 + α_{l−1}·α_l
 
     @staticmethod
     def make(hull: Polytope, eps: float) -> Inflated:
-        w = inflate(hull, eps)
-        e = np.roll(w, -1, axis=0) - w
+        return Inflated.make_many([hull], eps)[0]
+
+    @staticmethod
+    def make_many(hulls: Sequence[Polytope], eps: float) -> list[Inflated]:
+        """:func:`inflate` and the edges of every hull, computed on all vertices at once."""
+        if not hulls:
+            return []
+        sizes = np.array([len(h.b) for h in hulls])
+        start = np.concatenate([[0], np.cumsum(sizes)[:-1]])
+        k = np.arange(int(sizes.sum()))
+        first = np.repeat(start, sizes)
+        size = np.repeat(sizes, sizes)
+        prv = first + (k - first - 1) % size
+        nxt = first + (k - first + 1) % size
+        v = np.vstack([h.vertices for h in hulls])
+        n = np.vstack([h.A for h in hulls])
+        n_prev = n[prv]
+        c = np.einsum("ij,ij->i", n_prev, n)
+        nsum, den = n_prev + n, 1.0 + c
+        w = v + eps * nsum / den[:, None]
+        e = w[nxt] - w
         len2 = np.maximum(np.einsum("ij,ij->i", e, e), 1e-12)
-        return Inflated(hull, hull.A, hull.b + eps, w, w.min(axis=0), w.max(axis=0), e, len2)
+        lo = np.minimum.reduceat(w, start, axis=0)
+        hi = np.maximum.reduceat(w, start, axis=0)
+        out = []
+        for i, h in enumerate(hulls):
+            sl = slice(int(start[i]), int(start[i] + sizes[i]))
+            out.append(Inflated(h, h.A, h.b + eps, w[sl], lo[i], hi[i], e[sl], len2[sl],
+                                nsum[sl], den[sl]))
+        return out
 
     def margin(self, points: Array) -> Array:
         """max_l (α_l·p − β_l − ε) per point: ≥ 0 means the disjunction holds (m)."""
@@ -114,7 +142,8 @@ class FaceStack:
     n: int
 
     @staticmethod
-    def of(polys: Sequence[Inflated]) -> FaceStack:
+    def of(polys: Sequence[Inflated] | Sequence[Polytope]) -> FaceStack:
+        """Faces (α, β) of each hull: Q's (β + ε) for Inflated, the hull's own for Polytope."""
         if not polys:
             return FaceStack(np.zeros((0, 2)), np.zeros(0), np.zeros(0, dtype=np.int64), 0)
         return FaceStack(np.vstack([q.A for q in polys]), np.concatenate([q.b for q in polys]),
@@ -130,6 +159,106 @@ class FaceStack:
         if not self.n:
             return np.zeros((len(pts), 0))
         return np.asarray(np.maximum.reduceat(pts @ self.A.T - self.b, self.starts, axis=1))
+
+
+@dataclass(frozen=True)
+class HullStack:
+    """Several inflated hulls padded to one face count F, for per-point work on any of them.
+
+    Row h holds Q_h: normals A (H, F, 2), offsets b (H, F) (padding: A = 0,
+    b = +inf, so a padded face never has the largest margin), vertices W and
+    edges E (padding: zero) and ``valid`` (H, F). Built once per plan; every
+    method takes ``hid``, the hull of each point, and matches the
+    :class:`Inflated` method of that hull point by point.
+    """
+
+    A: Array
+    b: Array
+    W: Array
+    E: Array
+    len2: Array
+    valid: Array
+
+    @staticmethod
+    def of(polys: Sequence[Inflated]) -> HullStack:
+        h = len(polys)
+        f = max((len(q.b) for q in polys), default=1)
+        a = np.zeros((h, f, 2))
+        b = np.full((h, f), np.inf)
+        w = np.zeros((h, f, 2))
+        e = np.zeros((h, f, 2))
+        len2 = np.ones((h, f))
+        valid = np.zeros((h, f), dtype=bool)
+        for i, q in enumerate(polys):
+            k = len(q.b)
+            a[i, :k], b[i, :k], w[i, :k], e[i, :k], len2[i, :k] = q.A, q.b, q.W, q.E, q.len2
+            valid[i, :k] = True
+        return HullStack(a, b, w, e, len2, valid)
+
+    def _face_margins(self, hid: Array, pts: Array) -> Array:
+        """α_l·p − β_l − ε for every face of each point's hull, (k, F) (m)."""
+        a = self.A[hid]
+        return np.asarray(pts[:, None, 0] * a[..., 0] + pts[:, None, 1] * a[..., 1]
+                          - self.b[hid])
+
+    def margin(self, hid: Array, points: Array) -> Array:
+        """Inflated.margin of hull ``hid[k]`` at ``points[k]`` (m)."""
+        pts = np.asarray(points, dtype=float).reshape(-1, 2)
+        return np.asarray(np.max(self._face_margins(hid, pts), axis=1))
+
+    def nearest(self, hid: Array, points: Array) -> tuple[Array, Array]:
+        """Inflated.nearest of hull ``hid[k]`` at ``points[k]``."""
+        pts = np.asarray(points, dtype=float).reshape(-1, 2)
+        a, e = self.W[hid], self.E[hid]
+        rel = pts[:, None, :] - a
+        t = np.clip(np.einsum("kfi,kfi->kf", rel, e) / self.len2[hid], 0.0, 1.0)
+        c = a + t[:, :, None] * e
+        d2 = np.where(self.valid[hid], np.sum((pts[:, None, :] - c) ** 2, axis=2), np.inf)
+        j = np.argmin(d2, axis=1)
+        k = np.arange(len(pts))
+        return c[k, j], np.sqrt(d2[k, j])
+
+    def support(self, hid: Array, points: Array) -> tuple[Array, Array, Array]:
+        """Inflated.support of hull ``hid[k]`` at ``points[k]``: (normals, offsets, outside)."""
+        pts = np.asarray(points, dtype=float).reshape(-1, 2)
+        margins = self._face_margins(hid, pts)
+        face = np.argmax(margins, axis=1)
+        k = np.arange(len(pts))
+        normals = self.A[hid, face]
+        offsets = self.b[hid, face]
+        outside = margins[k, face] > 1e-9
+        e = self.E[hid, face]
+        foot = np.einsum("ki,ki->k", pts - self.W[hid, face], e) / self.len2[hid, face]
+        vertex_region = outside & ((foot < 0.0) | (foot > 1.0))
+        if np.any(vertex_region):
+            sub = vertex_region
+            c, d = self.nearest(hid[sub], pts[sub])
+            good = d > 1e-6
+            nrm = np.where(good[:, None], (pts[sub] - c) / np.where(good, d, 1.0)[:, None],
+                           normals[sub])
+            normals[sub] = nrm
+            offsets[sub] = np.where(good, np.einsum("ij,ij->i", nrm, c), offsets[sub])
+        return normals, offsets, outside
+
+    def support_toward(self, hid: Array, points: Array, desired: Array,
+                       lambdas: tuple[float, ...] = (1.0, 0.5, 0.25), slack: float = 0.0
+                       ) -> tuple[Array, Array, Array]:
+        """:func:`support_toward` of hull ``hid[k]`` at ``points[k]``."""
+        pts = np.asarray(points, dtype=float).reshape(-1, 2)
+        nrm, off, outside = self.support(hid, pts)
+        done = np.logical_not(outside)
+        for lam in lambdas:
+            if np.all(done):
+                break
+            todo = np.flatnonzero(~done)
+            x = pts[todo] + lam * (desired[todo] - pts[todo])
+            n2, o2, out2 = self.support(hid[todo], x)
+            ok = out2 & (np.einsum("ij,ij->i", n2, pts[todo]) >= o2 + slack)
+            sel = todo[ok]
+            nrm[sel] = n2[ok]
+            off[sel] = o2[ok]
+            done[sel] = True
+        return nrm, off, outside
 
 
 def support_toward(poly: Inflated, points: Array, desired: Array,
@@ -162,10 +291,9 @@ def support_toward(poly: Inflated, points: Array, desired: Array,
 def disjunction_margin(points: Array, hulls: Sequence[Polytope], eps: float) -> float:
     """min over points and hulls of max_l (α_l·p − β_l) − ε: ≥ 0 iff Eq. (P2_3)-(P2_4) hold (m)."""
     pts = np.asarray(points, dtype=float).reshape(-1, 2)
-    worst = float("inf")
-    for h in hulls:
-        worst = min(worst, float(np.min(np.max(pts @ h.A.T - h.b, axis=1))) - eps)
-    return worst
+    if not hulls or not len(pts):
+        return float("inf")
+    return float(np.min(FaceStack.of(hulls).margins(pts))) - eps
 
 
 # --------------------------------------------------------------- homotopies
@@ -224,6 +352,7 @@ def homotopy_paths(
     max_paths: int = 4,
     max_signature_hulls: int = 5,
     length_slack: float = 0.5,
+    stack: HullStack | None = None,
 ) -> list[Array]:
     """Shortest start→target polylines outside every Q, one per homotopy class.
 
@@ -233,33 +362,39 @@ def homotopy_paths(
     hulls nearest the start–target segment, and one Dijkstra gives the shortest
     path of every parity class. Classes longer than (1 + length_slack) times
     the shortest are dropped; at most ``max_paths`` are returned, shortest first.
+    ``stack`` may carry ``HullStack.of(polys)``.
     """
     start = np.asarray(start, dtype=float)
     target = np.asarray(target, dtype=float)
-    node_list = [start[None, :], target[None, :]]
-    prev_idx: list[Array] = [np.array([-1]), np.array([-1])]
-    next_idx: list[Array] = [np.array([-1]), np.array([-1])]
-    count = 2
-    for poly in polys:
-        w = _offset(poly, node_margin)
-        k = len(w)
-        idx = np.arange(count, count + k)
-        node_list.append(w)
-        prev_idx.append(np.roll(idx, 1))
-        next_idx.append(np.roll(idx, -1))
-        count += k
-    nodes = np.vstack(node_list)
-    prv = np.concatenate(prev_idx)
-    nxt = np.concatenate(next_idx)
+    nodes = np.vstack([start[None, :], target[None, :]]
+                      + [_offset(poly, node_margin) for poly in polys])
+    sizes = np.array([len(poly.b) for poly in polys], dtype=np.int64)
+    first = np.repeat(2 + np.concatenate([[0], np.cumsum(sizes)[:-1]]).astype(np.int64), sizes)
+    size = np.repeat(sizes, sizes)
+    k_node = np.arange(2, len(nodes))
+    prv = np.concatenate([[-1, -1], first + (k_node - first - 1) % size])
+    nxt = np.concatenate([[-1, -1], first + (k_node - first + 1) % size])
     keep = np.ones(len(nodes), dtype=bool)
-    for poly in polys:
-        keep[2:] &= np.max(nodes[2:] @ poly.A.T - poly.b, axis=1) > 0.0
+    if len(polys):
+        # a node inside Q_h lies in Q_h's bounding box: exact margins only for those pairs
+        stack = HullStack.of(polys) if stack is None else stack
+        lo = np.array([poly.lo for poly in polys]) - 1e-6
+        hi = np.array([poly.hi for poly in polys]) + 1e-6
+        inner = nodes[2:]
+        kk, hh = np.nonzero((inner[:, None, 0] >= lo[None, :, 0])
+                            & (inner[:, None, 0] <= hi[None, :, 0])
+                            & (inner[:, None, 1] >= lo[None, :, 1])
+                            & (inner[:, None, 1] <= hi[None, :, 1]))
+        if len(kk):
+            inside = stack.margin(hh, inner[kk]) <= 0.0
+            keep[2 + kk[inside]] = False
     if area is not None:
         keep[2:] &= np.all((nodes[2:] >= 0.0) & (nodes[2:] <= area), axis=1)
     n = len(nodes)
-    iu, ju = np.triu_indices(n, k=1)
-    mask = keep[iu] & keep[ju]
-    iu, ju = iu[mask], ju[mask]
+    # pairs of kept nodes, in the row-major order of np.triu_indices(n, 1)
+    kept = np.flatnonzero(keep)
+    ku, kv = np.triu_indices(len(kept), k=1)
+    iu, ju = kept[ku], kept[kv]
     # bitangency at polygon vertices: both neighbours on one side of the edge line
     sel = np.ones(len(iu), dtype=bool)
     for a_idx, b_idx in ((iu, ju), (ju, iu)):
@@ -296,11 +431,13 @@ def homotopy_paths(
     # hulls near enough to matter: inside the ellipse |x−start| + |x−target| ≤ (1+slack) L*
     bound = (1.0 + length_slack) * l_star
     scores = []
-    for k, poly in enumerate(polys):
-        c = poly.W.mean(axis=0)
-        near = float(np.min(np.linalg.norm(poly.W - start, axis=1))
-                     + np.min(np.linalg.norm(poly.W - target, axis=1)))
-        if near <= bound + 1e-9:
+    if len(polys):
+        w_all = np.vstack([poly.W for poly in polys])
+        w_first = np.concatenate([[0], np.cumsum(sizes)[:-1]])
+        d_s = np.minimum.reduceat(np.linalg.norm(w_all - start, axis=1), w_first)
+        d_t = np.minimum.reduceat(np.linalg.norm(w_all - target, axis=1), w_first)
+        for k in np.flatnonzero(d_s + d_t <= bound + 1e-9).tolist():
+            c = polys[k].W.mean(axis=0)
             scores.append((_point_segment(c, start, target), k))
     scores.sort()
     sig = [k for _, k in scores[:max_signature_hulls]]
@@ -340,10 +477,7 @@ def homotopy_paths(
 
 def _offset(poly: Inflated, margin: float) -> Array:
     """Vertices of Q pushed out face-wise by ``margin`` more (m)."""
-    n = poly.A
-    n_prev = np.roll(n, 1, axis=0)
-    c = np.einsum("ij,ij->i", n_prev, n)
-    return np.asarray(poly.W + margin * (n_prev + n) / (1.0 + c)[:, None])
+    return np.asarray(poly.W + margin * poly.nsum / poly.den[:, None])
 
 
 def _cross2(a: Array, b: Array) -> Array:

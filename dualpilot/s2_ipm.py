@@ -12,12 +12,27 @@ Rows are kept in a padded form: ``cols`` and ``vals`` of shape (R, 3).
 
 from __future__ import annotations
 
+import copy
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+import scipy.sparse as sp
 from numpy.typing import NDArray
 from scipy.linalg.lapack import dpbtrf, dpbtrs
+
+try:  # the compiled kernels behind scipy.sparse's matrix-vector products (no per-call checks)
+    from scipy.sparse._sparsetools import csc_matvec as _csc_matvec
+    from scipy.sparse._sparsetools import csr_matvec as _csr_matvec
+except ImportError:  # pragma: no cover - a scipy without them: the public products
+
+    def _csr_matvec(n_row: int, n_col: int, ptr: Array, idx: Array, dat: Array, x: Array,
+                    out: Array) -> None:
+        out += sp.csr_matrix((dat, idx, ptr), shape=(n_row, n_col)) @ x
+
+    def _csc_matvec(n_row: int, n_col: int, ptr: Array, idx: Array, dat: Array, x: Array,
+                    out: Array) -> None:
+        out += sp.csc_matrix((dat, idx, ptr), shape=(n_row, n_col)) @ x
 
 Array = NDArray[Any]  # float, int or bool arrays
 
@@ -88,6 +103,7 @@ class BandedQp:
         n = self.n
         c_obj = float(np.max(h_band[0]))
         c_obj = c_obj if c_obj > 0 else 1.0
+        self.c_obj = c_obj
         self.h_band = h_band / c_obj
         self.q = q / c_obj
         self.h_flat = self.h_band.ravel()
@@ -98,12 +114,12 @@ class BandedQp:
         self.h_dense = h_dense
         il = np.flatnonzero(np.isfinite(rows.lo))
         iu = np.flatnonzero(np.isfinite(rows.hi))
+        self.il, self.iu = il, iu
         ridx = np.concatenate([il, iu])
         sg = np.concatenate([-np.ones(len(il)), np.ones(len(iu))])
         self.h = np.concatenate([-rows.lo[il], rows.hi[iu]])
         self.m = m = len(self.h)
-        # G in the padded row form (≤ 3 entries a row): G z is a gather, Gᵀ v a bincount,
-        # both far cheaper than scipy.sparse's per-call overhead at this size
+        # G in the padded row form (≤ 3 entries a row); each solve reads it as CSR arrays
         self.g_cols = rows.cols[ridx]
         self.g_vals = rows.vals[ridx] * sg[:, None]
         p_idx, p_coef, _ = pairs
@@ -114,10 +130,27 @@ class BandedQp:
         nz = coef != 0.0  # padding terms add nothing
         self.p_idx, self.p_coef, self.p_row = p_idx[g_pair][nz], coef[nz], rowid[nz]
 
+    def rebound(self, q: Array, lo: Array, hi: Array) -> BandedQp:
+        """The same QP with a new linear term and new row bounds (same finite pattern)."""
+        if not (np.array_equal(np.flatnonzero(np.isfinite(lo)), self.il)
+                and np.array_equal(np.flatnonzero(np.isfinite(hi)), self.iu)):
+            raise ValueError("rebound needs the same finite bounds")
+        out = copy.copy(self)
+        out.q = q / self.c_obj
+        out.h = np.concatenate([-lo[self.il], hi[self.iu]])
+        return out
+
     def solve(self, extra: Rows | None = None, *, max_iter: int = 40, tol: float = 1e-9,
               z0: Array | None = None, slack0: float = 1.0,
               detect_infeasible: bool = True) -> IpmResult:
-        """Mehrotra predictor-corrector with the fixed rows plus ``extra`` (lower bounds)."""
+        """Mehrotra predictor-corrector with the fixed rows plus ``extra`` (lower bounds).
+
+        G (CSR arrays; read as CSC they are Gᵀ) and the map w ↦ band(GᵀWG) (CSC,
+        one column per row of G) are set up once per solve, so an iteration is a
+        handful of compiled sparse products (scipy's ``_sparsetools`` kernels,
+        without the per-call checks of ``@``); they add the terms in the same
+        order as a gather / ``bincount`` formulation.
+        """
         n, bw1 = self.n, self.bw1
         if extra is not None and len(extra.cols):
             # lo ≤ L z  ⇔  −L z ≤ −lo
@@ -134,13 +167,26 @@ class BandedQp:
             h, p_idx, p_coef, p_row = self.h, self.p_idx, self.p_coef, self.p_row
         m = len(h)
         h_dense = self.h_dense
-        g_flat = g_cols.ravel()
+        # G in CSR arrays (3 entries a row); the band map's CSC arrays (p_row is
+        # non-decreasing: the terms of row r are one contiguous run)
+        k_g = g_cols.shape[1]
+        g_ptr = np.arange(0, k_g * m + 1, k_g, dtype=np.int64)
+        g_idx = np.ascontiguousarray(g_cols, dtype=np.int64).ravel()
+        g_dat = np.ascontiguousarray(g_vals, dtype=float).ravel()
+        b_ptr = np.searchsorted(p_row, np.arange(m + 1)).astype(np.int64)
+        b_idx = np.ascontiguousarray(p_idx, dtype=np.int64)
+        b_dat = np.ascontiguousarray(p_coef, dtype=float)
+        nb = bw1 * n
 
-        def gmul(z: Array) -> Array:
-            return np.asarray(np.einsum("rk,rk->r", g_vals, z[g_cols]))
+        def gmul(x: Array) -> Array:  # G x
+            out = np.zeros(m)
+            _csr_matvec(m, n, g_ptr, g_idx, g_dat, x, out)
+            return out
 
-        def gtmul(v: Array) -> Array:
-            return np.bincount(g_flat, weights=(g_vals * v[:, None]).ravel(), minlength=n)
+        def gtmul(v: Array) -> Array:  # Gᵀ v (G's CSR arrays read as the CSC of Gᵀ)
+            out = np.zeros(n)
+            _csc_matvec(n, m, g_ptr, g_idx, g_dat, v, out)
+            return out
 
         q = self.q
         z = np.zeros(n) if z0 is None else np.asarray(z0, dtype=float).copy()
@@ -151,10 +197,12 @@ class BandedQp:
         b_norm = 1.0 + float(np.max(np.abs(h), initial=0.0))
         status = "max_iter"
         it = 0
+        m1 = max(m, 1)
+        h_flat = self.h_flat
         for it in range(1, max_iter + 1):  # noqa: B007 - `it` is reported
             r_d = h_dense @ z + q + gtmul(lam)
             r_p = gmul(z) + s - h
-            mu = float(s @ lam) / max(m, 1)
+            mu = float(s @ lam) / m1
             res_p = float(np.abs(r_p).max()) if m else 0.0
             res_d = float(np.abs(r_d).max())
             if res_p <= tol * b_norm and res_d <= tol * q_norm and mu <= tol:
@@ -169,26 +217,29 @@ class BandedQp:
                 status = "stalled (likely infeasible)"
                 break
             w = lam / s
-            mband = self.h_flat + np.bincount(p_idx, weights=w[p_row] * p_coef,
-                                              minlength=bw1 * n)
+            band = np.zeros(nb)
+            _csc_matvec(nb, m, b_ptr, b_idx, b_dat, w, band)
+            mband = h_flat + band
             cb, info = dpbtrf(mband.reshape(bw1, n), lower=1)
             if info != 0:
                 status = f"factorization failed ({info})"
                 break
-
-            def newton(rc: Array, r_d: Array = r_d, r_p: Array = r_p, s: Array = s,
-                       w: Array = w, cb: Array = cb) -> tuple[Array, Array, Array]:
-                # (H + GᵀWG)Δz = −r_d + Gᵀ(S⁻¹r_c − W r_p); Δs = −r_p − GΔz; Δλ = −S⁻¹r_c − WΔs
-                rhs = -r_d + gtmul(rc / s - w * r_p)
-                dz, _ = dpbtrs(cb, rhs, lower=1)
-                ds = -r_p - gmul(dz)
-                return dz, ds, -rc / s - w * ds
-
-            dz_a, ds_a, dl_a = newton(s * lam)
+            # (H + GᵀWG)Δz = −r_d + Gᵀ(S⁻¹r_c − W r_p); Δs = −r_p − GΔz; Δλ = −S⁻¹r_c − WΔs
+            # (negation is exact: −r_c/s = −(r_c/s), so shared terms are computed once)
+            wr_p = w * r_p
+            neg_rd, neg_rp = -r_d, -r_p
+            sl = s * lam
+            rcs = sl / s
+            dz_a, _ = dpbtrs(cb, neg_rd + gtmul(rcs - wr_p), lower=1)
+            ds_a = neg_rp - gmul(dz_a)
+            dl_a = -rcs - w * ds_a
             a_aff = _step(s, lam, ds_a, dl_a)
-            mu_aff = float((s + a_aff * ds_a) @ (lam + a_aff * dl_a)) / max(m, 1)
+            mu_aff = float((s + a_aff * ds_a) @ (lam + a_aff * dl_a)) / m1
             sigma = (mu_aff / mu) ** 3 if mu > 0 else 0.0
-            dz, ds, dl = newton(s * lam + ds_a * dl_a - sigma * mu)
+            rcs = (sl + ds_a * dl_a - sigma * mu) / s
+            dz, _ = dpbtrs(cb, neg_rd + gtmul(rcs - wr_p), lower=1)
+            ds = neg_rp - gmul(dz)
+            dl = -rcs - w * ds
             a = min(1.0, 0.99 * _step(s, lam, ds, dl))
             z = z + a * dz
             s = s + a * ds
@@ -212,5 +263,6 @@ def solve_qp(h_band: Array, q: Array, rows: Rows, pairs: tuple[Array, Array, Arr
 
 def _step(s: Array, lam: Array, ds: Array, dl: Array) -> float:
     """Largest step in (0, 1] keeping s + αΔs ≥ 0 and λ + αΔλ ≥ 0 (s, λ > 0)."""
-    worst = max(float((-ds / s).max(initial=0.0)), float((-dl / lam).max(initial=0.0)), 1.0)
+    # max(−Δs/s) = −min(Δs/s) exactly (negation is exact)
+    worst = max(-float((ds / s).min(initial=0.0)), -float((dl / lam).min(initial=0.0)), 1.0)
     return 1.0 / worst

@@ -94,9 +94,11 @@ class P2Qp:
         diff = sp.kron(sp.diags([np.ones(T), -np.ones(T - 1)], [0, -1], shape=(T, T)), eye2)
         self._diff = diff.tocsr()
         self._dU = (self._diff @ self._U).tocsr()
+        self._dUT = self._dU.T.tocsr()
         # costed positions p_1..p_T: p_1 constant, p_2..p_T = s z[:2(T-1)]
         sel = sp.hstack([s * sp.identity(2 * (T - 1)), sp.csr_matrix((2 * (T - 1), 2))]).tocsr()
         self._sel = sel
+        self._selT = sel.T.tocsr()
         self._H_pos = (sel.T @ sel).tocsc()
         self._H_du = (self._dU.T @ self._dU).tocsc()
         self._box = sp.vstack([self._U, -self._U, self._V, -self._V]).tocsr()
@@ -127,10 +129,22 @@ class P2Qp:
         self._ctx: BandedQp | None = None
         self._ctx_key: tuple[bytes, bytes, float, float] | None = None
         self.bw = 6
+        self._off: tuple[Array, Array, Array, Array] | None = None
+        self._struct_cache: dict[tuple[float, float, bytes, bytes], BandedQp] = {}
+        self._off_key: tuple[bytes, bytes] | None = None
 
     # ----------------------------------------------------------------- maps
     def offsets(self, x0: Array, u_prev: Array) -> tuple[Array, Array, Array, Array]:
-        """Constant parts (from the state and u_{t|t}) of v, u and Δu, and p_{t+1|t}."""
+        """Constant parts (from the state and u_{t|t}) of v, u and Δu, and p_{t+1|t}.
+
+        The last result is cached (every QP of one plan shares x_t and u_{t|t});
+        the arrays are read-only.
+        """
+        x0 = np.asarray(x0, dtype=float)
+        u_prev = np.asarray(u_prev, dtype=float)
+        key = (x0.tobytes(), u_prev.tobytes())
+        if self._off_key == key and self._off is not None:
+            return self._off
         T = self.T
         dt, a, mass = self.dyn.dt_s, 1.0 - self.dyn.zeta, self.dyn.mass_kg
         p1 = x0[:2] + dt * x0[2:]
@@ -142,7 +156,11 @@ class P2Qp:
         uc = (mass / dt) * (vc - a * vprev)
         duc = self._diff @ uc
         duc[:2] -= u_prev
-        return vc, uc, duc, p1
+        out = (vc, uc, duc, p1)
+        for arr in out:
+            arr.setflags(write=False)
+        self._off, self._off_key = out, key
+        return out
 
     def hessian(self, kappa: tuple[float, float]) -> sp.csc_matrix:
         key = (float(kappa[0]), float(kappa[1]))
@@ -205,9 +223,7 @@ class P2Qp:
         if self.area is not None:
             # a side of the area that p_τ cannot reach (per-axis reach at the limits) is
             # left out: its bound is infinite, so it adds no inequality
-            from .s2_scip import reach_boxes
-
-            r_lo, r_hi = reach_boxes(x0, T, self.dyn)
+            r_lo, r_hi = _reach_boxes(x0, T, self.dyn)
             na = self._fixed_norm[2]
             a_lo = np.where(r_lo[1:].ravel() < self._area_margin + 1.0, self._area_margin,
                             -np.inf)
@@ -215,8 +231,20 @@ class P2Qp:
                             self.area - self._area_margin, np.inf)
             lo.append(a_lo / na)
             hi.append(a_hi / na)
-        fixed = Rows(self._fixed.cols, self._fixed.vals, np.concatenate(lo), np.concatenate(hi))
-        self._ctx = BandedQp(self.hessian_band(kappa), q, fixed, self._fixed_pairs)
+        lo_a, hi_a = np.concatenate(lo), np.concatenate(hi)
+        # the factor-independent structure depends only on κ and which bounds are finite
+        skey = (float(kappa[0]), float(kappa[1]), np.isfinite(lo_a).tobytes(),
+                np.isfinite(hi_a).tobytes())
+        base = self._struct_cache.get(skey)
+        if base is None:
+            fixed = Rows(self._fixed.cols, self._fixed.vals, lo_a, hi_a)
+            base = BandedQp(self.hessian_band(kappa), q, fixed, self._fixed_pairs)
+            if len(self._struct_cache) > 64:
+                self._struct_cache.clear()
+            self._struct_cache[skey] = base
+            self._ctx = base
+        else:
+            self._ctx = base.rebound(q, lo_a, hi_a)
         self._ctx_key = key
         return self._ctx
 
@@ -274,7 +302,7 @@ class P2Qp:
         vc, uc, duc, _ = self.offsets(x0, u_prev)
         h = self.hessian(kappa)
         goal_vec = np.tile(goal, T - 1)
-        q = -2.0 * kappa[0] * (self._sel.T @ goal_vec) + 2.0 * kappa[1] * (self._dU.T @ duc)
+        q = -2.0 * kappa[0] * (self._selT @ goal_vec) + 2.0 * kappa[1] * (self._dUT @ duc)
         if self.backend == "ipm" and not n_sl:
             t_start = time.perf_counter()
             zs = None if z0 is None else np.asarray(z0, dtype=float).ravel() / s
@@ -351,3 +379,28 @@ class P2Qp:
             grid = np.array(np.meshgrid(tau, [0, 1], [0, 1], indexing="ij")).reshape(3, -1).T
             return grid.astype(int)
         return np.asarray(area_rows, dtype=int).reshape(-1, 3)
+
+
+def _reach_boxes(x0: Array, horizon: int, dyn: DynamicsParams) -> tuple[Array, Array]:
+    """:func:`dualpilot.s2_scip.reach_boxes` in plain floats (same arithmetic, no numpy calls).
+
+    Per-axis bounds on p_{t+τ|t}, τ = 1..T, under |u| ≤ u_max and |v| ≤ v_max (m).
+    """
+    keep = 1.0 - dyn.zeta
+    acc = dyn.dt_s / dyn.mass_kg * dyn.u_max_n
+    vmax, dt = dyn.v_max_mps, dyn.dt_s
+    lo_cols, hi_cols = [], []
+    for a in range(2):
+        v_hi = v_lo = float(x0[2 + a])
+        p_hi = p_lo = float(x0[a]) + dt * v_hi
+        lo_c, hi_c = [p_lo], [p_hi]
+        for _ in range(horizon - 1):
+            v_hi = min(keep * v_hi + acc, vmax)
+            v_lo = max(keep * v_lo - acc, -vmax)
+            p_hi = p_hi + dt * v_hi
+            p_lo = p_lo + dt * v_lo
+            lo_c.append(p_lo)
+            hi_c.append(p_hi)
+        lo_cols.append(lo_c)
+        hi_cols.append(hi_c)
+    return np.array(lo_cols).T, np.array(hi_cols).T

@@ -39,6 +39,7 @@ MIQP of :mod:`dualpilot.system2`. :func:`make_system2` builds any of them.
 
 from __future__ import annotations
 
+import bisect
 import contextlib
 import math
 import multiprocessing as mp
@@ -57,11 +58,11 @@ from .p2 import System2Params, p2_cost
 from .plan import Objective, Plan, PlanStatus
 from .s2_geometry import (
     FaceStack,
+    HullStack,
     Inflated,
     disjunction_margin,
     homotopy_paths,
     resample,
-    support_toward,
 )
 from .s2_qp import P2Qp, QpResult
 from .verify import Verdict, verify_trajectory
@@ -142,9 +143,11 @@ class _Cfs:
 
     def __init__(self, owner: FastSystem2, name: str, ref: Array, polys: list[Inflated],
                  desired: Array, solve: Callable[..., QpResult], kappa: tuple[float, float],
-                 retime: Callable[[float], Array] | None = None, max_elastic: int = 0) -> None:
+                 retime: Callable[[float], Array] | None = None, max_elastic: int = 0,
+                 stacks: tuple[FaceStack, HullStack] | None = None) -> None:
         self.o, self.name, self.ref, self.polys = owner, name, ref, polys
-        self.faces = FaceStack.of(polys)
+        self.faces, self.stack = stacks if stacks is not None else (FaceStack.of(polys),
+                                                                    HullStack.of(polys))
         self.desired, self.solve, self.kappa = desired, solve, kappa
         self.retime, self.max_elastic = retime, max_elastic
         self.slowdowns = [0.6, 0.35] if retime is not None else []
@@ -177,36 +180,30 @@ class _Cfs:
         self.active[:, 2:T + 1] |= (self.faces.margins(pos[1:T]) < self.o.fast.near_m).T
 
     def _rows(self) -> tuple[Array, Array, Array]:
+        """Half-planes (τ, normal, rhs) of the active (τ, i) pairs, hull-major, vectorised."""
         f, T = self.o.fast, self.T
-        tau_l, nrm_l, rhs_l, hid_l = [], [], [], []
-        for i, q in enumerate(self.polys):
-            tt = self.taus[self.active[i, 2:T + 1]]
-            if not len(tt):
-                continue
-            pts = self.cur[tt - 1]
-            if self.feasible_seen:
-                nrm, off, _ = support_toward(q, pts, self.desired[tt - 1],
-                                             slack=f.eps_margin_m)
-            elif not self.elastic and self.n_elastic == 0:
-                # until an iterate is feasible the homotopy reference fixes the sides
-                nrm, off, _ = q.support(self.ref[tt - 1])
-            else:
-                # after an elastic solve: supports at its points, the reference's inside Q
-                nrm, off, outside = q.support(pts)
-                use = np.logical_not(outside) & (q.margin(self.ref[tt - 1]) > 0)
-                if np.any(use):
-                    n2, o2, _ = q.support(self.ref[tt[use] - 1])
-                    nrm[use] = n2
-                    off[use] = o2
-            tau_l.append(tt)
-            nrm_l.append(nrm)
-            rhs_l.append(off + f.eps_margin_m)
-            hid_l.append(np.full(len(tt), i))
-        if not tau_l:
+        hid, col = np.nonzero(self.active[:, 2:T + 1])  # row-major: hull-major, τ ascending
+        if not len(hid):
             self.last_hull_ids = np.zeros(0, dtype=np.int64)
             return np.zeros(0, dtype=np.int64), np.zeros((0, 2)), np.zeros(0)
-        self.last_hull_ids = np.concatenate(hid_l)
-        return np.concatenate(tau_l), np.vstack(nrm_l), np.concatenate(rhs_l)
+        tt = self.taus[col]
+        hs = self.stack
+        if self.feasible_seen:
+            nrm, off, _ = hs.support_toward(hid, self.cur[tt - 1], self.desired[tt - 1],
+                                            slack=f.eps_margin_m)
+        elif not self.elastic and self.n_elastic == 0:
+            # until an iterate is feasible the homotopy reference fixes the sides
+            nrm, off, _ = hs.support(hid, self.ref[tt - 1])
+        else:
+            # after an elastic solve: supports at its points, the reference's inside Q
+            nrm, off, outside = hs.support(hid, self.cur[tt - 1])
+            use = np.logical_not(outside) & (hs.margin(hid, self.ref[tt - 1]) > 0)
+            if np.any(use):
+                n2, o2, _ = hs.support(hid[use], self.ref[tt[use] - 1])
+                nrm[use] = n2
+                off[use] = o2
+        self.last_hull_ids = hid
+        return np.asarray(tt, dtype=np.int64), nrm, off + f.eps_margin_m
 
     def _corner_escape(self, rows: tuple[Array, Array, Array]
                        ) -> tuple[Array, Array, Array] | None:
@@ -221,21 +218,23 @@ class _Cfs:
         hid = self.last_hull_ids
         pts = self.cur[tau - 1]
         slack = np.einsum("ij,ij->i", nrm, pts) - rhs
+        ks = np.flatnonzero(slack < 1e-3)
+        if not len(ks):
+            return None
+        hs, eps_m = self.stack, self.o.fast.eps_margin_m
+        margins = hs._face_margins(hid[ks], pts[ks])
+        face = np.argmax(margins, axis=1)
+        best = margins[np.arange(len(ks)), face]
+        a_face = hs.A[hid[ks], face]
+        swap = ~np.all(np.abs(a_face - nrm[ks]) < 1e-9, axis=1) & ~(best < 0.25 * eps_m)
+        if not np.any(swap):
+            return None
         nrm, rhs = nrm.copy(), rhs.copy()
-        changed = False
-        for k in np.flatnonzero(slack < 1e-3):
-            q = self.polys[int(hid[k])]
-            margins = q.A @ pts[k] - q.b
-            face = int(np.argmax(margins))
-            if np.all(np.abs(q.A[face] - nrm[k]) < 1e-9):
-                continue
-            if margins[face] < 0.25 * self.o.fast.eps_margin_m:
-                continue
-            nrm[k] = q.A[face]
-            # keep the current position feasible (it may sit a hair inside the margin)
-            rhs[k] = q.b[face] + min(self.o.fast.eps_margin_m, float(margins[face]))
-            changed = True
-        return (tau, nrm, rhs) if changed else None
+        k = ks[swap]
+        nrm[k] = a_face[swap]
+        # keep the current position feasible (it may sit a hair inside the margin)
+        rhs[k] = hs.b[hid[k], face[swap]] + np.minimum(eps_m, best[swap])
+        return tau, nrm, rhs
 
     def _unchanged(self, rows: tuple[Array, Array, Array]) -> bool:
         """True if the active half-planes at the current solution are those it solved."""
@@ -287,7 +286,7 @@ class _Cfs:
             return
         pos = res.positions
         self.last_cost = res.objective
-        feasible = o._violations(pos, self.polys).size == 0 and o._in_area(pos)
+        feasible = o._violations(pos, self.faces).size == 0 and o._in_area(pos)
         self.last_rows = rows
         if feasible:
             self.elastic = False
@@ -389,9 +388,11 @@ class FastSystem2:
         T = p.horizon
         eps = p.epsilon_m
         reach = _reach_radius(x0, p.horizon, self.dynamics)
-        polys = [Inflated.make(h, eps) for h in hulls]
+        polys = Inflated.make_many(hulls, eps)
         polys = [q for q, m in zip(polys, FaceStack.of(polys).margins(x0[:2])[0], strict=True)
                  if m <= reach]
+        # per-plan geometry, shared by every homotopy run: stacked faces, padded hulls
+        stacks = (FaceStack.of(polys), HullStack.of(polys))
         info: dict[str, object] = {"n_hulls": len(polys), "n_hulls_input": len(hulls)}
         n_qp = 0
 
@@ -410,14 +411,14 @@ class FastSystem2:
         lower_bound = free.objective
         info["lower_bound"] = lower_bound
         candidates: list[_Candidate] = []
-        if self._violations(free.positions, polys).size == 0 and self._in_area(free.positions):
+        if self._violations(free.positions, stacks[0]).size == 0 and self._in_area(free.positions):
             candidates.append(_Candidate("relaxation", free.positions, free.controls,
                                          free.objective, 0))
         else:
-            refs = self._references(x0, free.positions, polys, kappa)
+            refs = self._references(x0, free.positions, polys, kappa, stacks)
             info["homotopies"] = [name for name, _, _ in refs]
-            runs = [_Cfs(self, name, ref, polys, free.positions, solve, kappa, retime)
-                    for name, ref, retime in refs]
+            runs = [_Cfs(self, name, ref, polys, free.positions, solve, kappa, retime,
+                         stacks=stacks) for name, ref, retime in refs]
             # screening: one QP each; then always the run with the lowest cost (its
             # feasible cost, or its last QP's while it is not feasible yet) while it
             # can still win
@@ -444,7 +445,7 @@ class FastSystem2:
             if not any(r.best is not None for r in runs):
                 # fallback seed: braking to a hover is feasible whenever its path is clear
                 brake = _Cfs(self, "brake", _braking(x0, T, self.dynamics), polys,
-                             free.positions, solve, kappa, max_elastic=2)
+                             free.positions, solve, kappa, max_elastic=2, stacks=stacks)
                 while not brake.done:
                     brake.step()
                 runs.append(brake)
@@ -486,7 +487,8 @@ class FastSystem2:
 
     # ------------------------------------------------------------ homotopies
     def _references(self, x0: Array, free_pos: Array, polys: list[Inflated],
-                    kappa: tuple[float, float]
+                    kappa: tuple[float, float],
+                    stacks: tuple[FaceStack, HullStack] | None = None
                     ) -> list[tuple[str, Array, Callable[[float], Array] | None]]:
         """Reference positions p_1..p_{T+1} (one per homotopy) to pick the first half-planes.
 
@@ -497,7 +499,8 @@ class FastSystem2:
         T = self.params.horizon
         p1 = free_pos[0]
         speeds = np.linalg.norm(np.diff(free_pos, axis=0), axis=1) / self.dynamics.dt_s
-        target = self._target(polys)
+        faces, stack = stacks if stacks is not None else (None, None)
+        target = self._target(polys, faces)
         refs: list[tuple[str, Array, Callable[[float], Array] | None]] = []
         v0 = x0[2:]
 
@@ -512,7 +515,7 @@ class FastSystem2:
                 shifted = np.vstack([prev_pos[2:], prev_pos[-1:], prev_pos[-1:]])
                 shifted[0] = p1
                 refs.append(("previous", shifted, None))
-        paths = homotopy_paths(p1, target, polys, area=self.area,
+        paths = homotopy_paths(p1, target, polys, area=self.area, stack=stack,
                                max_paths=f.max_homotopies,
                                max_signature_hulls=f.max_signature_hulls,
                                length_slack=f.length_slack)
@@ -556,15 +559,20 @@ class FastSystem2:
         a_cap = rho * dyn.u_max_n / dyn.mass_kg * axis_factor
         keep = 1.0 - dyn.zeta
         dt = dyn.dt_s
-        sigma = max(0.0, float(v0 @ d[0]) / seg[0])
-        s = np.zeros(len(speeds) + 1)
-        for k, v in enumerate(speeds):
-            j = min(max(int(np.searchsorted(cum, s[k], side="right")) - 1, 0), len(seg) - 1)
-            sigma = min(v_cap[j], keep * sigma + a_cap[j] * dt, factor * max(float(v), 0.0))
-            s[k + 1] = min(cum[-1], s[k] + dt * sigma)
-        return s
+        sigma = max(0.0, float(v0 @ d[0]) / float(seg[0]))
+        # the recursion in plain floats (same IEEE arithmetic as numpy scalars, less overhead)
+        cum_l, vc_l, ac_l = cum.tolist(), v_cap.tolist(), a_cap.tolist()
+        end, last = cum_l[-1], len(seg) - 1
+        s_k = 0.0
+        out = [0.0]
+        for v in speeds.tolist():
+            j = min(max(bisect.bisect_right(cum_l, s_k) - 1, 0), last)
+            sigma = min(vc_l[j], keep * sigma + ac_l[j] * dt, factor * max(v, 0.0))
+            s_k = min(end, s_k + dt * sigma)
+            out.append(s_k)
+        return np.array(out)
 
-    def _target(self, polys: list[Inflated]) -> Array:
+    def _target(self, polys: list[Inflated], faces: FaceStack | None = None) -> Array:
         """G_o, or the free point nearest to it when G_o is covered by inflated hulls.
 
         Candidates are G_o's projections onto every edge of every Q and the
@@ -572,17 +580,20 @@ class FastSystem2:
         outside every Q (and in the area) is the target.
         """
         g = self.goal.center
-        faces = FaceStack.of(polys)
+        faces = FaceStack.of(polys) if faces is None else faces
         margin_g = faces.margins(g)[0]
         if np.all(margin_g > 0):
             return g
+        # every hull's candidates at once (hull by hull, each in _candidates' order)
+        all_pts, owner = self._all_candidates(polys, g)
+        bounds = np.searchsorted(owner, np.arange(len(polys) + 1))
         # A candidate of Q lies 2 m outside Q, so it is at least margin_Q(G_o) − 2 m from
         # G_o: visit the hulls nearest first and stop once none can beat the best so far.
         best, best_d = g, math.inf
         for i in np.argsort(margin_g):
             if margin_g[i] - 2.0 >= best_d:
                 break
-            pts = self._candidates(polys[i], g)
+            pts = all_pts[int(bounds[i]):int(bounds[i + 1])]
             free = np.all(faces.margins(pts) > 0, axis=1)
             if self.area is not None:
                 free &= np.all((pts >= 0.0) & (pts <= self.area), axis=1)
@@ -593,6 +604,30 @@ class FastSystem2:
                 if d[j] < best_d:
                     best, best_d = pts[j], float(d[j])
         return np.asarray(best)
+
+    @staticmethod
+    def _all_candidates(polys: list[Inflated], g: Array) -> tuple[Array, Array]:
+        """:meth:`_candidates` of every hull stacked (same points), and each point's hull."""
+        sizes = np.array([len(q.b) for q in polys])
+        first = np.repeat(np.concatenate([[0], np.cumsum(sizes)[:-1]]), sizes)
+        size = np.repeat(sizes, sizes)
+        k = np.arange(int(sizes.sum()))
+        nxt = first + (k - first + 1) % size
+        prv = first + (k - first - 1) % size
+        a = np.vstack([q.W for q in polys])
+        nrm = np.vstack([q.A for q in polys])
+        e = a[nxt] - a
+        len2 = np.maximum(np.einsum("ij,ij->i", e, e), 1e-12)
+        t = np.clip(((g - a) * e).sum(axis=1) / len2, 0.0, 1.0)
+        proj = a + t[:, None] * e
+        bis = nrm[prv] + nrm
+        corners = a + 2.0 * bis / np.maximum(np.linalg.norm(bis, axis=1), 1e-9)[:, None]
+        hull = np.repeat(np.arange(len(polys)), sizes)
+        # order: hull by hull, its edge projections, then its corners
+        order = np.lexsort((np.concatenate([k, k]), np.repeat([0, 1], len(k)),
+                           np.concatenate([hull, hull])))
+        pts = np.vstack([proj + 2.0 * nrm, corners])[order]
+        return pts, np.concatenate([hull, hull])[order]
 
     @staticmethod
     def _candidates(q: Inflated, g: Array) -> Array:
@@ -613,10 +648,11 @@ class FastSystem2:
         p = pos[1:self.params.horizon]
         return bool(np.all(p >= -1e-6) and np.all(p <= self.area + 1e-6))
 
-    def _violations(self, pos: Array, polys: list[Inflated]) -> NDArray[np.int64]:
-        """(τ, i) pairs (τ = 2..T) where the disjunction fails."""
+    def _violations(self, pos: Array, polys: list[Inflated] | FaceStack) -> NDArray[np.int64]:
+        """(τ, i) pairs (τ = 2..T) where the disjunction fails (hulls, or their FaceStack)."""
         T = self.params.horizon
-        hull, tt = np.nonzero(FaceStack.of(polys).margins(pos[1:T]).T < 0)  # hull-major
+        faces = polys if isinstance(polys, FaceStack) else FaceStack.of(polys)
+        hull, tt = np.nonzero(faces.margins(pos[1:T]).T < 0)  # hull-major
         return np.column_stack([tt + 2, hull]).astype(np.int64).reshape(-1, 2)
 
 
@@ -641,12 +677,14 @@ def verify_p2_plan(states: Array, controls: Array, hulls: Sequence[Polytope],
         # with d the (smaller) distance of each sample to the hull's bounding box
         half = 0.5 * np.linalg.norm(np.diff(pts, axis=0), axis=1)
         kept: list[Polytope] = []
-        for h in hulls:
-            gap = np.maximum(0.0, np.maximum(h.vertices.min(axis=0) - pts,
-                                             pts - h.vertices.max(axis=0)))
-            d = np.hypot(gap[:, 0], gap[:, 1])
-            if float(np.min(np.minimum(d[:-1], d[1:]) - half)) < clearance_m + 1.0:
-                kept.append(h)
+        if hulls:
+            lo = np.array([h.vertices.min(axis=0) for h in hulls])  # (H, 2)
+            hi = np.array([h.vertices.max(axis=0) for h in hulls])
+            gap = np.maximum(0.0, np.maximum(lo[:, None, :] - pts[None],
+                                             pts[None] - hi[:, None, :]))
+            d = np.hypot(gap[..., 0], gap[..., 1])  # (H, points)
+            near = np.min(np.minimum(d[:, :-1], d[:, 1:]) - half, axis=1) < clearance_m + 1.0
+            kept = [h for h, k in zip(hulls, near.tolist(), strict=True) if k]
     else:
         kept = list(hulls)
     verdict = verify_trajectory(states, controls, kept, dynamics, clearance_m=clearance_m)
@@ -702,7 +740,16 @@ def _start_checks(x0: Array, hulls: tuple[Polytope, ...], params: System2Params,
     """The statuses ExactSystem2 gives before solving, for the same reasons."""
     p0 = x0[:2]
     p1 = x0[:2] + dyn.dt_s * x0[2:]
-    checker = SegmentChecker(hulls)
+    # only hulls whose bounding box comes within clearance_m (+1 m) of the first segment's
+    # box can be nearer than clearance_m to p_t or to that segment
+    near = hulls
+    if hulls:
+        lo = np.array([h.vertices.min(axis=0) for h in hulls])
+        hi = np.array([h.vertices.max(axis=0) for h in hulls])
+        gap = np.maximum(0.0, np.maximum(lo - np.maximum(p0, p1), np.minimum(p0, p1) - hi))
+        close = np.hypot(gap[:, 0], gap[:, 1]) < clearance_m + 1.0
+        near = tuple(h for h, c in zip(hulls, close.tolist(), strict=True) if c)
+    checker = SegmentChecker(near)
     if checker.point_distance(p0) < clearance_m:  # all hulls at once; the loop names one
         for i, hull in enumerate(hulls):
             dist = hull.distance(p0)
@@ -710,12 +757,13 @@ def _start_checks(x0: Array, hulls: tuple[Polytope, ...], params: System2Params,
                 return (PlanStatus.INVALID_INPUT,
                         f"start {p0} is {dist:.2f} m from hull {i} (< d_safe {clearance_m} m): "
                         "no safe plan can start here")
-    for i, hull in enumerate(hulls):
-        margin = float(np.max(hull.A @ p1 - hull.b))
-        if margin < params.epsilon_m:
+    if hulls:
+        margins = FaceStack.of(hulls).margins(p1)[0]
+        bad = np.flatnonzero(margins < params.epsilon_m)
+        if len(bad):
             return (PlanStatus.INFEASIBLE,
                     f"x_(t+1|t) position {p1} is fixed by the current velocity and lies within "
-                    f"ε={params.epsilon_m} m of hull {i}: (P2) is infeasible")
+                    f"ε={params.epsilon_m} m of hull {int(bad[0])}: (P2) is infeasible")
     if params.keep_in_area and not (np.all(p1 >= 0.0) and np.all(p1 <= params.area_size_m)):
         return (PlanStatus.INFEASIBLE,
                 f"x_(t+1|t) position {p1} is fixed by the current velocity and lies outside "

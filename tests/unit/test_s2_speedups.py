@@ -1,0 +1,216 @@
+"""The vectorised pieces of the fast System 2 against hand-worked values and per-hull references."""
+
+import math
+
+import numpy as np
+import pytest
+
+from dualpilot.bench import GOAL, make_instance
+from dualpilot.dynamics import DynamicsParams
+from dualpilot.geometry import Polytope, Rect
+from dualpilot.p2 import System2Params
+from dualpilot.plan import PlanStatus
+from dualpilot.s2_geometry import (
+    FaceStack,
+    HullStack,
+    Inflated,
+    disjunction_margin,
+    inflate,
+    support_toward,
+)
+from dualpilot.s2_ipm import Rows, band_pairs, solve_qp
+from dualpilot.system2_fast import FastSystem2
+
+DYN = DynamicsParams()
+SQUARE = Rect(500.0, 500.0, 200.0, 200.0).polytope()  # [400, 600]²; Q at ε = 25: [375, 625]²
+TRIANGLE = Polytope.from_vertices(np.array([[100.0, 100.0], [200.0, 100.0], [150.0, 180.0]]))
+
+
+def test_hull_stack_support_by_hand():
+    """Face region: the face itself; vertex region: the line through the corner, normal ∝ p − c."""
+    q = Inflated.make(SQUARE, 25.0)
+    stack = HullStack.of([Inflated.make(TRIANGLE, 25.0), q])  # padded: 3 and 4 faces
+    pts = np.array([[700.0, 500.0], [700.0, 700.0], [500.0, 500.0]])
+    nrm, off, outside = stack.support(np.array([1, 1, 1]), pts)
+    np.testing.assert_allclose(nrm[0], [1.0, 0.0])
+    assert off[0] == pytest.approx(625.0)
+    np.testing.assert_allclose(nrm[1], [math.sqrt(0.5), math.sqrt(0.5)])
+    assert off[1] == pytest.approx(625.0 * math.sqrt(2.0))
+    assert outside.tolist() == [True, True, False]
+    # the centre is 125 m inside Q: the margin is −125 m
+    np.testing.assert_allclose(stack.margin(np.array([1, 1, 1]), pts), [75.0, 75.0, -125.0])
+    c, d = stack.nearest(np.array([1]), pts[1:2])
+    np.testing.assert_allclose(c[0], [625.0, 625.0])
+    assert d[0] == pytest.approx(75.0 * math.sqrt(2.0))
+
+
+def test_hull_stack_matches_each_inflated_hull():
+    inst = make_instance(3, 5, 20)
+    polys = Inflated.make_many(inst.hulls, 25.0)
+    stack = HullStack.of(polys)
+    rng = np.random.default_rng(0)
+    for i in range(0, len(polys), 3):
+        q = polys[i]
+        c = q.W.mean(axis=0)
+        pts = c + rng.normal(scale=80.0, size=(40, 2))
+        want = c + rng.normal(scale=80.0, size=(40, 2))
+        hid = np.full(40, i)
+        for got, ref in ((stack.support(hid, pts), q.support(pts)),
+                         (stack.support_toward(hid, pts, want, slack=0.01),
+                          support_toward(q, pts, want, slack=0.01))):
+            np.testing.assert_allclose(got[0], ref[0], atol=1e-9)
+            np.testing.assert_allclose(got[1], ref[1], rtol=1e-12, atol=1e-9)
+            assert np.array_equal(got[2], ref[2])
+        np.testing.assert_allclose(stack.margin(hid, pts), q.margin(pts), atol=1e-9)
+
+
+def test_make_many_matches_inflate_per_hull():
+    """Concatenated inflation of hulls with 3 and 4 faces equals each hull's own."""
+    many = Inflated.make_many([TRIANGLE, SQUARE, TRIANGLE], 25.0)
+    for q, hull in zip(many, [TRIANGLE, SQUARE, TRIANGLE], strict=True):
+        np.testing.assert_allclose(q.W, inflate(hull, 25.0))
+        np.testing.assert_allclose(q.E, np.roll(q.W, -1, axis=0) - q.W)
+        np.testing.assert_allclose(q.b, hull.b + 25.0)
+    np.testing.assert_allclose(many[1].W, [[375.0, 375.0], [625.0, 375.0], [625.0, 625.0],
+                                           [375.0, 625.0]])
+    np.testing.assert_allclose(many[1].lo, [375.0, 375.0])
+    np.testing.assert_allclose(many[1].hi, [625.0, 625.0])
+
+
+def test_disjunction_margin_by_hand():
+    """Square [0, 10]², ε = 1: (15, 5) is 5 − 1 = 4 m out, (12, 12) is 2 − 1 = 1 m out."""
+    hull = Rect(5.0, 5.0, 10.0, 10.0).polytope()
+    far = Rect(505.0, 505.0, 10.0, 10.0).polytope()
+    assert disjunction_margin(np.array([[15.0, 5.0]]), [hull, far], 1.0) == pytest.approx(4.0)
+    pts = np.array([[15.0, 5.0], [12.0, 12.0]])
+    assert disjunction_margin(pts, [far, hull], 1.0) == pytest.approx(1.0)
+    assert disjunction_margin(pts, [], 1.0) == math.inf
+    faces = FaceStack.of([hull, far])
+    np.testing.assert_allclose(faces.margins(pts)[:, 0], [5.0, 2.0])
+
+
+def test_banded_ipm_box_qp_by_hand():
+    """min ½‖z‖² − q·z s.t. z ≥ lo has the solution z = max(q, lo)."""
+    n = 12
+    q_lin = np.linspace(-1.0, 1.0, n)
+    lo = np.full(n, 0.25)
+    j = np.arange(n)
+    rows = Rows.make(np.column_stack([j, j, j]), np.column_stack([np.ones(n), np.zeros(n),
+                                                                   np.zeros(n)]),
+                     lo, np.full(n, np.inf))
+    h_band = np.zeros((7, n))
+    h_band[0] = 1.0
+    res = solve_qp(h_band, -q_lin, rows, band_pairs(rows, n))
+    assert res.ok
+    np.testing.assert_allclose(res.z, np.maximum(q_lin, lo), atol=1e-5)
+
+
+def _timing_reference(planner, path, speeds, v0, factor=1.0):
+    """The numpy-scalar loop that FastSystem2._timing replaced."""
+    rho = planner.fast.speed_factor * factor
+    dyn = planner.dynamics
+    d = np.diff(path, axis=0)
+    seg = np.linalg.norm(d, axis=1)
+    good = seg > 1e-9
+    d, seg = d[good], seg[good]
+    cum = np.concatenate([[0.0], np.cumsum(seg)])
+    axis_factor = seg / np.maximum(np.max(np.abs(d), axis=1), 1e-9)
+    v_cap = rho * dyn.v_max_mps * axis_factor
+    a_cap = rho * dyn.u_max_n / dyn.mass_kg * axis_factor
+    sigma = max(0.0, float(v0 @ d[0]) / seg[0])
+    s = np.zeros(len(speeds) + 1)
+    for k, v in enumerate(speeds):
+        j = min(max(int(np.searchsorted(cum, s[k], side="right")) - 1, 0), len(seg) - 1)
+        sigma = min(v_cap[j], (1.0 - dyn.zeta) * sigma + a_cap[j] * dyn.dt_s,
+                    factor * max(float(v), 0.0))
+        s[k + 1] = min(cum[-1], s[k] + dyn.dt_s * sigma)
+    return s
+
+
+def test_timing_is_the_same_recursion():
+    planner = FastSystem2(GOAL, System2Params(), DYN)
+    path = np.array([[50.0, 50.0], [300.0, 60.0], [300.0, 60.0], [500.0, 400.0], [950.0, 950.0]])
+    rng = np.random.default_rng(2)
+    speeds = rng.uniform(-1.0, 20.0, size=80)
+    for v0, factor in ((np.array([5.0, 0.0]), 1.0), (np.array([-3.0, 2.0]), 0.35)):
+        got = planner._timing(path, speeds, v0, factor)
+        assert np.array_equal(got, _timing_reference(planner, path, speeds, v0, factor))
+    # a path that is finished: the arc length stops at its length
+    short = np.array([[0.0, 0.0], [30.0, 40.0]])
+    assert planner._timing(short, np.full(80, 15.0), np.zeros(2))[-1] == pytest.approx(50.0)
+
+
+def test_all_candidates_are_each_hulls_candidates():
+    polys = Inflated.make_many([TRIANGLE, SQUARE, TRIANGLE], 25.0)
+    g = np.array([950.0, 950.0])
+    pts, owner = FastSystem2._all_candidates(polys, g)
+    want = np.vstack([FastSystem2._candidates(q, g) for q in polys])
+    np.testing.assert_allclose(pts, want, rtol=0, atol=1e-12)
+    assert owner.tolist() == [0] * 6 + [1] * 8 + [2] * 6
+
+
+def test_covered_goal_target_is_two_metres_outside():
+    """G_o = (900, 900) inside Q = [825, 975]×[865, 985] (hull [850, 950]×[890, 960], ε = 25):
+    the nearest face is y = 865 (35 m), pushed 2 m out: (900, 863); a far hull changes nothing."""
+    params = System2Params()
+    planner = FastSystem2(GOAL, params, DYN)
+    cover = Rect(900.0, 925.0, 100.0, 70.0).polytope()
+    far = Rect(100.0, 100.0, 50.0, 50.0).polytope()
+    polys = Inflated.make_many([far, cover], params.epsilon_m)
+    np.testing.assert_allclose(planner._target(polys), [900.0, 863.0], atol=1e-9)
+
+
+def test_start_checks_name_the_right_hull_among_far_ones():
+    """p_t = (95, 100) is 25 m from hull 2 (x ≥ 120), p_{t+1} = p_t + 1 s·(15, 0) = (110, 100)
+    only 10 m (< ε = 25): INFEASIBLE, naming hull 2 behind two far hulls."""
+    planner = FastSystem2(GOAL, System2Params(), DYN)
+    far = [Rect(800.0, 100.0 + 100.0 * k, 20.0, 20.0).polytope() for k in range(2)]
+    near = Rect(140.0, 100.0, 40.0, 80.0).polytope()  # [120, 160]×[60, 140]
+    state = np.array([95.0, 100.0, 15.0 / DYN.dt_s, 0.0])
+    plan = planner.plan(state, far + [near], prev_control=np.zeros(2))
+    assert plan.status is PlanStatus.INFEASIBLE
+    assert "hull 2" in plan.message
+    # 5 m further back, p_t is 20 m from it and p_{t+1} 15 m: still hull 2, still infeasible
+    state[0] = 90.0
+    plan = planner.plan(state, far + [near], prev_control=np.zeros(2))
+    assert plan.status is PlanStatus.INFEASIBLE and "hull 2" in plan.message
+
+
+def test_plain_float_reach_boxes_equal_the_numpy_ones():
+    from dualpilot.s2_qp import _reach_boxes
+    from dualpilot.s2_scip import reach_boxes
+
+    rng = np.random.default_rng(4)
+    for _ in range(20):
+        x0 = np.concatenate([rng.uniform(0.0, 1000.0, 2), rng.uniform(-15.0, 15.0, 2)])
+        lo, hi = _reach_boxes(x0, 80, DYN)
+        want_lo, want_hi = reach_boxes(x0, 80, DYN)
+        assert np.array_equal(lo, want_lo) and np.array_equal(hi, want_hi)
+    # at rest, one step: p_{t+1} = p_t on both sides
+    lo, hi = _reach_boxes(np.array([10.0, 20.0, 0.0, 0.0]), 1, DYN)
+    np.testing.assert_allclose(lo, [[10.0, 20.0]])
+    np.testing.assert_allclose(hi, [[10.0, 20.0]])
+
+
+def test_rebound_solves_the_same_qp_as_a_fresh_context():
+    """A cached structure with new bounds and linear term gives a fresh context's solution."""
+    n = 12
+    j = np.arange(n)
+    cols = np.column_stack([j, j, j])
+    vals = np.column_stack([np.ones(n), np.zeros(n), np.zeros(n)])
+    h_band = np.zeros((7, n))
+    h_band[0] = 2.0
+    from dualpilot.s2_ipm import BandedQp
+
+    rows1 = Rows.make(cols, vals, np.full(n, 0.25), np.full(n, np.inf))
+    base = BandedQp(h_band, np.zeros(n), rows1, band_pairs(rows1, n))
+    q2 = -2.0 * np.linspace(-1.0, 1.0, n)  # unconstrained optimum z = linspace(-1, 1)
+    lo2 = np.full(n, -0.5)
+    rows2 = Rows.make(cols, vals, lo2, np.full(n, np.inf))
+    fresh = BandedQp(h_band, q2, rows2, band_pairs(rows2, n)).solve()
+    again = base.rebound(q2, lo2, np.full(n, np.inf)).solve()
+    assert fresh.ok and again.ok
+    np.testing.assert_allclose(again.z, np.maximum(np.linspace(-1.0, 1.0, n), -0.5), atol=1e-5)
+    assert np.array_equal(again.z, fresh.z)
+    with pytest.raises(ValueError):
+        base.rebound(q2, np.full(n, -np.inf), np.full(n, np.inf))
