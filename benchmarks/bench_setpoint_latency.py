@@ -39,6 +39,12 @@ def read_overheads(run_dir: Path) -> tuple[list[float], list[float]]:
     return [float(r["overhead_s"]) for r in rows], [float(r["compute_s"]) for r in rows]
 
 
+def zenoh_env(mode: str) -> dict[str, dict[str, str]]:
+    """Every service as a Zenoh ``mode`` (a client listens on nothing)."""
+    env = {"ZENOH_MODE": mode} | ({"ZENOH_LISTEN": ""} if mode == "client" else {})
+    return {name: dict(env) for name in ("ews", "system1", "system2", "supervisor", "uavsim")}
+
+
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--missions", type=int, default=3)
@@ -46,6 +52,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--controller", default="cc", choices=["cc", "s1", "s2"])
     p.add_argument("--timing", default="paper", choices=["paper", "measured"])
     p.add_argument("--speed-factor", type=float, default=0.0)
+    p.add_argument("--zenoh-mode", default="peer", choices=["peer", "client"],
+                   help="peer (the stack's default: direct links) or client (all via the router)")
     p.add_argument("--out", type=Path, default=REPO / "runs" / "bench" / "setpoint_latency")
     args = p.parse_args(argv)
     overhead: list[float] = []
@@ -57,7 +65,7 @@ def main(argv: list[str] | None = None) -> int:
         run_dir = (args.out / f"{args.controller}-s{seed}").resolve()
         cfg = StackConfig(run_dir=run_dir, seed=seed, speed_factor=args.speed_factor,
                           controller=args.controller, timing=args.timing, free_ports=True,
-                          uav_id="bench")
+                          uav_id="bench", extra_env=zenoh_env(args.zenoh_mode))
         outcome, codes = run_mission(cfg, timeout_s=600, figures=False, quiet=True)
         if not (run_dir / "latency.csv").is_file():
             print(f"seed {seed}: no latency.csv ({outcome.message})", file=sys.stderr)
@@ -76,6 +84,7 @@ def main(argv: list[str] | None = None) -> int:
     result = {
         "command": " ".join([os.path.relpath(sys.argv[0], REPO), *sys.argv[1:]]),
         "controller": args.controller, "timing": args.timing, "speed_factor": args.speed_factor,
+        "zenoh_mode": args.zenoh_mode,
         "missions": args.missions, "steps": steps,
         "overhead_ms": {"median": float(np.median(ms)), "p90": float(np.percentile(ms, 90)),
                         "p99": float(np.percentile(ms, 99)), "max": float(ms.max())},

@@ -20,6 +20,7 @@ received sample or query, counting and logging a rejection.
 
 from __future__ import annotations
 
+import gc
 import json
 import logging
 import os
@@ -397,14 +398,31 @@ class Context:
     exit_code: int = 0
 
     def announce(self) -> None:
-        """Declare the liveliness token (after subscribers and queryables are declared)."""
+        """Declare the liveliness token (after subscribers and queryables are declared).
+
+        The objects made while starting (modules, planners, tables) are moved to
+        the permanent generation first (:func:`settle_heap`).
+        """
         assert self.session is not None
+        settle_heap()
         s = self.settings
         self.token = self.session.liveliness().declare_token(keys.alive(s.uav_id, s.service))
         log.info("alive", extra=logsetup.fields(key=keys.alive(s.uav_id, s.service)))
 
 
 Body = Callable[[Context], None]
+
+
+def settle_heap() -> None:
+    """Collect once, then exempt every live object from later garbage collections.
+
+    After start-up a service holds about a million objects (numpy, scipy,
+    OMPL, protobuf); a full collection that walks them all stalls whichever
+    thread triggers it, for example the one answering a Zenoh query, by tens
+    of milliseconds. What is made later is still collected as usual.
+    """
+    gc.collect()
+    gc.freeze()
 
 
 SWITCH_INTERVAL_S = 0.0005

@@ -7,8 +7,9 @@
   ``<ns>/ews/fires`` when the stack's clock (carried in the command) reaches
   ``τ_t + k·T_f``: the fires propagate while the plan is computed (see
   services/common/clock.py). The reply carries every sub-step's state.
-* ``<ns>/ews/forecast``: after each command, the mean-motion forecast of each
-  front over ``--forecast-horizon-s`` (services/ews/forecast.py).
+* ``<ns>/ews/forecast``: after each command's sub-steps and before its reply,
+  the mean-motion forecast of each front over ``--forecast-horizon-s``
+  (services/ews/forecast.py).
 
 Bad commands get an error reply (dualpilot.v1.Error), never a crash; each is
 counted per key and reason in the status served on ``<ns>/status/ews``
@@ -136,8 +137,11 @@ def body(ctx: bus.Context, params: FireParams, forecast_horizon_s: float) -> Non
         try:
             cmd = codec.fire_command_from_msg(
                 codec.parse(item.payload, fire_pb2.FireCommand, item.encoding))
-            bus.reply(item.query, ews.handle(cmd))
-            ews.publish_forecast()  # after the reply: the supervisor is waiting for it
+            update = ews.handle(cmd)
+            # Before the reply: once answered, the supervisor starts its next step at once,
+            # and a forecast computed then would take the CPU its plan request needs.
+            ews.publish_forecast()
+            bus.reply(item.query, update)
         except codec.CodecError as err:
             codec.rejected("FireCommand", err, log, key=key)
             bus.reply_error(item.query, codec.error_msg(ews.stamper, err.code, str(err)))

@@ -372,6 +372,7 @@ class StackMission:
         self._prepare({Controller.CC: [1, 2], Controller.S1: [1],
                        Controller.S2: [2]}[self.controller])
         self.prepared = True
+        bus.settle_heap()  # everything the mission needs is imported and built
         self._open_record()
         self._publish_state(0)
         self._event(supervisor_pb2.MISSION_EVENT_KIND_STARTED, position=self.state,
@@ -442,6 +443,7 @@ class StackMission:
         self._prepare({Controller.CC: [1, 2], Controller.S1: [1],
                        Controller.S2: [2]}[self.controller])
         self.prepared = True
+        bus.settle_heap()  # everything the mission needs is imported and built
         self._open_record()
         self._publish_state(self.result.steps)
         msg = (f"supervisor restarted: mission picked up at step {self.result.steps} from the "
