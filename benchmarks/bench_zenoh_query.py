@@ -49,6 +49,7 @@ def config(mode: str, connect: list[str], listen: list[str]) -> zenoh.Config:
     conf = zenoh.Config()
     conf.insert_json5("mode", json.dumps(mode))
     conf.insert_json5("scouting/multicast/enabled", "false")
+    conf.insert_json5("transport/shared_memory/enabled", "false")  # as the stack (bus.py)
     conf.insert_json5("connect/endpoints", json.dumps(connect))
     conf.insert_json5("listen/endpoints", json.dumps(listen))
     return conf

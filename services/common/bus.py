@@ -56,10 +56,18 @@ M = TypeVar("M", bound=Message)
 
 
 def zenoh_config(s: Settings) -> zenoh.Config:
-    """Mode, endpoints, no multicast scouting, and a client that waits for its router."""
+    """Mode, endpoints, no multicast scouting, no shared memory, a client that waits for its router.
+
+    Shared memory is off: by default Zenoh puts every message over 3 KB (a
+    plan, a fire update) in a 16 MB shared-memory pool that it builds lazily,
+    inside the first such send, which stalled the sender for 5–6 ms early in
+    every mission; our messages are a few kB, and containers do not share
+    /dev/shm anyway.
+    """
     conf = zenoh.Config()
     conf.insert_json5("mode", json.dumps(s.zenoh_mode))
     conf.insert_json5("scouting/multicast/enabled", "false")
+    conf.insert_json5("transport/shared_memory/enabled", "false")
     conf.insert_json5("connect/endpoints", json.dumps(list(s.zenoh_connect)))
     conf.insert_json5("listen/endpoints", json.dumps(list(s.zenoh_listen)))
     # wait (forever) for the router, retrying quickly: compose starts services in any order
