@@ -27,8 +27,10 @@ import argparse
 import contextlib
 import json
 import os
+import signal
 import sys
 import tempfile
+import threading
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -153,8 +155,9 @@ def recorded(run_dir: Path, mission_id: str, steps: int) -> bool:
 
 def run_soak(n: int, out: Path, speed_factor: float = 1000.0, seed0: int | None = None,
              timeout_s: float = 300.0, max_wall_s: float | None = None,
-             quiet: bool = True) -> SoakResult:
-    """Fly up to ``n`` consecutive missions (fewer if ``max_wall_s`` runs out)."""
+             quiet: bool = True, stop: threading.Event | None = None) -> SoakResult:
+    """Fly up to ``n`` consecutive missions (fewer if ``max_wall_s`` runs out or ``stop`` is set
+    between missions); the stack is stopped on the way out either way."""
     cfg = launch.StackConfig(run_dir=out, speed_factor=speed_factor, controller="cc",
                              timing="paper", free_ports=True, log_format="text")
     t0 = time.monotonic()
@@ -164,7 +167,8 @@ def run_soak(n: int, out: Path, speed_factor: float = 1000.0, seed0: int | None 
         shared = {p.name: p.popen.pid for p in fleet.stack.group.procs}
         sessions.update(shared.values())
         for k in range(n):
-            if max_wall_s is not None and time.monotonic() - t0 > max_wall_s:
+            if (max_wall_s is not None and time.monotonic() - t0 > max_wall_s) or (
+                    stop is not None and stop.is_set()):
                 break
             run_dir = out / f"m{k:04d}"
             seed = SUCCESS_SEEDS[k % len(SUCCESS_SEEDS)] if seed0 is None else seed0 + k
@@ -218,8 +222,16 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--out", default="", help="run directory (default: a temporary one)")
     args = p.parse_args(argv)
     out = Path(args.out) if args.out else Path(tempfile.mkdtemp(prefix="soak-"))
+    stop = threading.Event()  # SIGINT/SIGTERM: finish the mission in flight, report, clean up
+
+    def on_signal(signum: int, _frame: object) -> None:
+        print(f"signal {signum}: stopping after this mission", flush=True)
+        stop.set()
+
+    signal.signal(signal.SIGINT, on_signal)
+    signal.signal(signal.SIGTERM, on_signal)
     result = run_soak(args.missions, out.resolve(), args.speed_factor, args.seed0,
-                      max_wall_s=args.max_wall_s, quiet=False)
+                      max_wall_s=args.max_wall_s, quiet=False, stop=stop)
     warmup = args.warmup or max(10, result.missions // 10)
     rep = result.report(warmup)
     print(json.dumps(rep, indent=1))
