@@ -1,16 +1,19 @@
 """docker-compose.yml validated offline, and the local launcher's reading of it.
 
 No Docker engine runs here and Debian's ``docker-compose config -q`` is not
-installed, so :func:`services.launch.check_compose` checks the structure the
-stack relies on (pinned router image, one image for every service, commands
-that name existing service modules, string environments connecting to the
-router by name); these tests also check that the launcher maps the same
-file onto loopback, so the two ways of running cannot drift apart.
+installed. The whole file is parsed by a strict Compose Specification parser
+(the ``compose-spec`` package, a dev dependency), and
+:func:`services.launch.check_compose` checks the structure the stack relies on
+(pinned router image, one image for every service, commands that name existing
+service modules, string environments connecting to the router by name); these
+tests also check that the launcher maps the same file onto loopback, so the
+two ways of running cannot drift apart.
 """
 
 from __future__ import annotations
 
 import copy
+import json
 from pathlib import Path
 from typing import Any
 
@@ -35,6 +38,42 @@ def test_compose_file_is_valid(doc: dict[str, Any]) -> None:
     assert "14550:14550/udp" in services["uavsim"]["ports"]
     assert services["supervisor"]["environment"]["MAVLINK_URL"] == "udpout:uavsim:14540"
     assert services["uavsim"]["environment"]["MAVLINK_URL"] == "udpin:0.0.0.0:14540"
+
+
+def compose_spec_errors(text: str) -> str:
+    """The compose-spec parser's complaint about a compose file ('' when it is valid).
+
+    ``compose_spec`` (the Rust crate behind podlet, with Python bindings) parses
+    the whole Compose Specification strictly: unknown keys, wrong types and
+    malformed ports are errors. It does not expand YAML merge keys (``<<``),
+    which Compose itself does, so it reads the file after PyYAML has merged them.
+    """
+    from compose_spec import PyCompose
+
+    try:
+        PyCompose.from_json(json.dumps(yaml.safe_load(text)))
+    except ValueError as err:
+        return str(err)
+    return ""
+
+
+def test_compose_file_passes_the_compose_spec_parser() -> None:
+    assert compose_spec_errors(launch.COMPOSE.read_text()) == ""
+
+
+@pytest.mark.parametrize(("old", "new", "match"), [
+    ("stop_grace_period:", "stop_grace_periodd:", "stop_grace_periodd"),  # a misspelt key
+    ("stop_signal: SIGINT", "stop_signal: [SIGINT]", "expected a string"),  # a wrong shape
+    ('restart: "no"', "restart: sometimes", "sometimes"),               # an unknown value
+    ("init: true", "init: maybe", "boolean"),                           # a wrong type
+])
+def test_the_compose_spec_parser_catches_what_check_compose_does_not(old: str, new: str,
+                                                                     match: str) -> None:
+    text = launch.COMPOSE.read_text()
+    assert old in text
+    bad = text.replace(old, new, 1)
+    launch.check_compose(yaml.safe_load(bad))  # the subset we rely on is still intact …
+    assert match in compose_spec_errors(bad)    # … but the file is no longer a compose file
 
 
 @pytest.mark.parametrize(
