@@ -17,7 +17,7 @@ Dijkstra over the graph lifted by the ray-crossing parity of the nearby hulls
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -244,21 +244,7 @@ class HullStack:
                        lambdas: tuple[float, ...] = (1.0, 0.5, 0.25), slack: float = 0.0
                        ) -> tuple[Array, Array, Array]:
         """:func:`support_toward` of hull ``hid[k]`` at ``points[k]``."""
-        pts = np.asarray(points, dtype=float).reshape(-1, 2)
-        nrm, off, outside = self.support(hid, pts)
-        done = np.logical_not(outside)
-        for lam in lambdas:
-            if np.all(done):
-                break
-            todo = np.flatnonzero(~done)
-            x = pts[todo] + lam * (desired[todo] - pts[todo])
-            n2, o2, out2 = self.support(hid[todo], x)
-            ok = out2 & (np.einsum("ij,ij->i", n2, pts[todo]) >= o2 + slack)
-            sel = todo[ok]
-            nrm[sel] = n2[ok]
-            off[sel] = o2[ok]
-            done[sel] = True
-        return nrm, off, outside
+        return _lean(lambda idx, x: self.support(hid[idx], x), points, desired, lambdas, slack)
 
 
 def support_toward(poly: Inflated, points: Array, desired: Array,
@@ -271,15 +257,22 @@ def support_toward(poly: Inflated, points: Array, desired: Array,
     ``slack``; λ = 0 is the plain support at p. Returns (normals, offsets,
     outside mask of the points).
     """
+    return _lean(lambda _idx, x: poly.support(x), points, desired, lambdas, slack)
+
+
+def _lean(support: Callable[[Array, Array], tuple[Array, Array, Array]], points: Array,
+          desired: Array, lambdas: tuple[float, ...], slack: float
+          ) -> tuple[Array, Array, Array]:
+    """:func:`support_toward` given ``support(indices, x)``: the supports for points[indices]."""
     pts = np.asarray(points, dtype=float).reshape(-1, 2)
-    nrm, off, outside = poly.support(pts)
+    nrm, off, outside = support(np.arange(len(pts)), pts)
     done = np.logical_not(outside)
     for lam in lambdas:
         if np.all(done):
             break
         todo = np.flatnonzero(~done)
         x = pts[todo] + lam * (desired[todo] - pts[todo])
-        n2, o2, out2 = poly.support(x)
+        n2, o2, out2 = support(todo, x)
         ok = out2 & (np.einsum("ij,ij->i", n2, pts[todo]) >= o2 + slack)
         sel = todo[ok]
         nrm[sel] = n2[ok]
