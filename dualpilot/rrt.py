@@ -400,12 +400,14 @@ def plan_path(
     rrt.setGoalBias(1.0)  # every sample goes through goal_obj.sampleGoal (our rng)
     rrt.setProblemDefinition(pdef)
     rrt.setup()
-    # The wall-clock cap is OMPL's own (no Python call per iteration); the
-    # sampler ends the solve itself once it has drawn max_iterations samples.
     guide = component is not None and params.guide_after < params.max_iterations
 
     def grow(samples: int) -> bool:
-        """Run RRT on the same tree until G is reached, ``samples`` samples or the wall cap."""
+        """Run RRT on the same tree until G is reached, ``samples`` samples or the wall cap.
+
+        The wall-clock cap is OMPL's own (no Python call per iteration); the
+        sampler ends the solve itself once it has drawn ``samples`` samples.
+        """
         left = params.max_wall_s - (time.perf_counter() - t0)
         ptc = ob.timedPlannerTerminationCondition(max(left, 1e-6))
         goal_obj.stop_after(samples, ptc)
