@@ -31,8 +31,8 @@ sys.path.insert(0, str(REPO))
 
 from services.launch import StackConfig, run_mission  # noqa: E402
 
-#: steps at the start of a mission reported apart as well (see the README: the first plan
-#: replies of a mission are slower)
+#: steps at the start of a mission, reported apart as well: start-up costs that land in the
+#: first plan replies (Zenoh's lazily built shared memory did, README) show up here
 FIRST_STEPS = 4
 
 
