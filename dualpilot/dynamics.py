@@ -99,3 +99,29 @@ def hover_state(position: Array, params: DynamicsParams = DynamicsParams()) -> A
     """A state at ``position`` with zero velocity."""
     pos = np.asarray(position, dtype=float)
     return check_state(np.concatenate([pos, np.zeros(params.dim)]), params)
+
+
+def reach_boxes(x0: Array, horizon: int, dyn: DynamicsParams) -> tuple[Array, Array]:
+    """Per-axis bounds on p_{t+τ|t}, τ = 1..T, under |u| ≤ u_max and |v| ≤ v_max (m).
+
+    Eq. (1) per axis with the force and speed at their limits; plain floats (it runs
+    for every QP of a plan). Returns (lo, hi), each (T, 2).
+    """
+    keep = 1.0 - dyn.zeta
+    acc = dyn.dt_s / dyn.mass_kg * dyn.u_max_n
+    vmax, dt = dyn.v_max_mps, dyn.dt_s
+    lo_cols, hi_cols = [], []
+    for a in range(2):
+        v_hi = v_lo = float(x0[2 + a])
+        p_hi = p_lo = float(x0[a]) + dt * v_hi
+        lo_c, hi_c = [p_lo], [p_hi]
+        for _ in range(horizon - 1):
+            v_hi = min(keep * v_hi + acc, vmax)
+            v_lo = max(keep * v_lo - acc, -vmax)
+            p_hi = p_hi + dt * v_hi
+            p_lo = p_lo + dt * v_lo
+            lo_c.append(p_lo)
+            hi_c.append(p_hi)
+        lo_cols.append(lo_c)
+        hi_cols.append(hi_c)
+    return np.array(lo_cols).T, np.array(hi_cols).T

@@ -65,11 +65,7 @@ class Inflated:
             return []
         sizes = np.array([len(h.b) for h in hulls])
         start = np.concatenate([[0], np.cumsum(sizes)[:-1]])
-        k = np.arange(int(sizes.sum()))
-        first = np.repeat(start, sizes)
-        size = np.repeat(sizes, sizes)
-        prv = first + (k - first - 1) % size
-        nxt = first + (k - first + 1) % size
+        prv, nxt = _ring_neighbours(sizes)
         v = np.vstack([h.vertices for h in hulls])
         n = np.vstack([h.A for h in hulls])
         n_prev = n[prv]
@@ -362,11 +358,9 @@ def homotopy_paths(
     nodes = np.vstack([start[None, :], target[None, :]]
                       + [_offset(poly, node_margin) for poly in polys])
     sizes = np.array([len(poly.b) for poly in polys], dtype=np.int64)
-    first = np.repeat(2 + np.concatenate([[0], np.cumsum(sizes)[:-1]]).astype(np.int64), sizes)
-    size = np.repeat(sizes, sizes)
-    k_node = np.arange(2, len(nodes))
-    prv = np.concatenate([[-1, -1], first + (k_node - first - 1) % size])
-    nxt = np.concatenate([[-1, -1], first + (k_node - first + 1) % size])
+    ring_prv, ring_nxt = _ring_neighbours(sizes)
+    prv = np.concatenate([[-1, -1], 2 + ring_prv])  # nodes 0 and 1 are the start and target
+    nxt = np.concatenate([[-1, -1], 2 + ring_nxt])
     keep = np.ones(len(nodes), dtype=bool)
     if len(polys):
         # a node inside Q_h lies in Q_h's bounding box: exact margins only for those pairs
@@ -466,6 +460,15 @@ def homotopy_paths(
             continue
         out.append(nodes[np.array(path[::-1]) % n])
     return out
+
+
+def _ring_neighbours(sizes: Array) -> tuple[Array, Array]:
+    """Previous and next index of each vertex when polygons of ``sizes`` vertices are stacked."""
+    sizes = np.asarray(sizes, dtype=np.int64)
+    first = np.repeat(np.cumsum(sizes) - sizes, sizes)
+    size = np.repeat(sizes, sizes)
+    k = np.arange(int(sizes.sum()))
+    return first + (k - first - 1) % size, first + (k - first + 1) % size
 
 
 def _offset(poly: Inflated, margin: float) -> Array:

@@ -28,7 +28,7 @@ import numpy as np
 import scipy.sparse as sp
 from numpy.typing import NDArray
 
-from .dynamics import DynamicsParams
+from .dynamics import DynamicsParams, reach_boxes
 from .s2_ipm import BandedQp, Rows, band_pairs
 
 Array = NDArray[Any]  # float, int or bool arrays
@@ -223,7 +223,7 @@ class P2Qp:
         if self.area is not None:
             # a side of the area that p_τ cannot reach (per-axis reach at the limits) is
             # left out: its bound is infinite, so it adds no inequality
-            r_lo, r_hi = _reach_boxes(x0, T, self.dyn)
+            r_lo, r_hi = reach_boxes(x0, T, self.dyn)
             na = self._fixed_norm[2]
             a_lo = np.where(r_lo[1:].ravel() < self._area_margin + 1.0, self._area_margin,
                             -np.inf)
@@ -380,27 +380,3 @@ class P2Qp:
             return grid.astype(int)
         return np.asarray(area_rows, dtype=int).reshape(-1, 3)
 
-
-def _reach_boxes(x0: Array, horizon: int, dyn: DynamicsParams) -> tuple[Array, Array]:
-    """:func:`dualpilot.s2_scip.reach_boxes` in plain floats (same arithmetic, no numpy calls).
-
-    Per-axis bounds on p_{t+τ|t}, τ = 1..T, under |u| ≤ u_max and |v| ≤ v_max (m).
-    """
-    keep = 1.0 - dyn.zeta
-    acc = dyn.dt_s / dyn.mass_kg * dyn.u_max_n
-    vmax, dt = dyn.v_max_mps, dyn.dt_s
-    lo_cols, hi_cols = [], []
-    for a in range(2):
-        v_hi = v_lo = float(x0[2 + a])
-        p_hi = p_lo = float(x0[a]) + dt * v_hi
-        lo_c, hi_c = [p_lo], [p_hi]
-        for _ in range(horizon - 1):
-            v_hi = min(keep * v_hi + acc, vmax)
-            v_lo = max(keep * v_lo - acc, -vmax)
-            p_hi = p_hi + dt * v_hi
-            p_lo = p_lo + dt * v_lo
-            lo_c.append(p_lo)
-            hi_c.append(p_hi)
-        lo_cols.append(lo_c)
-        hi_cols.append(hi_c)
-    return np.array(lo_cols).T, np.array(hi_cols).T

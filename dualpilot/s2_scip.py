@@ -28,7 +28,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from .dynamics import DynamicsParams, transition_matrices
+from .dynamics import DynamicsParams, reach_boxes, transition_matrices
 from .geometry import Polytope
 from .p2 import System2Params
 
@@ -46,25 +46,6 @@ class ScipResult:
     optimal: bool
     time_s: float
     n_binaries: int
-
-
-def reach_boxes(x0: Array, horizon: int, dyn: DynamicsParams) -> tuple[Array, Array]:
-    """Per-axis bounds on p_{t+τ|t}, τ = 1..T, under |u| ≤ u_max and |v| ≤ v_max (m)."""
-    keep = 1.0 - dyn.zeta
-    acc = dyn.dt_s / dyn.mass_kg * dyn.u_max_n
-    v_hi = x0[2:].copy()
-    v_lo = x0[2:].copy()
-    p_hi = x0[:2] + dyn.dt_s * v_hi
-    p_lo = p_hi.copy()
-    lo, hi = [p_lo.copy()], [p_hi.copy()]
-    for _ in range(horizon - 1):
-        v_hi = np.minimum(keep * v_hi + acc, dyn.v_max_mps)
-        v_lo = np.maximum(keep * v_lo - acc, -dyn.v_max_mps)
-        p_hi = p_hi + dyn.dt_s * v_hi
-        p_lo = p_lo + dyn.dt_s * v_lo
-        lo.append(p_lo.copy())
-        hi.append(p_hi.copy())
-    return np.array(lo), np.array(hi)
 
 
 def solve_seeded(x0: Array, hulls: Sequence[Polytope], goal: Array, kappa: tuple[float, float],

@@ -143,11 +143,10 @@ class _Cfs:
 
     def __init__(self, owner: FastSystem2, name: str, ref: Array, polys: list[Inflated],
                  desired: Array, solve: Callable[..., QpResult], kappa: tuple[float, float],
-                 retime: Callable[[float], Array] | None = None, max_elastic: int = 0,
-                 stacks: tuple[FaceStack, HullStack] | None = None) -> None:
+                 stacks: tuple[FaceStack, HullStack],
+                 retime: Callable[[float], Array] | None = None, max_elastic: int = 0) -> None:
         self.o, self.name, self.ref, self.polys = owner, name, ref, polys
-        self.faces, self.stack = stacks if stacks is not None else (FaceStack.of(polys),
-                                                                    HullStack.of(polys))
+        self.faces, self.stack = stacks
         self.desired, self.solve, self.kappa = desired, solve, kappa
         self.retime, self.max_elastic = retime, max_elastic
         self.slowdowns = [0.6, 0.35] if retime is not None else []
@@ -417,8 +416,8 @@ class FastSystem2:
         else:
             refs = self._references(x0, free.positions, polys, kappa, stacks)
             info["homotopies"] = [name for name, _, _ in refs]
-            runs = [_Cfs(self, name, ref, polys, free.positions, solve, kappa, retime,
-                         stacks=stacks) for name, ref, retime in refs]
+            runs = [_Cfs(self, name, ref, polys, free.positions, solve, kappa, stacks, retime)
+                    for name, ref, retime in refs]
             # screening: one QP each; then always the run with the lowest cost (its
             # feasible cost, or its last QP's while it is not feasible yet) while it
             # can still win
@@ -445,7 +444,7 @@ class FastSystem2:
             if not any(r.best is not None for r in runs):
                 # fallback seed: braking to a hover is feasible whenever its path is clear
                 brake = _Cfs(self, "brake", _braking(x0, T, self.dynamics), polys,
-                             free.positions, solve, kappa, max_elastic=2, stacks=stacks)
+                             free.positions, solve, kappa, stacks, max_elastic=2)
                 while not brake.done:
                     brake.step()
                 runs.append(brake)
@@ -487,8 +486,7 @@ class FastSystem2:
 
     # ------------------------------------------------------------ homotopies
     def _references(self, x0: Array, free_pos: Array, polys: list[Inflated],
-                    kappa: tuple[float, float],
-                    stacks: tuple[FaceStack, HullStack] | None = None
+                    kappa: tuple[float, float], stacks: tuple[FaceStack, HullStack]
                     ) -> list[tuple[str, Array, Callable[[float], Array] | None]]:
         """Reference positions p_1..p_{T+1} (one per homotopy) to pick the first half-planes.
 
@@ -499,7 +497,7 @@ class FastSystem2:
         T = self.params.horizon
         p1 = free_pos[0]
         speeds = np.linalg.norm(np.diff(free_pos, axis=0), axis=1) / self.dynamics.dt_s
-        faces, stack = stacks if stacks is not None else (None, None)
+        faces, stack = stacks
         target = self._target(polys, faces)
         refs: list[tuple[str, Array, Callable[[float], Array] | None]] = []
         v0 = x0[2:]
@@ -584,7 +582,7 @@ class FastSystem2:
         margin_g = faces.margins(g)[0]
         if np.all(margin_g > 0):
             return g
-        # every hull's candidates at once (hull by hull, each in _candidates' order)
+        # every hull's candidates at once, hull by hull
         all_pts, owner = self._all_candidates(polys, g)
         bounds = np.searchsorted(owner, np.arange(len(polys) + 1))
         # A candidate of Q lies 2 m outside Q, so it is at least margin_Q(G_o) − 2 m from
@@ -607,39 +605,26 @@ class FastSystem2:
 
     @staticmethod
     def _all_candidates(polys: list[Inflated], g: Array) -> tuple[Array, Array]:
-        """:meth:`_candidates` of every hull stacked (same points), and each point's hull."""
+        """G_o projected onto every edge of every Q and Q's vertices, each pushed 2 m outwards.
+
+        Returns the points hull by hull (its edge projections, then its corners)
+        and each point's hull.
+        """
         sizes = np.array([len(q.b) for q in polys])
-        first = np.repeat(np.concatenate([[0], np.cumsum(sizes)[:-1]]), sizes)
-        size = np.repeat(sizes, sizes)
-        k = np.arange(int(sizes.sum()))
-        nxt = first + (k - first + 1) % size
-        prv = first + (k - first - 1) % size
         a = np.vstack([q.W for q in polys])
         nrm = np.vstack([q.A for q in polys])
-        e = a[nxt] - a
-        len2 = np.maximum(np.einsum("ij,ij->i", e, e), 1e-12)
+        e = np.vstack([q.E for q in polys])
+        len2 = np.concatenate([q.len2 for q in polys])
         t = np.clip(((g - a) * e).sum(axis=1) / len2, 0.0, 1.0)
         proj = a + t[:, None] * e
-        bis = nrm[prv] + nrm
+        bis = np.vstack([q.nsum for q in polys])  # α_{l−1} + α_l: the corner's bisector
         corners = a + 2.0 * bis / np.maximum(np.linalg.norm(bis, axis=1), 1e-9)[:, None]
         hull = np.repeat(np.arange(len(polys)), sizes)
-        # order: hull by hull, its edge projections, then its corners
+        k = np.arange(len(a))
         order = np.lexsort((np.concatenate([k, k]), np.repeat([0, 1], len(k)),
                            np.concatenate([hull, hull])))
         pts = np.vstack([proj + 2.0 * nrm, corners])[order]
         return pts, np.concatenate([hull, hull])[order]
-
-    @staticmethod
-    def _candidates(q: Inflated, g: Array) -> Array:
-        """G_o projected onto every edge of Q and Q's vertices, each pushed 2 m outwards."""
-        a = q.W
-        e = np.roll(a, -1, axis=0) - a
-        len2 = np.maximum(np.einsum("ij,ij->i", e, e), 1e-12)
-        t = np.clip(((g - a) * e).sum(axis=1) / len2, 0.0, 1.0)
-        proj = a + t[:, None] * e
-        bis = np.roll(q.A, 1, axis=0) + q.A
-        corners = a + 2.0 * bis / np.maximum(np.linalg.norm(bis, axis=1), 1e-9)[:, None]
-        return np.vstack([proj + 2.0 * q.A, corners])
 
     # ------------------------------------------------------------------ CFS
     def _in_area(self, pos: Array) -> bool:
@@ -648,10 +633,9 @@ class FastSystem2:
         p = pos[1:self.params.horizon]
         return bool(np.all(p >= -1e-6) and np.all(p <= self.area + 1e-6))
 
-    def _violations(self, pos: Array, polys: list[Inflated] | FaceStack) -> NDArray[np.int64]:
-        """(τ, i) pairs (τ = 2..T) where the disjunction fails (hulls, or their FaceStack)."""
+    def _violations(self, pos: Array, faces: FaceStack) -> NDArray[np.int64]:
+        """(τ, i) pairs (τ = 2..T) where the disjunction fails for the hulls of ``faces``."""
         T = self.params.horizon
-        faces = polys if isinstance(polys, FaceStack) else FaceStack.of(polys)
         hull, tt = np.nonzero(faces.margins(pos[1:T]).T < 0)  # hull-major
         return np.column_stack([tt + 2, hull]).astype(np.int64).reshape(-1, 2)
 
@@ -678,8 +662,7 @@ def verify_p2_plan(states: Array, controls: Array, hulls: Sequence[Polytope],
         half = 0.5 * np.linalg.norm(np.diff(pts, axis=0), axis=1)
         kept: list[Polytope] = []
         if hulls:
-            lo = np.array([h.vertices.min(axis=0) for h in hulls])  # (H, 2)
-            hi = np.array([h.vertices.max(axis=0) for h in hulls])
+            lo, hi = _boxes(hulls)  # (H, 2) each
             gap = np.maximum(0.0, np.maximum(lo[:, None, :] - pts[None],
                                              pts[None] - hi[:, None, :]))
             d = np.hypot(gap[..., 0], gap[..., 1])  # (H, points)
@@ -698,6 +681,12 @@ def verify_p2_plan(states: Array, controls: Array, hulls: Sequence[Polytope],
     if area_size_m is not None and (np.any(pos < -tol) or np.any(pos > area_size_m + tol)):
         return Verdict(False, "a planned position leaves the area", verdict.clearance_m)
     return verdict
+
+
+def _boxes(hulls: Sequence[Polytope]) -> tuple[Array, Array]:
+    """Lower and upper corners (H, 2) of each hull's bounding box (m)."""
+    return (np.array([h.vertices.min(axis=0) for h in hulls]),
+            np.array([h.vertices.max(axis=0) for h in hulls]))
 
 
 def _braking(x0: Array, horizon: int, dyn: DynamicsParams) -> Array:
@@ -744,8 +733,7 @@ def _start_checks(x0: Array, hulls: tuple[Polytope, ...], params: System2Params,
     # box can be nearer than clearance_m to p_t or to that segment
     near = hulls
     if hulls:
-        lo = np.array([h.vertices.min(axis=0) for h in hulls])
-        hi = np.array([h.vertices.max(axis=0) for h in hulls])
+        lo, hi = _boxes(hulls)
         gap = np.maximum(0.0, np.maximum(lo - np.maximum(p0, p1), np.minimum(p0, p1) - hi))
         close = np.hypot(gap[:, 0], gap[:, 1]) < clearance_m + 1.0
         near = tuple(h for h, c in zip(hulls, close.tolist(), strict=True) if c)

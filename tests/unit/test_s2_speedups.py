@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from dualpilot.bench import GOAL, make_instance
-from dualpilot.dynamics import DynamicsParams
+from dualpilot.dynamics import DynamicsParams, reach_boxes
 from dualpilot.geometry import Polytope, Rect
 from dualpilot.p2 import System2Params
 from dualpilot.plan import PlanStatus
@@ -140,11 +140,24 @@ def test_timing_is_the_same_recursion():
     assert planner._timing(short, np.full(80, 15.0), np.zeros(2))[-1] == pytest.approx(50.0)
 
 
+def _candidates_reference(q, g):
+    """The per-hull candidates that FastSystem2._all_candidates replaced: G_o projected onto
+    every edge of Q and Q's vertices, each pushed 2 m outwards."""
+    a = q.W
+    e = np.roll(a, -1, axis=0) - a
+    len2 = np.maximum(np.einsum("ij,ij->i", e, e), 1e-12)
+    t = np.clip(((g - a) * e).sum(axis=1) / len2, 0.0, 1.0)
+    proj = a + t[:, None] * e
+    bis = np.roll(q.A, 1, axis=0) + q.A
+    corners = a + 2.0 * bis / np.maximum(np.linalg.norm(bis, axis=1), 1e-9)[:, None]
+    return np.vstack([proj + 2.0 * q.A, corners])
+
+
 def test_all_candidates_are_each_hulls_candidates():
     polys = Inflated.make_many([TRIANGLE, SQUARE, TRIANGLE], 25.0)
     g = np.array([950.0, 950.0])
     pts, owner = FastSystem2._all_candidates(polys, g)
-    want = np.vstack([FastSystem2._candidates(q, g) for q in polys])
+    want = np.vstack([_candidates_reference(q, g) for q in polys])
     np.testing.assert_allclose(pts, want, rtol=0, atol=1e-12)
     assert owner.tolist() == [0] * 6 + [1] * 8 + [2] * 6
 
@@ -176,18 +189,34 @@ def test_start_checks_name_the_right_hull_among_far_ones():
     assert plan.status is PlanStatus.INFEASIBLE and "hull 2" in plan.message
 
 
-def test_plain_float_reach_boxes_equal_the_numpy_ones():
-    from dualpilot.s2_qp import _reach_boxes
-    from dualpilot.s2_scip import reach_boxes
+def _reach_boxes_reference(x0, horizon, dyn):
+    """The numpy loop that dualpilot.dynamics.reach_boxes replaced."""
+    keep = 1.0 - dyn.zeta
+    acc = dyn.dt_s / dyn.mass_kg * dyn.u_max_n
+    v_hi = x0[2:].copy()
+    v_lo = x0[2:].copy()
+    p_hi = x0[:2] + dyn.dt_s * v_hi
+    p_lo = p_hi.copy()
+    lo, hi = [p_lo.copy()], [p_hi.copy()]
+    for _ in range(horizon - 1):
+        v_hi = np.minimum(keep * v_hi + acc, dyn.v_max_mps)
+        v_lo = np.maximum(keep * v_lo - acc, -dyn.v_max_mps)
+        p_hi = p_hi + dyn.dt_s * v_hi
+        p_lo = p_lo + dyn.dt_s * v_lo
+        lo.append(p_lo.copy())
+        hi.append(p_hi.copy())
+    return np.array(lo), np.array(hi)
 
+
+def test_plain_float_reach_boxes_equal_the_numpy_ones():
     rng = np.random.default_rng(4)
     for _ in range(20):
         x0 = np.concatenate([rng.uniform(0.0, 1000.0, 2), rng.uniform(-15.0, 15.0, 2)])
-        lo, hi = _reach_boxes(x0, 80, DYN)
-        want_lo, want_hi = reach_boxes(x0, 80, DYN)
+        lo, hi = reach_boxes(x0, 80, DYN)
+        want_lo, want_hi = _reach_boxes_reference(x0, 80, DYN)
         assert np.array_equal(lo, want_lo) and np.array_equal(hi, want_hi)
     # at rest, one step: p_{t+1} = p_t on both sides
-    lo, hi = _reach_boxes(np.array([10.0, 20.0, 0.0, 0.0]), 1, DYN)
+    lo, hi = reach_boxes(np.array([10.0, 20.0, 0.0, 0.0]), 1, DYN)
     np.testing.assert_allclose(lo, [[10.0, 20.0]])
     np.testing.assert_allclose(hi, [[10.0, 20.0]])
 
