@@ -107,6 +107,18 @@ def start_component(start: Array, goal: Rect, hulls: Sequence[Polytope], clearan
     return component, bool(np.any(component[gj0:gj1 + 1, gi0:gi1 + 1]))
 
 
+def coarsen(cells: BoolArray) -> BoolArray:
+    """Cells twice as large: a coarse cell is True if any of its 2×2 fine cells is.
+
+    The inverse of the refinement in :func:`start_component` (``coarse``).
+    """
+    n = cells.shape[0]
+    m = (n + 1) // 2
+    padded = np.zeros((2 * m, 2 * m), dtype=bool)
+    padded[:n, :n] = cells
+    return np.asarray(padded.reshape(m, 2, m, 2).any(axis=(1, 3)), dtype=bool)
+
+
 def _goal_cells(goal: Rect, cell_m: float, n: int) -> tuple[int, int, int, int]:
     """Inclusive column/row bounds (i0, j0, i1, j1) of the cells that meet G."""
     gi0, gj0 = np.clip((goal.lo // cell_m).astype(int), 0, n - 1)

@@ -28,10 +28,12 @@ paper's loose points, each a parameter of :class:`RrtParams`:
 * **Narrow passages.** If G is not reached after the paper's 500 samples
   (``guide_after``), the grid test is repeated on cells half as large. A
   proof then ends the search ("unreachable"). Otherwise samples come from
-  the finer component, and a share ``guide_share`` of them from the cells
-  along a fewest-cell chain from the start to G (:func:`dualpilot.reach.corridor`,
-  widened by one cell): the tree is drawn through the passage an operator
-  would see on the map, instead of filling the open area around it.
+  the finer component, and a share ``guide_share`` of them from just ahead
+  of the tree along a fewest-cell chain of cells from the start to G
+  (:func:`dualpilot.reach.corridor`): within ``guide_window`` cells of the
+  farthest chain cell a tree node has reached. The tree is drawn through
+  the passage an operator would see on the map, instead of filling the
+  open area around it.
 * The raw tree path is shortcut greedily (exact checks), as an operator would
   not zig-zag, and it ends at G's centre when that is reachable in a straight
   free segment (else at the first tree state inside G).
@@ -53,7 +55,7 @@ from ompl import util as ou
 
 from .dynamics import Array
 from .geometry import Polytope, Rect, SegmentChecker
-from .reach import BoolArray, corridor, start_component
+from .reach import BoolArray, coarsen, corridor, start_component
 
 
 @dataclass(frozen=True)
@@ -87,7 +89,7 @@ class RrtParams:
     def __post_init__(self) -> None:
         if not (self.step_size_m > 0 and self.max_iterations >= 1 and self.max_wall_s > 0
                 and self.reach_cell_m > 0 and self.guide_after >= 1 and self.guide_window >= 1):
-            raise ValueError("step_size_m, max_iterations, max_wall_s, reach_cell_m and "
+            raise ValueError("step_size_m, max_iterations, max_wall_s, reach_cell_m, "
                              "guide_after and guide_window must be > 0")
         if (self.clearance_m < 0 or not 0.0 <= self.goal_bias <= 1.0
                 or not 0.0 <= self.guide_share <= 1.0):
@@ -169,8 +171,8 @@ class _NumpyDrivenGoal(ob.GoalSampleableRegion):
     RRT runs with goal bias 1, so it calls ``sampleGoal`` once per iteration:
     we return a uniform state of the area, or with probability ``bias`` a
     uniform state of G, or (once :meth:`guide_along` is set) with
-    probability ``share`` a uniform state of a guide cell. ``count`` is the
-    number of iterations so far.
+    probability ``share`` a state just ahead of the tree along the chain.
+    ``count`` is the number of iterations so far.
     """
 
     def __init__(self, si: ob.SpaceInformation, goal: Rect, area_size_m: float,
@@ -181,7 +183,8 @@ class _NumpyDrivenGoal(ob.GoalSampleableRegion):
         self._area = float(area_size_m)
         self._rng = rng
         self._bias = bias
-        self._block: list[list[float]] = []  # samples (phase 1) or raw uniforms (guided)
+        self._block: list[list[float]] = []  # samples drawn ahead (unguided)
+        self._uniforms: list[list[float]] = []  # uniforms drawn ahead (guided)
         self.count = 0
         self._cap = 1 << 62
         self._ptc: ob.PlannerTerminationCondition | None = None
@@ -227,24 +230,22 @@ class _NumpyDrivenGoal(ob.GoalSampleableRegion):
         self._share = share
         self._window = window
         self._frontier = 0
-        self._block = []
 
     def reached(self, x: float, y: float) -> None:
         """A tree node was added at (x, y): move the frontier if it lies farther along the chain."""
         if self._along is None:
             return
-        n = self._along.shape[0]
-        k = int(self._along[min(int(y / self._guide_cell_m), n - 1),
-                            min(int(x / self._guide_cell_m), n - 1)])
+        k = int(self._along[_cell_index(y, self._guide_cell_m, len(self._along)),
+                            _cell_index(x, self._guide_cell_m, len(self._along))])
         if k > self._frontier:
             self._frontier = k
 
     def _guided_sample(self) -> tuple[float, float]:
         """One sample of the guided mixture (goal, chain window, area), drawn from our rng."""
         while True:
-            if not self._block:
-                self._block = self._rng.random((256, 4)).tolist()
-            u0, u1, u2, u3 = self._block.pop()
+            if not self._uniforms:
+                self._uniforms = self._rng.random((256, 4)).tolist()
+            u0, u1, u2, u3 = self._uniforms.pop()
             if u0 < self._bias:
                 return (self._lo[0] + u1 * (self._hi[0] - self._lo[0]),
                         self._lo[1] + u2 * (self._hi[1] - self._lo[1]))
@@ -256,8 +257,9 @@ class _NumpyDrivenGoal(ob.GoalSampleableRegion):
                     continue
             else:
                 x, y = u1 * self._area, u2 * self._area
-            if self._cells is None or self._cells[min(int(y / self._cell_m), len(self._cells) - 1),
-                                                  min(int(x / self._cell_m), len(self._cells) - 1)]:
+            n = 0 if self._cells is None else len(self._cells)
+            if self._cells is None or self._cells[_cell_index(y, self._cell_m, n),
+                                                  _cell_index(x, self._cell_m, n)]:
                 return x, y
 
     def _refill(self, n: int = 256) -> None:
@@ -293,13 +295,9 @@ class _NumpyDrivenGoal(ob.GoalSampleableRegion):
         return (gx * gx + gy * gy) ** 0.5
 
 
-def _pool_pairs(cells: BoolArray) -> BoolArray:
-    """Cells twice as large: a coarse cell is True if any of its 2×2 fine cells is."""
-    n = cells.shape[0]
-    m = (n + 1) // 2
-    padded = np.zeros((2 * m, 2 * m), dtype=bool)
-    padded[:n, :n] = cells
-    return np.asarray(padded.reshape(m, 2, m, 2).any(axis=(1, 3)), dtype=bool)
+def _cell_index(v: float, cell_m: float, n: int) -> int:
+    """Row or column of coordinate ``v`` (m) on a grid of ``n`` cells of side ``cell_m``."""
+    return min(int(v / cell_m), n - 1)
 
 
 def _validate(start: Array, goal: Rect, area_size_m: float) -> Array:
@@ -423,7 +421,7 @@ def plan_path(
             coarse=component)
         if not meets_goal:
             return RrtResult(None, "unreachable", goal_obj.count, time.perf_counter() - t0, None)
-        chain = corridor(_pool_pairs(fine), p, goal, params.reach_cell_m)
+        chain = corridor(coarsen(fine), p, goal, params.reach_cell_m)
         if params.sample_reachable:
             goal_obj.restrict_to(fine, fine_m)
         goal_obj.guide_along(chain, params.reach_cell_m, params.guide_share, params.guide_window)
