@@ -191,9 +191,6 @@ class QueryError(RuntimeError):
         self.code = code
 
 
-_END = object()
-
-
 class Stop(threading.Event):
     """A stop event that also ends the queries waiting on it (:func:`request`).
 
@@ -224,15 +221,14 @@ class Stop(threading.Event):
             self._tokens.discard(token)
 
 
-def request(session: zenoh.Session, key: str, msg: Message, timeout_s: float,
-            stop: threading.Event | None = None) -> tuple[bytes, str]:
-    """Send a query and return the first reply's (payload, encoding).
+def first_reply(session: zenoh.Session, key: str, timeout_s: float,
+                stop: threading.Event | None = None, **get: Any) -> zenoh.Reply:
+    """Send a query (``get``: payload, encoding, …) and wait for its first reply.
 
     The calling thread waits in Zenoh's own reply channel (no Python callback
     and no hand-off between threads on the way back). A :class:`Stop` ends
     the wait when it is set; with a plain Event the wait ends at the timeout.
-    Raises TimeoutError when nobody answers within ``timeout_s`` (or on
-    stop) and QueryError for an error reply.
+    Raises TimeoutError when nobody answers within ``timeout_s`` (or on stop).
     """
     if stop is not None and stop.is_set():
         raise TimeoutError(f"stopped before asking {key}")
@@ -240,23 +236,34 @@ def request(session: zenoh.Session, key: str, msg: Message, timeout_s: float,
     if isinstance(stop, Stop):
         stop.watch(token)
     try:
-        replies = session.get(key, payload=msg.SerializeToString(), encoding=encoding(msg),
-                              timeout=timeout_s, consolidation=zenoh.ConsolidationMode.NONE,
-                              cancellation_token=token)
+        replies = session.get(key, timeout=timeout_s, consolidation=zenoh.ConsolidationMode.NONE,
+                              cancellation_token=token, **get)
         try:
-            item = replies.recv()
+            reply: zenoh.Reply = replies.recv()
         except zenoh.ZError:  # the channel closed without a reply: cancelled, or nobody answered
             why = "stopped" if stop is not None and stop.is_set() else "no reply"
             raise TimeoutError(f"{why} on {key} within {timeout_s:.3g} s") from None
     finally:
         if isinstance(stop, Stop):
             stop.forget(token)
+    if reply.err is not None and reply.err.payload.to_bytes().strip().lower() == b"timeout":
+        raise TimeoutError(f"no reply on {key} within {timeout_s:.3g} s")  # Zenoh's own reply
+    return reply
+
+
+def request(session: zenoh.Session, key: str, msg: Message, timeout_s: float,
+            stop: threading.Event | None = None) -> tuple[bytes, str]:
+    """Send ``msg`` as a query and return the first reply's (payload, encoding).
+
+    Waits as :func:`first_reply`; raises TimeoutError when nobody answers
+    within ``timeout_s`` (or on stop) and QueryError for an error reply.
+    """
+    item = first_reply(session, key, timeout_s, stop, payload=msg.SerializeToString(),
+                       encoding=encoding(msg))
     if item.ok is not None:
         return item.ok.payload.to_bytes(), str(item.ok.encoding)
     assert item.err is not None  # a reply is either ok or an error
     err_bytes = item.err.payload.to_bytes()
-    if err_bytes.strip().lower() == b"timeout":  # Zenoh's own reply when `timeout` passed
-        raise TimeoutError(f"no reply on {key} within {timeout_s:.3g} s")
     try:
         err = codec.parse(err_bytes, codec.common_pb2.Error)
     except codec.CodecError as bad:
@@ -379,19 +386,11 @@ def serve_status(session: zenoh.Session, settings: Settings, stop: threading.Eve
 def query_status(session: zenoh.Session, uav: str, service: str,
                  timeout_s: float = 5.0) -> dict[str, Any]:
     """Ask a service for its status (raises TimeoutError if it does not answer)."""
-    q: queue.Queue[Any] = queue.Queue()
-    session.get(keys.status(uav, service), zenoh.handlers.Callback(q.put, lambda: q.put(_END)),
-                timeout=timeout_s)
-    while True:
-        try:
-            item = q.get(timeout=timeout_s + 1.0)
-        except queue.Empty:
-            item = _END
-        if item is _END:
-            raise TimeoutError(f"no status from {service} within {timeout_s:.3g} s")
-        if item.ok is not None:
-            doc: dict[str, Any] = json.loads(item.ok.payload.to_bytes())
-            return doc
+    reply = first_reply(session, keys.status(uav, service), timeout_s)
+    if reply.ok is None:
+        raise TimeoutError(f"no status from {service} within {timeout_s:.3g} s")
+    doc: dict[str, Any] = json.loads(reply.ok.payload.to_bytes())
+    return doc
 
 
 # -- the service runner ---------------------------------------------------------------------------
