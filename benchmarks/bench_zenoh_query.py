@@ -21,9 +21,7 @@ Prints the median and p99 of each variant in ms. Loopback only.
 from __future__ import annotations
 
 import argparse
-import json
 import queue
-import socket
 import subprocess
 import sys
 import threading
@@ -36,36 +34,35 @@ import numpy as np
 import zenoh
 
 REPO = Path(__file__).resolve().parent.parent
+if str(REPO) not in sys.path:
+    sys.path.insert(0, str(REPO))
+
+from services.common import bus  # noqa: E402
+from services.common.cli import Settings  # noqa: E402
+from services.launch import free_port  # noqa: E402
+
 PAYLOAD = bytes(8192)
 
 
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
-
-
 def config(mode: str, connect: list[str], listen: list[str]) -> zenoh.Config:
-    conf = zenoh.Config()
-    conf.insert_json5("mode", json.dumps(mode))
-    conf.insert_json5("scouting/multicast/enabled", "false")
-    conf.insert_json5("transport/shared_memory/enabled", "false")  # as the stack (bus.py)
-    conf.insert_json5("connect/endpoints", json.dumps(connect))
-    conf.insert_json5("listen/endpoints", json.dumps(listen))
-    return conf
+    """The stack's own session configuration (services.common.bus.zenoh_config)."""
+    return bus.zenoh_config(Settings(service="bench", uav_id="bench", zenoh_connect=tuple(connect),
+                                     zenoh_listen=tuple(listen), zenoh_mode=mode,
+                                     speed_factor=0.0, mavlink_url="", log_level="WARNING",
+                                     log_format="text"))
 
 
 def serve(mode: str, connect: str, listen: str, style: str) -> None:
     """The replier: answer every query on bench/** until stdin closes."""
-    sys.setswitchinterval(0.0005)  # as every service (services/common/bus.py)
+    sys.setswitchinterval(bus.SWITCH_INTERVAL_S)  # as every service
     session = zenoh.open(config(mode, [connect] if connect else [], [listen] if listen else []))
-    inbox: queue.Queue[zenoh.Query] = queue.Queue()
+    inbox = bus.Inbox("bench")  # the planner services' hand-off
 
     def on_query(q: zenoh.Query) -> None:
         if style == "callback":
             q.reply(q.key_expr, PAYLOAD)
         else:
-            inbox.put(q)
+            inbox.on_query(q)
 
     qbl: Any
     if style == "channel":  # the main thread waits in Zenoh's own channel
@@ -83,9 +80,10 @@ def serve(mode: str, connect: str, listen: str, style: str) -> None:
     if style == "inbox":
         def answer() -> None:
             while True:
-                q = inbox.get()
-                q.reply(q.key_expr, PAYLOAD)
-                q.drop()
+                item = inbox.get(timeout=None)
+                if item is not None and item.query is not None:
+                    item.query.reply(item.query.key_expr, PAYLOAD)
+                    item.query.drop()
         threading.Thread(target=answer, daemon=True).start()
     sys.stdin.read()
     qbl.undeclare()
@@ -100,8 +98,7 @@ def ask_queue(session: zenoh.Session, key: str) -> None:
 
 
 def ask_channel(session: zenoh.Session, key: str) -> None:
-    replies = session.get(key, payload=PAYLOAD, timeout=2.0)
-    reply = replies.recv()
+    reply = bus.first_reply(session, key, 2.0, payload=PAYLOAD)  # the stack's own wait
     assert reply.ok is not None
 
 
@@ -116,7 +113,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.serve:
         serve(*args.serve)
         return 0
-    sys.setswitchinterval(0.0005)
+    sys.setswitchinterval(bus.SWITCH_INTERVAL_S)
     router_ep = f"tcp/127.0.0.1:{free_port()}"
     procs: list[subprocess.Popen[str]] = []
 
