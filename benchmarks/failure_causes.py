@@ -16,8 +16,8 @@ import sys
 import numpy as np
 
 from dualpilot.evaluate import mission_config, mission_seed
-from dualpilot.factory import make_planners
-from dualpilot.mission import Controller, Mission, Timing
+from dualpilot.mission.step import Controller, Mission, Timing
+from dualpilot.planners import make_planners
 
 
 class ProbedMission(Mission):

@@ -17,10 +17,10 @@ import time
 import numpy as np
 
 from dualpilot.bench import GOAL, check_plan, make_instance
-from dualpilot.dynamics import DynamicsParams
-from dualpilot.p2 import System2Params
-from dualpilot.system1 import System1
-from dualpilot.system2_fast import FastSystem2
+from dualpilot.model.dynamics import DynamicsParams
+from dualpilot.system1.planner import System1
+from dualpilot.system2.fast.planner import FastSystem2
+from dualpilot.system2.problem import System2Params
 
 
 def run(n_instances: int, seed: int) -> None:

@@ -1,4 +1,4 @@
-"""Iteration-cap measurement for Alg. 1 (dualpilot.rrt) and System1.plan timing.
+"""Iteration-cap measurement for Alg. 1 (dualpilot.system1.rrt) and System1.plan timing.
 
 Instances: Sec. IV-A area/goal; 1-6 fire fronts born uniformly in the area and
 advanced 0-60 sub-steps (0-30 s, no extinction) by FireFront.advance; start
@@ -7,18 +7,18 @@ it keeps 25 m from every hull). Each instance is run once with a huge cap;
 because the samples come from our rng only, the run with cap N is a prefix of
 it, so fail rate(N) = share of instances needing > N iterations. Two variants:
 plain Alg. 1, and ours, whose samples follow the grid corridor after the
-paper's 500 (dualpilot.rrt, "Narrow passages").
+paper's 500 (dualpilot.system1.rrt, "Narrow passages").
 """
 
 import sys
 
 import numpy as np
 
-from dualpilot.dynamics import hover_state
-from dualpilot.fire import FireField, FireParams
-from dualpilot.geometry import Rect
-from dualpilot.rrt import RrtParams, SegmentChecker, plan_path
-from dualpilot.system1 import System1
+from dualpilot.model.dynamics import hover_state
+from dualpilot.model.fire import FireField, FireParams
+from dualpilot.model.geometry import Rect
+from dualpilot.system1.planner import System1
+from dualpilot.system1.rrt import RrtParams, SegmentChecker, plan_path
 
 goal = Rect(900, 900, 100, 100)
 

@@ -28,11 +28,11 @@ from typing import Any
 
 import numpy as np
 
-from .dynamics import Array, DynamicsParams
-from .fire import FireField, FireParams
-from .geometry import Polytope, Rect
-from .p2 import System2Params
-from .plan import Objective, Plan
+from dualpilot.model.dynamics import Array, DynamicsParams
+from dualpilot.model.fire import FireField, FireParams
+from dualpilot.model.geometry import Polytope, Rect
+from dualpilot.plan import Objective, Plan
+from dualpilot.system2.problem import System2Params
 
 START = np.array([50.0, 50.0])
 GOAL = Rect(900.0, 900.0, 100.0, 100.0)
@@ -136,8 +136,8 @@ def stats(rows: Sequence[dict[str, Any]]) -> dict[str, Any]:
 def check_plan(plan: Plan, inst: Instance, dynamics: DynamicsParams,
                epsilon_m: float | None) -> tuple[bool, str]:
     """Independent verification of a returned plan (dynamics, bounds, clearance, ε-disjunction)."""
-    from .system2_fast import verify_p2_plan
-    from .verify import verify_trajectory
+    from dualpilot.system2.fast.planner import verify_p2_plan
+    from dualpilot.verify import verify_trajectory
 
     if not plan.ok:
         return False, f"status {plan.status.value}"
@@ -178,15 +178,20 @@ def run_system2(n_instances: int, seed: int, out_dir: Path, reference_timeout: f
     """Benchmark System 2 methods against the exact MIQP; writes out_dir/system2.json.
 
     Per instance: every method in ``methods`` except "exact" runs in-process
-    and is timed; "exact" (the cvxpy + SCIP MIQP of :mod:`dualpilot.system2`)
+    and is timed; "exact" (the cvxpy + SCIP MIQP of :mod:`dualpilot.system2.exact`)
     and, with ``seeded_reference``, SCIP seeded with the fast plan
-    (:mod:`dualpilot.s2_scip`) run in worker processes killed past
+    (:mod:`dualpilot.system2.scip`) run in worker processes killed past
     ``reference_timeout`` (+ 60 s for start-up). The reference cost is the
     proven optimum when either exact solve proves it, else the best verified
     cost any method found; gaps are (cost − reference) / reference. The best
     dual bound also gives a certified gap bound for each method.
     """
-    from .system2_fast import ExactWorker, _ExactFactory, _SeededFactory, make_system2
+    from dualpilot.system2.fast.planner import (
+        ExactWorker,
+        _ExactFactory,
+        _SeededFactory,
+        make_system2,
+    )
 
     dyn = DynamicsParams()
     params = System2Params(horizon=horizon)
@@ -201,7 +206,7 @@ def run_system2(n_instances: int, seed: int, out_dir: Path, reference_timeout: f
     planners: dict[str, Any] = {}
     for m in methods:
         if m == "fast+exact":
-            from .system2_fast import AnytimeSystem2
+            from dualpilot.system2.fast.planner import AnytimeSystem2
 
             planners[m] = AnytimeSystem2(GOAL, params, dyn, exact_budget_s=anytime_budget_s)
         elif m != "exact":
@@ -372,9 +377,9 @@ def run_system1(n_instances: int, seed: int, out_dir: Path, max_hulls: int = 10,
     ``verified`` is the d_safe check of :func:`verify_trajectory` (System 1
     does not promise P2's ε-disjunction).
     """
-    from .p2 import p2_cost
-    from .system1 import System1
-    from .system2_fast import FastSystem2
+    from dualpilot.system1.planner import System1
+    from dualpilot.system2.fast.planner import FastSystem2
+    from dualpilot.system2.problem import p2_cost
 
     dyn = DynamicsParams()
     params = System2Params()
@@ -493,7 +498,7 @@ def add_bench_parser(subparsers: Any) -> None:
 
 def _cli_system2(args: argparse.Namespace) -> int:
     methods = [m.strip() for m in args.methods.split(",") if m.strip()]
-    from .system2_fast import METHODS
+    from dualpilot.system2.fast.planner import METHODS
 
     bad = [m for m in methods if m not in METHODS]
     if bad or not methods:

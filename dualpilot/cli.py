@@ -8,12 +8,12 @@ import sys
 import time
 from pathlib import Path
 
-from .mission import Controller, Mission, MissionConfig, MissionParams, Timing
+from dualpilot.mission.step import Controller, Mission, MissionConfig, MissionParams, Timing
 
 
 def _mission(args: argparse.Namespace) -> int:
-    from .factory import make_planners
-    from .records import write_all
+    from dualpilot.mission.records import write_all
+    from dualpilot.planners import make_planners
 
     config = MissionConfig()
     planners = make_planners(config, args.seed, system2_method=args.s2_method)
@@ -38,7 +38,7 @@ def _mission(args: argparse.Namespace) -> int:
     out = Path(args.out)
     paths = write_all(result, out)
     if not args.no_figures:
-        from .plots import make_figures
+        from dualpilot.viz.mission import make_figures
 
         paths += make_figures(out)
     summary = result.summary()
@@ -67,7 +67,7 @@ def _mission(args: argparse.Namespace) -> int:
 
 
 def _figures(args: argparse.Namespace) -> int:
-    from .plots import make_figures
+    from dualpilot.viz.mission import make_figures
 
     steps = [int(s) for s in args.steps.split(",")] if args.steps else None
     for p in make_figures(Path(args.run), steps=steps):
@@ -76,7 +76,7 @@ def _figures(args: argparse.Namespace) -> int:
 
 
 def _evaluate(args: argparse.Namespace) -> int:
-    from .evaluate import evaluate
+    from dualpilot.evaluate import evaluate
 
     out = Path(args.out)
     summary = evaluate(
@@ -138,7 +138,7 @@ def build_parser() -> argparse.ArgumentParser:
     e.set_defaults(func=_evaluate)
 
     try:
-        from .bench import add_bench_parser
+        from dualpilot.bench import add_bench_parser
     except ImportError:  # pragma: no cover - bench is optional until it lands
         pass
     else:

@@ -24,7 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .mission import Controller, Mission, MissionConfig, MissionParams, Timing
+from dualpilot.mission.step import Controller, Mission, MissionConfig, MissionParams, Timing
 
 CONTROLLERS = ("cc", "s1", "s2")
 COLUMNS = [
@@ -73,7 +73,7 @@ class Task:
 
 def run_task(task: Task) -> dict[str, object]:
     """Fly one mission; never raises (an exception becomes an error row)."""
-    from .factory import make_planners
+    from dualpilot.planners import make_planners
 
     mseed = mission_seed(task.seed, task.index)
     config = mission_config(task.seed, task.index)
@@ -230,7 +230,7 @@ def evaluate(
     summary["ignition_clearance_m"] = ignition_clearance_m
     summary["s2_method"] = s2_method
     (out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
-    from .plots_eval import plot_fig_r5
+    from dualpilot.viz.evaluation import plot_fig_r5
 
     plot_fig_r5(summary, out / "fig_r5.png")
     return summary

@@ -9,7 +9,7 @@ from typing import Protocol
 import numpy as np
 from numpy.typing import NDArray
 
-from .geometry import Polytope
+from dualpilot.model.geometry import Polytope
 
 Array = NDArray[np.float64]
 

@@ -13,8 +13,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .dynamics import Array, DynamicsParams, rollout
-from .geometry import Polytope, SegmentChecker, path_clearance
+from dualpilot.model.dynamics import Array, DynamicsParams, rollout
+from dualpilot.model.geometry import Polytope, SegmentChecker, path_clearance
 
 
 @dataclass(frozen=True)

@@ -457,7 +457,7 @@ def run_mission(cfg: StackConfig, timeout_s: float = 600.0, figures: bool = True
     codes = {p.name: int(p.popen.returncode) for p in stack.group.procs}
     if figures and outcome.ended and (cfg.run_dir / "steps.csv").is_file():
         try:
-            from dualpilot.plots import make_figures
+            from dualpilot.viz.mission import make_figures
         except ImportError:
             pass
         else:

@@ -32,11 +32,11 @@ from typing import Any, TypeVar, cast
 import numpy as np
 from google.protobuf.message import DecodeError, Message
 
-from dualpilot.dynamics import Array
-from dualpilot.fire import FireFront, FireSnapshot
-from dualpilot.geometry import Polytope, Rect
+from dualpilot.model.dynamics import Array
+from dualpilot.model.fire import FireFront, FireSnapshot
+from dualpilot.model.geometry import Polytope, Rect
 from dualpilot.plan import Objective, Plan, PlanStatus
-from dualpilot.supervisor import Decision
+from dualpilot.supervisor.decision import Decision
 from services.msgs import (
     common_pb2,
     fire_pb2,

@@ -6,7 +6,7 @@ MAVLink, the EWS fire state it decided on, the objective and u_{t|t} — so a
 planner answers for exactly the state and fires of that step, with no race
 between subscriptions. The service keeps one planner per mission (System 1
 reuses its RRT path between steps; System 2 builds its cvxpy problem once),
-seeded from the mission's seed as :mod:`dualpilot.factory` does in-process.
+seeded from the mission's seed as :mod:`dualpilot.planners` does in-process.
 
 Replies: a Plan (any status, with the planner's compute time) for a valid
 request — a planner's ValueError becomes INVALID_INPUT, as in the in-process

@@ -30,7 +30,7 @@ import time
 import numpy as np
 import zenoh
 
-from dualpilot.fire import FireField, FireParams
+from dualpilot.model.fire import FireField, FireParams
 from services.common import bus, codec, fleet, keys
 from services.common import cli as common_cli
 from services.common.log import fields

@@ -14,8 +14,8 @@ from math import cos, sin
 import numpy as np
 from scipy.spatial import ConvexHull
 
-from dualpilot.fire import FireFront, FireParams
-from dualpilot.geometry import Polytope, Rect
+from dualpilot.model.fire import FireFront, FireParams
+from dualpilot.model.geometry import Polytope, Rect
 
 
 def forecast_regions(front: FireFront, params: FireParams, substeps: int) -> list[Rect]:

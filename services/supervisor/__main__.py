@@ -15,8 +15,8 @@ import logging
 import time
 from pathlib import Path
 
-from dualpilot.geometry import Rect
-from dualpilot.mission import Controller, MissionParams, Timing
+from dualpilot.mission.step import Controller, MissionParams, Timing
+from dualpilot.model.geometry import Rect
 from services.common import bus, codec, keys, mav
 from services.common import cli as common_cli
 from services.common.clock import SimClock

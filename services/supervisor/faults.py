@@ -1,13 +1,13 @@
-"""Fire data grown for staleness, as a message: the stack's side of :mod:`dualpilot.stale_fire`.
+"""Fire data grown for staleness, as a message (the stack's side of model.stale_fire).
 
 The supervisor owes the EWS fire sub-steps it did not confirm; while the data
-is stale (:class:`dualpilot.stale_fire.StaleFireParams`) the planners get the
-last known fronts grown by :func:`dualpilot.stale_fire.credible_margin_m`.
+is stale (:class:`dualpilot.model.stale_fire.StaleFireParams`) the planners get the
+last known fronts grown by :func:`dualpilot.model.stale_fire.credible_margin_m`.
 """
 
 from __future__ import annotations
 
-from dualpilot.stale_fire import grow_polygon
+from dualpilot.model.stale_fire import grow_polygon
 from services.common import codec
 from services.msgs import fire_pb2
 

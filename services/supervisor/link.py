@@ -31,7 +31,7 @@ from typing import Any
 
 import numpy as np
 
-from dualpilot.dynamics import Array
+from dualpilot.model.dynamics import Array
 from services.common import codec, mav
 from services.common.log import fields
 

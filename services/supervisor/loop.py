@@ -1,4 +1,4 @@
-"""The distributed mission loop: :class:`dualpilot.mission.Mission`'s step over Zenoh and MAVLink.
+"""The distributed mission loop: the mission step over Zenoh and MAVLink.
 
 Same step semantics as the in-process loop (see its docstring), with the
 fires in the EWS, the planners in their services and the vehicle behind
@@ -41,13 +41,13 @@ deadline, or for another step, is never flown. FireAdvance sub-steps the EWS
 does not confirm are owed; the data is then stale and the planners avoid the
 last known hulls grown by the fastest credible spread
 (dualpilot/stale_fire.py) until an EWS is reset and replayed. Every
-step is appended to ``steps.jsonl`` as it happens (dualpilot.records.StepLog);
+step is appended to ``steps.jsonl`` as it happens (dualpilot.mission.records.StepLog);
 a supervisor restarted with the same mission id and run directory resumes
 from it (:meth:`StackMission._resume`).
 
 Records (:class:`MissionResult` / :class:`StepRecord`) are the in-process
 ones, so ``summary.json``, ``steps.csv`` and ``trace.json`` have the same
-format and :func:`dualpilot.plots.make_figures` draws them; ``latency.csv``
+format and :func:`dualpilot.viz.mission.make_figures` draws them; ``latency.csv``
 adds the tick → setpoint latency of every step. Which path System 1 used is
 in the published Decision (``plan_source``, ``operator_rejected``,
 ``operator_waypoints``), in ``steps.csv`` (``source`` plus the columns
@@ -66,9 +66,14 @@ from pathlib import Path
 import numpy as np
 import zenoh
 
-from dualpilot.dynamics import Array, DynamicsParams, step
-from dualpilot.fire import FireParams, FireSnapshot, substeps_for
-from dualpilot.mission import (
+from dualpilot.mission.records import (
+    STEP_LOG,
+    StepLog,
+    read_step_log,
+    record_to_json,
+    result_from_log,
+)
+from dualpilot.mission.step import (
     Controller,
     MissionConfig,
     MissionParams,
@@ -82,16 +87,11 @@ from dualpilot.mission import (
     planning_order,
     planning_time,
 )
+from dualpilot.model.dynamics import Array, DynamicsParams, step
+from dualpilot.model.fire import FireParams, FireSnapshot, substeps_for
+from dualpilot.model.stale_fire import StaleFireParams, credible_margin_m
 from dualpilot.plan import Objective, Plan, PlanStatus
-from dualpilot.records import (
-    STEP_LOG,
-    StepLog,
-    read_step_log,
-    record_to_json,
-    result_from_log,
-)
-from dualpilot.stale_fire import StaleFireParams, credible_margin_m
-from dualpilot.supervisor import Decision, Supervisor, SupervisorParams
+from dualpilot.supervisor.decision import Decision, Supervisor, SupervisorParams
 from services.common import bus, codec, keys
 from services.common.clock import SimClock
 from services.common.log import fields
@@ -833,8 +833,8 @@ class StackMission:
                     position=self.state, message=run_dir)
 
     def write(self, out: Path, extra: dict[str, object]) -> list[Path]:
-        """summary.json, steps.csv, trace.json (dualpilot.records) and latency.csv."""
-        from dualpilot.records import write_all
+        """summary.json, steps.csv, trace.json (dualpilot.mission.records) and latency.csv."""
+        from dualpilot.mission.records import write_all
 
         assert self.result is not None
         paths = write_all(self.result, out)

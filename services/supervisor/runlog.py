@@ -1,4 +1,4 @@
-"""The supervisor's per-step run-directory outputs beside dualpilot.records: latency and operator.
+"""The supervisor's per-step outputs beside dualpilot.mission.records: latency, operator.
 
 ``latency.csv`` holds the tick → setpoint latency of every step
 (:class:`Latency`); :func:`write_operator_columns` adds which reference path

@@ -1,8 +1,8 @@
 """System 1 service: operator waypoints or RRT (Alg. 1) tracked by LQR, as a Zenoh queryable.
 
 Answers PlanRequests on ``<ns>/plan/system1`` (services/common/planning.py)
-with :class:`dualpilot.system1.System1`, one instance per mission, seeded as
-:func:`dualpilot.factory.make_system1` does in-process. Operator waypoints
+with :class:`dualpilot.system1.planner.System1`, one instance per mission, seeded as
+:func:`dualpilot.planners.make_system1` does in-process. Operator waypoints
 come with the mission (PlanRequest.mission) and as live updates on
 ``<ns>/operator/waypoints``. Rejected inputs are counted per key and reason
 in the status served on ``<ns>/status/system1``. ``--uav-ids`` serves a fleet
@@ -11,9 +11,9 @@ in the status served on ``<ns>/status/system1``. ``--uav-ids`` serves a fleet
 
 from __future__ import annotations
 
-from dualpilot.factory import make_system1
-from dualpilot.mission import MissionConfig
+from dualpilot.mission.step import MissionConfig
 from dualpilot.plan import Planner
+from dualpilot.planners import make_system1
 from services.common import bus, codec, fleet, planning
 from services.common import cli as common_cli
 

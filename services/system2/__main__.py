@@ -1,8 +1,8 @@
 """System 2 service: Problem (P2), the mixed-integer MPC, as a Zenoh queryable.
 
 Answers PlanRequests on ``<ns>/plan/system2`` (services/common/planning.py)
-with :func:`dualpilot.factory.make_system2_planner` (``--method`` one of
-:data:`dualpilot.system2_fast.METHODS`), built once per mission and re-solved
+with :func:`dualpilot.planners.make_system2_planner` (``--method`` one of
+:data:`dualpilot.system2.fast.planner.METHODS`), built once per mission and re-solved
 each request. Rejected inputs are counted per key and reason in the status
 served on ``<ns>/status/system2``. ``--uav-ids`` serves a fleet
 (services/common/fleet.py): one planner loop per vehicle id.
@@ -12,11 +12,11 @@ from __future__ import annotations
 
 from dataclasses import replace
 
-from dualpilot.factory import make_system2_planner
-from dualpilot.mission import MissionConfig
-from dualpilot.p2 import System2Params
+from dualpilot.mission.step import MissionConfig
 from dualpilot.plan import Planner
-from dualpilot.system2_fast import METHODS
+from dualpilot.planners import make_system2_planner
+from dualpilot.system2.fast.planner import METHODS
+from dualpilot.system2.problem import System2Params
 from services.common import bus, codec, fleet, planning
 from services.common import cli as common_cli
 

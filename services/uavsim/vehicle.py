@@ -30,7 +30,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from dualpilot.dynamics import Array, DynamicsParams, hover_state, step
+from dualpilot.model.dynamics import Array, DynamicsParams, hover_state, step
 from services.common.mav import to_geodetic, to_local
 
 __all__ = ["Vehicle", "tracking_control", "to_geodetic", "to_local"]

@@ -18,7 +18,7 @@ from typing import Any
 
 import pytest
 
-from dualpilot.mission import MissionResult
+from dualpilot.mission.step import MissionResult
 from services import launch
 from services.common import codec, keys
 from services.msgs import fire_pb2, supervisor_pb2, vehicle_pb2
@@ -30,8 +30,8 @@ SPEED_FACTOR = 100.0
 
 
 def in_process(seed: int) -> MissionResult:
-    from dualpilot.factory import make_planners
-    from dualpilot.mission import Controller, Mission, MissionConfig, Timing
+    from dualpilot.mission.step import Controller, Mission, MissionConfig, Timing
+    from dualpilot.planners import make_planners
 
     config = MissionConfig()
     return Mission(Controller.CC, make_planners(config, seed), seed=seed, timing=Timing.PAPER,

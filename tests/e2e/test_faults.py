@@ -26,10 +26,10 @@ from typing import Any
 import numpy as np
 import pytest
 
-from dualpilot.fire import FireParams
-from dualpilot.geometry import Rect
-from dualpilot.records import STEP_LOG, read_step_log
-from dualpilot.stale_fire import credible_margin_m
+from dualpilot.mission.records import STEP_LOG, read_step_log
+from dualpilot.model.fire import FireParams
+from dualpilot.model.geometry import Rect
+from dualpilot.model.stale_fire import credible_margin_m
 from services import launch
 from services.common import bus, codec, keys, mav
 from services.msgs import supervisor_pb2

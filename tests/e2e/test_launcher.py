@@ -30,7 +30,7 @@ def test_launch_runs_a_mission_and_leaves_a_run_directory(tmp_path: Path) -> Non
     assert sorted(p.name for p in (out / "logs").iterdir()) == [
         "ews.log", "router.log", "supervisor.log", "system1.log", "system2.log", "uavsim.log"]
     try:
-        import dualpilot.plots  # noqa: F401
+        import dualpilot.viz.mission  # noqa: F401
     except ImportError:
         return
     assert list(out.glob("*.png")), "figures"

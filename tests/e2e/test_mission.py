@@ -10,7 +10,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from dualpilot.geometry import Rect
+from dualpilot.model.geometry import Rect
 from services.common import codec
 
 pytestmark = [pytest.mark.slow, pytest.mark.timeout(300)]

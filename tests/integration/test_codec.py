@@ -12,11 +12,11 @@ from typing import Any
 import numpy as np
 import pytest
 
-from dualpilot.dynamics import DynamicsParams, step
-from dualpilot.fire import FireField, FireParams
-from dualpilot.geometry import Polytope, Rect
+from dualpilot.model.dynamics import DynamicsParams, step
+from dualpilot.model.fire import FireField, FireParams
+from dualpilot.model.geometry import Polytope, Rect
 from dualpilot.plan import Objective, Plan, PlanStatus
-from dualpilot.supervisor import Supervisor
+from dualpilot.supervisor.decision import Supervisor
 from services import protogen
 from services.common import codec
 from services.msgs import common_pb2, fire_pb2, plan_pb2, supervisor_pb2

@@ -30,11 +30,11 @@ from hypothesis import HealthCheck, assume, event, given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
-from dualpilot.dynamics import DynamicsParams, rollout
-from dualpilot.fire import FireField, FireParams
-from dualpilot.geometry import Polytope, Rect
+from dualpilot.model.dynamics import DynamicsParams, rollout
+from dualpilot.model.fire import FireField, FireParams
+from dualpilot.model.geometry import Polytope, Rect
 from dualpilot.plan import Objective, Plan, PlanStatus
-from dualpilot.supervisor import Decision, Supervisor
+from dualpilot.supervisor.decision import Decision, Supervisor
 from services.common import codec
 from services.common.clock import Anchor
 from services.msgs import common_pb2, fire_pb2, plan_pb2, supervisor_pb2, vehicle_pb2

@@ -9,7 +9,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from dualpilot.fire import FireField
+from dualpilot.model.fire import FireField
 from services.common import bus, codec, keys
 from services.common.clock import Anchor
 from services.msgs import common_pb2, fire_pb2

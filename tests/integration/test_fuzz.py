@@ -36,9 +36,9 @@ import zenoh
 from google.protobuf.descriptor import FieldDescriptor
 from google.protobuf.message import Message
 
-from dualpilot.dynamics import DynamicsParams
-from dualpilot.fire import FireField, FireParams
-from dualpilot.geometry import Rect
+from dualpilot.model.dynamics import DynamicsParams
+from dualpilot.model.fire import FireField, FireParams
+from dualpilot.model.geometry import Rect
 from dualpilot.plan import Objective, PlanStatus
 from dualpilot.verify import verify_trajectory
 from services.common import bus, codec, keys

@@ -29,7 +29,7 @@ import numpy as np
 import pytest
 from pymavlink.dialects.v10 import ardupilotmega as v1dialect
 
-from dualpilot.dynamics import step
+from dualpilot.model.dynamics import step
 from integration.test_uavsim import connect, position, send_setpoint, take_off
 from services.common import bus, mav
 from services.launch import free_port

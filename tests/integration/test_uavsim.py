@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from dualpilot.dynamics import DynamicsParams, hover_state, step
+from dualpilot.model.dynamics import DynamicsParams, hover_state, step
 from services.common import bus, codec, mav
 from services.launch import free_port
 

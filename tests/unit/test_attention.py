@@ -5,9 +5,9 @@ import math
 import numpy as np
 import pytest
 
-from dualpilot.attention import sample_attention, xi
 from dualpilot.plan import Objective
-from dualpilot.supervisor import Supervisor, SupervisorParams, psi_update
+from dualpilot.supervisor.attention import sample_attention, xi
+from dualpilot.supervisor.decision import Supervisor, SupervisorParams, psi_update
 
 
 @pytest.mark.parametrize(

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from dualpilot.dynamics import DynamicsParams, rollout, step, transition_matrices
+from dualpilot.model.dynamics import DynamicsParams, rollout, step, transition_matrices
 
 
 def test_phi_gamma_2d_match_hand_values():

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from dualpilot.fire import FireField, FireParams, substeps_for
+from dualpilot.model.fire import FireField, FireParams, substeps_for
 
 
 def test_substeps_is_ceil_of_planning_over_tf():

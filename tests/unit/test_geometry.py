@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from dualpilot.geometry import Polytope, Rect, path_clearance
+from dualpilot.model.geometry import Polytope, Rect, path_clearance
 
 
 @pytest.fixture

@@ -1,4 +1,4 @@
-"""LQR tracker (dualpilot.lqr): Riccati gain, closed-loop stability, tracking, limits."""
+"""LQR tracker (dualpilot.system1.lqr): Riccati gain, closed-loop stability, tracking, limits."""
 
 from __future__ import annotations
 
@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 from scipy.linalg import solve_discrete_are
 
-from dualpilot.dynamics import DynamicsParams, hover_state, rollout, transition_matrices
-from dualpilot.lqr import LqrParams, lqr_gain, reference_states, speed_profile, track
+from dualpilot.model.dynamics import DynamicsParams, hover_state, rollout, transition_matrices
+from dualpilot.system1.lqr import LqrParams, lqr_gain, reference_states, speed_profile, track
 from dualpilot.verify import verify_trajectory
 
 DYN = DynamicsParams()

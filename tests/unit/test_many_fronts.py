@@ -6,11 +6,11 @@ import numpy as np
 import pytest
 
 from dualpilot.bench import GOAL, check_plan, make_instance
-from dualpilot.dynamics import DynamicsParams
-from dualpilot.p2 import System2Params
+from dualpilot.model.dynamics import DynamicsParams
 from dualpilot.plan import PlanStatus
-from dualpilot.system1 import System1
-from dualpilot.system2_fast import FastSystem2
+from dualpilot.system1.planner import System1
+from dualpilot.system2.fast.planner import FastSystem2
+from dualpilot.system2.problem import System2Params
 
 DYN = DynamicsParams()
 INSTANCES = [make_instance(i, 5, 50) for i in (0, 4)]  # quick to draw (≈ 2–3 s each)

@@ -6,10 +6,8 @@ import json
 import numpy as np
 import pytest
 
-from dualpilot.dynamics import DynamicsParams
-from dualpilot.factory import make_system1
-from dualpilot.fire import FireParams
-from dualpilot.mission import (
+from dualpilot.mission.records import STEP_COLUMNS, write_all
+from dualpilot.mission.step import (
     Controller,
     Mission,
     MissionConfig,
@@ -18,7 +16,9 @@ from dualpilot.mission import (
     brake_control,
     nearest_region_distance,
 )
-from dualpilot.records import STEP_COLUMNS, write_all
+from dualpilot.model.dynamics import DynamicsParams
+from dualpilot.model.fire import FireParams
+from dualpilot.planners import make_system1
 
 
 def s1_mission(seed, fire_params=FireParams(), controller=Controller.S1, **kw):
@@ -121,8 +121,8 @@ def test_single_system_controllers_never_switch():
 
 
 def test_flight_outcome_rules_and_planning_order():
-    from dualpilot.geometry import Rect
-    from dualpilot.mission import flight_outcome, planning_order
+    from dualpilot.mission.step import flight_outcome, planning_order
+    from dualpilot.model.geometry import Rect
 
     cfg, params = MissionConfig(), MissionParams(max_steps=10)
     fire = (Rect(100.0, 0.0, 20.0, 20.0),)  # x in [90, 110]
@@ -145,7 +145,7 @@ def test_flight_outcome_rules_and_planning_order():
 
 
 def test_rect_distance_matches_the_polytope_distance():
-    from dualpilot.geometry import Rect
+    from dualpilot.model.geometry import Rect
 
     r = Rect(10.0, -5.0, 40.0, 20.0)
     rng = np.random.default_rng(0)

@@ -1,4 +1,4 @@
-"""Figures of a mission run (dualpilot.plots) on synthetic runs written by dualpilot.records."""
+"""Figures of a mission run (dualpilot.viz.mission) on synthetic runs written as records."""
 
 from __future__ import annotations
 
@@ -9,12 +9,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from dualpilot import plots
-from dualpilot.attention import AttentionParams, Logistic, xi
-from dualpilot.dynamics import DynamicsParams, hover_state, step
-from dualpilot.fire import FireParams, FireSnapshot
-from dualpilot.geometry import Polytope, Rect
-from dualpilot.mission import (
+from dualpilot.mission.records import write_all
+from dualpilot.mission.step import (
     Controller,
     Mission,
     MissionConfig,
@@ -22,9 +18,13 @@ from dualpilot.mission import (
     MissionResult,
     StepRecord,
 )
+from dualpilot.model.dynamics import DynamicsParams, hover_state, step
+from dualpilot.model.fire import FireParams, FireSnapshot
+from dualpilot.model.geometry import Polytope, Rect
 from dualpilot.plan import Objective, Plan, Planner, PlanStatus
-from dualpilot.records import write_all
-from dualpilot.supervisor import Decision
+from dualpilot.supervisor.attention import AttentionParams, Logistic, xi
+from dualpilot.supervisor.decision import Decision
+from dualpilot.viz import mission as plots
 
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 ALL_FIGURES = {

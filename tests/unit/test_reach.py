@@ -1,13 +1,13 @@
-"""The grid proof of "no path" (dualpilot.reach): sound, and decisive on clear-cut cases."""
+"""The grid proof of "no path" (dualpilot.system1.reach): sound, and decisive on clear-cut cases."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from dualpilot.geometry import Polytope, Rect
-from dualpilot.reach import certainly_unreachable, corridor, possibly_free, start_component
-from dualpilot.rrt import RrtParams, plan_path
+from dualpilot.model.geometry import Polytope, Rect
+from dualpilot.system1.reach import certainly_unreachable, corridor, possibly_free, start_component
+from dualpilot.system1.rrt import RrtParams, plan_path
 
 GOAL = Rect(900.0, 900.0, 100.0, 100.0)
 START = np.array([50.0, 50.0])

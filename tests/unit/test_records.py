@@ -13,10 +13,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from dualpilot.factory import make_system1
-from dualpilot.fire import FireParams
-from dualpilot.mission import Controller, Mission, MissionConfig, MissionParams, Timing
-from dualpilot.records import StepLog, read_step_log, record_from_json, result_from_log
+from dualpilot.mission.records import StepLog, read_step_log, record_from_json, result_from_log
+from dualpilot.mission.step import Controller, Mission, MissionConfig, MissionParams, Timing
+from dualpilot.model.fire import FireParams
+from dualpilot.planners import make_system1
 
 
 def _mission(seed: int = 5, steps: int = 12) -> Mission:
@@ -93,7 +93,7 @@ def test_every_line_written_survives_sigkill(tmp_path: Path) -> None:
     path = tmp_path / "r.jsonl"
     code = textwrap.dedent(f"""
         import sys
-        from dualpilot.records import StepLog
+        from dualpilot.mission.records import StepLog
         log = StepLog({str(path)!r})
         i = 0
         while True:

@@ -1,13 +1,13 @@
-"""Alg. 1 (dualpilot.rrt): exact edge checks, paths free of hulls, determinism, bad input."""
+"""Alg. 1 (dualpilot.system1.rrt): exact edge checks, free paths, determinism, bad input."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from dualpilot.fire import FireField, FireParams
-from dualpilot.geometry import Polytope, Rect, path_clearance
-from dualpilot.rrt import RrtParams, SegmentChecker, plan_path, shortcut
+from dualpilot.model.fire import FireField, FireParams
+from dualpilot.model.geometry import Polytope, Rect, path_clearance
+from dualpilot.system1.rrt import RrtParams, SegmentChecker, plan_path, shortcut
 
 GOAL = Rect(900.0, 900.0, 100.0, 100.0)
 START = np.array([50.0, 50.0])

@@ -6,11 +6,10 @@ import numpy as np
 import pytest
 
 from dualpilot.bench import GOAL, make_instance
-from dualpilot.dynamics import DynamicsParams, reach_boxes
-from dualpilot.geometry import Polytope, Rect
-from dualpilot.p2 import System2Params
+from dualpilot.model.dynamics import DynamicsParams, reach_boxes
+from dualpilot.model.geometry import Polytope, Rect
 from dualpilot.plan import PlanStatus
-from dualpilot.s2_geometry import (
+from dualpilot.system2.fast.geometry import (
     FaceStack,
     HullStack,
     Inflated,
@@ -18,8 +17,9 @@ from dualpilot.s2_geometry import (
     inflate,
     support_toward,
 )
-from dualpilot.s2_ipm import Rows, band_pairs, solve_qp
-from dualpilot.system2_fast import FastSystem2
+from dualpilot.system2.fast.ipm import Rows, band_pairs, solve_qp
+from dualpilot.system2.fast.planner import FastSystem2
+from dualpilot.system2.problem import System2Params
 
 DYN = DynamicsParams()
 SQUARE = Rect(500.0, 500.0, 200.0, 200.0).polytope()  # [400, 600]²; Q at ε = 25: [375, 625]²
@@ -229,7 +229,7 @@ def test_rebound_solves_the_same_qp_as_a_fresh_context():
     vals = np.column_stack([np.ones(n), np.zeros(n), np.zeros(n)])
     h_band = np.zeros((7, n))
     h_band[0] = 2.0
-    from dualpilot.s2_ipm import BandedQp
+    from dualpilot.system2.fast.ipm import BandedQp
 
     rows1 = Rows.make(cols, vals, np.full(n, 0.25), np.full(n, np.inf))
     base = BandedQp(h_band, np.zeros(n), rows1, band_pairs(rows1, n))

@@ -1,13 +1,13 @@
-"""Growth of stale fire data (dualpilot.stale_fire), values worked out by hand."""
+"""Growth of stale fire data (dualpilot.model.stale_fire), values worked out by hand."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from dualpilot.fire import FireParams
-from dualpilot.geometry import Rect
-from dualpilot.stale_fire import (
+from dualpilot.model.fire import FireParams
+from dualpilot.model.geometry import Rect
+from dualpilot.model.stale_fire import (
     StaleFireParams,
     credible_margin_m,
     credible_speed_mps,

@@ -1,15 +1,15 @@
-"""System 1 (dualpilot.system1): operator waypoints or RRT, LQR tracking, verification."""
+"""System 1 (dualpilot.system1.planner): operator waypoints or RRT, LQR tracking, verification."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-import dualpilot.system1 as s1mod
-from dualpilot.dynamics import DynamicsParams, hover_state, step
-from dualpilot.geometry import Polytope, Rect, path_clearance
+import dualpilot.system1.planner as s1mod
+from dualpilot.model.dynamics import DynamicsParams, hover_state, step
+from dualpilot.model.geometry import Polytope, Rect, path_clearance
 from dualpilot.plan import Objective, Plan, PlanStatus
-from dualpilot.system1 import System1, System1Params
+from dualpilot.system1.planner import System1, System1Params
 from dualpilot.verify import Verdict, verify_trajectory
 
 GOAL = Rect(900.0, 900.0, 100.0, 100.0)

@@ -8,12 +8,12 @@ import cvxpy as cp
 import numpy as np
 import pytest
 
-from dualpilot import system2 as s2mod
-from dualpilot.dynamics import DynamicsParams, rollout, transition_matrices
-from dualpilot.geometry import Polytope, Rect
-from dualpilot.p2 import System2Params, p2_cost
+from dualpilot.model.dynamics import DynamicsParams, rollout, transition_matrices
+from dualpilot.model.geometry import Polytope, Rect
 from dualpilot.plan import Objective, PlanStatus
-from dualpilot.system2 import ExactSystem2, face_inflated, gurobi_available, outer_simplify
+from dualpilot.system2 import exact as s2mod
+from dualpilot.system2.exact import ExactSystem2, face_inflated, gurobi_available, outer_simplify
+from dualpilot.system2.problem import System2Params, p2_cost
 from dualpilot.verify import Verdict
 
 GOAL = Rect(900.0, 900.0, 100.0, 100.0)

@@ -8,19 +8,19 @@ import numpy as np
 import pytest
 
 from dualpilot.bench import GOAL, make_instance, run_system2
-from dualpilot.dynamics import DynamicsParams, rollout, transition_matrices
-from dualpilot.geometry import Polytope, Rect
-from dualpilot.p2 import System2Params
+from dualpilot.model.dynamics import DynamicsParams, rollout, transition_matrices
+from dualpilot.model.geometry import Polytope, Rect
 from dualpilot.plan import Objective, Plan, PlanStatus
-from dualpilot.s2_geometry import Inflated, homotopy_paths
-from dualpilot.s2_qp import P2Qp
-from dualpilot.system2_fast import (
+from dualpilot.system2.fast.geometry import Inflated, homotopy_paths
+from dualpilot.system2.fast.planner import (
     AnytimeSystem2,
     ExactWorker,
     FastSystem2,
     make_system2,
     verify_p2_plan,
 )
+from dualpilot.system2.fast.qp import P2Qp
+from dualpilot.system2.problem import System2Params
 
 DYN = DynamicsParams()
 SMALL = System2Params(horizon=20, time_limit_s=60.0)
@@ -30,7 +30,7 @@ SMALL = System2Params(horizon=20, time_limit_s=60.0)
 @pytest.mark.timeout(240)
 def test_fast_matches_exact_on_small_instances():
     """T = 20, 3 hulls: SCIP proves optimality quickly; the fast plan is within the stated gap."""
-    from dualpilot.system2 import ExactSystem2
+    from dualpilot.system2.exact import ExactSystem2
 
     fast = FastSystem2(GOAL, SMALL, DYN)
     exact = ExactSystem2(GOAL, SMALL, DYN)
@@ -246,7 +246,7 @@ def test_bench_system2_writes_the_issue_fields(tmp_path):
 
 
 def test_seeded_scip_proves_the_fast_plan_optimal_on_a_small_instance():
-    from dualpilot.s2_scip import SeededExactSystem2
+    from dualpilot.system2.scip import SeededExactSystem2
 
     inst = make_instance(4, 5, 3)
     fast = FastSystem2(GOAL, SMALL, DYN).plan(inst.state, inst.hulls, inst.objective,

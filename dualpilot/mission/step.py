@@ -26,11 +26,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .dynamics import Array, DynamicsParams, hover_state, step
-from .fire import FireField, FireParams, FireSnapshot, substeps_for
-from .geometry import Rect
-from .plan import Objective, Plan, Planner, PlanStatus
-from .supervisor import Decision, Supervisor, SupervisorParams
+from dualpilot.model.dynamics import Array, DynamicsParams, hover_state, step
+from dualpilot.model.fire import FireField, FireParams, FireSnapshot, substeps_for
+from dualpilot.model.geometry import Rect
+from dualpilot.plan import Objective, Plan, Planner, PlanStatus
+from dualpilot.supervisor.decision import Decision, Supervisor, SupervisorParams
 
 
 class Controller(enum.Enum):

@@ -17,7 +17,7 @@ paper's loose points, each a parameter of :class:`RrtParams`:
   goal bias to 1 and hand RRT a goal whose ``sampleGoal`` draws a uniform
   state of the area (or, with probability ``goal_bias``, a state of G). RRT's
   internal RNG then decides nothing, and the same seed gives the same path.
-* Before growing a tree, a grid test (:mod:`dualpilot.reach`) looks for a
+* Before growing a tree, a grid test (:mod:`dualpilot.system1.reach`) looks for a
   proof that G cannot be reached with the clearance; with one, the answer is
   "no path" at once instead of after ``max_iterations`` samples. The test is
   conservative, so it never hides a path (``reach_check``). Without a
@@ -30,7 +30,7 @@ paper's loose points, each a parameter of :class:`RrtParams`:
   proof then ends the search ("unreachable"). Otherwise samples come from
   the finer component, and a share ``guide_share`` of them from just ahead
   of the tree along a fewest-cell chain of cells from the start to G
-  (:func:`dualpilot.reach.corridor`): within ``guide_window`` cells of the
+  (:func:`dualpilot.system1.reach.corridor`): within ``guide_window`` cells of the
   farthest chain cell a tree node has reached. The tree is drawn through
   the passage an operator would see on the map, instead of filling the
   open area around it.
@@ -53,9 +53,9 @@ from ompl import base as ob
 from ompl import geometric as og
 from ompl import util as ou
 
-from .dynamics import Array
-from .geometry import Polytope, Rect, SegmentChecker
-from .reach import BoolArray, coarsen, corridor, start_component
+from dualpilot.model.dynamics import Array
+from dualpilot.model.geometry import Polytope, Rect, SegmentChecker
+from dualpilot.system1.reach import BoolArray, coarsen, corridor, start_component
 
 
 @dataclass(frozen=True)
@@ -66,7 +66,7 @@ class RrtParams:
     random fire fields of Sec. IV-A with a path to G, 500 samples failed on
     19 % of instances and 2000 on 0.6 % (median 311, p95 ≈ 1130 iterations;
     README, "System 1's iteration cap"). ``max_wall_s`` is a safety cap.
-    ``reach_check`` runs the grid test of :mod:`dualpilot.reach` on cells of
+    ``reach_check`` runs the grid test of :mod:`dualpilot.system1.reach` on cells of
     ``reach_cell_m`` before the tree is grown; ``sample_reachable`` then
     draws area samples from the start's possibly-free component only.
     """
@@ -103,7 +103,7 @@ class RrtResult:
     ``path`` (k, 2) runs from the start to a point inside G, or is None when
     no path was found; ``status`` is "direct" (straight segment free),
     "exact" (RRT reached G), "unreachable" (proved that no path exists,
-    :mod:`dualpilot.reach`), "iteration_cap" or "time_cap".
+    :mod:`dualpilot.system1.reach`), "iteration_cap" or "time_cap".
     """
 
     path: Array | None

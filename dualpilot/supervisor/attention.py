@@ -15,7 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .dynamics import Array
+from dualpilot.model.dynamics import Array
 
 
 @dataclass(frozen=True)

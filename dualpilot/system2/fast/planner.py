@@ -5,14 +5,14 @@ Method ("fast", the service default):
 1. **Restriction.** For every planned position p_τ (τ = 2..T; p_1 = p_t + ΔT v_t
    is fixed by the state) and every hull i near it, fix one half-plane outside
    the ε-inflated hull Q_i (a face, or a line through a vertex of Q_i). (P2)
-   becomes a convex QP in the positions only (:class:`dualpilot.s2_qp.P2Qp`),
+   becomes a convex QP in the positions only (:class:`dualpilot.system2.fast.qp.P2Qp`),
    whose Newton systems are banded; a small Mehrotra interior-point solver
-   (:mod:`dualpilot.s2_ipm`) solves it in a few ms. Every QP solution is
+   (:mod:`dualpilot.system2.fast.ipm`) solves it in a few ms. Every QP solution is
    feasible for (P2).
 2. **Relaxation first.** The QP with no hull at all is solved first; if it
    already satisfies the disjunction it is the global optimum of (P2).
 3. **Homotopies.** Shortest paths around the hulls, one per homotopy class
-   (:func:`dualpilot.s2_geometry.homotopy_paths`), the relaxation pushed out
+   (:func:`dualpilot.system2.fast.geometry.homotopy_paths`), the relaxation pushed out
    of the hulls through their nearest faces ("projected", which also finds
    dead ends near a covered goal), and the previous plan shifted by one step
    are time-parametrised within Eq. (1)'s limits; each fixes the first
@@ -32,9 +32,9 @@ Method ("fast", the service default):
    hover seeds one last run.
 
 ``method="fast+exact"`` (:class:`AnytimeSystem2`) then runs SCIP seeded with the
-fast plan (:mod:`dualpilot.s2_scip`) in a killable worker process with a hard
+fast plan (:mod:`dualpilot.system2.scip`) in a killable worker process with a hard
 time limit and returns the better verified plan. ``method="exact"`` is the cvxpy
-MIQP of :mod:`dualpilot.system2`. :func:`make_system2` builds any of them.
+MIQP of :mod:`dualpilot.system2.exact`. :func:`make_system2` builds any of them.
 """
 
 from __future__ import annotations
@@ -52,11 +52,10 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from .dynamics import Array, DynamicsParams, rollout
-from .geometry import Polytope, Rect, SegmentChecker
-from .p2 import System2Params, p2_cost
-from .plan import Objective, Plan, PlanStatus
-from .s2_geometry import (
+from dualpilot.model.dynamics import Array, DynamicsParams, rollout
+from dualpilot.model.geometry import Polytope, Rect, SegmentChecker
+from dualpilot.plan import Objective, Plan, PlanStatus
+from dualpilot.system2.fast.geometry import (
     FaceStack,
     HullStack,
     Inflated,
@@ -64,8 +63,9 @@ from .s2_geometry import (
     homotopy_paths,
     resample,
 )
-from .s2_qp import P2Qp, QpResult
-from .verify import Verdict, verify_trajectory
+from dualpilot.system2.fast.qp import P2Qp, QpResult
+from dualpilot.system2.problem import System2Params, p2_cost
+from dualpilot.verify import Verdict, verify_trajectory
 
 D_SAFE_M = 20.0
 """Sec. IV-A: a mission fails within d_safe of an active fire region (m)."""
@@ -775,7 +775,7 @@ PlannerFactory = Callable[[], Any]
 
 
 def _exact_factory(goal: Rect, params: System2Params, dynamics: DynamicsParams) -> Any:
-    from .system2 import ExactSystem2
+    from dualpilot.system2.exact import ExactSystem2
 
     return ExactSystem2(goal, params, dynamics)
 
@@ -791,10 +791,10 @@ class _ExactFactory:
 
 
 class _SeededFactory(_ExactFactory):
-    """Picklable factory of :class:`dualpilot.s2_scip.SeededExactSystem2`."""
+    """Picklable factory of :class:`dualpilot.system2.scip.SeededExactSystem2`."""
 
     def __call__(self) -> Any:
-        from .s2_scip import SeededExactSystem2
+        from dualpilot.system2.scip import SeededExactSystem2
 
         return SeededExactSystem2(self.goal, self.params, self.dynamics)
 
@@ -941,7 +941,7 @@ class ExactWorker:
 class AnytimeSystem2:
     """"fast+exact": the fast plan, then SCIP seeded with it in a killable worker.
 
-    The worker solves (P2) exactly (:class:`dualpilot.s2_scip.SeededExactSystem2`:
+    The worker solves (P2) exactly (:class:`dualpilot.system2.scip.SeededExactSystem2`:
     native SCIP, tight big-M, the fast plan as the starting incumbent) within
     ``exact_budget_s`` (its time limit is set a little below); the better
     verified plan is returned. A worker crash or overrun leaves the fast plan
@@ -1022,7 +1022,7 @@ def make_system2(method: str, goal: Rect, params: System2Params = System2Params(
     if method == "fast":
         return FastSystem2(goal, params, dynamics)
     if method == "exact":
-        from .system2 import ExactSystem2
+        from dualpilot.system2.exact import ExactSystem2
 
         planner = ExactSystem2(goal, params, dynamics)
         planner.method = "exact"  # type: ignore[attr-defined]

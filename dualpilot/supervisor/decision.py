@@ -15,9 +15,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .attention import AttentionParams, sample_attention, xi
-from .dynamics import Array
-from .plan import Objective
+from dualpilot.model.dynamics import Array
+from dualpilot.plan import Objective
+from dualpilot.supervisor.attention import AttentionParams, sample_attention, xi
 
 B_MATRIX = np.array([[1.0, -1.0], [-1.0, 1.0]])
 

@@ -1,6 +1,6 @@
 """The paper's per-mission figures: Fig. r1 (a)–(h), Fig. r2, Fig. r3 and Fig. 3.
 
-``make_figures(run_dir)`` reads a run directory written by :mod:`dualpilot.records`
+``make_figures(run_dir)`` reads a run directory written by :mod:`dualpilot.mission.records`
 (``summary.json``, ``steps.csv``, ``trace.json``) and writes PNGs next to them:
 
 * ``fig_r1_trajectory.png`` – (a)–(f) executed trajectory (solid, coloured by the
@@ -35,9 +35,9 @@ from matplotlib.lines import Line2D
 from matplotlib.patches import Patch, Polygon, Rectangle
 from matplotlib.ticker import MaxNLocator
 
-from .attention import AttentionParams, xi
-from .dynamics import Array
-from .records import read_steps_csv
+from dualpilot.mission.records import read_steps_csv
+from dualpilot.model.dynamics import Array
+from dualpilot.supervisor.attention import AttentionParams, xi
 
 DPI = 120
 #: Seed of the Dirichlet samples of Fig. r2 (combined with t, so each panel is reproducible).

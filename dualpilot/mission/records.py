@@ -22,12 +22,12 @@ from typing import Any
 
 import numpy as np
 
-from .dynamics import Array
-from .fire import FireSnapshot
-from .geometry import Polytope, Rect
-from .mission import MissionConfig, MissionResult, StepRecord
-from .plan import Objective
-from .supervisor import Decision
+from dualpilot.mission.step import MissionConfig, MissionResult, StepRecord
+from dualpilot.model.dynamics import Array
+from dualpilot.model.fire import FireSnapshot
+from dualpilot.model.geometry import Polytope, Rect
+from dualpilot.plan import Objective
+from dualpilot.supervisor.decision import Decision
 
 STEP_COLUMNS = [
     "t",

@@ -12,8 +12,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .dynamics import Array
-from .plan import Objective
+from dualpilot.model.dynamics import Array
+from dualpilot.plan import Objective
 
 
 @dataclass(frozen=True)

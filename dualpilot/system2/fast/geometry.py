@@ -26,7 +26,7 @@ import scipy.sparse as sp
 from numpy.typing import NDArray
 from scipy.sparse.csgraph import dijkstra
 
-from .geometry import Polytope
+from dualpilot.model.geometry import Polytope
 
 Array = NDArray[Any]  # float, int or bool arrays
 

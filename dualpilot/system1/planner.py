@@ -2,7 +2,7 @@
 
 Each call of :meth:`System1.plan` picks a reference path from the UAV's
 position into the goal region G and tracks it with the LQR of
-:mod:`dualpilot.lqr` over the horizon T, giving a predicted trajectory.
+:mod:`dualpilot.system1.lqr` over the horizon T, giving a predicted trajectory.
 Where the reference path comes from, in order:
 
 1. **Operator waypoints** (:meth:`System1.set_waypoints`), the paper's
@@ -11,7 +11,7 @@ Where the reference path comes from, in order:
 2. **The previous RRT path**, from the point nearest the UAV onward, while
    it stays free and the UAV is within ``reuse_max_offset_m`` of it
    (``reuse_path``): an operator keeps a path while it is safe.
-3. **A fresh RRT path** (Alg. 1, :func:`dualpilot.rrt.plan_path`).
+3. **A fresh RRT path** (Alg. 1, :func:`dualpilot.system1.rrt.plan_path`).
 
 The predicted trajectory is verified independently
 (:func:`dualpilot.verify.verify_trajectory` with d_safe = 20 m): a trajectory
@@ -29,12 +29,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .dynamics import Array, DynamicsParams, check_state
-from .geometry import Polytope, Rect
-from .lqr import LqrParams, lqr_gain, reference_states, track
-from .plan import Objective, Plan, PlanStatus
-from .rrt import RrtParams, RrtResult, SegmentChecker, plan_path
-from .verify import verify_trajectory
+from dualpilot.model.dynamics import Array, DynamicsParams, check_state
+from dualpilot.model.geometry import Polytope, Rect
+from dualpilot.plan import Objective, Plan, PlanStatus
+from dualpilot.system1.lqr import LqrParams, lqr_gain, reference_states, track
+from dualpilot.system1.rrt import RrtParams, RrtResult, SegmentChecker, plan_path
+from dualpilot.verify import verify_trajectory
 
 
 @dataclass(frozen=True)
@@ -42,12 +42,12 @@ class System1Params:
     """Sec. IV-A values (step 15 m, Q = 2·I, R = 0.1·I, T = 80) and our readings.
 
     ``max_iterations`` is 2000 instead of the paper's 500 (see
-    :class:`dualpilot.rrt.RrtParams`); ``max_wall_s`` bounds the RRT's time.
+    :class:`dualpilot.system1.rrt.RrtParams`); ``max_wall_s`` bounds the RRT's time.
     ``ref_speed_mps`` is the speed along the path (≤ 15 m/s per axis holds
     for any heading); ``speed_retries`` halvings are tried when the tracked
     trajectory fails verification at ``verify_clearance_m`` (d_safe).
     ``reach_check`` lets the RRT answer "no path" at once when a grid proves
-    G unreachable (:mod:`dualpilot.reach`).
+    G unreachable (:mod:`dualpilot.system1.reach`).
     """
 
     step_size_m: float = 15.0

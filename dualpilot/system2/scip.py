@@ -1,6 +1,6 @@
 """Problem (P2) as an MIQP in native SCIP (PySCIPOpt), seeded with an incumbent.
 
-The same problem as :class:`dualpilot.system2.ExactSystem2` — Eq. (S2) with
+The same problem as :class:`dualpilot.system2.exact.ExactSystem2` — Eq. (S2) with
 Eq. (P2_1)-(P2_6) and big-M avoidance over every face of every hull — with
 three differences that help the branch and bound, none of which changes the
 optimum:
@@ -28,9 +28,9 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from .dynamics import DynamicsParams, reach_boxes, transition_matrices
-from .geometry import Polytope
-from .p2 import System2Params
+from dualpilot.model.dynamics import DynamicsParams, reach_boxes, transition_matrices
+from dualpilot.model.geometry import Polytope
+from dualpilot.system2.problem import System2Params
 
 Array = NDArray[Any]
 
@@ -123,8 +123,8 @@ def _add_incumbent(m: Any, controls: Array, x0: Array, hulls: Sequence[Polytope]
                    kappa: tuple[float, float], u_prev: Array, eps: float, dyn: DynamicsParams,
                    u: list[list[Any]], x: list[list[Any]],
                    binaries: list[tuple[int, int, int, Any]], t: Any) -> None:
-    from .dynamics import rollout
-    from .p2 import p2_cost
+    from dualpilot.model.dynamics import rollout
+    from dualpilot.system2.problem import p2_cost
 
     ctrl = np.clip(np.asarray(controls, dtype=float), -dyn.u_max_n, dyn.u_max_n)
     states = rollout(x0, ctrl, dyn)
@@ -145,7 +145,7 @@ def _add_incumbent(m: Any, controls: Array, x0: Array, hulls: Sequence[Polytope]
 class SeededExactSystem2:
     """(P2) solved by SCIP from an incumbent plan; ``plan`` takes the incumbent's controls.
 
-    Used in a worker process (see :class:`dualpilot.system2_fast.ExactWorker`):
+    Used in a worker process (see :class:`dualpilot.system2.fast.planner.ExactWorker`):
     ``plan(state, hulls, objective, prev_control, incumbent)``. The returned
     plan is verified like every System 2 plan; ``info`` carries SCIP's status,
     dual bound and whether it proved optimality.
@@ -161,10 +161,10 @@ class SeededExactSystem2:
 
     def plan(self, state: Array, hulls: Sequence[Polytope], objective: Any = None,
              prev_control: Array | None = None, incumbent: Array | None = None) -> Any:
-        from .dynamics import rollout
-        from .p2 import p2_cost
-        from .plan import Objective, Plan, PlanStatus
-        from .system2_fast import verify_p2_plan
+        from dualpilot.model.dynamics import rollout
+        from dualpilot.plan import Objective, Plan, PlanStatus
+        from dualpilot.system2.fast.planner import verify_p2_plan
+        from dualpilot.system2.problem import p2_cost
 
         t0 = time.perf_counter()
         objective = Objective.MISSION_TIME if objective is None else objective

@@ -32,7 +32,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.linalg import solve_discrete_are
 
-from .dynamics import Array, DynamicsParams, check_state, transition_matrices
+from dualpilot.model.dynamics import Array, DynamicsParams, check_state, transition_matrices
 
 
 @dataclass(frozen=True)

@@ -28,8 +28,8 @@ import numpy as np
 import scipy.sparse as sp
 from numpy.typing import NDArray
 
-from .dynamics import DynamicsParams, reach_boxes
-from .s2_ipm import BandedQp, Rows, band_pairs
+from dualpilot.model.dynamics import DynamicsParams, reach_boxes
+from dualpilot.system2.fast.ipm import BandedQp, Rows, band_pairs
 
 Array = NDArray[Any]  # float, int or bool arrays
 

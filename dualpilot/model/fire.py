@@ -20,7 +20,7 @@ from math import ceil, cos, sin, sqrt
 
 import numpy as np
 
-from .geometry import Polytope, Rect
+from dualpilot.model.geometry import Polytope, Rect
 
 
 @dataclass(frozen=True)

@@ -33,8 +33,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .fire import FireParams
-from .geometry import Polytope
+from dualpilot.model.fire import FireParams
+from dualpilot.model.geometry import Polytope
 
 
 @dataclass(frozen=True)

@@ -4,10 +4,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from .dynamics import DynamicsParams
-from .mission import MissionConfig
-from .p2 import System2Params
-from .plan import Planner
+from dualpilot.mission.step import MissionConfig
+from dualpilot.model.dynamics import DynamicsParams
+from dualpilot.plan import Planner
+from dualpilot.system2.problem import System2Params
 
 #: Seed-sequence key of System 1's RNG, apart from the fire and supervisor streams.
 SYSTEM1_STREAM = 7
@@ -16,7 +16,7 @@ SYSTEM1_STREAM = 7
 def make_system1(
     config: MissionConfig, seed: int, dynamics: DynamicsParams = DynamicsParams()
 ) -> Planner:
-    from .system1 import System1
+    from dualpilot.system1.planner import System1
 
     rng = np.random.default_rng(np.random.SeedSequence([seed, SYSTEM1_STREAM]))
     return System1(config.goal, rng=rng, dynamics=dynamics, area_size_m=config.area_size_m)
@@ -28,7 +28,7 @@ def make_system2_planner(
     params: System2Params = System2Params(),
     dynamics: DynamicsParams = DynamicsParams(),
 ) -> Planner:
-    from .system2_fast import make_system2
+    from dualpilot.system2.fast.planner import make_system2
 
     return make_system2(method, config.goal, params, dynamics)
 

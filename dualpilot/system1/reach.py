@@ -15,7 +15,7 @@ possibly free and the visited cells form an 8-connected chain from the
 start's cell to a cell meeting G. No such chain means no such path.
 
 Near the start, edges may keep only the start's own (smaller) clearance
-(see :func:`dualpilot.rrt.plan_path`); cells within ``start_radius_m`` of
+(see :func:`dualpilot.system1.rrt.plan_path`); cells within ``start_radius_m`` of
 the start use that clearance instead. Lengths are metres.
 """
 
@@ -29,8 +29,8 @@ from scipy import ndimage
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import breadth_first_order
 
-from .dynamics import Array
-from .geometry import Polytope, Rect
+from dualpilot.model.dynamics import Array
+from dualpilot.model.geometry import Polytope, Rect
 
 _EIGHT = np.ones((3, 3), dtype=bool)
 BoolArray = NDArray[np.bool_]

@@ -49,11 +49,11 @@ from typing import Any
 import cvxpy as cp
 import numpy as np
 
-from .dynamics import Array, DynamicsParams, rollout, transition_matrices
-from .geometry import Polytope, Rect
-from .p2 import System2Params, p2_cost
-from .plan import Objective, Plan, PlanStatus
-from .verify import verify_trajectory
+from dualpilot.model.dynamics import Array, DynamicsParams, rollout, transition_matrices
+from dualpilot.model.geometry import Polytope, Rect
+from dualpilot.plan import Objective, Plan, PlanStatus
+from dualpilot.system2.problem import System2Params, p2_cost
+from dualpilot.verify import verify_trajectory
 
 D_SAFE_M = 20.0
 """Sec. IV-A: a mission fails within d_safe of an active fire region (m)."""

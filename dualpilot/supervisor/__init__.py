@@ -1,0 +1,1 @@
+"""The supervisory controller (Sec. III-C): attention and decision dynamics."""

@@ -1,0 +1,1 @@
+"""The fast solver of (P2): fixed faces, a convex QP, a small interior point."""
