@@ -21,6 +21,7 @@ from math import ceil, cos, sin, sqrt
 import numpy as np
 
 from dualpilot.model.geometry import Polytope, Rect
+from dualpilot.spec import MissionSpec
 
 
 @dataclass(frozen=True)
@@ -37,7 +38,6 @@ class FireParams:
     side_min_m: float = 100.0
     side_max_m: float = 250.0
     substep_s: float = 0.5
-    area_size_m: float = 1000.0
     #: Reading of Ĉ_t: False keeps the hulls of active fronts only (an
     #: extinguished front no longer threatens the UAV); True keeps every hull.
     keep_extinct_hulls: bool = False
@@ -49,8 +49,8 @@ class FireParams:
                 raise ValueError(f"{name} must be in [0, 1], got {val}")
         if not 0 < self.side_min_m <= self.side_max_m:
             raise ValueError("need 0 < side_min_m <= side_max_m")
-        if self.substep_s <= 0 or self.area_size_m <= 0:
-            raise ValueError("substep_s and area_size_m must be positive")
+        if self.substep_s <= 0:
+            raise ValueError("substep_s must be positive")
 
 
 def substeps_for(planning_time_s: float, params: FireParams = FireParams()) -> int:
@@ -128,9 +128,10 @@ class FireSnapshot:
 
 @dataclass
 class FireField:
-    """The set of fronts in the area and their evolution (the EWS's ground truth)."""
+    """The fronts in the area [0, area_size_m]² and their evolution (the EWS's ground truth)."""
 
     params: FireParams = field(default_factory=FireParams)
+    area_size_m: float = field(default_factory=lambda: MissionSpec().area_size_m)
     fronts: list[FireFront] = field(default_factory=list)
     extinct_hulls: list[Polytope] = field(default_factory=list)
     substeps_done: int = 0
@@ -151,7 +152,7 @@ class FireField:
         p = self.params
         for _ in range(1000):
             if center is None:
-                cx, cy = (float(v) for v in rng.uniform(0.0, p.area_size_m, size=2))
+                cx, cy = (float(v) for v in rng.uniform(0.0, self.area_size_m, size=2))
             else:
                 cx, cy = center
             region = _draw_rect(cx, cy, rng, p)

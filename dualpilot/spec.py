@@ -1,0 +1,92 @@
+"""The frozen mission spec: area, start, goal, dynamics, d_safe, clearance, seed (Sec. IV-A).
+
+Every part of a mission reads its geometry and margins from one
+:class:`MissionSpec`: the loop, both planners, every verifier, the EWS and the
+records. d_safe and the planners' clearance are written here and nowhere
+else; the random streams are derived from the seed here and nowhere else.
+"""
+
+from __future__ import annotations
+
+import enum
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+
+from dualpilot.model.dynamics import DynamicsParams
+from dualpilot.model.geometry import Rect
+
+Array = NDArray[np.float64]
+
+#: Sec. IV: "a predefined safety threshold (denoted as d_safe = 20 m)".
+D_SAFE_M = 20.0
+#: The planners' clearance from the hulls: P2's ε (Eq. P2_3) and Alg. 1's PathFree margin.
+#: Positions 25 m outside every face keep the straight segment between two of them
+#: (at most 15·√2 m long) more than d_safe from the hull.
+CLEARANCE_M = 25.0
+
+
+class Stream(enum.Enum):
+    """The independent random streams of one mission."""
+
+    FIRE = "fire"
+    SUPERVISOR = "supervisor"
+    SYSTEM1 = "system1"
+
+
+#: Seed-sequence key of System 1's stream, apart from the fire and supervisor streams.
+_SYSTEM1_KEY = 7
+
+
+@dataclass(frozen=True)
+class MissionSpec:
+    """Where a mission flies and with what margins; frozen, shared by every part.
+
+    Lengths in m (local frame, x east, y north), the area is the square
+    [0, area_size_m]²; ``dynamics`` holds ΔT, ζ, m and the limits of Eq. (1).
+    """
+
+    start: tuple[float, float] = (50.0, 50.0)
+    goal: Rect = Rect(900.0, 900.0, 100.0, 100.0)
+    area_size_m: float = 1000.0
+    d_safe_m: float = D_SAFE_M
+    clearance_m: float = CLEARANCE_M
+    seed: int = 0
+    dynamics: DynamicsParams = field(default_factory=DynamicsParams)
+
+    def __post_init__(self) -> None:
+        if not (np.isfinite(self.area_size_m) and self.area_size_m > 0):
+            raise ValueError(f"area_size_m must be positive, got {self.area_size_m}")
+        if not (0 <= self.d_safe_m <= self.clearance_m):
+            raise ValueError(f"need 0 <= d_safe_m <= clearance_m, got {self.d_safe_m}, "
+                             f"{self.clearance_m}")
+        if not self.goal.inside(self.area):
+            raise ValueError(f"goal {self.goal} lies outside the {self.area_size_m} m area")
+        if not self.area.contains(np.array(self.start)):
+            raise ValueError(f"start {self.start} lies outside the area")
+
+    @property
+    def area(self) -> Rect:
+        """The area E as a rectangle (m)."""
+        a = self.area_size_m
+        return Rect(a / 2, a / 2, a, a)
+
+    def rng(self, stream: Stream) -> np.random.Generator:
+        """The generator of one stream; the same seed gives the same mission."""
+        if stream is Stream.SYSTEM1:
+            return np.random.default_rng(np.random.SeedSequence([self.seed, _SYSTEM1_KEY]))
+        fire, supervisor = np.random.SeedSequence(self.seed).spawn(2)
+        return np.random.default_rng(fire if stream is Stream.FIRE else supervisor)
+
+    @staticmethod
+    def random(rng: np.random.Generator, seed: int, area_size_m: float = 1000.0) -> MissionSpec:
+        """A random configuration: start near one corner, goal near the opposite one."""
+        start = rng.uniform(25.0, 200.0, size=2)
+        gc = rng.uniform(area_size_m - 250.0, area_size_m - 75.0, size=2)
+        return MissionSpec(
+            start=(float(start[0]), float(start[1])),
+            goal=Rect(float(gc[0]), float(gc[1]), 100.0, 100.0),
+            area_size_m=area_size_m,
+            seed=seed,
+        )
