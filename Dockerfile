@@ -1,7 +1,10 @@
 # One image for every dualpilot service (see docker-compose.yml):
-#   docker compose up --build
-# The project and its pinned dependencies (pyproject.toml) on python:3.11-slim.
-FROM python:3.11-slim
+#   docker compose up --build --exit-code-from supervisor
+# The project and its pinned dependencies (pyproject.toml) on python:3.11-slim, or on any
+# BASE_IMAGE with python 3.11, `python` and `pip` on PATH and apt (Debian), e.g. the local
+# debootstrap base of scripts/compose_check.sh where no image registry is reachable.
+ARG BASE_IMAGE=python:3.11-slim
+FROM ${BASE_IMAGE}
 
 ENV PYTHONUNBUFFERED=1 \
     PYTHONDONTWRITEBYTECODE=1 \

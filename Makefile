@@ -8,7 +8,7 @@ SEED ?= 26
 OUT ?= runs/latest
 SPEED ?= 20
 
-.PHONY: setup run mission proto test test-fast lint bench figures clean
+.PHONY: setup run mission proto test test-fast lint bench figures clean compose-check
 
 setup: $(STAMP)
 
@@ -45,6 +45,11 @@ lint: setup
 bench: setup
 	$(BIN)/dualpilot bench system1 --out runs/bench
 	$(BIN)/dualpilot bench system2 --instances 20 --reference-timeout 30 --out runs/bench
+
+# `docker compose up` for real (root; installs docker.io/docker-compose/debootstrap, starts and
+# stops its own dockerd, builds a debootstrap base, flies one mission): scripts/compose_check.sh
+compose-check:
+	scripts/compose_check.sh
 
 clean:
 	rm -rf $(VENV) runs .pytest_cache .mypy_cache .ruff_cache *.egg-info
