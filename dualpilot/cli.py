@@ -143,6 +143,10 @@ def build_parser() -> argparse.ArgumentParser:
         pass
     else:
         add_bench_parser(sub)
+
+    from dualpilot.viz.bound import add_bound_parser  # the supervisor's bound (issue 13.4)
+
+    add_bound_parser(sub)
     return parser
 
 
