@@ -15,46 +15,47 @@ import sys
 
 import numpy as np
 
-from dualpilot.evaluate import mission_config, mission_seed
-from dualpilot.mission.step import Controller, Mission, Timing
-from dualpilot.planners import make_planners
+from dualpilot.evaluate import mission_spec
+from dualpilot.mission.local import LocalFires, local_mission
+from dualpilot.mission.params import Controller, Timing
+from dualpilot.mission.ports import KeepOut
+from dualpilot.model.geometry import Rect
 
 
-class ProbedMission(Mission):
-    """A mission that remembers which front caught the UAV while it hovered."""
+class ProbedFires(LocalFires):
+    """The in-process fires, remembering which front first came within d_safe of the UAV."""
 
     cause: tuple[str, float | None] | None = None
+    position = None
 
-    def _propagate(self, n: int, t: int) -> bool:
-        position = self.state[:2]
-        before = {f.front_id: f.region.polytope().distance(position) for f in self.fires.fronts}
-        for _ in range(n):
-            self.fires.substep(self.fire_rng, t)
-            for front in self.fires.fronts:
-                if front.region.polytope().distance(position) < self.params.d_safe_m:
-                    kind = "older front" if front.front_id in before else "born during the wait"
-                    self.cause = (kind, before.get(front.front_id))
-                    return False
-        return True
+    def advance(self, t: int, n: int, keep_out: KeepOut | None) -> list[tuple[Rect, ...]]:
+        position = self.position
+        before = {f.front_id: f.region.polytope().distance(position) for f in self.field.fronts}
+        out = super().advance(t, n, keep_out)
+        for front in self.field.fronts:
+            if self.cause is None and front.region.polytope().distance(position) < self.d_safe:
+                kind = "older front" if front.front_id in before else "born during the wait"
+                self.cause = (kind, before.get(front.front_id))
+        return out
 
 
 def main(controller: str, n: int) -> None:
     kinds: collections.Counter[str] = collections.Counter()
     distances = []
     for i in range(n):
-        seed, config = mission_seed(0, i), mission_config(0, i)
-        mission = ProbedMission(
-            Controller(controller),
-            make_planners(config, seed),
-            seed=seed,
-            timing=Timing.PAPER,
-            config=config,
-        )
-        result = mission.run()
-        if result.failure_cause == "fire_while_planning" and mission.cause is not None:
-            kinds[mission.cause[0]] += 1
-            if mission.cause[1] is not None:
-                distances.append(mission.cause[1])
+        spec = mission_spec(0, i)
+        mission = local_mission(Controller(controller), spec, timing=Timing.PAPER)
+        probe = ProbedFires(spec)
+        probe.d_safe = spec.d_safe_m
+        mission.fires = probe
+        while not mission.done:
+            probe.position = mission.state[:2].copy()
+            mission.step()
+        result = mission.result
+        if result.failure_cause == "fire_while_planning" and probe.cause is not None:
+            kinds[probe.cause[0]] += 1
+            if probe.cause[1] is not None:
+                distances.append(probe.cause[1])
     print(f"{controller}, {n} missions, caught while planning: {dict(kinds)}")
     if distances:
         print(f"older fronts' distance when the wait began: median {np.median(distances):.1f} m")

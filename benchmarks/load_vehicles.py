@@ -114,12 +114,11 @@ def run_load(n_vehicles: int, out: Path, speed_factor: float = 200.0,
 
 
 def in_process(seed: int) -> Any:
-    from dualpilot.mission.step import Controller, Mission, MissionConfig, Timing
-    from dualpilot.planners import make_planners
+    from dualpilot.mission.local import local_mission
+    from dualpilot.mission.params import Controller, Timing
+    from dualpilot.spec import MissionSpec
 
-    config = MissionConfig()
-    return Mission(Controller.CC, make_planners(config, seed), seed=seed, timing=Timing.PAPER,
-                   config=config).run()
+    return local_mission(Controller.CC, MissionSpec(seed=seed), timing=Timing.PAPER).run()
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -8,22 +8,20 @@ import sys
 import time
 from pathlib import Path
 
-from dualpilot.mission.step import Controller, Mission, MissionConfig, MissionParams, Timing
+from dualpilot.mission.params import Controller, MissionParams, Timing
+from dualpilot.spec import MissionSpec
 
 
 def _mission(args: argparse.Namespace) -> int:
+    from dualpilot.mission.local import local_mission
     from dualpilot.mission.records import write_all
-    from dualpilot.planners import make_planners
 
-    config = MissionConfig()
-    planners = make_planners(config, args.seed, system2_method=args.s2_method)
-    mission = Mission(
+    mission = local_mission(
         Controller(args.controller),
-        planners,
-        seed=args.seed,
+        MissionSpec(seed=args.seed),
         timing=Timing(args.timing),
-        config=config,
         params=MissionParams(ignition_clearance_m=args.ignition_clearance),
+        system2_method=args.s2_method,
     )
     t0 = time.perf_counter()
     for record in iter(mission.step, None):

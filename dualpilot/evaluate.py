@@ -24,7 +24,8 @@ from pathlib import Path
 
 import numpy as np
 
-from dualpilot.mission.step import Controller, Mission, MissionConfig, MissionParams, Timing
+from dualpilot.mission.params import Controller, MissionParams, Timing
+from dualpilot.spec import MissionSpec
 
 CONTROLLERS = ("cc", "s1", "s2")
 COLUMNS = [
@@ -57,8 +58,10 @@ def mission_seed(seed: int, index: int) -> int:
     return int(np.random.SeedSequence([seed, index]).generate_state(1)[0])
 
 
-def mission_config(seed: int, index: int) -> MissionConfig:
-    return MissionConfig.random(np.random.default_rng(mission_seed(seed, index)))
+def mission_spec(seed: int, index: int) -> MissionSpec:
+    """The spec of configuration ``index``: its start, goal and seed."""
+    mseed = mission_seed(seed, index)
+    return MissionSpec.random(np.random.default_rng(mseed), seed=mseed)
 
 
 @dataclass(frozen=True)
@@ -73,13 +76,12 @@ class Task:
 
 def run_task(task: Task) -> dict[str, object]:
     """Fly one mission; never raises (an exception becomes an error row)."""
-    from dualpilot.planners import make_planners
+    from dualpilot.mission.local import local_mission
 
-    mseed = mission_seed(task.seed, task.index)
-    config = mission_config(task.seed, task.index)
+    config = mission_spec(task.seed, task.index)
     row: dict[str, object] = {
         "mission": task.index,
-        "seed": mseed,
+        "seed": config.seed,
         "controller": task.controller,
         "timing": task.timing,
         "start_x": config.start[0],
@@ -90,14 +92,12 @@ def run_task(task: Task) -> dict[str, object]:
     }
     t0 = time.perf_counter()
     try:
-        planners = make_planners(config, mseed, system2_method=task.s2_method)
-        result = Mission(
+        result = local_mission(
             Controller(task.controller),
-            planners,
-            seed=mseed,
+            config,
             timing=Timing(task.timing),
-            config=config,
             params=MissionParams(ignition_clearance_m=task.ignition_clearance_m),
+            system2_method=task.s2_method,
         ).run()
         times = result.planning_time_s["s1"] + result.planning_time_s["s2"]
         row.update(

@@ -39,6 +39,14 @@ class Stream(enum.Enum):
 _SYSTEM1_KEY = 7
 
 
+def stream_rng(seed: int, stream: Stream) -> np.random.Generator:
+    """The generator of one stream of the mission seeded with ``seed``."""
+    if stream is Stream.SYSTEM1:
+        return np.random.default_rng(np.random.SeedSequence([seed, _SYSTEM1_KEY]))
+    fire, supervisor = np.random.SeedSequence(seed).spawn(2)
+    return np.random.default_rng(fire if stream is Stream.FIRE else supervisor)
+
+
 @dataclass(frozen=True)
 class MissionSpec:
     """Where a mission flies and with what margins; frozen, shared by every part.
@@ -74,10 +82,7 @@ class MissionSpec:
 
     def rng(self, stream: Stream) -> np.random.Generator:
         """The generator of one stream; the same seed gives the same mission."""
-        if stream is Stream.SYSTEM1:
-            return np.random.default_rng(np.random.SeedSequence([self.seed, _SYSTEM1_KEY]))
-        fire, supervisor = np.random.SeedSequence(self.seed).spawn(2)
-        return np.random.default_rng(fire if stream is Stream.FIRE else supervisor)
+        return stream_rng(self.seed, stream)
 
     @staticmethod
     def random(rng: np.random.Generator, seed: int, area_size_m: float = 1000.0) -> MissionSpec:

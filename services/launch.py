@@ -272,6 +272,7 @@ class StackConfig:
     timing: str = "paper"
     s2_method: str = "fast"
     max_steps: int = 150
+    ignition_clearance_m: float | None = None  # MissionParams.ignition_clearance_m
     uav_id: str = "uav1"
     waypoints: str = ""
     free_ports: bool = False
@@ -305,6 +306,8 @@ class Stack:
             "MAX_STEPS": str(c.max_steps), "RUN_DIR": str(c.run_dir),
             "MISSION_ID": c.mission_id or c.run_dir.name, "EXIT_AFTER_MISSION": "0",
             "OPERATOR_WAYPOINTS": c.waypoints, "LOG_FORMAT": c.log_format,
+            "IGNITION_CLEARANCE_M": ("" if c.ignition_clearance_m is None
+                                     else repr(c.ignition_clearance_m)),
             "TLOG_PATH": str(c.run_dir / "vehicle.tlog"),
             "LOG_LEVEL": c.log_level, "PYTHONUNBUFFERED": "1",
         }
@@ -610,6 +613,9 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--timing", choices=["paper", "measured"], default="paper")
     p.add_argument("--s2-method", default="fast", help="System 2 method (fast, exact, ...)")
     p.add_argument("--max-steps", type=int, default=150)
+    p.add_argument("--ignition-clearance", type=float, default=None,
+                   help="no front ignites within this distance (m) of the UAV (as dualpilot "
+                        "mission --ignition-clearance)")
     p.add_argument("--waypoints", default="", help="System 1 operator waypoints 'e1,n1;e2,n2'")
     p.add_argument("--out", default="",
                    help="run directory (default runs/<time>-<controller>-s<seed>)")
@@ -626,6 +632,7 @@ def main(argv: list[str] | None = None) -> int:
     cfg = StackConfig(run_dir=run_dir.resolve(), seed=args.seed, speed_factor=args.speed_factor,
                       controller=args.controller, timing=args.timing, s2_method=args.s2_method,
                       max_steps=args.max_steps, waypoints=args.waypoints,
+                      ignition_clearance_m=args.ignition_clearance,
                       free_ports=args.free_ports, log_format=args.log_format,
                       mission_id=re.sub(r"[^A-Za-z0-9_\-]", "-", run_dir.name)[:64])
     t0 = time.perf_counter()

@@ -22,11 +22,12 @@ from typing import Any
 
 import numpy as np
 
-from dualpilot.mission.step import MissionConfig, MissionResult, StepRecord
+from dualpilot.mission.result import MissionResult, StepRecord
 from dualpilot.model.dynamics import Array
 from dualpilot.model.fire import FireSnapshot
 from dualpilot.model.geometry import Polytope, Rect
 from dualpilot.plan import Objective
+from dualpilot.spec import MissionSpec
 from dualpilot.supervisor.decision import Decision
 
 STEP_COLUMNS = [
@@ -97,7 +98,7 @@ def write_steps_csv(result: MissionResult, out: Path) -> Path:
 
 
 def write_trace(result: MissionResult, out: Path) -> Path:
-    cfg = result.config
+    cfg = result.spec
     steps = []
     for r in result.records:
         steps.append(
@@ -198,7 +199,7 @@ def record_from_json(doc: dict[str, Any]) -> StepRecord:
         decision=decision, system=int(doc["system"]), plan_status=str(doc["plan_status"]),
         planning_time_s=float(doc["planning_time_s"]), fire_substeps=int(doc["fire_substeps"]),
         d_t=float(doc["d_t"]), fires_active=int(doc["fires_active"]),
-        planned_positions=plan if plan.size else np.empty((0, 4)), snapshot=snapshot,
+        planned_positions=plan if plan.size else np.empty((0, 2)), snapshot=snapshot,
         info=dict(doc.get("info", {})))
 
 
@@ -299,11 +300,12 @@ def result_from_log(entries: list[dict[str, Any]], dt_s: float = 1.0) -> Mission
     if head is None:
         raise ValueError("the record has no 'mission' line")
     g = head["goal"]
-    config = MissionConfig(start=(float(head["start"][0]), float(head["start"][1])),
-                           goal=Rect(*(float(v) for v in g)),
-                           area_size_m=float(head["area_size_m"]))
-    result = MissionResult(controller=str(head["controller"]), seed=int(head["seed"]),
-                           timing=str(head["timing"]), config=config)
+    spec = MissionSpec(start=(float(head["start"][0]), float(head["start"][1])),
+                       goal=Rect(*(float(v) for v in g)), area_size_m=float(head["area_size_m"]),
+                       seed=int(head["seed"]),
+                       **{k: float(head[k]) for k in ("d_safe_m", "clearance_m") if k in head})
+    result = MissionResult(controller=str(head["controller"]), timing=str(head["timing"]),
+                           spec=spec)
     steps = [e for e in entries if e.get("kind") == "step"]
     end = next((e for e in reversed(entries) if e.get("kind") == "end"), None)
     caught = end is not None and end.get("failure_cause") == "fire_while_planning"

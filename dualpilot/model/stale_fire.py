@@ -29,11 +29,11 @@ no margin covers them (they are uniform over the area).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
-from dualpilot.model.fire import FireParams
+from dualpilot.model.fire import FireParams, FireSnapshot
 from dualpilot.model.geometry import Polytope
 
 
@@ -71,3 +71,14 @@ def grow_polygon(poly: Polytope, margin_m: float) -> Polytope:
     v = np.asarray(poly.vertices, dtype=float)
     shifts = np.array([[-1, -1], [1, -1], [1, 1], [-1, 1]], dtype=float) * margin_m
     return Polytope.from_vertices((v[:, None, :] + shifts[None, :, :]).reshape(-1, 2))
+
+
+def grown_snapshot(snapshot: FireSnapshot, margin_m: float) -> FireSnapshot:
+    """``snapshot`` with every region and hull grown by ``margin_m`` on every side (m)."""
+    if margin_m <= 0:
+        return snapshot
+    return replace(
+        snapshot,
+        regions=tuple(replace(r, width=r.width + 2 * margin_m, height=r.height + 2 * margin_m)
+                      for r in snapshot.regions),
+        hulls=tuple(grow_polygon(h, margin_m) for h in snapshot.hulls))

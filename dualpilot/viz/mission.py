@@ -235,10 +235,8 @@ def _time_axis(ax: Axes, t: Array) -> None:
 
 
 def _plan_array(step: dict[str, Any]) -> Array:
-    plan = np.asarray(step.get("plan", []), dtype=float)
-    if plan.size == 0:
-        return np.empty((0, 2))
-    return plan.reshape(len(plan), -1)[:, :2]
+    """The step's planned positions, (T+1, 2) m ((0, 2) when no plan was flown)."""
+    return np.asarray(step.get("plan", []), dtype=float).reshape(-1, 2)
 
 
 # -- Fig. r1 (a)-(f) ---------------------------------------------------------------------------

@@ -32,10 +32,11 @@ from typing import Any, TypeVar, cast
 import numpy as np
 from google.protobuf.message import DecodeError, Message
 
-from dualpilot.model.dynamics import Array
+from dualpilot.model.dynamics import Array, DynamicsParams
 from dualpilot.model.fire import FireFront, FireSnapshot
 from dualpilot.model.geometry import Polytope, Rect
 from dualpilot.plan import Objective, Plan, PlanStatus
+from dualpilot.spec import MissionSpec
 from dualpilot.supervisor.decision import Decision
 from services.msgs import (
     common_pb2,
@@ -511,21 +512,34 @@ class FireCommand:
     mission_id: str
     kind: str  # "reset" or "advance"
     seed: int = 0
+    area_size_m: float = 0.0  # reset: the mission's area (0: the EWS's default)
     step: int = 0
     substeps: int = 0
     anchor: Anchor | None = None
+    keep_out: tuple[Array, float] | None = None  # advance: (position, ignition clearance m)
 
 
 def fire_command_from_msg(m: fire_pb2.FireCommand) -> FireCommand:
     mission_id = _text(m.mission_id, "mission_id", 256)
     kind = m.WhichOneof("command")
     if kind == "reset":
-        return FireCommand(mission_id, "reset", seed=int(m.reset.seed))
+        area = _check_floats([m.reset.area_size_m], "area_size_m", MAX_ABS_M)[0]
+        if area < 0:
+            raise invalid(f"area_size_m must be >= 0, got {area}", Reason.OUT_OF_RANGE)
+        return FireCommand(mission_id, "reset", seed=int(m.reset.seed), area_size_m=area)
     if kind == "advance":
         a = m.advance
         _count(a.substeps, "substeps", MAX_SUBSTEPS)
+        clear = _check_floats([a.keep_out_m], "keep_out_m", MAX_ABS_M)[0]
+        if clear < 0:
+            raise invalid(f"keep_out_m must be >= 0, got {clear}", Reason.OUT_OF_RANGE)
+        keep_out = None
+        if clear > 0:
+            keep_out = (_finite((a.keep_out.east_m, a.keep_out.north_m), "keep_out",
+                                MAX_ABS_M), clear)
         return FireCommand(mission_id, "advance", step=int(a.step), substeps=int(a.substeps),
-                           anchor=clock_from_msg(a.clock) if a.HasField("clock") else None)
+                           anchor=clock_from_msg(a.clock) if a.HasField("clock") else None,
+                           keep_out=keep_out)
     raise invalid("FireCommand carries neither reset nor advance")
 
 
@@ -563,97 +577,116 @@ def status_from_msg(v: plan_pb2.PlanStatus) -> PlanStatus:
     return PlanStatus[name.removeprefix("PLAN_STATUS_")]
 
 
-@dataclass(frozen=True)
-class MissionSpec:
-    mission_id: str
-    seed: int
-    goal: Rect
-    area_size_m: float
-    waypoints: Array | None  # (k, 2) or None
+def spec_to_msg(mission_id: str, spec: MissionSpec, out: plan_pb2.MissionSpec) -> None:
+    """The core's frozen mission spec as a message (sent once, when a mission is prepared)."""
+    out.mission_id, out.seed, out.area_size_m = mission_id, spec.seed, spec.area_size_m
+    rect_to_msg(spec.goal, out.goal)
+    out.start.east_m, out.start.north_m = spec.start
+    out.d_safe_m, out.clearance_m = spec.d_safe_m, spec.clearance_m
+    d = spec.dynamics
+    out.dynamics.dt_s, out.dynamics.zeta, out.dynamics.mass_kg = d.dt_s, d.zeta, d.mass_kg
+    out.dynamics.u_max_n, out.dynamics.v_max_mps = d.u_max_n, d.v_max_mps
+
+
+def spec_from_msg(m: plan_pb2.MissionSpec) -> tuple[str, MissionSpec]:
+    """(mission id, spec) of a MissionSpec message; every field checked."""
+    mission_id = _text(m.mission_id, "mission_id", 256)
+    if not mission_id:
+        raise invalid("mission spec without a mission_id")
+    for sub in ("goal", "start", "dynamics"):
+        if not m.HasField(sub):
+            raise invalid(f"mission spec without {sub}")
+    area, d_safe, clear = _check_floats([m.area_size_m, m.d_safe_m, m.clearance_m],
+                                        "area/d_safe/clearance", MAX_ABS_M)
+    d = m.dynamics
+    dyn = _check_floats([d.dt_s, d.zeta, d.mass_kg, d.u_max_n, d.v_max_mps], "dynamics",
+                        MAX_FORCE_N)
+    start = _finite((m.start.east_m, m.start.north_m), "start", MAX_ABS_M)
+    try:
+        spec = MissionSpec(start=(float(start[0]), float(start[1])),
+                           goal=rect_from_msg(m.goal, "goal"), area_size_m=area, d_safe_m=d_safe,
+                           clearance_m=clear, seed=int(m.seed),
+                           dynamics=DynamicsParams(dt_s=dyn[0], zeta=dyn[1], mass_kg=dyn[2],
+                                                   u_max_n=dyn[3], v_max_mps=dyn[4]))
+    except ValueError as err:
+        raise invalid(f"mission spec: {err}", Reason.OUT_OF_RANGE) from err
+    return mission_id, spec
 
 
 @dataclass(frozen=True)
 class PlanRequest:
-    """A validated plan request in core types."""
+    """A validated plan request in core types; ``spec`` only with ``prepare``."""
 
     seq: int
-    mission: MissionSpec
+    mission_id: str
     step: int
     system: int
     objective: Objective
     state: Array
     prev_control: Array
-    fires: FireSnapshot
+    obstacles: tuple[Polytope, ...]
     deadline_s: float
+    waypoints_revision: int = 0
     prepare: bool = False
+    spec: MissionSpec | None = None
 
 
-def plan_request_msg(
-    req: PlanRequest, fires: fire_pb2.FireState, stamper: Stamper, sim_time_s: float,
-) -> plan_pb2.PlanRequest:
-    """Build a PlanRequest; ``fires`` is the FireState the snapshot came from (sent as is)."""
-    m = plan_pb2.PlanRequest(step=req.step, system=req.system,
+def plan_request_msg(req: PlanRequest, stamper: Stamper, sim_time_s: float,
+                     ) -> plan_pb2.PlanRequest:
+    """Build a PlanRequest message (the spec goes only with ``prepare``)."""
+    m = plan_pb2.PlanRequest(step=req.step, system=req.system, mission_id=req.mission_id,
                              objective=objective_to_msg(req.objective), deadline_s=req.deadline_s,
-                             prepare=req.prepare)
+                             prepare=req.prepare, waypoints_revision=req.waypoints_revision)
     stamper.stamp(m.header, sim_time_s)
-    ms = m.mission
-    ms.mission_id, ms.seed, ms.area_size_m = req.mission.mission_id, req.mission.seed, \
-        req.mission.area_size_m
-    rect_to_msg(req.mission.goal, ms.goal)
-    if req.mission.waypoints is not None:
-        points_to_msg(req.mission.waypoints, ms.operator_waypoints)
+    if req.spec is not None:
+        spec_to_msg(req.mission_id, req.spec, m.mission)
     stamper.stamp(m.state.header, sim_time_s)
     state_to_msg(req.state, req.step, m.state)
     m.prev_control.east_n, m.prev_control.north_n = (float(v) for v in req.prev_control)
-    m.fires.CopyFrom(fires)
+    for poly in req.obstacles:
+        polygon_to_msg(poly, m.obstacles.add())
     return m
 
 
 def plan_request_from_msg(m: plan_pb2.PlanRequest) -> PlanRequest:
-    """A PlanRequest in core types.
-
-    Besides the field checks, everything must lie near the mission's area
-    [0, A]²: the goal inside it, the state, waypoints and fire geometry
-    within ``AREA_MARGIN``·A of it (anything farther is not this mission's).
-    """
+    """A PlanRequest in core types (field checks; :func:`check_in_area` once the spec is known)."""
     if m.system not in (1, 2):
         raise invalid(f"system must be 1 or 2, got {m.system}", Reason.OUT_OF_RANGE)
-    for sub in ("mission", "state", "fires"):
-        if not m.HasField(sub):
-            raise invalid(f"plan request without {sub}")
-    ms = m.mission
-    area = _check_floats([ms.area_size_m], "area_size_m", MAX_ABS_M)[0]
-    if area <= 0:
-        raise invalid(f"area_size_m must be in (0, {MAX_ABS_M:g}], got {area}",
-                      Reason.OUT_OF_RANGE)
-    goal = rect_from_msg(ms.goal, "goal")
-    if not goal.inside(Rect(area / 2, area / 2, area, area)):
-        raise invalid(f"goal {goal} lies outside the {area:g} m area", Reason.OUT_OF_RANGE)
-    lo, hi = -AREA_MARGIN * area, (1 + AREA_MARGIN) * area
-    wps = points_from_msg(ms.operator_waypoints, "operator waypoints", MAX_WAYPOINTS)
-    _in_box(wps, lo, hi, "an operator waypoint")
+    if not m.HasField("state"):
+        raise invalid("plan request without state")
+    if m.prepare and not m.HasField("mission"):
+        raise invalid("a prepare request must carry the mission spec")
+    mission_id, spec = spec_from_msg(m.mission) if m.HasField("mission") else (
+        _text(m.mission_id, "mission_id", 256), None)
+    if m.mission_id and m.mission_id != mission_id:
+        raise invalid(f"mission_id {m.mission_id!r} differs from the spec's {mission_id!r}")
+    if not mission_id:
+        raise invalid("plan request without a mission_id")
     _check_floats([m.deadline_s], "deadline_s", 3600)
     if m.deadline_s <= 0:
         raise invalid(f"deadline_s must be in (0, 3600], got {m.deadline_s}", Reason.OUT_OF_RANGE)
     check_header(m.state.header)
-    check_header(m.fires.header)
     objective = objective_from_msg(m.objective)
     assert objective is not None
-    state = state_from_msg(m.state)
-    _in_box(state[None, :2], lo, hi, "the vehicle state")
-    fires = snapshot_from_msg(m.fires)
-    for i, h in enumerate(fires.hulls):
-        _in_box(h.vertices, lo, hi, f"fire hull {i}")
-    for i, r in enumerate(fires.regions):
-        _in_box(r.corners(), lo, hi, f"fire region {i}")
+    _count(len(m.obstacles), "obstacles", MAX_FRONTS * 2)
+    obstacles = tuple(polygon_from_msg(p, f"obstacle {i}") for i, p in enumerate(m.obstacles))
     return PlanRequest(
-        seq=int(m.header.seq),
-        mission=MissionSpec(_text(ms.mission_id, "mission_id", 256), int(ms.seed), goal, area,
-                            wps if len(wps) else None),
-        step=int(m.step), system=int(m.system), objective=objective,
-        state=state, prev_control=force_from_msg(m.prev_control, "prev_control"),
-        fires=fires, deadline_s=float(m.deadline_s), prepare=m.prepare,
+        seq=int(m.header.seq), mission_id=mission_id, step=int(m.step), system=int(m.system),
+        objective=objective, state=state_from_msg(m.state),
+        prev_control=force_from_msg(m.prev_control, "prev_control"), obstacles=obstacles,
+        deadline_s=float(m.deadline_s), waypoints_revision=int(m.waypoints_revision),
+        prepare=m.prepare, spec=spec,
     )
+
+
+def check_in_area(req: PlanRequest, spec: MissionSpec) -> None:
+    """Everything in a request lies near the mission's area [0, A]²: the state and the
+    obstacles within ``AREA_MARGIN``·A of it (anything farther is not this mission's)."""
+    area = spec.area_size_m
+    lo, hi = -AREA_MARGIN * area, (1 + AREA_MARGIN) * area
+    _in_box(req.state[None, :2], lo, hi, "the vehicle state")
+    for i, h in enumerate(req.obstacles):
+        _in_box(h.vertices, lo, hi, f"obstacle {i}")
 
 
 def _json_default(v: Any) -> Any:
@@ -760,17 +793,27 @@ def decision_from_msg(m: supervisor_pb2.Decision) -> Decision:
                     psi=psi, system=int(m.system), objective=objective)
 
 
-def waypoints_msg(points: Array | None, stamper: Stamper) -> vehicle_pb2.OperatorWaypoints:
-    m = vehicle_pb2.OperatorWaypoints()
+@dataclass(frozen=True)
+class Waypoints:
+    """Operator waypoints of one mission, at a revision (1, 2, …; 0: none sent)."""
+
+    mission_id: str
+    revision: int
+    points: Array | None  # (k, 2) or None (cleared)
+
+
+def waypoints_msg(w: Waypoints, stamper: Stamper) -> vehicle_pb2.OperatorWaypoints:
+    m = vehicle_pb2.OperatorWaypoints(mission_id=w.mission_id, revision=w.revision)
     stamper.stamp(m.header)
-    if points is not None:
-        points_to_msg(points, m.waypoints)
+    if w.points is not None:
+        points_to_msg(w.points, m.waypoints)
     return m
 
 
-def waypoints_from_msg(m: vehicle_pb2.OperatorWaypoints) -> Array | None:
+def waypoints_from_msg(m: vehicle_pb2.OperatorWaypoints) -> Waypoints:
     pts = points_from_msg(m.waypoints, "operator waypoints", MAX_WAYPOINTS)
-    return pts if len(pts) else None
+    return Waypoints(_text(m.mission_id, "mission_id", 256), int(m.revision),
+                     pts if len(pts) else None)
 
 
 def parse_waypoints(text: str) -> Array | None:

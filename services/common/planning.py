@@ -1,16 +1,20 @@
 """The planner services' shared loop: a Zenoh queryable around a core :class:`Planner`.
 
-A PlanRequest carries everything the plan depends on — the mission (id, seed,
-goal, initial operator waypoints), the vehicle state the supervisor read over
-MAVLink, the EWS fire state it decided on, the objective and u_{t|t} — so a
-planner answers for exactly the state and fires of that step, with no race
-between subscriptions. The service keeps one planner per mission (System 1
-reuses its RRT path between steps; System 2 builds its cvxpy problem once),
-seeded from the mission's seed as :mod:`dualpilot.planners` does in-process.
+A mission is prepared once: the prepare request carries its frozen spec
+(dualpilot.spec.MissionSpec) and the service builds the mission's planner
+from it (System 1 reuses its RRT path between steps; System 2 builds its
+problem once), seeded from the spec as in-process. A plan request then names
+the mission and carries only what changes per step: the vehicle state, the
+obstacles the step chose (one per front), the objective, u_{t|t} and the
+operator-waypoint revision it needs. Operator waypoints travel on their own key
+(``operator/waypoints``) with a revision number.
 
 Replies: a Plan (any status, with the planner's compute time) for a valid
 request — a planner's ValueError becomes INVALID_INPUT, as in the in-process
-loop; an Error reply for a malformed or invalid request, or a crash.
+loop; an Error reply for a malformed or invalid request, or a crash; an
+UNPREPARED Error for a mission the service was not prepared for (it was
+restarted) or a waypoint revision it has not received, so the supervisor
+prepares again or re-sends the waypoints.
 """
 
 from __future__ import annotations
@@ -19,11 +23,12 @@ import logging
 import time
 from collections import OrderedDict
 from collections.abc import Callable
+from dataclasses import dataclass
 
-import numpy as np
 import zenoh
 
 from dualpilot.plan import Plan, Planner, PlanStatus
+from dualpilot.spec import MissionSpec
 from services.msgs import common_pb2, plan_pb2, vehicle_pb2
 
 from . import bus, codec, keys
@@ -31,13 +36,14 @@ from .log import fields
 
 log = logging.getLogger(__name__)
 
-PlannerMaker = Callable[[codec.MissionSpec], Planner]
+PlannerMaker = Callable[[MissionSpec], Planner]
 
 
-def _same(a: codec.Array | None, b: codec.Array | None) -> bool:
-    if a is None or b is None:
-        return a is None and b is None
-    return a.shape == b.shape and bool(np.array_equal(a, b))
+@dataclass
+class _Prepared:
+    spec: MissionSpec
+    planner: Planner
+    waypoints_revision: int = 0  # the revision applied to the planner
 
 
 class PlannerService:
@@ -48,53 +54,62 @@ class PlannerService:
         self.make = make
         self.stamper = codec.Stamper(f"system{system}", uav)
         self.key = keys.plan(uav, system)  # where its rejections are counted
-        self.planners: OrderedDict[str, Planner] = OrderedDict()
+        self.missions: OrderedDict[str, _Prepared] = OrderedDict()
         self.keep = keep_missions
-        self.waypoints: codec.Array | None = None
-        self.waypoints_changed = False
-        self.requested: dict[str, codec.Array | None] = {}  # last requests' waypoints
+        self.waypoints: OrderedDict[str, codec.Waypoints] = OrderedDict()  # newest per mission
 
-    def planner_for(self, mission: codec.MissionSpec) -> Planner:
-        """The mission's planner (made on its first request), with operator waypoints applied
-        whenever they change: the requests' (each carries the supervisor's current ones; a
-        new planner, e.g. after a restart of this service, gets them at once) and, between
-        two requests, an update on ``operator/waypoints`` (kept until the requests' change)."""
-        mid = mission.mission_id
-        planner = self.planners.get(mid)
-        fresh = planner is None
-        if planner is None:
-            planner = self.make(mission)
-            self.planners[mid] = planner
-            while len(self.planners) > self.keep:
-                old, _ = self.planners.popitem(last=False)
-                self.requested.pop(old, None)
-            log.info("planner ready", extra=fields(mission=mid, seed=mission.seed))
-        if not hasattr(planner, "set_waypoints"):
-            return planner
-        if fresh or not _same(mission.waypoints, self.requested.get(mid)):
-            self.requested[mid] = None if mission.waypoints is None else mission.waypoints.copy()
-            if mission.waypoints is not None or not fresh:
-                planner.set_waypoints(mission.waypoints)
-        if self.waypoints_changed:  # an operator update on operator/waypoints
-            planner.set_waypoints(self.waypoints)
-            self.waypoints_changed = False
-        return planner
+    def prepare(self, mission_id: str, spec: MissionSpec) -> _Prepared:
+        """The mission's planner, built from its spec (again only if the spec changed)."""
+        held = self.missions.get(mission_id)
+        if held is not None and held.spec == spec:
+            return held
+        held = _Prepared(spec, self.make(spec))
+        self.missions[mission_id] = held
+        while len(self.missions) > self.keep:
+            self.missions.popitem(last=False)
+        log.info("planner ready", extra=fields(mission=mission_id, seed=spec.seed))
+        return held
 
-    def set_operator_waypoints(self, wps: codec.Array | None) -> None:
-        """Operator update: applied to the current mission's planner at its next plan."""
-        self.waypoints = wps
-        self.waypoints_changed = True
+    def set_operator_waypoints(self, w: codec.Waypoints) -> None:
+        """Keep the newest revision of a mission's waypoints (applied at its next plan)."""
+        held = self.waypoints.get(w.mission_id)
+        if held is None or w.revision > held.revision:
+            self.waypoints[w.mission_id] = w
+            while len(self.waypoints) > self.keep:
+                self.waypoints.popitem(last=False)
+
+    @staticmethod
+    def _unprepared(message: str) -> codec.CodecError:
+        return codec.CodecError(common_pb2.ERROR_CODE_UNPREPARED, message)
+
+    def planner_for(self, req: codec.PlanRequest) -> Planner:
+        """The prepared planner, with the request's waypoint revision applied."""
+        held = self.missions.get(req.mission_id)
+        if held is None:
+            raise self._unprepared(f"mission {req.mission_id!r} is not prepared here")
+        codec.check_in_area(req, held.spec)
+        if req.waypoints_revision != held.waypoints_revision:
+            w = self.waypoints.get(req.mission_id)
+            if w is None or w.revision < req.waypoints_revision:
+                have = 0 if w is None else w.revision
+                raise self._unprepared(f"operator waypoints revision {req.waypoints_revision} "
+                                       f"not received (have {have})")
+            if not hasattr(held.planner, "set_waypoints"):
+                raise codec.invalid(f"system {self.system} takes no operator waypoints")
+            try:
+                held.planner.set_waypoints(w.points)
+            except ValueError as err:
+                raise codec.invalid(f"operator waypoints: {err}") from err
+            held.waypoints_revision = w.revision
+        return held.planner
 
     def plan(self, req: codec.PlanRequest) -> Plan:
         if req.system != self.system:
             raise codec.invalid(f"request for system {req.system} sent to system {self.system}")
-        try:
-            planner = self.planner_for(req.mission)
-        except ValueError as err:
-            raise codec.invalid(f"cannot plan for this mission: {err}") from err
+        planner = self.planner_for(req)
         t0 = time.perf_counter()
         try:
-            plan = planner.plan(req.state, req.fires.hulls, req.objective, req.prev_control)
+            plan = planner.plan(req.state, req.obstacles, req.objective, req.prev_control)
         except ValueError as err:  # bad input to the planner: not flyable, not fatal
             plan = Plan.failed(self.system, PlanStatus.INVALID_INPUT, time.perf_counter() - t0,
                                str(err))
@@ -109,8 +124,9 @@ class PlannerService:
             codec.rejected("PlanRequest", err, log, key=self.key)
             return codec.error_msg(self.stamper, err.code, str(err))
         if req.prepare:
+            assert req.spec is not None
             try:
-                self.planner_for(req.mission)
+                self.prepare(req.mission_id, req.spec)
             except ValueError as err:
                 codec.rejected("PlanRequest", err, log, key=self.key)
                 return codec.error_msg(self.stamper, common_pb2.ERROR_CODE_INVALID, str(err))
@@ -123,7 +139,10 @@ class PlannerService:
         try:
             plan = self.plan(req)
         except codec.CodecError as err:
-            codec.rejected("PlanRequest", err, log, key=self.key)
+            if err.code != common_pb2.ERROR_CODE_UNPREPARED:
+                codec.rejected("PlanRequest", err, log, key=self.key)
+            else:
+                log.info("plan request for what is not here", extra=fields(error=str(err)))
             return codec.error_msg(self.stamper, err.code, str(err))
         except Exception as err:  # a planner bug must not take the service down
             log.exception("planner failed", extra=fields(step=req.step))
@@ -157,7 +176,8 @@ def run(ctx: bus.Context, system: int, make: PlannerMaker) -> None:
             try:
                 msg = codec.parse(wp.payload, vehicle_pb2.OperatorWaypoints, wp.encoding)
                 service.set_operator_waypoints(codec.waypoints_from_msg(msg))
-                log.info("operator waypoints", extra=fields(n=len(msg.waypoints)))
+                log.info("operator waypoints", extra=fields(
+                    mission=msg.mission_id, revision=msg.revision, n=len(msg.waypoints)))
             except codec.CodecError as err:
                 codec.rejected("OperatorWaypoints", err, log, key=keys.waypoints(uav))
         if item is None or item.query is None:

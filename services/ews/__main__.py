@@ -1,9 +1,10 @@
 """EWS service: the fire process of Sec. II-B behind a Zenoh command queryable.
 
 * ``<ns>/ews/command`` (queryable, FireCommand → FireUpdate): ``reset`` starts
-  a mission's fire process from its seed (the fire stream of
-  ``SeedSequence(seed).spawn(2)[0]``, as the in-process mission); ``advance``
-  propagates n sub-steps for mission step t. Sub-step k is published on
+  a mission's fire process from its seed and area (the spec's fire stream, as
+  the in-process mission); ``advance`` propagates n sub-steps for mission step
+  t, no front igniting within the command's keep-out radius of the UAV.
+  Sub-step k is published on
   ``<ns>/ews/fires`` when the stack's clock (carried in the command) reaches
   ``τ_t + k·T_f``: the fires propagate while the plan is computed (see
   services/common/clock.py). The reply carries every sub-step's state.
@@ -31,6 +32,7 @@ import numpy as np
 import zenoh
 
 from dualpilot.model.fire import FireField, FireParams
+from dualpilot.spec import Stream, stream_rng
 from services.common import bus, codec, fleet, keys
 from services.common import cli as common_cli
 from services.common.log import fields
@@ -72,8 +74,9 @@ class Ews:
     def handle(self, cmd: codec.FireCommand) -> fire_pb2.FireUpdate:
         update = fire_pb2.FireUpdate()
         if cmd.kind == "reset":
-            self.field = FireField(params=self.params)
-            self.rng = np.random.default_rng(np.random.SeedSequence(cmd.seed).spawn(2)[0])
+            area = {"area_size_m": cmd.area_size_m} if cmd.area_size_m > 0 else {}
+            self.field = FireField(params=self.params, **area)
+            self.rng = stream_rng(cmd.seed, Stream.FIRE)
             self.mission_id, self.step, self.sim_time_s = cmd.mission_id, 0, 0.0
             state = self.state_msg()
             bus.put(self.fires_pub, "", state)
@@ -96,7 +99,7 @@ class Ews:
             self.step = cmd.step
             waited = 0.0
             for k in range(1, cmd.substeps + 1):
-                self.field.substep(self.rng, cmd.step)
+                self.field.substep(self.rng, cmd.step, keep_out=cmd.keep_out)
                 self.sim_time_s = t0 + k * self.params.substep_s
                 if anchor is not None:
                     waited += anchor.sleep_until(self.sim_time_s, self.stop)

@@ -64,20 +64,26 @@ class FrontForecast(_message.Message):
     def __init__(self, front_id: _Optional[int] = ..., regions: _Optional[_Iterable[_Union[_common_pb2.Rect, _Mapping]]] = ..., envelope: _Optional[_Union[_common_pb2.Polygon, _Mapping]] = ...) -> None: ...
 
 class FireReset(_message.Message):
-    __slots__ = ("seed",)
+    __slots__ = ("seed", "area_size_m")
     SEED_FIELD_NUMBER: _ClassVar[int]
+    AREA_SIZE_M_FIELD_NUMBER: _ClassVar[int]
     seed: int
-    def __init__(self, seed: _Optional[int] = ...) -> None: ...
+    area_size_m: float
+    def __init__(self, seed: _Optional[int] = ..., area_size_m: _Optional[float] = ...) -> None: ...
 
 class FireAdvance(_message.Message):
-    __slots__ = ("step", "substeps", "clock")
+    __slots__ = ("step", "substeps", "clock", "keep_out", "keep_out_m")
     STEP_FIELD_NUMBER: _ClassVar[int]
     SUBSTEPS_FIELD_NUMBER: _ClassVar[int]
     CLOCK_FIELD_NUMBER: _ClassVar[int]
+    KEEP_OUT_FIELD_NUMBER: _ClassVar[int]
+    KEEP_OUT_M_FIELD_NUMBER: _ClassVar[int]
     step: int
     substeps: int
     clock: _common_pb2.Clock
-    def __init__(self, step: _Optional[int] = ..., substeps: _Optional[int] = ..., clock: _Optional[_Union[_common_pb2.Clock, _Mapping]] = ...) -> None: ...
+    keep_out: _common_pb2.Vec2
+    keep_out_m: float
+    def __init__(self, step: _Optional[int] = ..., substeps: _Optional[int] = ..., clock: _Optional[_Union[_common_pb2.Clock, _Mapping]] = ..., keep_out: _Optional[_Union[_common_pb2.Vec2, _Mapping]] = ..., keep_out_m: _Optional[float] = ...) -> None: ...
 
 class FireCommand(_message.Message):
     __slots__ = ("header", "mission_id", "reset", "advance")

@@ -23,25 +23,26 @@ _sym_db = _symbol_database.Default()
 
 
 from services.msgs import common_pb2 as dualpilot_dot_v1_dot_common__pb2
-from services.msgs import fire_pb2 as dualpilot_dot_v1_dot_fire__pb2
 from services.msgs import vehicle_pb2 as dualpilot_dot_v1_dot_vehicle__pb2
 
 
-DESCRIPTOR = _descriptor_pool.Default().AddSerializedFile(b'\n\x17\x64ualpilot/v1/plan.proto\x12\x0c\x64ualpilot.v1\x1a\x19\x64ualpilot/v1/common.proto\x1a\x17\x64ualpilot/v1/fire.proto\x1a\x1a\x64ualpilot/v1/vehicle.proto\"\x96\x01\n\x0bMissionSpec\x12\x12\n\nmission_id\x18\x01 \x01(\t\x12\x0c\n\x04seed\x18\x02 \x01(\x04\x12 \n\x04goal\x18\x03 \x01(\x0b\x32\x12.dualpilot.v1.Rect\x12\x13\n\x0b\x61rea_size_m\x18\x04 \x01(\x01\x12.\n\x12operator_waypoints\x18\x05 \x03(\x0b\x32\x12.dualpilot.v1.Vec2\"\xcd\x02\n\x0bPlanRequest\x12$\n\x06header\x18\x01 \x01(\x0b\x32\x14.dualpilot.v1.Header\x12*\n\x07mission\x18\x02 \x01(\x0b\x32\x19.dualpilot.v1.MissionSpec\x12\x0c\n\x04step\x18\x03 \x01(\r\x12\x0e\n\x06system\x18\x04 \x01(\r\x12*\n\tobjective\x18\x05 \x01(\x0e\x32\x17.dualpilot.v1.Objective\x12)\n\x05state\x18\x06 \x01(\x0b\x32\x1a.dualpilot.v1.VehicleState\x12*\n\x0cprev_control\x18\x07 \x01(\x0b\x32\x14.dualpilot.v1.Force2\x12&\n\x05\x66ires\x18\x08 \x01(\x0b\x32\x17.dualpilot.v1.FireState\x12\x12\n\ndeadline_s\x18\t \x01(\x01\x12\x0f\n\x07prepare\x18\n \x01(\x08\"\xd7\x02\n\x04Plan\x12$\n\x06header\x18\x01 \x01(\x0b\x32\x14.dualpilot.v1.Header\x12\x0c\n\x04step\x18\x02 \x01(\r\x12\x0e\n\x06system\x18\x03 \x01(\r\x12(\n\x06status\x18\x04 \x01(\x0e\x32\x18.dualpilot.v1.PlanStatus\x12\x0e\n\x06states\x18\x05 \x03(\x01\x12\x10\n\x08\x63ontrols\x18\x06 \x03(\x01\x12\x16\n\x0e\x63ompute_time_s\x18\x07 \x01(\x01\x12*\n\tobjective\x18\x08 \x01(\x0e\x32\x17.dualpilot.v1.Objective\x12\x11\n\x04\x63ost\x18\t \x01(\x01H\x00\x88\x01\x01\x12\x0e\n\x06path_m\x18\n \x03(\x01\x12\x0f\n\x07message\x18\x0b \x01(\t\x12\x11\n\tinfo_json\x18\x0c \x01(\t\x12\x13\n\x0brequest_seq\x18\r \x01(\x04\x12\x16\n\x0eservice_time_s\x18\x0e \x01(\x01\x42\x07\n\x05_cost*X\n\tObjective\x12\x19\n\x15OBJECTIVE_UNSPECIFIED\x10\x00\x12\x1a\n\x16OBJECTIVE_MISSION_TIME\x10\x01\x12\x14\n\x10OBJECTIVE_ENERGY\x10\x02*\xd9\x01\n\nPlanStatus\x12\x1b\n\x17PLAN_STATUS_UNSPECIFIED\x10\x00\x12\x12\n\x0ePLAN_STATUS_OK\x10\x01\x12\x1a\n\x16PLAN_STATUS_INFEASIBLE\x10\x02\x12\x17\n\x13PLAN_STATUS_TIMEOUT\x10\x03\x12\x17\n\x13PLAN_STATUS_NO_PATH\x10\x04\x12\x16\n\x12PLAN_STATUS_UNSAFE\x10\x05\x12\x1d\n\x19PLAN_STATUS_INVALID_INPUT\x10\x06\x12\x15\n\x11PLAN_STATUS_ERROR\x10\x07\x62\x06proto3')
+DESCRIPTOR = _descriptor_pool.Default().AddSerializedFile(b'\n\x17\x64ualpilot/v1/plan.proto\x12\x0c\x64ualpilot.v1\x1a\x19\x64ualpilot/v1/common.proto\x1a\x1a\x64ualpilot/v1/vehicle.proto\"[\n\x08\x44ynamics\x12\x0c\n\x04\x64t_s\x18\x01 \x01(\x01\x12\x0c\n\x04zeta\x18\x02 \x01(\x01\x12\x0f\n\x07mass_kg\x18\x03 \x01(\x01\x12\x0f\n\x07u_max_n\x18\x04 \x01(\x01\x12\x11\n\tv_max_mps\x18\x05 \x01(\x01\"\xe0\x01\n\x0bMissionSpec\x12\x12\n\nmission_id\x18\x01 \x01(\t\x12\x0c\n\x04seed\x18\x02 \x01(\x04\x12 \n\x04goal\x18\x03 \x01(\x0b\x32\x12.dualpilot.v1.Rect\x12\x13\n\x0b\x61rea_size_m\x18\x04 \x01(\x01\x12!\n\x05start\x18\x06 \x01(\x0b\x32\x12.dualpilot.v1.Vec2\x12\x10\n\x08\x64_safe_m\x18\x07 \x01(\x01\x12\x13\n\x0b\x63learance_m\x18\x08 \x01(\x01\x12(\n\x08\x64ynamics\x18\t \x01(\x0b\x32\x16.dualpilot.v1.DynamicsJ\x04\x08\x05\x10\x06\"\x85\x03\n\x0bPlanRequest\x12$\n\x06header\x18\x01 \x01(\x0b\x32\x14.dualpilot.v1.Header\x12*\n\x07mission\x18\x02 \x01(\x0b\x32\x19.dualpilot.v1.MissionSpec\x12\x0c\n\x04step\x18\x03 \x01(\r\x12\x0e\n\x06system\x18\x04 \x01(\r\x12*\n\tobjective\x18\x05 \x01(\x0e\x32\x17.dualpilot.v1.Objective\x12)\n\x05state\x18\x06 \x01(\x0b\x32\x1a.dualpilot.v1.VehicleState\x12*\n\x0cprev_control\x18\x07 \x01(\x0b\x32\x14.dualpilot.v1.Force2\x12\x12\n\ndeadline_s\x18\t \x01(\x01\x12\x0f\n\x07prepare\x18\n \x01(\x08\x12\x12\n\nmission_id\x18\x0b \x01(\t\x12(\n\tobstacles\x18\x0c \x03(\x0b\x32\x15.dualpilot.v1.Polygon\x12\x1a\n\x12waypoints_revision\x18\r \x01(\rJ\x04\x08\x08\x10\t\"\xd7\x02\n\x04Plan\x12$\n\x06header\x18\x01 \x01(\x0b\x32\x14.dualpilot.v1.Header\x12\x0c\n\x04step\x18\x02 \x01(\r\x12\x0e\n\x06system\x18\x03 \x01(\r\x12(\n\x06status\x18\x04 \x01(\x0e\x32\x18.dualpilot.v1.PlanStatus\x12\x0e\n\x06states\x18\x05 \x03(\x01\x12\x10\n\x08\x63ontrols\x18\x06 \x03(\x01\x12\x16\n\x0e\x63ompute_time_s\x18\x07 \x01(\x01\x12*\n\tobjective\x18\x08 \x01(\x0e\x32\x17.dualpilot.v1.Objective\x12\x11\n\x04\x63ost\x18\t \x01(\x01H\x00\x88\x01\x01\x12\x0e\n\x06path_m\x18\n \x03(\x01\x12\x0f\n\x07message\x18\x0b \x01(\t\x12\x11\n\tinfo_json\x18\x0c \x01(\t\x12\x13\n\x0brequest_seq\x18\r \x01(\x04\x12\x16\n\x0eservice_time_s\x18\x0e \x01(\x01\x42\x07\n\x05_cost*X\n\tObjective\x12\x19\n\x15OBJECTIVE_UNSPECIFIED\x10\x00\x12\x1a\n\x16OBJECTIVE_MISSION_TIME\x10\x01\x12\x14\n\x10OBJECTIVE_ENERGY\x10\x02*\xd9\x01\n\nPlanStatus\x12\x1b\n\x17PLAN_STATUS_UNSPECIFIED\x10\x00\x12\x12\n\x0ePLAN_STATUS_OK\x10\x01\x12\x1a\n\x16PLAN_STATUS_INFEASIBLE\x10\x02\x12\x17\n\x13PLAN_STATUS_TIMEOUT\x10\x03\x12\x17\n\x13PLAN_STATUS_NO_PATH\x10\x04\x12\x16\n\x12PLAN_STATUS_UNSAFE\x10\x05\x12\x1d\n\x19PLAN_STATUS_INVALID_INPUT\x10\x06\x12\x15\n\x11PLAN_STATUS_ERROR\x10\x07\x62\x06proto3')
 
 _globals = globals()
 _builder.BuildMessageAndEnumDescriptors(DESCRIPTOR, _globals)
 _builder.BuildTopDescriptorsAndMessages(DESCRIPTOR, 'dualpilot.v1.plan_pb2', _globals)
 if not _descriptor._USE_C_DESCRIPTORS:
   DESCRIPTOR._loaded_options = None
-  _globals['_OBJECTIVE']._serialized_start=956
-  _globals['_OBJECTIVE']._serialized_end=1044
-  _globals['_PLANSTATUS']._serialized_start=1047
-  _globals['_PLANSTATUS']._serialized_end=1264
-  _globals['_MISSIONSPEC']._serialized_start=122
-  _globals['_MISSIONSPEC']._serialized_end=272
-  _globals['_PLANREQUEST']._serialized_start=275
-  _globals['_PLANREQUEST']._serialized_end=608
-  _globals['_PLAN']._serialized_start=611
-  _globals['_PLAN']._serialized_end=954
+  _globals['_OBJECTIVE']._serialized_start=1154
+  _globals['_OBJECTIVE']._serialized_end=1242
+  _globals['_PLANSTATUS']._serialized_start=1245
+  _globals['_PLANSTATUS']._serialized_end=1462
+  _globals['_DYNAMICS']._serialized_start=96
+  _globals['_DYNAMICS']._serialized_end=187
+  _globals['_MISSIONSPEC']._serialized_start=190
+  _globals['_MISSIONSPEC']._serialized_end=414
+  _globals['_PLANREQUEST']._serialized_start=417
+  _globals['_PLANREQUEST']._serialized_end=806
+  _globals['_PLAN']._serialized_start=809
+  _globals['_PLAN']._serialized_end=1152
 # @@protoc_insertion_point(module_scope)

@@ -1,5 +1,4 @@
 from services.msgs import common_pb2 as _common_pb2
-from services.msgs import fire_pb2 as _fire_pb2
 from services.msgs import vehicle_pb2 as _vehicle_pb2
 from google.protobuf.internal import containers as _containers
 from google.protobuf.internal import enum_type_wrapper as _enum_type_wrapper
@@ -38,22 +37,42 @@ PLAN_STATUS_UNSAFE: PlanStatus
 PLAN_STATUS_INVALID_INPUT: PlanStatus
 PLAN_STATUS_ERROR: PlanStatus
 
+class Dynamics(_message.Message):
+    __slots__ = ("dt_s", "zeta", "mass_kg", "u_max_n", "v_max_mps")
+    DT_S_FIELD_NUMBER: _ClassVar[int]
+    ZETA_FIELD_NUMBER: _ClassVar[int]
+    MASS_KG_FIELD_NUMBER: _ClassVar[int]
+    U_MAX_N_FIELD_NUMBER: _ClassVar[int]
+    V_MAX_MPS_FIELD_NUMBER: _ClassVar[int]
+    dt_s: float
+    zeta: float
+    mass_kg: float
+    u_max_n: float
+    v_max_mps: float
+    def __init__(self, dt_s: _Optional[float] = ..., zeta: _Optional[float] = ..., mass_kg: _Optional[float] = ..., u_max_n: _Optional[float] = ..., v_max_mps: _Optional[float] = ...) -> None: ...
+
 class MissionSpec(_message.Message):
-    __slots__ = ("mission_id", "seed", "goal", "area_size_m", "operator_waypoints")
+    __slots__ = ("mission_id", "seed", "goal", "area_size_m", "start", "d_safe_m", "clearance_m", "dynamics")
     MISSION_ID_FIELD_NUMBER: _ClassVar[int]
     SEED_FIELD_NUMBER: _ClassVar[int]
     GOAL_FIELD_NUMBER: _ClassVar[int]
     AREA_SIZE_M_FIELD_NUMBER: _ClassVar[int]
-    OPERATOR_WAYPOINTS_FIELD_NUMBER: _ClassVar[int]
+    START_FIELD_NUMBER: _ClassVar[int]
+    D_SAFE_M_FIELD_NUMBER: _ClassVar[int]
+    CLEARANCE_M_FIELD_NUMBER: _ClassVar[int]
+    DYNAMICS_FIELD_NUMBER: _ClassVar[int]
     mission_id: str
     seed: int
     goal: _common_pb2.Rect
     area_size_m: float
-    operator_waypoints: _containers.RepeatedCompositeFieldContainer[_common_pb2.Vec2]
-    def __init__(self, mission_id: _Optional[str] = ..., seed: _Optional[int] = ..., goal: _Optional[_Union[_common_pb2.Rect, _Mapping]] = ..., area_size_m: _Optional[float] = ..., operator_waypoints: _Optional[_Iterable[_Union[_common_pb2.Vec2, _Mapping]]] = ...) -> None: ...
+    start: _common_pb2.Vec2
+    d_safe_m: float
+    clearance_m: float
+    dynamics: Dynamics
+    def __init__(self, mission_id: _Optional[str] = ..., seed: _Optional[int] = ..., goal: _Optional[_Union[_common_pb2.Rect, _Mapping]] = ..., area_size_m: _Optional[float] = ..., start: _Optional[_Union[_common_pb2.Vec2, _Mapping]] = ..., d_safe_m: _Optional[float] = ..., clearance_m: _Optional[float] = ..., dynamics: _Optional[_Union[Dynamics, _Mapping]] = ...) -> None: ...
 
 class PlanRequest(_message.Message):
-    __slots__ = ("header", "mission", "step", "system", "objective", "state", "prev_control", "fires", "deadline_s", "prepare")
+    __slots__ = ("header", "mission", "step", "system", "objective", "state", "prev_control", "deadline_s", "prepare", "mission_id", "obstacles", "waypoints_revision")
     HEADER_FIELD_NUMBER: _ClassVar[int]
     MISSION_FIELD_NUMBER: _ClassVar[int]
     STEP_FIELD_NUMBER: _ClassVar[int]
@@ -61,9 +80,11 @@ class PlanRequest(_message.Message):
     OBJECTIVE_FIELD_NUMBER: _ClassVar[int]
     STATE_FIELD_NUMBER: _ClassVar[int]
     PREV_CONTROL_FIELD_NUMBER: _ClassVar[int]
-    FIRES_FIELD_NUMBER: _ClassVar[int]
     DEADLINE_S_FIELD_NUMBER: _ClassVar[int]
     PREPARE_FIELD_NUMBER: _ClassVar[int]
+    MISSION_ID_FIELD_NUMBER: _ClassVar[int]
+    OBSTACLES_FIELD_NUMBER: _ClassVar[int]
+    WAYPOINTS_REVISION_FIELD_NUMBER: _ClassVar[int]
     header: _common_pb2.Header
     mission: MissionSpec
     step: int
@@ -71,10 +92,12 @@ class PlanRequest(_message.Message):
     objective: Objective
     state: _vehicle_pb2.VehicleState
     prev_control: _common_pb2.Force2
-    fires: _fire_pb2.FireState
     deadline_s: float
     prepare: bool
-    def __init__(self, header: _Optional[_Union[_common_pb2.Header, _Mapping]] = ..., mission: _Optional[_Union[MissionSpec, _Mapping]] = ..., step: _Optional[int] = ..., system: _Optional[int] = ..., objective: _Optional[_Union[Objective, str]] = ..., state: _Optional[_Union[_vehicle_pb2.VehicleState, _Mapping]] = ..., prev_control: _Optional[_Union[_common_pb2.Force2, _Mapping]] = ..., fires: _Optional[_Union[_fire_pb2.FireState, _Mapping]] = ..., deadline_s: _Optional[float] = ..., prepare: _Optional[bool] = ...) -> None: ...
+    mission_id: str
+    obstacles: _containers.RepeatedCompositeFieldContainer[_common_pb2.Polygon]
+    waypoints_revision: int
+    def __init__(self, header: _Optional[_Union[_common_pb2.Header, _Mapping]] = ..., mission: _Optional[_Union[MissionSpec, _Mapping]] = ..., step: _Optional[int] = ..., system: _Optional[int] = ..., objective: _Optional[_Union[Objective, str]] = ..., state: _Optional[_Union[_vehicle_pb2.VehicleState, _Mapping]] = ..., prev_control: _Optional[_Union[_common_pb2.Force2, _Mapping]] = ..., deadline_s: _Optional[float] = ..., prepare: _Optional[bool] = ..., mission_id: _Optional[str] = ..., obstacles: _Optional[_Iterable[_Union[_common_pb2.Polygon, _Mapping]]] = ..., waypoints_revision: _Optional[int] = ...) -> None: ...
 
 class Plan(_message.Message):
     __slots__ = ("header", "step", "system", "status", "states", "controls", "compute_time_s", "objective", "cost", "path_m", "message", "info_json", "request_seq", "service_time_s")

@@ -26,9 +26,13 @@ class VehicleState(_message.Message):
     def __init__(self, header: _Optional[_Union[_common_pb2.Header, _Mapping]] = ..., step: _Optional[int] = ..., east_m: _Optional[float] = ..., north_m: _Optional[float] = ..., velocity_east_mps: _Optional[float] = ..., velocity_north_mps: _Optional[float] = ..., altitude_m: _Optional[float] = ...) -> None: ...
 
 class OperatorWaypoints(_message.Message):
-    __slots__ = ("header", "waypoints")
+    __slots__ = ("header", "waypoints", "mission_id", "revision")
     HEADER_FIELD_NUMBER: _ClassVar[int]
     WAYPOINTS_FIELD_NUMBER: _ClassVar[int]
+    MISSION_ID_FIELD_NUMBER: _ClassVar[int]
+    REVISION_FIELD_NUMBER: _ClassVar[int]
     header: _common_pb2.Header
     waypoints: _containers.RepeatedCompositeFieldContainer[_common_pb2.Vec2]
-    def __init__(self, header: _Optional[_Union[_common_pb2.Header, _Mapping]] = ..., waypoints: _Optional[_Iterable[_Union[_common_pb2.Vec2, _Mapping]]] = ...) -> None: ...
+    mission_id: str
+    revision: int
+    def __init__(self, header: _Optional[_Union[_common_pb2.Header, _Mapping]] = ..., waypoints: _Optional[_Iterable[_Union[_common_pb2.Vec2, _Mapping]]] = ..., mission_id: _Optional[str] = ..., revision: _Optional[int] = ...) -> None: ...

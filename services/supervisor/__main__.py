@@ -3,7 +3,7 @@
 Waits for the EWS, the planners it needs and the vehicle (liveliness tokens
 and a MAVLink heartbeat), takes the vehicle in MAVSDK/PX4 order (setpoints,
 offboard mode, arm; services/supervisor/link.py), takes the vehicle's mission
-as System 1's operator waypoints, flies one mission (services/supervisor/loop.py),
+as System 1's operator waypoints, flies one mission (services/supervisor/session.py),
 writes its records to ``--out`` and announces the end on ``mission/event``.
 It then keeps streaming the last setpoint until stopped (or exits with
 ``--exit-after-mission``).
@@ -15,15 +15,16 @@ import logging
 import time
 from pathlib import Path
 
-from dualpilot.mission.step import Controller, MissionParams, Timing
+from dualpilot.mission.params import Controller, MissionParams, Timing
 from dualpilot.model.geometry import Rect
+from dualpilot.spec import MissionSpec
 from services.common import bus, codec, keys, mav
 from services.common import cli as common_cli
 from services.common.clock import SimClock
 from services.common.log import fields
 
 from .link import VehicleLink
-from .loop import Aborted, StackMission, StackParams
+from .session import Aborted, StackParams, StackSession
 
 log = logging.getLogger("services.supervisor")
 
@@ -58,6 +59,10 @@ def main(argv: list[str] | None = None) -> int:
                    help="[AREA_SIZE_M]")
     g.add_argument("--max-steps", type=int, default=env("MAX_STEPS", "150"),
                    help="[MAX_STEPS]")
+    g.add_argument("--ignition-clearance", type=float,
+                   default=env("IGNITION_CLEARANCE_M", "") or None,
+                   help="no front ignites within this distance (m) of the UAV; unset: anywhere "
+                        "[IGNITION_CLEARANCE_M]")
     g.add_argument("--waypoints", default=env("OPERATOR_WAYPOINTS", ""),
                    help="System 1's operator waypoints 'e1,n1;e2,n2' [OPERATOR_WAYPOINTS]")
     g.add_argument("--mission-id", default=env("MISSION_ID", ""),
@@ -94,7 +99,10 @@ def main(argv: list[str] | None = None) -> int:
         deadlines = tuple(float(v) for v in args.plan_deadline_s.split(","))
         if len(deadlines) != 2 or min(deadlines) <= 0:
             raise ValueError("--plan-deadline-s must be two positive numbers 's1,s2'")
-        params = MissionParams(max_steps=args.max_steps)
+        params = MissionParams(max_steps=args.max_steps,
+                               ignition_clearance_m=args.ignition_clearance)
+        # the start is the vehicle's position when the mission starts (StackSession.start)
+        spec = MissionSpec(goal=goal, area_size_m=args.area_size_m, seed=args.seed)
         stack = StackParams(plan_deadline_s=(deadlines[0], deadlines[1]),
                             altitude_m=args.altitude_m)
         SimClock(settings.speed_factor)
@@ -128,11 +136,10 @@ def main(argv: list[str] | None = None) -> int:
                               extra=fields(url=settings.mavlink_url))
                     ctx.exit_code = 1
                 return
-            mission = StackMission(
-                ctx.session, link, settings.uav_id, mission_id, controller, args.seed, timing,
-                SimClock(settings.speed_factor), ctx.stop, goal=goal,
-                area_size_m=args.area_size_m, waypoints=waypoints, params=params, stack=stack,
-                live=live, record_dir=Path(args.out) if args.out else None)
+            mission = StackSession(
+                ctx.session, link, settings.uav_id, mission_id, controller, spec, timing,
+                SimClock(settings.speed_factor), ctx.stop, waypoints=waypoints, params=params,
+                stack=stack, live=live, record_dir=Path(args.out) if args.out else None)
             t0 = time.perf_counter()
             aborted = ""
             try:

@@ -1,26 +1,25 @@
 """System 1 service: operator waypoints or RRT (Alg. 1) tracked by LQR, as a Zenoh queryable.
 
 Answers PlanRequests on ``<ns>/plan/system1`` (services/common/planning.py)
-with :class:`dualpilot.system1.planner.System1`, one instance per mission, seeded as
-:func:`dualpilot.planners.make_system1` does in-process. Operator waypoints
-come with the mission (PlanRequest.mission) and as live updates on
-``<ns>/operator/waypoints``. Rejected inputs are counted per key and reason
-in the status served on ``<ns>/status/system1``. ``--uav-ids`` serves a fleet
-(services/common/fleet.py): one planner loop per vehicle id.
+with :class:`dualpilot.system1.planner.System1`, one instance per mission,
+built from the mission's spec by :func:`dualpilot.planners.build_planner` as
+in-process (its RNG is the spec's System 1 stream). Operator waypoints come
+on ``<ns>/operator/waypoints``. Rejected inputs are counted per key and
+reason in the status served on ``<ns>/status/system1``. ``--uav-ids`` serves
+a fleet (services/common/fleet.py): one planner loop per vehicle id.
 """
 
 from __future__ import annotations
 
-from dualpilot.mission.step import MissionConfig
 from dualpilot.plan import Planner
-from dualpilot.planners import make_system1
-from services.common import bus, codec, fleet, planning
+from dualpilot.planners import build_planner
+from dualpilot.spec import MissionSpec
+from services.common import bus, fleet, planning
 from services.common import cli as common_cli
 
 
-def make(mission: codec.MissionSpec) -> Planner:
-    config = MissionConfig(goal=mission.goal, area_size_m=mission.area_size_m)
-    return make_system1(config, mission.seed)
+def make(spec: MissionSpec) -> Planner:
+    return build_planner(1, spec, "rrt")
 
 
 def main(argv: list[str] | None = None) -> int:

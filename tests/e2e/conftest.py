@@ -18,7 +18,7 @@ from typing import Any
 
 import pytest
 
-from dualpilot.mission.step import MissionResult
+from dualpilot.mission.result import MissionResult
 from services import launch
 from services.common import codec, keys
 from services.msgs import fire_pb2, supervisor_pb2, vehicle_pb2
@@ -30,12 +30,11 @@ SPEED_FACTOR = 100.0
 
 
 def in_process(seed: int) -> MissionResult:
-    from dualpilot.mission.step import Controller, Mission, MissionConfig, Timing
-    from dualpilot.planners import make_planners
+    from dualpilot.mission.local import local_mission
+    from dualpilot.mission.params import Controller, Timing
+    from dualpilot.spec import MissionSpec
 
-    config = MissionConfig()
-    return Mission(Controller.CC, make_planners(config, seed), seed=seed, timing=Timing.PAPER,
-                   config=config).run()
+    return local_mission(Controller.CC, MissionSpec(seed=seed), timing=Timing.PAPER).run()
 
 
 def successful_seed() -> tuple[int, MissionResult]:

@@ -5,7 +5,7 @@ import json
 
 import pytest
 
-from dualpilot.evaluate import evaluate, mean_interval, mission_config, wilson_interval
+from dualpilot.evaluate import evaluate, mean_interval, mission_spec, wilson_interval
 
 
 def rows(path):
@@ -40,7 +40,7 @@ def test_three_controllers_see_identical_configurations(small_run):
         key = (r["seed"], r["start_x"], r["start_y"], r["goal_x"], r["goal_y"])
         by_mission.setdefault(r["mission"], set()).add(key)
     assert all(len(v) == 1 for v in by_mission.values())
-    cfg = mission_config(3, 0)
+    cfg = mission_spec(3, 0)
     r0 = next(r for r in rows(out) if r["mission"] == "0")
     assert float(r0["start_x"]) == pytest.approx(cfg.start[0])
 

@@ -6,39 +6,27 @@ import json
 import numpy as np
 import pytest
 
+from dualpilot.mission.local import local_mission
+from dualpilot.mission.params import Controller, MissionParams, Timing
 from dualpilot.mission.records import STEP_COLUMNS, write_all
-from dualpilot.mission.step import (
-    Controller,
-    Mission,
-    MissionConfig,
-    MissionParams,
-    Timing,
-    brake_control,
-    nearest_region_distance,
-)
+from dualpilot.mission.step import brake_control, nearest_region_distance
 from dualpilot.model.dynamics import DynamicsParams
 from dualpilot.model.fire import FireParams
-from dualpilot.planners import make_system1
+from dualpilot.planners import build_planner
+from dualpilot.spec import MissionSpec
 
 
 def s1_mission(seed, fire_params=FireParams(), controller=Controller.S1, **kw):
-    cfg = MissionConfig()
-    s1 = make_system1(cfg, seed)
-    return Mission(
-        controller,
-        {1: s1, 2: s1},
-        seed=seed,
-        timing=Timing.PAPER,
-        config=cfg,
-        fire_params=fire_params,
-        **kw,
-    )
+    spec = MissionSpec(seed=seed)
+    s1 = build_planner(1, spec)
+    return local_mission(controller, spec, planners={1: s1, 2: s1}, timing=Timing.PAPER,
+                         fire_params=fire_params, **kw)
 
 
 def test_open_sky_mission_reaches_goal_and_energy_is_sum_of_control_changes():
     result = s1_mission(3, FireParams(p_birth=0.0)).run()
     assert result.success and result.failure_cause == ""
-    assert MissionConfig().goal.contains(result.final_state[:2])
+    assert MissionSpec().goal.contains(result.final_state[:2])
     controls = np.array([r.control for r in result.records])
     du = np.diff(np.vstack([np.zeros(2), controls]), axis=0)
     assert result.energy == pytest.approx(float(np.sum(du**2)))
@@ -59,18 +47,20 @@ def test_same_seed_reproduces_the_mission_exactly():
 
 def test_fire_born_on_the_uav_fails_the_mission():
     m = s1_mission(1, FireParams(p_birth=0.0, p_survive=1.0))
-    m.fires.spawn(m.fire_rng, 0, center=(60.0, 60.0))
+    m.fires.field.spawn(m.fires.rng, 0, center=(60.0, 60.0))
     m.step()
     assert m.done and not m.result.success
     assert m.result.failure_cause == "fire_while_planning"
 
 
-def test_start_inside_fire_is_rejected():
-    cfg = MissionConfig()
+def test_a_spec_outside_its_area_is_rejected():
+    spec = MissionSpec()
     with pytest.raises(ValueError, match="outside"):
-        MissionConfig(goal=cfg.goal.__class__(990.0, 990.0, 100.0, 100.0))
+        MissionSpec(goal=spec.goal.__class__(990.0, 990.0, 100.0, 100.0))
     with pytest.raises(ValueError, match="start"):
-        MissionConfig(start=(-5.0, 10.0))
+        MissionSpec(start=(-5.0, 10.0))
+    with pytest.raises(ValueError, match="d_safe_m <= clearance_m"):
+        MissionSpec(d_safe_m=30.0, clearance_m=25.0)
 
 
 def test_flown_path_never_comes_within_d_safe_of_a_fire_before_the_end():
@@ -124,7 +114,7 @@ def test_flight_outcome_rules_and_planning_order():
     from dualpilot.mission.step import flight_outcome, planning_order
     from dualpilot.model.geometry import Rect
 
-    cfg, params = MissionConfig(), MissionParams(max_steps=10)
+    cfg, params = MissionSpec(), MissionParams(max_steps=10)
     fire = (Rect(100.0, 0.0, 20.0, 20.0),)  # x in [90, 110]
     # passing 15 m from the fire's edge is contact (< d_safe = 20 m)
     assert (

@@ -9,19 +9,15 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from dualpilot.mission.local import local_mission
+from dualpilot.mission.params import Controller, MissionParams
 from dualpilot.mission.records import write_all
-from dualpilot.mission.step import (
-    Controller,
-    Mission,
-    MissionConfig,
-    MissionParams,
-    MissionResult,
-    StepRecord,
-)
+from dualpilot.mission.result import MissionResult, StepRecord
 from dualpilot.model.dynamics import DynamicsParams, hover_state, step
 from dualpilot.model.fire import FireParams, FireSnapshot
 from dualpilot.model.geometry import Polytope, Rect
 from dualpilot.plan import Objective, Plan, Planner, PlanStatus
+from dualpilot.spec import MissionSpec
 from dualpilot.supervisor.attention import AttentionParams, Logistic, xi
 from dualpilot.supervisor.decision import Decision
 from dualpilot.viz import mission as plots
@@ -35,6 +31,8 @@ ALL_FIGURES = {
 
 class SteerPlanner:
     """Stand-in planner: flies towards G, pushed away from nearby hulls (no guarantees)."""
+
+    method = "steer"
 
     def __init__(self, system: int, horizon: int, goal: tuple[float, float] = (900.0, 900.0)):
         self.system, self.horizon, self.goal = system, horizon, np.array(goal)
@@ -67,8 +65,8 @@ def mission_run(
     out: Path, seed: int = 3, max_steps: int = 40, fire: FireParams = FireParams()
 ) -> Path:
     planners: dict[int, Planner] = {1: SteerPlanner(1, 25), 2: SteerPlanner(2, 60)}
-    mission = Mission(Controller.CC, planners, seed=seed, params=MissionParams(max_steps=max_steps),
-                      fire_params=fire)
+    mission = local_mission(Controller.CC, MissionSpec(seed=seed), planners=planners,
+                            params=MissionParams(max_steps=max_steps), fire_params=fire)
     write_all(mission.run(), out)
     return out
 
@@ -86,9 +84,8 @@ def scripted_run(out: Path, n: int = 12) -> Path:
         a = 1 + t % 3
         psi = 0.5 * psi + (np.array([0.4, -0.4]) if a == 1 else np.array([-0.4, 0.4]))
         system = 0 if t in (4, 5) else int(np.argmax(psi)) + 1
-        planned = np.empty((0, 4)) if system == 0 else np.column_stack(
-            [pos[0] + np.arange(8) * 30.0, pos[1] + np.arange(8) * 25.0, np.zeros(8), np.zeros(8)]
-        )
+        planned = np.empty((0, 2)) if system == 0 else np.column_stack(
+            [pos[0] + np.arange(8) * 30.0, pos[1] + np.arange(8) * 25.0])
         snap = FireSnapshot(regions=(region,), hulls=(hull,)) if t >= 3 else FireSnapshot((), ())
         dec = Decision(t=t, d_t=d_t, xi=x, p=x / x.sum(), attention=a, psi=psi.copy(),
                        system=int(np.argmax(psi)) + 1, objective=Objective.MISSION_TIME)
@@ -97,7 +94,7 @@ def scripted_run(out: Path, n: int = 12) -> Path:
             plan_status="s1:ok", planning_time_s=0.1, fire_substeps=1, d_t=d_t,
             fires_active=len(snap.regions), planned_positions=planned, snapshot=snap,
         ))
-    result = MissionResult(controller="cc", seed=0, timing="paper", config=MissionConfig(),
+    result = MissionResult(controller="cc", timing="paper", spec=MissionSpec(),
                            steps=n, records=records, final_state=records[-1].state,
                            failure_cause="step_limit")
     write_all(result, out)

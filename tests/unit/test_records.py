@@ -13,22 +13,25 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from dualpilot.mission.local import local_mission
+from dualpilot.mission.params import Controller, MissionParams, Timing
 from dualpilot.mission.records import StepLog, read_step_log, record_from_json, result_from_log
-from dualpilot.mission.step import Controller, Mission, MissionConfig, MissionParams, Timing
+from dualpilot.mission.step import Mission
 from dualpilot.model.fire import FireParams
-from dualpilot.planners import make_system1
+from dualpilot.planners import build_planner
+from dualpilot.spec import MissionSpec
 
 
 def _mission(seed: int = 5, steps: int = 12) -> Mission:
-    cfg = MissionConfig()
-    s1 = make_system1(cfg, seed)
-    return Mission(Controller.S1, {1: s1, 2: s1}, seed=seed, timing=Timing.PAPER, config=cfg,
-                   params=MissionParams(max_steps=steps),
-                   fire_params=FireParams(p_birth=0.3))
+    spec = MissionSpec(seed=seed)
+    s1 = build_planner(1, spec)
+    return local_mission(Controller.S1, spec, planners={1: s1, 2: s1}, timing=Timing.PAPER,
+                         params=MissionParams(max_steps=steps),
+                         fire_params=FireParams(p_birth=0.3))
 
 
 def _head(m: Mission) -> dict[str, object]:
-    c = m.config
+    c = m.spec
     return {"controller": "s1", "seed": 5, "timing": "paper", "start": list(c.start),
             "goal": [c.goal.center_x, c.goal.center_y, c.goal.width, c.goal.height],
             "area_size_m": c.area_size_m}

@@ -1,0 +1,96 @@
+"""In-process adapters of the mission step's ports: the fire process, the planners, Eq. (1)."""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from dualpilot.mission.params import Controller, MissionParams, Timing
+from dualpilot.mission.ports import KeepOut, PlanRequest
+from dualpilot.mission.step import Mission
+from dualpilot.model.dynamics import Array, DynamicsParams, hover_state, step
+from dualpilot.model.fire import FireField, FireParams, FireSnapshot
+from dualpilot.model.geometry import Rect
+from dualpilot.plan import Plan, Planner, PlanStatus
+from dualpilot.spec import MissionSpec, Stream
+from dualpilot.supervisor.decision import SupervisorParams
+
+
+class LocalFires:
+    """The fire process of Sec. II-B in this process, on the spec's fire stream."""
+
+    def __init__(self, spec: MissionSpec, params: FireParams = FireParams()):
+        self.field = FireField(params=params, area_size_m=spec.area_size_m)
+        self.rng = spec.rng(Stream.FIRE)
+
+    def snapshot(self) -> FireSnapshot:
+        return self.field.snapshot()
+
+    def margin_m(self) -> float:
+        return 0.0  # the fire process itself: never stale
+
+    def advance(self, t: int, n: int, keep_out: KeepOut | None) -> list[tuple[Rect, ...]]:
+        out = []
+        for _ in range(n):
+            self.field.substep(self.rng, t, keep_out=keep_out)
+            out.append(tuple(f.region for f in self.field.fronts))
+        return out
+
+
+class LocalPlanners:
+    """Planner objects called directly; a planner's ValueError is an INVALID_INPUT plan."""
+
+    def __init__(self, planners: dict[int, Planner]):
+        self.planners = planners
+
+    def available(self, system: int) -> bool:
+        return system in self.planners
+
+    def plan(self, request: PlanRequest) -> Plan:
+        t0 = time.perf_counter()
+        try:
+            return self.planners[request.system].plan(
+                request.state, request.obstacles, request.objective, request.prev_control)
+        except ValueError as err:  # bad input to the planner: not flyable, not fatal
+            return Plan.failed(request.system, PlanStatus.INVALID_INPUT,
+                               time.perf_counter() - t0, str(err))
+
+
+class LocalVehicle:
+    """Eq. (1) with the commanded control: the vehicle reaches x_{t+1} = Φ x_t + Γ u_t."""
+
+    def __init__(self, state: Array, dynamics: DynamicsParams):
+        self.state = np.asarray(state, dtype=float).copy()
+        self.dyn = dynamics
+        self._control: Array | None = None
+
+    def command(self, target: Array, control: Array, after_s: float) -> None:
+        self._control = np.asarray(control, dtype=float)
+
+    def observe(self) -> Array:
+        if self._control is not None:
+            self.state = step(self.state, self._control, self.dyn)
+            self._control = None
+        return self.state.copy()
+
+
+def local_mission(
+    controller: Controller,
+    spec: MissionSpec,
+    planners: dict[int, Planner] | None = None,
+    timing: Timing = Timing.PAPER,
+    params: MissionParams = MissionParams(),
+    fire_params: FireParams = FireParams(),
+    supervisor_params: SupervisorParams = SupervisorParams(),
+    system2_method: str = "fast",
+) -> Mission:
+    """The mission of ``spec`` flown in this process (planners built from the spec by default)."""
+    if planners is None:
+        from dualpilot.planners import build_planners
+
+        planners = build_planners(spec, system2_method=system2_method)
+    state = hover_state(np.array(spec.start), spec.dynamics)
+    return Mission(controller, spec, LocalFires(spec, fire_params), LocalPlanners(planners),
+                   LocalVehicle(state, spec.dynamics), state, timing=timing, params=params,
+                   fire_params=fire_params, supervisor_params=supervisor_params)

@@ -1,0 +1,82 @@
+"""The three ports the one mission step talks to: fires, planners, vehicle.
+
+The in-process adapters are in :mod:`dualpilot.mission.local`; the stack's
+(Zenoh and MAVLink) are in ``services/supervisor/ports.py``. Times are
+simulated seconds of the mission.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Protocol
+
+from dualpilot.mission.result import StepRecord
+from dualpilot.model.dynamics import Array
+from dualpilot.model.fire import FireSnapshot
+from dualpilot.model.geometry import Polytope, Rect
+from dualpilot.plan import Objective, Plan
+from dualpilot.supervisor.decision import Decision
+
+#: Where no front may ignite during a fire sub-step: (position (m), radius (m)).
+KeepOut = tuple[Array, float]
+
+
+@dataclass(frozen=True)
+class PlanRequest:
+    """What a planner is asked at step t: plan from ``state`` avoiding ``obstacles``."""
+
+    t: int
+    system: int
+    state: Array
+    prev_control: Array  # u_{t|t}, the control applied at the previous step (N)
+    obstacles: tuple[Polytope, ...]  # FireSnapshot.obstacles_for the UAV's position
+    objective: Objective
+
+
+class FirePort(Protocol):
+    def snapshot(self) -> FireSnapshot:
+        """The fire state the step decides and plans on."""
+        ...
+
+    def margin_m(self) -> float:
+        """How far (m) the fire data must be grown before planning (0 while it is fresh)."""
+        ...
+
+    def advance(self, t: int, n: int, keep_out: KeepOut | None) -> list[tuple[Rect, ...]]:
+        """Propagate ``n`` sub-steps of T_f; the active regions after each one.
+
+        Fewer than ``n`` entries (none) when the fire service could not run them.
+        """
+        ...
+
+
+class PlannerPort(Protocol):
+    def available(self, system: int) -> bool:
+        """The planner can be asked (its service is alive)."""
+        ...
+
+    def plan(self, request: PlanRequest) -> Plan:
+        """A plan of any status; a planner that rejects its input answers INVALID_INPUT."""
+        ...
+
+
+class VehiclePort(Protocol):
+    def command(self, target: Array, control: Array, after_s: float) -> None:
+        """Fly towards ``target`` (the plan's x_{t+1|t}) with ``control``, due in ``after_s``."""
+        ...
+
+    def observe(self) -> Array:
+        """The state reached at the commanded time."""
+        ...
+
+
+class StepObserver(Protocol):
+    """Called by the step as it goes; publishing and records observe, they never steer."""
+
+    def decided(self, t: int, decision: Decision, commanded: int) -> None: ...
+
+    def commanded(self, t: int, flown: int, info: dict[str, object]) -> None: ...
+
+    def recorded(self, record: StepRecord, flown: bool) -> None: ...
+
+    def ended(self, record: StepRecord, success: bool, cause: str) -> None: ...

@@ -1,0 +1,91 @@
+"""What a mission produced: one :class:`StepRecord` per step and the :class:`MissionResult`."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from dualpilot.model.dynamics import Array
+from dualpilot.model.fire import FireSnapshot
+from dualpilot.spec import MissionSpec
+from dualpilot.supervisor.decision import Decision
+
+
+@dataclass(frozen=True)
+class StepRecord:
+    """Everything that happened at one step (for steps.csv, trace.json and the figures).
+
+    ``planned_positions`` is (T+1, 2), the flown plan's positions x^p_{t..t+T|t}
+    (m); (0, 2) when no plan was flown.
+    """
+
+    t: int
+    state: Array  # before the control
+    control: Array
+    decision: Decision
+    system: int  # the system whose plan was flown (0: none, braked)
+    plan_status: str
+    planning_time_s: float
+    fire_substeps: int
+    d_t: float
+    fires_active: int
+    planned_positions: Array
+    snapshot: FireSnapshot
+    info: dict[str, object] = field(default_factory=dict)
+
+
+@dataclass
+class MissionResult:
+    controller: str
+    timing: str
+    spec: MissionSpec
+    success: bool = False
+    failure_cause: str = ""
+    steps: int = 0
+    mission_time_s: float = 0.0
+    energy: float = 0.0
+    planning_time_s: dict[str, list[float]] = field(default_factory=lambda: {"s1": [], "s2": []})
+    switches: int = 0
+    records: list[StepRecord] = field(default_factory=list)
+    final_state: Array | None = None
+
+    @property
+    def seed(self) -> int:
+        return self.spec.seed
+
+    def add_flight(self, control: Array, prev_control: Array, dt_s: float) -> None:
+        """Account one flown step (its record already appended): energy, switches, time.
+
+        Energy is Σ‖u_t − u_{t−1}‖² (N²); a switch is a change of the system in
+        control, braking steps (system 0) do not count.
+        """
+        self.energy += float(np.sum((np.asarray(control) - np.asarray(prev_control)) ** 2))
+        flown = self.records[-1].system
+        earlier = next((r.system for r in reversed(self.records[:-1]) if r.system), 0)
+        if flown and earlier and flown != earlier:
+            self.switches += 1
+        self.steps += 1
+        self.mission_time_s = self.steps * dt_s
+
+    def summary(self) -> dict[str, object]:
+        s = self.spec
+        return {
+            "controller": self.controller,
+            "seed": self.seed,
+            "timing": self.timing,
+            "success": self.success,
+            "failure_cause": self.failure_cause,
+            "steps": self.steps,
+            "mission_time_s": self.mission_time_s,
+            "energy": self.energy,
+            "planning_time_s": self.planning_time_s,
+            "switches": self.switches,
+            "start": list(s.start),
+            "goal": {
+                "center": [s.goal.center_x, s.goal.center_y],
+                "size": [s.goal.width, s.goal.height],
+            },
+            "d_safe_m": s.d_safe_m,
+            "clearance_m": s.clearance_m,
+        }

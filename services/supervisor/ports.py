@@ -1,0 +1,397 @@
+"""The mission step's ports over the stack: fires from the EWS, plans from the planner
+services (Zenoh queries), the vehicle over MAVLink.
+
+Each adapter turns a port call into messages and back, checking every reply
+before it acts (services/common/codec.py). Time is the lockstep SimClock
+(services/common/clock.py): the fires' sub-steps and the vehicle's ΔT
+advance it.
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, replace
+
+import numpy as np
+import zenoh
+
+from dualpilot.mission.ports import KeepOut, PlanRequest
+from dualpilot.model.dynamics import Array
+from dualpilot.model.fire import FireParams, FireSnapshot
+from dualpilot.model.geometry import Rect
+from dualpilot.model.stale_fire import StaleFireParams, credible_margin_m
+from dualpilot.plan import Plan, PlanStatus
+from dualpilot.spec import MissionSpec
+from services.common import bus, codec, keys
+from services.common.clock import SimClock
+from services.common.log import fields
+from services.msgs import common_pb2, fire_pb2, plan_pb2
+
+from .link import VehicleLink
+
+log = logging.getLogger(__name__)
+
+
+class Aborted(RuntimeError):
+    """The stack could not finish the mission (a service or the vehicle stopped answering)."""
+
+
+@dataclass(frozen=True)
+class StackParams:
+    """How the supervisor talks to the stack."""
+
+    plan_deadline_s: tuple[float, float] = (30.0, 120.0)  # System 1, System 2 (wall s)
+    fire_timeout_s: float = 30.0
+    vehicle_timeout_s: float = 10.0
+    altitude_m: float = 50.0
+    offboard_timeout_s: float = 30.0  # taking the vehicle (heartbeat, position, mode, arm)
+    mission_wait_s: float = 5.0       # downloading the vehicle's mission before step 0
+    prepare_timeout_s: float = 60.0   # a planner's warm-up (not a flight plan: no deadline)
+    pause_limit_s: float = 300.0      # abort when paused for longer
+    #: fire data at least this old (simulated s) is stale (dualpilot/model/stale_fire.py)
+    stale: StaleFireParams = StaleFireParams()
+    #: flush the step record (steps.jsonl) at most this long after a line (s); 0: every line
+    record_flush_s: float = 0.0
+
+
+@dataclass
+class Bus:
+    """What every adapter shares: the session, the vehicle id, the clock, the stop event."""
+
+    session: zenoh.Session
+    uav: str
+    mission_id: str
+    stamper: codec.Stamper
+    clock: SimClock
+    stop: threading.Event
+    stack: StackParams
+    live: bus.Liveliness | None = None
+
+    def alive(self, service: str) -> bool:
+        """The service's liveliness token is up (always True without a tracker)."""
+        return self.live is None or not self.live.missing({service})
+
+    def clock_msg(self, out: common_pb2.Clock) -> None:
+        """``out`` as the anchor that maps the current τ_t to the wall clock."""
+        a = self.clock.anchor
+        out.speed_factor = a.speed_factor
+        out.sim_time_s = self.clock.now_s
+        out.anchor_wall_ns = (int(a.wall_at(self.clock.now_s) * 1e9) if a.speed_factor
+                              else a.wall_ns)
+
+
+class StackFires:
+    """The fire port over the EWS's ``ews/command`` queryable.
+
+    Sub-steps the EWS does not confirm (gone, or no answer) are owed: the fire
+    data then ages (:meth:`age_s`) and the planners get it grown by
+    :meth:`margin_m` until an EWS is back, reset and replayed to the same fire
+    world (:meth:`snapshot` catches up first).
+    """
+
+    def __init__(self, b: Bus, spec: MissionSpec, fire_params: FireParams = FireParams(),
+                 on_caught_up: Callable[[int, int], None] | None = None):
+        self.b = b
+        self.spec = spec
+        self.params = fire_params
+        self.on_caught_up = on_caught_up
+        #: (step, sub-steps, keep-out) of every FireAdvance the fire world should have had
+        self.history: list[tuple[int, int, KeepOut | None]] = []
+        self.owed = 0
+        self.msg: fire_pb2.FireState | None = None
+        self.current = FireSnapshot(regions=(), hulls=())
+
+    # -- messages ---------------------------------------------------------------------------------
+    def _command(self, cmd: fire_pb2.FireCommand) -> fire_pb2.FireUpdate:
+        cmd.mission_id = self.b.mission_id
+        self.b.stamper.stamp(cmd.header, self.b.clock.now_s)
+        key = keys.fire_command(self.b.uav)
+        try:
+            payload, enc = bus.request(self.b.session, key, cmd, self.b.stack.fire_timeout_s,
+                                       self.b.stop)
+            update = codec.parse(payload, fire_pb2.FireUpdate, enc)
+        except codec.CodecError as err:
+            codec.rejected("FireUpdate", err, log, key=key)
+            raise Aborted(f"EWS: {err}") from err
+        except (TimeoutError, bus.QueryError) as err:
+            raise Aborted(f"EWS: {err}") from err
+        if not update.states:
+            raise Aborted("EWS replied without a fire state")
+        return update
+
+    def _take(self, msg: fire_pb2.FireState) -> FireSnapshot:
+        try:
+            snap = codec.snapshot_from_msg(msg)
+        except codec.CodecError as err:
+            codec.rejected("FireState", err, log)
+            raise Aborted(f"EWS sent an invalid fire state: {err}") from err
+        self.msg, self.current = msg, snap
+        return snap
+
+    def reset(self) -> FireSnapshot:
+        """Start the mission's fire process; returns its first state. Raises Aborted."""
+        cmd = fire_pb2.FireCommand()
+        cmd.reset.seed, cmd.reset.area_size_m = self.spec.seed, self.spec.area_size_m
+        first = self._command(cmd).states[0]
+        self.params = replace(self.params, substep_s=first.substep_s)
+        return self._take(first)
+
+    def replay(self) -> None:
+        """Reset the EWS and replay every recorded advance (unpaced): the fire world the
+        mission had, whatever the EWS lost. Raises Aborted when the EWS does not answer."""
+        cmd = fire_pb2.FireCommand()
+        cmd.reset.seed, cmd.reset.area_size_m = self.spec.seed, self.spec.area_size_m
+        last = self._command(cmd).states[-1]
+        for t, n, keep in self.history:
+            if n:
+                cmd = fire_pb2.FireCommand()
+                cmd.advance.step, cmd.advance.substeps = t, n
+                _keep_out_to_msg(keep, cmd.advance)
+                last = self._command(cmd).states[-1]
+        self._take(last)
+        self.owed = 0
+
+    # -- the port ---------------------------------------------------------------------------------
+    def snapshot(self) -> FireSnapshot:
+        self._catch_up()
+        return self.current
+
+    def age_s(self) -> float:
+        """Simulated s the fire process should have advanced beyond the last FireState."""
+        return self.owed * self.params.substep_s
+
+    def stale(self) -> bool:
+        return self.age_s() >= self.b.stack.stale.stale_after_s
+
+    def margin_m(self) -> float:
+        if not self.stale():
+            return 0.0
+        return credible_margin_m(self.age_s(), self.params, self.b.stack.stale)
+
+    def advance(self, t: int, n: int, keep_out: KeepOut | None) -> list[tuple[Rect, ...]]:
+        """Propagate ``n`` sub-steps from τ_t (now); each sub-step's regions, [] when owed."""
+        self.history.append((t, n, keep_out))
+        if self.owed or not self.b.alive("ews"):
+            self.owed += n
+            self._pace(n)
+            return []
+        cmd = fire_pb2.FireCommand()
+        cmd.advance.step, cmd.advance.substeps = t, n
+        _keep_out_to_msg(keep_out, cmd.advance)
+        self.b.clock_msg(cmd.advance.clock)  # sub-step k is due at τ_t + k·T_f
+        try:
+            update = self._command(cmd)
+        except Aborted as err:
+            if self.b.stop.is_set():
+                raise
+            log.warning("EWS did not advance the fires: data ageing", extra=fields(
+                step=t, substeps=n, error=str(err)))
+            self.owed += n
+            self._pace(n)
+            return []
+        self.b.clock.advance(n * self.params.substep_s)
+        out = []
+        last = len(update.states) - 1
+        for k, msg in enumerate(update.states):
+            try:  # the intermediate sub-steps only matter through their regions
+                out.append(self._take(msg).regions if k == last else codec.regions_from_msg(msg))
+            except codec.CodecError as err:
+                codec.rejected("FireState", err, log)
+                raise Aborted(f"EWS sent an invalid fire state: {err}") from err
+        return out
+
+    def _pace(self, n: int) -> None:
+        """The planning interval's n sub-steps pass on the clock without the EWS."""
+        self.b.clock.advance(n * self.params.substep_s)
+        self.b.clock.sleep_until_now(self.b.stop)
+
+    def _catch_up(self) -> None:
+        """With sub-steps owed and the EWS alive: replay (the step then judges the result)."""
+        if not self.owed or not self.b.alive("ews"):
+            return
+        owed = self.owed
+        try:
+            self.replay()
+        except Aborted as err:
+            if self.b.stop.is_set():
+                raise
+            log.warning("EWS not caught up yet", extra=fields(error=str(err)))
+            return
+        log.info("fire data fresh again: EWS caught up", extra=fields(owed_substeps=owed))
+        if self.on_caught_up is not None:
+            self.on_caught_up(owed, len(self.current.regions))
+
+
+def _keep_out_to_msg(keep: KeepOut | None, out: fire_pb2.FireAdvance) -> None:
+    if keep is not None:
+        out.keep_out.east_m, out.keep_out.north_m = (float(v) for v in keep[0])
+        out.keep_out_m = float(keep[1])
+
+
+class StackPlanners:
+    """The planner port over ``plan/system<k>`` queries.
+
+    A planner is asked only while its liveliness token is up. A reply is checked
+    before it is used: it must answer this step's request, arrive within the
+    request's deadline and decode as a valid plan; anything else is a failed
+    plan, never flown. A planner that was not prepared for this mission (it was
+    restarted) is prepared again and asked once more.
+    """
+
+    def __init__(self, b: Bus, spec: MissionSpec, systems: list[int]):
+        self.b = b
+        self.spec = spec
+        self.systems = systems
+        self.waypoints = codec.Waypoints(b.mission_id, 0, None)
+        self.last_info: dict[int, dict[str, object]] = {}
+        self.request_wall = self.service_time = self.compute = 0.0
+        self.requests = 0
+
+    def begin_step(self) -> None:
+        self.request_wall = self.service_time = self.compute = 0.0
+        self.requests = 0
+        self.last_info = {}
+
+    def available(self, system: int) -> bool:
+        return self.b.alive(f"system{system}")
+
+    def _message(self, system: int, req: PlanRequest | None) -> plan_pb2.PlanRequest:
+        core = codec.PlanRequest(
+            seq=0, mission_id=self.b.mission_id, step=0 if req is None else req.t,
+            system=system, objective=req.objective if req is not None else _OBJ,
+            state=req.state if req is not None else np.zeros(4),
+            prev_control=req.prev_control if req is not None else np.zeros(2),
+            obstacles=req.obstacles if req is not None else (),
+            deadline_s=self.b.stack.plan_deadline_s[system - 1],
+            waypoints_revision=self.waypoints.revision, prepare=req is None,
+            spec=self.spec if req is None else None)
+        return codec.plan_request_msg(core, self.b.stamper, self.b.clock.now_s)
+
+    def prepare(self, systems: list[int]) -> None:
+        """Warm-up: each planner service builds this mission's planner from the spec."""
+        for system in systems:
+            msg = self._message(system, None)
+            try:
+                payload, enc = bus.request(
+                    self.b.session, keys.plan(self.b.uav, system), msg,
+                    max(self.b.stack.plan_deadline_s[system - 1], self.b.stack.prepare_timeout_s),
+                    self.b.stop)
+                codec.parse(payload, plan_pb2.Plan, enc)
+            except (TimeoutError, bus.QueryError, codec.CodecError) as err:
+                raise Aborted(f"system{system} could not prepare the mission: {err}") from err
+
+    def set_waypoints(self, points: Array | None, publish: bool) -> None:
+        """A new revision of the operator waypoints, published on their key."""
+        self.waypoints = codec.Waypoints(self.b.mission_id, self.waypoints.revision + 1, points)
+        if publish:
+            self.publish_waypoints()
+
+    def publish_waypoints(self) -> None:
+        pub = self.b.session.declare_publisher(keys.waypoints(self.b.uav))
+        bus.put(pub, "", codec.waypoints_msg(self.waypoints, self.b.stamper))
+        pub.undeclare()
+
+    def plan(self, request: PlanRequest) -> Plan:
+        plan = self._ask(request)
+        if plan.info.get("unprepared"):
+            try:  # a restarted service: prepare it (and re-send the waypoints), ask once more
+                self.prepare([request.system])
+                if self.waypoints.revision:
+                    self.publish_waypoints()
+            except Aborted as err:
+                log.warning("planner could not be prepared again", extra=fields(error=str(err)))
+            else:
+                plan = self._ask(request)
+        self.compute += plan.compute_time_s
+        if request.system == 1:
+            self.last_info[1] = dict(plan.info)
+        return plan
+
+    def _ask(self, request: PlanRequest) -> Plan:
+        system, t = request.system, request.t
+        deadline = self.b.stack.plan_deadline_s[system - 1]
+        msg = self._message(system, request)
+        t0 = time.perf_counter()
+        key = keys.plan(self.b.uav, system)
+        self.requests += 1
+        try:
+            payload, enc = bus.request(self.b.session, key, msg, deadline, self.b.stop)
+            reply = codec.parse(payload, plan_pb2.Plan, enc)
+            plan = codec.plan_from_msg(reply, system)
+            self.service_time += reply.service_time_s
+            age = time.perf_counter() - t0
+            if reply.step != t or reply.request_seq != msg.header.seq:
+                plan = Plan.failed(system, PlanStatus.ERROR, plan.compute_time_s,
+                                   f"system{system} answered step {reply.step} request "
+                                   f"{reply.request_seq}, not step {t} request {msg.header.seq}")
+            elif age > deadline:  # a plan older than its deadline is never flown
+                log.warning("late plan not flown", extra=fields(
+                    system=system, step=t, age_s=round(age, 4), deadline_s=deadline))
+                plan = Plan.failed(system, PlanStatus.TIMEOUT, plan.compute_time_s,
+                                   f"plan {age:.3f} s old, past its {deadline:g} s deadline")
+                plan.info["late_s"] = round(age, 4)
+        except TimeoutError as err:
+            plan = Plan.failed(system, PlanStatus.TIMEOUT, time.perf_counter() - t0, str(err))
+        except bus.QueryError as err:
+            status = (PlanStatus.INVALID_INPUT if err.code == common_pb2.ERROR_CODE_INVALID
+                      else PlanStatus.ERROR)
+            plan = Plan.failed(system, status, time.perf_counter() - t0, f"system{system}: {err}")
+            if err.code == common_pb2.ERROR_CODE_UNPREPARED:
+                plan.info["unprepared"] = True
+        except codec.CodecError as err:
+            codec.rejected("Plan", err, log, key=key)
+            plan = Plan.failed(system, PlanStatus.ERROR, time.perf_counter() - t0, str(err))
+        self.request_wall += time.perf_counter() - t0
+        if self.b.stop.is_set():
+            raise Aborted("stopped")
+        return plan
+
+
+_OBJ = codec.Objective.MISSION_TIME
+
+
+class StackVehicle:
+    """The vehicle port over MAVLink: a setpoint due at a simulated time, then the state.
+
+    ``ensure_offboard`` is called while the vehicle is not flying offboard: the
+    session pauses the mission there (nothing advances: the clock is lockstep).
+    """
+
+    def __init__(self, b: Bus, link: VehicleLink, dt_s: float,
+                 ensure_offboard: Callable[[], None]):
+        self.b = b
+        self.link = link
+        self.dt_s = dt_s
+        self.ensure_offboard = ensure_offboard
+        self.base_ms = 0  # the vehicle's boot time (ms) at the mission's τ = 0
+        self.due_ms = 0
+        self.sent = 0.0  # perf_counter when the last setpoint left
+
+    def command(self, target: Array, control: Array, after_s: float) -> None:
+        self.due_ms = self.base_ms + round((self.b.clock.now_s + after_s) * 1000)
+        self.sent = self.link.send_setpoint(np.asarray(target, dtype=float), self.due_ms)
+
+    def observe(self) -> Array:
+        """The state at or after the setpoint's due time; the flight lasts ΔT of sim time."""
+        state = self.read_state(self.due_ms)
+        self.b.clock.advance(self.dt_s)
+        return state
+
+    def read_state(self, min_ms: int) -> Array:
+        """The vehicle's state at or after ``min_ms``; pauses while the vehicle is not flying
+        offboard (lost, or holding), aborts after ``vehicle_timeout_s`` without it otherwise."""
+        deadline = time.monotonic() + self.b.stack.vehicle_timeout_s
+        while True:
+            got = self.link.wait_state(min_ms, 0.25, self.b.stop)
+            if got is not None:
+                return got[1]
+            if self.b.stop.is_set():
+                raise Aborted("stopped")
+            if not self.link.offboard():
+                self.ensure_offboard()
+                deadline = time.monotonic() + self.b.stack.vehicle_timeout_s
+            elif time.monotonic() > deadline:
+                raise Aborted(f"no vehicle state at or after {min_ms} ms")
