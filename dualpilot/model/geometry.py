@@ -7,13 +7,13 @@ counter-clockwise order. All lengths are metres.
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Iterator, Sequence
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
 
-Array = NDArray[np.float64]
+from dualpilot.arrays import Array
 
 
 @dataclass(frozen=True)
@@ -123,9 +123,13 @@ class Polytope:
         p = np.asarray(p, dtype=float)[:2]
         if np.all(self.A @ p <= self.b):
             return 0.0
+        return float(np.sqrt(np.min(self._edge_d2(p))))
+
+    def _edge_d2(self, p: Array) -> Array:
+        """Squared distances (m²) from point p to each edge."""
         a = self.vertices
-        c = np.roll(a, -1, axis=0)
-        return float(np.min(_point_segment_distances(p, a, c)))
+        e = np.roll(a, -1, axis=0) - a
+        return point_segment_d2(p[0], p[1], a[:, 0], a[:, 1], e[:, 0], e[:, 1])
 
     def distances(self, points: Array) -> Array:
         """Distance from each row of ``points`` (shape (n, 2)) to the polygon."""
@@ -139,13 +143,11 @@ class Polytope:
         if self.segment_intersects(p0, p1):
             return 0.0
         a = self.vertices
-        c = np.roll(a, -1, axis=0)
-        d_ends = min(
-            float(np.min(_point_segment_distances(p0, a, c))),
-            float(np.min(_point_segment_distances(p1, a, c))),
-        )
-        d_verts = float(np.min(_point_segment_distances_many(a, p0, p1)))
-        return min(d_ends, d_verts)
+        s = p1 - p0
+        d2_verts = point_segment_d2(a[:, 0], a[:, 1], p0[0], p0[1], s[0], s[1])
+        d2 = min(float(np.min(self._edge_d2(p0))), float(np.min(self._edge_d2(p1))),
+                 float(np.min(d2_verts)))
+        return float(np.sqrt(d2))
 
     def segment_intersects(self, p0: ArrayLike, p1: ArrayLike) -> bool:
         """Cyrus–Beck clipping: does segment p0–p1 meet the closed polygon?"""
@@ -169,27 +171,27 @@ class Polytope:
         return True
 
 
-def _point_segment_distances(p: Array, a: Array, c: Array) -> Array:
-    """Distances from point p to each segment a[i]–c[i]."""
-    ac = c - a
-    len2 = np.einsum("ij,ij->i", ac, ac)
-    t = np.clip(np.einsum("ij,ij->i", p - a, ac) / np.where(len2 > 0, len2, 1.0), 0.0, 1.0)
-    proj = a + t[:, None] * ac
-    return np.asarray(np.linalg.norm(p - proj, axis=1))
+def point_segment_d2(px: Array | float, py: Array | float, ax: Array | float,
+                     ay: Array | float, dx: Array | float, dy: Array | float,
+                     inv_len2: Array | float | None = None) -> Array:
+    """Squared distance (m²) from points (px, py) to segments a → a + d, broadcast.
+
+    The one point-to-segment distance of the package; ``inv_len2`` may carry
+    1 / ‖d‖² (1 for a zero-length segment) when it is reused.
+    """
+    if inv_len2 is None:
+        len2 = np.multiply(dx, dx) + np.multiply(dy, dy)
+        inv_len2 = 1.0 / np.where(len2 > 0, len2, 1.0)
+    t = np.minimum(np.maximum(((px - ax) * dx + (py - ay) * dy) * inv_len2, 0.0), 1.0)
+    ex = px - ax - t * dx
+    ey = py - ay - t * dy
+    return np.asarray(ex * ex + ey * ey)
 
 
-def _point_segment_distances_many(points: Array, a: Array, c: Array) -> Array:
-    """Distances from each point to the single segment a–c."""
-    ac = c - a
-    len2 = float(ac @ ac)
-    t = np.clip(((points - a) @ ac) / (len2 if len2 > 0 else 1.0), 0.0, 1.0)
-    proj = a + t[:, None] * ac
-    return np.asarray(np.linalg.norm(points - proj, axis=1))
-
-
-def min_distance(p: ArrayLike, polytopes: Iterable[Polytope]) -> float:
-    """Distance from p to the nearest polytope (inf when there are none)."""
-    return min((poly.distance(p) for poly in polytopes), default=float("inf"))
+def hull_boxes(hulls: Sequence[Polytope]) -> tuple[Array, Array]:
+    """Lower and upper corners (H, 2) of each hull's bounding box (m)."""
+    return (np.array([h.vertices.min(axis=0) for h in hulls]).reshape(-1, 2),
+            np.array([h.vertices.max(axis=0) for h in hulls]).reshape(-1, 2))
 
 
 def path_clearance(points: Array, polytopes: Sequence[Polytope]) -> float:
@@ -216,12 +218,9 @@ class SegmentChecker:
     def __init__(self, hulls: Sequence[Polytope]):
         self.n_hulls = len(hulls)
         self._all = _HullEdges(hulls) if hulls else None
-        lo = [h.vertices.min(axis=0) for h in hulls]
-        hi = [h.vertices.max(axis=0) for h in hulls]
+        self._box_lo, self._box_hi = hull_boxes(hulls)
         self._boxes = [(float(a[0]), float(a[1]), float(b[0]), float(b[1]))
-                       for a, b in zip(lo, hi, strict=True)]
-        self._box_lo = np.array(lo).reshape(-1, 2)
-        self._box_hi = np.array(hi).reshape(-1, 2)
+                       for a, b in zip(self._box_lo, self._box_hi, strict=True)]
         # plain-float faces (nx, ny, β) and vertices for the scalar test
         self._faces = [list(zip(h.A[:, 0].tolist(), h.A[:, 1].tolist(), h.b.tolist(),
                                 strict=True)) for h in hulls]
@@ -303,7 +302,11 @@ class SegmentChecker:
 
 
 def _point_edge_d2(px: float, py: float, ax: float, ay: float, ex: float, ey: float) -> float:
-    """Squared distance (m²) from (px, py) to the segment a → a + e, in plain floats."""
+    """:func:`point_segment_d2` for one point and one segment, in plain floats.
+
+    Kept apart for the per-motion checks of the RRT, where numpy's per-call
+    overhead would cost more than the arithmetic.
+    """
     e2 = ex * ex + ey * ey
     t = ((px - ax) * ex + (py - ay) * ey) / e2 if e2 > 0.0 else 0.0
     t = 0.0 if t < 0.0 else 1.0 if t > 1.0 else t
@@ -383,12 +386,12 @@ class _HullEdges:
         x0, y0 = p0[:, :1], p0[:, 1:2]  # (n, 1)
         x1, y1 = p1[:, :1], p1[:, 1:2]
         ax, ay, dx, dy = self.ax, self.ay, self.dx, self.dy  # (m,)
-        d2 = np.minimum(_pt_seg2(x0, y0, ax, ay, dx, dy, self.inv_len2),
-                        _pt_seg2(x1, y1, ax, ay, dx, dy, self.inv_len2))
+        d2 = np.minimum(point_segment_d2(x0, y0, ax, ay, dx, dy, self.inv_len2),
+                        point_segment_d2(x1, y1, ax, ay, dx, dy, self.inv_len2))
         sx, sy = x1 - x0, y1 - y0
         slen2 = sx * sx + sy * sy
         inv = 1.0 / np.where(slen2 > 0, slen2, 1.0)
-        d2 = np.minimum(d2, _pt_seg2(ax, ay, x0, y0, sx, sy, inv))
+        d2 = np.minimum(d2, point_segment_d2(ax, ay, x0, y0, sx, sy, inv))
         d = np.sqrt(d2.min(axis=1))
         # proper crossings of the segment with a hull edge (orientation tests)
         o1 = sx * (ay - y0) - sy * (ax - x0)
@@ -401,12 +404,3 @@ class _HullEdges:
         inside = np.maximum.reduceat(slack, self.starts, axis=1) <= 0.0
         hit = crossing.any(axis=1) | inside.any(axis=1)
         return np.where(hit, 0.0, d)
-
-
-def _pt_seg2(px: Array, py: Array, ax: Array, ay: Array, dx: Array, dy: Array,
-             inv_len2: Array) -> Array:
-    """Broadcast squared distance from points (px, py) to segments a → a + d."""
-    t = np.minimum(np.maximum(((px - ax) * dx + (py - ay) * dy) * inv_len2, 0.0), 1.0)
-    ex = px - ax - t * dx
-    ey = py - ay - t * dy
-    return np.asarray(ex * ex + ey * ey)

@@ -14,39 +14,38 @@ from __future__ import annotations
 
 import copy
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 import scipy.sparse as sp
-from numpy.typing import NDArray
 from scipy.linalg.lapack import dpbtrf, dpbtrs
+
+from dualpilot.arrays import AnyArray
 
 try:  # the compiled kernels behind scipy.sparse's matrix-vector products (no per-call checks)
     from scipy.sparse._sparsetools import csc_matvec as _csc_matvec
     from scipy.sparse._sparsetools import csr_matvec as _csr_matvec
 except ImportError:  # pragma: no cover - a scipy without them: the public products
 
-    def _csr_matvec(n_row: int, n_col: int, ptr: Array, idx: Array, dat: Array, x: Array,
-                    out: Array) -> None:
+    def _csr_matvec(n_row: int, n_col: int, ptr: AnyArray, idx: AnyArray, dat: AnyArray,
+                    x: AnyArray, out: AnyArray) -> None:
         out += sp.csr_matrix((dat, idx, ptr), shape=(n_row, n_col)) @ x
 
-    def _csc_matvec(n_row: int, n_col: int, ptr: Array, idx: Array, dat: Array, x: Array,
-                    out: Array) -> None:
+    def _csc_matvec(n_row: int, n_col: int, ptr: AnyArray, idx: AnyArray, dat: AnyArray,
+                    x: AnyArray, out: AnyArray) -> None:
         out += sp.csc_matrix((dat, idx, ptr), shape=(n_row, n_col)) @ x
 
-Array = NDArray[Any]  # float, int or bool arrays
 
 @dataclass(frozen=True)
 class Rows:
     """Rows lo ≤ Σ_k vals[r,k]·z[cols[r,k]] ≤ hi, each row scaled to unit norm."""
 
-    cols: Array  # (R, 3) int
-    vals: Array  # (R, 3)
-    lo: Array
-    hi: Array
+    cols: AnyArray  # (R, 3) int
+    vals: AnyArray  # (R, 3)
+    lo: AnyArray
+    hi: AnyArray
 
     @staticmethod
-    def make(cols: Array, vals: Array, lo: Array, hi: Array) -> Rows:
+    def make(cols: AnyArray, vals: AnyArray, lo: AnyArray, hi: AnyArray) -> Rows:
         cols = np.asarray(cols, dtype=np.int64)
         vals = np.asarray(vals, dtype=float)
         norm = np.linalg.norm(vals, axis=1)
@@ -67,14 +66,14 @@ class Rows:
 class IpmResult:
     ok: bool
     status: str
-    z: Array
+    z: AnyArray
     iterations: int
 
 
 _PAIRS = [(0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2)]
 
 
-def band_pairs(rows: Rows, n: int) -> tuple[Array, Array, Array]:
+def band_pairs(rows: Rows, n: int) -> tuple[AnyArray, AnyArray, AnyArray]:
     """Flat band indices d·n + min(i, j), coefficients and row ids of every LᵀDL term.
 
     Row-major: the six terms of row r are entries 6r … 6r + 5, so the terms of
@@ -97,8 +96,8 @@ class BandedQp:
     and Newton-matrix terms are built once.
     """
 
-    def __init__(self, h_band: Array, q: Array, rows: Rows,
-                 pairs: tuple[Array, Array, Array]) -> None:
+    def __init__(self, h_band: AnyArray, q: AnyArray, rows: Rows,
+                 pairs: tuple[AnyArray, AnyArray, AnyArray]) -> None:
         self.bw1, self.n = h_band.shape
         n = self.n
         c_obj = float(np.max(h_band[0]))
@@ -130,7 +129,7 @@ class BandedQp:
         nz = coef != 0.0  # padding terms add nothing
         self.p_idx, self.p_coef, self.p_row = p_idx[g_pair][nz], coef[nz], rowid[nz]
 
-    def rebound(self, q: Array, lo: Array, hi: Array) -> BandedQp:
+    def rebound(self, q: AnyArray, lo: AnyArray, hi: AnyArray) -> BandedQp:
         """The same QP with a new linear term and new row bounds (same finite pattern)."""
         if not (np.array_equal(np.flatnonzero(np.isfinite(lo)), self.il)
                 and np.array_equal(np.flatnonzero(np.isfinite(hi)), self.iu)):
@@ -141,7 +140,7 @@ class BandedQp:
         return out
 
     def solve(self, extra: Rows | None = None, *, max_iter: int = 40, tol: float = 1e-9,
-              z0: Array | None = None, slack0: float = 1.0,
+              z0: AnyArray | None = None, slack0: float = 1.0,
               detect_infeasible: bool = True) -> IpmResult:
         """Mehrotra predictor-corrector with the fixed rows plus ``extra`` (lower bounds).
 
@@ -178,12 +177,12 @@ class BandedQp:
         b_dat = np.ascontiguousarray(p_coef, dtype=float)
         nb = bw1 * n
 
-        def gmul(x: Array) -> Array:  # G x
+        def gmul(x: AnyArray) -> AnyArray:  # G x
             out = np.zeros(m)
             _csr_matvec(m, n, g_ptr, g_idx, g_dat, x, out)
             return out
 
-        def gtmul(v: Array) -> Array:  # Gᵀ v (G's CSR arrays read as the CSC of Gᵀ)
+        def gtmul(v: AnyArray) -> AnyArray:  # Gᵀ v (G's CSR arrays read as the CSC of Gᵀ)
             out = np.zeros(n)
             _csc_matvec(n, m, g_ptr, g_idx, g_dat, v, out)
             return out
@@ -247,8 +246,8 @@ class BandedQp:
         return IpmResult(status == "solved", status, z, it)
 
 
-def solve_qp(h_band: Array, q: Array, rows: Rows, pairs: tuple[Array, Array, Array],
-             *, max_iter: int = 40, tol: float = 1e-9, z0: Array | None = None,
+def solve_qp(h_band: AnyArray, q: AnyArray, rows: Rows, pairs: tuple[AnyArray, AnyArray, AnyArray],
+             *, max_iter: int = 40, tol: float = 1e-9, z0: AnyArray | None = None,
              slack0: float = 1.0, detect_infeasible: bool = True) -> IpmResult:
     """Solve  min ½ zᵀHz + qᵀz  s.t.  rows  (``h_band`` is (bw+1, n) lower band form).
 
@@ -261,7 +260,7 @@ def solve_qp(h_band: Array, q: Array, rows: Rows, pairs: tuple[Array, Array, Arr
         max_iter=max_iter, tol=tol, z0=z0, slack0=slack0, detect_infeasible=detect_infeasible)
 
 
-def _step(s: Array, lam: Array, ds: Array, dl: Array) -> float:
+def _step(s: AnyArray, lam: AnyArray, ds: AnyArray, dl: AnyArray) -> float:
     """Largest step in (0, 1] keeping s + αΔs ≥ 0 and λ + αΔλ ≥ 0 (s, λ > 0)."""
     # max(−Δs/s) = −min(Δs/s) exactly (negation is exact)
     worst = max(-float((ds / s).min(initial=0.0)), -float((dl / lam).min(initial=0.0)), 1.0)

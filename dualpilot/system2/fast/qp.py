@@ -21,17 +21,15 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass
-from typing import Any
 
 import clarabel
 import numpy as np
 import scipy.sparse as sp
-from numpy.typing import NDArray
 
+from dualpilot.arrays import AnyArray
 from dualpilot.model.dynamics import DynamicsParams, reach_boxes
 from dualpilot.system2.fast.ipm import BandedQp, Rows, band_pairs
 
-Array = NDArray[Any]  # float, int or bool arrays
 
 @dataclass(frozen=True)
 class QpResult:
@@ -39,8 +37,8 @@ class QpResult:
 
     ok: bool
     status: str
-    positions: Array  # (T+1, 2): p_1 .. p_{T+1}
-    controls: Array  # (T, 2): u_1 .. u_T (N), unclipped
+    positions: AnyArray  # (T+1, 2): p_1 .. p_{T+1}
+    controls: AnyArray  # (T, 2): u_1 .. u_T (N), unclipped
     objective: float  # the QP's Eq. (S2) value (true units)
     iterations: int
     solve_time_s: float
@@ -125,16 +123,17 @@ class P2Qp:
                                       zip(self._fixed_rows, self._fixed_norm, strict=True)]),
                            np.zeros(0), np.zeros(0))
         self._fixed_pairs = band_pairs(self._fixed, n)
-        self._band_cache: dict[tuple[float, float], Array] = {}
+        self._band_cache: dict[tuple[float, float], AnyArray] = {}
         self._ctx: BandedQp | None = None
         self._ctx_key: tuple[bytes, bytes, float, float] | None = None
         self.bw = 6
-        self._off: tuple[Array, Array, Array, Array] | None = None
+        self._off: tuple[AnyArray, AnyArray, AnyArray, AnyArray] | None = None
         self._struct_cache: dict[tuple[float, float, bytes, bytes], BandedQp] = {}
         self._off_key: tuple[bytes, bytes] | None = None
 
     # ----------------------------------------------------------------- maps
-    def offsets(self, x0: Array, u_prev: Array) -> tuple[Array, Array, Array, Array]:
+    def offsets(self, x0: AnyArray, u_prev: AnyArray
+                ) -> tuple[AnyArray, AnyArray, AnyArray, AnyArray]:
         """Constant parts (from the state and u_{t|t}) of v, u and Δu, and p_{t+1|t}.
 
         The last result is cached (every QP of one plan shares x_t and u_{t|t});
@@ -171,7 +170,7 @@ class P2Qp:
         return h
 
     @staticmethod
-    def _padded(mat: sp.csr_matrix) -> tuple[Array, Array]:
+    def _padded(mat: sp.csr_matrix) -> tuple[AnyArray, AnyArray]:
         """(cols, vals) of shape (rows, 3) for a CSR matrix with ≤ 3 nonzeros per row."""
         mat = mat.tocsr(copy=True)
         mat.eliminate_zeros()
@@ -193,7 +192,7 @@ class P2Qp:
             cols[pad, k] = cols[pad, 0]
         return cols, vals
 
-    def hessian_band(self, kappa: tuple[float, float]) -> Array:
+    def hessian_band(self, kappa: tuple[float, float]) -> AnyArray:
         """H of the QP in lower band form (bw+1, n)."""
         key = (float(kappa[0]), float(kappa[1]))
         band = self._band_cache.get(key)
@@ -209,7 +208,7 @@ class P2Qp:
             self._band_cache[key] = band
         return band
 
-    def _context(self, x0: Array, u_prev: Array, q: Array,
+    def _context(self, x0: AnyArray, u_prev: AnyArray, q: AnyArray,
                  kappa: tuple[float, float]) -> BandedQp:
         """The fixed part of the interior-point QP for one (state, u_{t|t}, κ), cached."""
         key = (x0.tobytes(), u_prev.tobytes(), float(kappa[0]), float(kappa[1]))
@@ -248,9 +247,9 @@ class P2Qp:
         self._ctx_key = key
         return self._ctx
 
-    def _solve_ipm(self, x0: Array, u_prev: Array, q: Array, kappa: tuple[float, float],
-                   tau: Array, normals: Array, rhs: Array, z0: Array | None = None,
-                   detect_infeasible: bool = True) -> tuple[bool, str, Array, int]:
+    def _solve_ipm(self, x0: AnyArray, u_prev: AnyArray, q: AnyArray, kappa: tuple[float, float],
+                   tau: AnyArray, normals: AnyArray, rhs: AnyArray, z0: AnyArray | None = None,
+                   detect_infeasible: bool = True) -> tuple[bool, str, AnyArray, int]:
         ctx = self._context(x0, u_prev, q, kappa)
         m = len(tau)
         extra = None
@@ -265,26 +264,26 @@ class P2Qp:
         res = ctx.solve(extra, z0=z0, detect_infeasible=detect_infeasible)
         return res.ok, f"ipm {res.status}", res.z, res.iterations
 
-    def positions(self, z: Array, x0: Array) -> Array:
+    def positions(self, z: AnyArray, x0: AnyArray) -> AnyArray:
         """p_1..p_{T+1} (m) from the scaled variables."""
         p1 = x0[:2] + self.dyn.dt_s * x0[2:]
         return np.vstack([p1, self.scale * z.reshape(-1, 2)])
 
-    def controls(self, z: Array, x0: Array, u_prev: Array) -> Array:
+    def controls(self, z: AnyArray, x0: AnyArray, u_prev: AnyArray) -> AnyArray:
         _, uc, _, _ = self.offsets(x0, u_prev)
         return np.asarray(self._U @ z + uc).reshape(-1, 2)
 
-    def cost(self, positions: Array, controls: Array, goal: Array,
-             kappa: tuple[float, float], u_prev: Array) -> float:
+    def cost(self, positions: AnyArray, controls: AnyArray, goal: AnyArray,
+             kappa: tuple[float, float], u_prev: AnyArray) -> float:
         """Eq. (S2) for p_1..p_T (rows 0..T-1 of ``positions``) and u_1..u_T."""
         pos = positions[: self.T]
         du = np.diff(np.vstack([u_prev, controls]), axis=0)
         return float(kappa[0] * np.sum((pos - goal) ** 2) + kappa[1] * np.sum(du**2))
 
     # ---------------------------------------------------------------- solve
-    def solve(self, x0: Array, u_prev: Array, goal: Array, kappa: tuple[float, float],
-              tau: Array, normals: Array, rhs: Array, area_rows: Array | None = None,
-              elastic: float | None = None, *, z0: Array | None = None,
+    def solve(self, x0: AnyArray, u_prev: AnyArray, goal: AnyArray, kappa: tuple[float, float],
+              tau: AnyArray, normals: AnyArray, rhs: AnyArray, area_rows: AnyArray | None = None,
+              elastic: float | None = None, *, z0: AnyArray | None = None,
               confirm: bool = False) -> QpResult:
         """Solve the QP with half-planes normals[k]·p_{tau[k]} ≥ rhs[k] (τ in 2..T).
 
@@ -373,7 +372,7 @@ class P2Qp:
             status += f" (elastic, slack {slack:.3g} m)"
         return QpResult(True, status, pos, ctrl, cost, int(sol.iterations), float(sol.solve_time))
 
-    def _area_rows(self, area_rows: Array | None) -> Array:
+    def _area_rows(self, area_rows: AnyArray | None) -> AnyArray:
         if area_rows is None:
             tau = np.arange(2, self.T + 1)
             grid = np.array(np.meshgrid(tau, [0, 1], [0, 1], indexing="ij")).reshape(3, -1).T
