@@ -1,8 +1,8 @@
 """Planners under load: 50 active fire fronts against 1–9, in one run.
 
-For each instance (``dualpilot.bench.make_instance``: the paper's fire
+For each instance (``dualpilot.instances.make_instance``: the paper's fire
 process, a free UAV state), the fast System 2 and System 1 plan once; every
-OK plan is checked independently (``dualpilot.bench.check_plan``). Prints the
+OK plan is checked independently (``dualpilot.instances.check_plan``). Prints the
 median and p95 wall time per group, the ratio of the medians, and how many
 plans were OK and verified.
 
@@ -16,17 +16,14 @@ import time
 
 import numpy as np
 
-from dualpilot.bench import GOAL, check_plan, make_instance
-from dualpilot.model.dynamics import DynamicsParams
+from dualpilot.instances import SPEC, check_plan, make_instance
 from dualpilot.system1.planner import System1
 from dualpilot.system2.fast.planner import FastSystem2
 from dualpilot.system2.problem import System2Params
 
 
 def run(n_instances: int, seed: int) -> None:
-    dyn = DynamicsParams()
-    params = System2Params()
-    s2 = FastSystem2(GOAL, params, dyn)
+    s2 = FastSystem2(SPEC, System2Params())
     groups = {"1-9 fronts": [1 + i % 9 for i in range(n_instances)],
               "50 fronts": [50] * n_instances}
     warm = make_instance(0, seed, 3)
@@ -39,17 +36,15 @@ def run(n_instances: int, seed: int) -> None:
     for i in range(n_instances):
         for group, counts in groups.items():
             inst = make_instance(i, seed, counts[i])
-            s1 = System1(GOAL, np.random.default_rng(np.random.SeedSequence([seed, i])),
-                         dynamics=dyn)
+            s1 = System1(SPEC, rng=np.random.default_rng(np.random.SeedSequence([seed, i])))
             s2.reset()  # no "previous plan" carried over from another instance
-            for name, planner, eps in (("system2", s2, params.epsilon_m),
-                                       ("system1", s1, None)):
+            for name, planner, p2 in (("system2", s2, True), ("system1", s1, False)):
                 t0 = time.perf_counter()
                 plan = planner.plan(inst.state, inst.hulls, inst.objective, inst.prev_control)
                 times[group][name].append(time.perf_counter() - t0)
                 if plan.ok:
                     ok[group][name] += 1
-                    verified[group][name] += check_plan(plan, inst, dyn, eps)[0]
+                    verified[group][name] += check_plan(plan, inst, p2=p2)[0]
     for group in groups:
         for name in names:
             ts = times[group][name]

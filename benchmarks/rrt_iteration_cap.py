@@ -16,11 +16,13 @@ import numpy as np
 
 from dualpilot.model.dynamics import hover_state
 from dualpilot.model.fire import FireField, FireParams
-from dualpilot.model.geometry import Rect
+from dualpilot.spec import MissionSpec
 from dualpilot.system1.planner import System1
 from dualpilot.system1.rrt import RrtParams, SegmentChecker, plan_path
 
-goal = Rect(900, 900, 100, 100)
+SPEC = MissionSpec()
+goal = SPEC.goal
+CLEAR = SPEC.clearance_m
 
 
 def instance(i):
@@ -35,10 +37,10 @@ def instance(i):
     hulls = ff.snapshot().hulls
     ch = SegmentChecker(hulls)
     start = np.array([50.0, 50.0])
-    if i % 2 == 1 or ch.point_distance(start) < 25:
+    if i % 2 == 1 or ch.point_distance(start) < CLEAR:
         for _ in range(1000):
-            start = rng.uniform(0, 1000, 2)
-            if ch.point_distance(start) >= 25 and not goal.contains(start, 25):
+            start = rng.uniform(0, SPEC.area_size_m, 2)
+            if ch.point_distance(start) >= CLEAR and not goal.contains(start, CLEAR):
                 break
     return hulls, start, ch
 
@@ -48,11 +50,12 @@ def cap_table(n: int, params: RrtParams, label: str) -> None:
     iters_l, found_l, blocked_l, t_rrt_l = [], [], [], []
     for i in range(n):
         hulls, start, ch = instance(i)
-        r = plan_path(start, goal, hulls, np.random.default_rng(i), params, checker=ch)
+        r = plan_path(start, goal, hulls, np.random.default_rng(i), CLEAR, SPEC.area_size_m,
+                      params, checker=ch)
         iters_l.append(r.iterations)
         found_l.append(r.found)
         t_rrt_l.append(r.time_s)
-        blocked_l.append(not ch.clear(start[None], goal.center[None], 25.0)[0])
+        blocked_l.append(not ch.clear(start[None], goal.center[None], CLEAR)[0])
     iters, found = np.array(iters_l), np.array(found_l)
     blocked, t_rrt = np.array(blocked_l), np.array(t_rrt_l)
     print(
@@ -88,7 +91,7 @@ def main(n: int) -> None:
     statuses: dict[str, int] = {}
     for i in range(n):
         hulls, start, _ = instance(i)
-        pl = System1(goal, np.random.default_rng(i)).plan(hover_state(start), hulls)
+        pl = System1(SPEC, rng=np.random.default_rng(i)).plan(hover_state(start), hulls)
         times.append(pl.compute_time_s)
         statuses[pl.status.value] = statuses.get(pl.status.value, 0) + 1
     t = np.array(times)

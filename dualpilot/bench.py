@@ -1,16 +1,10 @@
 """Benchmarks of System 2 (fast vs exact) and System 1: ``dualpilot bench system2|system1``.
 
-Instances follow the paper's fire setup (Sec. IV-A, :class:`FireParams`): a
-:class:`FireField` runs for a random number of sub-steps from a seeded RNG;
-to reach the instance's hull count (1–10, cycled over the instances) extra
-fronts are spawned and propagated with the same Gauss–Markov model (they are
-not extinguished, so their hulls △(C^i_{1:t}) grow as the paper's do). The
-UAV is placed somewhere free near the start–goal diagonal with a random
-velocity; the objective and u_{t|t} are drawn too.
-
-Every method is timed from state in to verified plan out. The exact MIQP is
-the reference: it runs in a worker process that is killed past its time
-limit, so a solver crash or hang costs one reference, never the benchmark.
+Instances come from :mod:`dualpilot.instances` (the paper's fire setup,
+1–10 hulls cycled over the instances). Every method is timed from state in
+to verified plan out. The exact MIQP is the reference: it runs in a
+:class:`dualpilot.system2.worker.Worker` killed past its time limit, so a
+solver crash or hang costs one reference, never the benchmark.
 """
 
 from __future__ import annotations
@@ -22,83 +16,14 @@ import math
 import sys
 import time
 from collections.abc import Sequence
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from dualpilot.model.dynamics import Array, DynamicsParams
-from dualpilot.model.fire import FireField, FireParams
-from dualpilot.model.geometry import Polytope, Rect
-from dualpilot.plan import Objective, Plan
+from dualpilot.instances import SPEC, Instance, check_plan, make_instance
+from dualpilot.plan import Plan
 from dualpilot.system2.problem import System2Params
-
-START = np.array([50.0, 50.0])
-GOAL = Rect(900.0, 900.0, 100.0, 100.0)
-
-
-@dataclass(frozen=True)
-class Instance:
-    """One planning query: state, hulls, objective and u_{t|t}."""
-
-    index: int
-    seed: int
-    state: Array
-    hulls: tuple[Polytope, ...]
-    objective: Objective
-    prev_control: Array
-    substeps: int
-
-    @property
-    def n_hulls(self) -> int:
-        return len(self.hulls)
-
-
-def make_instance(index: int, seed: int, n_hulls: int, fire: FireParams = FireParams(),
-                  clearance_m: float = 25.0) -> Instance:
-    """A seeded instance with exactly ``n_hulls`` active fronts and a free UAV state."""
-    rng = np.random.default_rng(np.random.SeedSequence([seed, index]))
-    for _attempt in range(200):
-        field = FireField(fire)
-        substeps = int(rng.integers(1, 60))
-        for k in range(substeps):
-            field.substep(rng, k)
-        while len(field.fronts) > n_hulls:
-            field.fronts.pop(int(rng.integers(len(field.fronts))))
-        # top up: spawned fronts propagate for a random number of sub-steps
-        while len(field.fronts) < n_hulls:
-            front = field.spawn(rng, substeps)
-            field.fronts.pop()
-            for _ in range(int(rng.integers(0, 60))):
-                front = front.advance(rng, fire)
-            field.fronts.append(front)
-        hulls = field.snapshot().hulls
-        if any(h.contains(START, margin=clearance_m + 5.0) for h in hulls):
-            continue
-        state = _free_state(rng, hulls, clearance_m)
-        if state is None:
-            continue
-        objective = Objective.MISSION_TIME if rng.random() < 0.5 else Objective.ENERGY
-        prev_control = rng.uniform(-3.0, 3.0, size=2)
-        return Instance(index, seed, state, hulls, objective, prev_control, substeps)
-    raise RuntimeError(f"could not draw instance {index} with {n_hulls} hulls")
-
-
-def _free_state(rng: np.random.Generator, hulls: Sequence[Polytope],
-                clearance_m: float) -> Array | None:
-    for _ in range(200):
-        s = rng.uniform(0.0, 0.85)
-        pos = START + s * (GOAL.center - START) + rng.normal(0.0, 120.0, size=2)
-        if np.any(pos < 20.0) or np.any(pos > 980.0):
-            continue
-        vel = rng.uniform(-10.0, 10.0, size=2)
-        p1 = pos + vel
-        if any(h.distance(pos) < clearance_m + 10.0 or float(np.max(h.A @ p1 - h.b))
-               < clearance_m + 5.0 for h in hulls):
-            continue
-        return np.concatenate([pos, vel])
-    return None
 
 
 # ------------------------------------------------------------------ helpers
@@ -131,23 +56,6 @@ def stats(rows: Sequence[dict[str, Any]]) -> dict[str, Any]:
         "verified_fraction_of_ok": float(np.mean(ver_ok)) if ver_ok else None,
         "statuses": statuses,
     }
-
-
-def check_plan(plan: Plan, inst: Instance, dynamics: DynamicsParams,
-               epsilon_m: float | None) -> tuple[bool, str]:
-    """Independent verification of a returned plan (dynamics, bounds, clearance, ε-disjunction)."""
-    from dualpilot.system2.fast.planner import verify_p2_plan
-    from dualpilot.verify import verify_trajectory
-
-    if not plan.ok:
-        return False, f"status {plan.status.value}"
-    if epsilon_m is None:
-        verdict = verify_trajectory(plan.states, plan.controls, inst.hulls, dynamics,
-                                    clearance_m=20.0)
-    else:
-        verdict = verify_p2_plan(plan.states, plan.controls, inst.hulls, dynamics, epsilon_m,
-                                 20.0, 1000.0, tol=1e-3)
-    return verdict.ok, verdict.reason
 
 
 def _timed(planner: Any, inst: Instance) -> tuple[Plan, float, float]:
@@ -186,32 +94,28 @@ def run_system2(n_instances: int, seed: int, out_dir: Path, reference_timeout: f
     cost any method found; gaps are (cost − reference) / reference. The best
     dual bound also gives a certified gap bound for each method.
     """
-    from dualpilot.system2.fast.planner import (
-        ExactWorker,
-        _ExactFactory,
-        _SeededFactory,
-        make_system2,
-    )
+    from dualpilot.planners import build_planner
+    from dualpilot.system2.exact import ExactSystem2
+    from dualpilot.system2.fast.planner import AnytimeSystem2
+    from dualpilot.system2.scip import SeededExactSystem2
+    from dualpilot.system2.worker import PlannerFactory, Worker
 
-    dyn = DynamicsParams()
     params = System2Params(horizon=horizon)
     ref_params = System2Params(horizon=horizon, time_limit_s=reference_timeout)
     insts = _instances(n_instances, seed, max_hulls)
     cache: dict[str, Any] = {}
     if reference_cache is not None and reference_cache.exists():
         cache = json.loads(reference_cache.read_text())
-    workers = {"exact": ExactWorker(_ExactFactory(GOAL, ref_params, dyn))}
+    workers = {"exact": Worker(PlannerFactory(ExactSystem2, SPEC, ref_params))}
     if seeded_reference:
-        workers["exact-seeded"] = ExactWorker(_SeededFactory(GOAL, ref_params, dyn))
+        workers["exact-seeded"] = Worker(PlannerFactory(SeededExactSystem2, SPEC, ref_params))
     planners: dict[str, Any] = {}
     for m in methods:
         if m == "fast+exact":
-            from dualpilot.system2.fast.planner import AnytimeSystem2
-
-            planners[m] = AnytimeSystem2(GOAL, params, dyn, exact_budget_s=anytime_budget_s)
+            planners[m] = AnytimeSystem2(SPEC, params, exact_budget_s=anytime_budget_s)
         elif m != "exact":
-            planners[m] = make_system2(m, GOAL, params, dyn)
-    fast_seed = planners.get("fast") or make_system2("fast", GOAL, params, dyn)
+            planners[m] = build_planner(2, SPEC, m, params)
+    fast_seed = planners.get("fast") or build_planner(2, SPEC, "fast", params)
     rows: list[dict[str, Any]] = []
     try:
         for p in planners.values():  # warm-up: imports, caches, worker start
@@ -225,7 +129,7 @@ def run_system2(n_instances: int, seed: int, out_dir: Path, reference_timeout: f
                 if hasattr(planner, "reset"):
                     planner.reset()
                 plan, wall, cpu = _timed(planner, inst)
-                ok, why = check_plan(plan, inst, dyn, params.epsilon_m)
+                ok, why = check_plan(plan, inst)
                 if plan.ok and not ok:
                     why = "RETURNED OK BUT FAILED VERIFICATION: " + why
                 results[name] = {"time_s": wall, "cpu_s": cpu, "status": plan.status.value,
@@ -247,8 +151,8 @@ def run_system2(n_instances: int, seed: int, out_dir: Path, reference_timeout: f
                 answer, outcome = worker.solve(request, reference_timeout + 60.0)
                 ref = {"outcome": outcome, "time_s": time.perf_counter() - t0, "status": None,
                        "cost": None, "optimal": False, "verified": False, "dual_bound": None}
-                if answer is not None:
-                    ok, why = check_plan(answer, inst, dyn, params.epsilon_m)
+                if isinstance(answer, Plan):
+                    ok, why = check_plan(answer, inst)
                     ref.update(status=answer.status.value, cost=answer.cost if ok else None,
                                optimal=bool(answer.info.get("optimal")) and ok, verified=ok,
                                why=why, time_s=answer.compute_time_s,
@@ -381,17 +285,16 @@ def run_system1(n_instances: int, seed: int, out_dir: Path, max_hulls: int = 10,
     from dualpilot.system2.fast.planner import FastSystem2
     from dualpilot.system2.problem import p2_cost
 
-    dyn = DynamicsParams()
     params = System2Params()
     insts = _instances(n_instances, seed, max_hulls)
-    s2 = FastSystem2(GOAL, params, dyn)
+    s2 = FastSystem2(SPEC, params)
     rows: list[dict[str, Any]] = []
     for inst in insts:
-        planner = System1(GOAL, np.random.default_rng(np.random.SeedSequence([seed, inst.index,
-                                                                             1])), dynamics=dyn)
+        rng = np.random.default_rng(np.random.SeedSequence([seed, inst.index, 1]))
+        planner = System1(SPEC, rng=rng)
         if not rows:  # warm-up (imports, OMPL setup)
             with contextlib.suppress(ValueError):
-                System1(GOAL, np.random.default_rng(0), dynamics=dyn).plan(
+                System1(SPEC, rng=np.random.default_rng(0)).plan(
                     inst.state, inst.hulls, inst.objective, inst.prev_control)
         try:
             plan, wall, cpu = _timed(planner, inst)
@@ -400,9 +303,9 @@ def run_system1(n_instances: int, seed: int, out_dir: Path, max_hulls: int = 10,
                          "cpu_s": None, "status": "invalid_input", "cost": None, "gap": None,
                          "verified": False, "why": str(err)})
             continue
-        ok, why = check_plan(plan, inst, dyn, None)
+        ok, why = check_plan(plan, inst, p2=False)
         kappa = params.kappa(inst.objective)
-        cost = (p2_cost(plan.states, plan.controls, GOAL.center, kappa, inst.prev_control)
+        cost = (p2_cost(plan.states, plan.controls, SPEC.goal.center, kappa, inst.prev_control)
                 if plan.ok else None)
         ref = s2.plan(inst.state, inst.hulls, inst.objective, inst.prev_control)
         gap = (None if cost is None or not ref.ok or ref.cost is None
@@ -498,11 +401,11 @@ def add_bench_parser(subparsers: Any) -> None:
 
 def _cli_system2(args: argparse.Namespace) -> int:
     methods = [m.strip() for m in args.methods.split(",") if m.strip()]
-    from dualpilot.system2.fast.planner import METHODS
+    from dualpilot.planners import METHODS
 
-    bad = [m for m in methods if m not in METHODS]
+    bad = [m for m in methods if m not in METHODS[2]]
     if bad or not methods:
-        raise ValueError(f"unknown methods {bad}; choose from {METHODS}")
+        raise ValueError(f"unknown methods {bad}; choose from {METHODS[2]}")
     if args.instances < 1 or args.reference_timeout <= 0:
         raise ValueError("--instances >= 1 and --reference-timeout > 0 are required")
     cache = Path(args.reference_cache) if args.reference_cache else None

@@ -7,11 +7,9 @@ from dataclasses import dataclass, field
 from typing import Protocol
 
 import numpy as np
-from numpy.typing import NDArray
 
+from dualpilot.arrays import Array
 from dualpilot.model.geometry import Polytope
-
-Array = NDArray[np.float64]
 
 
 class PlanStatus(enum.Enum):
@@ -70,9 +68,13 @@ class Plan:
 
 
 class Planner(Protocol):
-    """One step method, called by the mission loop and by the planner services."""
+    """One step method, called by the mission loop and by the planner services.
+
+    ``system`` is 1 or 2; ``method`` the name :mod:`dualpilot.planners` builds it by.
+    """
 
     system: int
+    method: str
 
     def plan(
         self,

@@ -1,46 +1,96 @@
-"""Build the two planners of a mission from a seed (kept apart from the loop for the services)."""
+"""The planners of a mission, built by name from its :class:`dualpilot.spec.MissionSpec`.
+
+One registry, like python-control's ``trajectory_method=``: System 1's "rrt"
+(Alg. 1 + LQR) and System 2's "fast" (the default), "exact" (the cvxpy
+MIQP, solved in a killable worker process), "fast+exact" and "thorough".
+Every planner implements :class:`dualpilot.plan.Planner`.
+"""
 
 from __future__ import annotations
 
-import numpy as np
+from collections.abc import Callable, Mapping
+from typing import TYPE_CHECKING
 
-from dualpilot.mission.step import MissionConfig
-from dualpilot.model.dynamics import DynamicsParams
 from dualpilot.plan import Planner
+from dualpilot.spec import MissionSpec
 from dualpilot.system2.problem import System2Params
 
-#: Seed-sequence key of System 1's RNG, apart from the fire and supervisor streams.
-SYSTEM1_STREAM = 7
+if TYPE_CHECKING:
+    from dualpilot.system1.planner import System1Params
+
+__all__ = ["METHODS", "Planner", "build_planner", "build_planners"]
+
+#: A constructor of the registry: (spec, params or None for the defaults) -> Planner.
+System1Constructor = Callable[[MissionSpec, "System1Params | None"], Planner]
+System2Constructor = Callable[[MissionSpec, "System2Params | None"], Planner]
 
 
-def make_system1(
-    config: MissionConfig, seed: int, dynamics: DynamicsParams = DynamicsParams()
-) -> Planner:
-    from dualpilot.system1.planner import System1
+def _rrt(spec: MissionSpec, params: System1Params | None) -> Planner:
+    from dualpilot.system1.planner import System1, System1Params
 
-    rng = np.random.default_rng(np.random.SeedSequence([seed, SYSTEM1_STREAM]))
-    return System1(config.goal, rng=rng, dynamics=dynamics, area_size_m=config.area_size_m)
+    return System1(spec, params or System1Params())
 
 
-def make_system2_planner(
-    config: MissionConfig,
-    method: str = "fast",
-    params: System2Params = System2Params(),
-    dynamics: DynamicsParams = DynamicsParams(),
-) -> Planner:
-    from dualpilot.system2.fast.planner import make_system2
+def _fast(spec: MissionSpec, params: System2Params | None) -> Planner:
+    from dualpilot.system2.fast.planner import FastSystem2
 
-    return make_system2(method, config.goal, params, dynamics)
+    return FastSystem2(spec, params or System2Params())
 
 
-def make_planners(
-    config: MissionConfig,
-    seed: int,
-    system2_method: str = "fast",
-    system2_params: System2Params = System2Params(),
-    dynamics: DynamicsParams = DynamicsParams(),
-) -> dict[int, Planner]:
-    return {
-        1: make_system1(config, seed, dynamics),
-        2: make_system2_planner(config, system2_method, system2_params, dynamics),
-    }
+def _exact(spec: MissionSpec, params: System2Params | None) -> Planner:
+    from dualpilot.system2.exact import ExactSystem2
+
+    return ExactSystem2(spec, params or System2Params(), isolate=True)
+
+
+def _anytime(spec: MissionSpec, params: System2Params | None) -> Planner:
+    from dualpilot.system2.fast.planner import AnytimeSystem2
+
+    return AnytimeSystem2(spec, params or System2Params())
+
+
+def _thorough(spec: MissionSpec, params: System2Params | None) -> Planner:
+    from dualpilot.system2.fast.planner import ThoroughSystem2
+
+    return ThoroughSystem2(spec, params or System2Params())
+
+
+SYSTEM1: Mapping[str, System1Constructor] = {"rrt": _rrt}
+SYSTEM2: Mapping[str, System2Constructor] = {
+    "fast": _fast, "exact": _exact, "fast+exact": _anytime, "thorough": _thorough,
+}
+#: Method names per system, the default first.
+METHODS: Mapping[int, tuple[str, ...]] = {1: tuple(SYSTEM1), 2: tuple(SYSTEM2)}
+
+
+def build_planner(system: int, spec: MissionSpec, method: str | None = None,
+                  params: System1Params | System2Params | None = None) -> Planner:
+    """The planner of ``system`` (1 or 2) by method name (default: the system's first).
+
+    ``params`` are that system's parameters (System1Params / System2Params).
+    Raises ValueError for an unknown system or method, TypeError for the
+    other system's parameters.
+    """
+    if system not in METHODS:
+        raise ValueError(f"unknown system {system!r}; choose 1 or 2")
+    method = METHODS[system][0] if method is None else method
+    if method not in METHODS[system]:
+        raise ValueError(f"unknown System {system} method {method!r}; "
+                         f"choose from {METHODS[system]}")
+    if system == 1:
+        from dualpilot.system1.planner import System1Params
+
+        if params is not None and not isinstance(params, System1Params):
+            raise TypeError(f"System 1 takes System1Params, got {type(params).__name__}")
+        return SYSTEM1[method](spec, params)
+    if params is not None and not isinstance(params, System2Params):
+        raise TypeError(f"System 2 takes System2Params, got {type(params).__name__}")
+    return SYSTEM2[method](spec, params)
+
+
+def build_planners(spec: MissionSpec, system2_method: str = "fast",
+                   system1_params: System1Params | None = None,
+                   system2_params: System2Params | None = None) -> dict[int, Planner]:
+    """Both planners of a mission: {1: System 1 ("rrt"), 2: System 2 (``system2_method``)}."""
+    return {1: build_planner(1, spec, "rrt", system1_params),
+            2: build_planner(2, spec, system2_method, system2_params)}

@@ -7,14 +7,14 @@ Where the reference path comes from, in order:
 
 1. **Operator waypoints** (:meth:`System1.set_waypoints`), the paper's
    first responder, when every segment of current position → remaining
-   waypoints keeps ``clearance_m`` from every hull (exact checks).
+   waypoints keeps the spec's ``clearance_m`` from every hull (exact checks).
 2. **The previous RRT path**, from the point nearest the UAV onward, while
    it stays free and the UAV is within ``reuse_max_offset_m`` of it
    (``reuse_path``): an operator keeps a path while it is safe.
 3. **A fresh RRT path** (Alg. 1, :func:`dualpilot.system1.rrt.plan_path`).
 
 The predicted trajectory is verified independently
-(:func:`dualpilot.verify.verify_trajectory` with d_safe = 20 m): a trajectory
+(:func:`dualpilot.verify.verify_trajectory` at the spec's d_safe): a trajectory
 that cuts a corner too close is retried at a lower reference speed, then
 with a fresh RRT path; a plan that never verifies is returned as UNSAFE,
 never as OK. The attention's objective does not change System 1 (it
@@ -29,9 +29,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from dualpilot.model.dynamics import Array, DynamicsParams, check_state
-from dualpilot.model.geometry import Polytope, Rect
+from dualpilot.arrays import Array
+from dualpilot.model.dynamics import check_state
+from dualpilot.model.geometry import Polytope
 from dualpilot.plan import Objective, Plan, PlanStatus
+from dualpilot.spec import MissionSpec, Stream
 from dualpilot.system1.lqr import LqrParams, lqr_gain, reference_states, track
 from dualpilot.system1.rrt import RrtParams, RrtResult, SegmentChecker, plan_path
 from dualpilot.verify import verify_trajectory
@@ -45,21 +47,20 @@ class System1Params:
     :class:`dualpilot.system1.rrt.RrtParams`); ``max_wall_s`` bounds the RRT's time.
     ``ref_speed_mps`` is the speed along the path (≤ 15 m/s per axis holds
     for any heading); ``speed_retries`` halvings are tried when the tracked
-    trajectory fails verification at ``verify_clearance_m`` (d_safe).
+    trajectory fails verification at the spec's d_safe. The clearance of
+    the paths and d_safe come from the :class:`dualpilot.spec.MissionSpec`.
     ``reach_check`` lets the RRT answer "no path" at once when a grid proves
     G unreachable (:mod:`dualpilot.system1.reach`).
     """
 
     step_size_m: float = 15.0
     max_iterations: int = 2000
-    clearance_m: float = 25.0
     horizon: int = 80
     ref_speed_mps: float = 12.0
     q_lqr: float = 2.0
     r_lqr: float = 0.1
     goal_bias: float = 0.05
     max_wall_s: float = 2.0
-    verify_clearance_m: float = 20.0
     speed_retries: int = 2
     feedforward: bool = True
     accel_mps2: float = 3.0
@@ -75,8 +76,6 @@ class System1Params:
             raise ValueError(f"horizon must be >= 1, got {self.horizon}")
         if not (self.ref_speed_mps > 0 and self.speed_retries >= 0):
             raise ValueError("ref_speed_mps > 0 and speed_retries >= 0 are required")
-        if not 0 <= self.verify_clearance_m <= self.clearance_m:
-            raise ValueError("need 0 <= verify_clearance_m <= clearance_m")
         if self.reuse_max_offset_m < 0:
             raise ValueError("reuse_max_offset_m must be >= 0")
         self.rrt_params()  # validates the RRT fields
@@ -85,7 +84,7 @@ class System1Params:
     def rrt_params(self) -> RrtParams:
         return RrtParams(
             step_size_m=self.step_size_m, max_iterations=self.max_iterations,
-            clearance_m=self.clearance_m, goal_bias=self.goal_bias, max_wall_s=self.max_wall_s,
+            goal_bias=self.goal_bias, max_wall_s=self.max_wall_s,
             shortcut=self.shortcut, aim_goal_center=self.aim_goal_center,
             reach_check=self.reach_check,
         )
@@ -129,29 +128,32 @@ class System1:
 
     Parameters
     ----------
-    goal : Rect
-        The goal region G (local frame, m); must lie inside the area.
-    rng : numpy.random.Generator
-        Drives every RRT sample; the same seed reproduces the same plans.
+    spec : MissionSpec
+        Goal G, area, the paths' clearance, d_safe and Eq. (1).
+    params : System1Params
+        Sec. IV-A values and our readings.
+    rng : numpy.random.Generator, optional
+        Drives every RRT sample (default: ``spec.rng(Stream.SYSTEM1)``); the
+        same seed reproduces the same plans.
     """
 
     system = 1
+    method = "rrt"
 
-    def __init__(self, goal: Rect, rng: np.random.Generator,
-                 params: System1Params = System1Params(),
-                 dynamics: DynamicsParams = DynamicsParams(), area_size_m: float = 1000.0):
+    def __init__(self, spec: MissionSpec, params: System1Params = System1Params(),
+                 rng: np.random.Generator | None = None):
+        dynamics = spec.dynamics
         if dynamics.dim != 2:
             raise ValueError("System 1 plans in the plane (dynamics.dim == 2)")
-        if not (np.isfinite(area_size_m) and area_size_m > 0):
-            raise ValueError(f"area_size_m must be positive, got {area_size_m}")
-        self.area = Rect(area_size_m / 2, area_size_m / 2, area_size_m, area_size_m)
-        if not goal.inside(self.area):
-            raise ValueError(f"goal {goal} lies outside the {area_size_m} m area")
-        self.goal = goal
-        self.rng = rng
+        self.spec = spec
+        self.area = spec.area
+        self.goal = spec.goal
+        self.rng = spec.rng(Stream.SYSTEM1) if rng is None else rng
         self.params = params
         self.dyn = dynamics
-        self.area_size_m = area_size_m
+        self.area_size_m = spec.area_size_m
+        self.clearance_m = spec.clearance_m  # PathFree's margin (Alg. 1)
+        self.d_safe_m = spec.d_safe_m  # what every returned trajectory keeps
         self.gain, _ = lqr_gain(dynamics, params.q_lqr, params.r_lqr)
         self._rrt_params = params.rrt_params()
         self._lqr_params = params.lqr_params()
@@ -196,7 +198,7 @@ class System1:
         """Plan from ``state`` [px, py, vx, vy] avoiding ``hulls`` (see the module docstring).
 
         Raises ValueError for a malformed or non-finite state, a position
-        outside the area, or one nearer than ``verify_clearance_m`` to a hull.
+        outside the area, or one nearer than d_safe to a hull.
         Status NO_PATH when Alg. 1 finds no path within its caps, UNSAFE when
         no tracked trajectory passes verification.
         """
@@ -208,12 +210,12 @@ class System1:
             raise ValueError(f"position {pos} lies outside the {self.area_size_m} m area")
         checker = SegmentChecker(hulls)
         d_start = checker.point_distance(pos)
-        if d_start < p.verify_clearance_m:
+        if d_start < self.d_safe_m:
             raise ValueError(
                 f"position {pos} lies {d_start:.1f} m from a fire hull "
-                f"(System 1 needs {p.verify_clearance_m} m)"
+                f"(System 1 needs {self.d_safe_m} m)"
             )
-        first_need = min(p.clearance_m, d_start)
+        first_need = min(self.clearance_m, d_start)
         info: dict[str, object] = {"rrt_iterations": 0, "reused": False}
 
         candidates: list[tuple[str, Array]] = []
@@ -272,14 +274,14 @@ class System1:
     def _path_free(self, ref: Array, checker: SegmentChecker, first_need: float) -> bool:
         if len(ref) < 2:
             return checker.point_distance(ref[0]) >= first_need
-        need = np.full(len(ref) - 1, self.params.clearance_m)
+        need = np.full(len(ref) - 1, self.clearance_m)
         need[0] = first_need
         return bool(np.all(checker.distances(ref[:-1], ref[1:]) >= need))
 
     def _run_rrt(self, pos: Array, hulls: Sequence[Polytope],
                  checker: SegmentChecker) -> RrtResult:
-        return plan_path(pos, self.goal, hulls, self.rng, self._rrt_params, self.area_size_m,
-                         start_clearance_m=self.params.verify_clearance_m, checker=checker)
+        return plan_path(pos, self.goal, hulls, self.rng, self.clearance_m, self.area_size_m,
+                         self._rrt_params, start_clearance_m=self.d_safe_m, checker=checker)
 
     def _track(self, x: Array, ref: Array, hulls: Sequence[Polytope], attempts: list[str],
                source: str, checker: SegmentChecker) -> tuple[Array, Array, float, float] | None:
@@ -298,7 +300,7 @@ class System1:
         for _ in range(p.speed_retries + 1):
             reference = reference_states(ref, p.horizon, speed, self.dyn, v0, self._lqr_params)
             states, controls = track(x, reference, self.gain, self.dyn, p.feedforward)
-            verdict = verify_trajectory(states, controls, hulls, self.dyn, p.verify_clearance_m,
+            verdict = verify_trajectory(states, controls, hulls, self.dyn, self.d_safe_m,
                                         checker=checker)
             if verdict.ok:
                 return states, controls, speed, verdict.clearance_m

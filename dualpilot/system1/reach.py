@@ -29,8 +29,8 @@ from scipy import ndimage
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import breadth_first_order
 
-from dualpilot.model.dynamics import Array
-from dualpilot.model.geometry import Polytope, Rect
+from dualpilot.arrays import Array
+from dualpilot.model.geometry import Polytope, Rect, point_segment_d2
 
 _EIGHT = np.ones((3, 3), dtype=bool)
 BoolArray = NDArray[np.bool_]
@@ -70,15 +70,16 @@ def possibly_free(hulls: Sequence[Polytope], clearance_m: float, area_size_m: fl
 
 
 def start_component(start: Array, goal: Rect, hulls: Sequence[Polytope], clearance_m: float,
-                    area_size_m: float = 1000.0, cell_m: float = 10.0,
+                    area_size_m: float, cell_m: float = 10.0,
                     start_clearance_m: float | None = None,
                     start_radius_m: float = 15.0,
                     coarse: BoolArray | None = None) -> tuple[BoolArray, bool]:
     """The possibly-free cells 8-connected to the start's cell, and whether they meet G.
 
     Every point of a path from ``start`` that keeps the clearance lies in
-    these cells. ``start_clearance_m`` (default ``clearance_m``) applies to
-    points within ``start_radius_m`` of the start (the first RRT edge).
+    these cells; the area is [0, ``area_size_m``]². ``start_clearance_m``
+    (default ``clearance_m``) applies to points within ``start_radius_m`` of
+    the start (the first RRT edge).
     ``coarse`` is the component already found on cells of side 2·``cell_m``
     (same start and clearances): a fine cell outside it cannot be in the
     fine component (its coarse cell would then hold a point with the
@@ -163,7 +164,7 @@ def corridor(component: BoolArray, start: Array, goal: Rect, cell_m: float) -> N
 
 
 def certainly_unreachable(start: Array, goal: Rect, hulls: Sequence[Polytope],
-                          clearance_m: float, area_size_m: float = 1000.0, cell_m: float = 10.0,
+                          clearance_m: float, area_size_m: float, cell_m: float = 10.0,
                           start_clearance_m: float | None = None,
                           start_radius_m: float = 15.0) -> bool:
     """True only if no path from ``start`` into ``goal`` keeps ``clearance_m`` from every hull.
@@ -192,9 +193,6 @@ def _within(points: Array, hull: Polytope, dist_m: float) -> BoolArray:
     pts = points[idx]
     a = hull.vertices
     d = np.vstack([a[1:], a[:1]]) - a
-    len2 = np.einsum("ij,ij->i", d, d)
-    rel = pts[:, None, :] - a[None]  # (k, edges, 2)
-    t = np.clip(np.einsum("kej,ej->ke", rel, d) / np.where(len2 > 0, len2, 1.0), 0.0, 1.0)
-    gap = rel - t[..., None] * d[None]
-    out[idx] = np.einsum("kej,kej->ke", gap, gap).min(axis=1) < dist_m * dist_m
+    d2 = point_segment_d2(pts[:, :1], pts[:, 1:], a[:, 0], a[:, 1], d[:, 0], d[:, 1])
+    out[idx] = d2.min(axis=1) < dist_m * dist_m  # (k, edges) -> nearest edge
     return out

@@ -5,7 +5,8 @@ over the area with step size (range) 15 m (Sec. IV-A). Our reading of the
 paper's loose points, each a parameter of :class:`RrtParams`:
 
 * **PathFree** (Alg. 1, line 8) is exact: an edge is accepted only if the
-  whole segment keeps ``clearance_m`` from every hull △(C^i_{1:t}).
+  whole segment keeps ``clearance_m`` (``MissionSpec.clearance_m``) from
+  every hull △(C^i_{1:t}).
   OMPL's own motion check samples the segment and can clip a corner, so we
   install :class:`ExactMotionValidator` instead.
 * **Iterations** count samples x̃ (one per pass of Alg. 1's loop). The paper
@@ -53,7 +54,7 @@ from ompl import base as ob
 from ompl import geometric as og
 from ompl import util as ou
 
-from dualpilot.model.dynamics import Array
+from dualpilot.arrays import Array
 from dualpilot.model.geometry import Polytope, Rect, SegmentChecker
 from dualpilot.system1.reach import BoolArray, coarsen, corridor, start_component
 
@@ -73,7 +74,6 @@ class RrtParams:
 
     step_size_m: float = 15.0
     max_iterations: int = 2000
-    clearance_m: float = 25.0
     goal_bias: float = 0.05
     max_wall_s: float = 2.0
     shortcut: bool = True
@@ -91,9 +91,8 @@ class RrtParams:
                 and self.reach_cell_m > 0 and self.guide_after >= 1 and self.guide_window >= 1):
             raise ValueError("step_size_m, max_iterations, max_wall_s, reach_cell_m, "
                              "guide_after and guide_window must be > 0")
-        if (self.clearance_m < 0 or not 0.0 <= self.goal_bias <= 1.0
-                or not 0.0 <= self.guide_share <= 1.0):
-            raise ValueError("clearance_m >= 0, goal_bias and guide_share in [0, 1] are required")
+        if not (0.0 <= self.goal_bias <= 1.0 and 0.0 <= self.guide_share <= 1.0):
+            raise ValueError("goal_bias and guide_share in [0, 1] are required")
 
 
 @dataclass(frozen=True)
@@ -319,14 +318,16 @@ def plan_path(
     goal: Rect,
     hulls: Sequence[Polytope],
     rng: np.random.Generator,
+    clearance_m: float,
+    area_size_m: float,
     params: RrtParams = RrtParams(),
-    area_size_m: float = 1000.0,
     start_clearance_m: float | None = None,
     checker: SegmentChecker | None = None,
 ) -> RrtResult:
-    """Alg. 1: a path (k, 2) from ``start`` into ``goal`` keeping ``params.clearance_m`` from hulls.
+    """Alg. 1: a path (k, 2) from ``start`` into ``goal`` keeping ``clearance_m`` from hulls.
 
-    ``start_clearance_m`` (default ``params.clearance_m``) is the least
+    The area is [0, ``area_size_m``]² (m).
+    ``start_clearance_m`` (default ``clearance_m``) is the least
     clearance the start itself must have. A start between it and
     ``clearance_m`` is an escape: edges leaving the start need only keep the
     start's own clearance (they may not move closer to a hull), every later
@@ -339,23 +340,25 @@ def plan_path(
     t0 = time.perf_counter()
     p = _validate(start, goal, area_size_m)
     checker = SegmentChecker(hulls) if checker is None else checker
-    need_start = params.clearance_m if start_clearance_m is None else start_clearance_m
+    if clearance_m < 0:
+        raise ValueError(f"clearance_m must be >= 0, got {clearance_m}")
+    need_start = clearance_m if start_clearance_m is None else start_clearance_m
     d_start = checker.point_distance(p)
     if d_start < need_start:
         raise ValueError(
             f"start {p} lies {d_start:.1f} m from a fire hull (needs {need_start:.1f} m)"
         )
-    root_clearance = min(params.clearance_m, d_start)
+    root_clearance = min(clearance_m, d_start)
     center = goal.center
 
     def finish(path: Array, status: str, iterations: int, tree: Array | None) -> RrtResult:
         if params.aim_goal_center and not np.allclose(path[-1], center):
-            first = root_clearance if len(path) == 1 else params.clearance_m
+            first = root_clearance if len(path) == 1 else clearance_m
             (x0, y0), (x1, y1) = path[-1].tolist(), center.tolist()
             if checker.segment_clear(x0, y0, x1, y1, first):
                 path = np.vstack([path, center])
         if params.shortcut:
-            path = shortcut(path, checker, params.clearance_m, root_clearance)
+            path = shortcut(path, checker, clearance_m, root_clearance)
         return RrtResult(path, status, iterations, time.perf_counter() - t0, tree)
 
     if goal.contains(p):
@@ -369,7 +372,7 @@ def plan_path(
     component = None
     if params.reach_check and len(hulls):
         component, meets_goal = start_component(
-            p, goal, hulls, params.clearance_m, area_size_m, params.reach_cell_m,
+            p, goal, hulls, clearance_m, area_size_m, params.reach_cell_m,
             start_clearance_m=root_clearance, start_radius_m=params.step_size_m)
         if not meets_goal:
             return RrtResult(None, "unreachable", 0, time.perf_counter() - t0, None)
@@ -382,7 +385,7 @@ def plan_path(
     space.setBounds(bounds)
     si = ob.SpaceInformation(space)
     si.setStateValidityChecker(lambda s: True)  # states are judged by the exact motion check
-    validator = ExactMotionValidator(si, checker, params.clearance_m, p, root_clearance)
+    validator = ExactMotionValidator(si, checker, clearance_m, p, root_clearance)
     si.setMotionValidator(validator)
     si.setup()
     start_state = space.allocState()
@@ -416,7 +419,7 @@ def plan_path(
     if not solved and guide and goal_obj.count >= params.guide_after:
         fine_m = params.reach_cell_m / 2
         fine, meets_goal = start_component(
-            p, goal, hulls, params.clearance_m, area_size_m, fine_m,
+            p, goal, hulls, clearance_m, area_size_m, fine_m,
             start_clearance_m=root_clearance, start_radius_m=params.step_size_m,
             coarse=component)
         if not meets_goal:

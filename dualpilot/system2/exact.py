@@ -24,13 +24,12 @@ Readings and choices (see also the README):
 * The returned states are the roll-out of Eq. (1) under the solver's controls
   (clipped to U by at most the solver tolerance), so a plan is exactly
   dynamically consistent; every plan is verified with
-  :func:`dualpilot.verify.verify_trajectory` at d_safe before it is OK.
+  :func:`dualpilot.verify.verify_trajectory` at the spec's d_safe before it is OK.
 * The objective is divided by a constant internally (``objective_scale``) for
   the solver's numerics; ``Plan.cost`` is the true Eq. (S2) value.
-* SCIP's time limit is soft (a single cut round once ran 40 s past it) and
-  SCIP 10 corrupted its heap on one instance (abort or hang). ``isolate=True``
-  runs the solver in a persistent worker process with a hard deadline: a
-  crash becomes an ERROR plan, an overrun a TIMEOUT, and the worker restarts.
+* ``isolate=True`` (the registry's "exact") runs the solver in a
+  :class:`dualpilot.system2.worker.Worker` with a hard deadline: a crash
+  becomes an ERROR plan, an overrun a TIMEOUT, and the worker restarts.
 """
 
 from __future__ import annotations
@@ -38,25 +37,24 @@ from __future__ import annotations
 import contextlib
 import dataclasses
 import math
-import multiprocessing
 import time
 import warnings
 import weakref
 from collections.abc import Mapping, Sequence
-from multiprocessing.connection import Connection
 from typing import Any
 
 import cvxpy as cp
 import numpy as np
 
-from dualpilot.model.dynamics import Array, DynamicsParams, rollout, transition_matrices
-from dualpilot.model.geometry import Polytope, Rect
+from dualpilot.arrays import Array
+from dualpilot.model.dynamics import rollout, transition_matrices
+from dualpilot.model.geometry import Polytope
 from dualpilot.plan import Objective, Plan, PlanStatus
-from dualpilot.system2.problem import System2Params, p2_cost
+from dualpilot.spec import MissionSpec
+from dualpilot.system2.fast.geometry import Inflated
+from dualpilot.system2.problem import System2Params, check_request, p2_cost
+from dualpilot.system2.worker import PlannerFactory, Worker
 from dualpilot.verify import verify_trajectory
-
-D_SAFE_M = 20.0
-"""Sec. IV-A: a mission fails within d_safe of an active fire region (m)."""
 
 _SOLVERS = ("auto", "SCIP", "GUROBI")
 
@@ -79,25 +77,12 @@ def gurobi_available() -> bool:
 
 
 def face_inflated(poly: Polytope, eps: float) -> Polytope:
-    """{p : α_l·p ≤ β_l + ε ∀l}: every face pushed out by ``eps`` (m).
+    """{p : α_l·p ≤ β_l + ε ∀l}: the region Eq. (P2_3)-(P2_4) forbid, faces pushed out by ε (m).
 
-    This is the region that Eq. (P2_3)-(P2_4) forbid; it extends beyond the
-    ε-distance offset at sharp vertices. Computed as a halfspace intersection
-    (pairwise line intersections kept if they satisfy every face).
+    It extends beyond the ε-distance offset at sharp vertices; the vertices
+    are those of :class:`dualpilot.system2.fast.geometry.Inflated`.
     """
-    if eps <= 0:
-        return poly
-    A, b = poly.A, poly.b + eps
-    pts = []
-    for i in range(len(b)):
-        for j in range(i + 1, len(b)):
-            mat = A[[i, j]]
-            if abs(np.linalg.det(mat)) < 1e-12:
-                continue
-            p = np.linalg.solve(mat, b[[i, j]])
-            if np.all(A @ p <= b + 1e-7 * (1.0 + np.abs(b))):
-                pts.append(p)
-    return Polytope.from_vertices(np.array(pts))
+    return poly if eps <= 0 else Polytope.from_vertices(Inflated.make(poly, eps).W)
 
 
 def outer_simplify(poly: Polytope, max_faces: int) -> Polytope:
@@ -143,17 +128,14 @@ class ExactSystem2:
 
     Parameters
     ----------
-    goal : Rect
-        Goal region G; its centre is G_o of Eq. (S2). Must lie inside the area.
+    spec : MissionSpec
+        Goal G (its centre is G_o of Eq. (S2)), area, ε (``clearance_m``),
+        the d_safe every returned plan is verified against, and Eq. (1).
     params : System2Params
-        Horizon T, M, ε, κ, slots, time limit (s).
-    dynamics : DynamicsParams
-        Eq. (1) and the bounds U, X (planar, dim = 2).
+        Horizon T, M, κ, slots, time limit (s).
     solver : {"auto", "SCIP", "GUROBI"}
         "auto" tries Gurobi when available and falls back to SCIP for good
         if Gurobi fails (e.g. a size-limited licence).
-    clearance_m : float
-        Clearance every returned plan is verified against (d_safe = 20 m).
     objective_scale : float
         The solver minimises J / objective_scale (numerics only: with SCIP's
         outer approximation of the quadratic objective, 10 solved the T = 80
@@ -172,32 +154,28 @@ class ExactSystem2:
     """
 
     system = 2
+    method = "exact"
 
     def __init__(
         self,
-        goal: Rect,
+        spec: MissionSpec,
         params: System2Params = System2Params(),
-        dynamics: DynamicsParams = DynamicsParams(),
         solver: str = "auto",
         *,
-        clearance_m: float = D_SAFE_M,
         objective_scale: float = 10.0,
         solver_options: Mapping[str, Any] | None = None,
         isolate: bool = False,
         hard_timeout_s: float | None = None,
     ) -> None:
+        dynamics = spec.dynamics
         if dynamics.dim != 2:
             raise ValueError(f"ExactSystem2 plans in 2-D (Sec. IV); got dim={dynamics.dim}")
-        area = Rect(params.area_size_m / 2, params.area_size_m / 2,
-                    params.area_size_m, params.area_size_m)
-        if not goal.inside(area):
-            raise ValueError(f"goal {goal} lies outside the area [0, {params.area_size_m}]^2")
         if params.max_hulls < 1 or params.max_faces < 4:
             raise ValueError("need max_hulls >= 1 and max_faces >= 4")
         if solver.upper() not in ("AUTO", "SCIP", "GUROBI"):
             raise ValueError(f"solver must be one of {_SOLVERS}, got {solver!r}")
-        if not (clearance_m >= 0 and objective_scale > 0):
-            raise ValueError("clearance_m >= 0 and objective_scale > 0 are required")
+        if not objective_scale > 0:
+            raise ValueError("objective_scale > 0 is required")
         if hard_timeout_s is not None and not hard_timeout_s > 0:
             raise ValueError(f"hard_timeout_s must be positive, got {hard_timeout_s}")
         solver = solver.upper()
@@ -205,10 +183,13 @@ class ExactSystem2:
             raise ValueError("solver='GUROBI' but gurobipy is not installed")
         if solver == "SCIP" and "SCIP" not in cp.installed_solvers():
             raise ValueError("solver='SCIP' but pyscipopt is not installed")
-        self.goal = goal
+        self.spec = spec
+        self.goal = spec.goal
         self.params = params
         self.dynamics = dynamics
-        self.clearance_m = float(clearance_m)
+        self.clearance_m = spec.d_safe_m  # every returned plan keeps d_safe
+        self.epsilon_m = spec.clearance_m  # ε of Eq. (P2_3)
+        self.area_size_m = spec.area_size_m
         self.objective_scale = float(objective_scale)
         self.solver_options = dict(solver_options or {})
         self.fallback_reason = ""
@@ -220,17 +201,18 @@ class ExactSystem2:
             1.5 * params.time_limit_s + 10.0 if hard_timeout_s is None else float(hard_timeout_s)
         )
         self._build()
-        self._worker: _SolverProcess | None = None
+        self._worker: Worker | None = None
         if isolate:
-            self._worker = _SolverProcess(
-                (goal, params, dynamics, self.objective_scale, self.solver_options)
-            )
-            self._finalizer = weakref.finalize(self, self._worker.close)
+            options = {"objective_scale": self.objective_scale,
+                       "solver_options": self.solver_options}
+            self._worker = Worker(PlannerFactory(ExactSystem2, spec, params, options,
+                                                 answer="solve_values"))
+            self._finalizer = weakref.finalize(self, self._worker.stop)
 
     def close(self) -> None:
         """Stop the worker process, if any (the planner stays usable; it restarts)."""
         if self._worker is not None:
-            self._worker.close()
+            self._worker.stop()
 
     def __enter__(self) -> ExactSystem2:
         return self
@@ -244,7 +226,7 @@ class ExactSystem2:
         p, d = self.params, self.dynamics
         T, H, F = p.horizon, p.max_hulls, p.max_faces
         phi, gamma = transition_matrices(d)
-        big_m, eps = p.big_m, p.epsilon_m
+        big_m, eps = p.big_m, self.epsilon_m
 
         self._x0 = cp.Parameter(4, name="x0")
         # sqrt-weights keep the objective DPP: ‖w1 p − w1 G_o‖² = κ1/s ‖p − G_o‖²
@@ -256,7 +238,7 @@ class ExactSystem2:
         self._beta = cp.Parameter((H * F, 1), name="beta")
 
         inf = np.inf
-        pos_lo, pos_hi = (0.0, p.area_size_m) if p.keep_in_area else (-inf, inf)
+        pos_lo, pos_hi = (0.0, self.area_size_m) if p.keep_in_area else (-inf, inf)
         lo = np.tile([pos_lo, pos_lo, -d.v_max_mps, -d.v_max_mps], (T, 1))
         hi = np.tile([pos_hi, pos_hi, d.v_max_mps, d.v_max_mps], (T, 1))
         self._X = cp.Variable((T, 4), name="X", bounds=[lo, hi])  # x_{t+1|t}..x_{t+T|t}
@@ -300,7 +282,7 @@ class ExactSystem2:
         self, state: Array, hulls: Sequence[Polytope]
     ) -> tuple[list[tuple[int, Polytope]], list[int]]:
         """Reachable hulls (index, polygon ≤ max_faces) sorted by distance; simplified indices."""
-        eps = self.params.epsilon_m
+        eps = self.epsilon_m
         reach = self._reach_radius(state[2:])
         kept: list[tuple[float, int, Polytope]] = []
         simplified: list[int] = []
@@ -334,13 +316,13 @@ class ExactSystem2:
         """M must relax Eq. (P2_3) everywhere a planned position can be."""
         p = self.params
         if p.keep_in_area:
-            lo, hi = np.zeros(2), np.full(2, p.area_size_m)
+            lo, hi = np.zeros(2), np.full(2, self.area_size_m)
         else:
             r = self._reach_radius(state[2:])
             lo, hi = state[:2] - r, state[:2] + r
         corners = np.array([[lo[0], lo[1]], [hi[0], lo[1]], [hi[0], hi[1]], [lo[0], hi[1]]])
         for poly in polys:
-            need = np.max(poly.b[:, None] + p.epsilon_m - poly.A @ corners.T)
+            need = np.max(poly.b[:, None] + self.epsilon_m - poly.A @ corners.T)
             if need > p.big_m:
                 return False
         return True
@@ -360,18 +342,10 @@ class ExactSystem2:
             plan = Plan.failed(self.system, status, time.perf_counter() - t0, msg)
             return dataclasses.replace(plan, objective=objective, info=dict(info))
 
-        x0 = np.asarray(state, dtype=float)
-        if x0.shape != (4,) or not np.all(np.isfinite(x0)):
-            return fail(PlanStatus.INVALID_INPUT, f"state must be 4 finite numbers, got {state}")
-        u_prev = np.zeros(2) if prev_control is None else np.asarray(prev_control, dtype=float)
-        if u_prev.shape != (2,) or not np.all(np.isfinite(u_prev)):
-            return fail(PlanStatus.INVALID_INPUT,
-                        f"prev_control must be 2 finite numbers, got {prev_control}")
-        if not isinstance(objective, Objective):
-            return fail(PlanStatus.INVALID_INPUT, f"unknown objective {objective!r}")
-        hulls = tuple(hulls)
-        if not all(isinstance(h, Polytope) for h in hulls):
-            return fail(PlanStatus.INVALID_INPUT, "hulls must be Polytope instances")
+        checked = check_request(state, hulls, objective, prev_control)
+        if isinstance(checked, str):
+            return fail(PlanStatus.INVALID_INPUT, checked)
+        x0, u_prev, hulls = checked
 
         # The start is given (not planned): within d_safe no plan can verify.
         for i, hull in enumerate(hulls):
@@ -398,7 +372,7 @@ class ExactSystem2:
 
         # x_{t+1|t}'s position is p_t + ΔT v_t whatever the control: check it first.
         p1 = x0[:2] + self.dynamics.dt_s * x0[2:]
-        eps = self.params.epsilon_m
+        eps = self.epsilon_m
         for i, hull in enumerate(hulls):
             margin = float(np.max(hull.A @ p1 - hull.b))
             if margin < eps:
@@ -407,7 +381,7 @@ class ExactSystem2:
                             f"lies within ε={eps} m of hull {i} (max_l α·p−β = {margin:.2f}): "
                             "(P2) is infeasible", **info)
         if self.params.keep_in_area and not (
-            np.all(p1 >= 0.0) and np.all(p1 <= self.params.area_size_m)
+            np.all(p1 >= 0.0) and np.all(p1 <= self.area_size_m)
         ):
             return fail(PlanStatus.INFEASIBLE,
                         f"x_(t+1|t) position {p1} is fixed by the current velocity and "
@@ -478,11 +452,8 @@ class ExactSystem2:
         """Solve with the first solver that works; returns status, solution and statistics."""
         while True:
             name = self._solvers[0]
-            if self._worker is not None:
-                values = {prm.name(): prm.value for prm in self.problem.parameters()}
-                out = self._worker.solve(values, name, self.hard_timeout_s)
-            else:
-                out = self._solve_with(name)
+            isolated = self._worker is not None
+            out = self._solve_isolated(name) if isolated else self._solve_with(name)
             if "error" in out and len(self._solvers) > 1 and not out.get("timeout"):
                 # e.g. a size-limited Gurobi licence: fall back for good
                 self._solvers.pop(0)
@@ -491,6 +462,26 @@ class ExactSystem2:
             if self.fallback_reason:
                 out["fallback"] = self.fallback_reason
             return out
+
+    def _solve_isolated(self, name: str) -> dict[str, object]:
+        """:meth:`_solve_with` in the worker, killed past ``hard_timeout_s``."""
+        assert self._worker is not None
+        values = {prm.name(): prm.value for prm in self.problem.parameters()}
+        out, why = self._worker.solve((values, name), self.hard_timeout_s)
+        if isinstance(out, dict):
+            return out
+        if why.startswith("killed"):
+            return {"solver": name, "timeout": True,
+                    "error": f"solver process killed after the hard deadline "
+                             f"{self.hard_timeout_s:.1f} s"}
+        return {"solver": name, "error": f"solver process: {why}"}
+
+    def solve_values(self, values: Mapping[str, Any], name: str) -> dict[str, object]:
+        """Set the parameters by name and solve in this process (the worker's handler)."""
+        by_name = {prm.name(): prm for prm in self.problem.parameters()}
+        for key, val in values.items():
+            by_name[key].value = val
+        return self._solve_with(name)
 
     def _solve_with(self, name: str) -> dict[str, object]:
         """One in-process solve of the compiled problem with solver ``name``."""
@@ -545,84 +536,3 @@ class ExactSystem2:
             val = self.problem.value
             out["value"] = float(val) if val is not None else math.nan  # type: ignore[arg-type]
         return out
-
-
-def _worker_main(conn: Connection, args: tuple[Any, ...]) -> None:
-    """Worker process: build (P2) once, then solve each parameter set sent by the parent."""
-    goal, params, dynamics, scale, options = args
-    planner = ExactSystem2(goal, params, dynamics, objective_scale=scale,
-                           solver_options=options)
-    by_name = {prm.name(): prm for prm in planner.problem.parameters()}
-    conn.send("ready")
-    while True:
-        try:
-            msg = conn.recv()
-        except (EOFError, OSError):
-            return
-        if msg is None:
-            return
-        values, name = msg
-        for key, val in values.items():
-            by_name[key].value = val
-        conn.send(planner._solve_with(name))
-
-
-class _SolverProcess:
-    """A persistent solver process with a hard per-solve deadline (spawned, not forked)."""
-
-    def __init__(self, args: tuple[Any, ...]) -> None:
-        self._args = args
-        self._proc: multiprocessing.process.BaseProcess | None = None
-        self._conn: Connection | None = None
-
-    @property
-    def pid(self) -> int | None:
-        return self._proc.pid if self._proc is not None else None
-
-    def _start(self) -> None:
-        ctx = multiprocessing.get_context("spawn")
-        parent, child = ctx.Pipe()
-        proc = ctx.Process(target=_worker_main, args=(child, self._args), daemon=True,
-                           name="dualpilot-system2-solver")
-        proc.start()
-        child.close()
-        self._proc, self._conn = proc, parent
-        if not parent.poll(120.0):
-            self.close()
-            raise RuntimeError("solver process did not start within 120 s")
-        parent.recv()  # "ready" (EOFError if it died while starting)
-
-    def solve(self, values: dict[str, Any], name: str, deadline_s: float) -> dict[str, object]:
-        try:
-            if self._proc is None or not self._proc.is_alive():
-                self.close()
-                self._start()  # start-up (imports) does not count against the deadline
-            assert self._conn is not None
-            self._conn.send((values, name))
-            ready = self._conn.poll(deadline_s)
-        except (EOFError, OSError, RuntimeError) as exc:
-            self.close()
-            return {"solver": name, "error": f"solver process unavailable: {exc}"}
-        if not ready:
-            self.close()
-            return {"solver": name, "timeout": True,
-                    "error": f"solver process killed after the hard deadline {deadline_s:.1f} s"}
-        try:
-            out: dict[str, object] = self._conn.recv()
-        except (EOFError, OSError):
-            code = self._proc.exitcode if self._proc is not None else None
-            self.close()
-            return {"solver": name, "error": f"solver process died (exit code {code})"}
-        return out
-
-    def close(self) -> None:
-        if self._conn is not None:
-            with contextlib.suppress(Exception):
-                self._conn.send(None)
-            self._conn.close()
-        if self._proc is not None:
-            self._proc.join(timeout=0.5)
-            if self._proc.is_alive():
-                self._proc.kill()
-                self._proc.join(timeout=5.0)
-        self._proc, self._conn = None, None

@@ -1,37 +1,39 @@
-"""Problem (P2), System 2's MPC: parameters and the true objective, Eq. (S2).
+"""Problem (P2), System 2's MPC: parameters, the objective Eq. (S2) and the independent check.
 
 J(X, U) = κ1 Σ_{τ=1..T} ‖p_{t+τ|t} − G_o‖² + κ2 Σ_{τ=1..T} ‖u_{t+τ|t} − u_{t+τ−1|t}‖²,
 
-with u_{t|t} the control applied at the previous step. Every System 2
-method (exact MIQP or fast) is scored with :func:`p2_cost`.
+with u_{t|t} the control applied at the previous step, subject to Eq. (1)
+(P2_1)-(P2_2), U and X, and the avoidance disjunction (P2_3)-(P2_4) with ε =
+``MissionSpec.clearance_m``. Every System 2 method is scored with
+:func:`p2_cost` and checked with :func:`verify_p2_plan`. Lengths in m.
 """
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
-from dualpilot.model.dynamics import Array
+from dualpilot.arrays import Array
+from dualpilot.model.dynamics import DynamicsParams
+from dualpilot.model.geometry import Polytope, hull_boxes
 from dualpilot.plan import Objective
+from dualpilot.verify import Verdict, verify_trajectory
 
 
 @dataclass(frozen=True)
 class System2Params:
-    """Sec. IV-A: T = 80, M = 1e5, κ per objective; ε is our reading (see README).
+    """Sec. IV-A: T = 80, M = 1e5, κ per objective; ε, d_safe and the area come from the spec.
 
-    ``epsilon_m`` is the tolerance ε of Eq. (P2_3): planned positions stay at
-    least ε outside every face-inflated hull. The paper leaves ε open; we use
-    d_safe + 5 m so that the straight segment between two planned positions
-    (at most 15·√2 m long) still keeps more than d_safe = 20 m.
+    ``keep_in_area`` keeps every planned position in the area; ``max_hulls``
+    and ``max_faces`` size the exact method's compiled problem.
     """
 
     horizon: int = 80
     big_m: float = 1e5
-    epsilon_m: float = 25.0
     kappa_time: tuple[float, float] = (1.0, 0.001)
     kappa_energy: tuple[float, float] = (0.001, 1.0)
-    area_size_m: float = 1000.0
     keep_in_area: bool = True
     time_limit_s: float = 60.0
     max_hulls: int = 10
@@ -40,8 +42,8 @@ class System2Params:
     def __post_init__(self) -> None:
         if self.horizon < 1:
             raise ValueError(f"horizon must be >= 1, got {self.horizon}")
-        if self.epsilon_m < 0 or self.big_m <= 0 or self.time_limit_s <= 0:
-            raise ValueError("epsilon_m >= 0, big_m > 0 and time_limit_s > 0 are required")
+        if self.big_m <= 0 or self.time_limit_s <= 0:
+            raise ValueError("big_m > 0 and time_limit_s > 0 are required")
 
     def kappa(self, objective: Objective) -> tuple[float, float]:
         """(κ1, κ2) for the attention's objective."""
@@ -64,3 +66,72 @@ def p2_cost(
     pos = states[1:, :dim]
     du = np.diff(np.vstack([u_prev, controls]), axis=0)
     return float(kappa[0] * np.sum((pos - g) ** 2) + kappa[1] * np.sum(du**2))
+
+
+def check_request(state: Array, hulls: Sequence[Polytope], objective: Objective,
+                  prev_control: Array | None) -> tuple[Array, Array, tuple[Polytope, ...]] | str:
+    """(x_t, u_{t|t}, hulls) as arrays and a tuple, or why the request is invalid."""
+    x0 = np.asarray(state, dtype=float)
+    if x0.shape != (4,) or not np.all(np.isfinite(x0)):
+        return f"state must be 4 finite numbers, got {state}"
+    u_prev = np.zeros(2) if prev_control is None else np.asarray(prev_control, dtype=float)
+    if u_prev.shape != (2,) or not np.all(np.isfinite(u_prev)):
+        return f"prev_control must be 2 finite numbers, got {prev_control}"
+    if not isinstance(objective, Objective):
+        return f"unknown objective {objective!r}"
+    hull_t = tuple(hulls)
+    if not all(isinstance(h, Polytope) for h in hull_t):
+        return "hulls must be Polytope instances"
+    return x0, u_prev, hull_t
+
+
+def disjunction_margin(points: Array, hulls: Sequence[Polytope], eps: float) -> float:
+    """min over points and hulls of max_l (α_l·p − β_l) − ε: ≥ 0 iff Eq. (P2_3)-(P2_4) hold (m)."""
+    pts = np.asarray(points, dtype=float).reshape(-1, 2)
+    if not hulls or not len(pts):
+        return float("inf")
+    a = np.vstack([h.A for h in hulls])
+    b = np.concatenate([h.b for h in hulls])
+    starts = np.cumsum([0] + [h.n_faces for h in hulls[:-1]])
+    return float(np.min(np.maximum.reduceat(pts @ a.T - b, starts, axis=1))) - eps
+
+
+def verify_p2_plan(states: Array, controls: Array, hulls: Sequence[Polytope],
+                   dynamics: DynamicsParams, epsilon_m: float, d_safe_m: float,
+                   area_size_m: float | None, tol: float = 1e-6) -> Verdict:
+    """Every check a System 2 plan must pass before it is returned as OK.
+
+    :func:`dualpilot.verify.verify_trajectory` (Eq. (1), U and X, exact
+    segment clearance ≥ ``d_safe_m``), then Eq. (P2_3)-(P2_4) at every
+    planned position p_{t+1|t}..p_{t+T|t} against the true hull faces
+    (max_l α·p − β ≥ ε − tol), then the area bounds unless ``area_size_m`` is None.
+    Hulls provably clear of every segment (by a bounding-box lower bound) are
+    skipped by the segment check only.
+    """
+    pts = np.asarray(states, dtype=float).reshape(-1, 4)[:, :2]
+    if len(pts) > 1 and np.all(np.isfinite(pts)):
+        # skip hulls that provably keep the clearance: every point of segment k lies
+        # within L_k / 2 of an end, so dist(segment, hull) ≥ min(d_k, d_k+1) − L_k / 2
+        # with d the (smaller) distance of each sample to the hull's bounding box
+        half = 0.5 * np.linalg.norm(np.diff(pts, axis=0), axis=1)
+        kept: list[Polytope] = []
+        if hulls:
+            lo, hi = hull_boxes(hulls)  # (H, 2) each
+            gap = np.maximum(0.0, np.maximum(lo[:, None, :] - pts[None],
+                                             pts[None] - hi[:, None, :]))
+            d = np.hypot(gap[..., 0], gap[..., 1])  # (H, points)
+            near = np.min(np.minimum(d[:, :-1], d[:, 1:]) - half, axis=1) < d_safe_m + 1.0
+            kept = [h for h, k in zip(hulls, near.tolist(), strict=True) if k]
+    else:
+        kept = list(hulls)
+    verdict = verify_trajectory(states, controls, kept, dynamics, clearance_m=d_safe_m)
+    if not verdict.ok:
+        return verdict
+    pos = np.asarray(states, dtype=float)[1:, :2]
+    margin = disjunction_margin(pos, hulls, epsilon_m)
+    if margin < -tol:
+        return Verdict(False, f"ε-disjunction of (P2) violated by {-margin:.3g} m",
+                       verdict.clearance_m)
+    if area_size_m is not None and (np.any(pos < -tol) or np.any(pos > area_size_m + tol)):
+        return Verdict(False, "a planned position leaves the area", verdict.clearance_m)
+    return verdict

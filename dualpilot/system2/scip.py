@@ -19,6 +19,7 @@ time limit stops it.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import time
 from collections.abc import Sequence
@@ -26,20 +27,20 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from numpy.typing import NDArray
 
-from dualpilot.model.dynamics import DynamicsParams, reach_boxes, transition_matrices
+from dualpilot.arrays import AnyArray
+from dualpilot.model.dynamics import DynamicsParams, reach_boxes, rollout, transition_matrices
 from dualpilot.model.geometry import Polytope
-from dualpilot.system2.problem import System2Params
-
-Array = NDArray[Any]
+from dualpilot.plan import Objective, Plan, PlanStatus
+from dualpilot.spec import MissionSpec
+from dualpilot.system2.problem import System2Params, p2_cost, verify_p2_plan
 
 
 @dataclass(frozen=True)
 class ScipResult:
     """Best controls found (None if none), status, objective, dual bound and time (s)."""
 
-    controls: Array | None
+    controls: AnyArray | None
     status: str
     objective: float
     dual_bound: float
@@ -48,16 +49,20 @@ class ScipResult:
     n_binaries: int
 
 
-def solve_seeded(x0: Array, hulls: Sequence[Polytope], goal: Array, kappa: tuple[float, float],
-                 u_prev: Array, params: System2Params, dyn: DynamicsParams,
-                 incumbent: Array | None, time_limit_s: float) -> ScipResult:
-    """Solve (P2) with SCIP from the incumbent controls (T, 2); see the module docstring."""
+def solve_seeded(x0: AnyArray, hulls: Sequence[Polytope], goal: AnyArray,
+                 kappa: tuple[float, float], u_prev: AnyArray, params: System2Params,
+                 dyn: DynamicsParams, incumbent: AnyArray | None, time_limit_s: float,
+                 epsilon_m: float, area_size_m: float | None) -> ScipResult:
+    """Solve (P2) with SCIP from the incumbent controls (T, 2); see the module docstring.
+
+    ``epsilon_m`` is ε of Eq. (P2_3); ``area_size_m`` None plans without the area bounds.
+    """
     from pyscipopt import Model, quicksum
 
     t0 = time.perf_counter()
     T = params.horizon
-    eps = params.epsilon_m
-    area = params.area_size_m if params.keep_in_area else None
+    eps = epsilon_m
+    area = area_size_m
     phi, gamma = transition_matrices(dyn)
     m = Model("P2")
     m.hideOutput()
@@ -105,7 +110,7 @@ def solve_seeded(x0: Array, hulls: Sequence[Polytope], goal: Array, kappa: tuple
                        t)
     m.optimize()
     status = str(m.getStatus())
-    controls: Array | None = None
+    controls: AnyArray | None = None
     obj = math.inf
     if m.getNSols() > 0:
         sol = m.getBestSol()
@@ -119,13 +124,11 @@ def solve_seeded(x0: Array, hulls: Sequence[Polytope], goal: Array, kappa: tuple
                       time.perf_counter() - t0, len(binaries))
 
 
-def _add_incumbent(m: Any, controls: Array, x0: Array, hulls: Sequence[Polytope], goal: Array,
-                   kappa: tuple[float, float], u_prev: Array, eps: float, dyn: DynamicsParams,
+def _add_incumbent(m: Any, controls: AnyArray, x0: AnyArray, hulls: Sequence[Polytope],
+                   goal: AnyArray, kappa: tuple[float, float], u_prev: AnyArray, eps: float,
+                   dyn: DynamicsParams,
                    u: list[list[Any]], x: list[list[Any]],
                    binaries: list[tuple[int, int, int, Any]], t: Any) -> None:
-    from dualpilot.model.dynamics import rollout
-    from dualpilot.system2.problem import p2_cost
-
     ctrl = np.clip(np.asarray(controls, dtype=float), -dyn.u_max_n, dyn.u_max_n)
     states = rollout(x0, ctrl, dyn)
     sol = m.createSol()
@@ -145,51 +148,46 @@ def _add_incumbent(m: Any, controls: Array, x0: Array, hulls: Sequence[Polytope]
 class SeededExactSystem2:
     """(P2) solved by SCIP from an incumbent plan; ``plan`` takes the incumbent's controls.
 
-    Used in a worker process (see :class:`dualpilot.system2.fast.planner.ExactWorker`):
+    Run in a :class:`dualpilot.system2.worker.Worker`:
     ``plan(state, hulls, objective, prev_control, incumbent)``. The returned
-    plan is verified like every System 2 plan; ``info`` carries SCIP's status,
-    dual bound and whether it proved optimality.
+    plan is checked with :func:`dualpilot.system2.problem.verify_p2_plan`;
+    ``info`` carries SCIP's status, dual bound and whether it proved optimality.
     """
 
     system = 2
     method = "exact-seeded"
 
-    def __init__(self, goal: Any, params: System2Params = System2Params(),
-                 dynamics: DynamicsParams = DynamicsParams(), clearance_m: float = 20.0) -> None:
-        self.goal, self.params, self.dynamics = goal, params, dynamics
-        self.clearance_m = clearance_m
+    def __init__(self, spec: MissionSpec, params: System2Params = System2Params()) -> None:
+        self.spec, self.params = spec, params
+        self.goal, self.dynamics = spec.goal, spec.dynamics
+        self.area = spec.area_size_m if params.keep_in_area else None
 
-    def plan(self, state: Array, hulls: Sequence[Polytope], objective: Any = None,
-             prev_control: Array | None = None, incumbent: Array | None = None) -> Any:
-        from dualpilot.model.dynamics import rollout
-        from dualpilot.plan import Objective, Plan, PlanStatus
-        from dualpilot.system2.fast.planner import verify_p2_plan
-        from dualpilot.system2.problem import p2_cost
-
+    def plan(self, state: AnyArray, hulls: Sequence[Polytope],
+             objective: Objective = Objective.MISSION_TIME,
+             prev_control: AnyArray | None = None, incumbent: AnyArray | None = None) -> Plan:
         t0 = time.perf_counter()
-        objective = Objective.MISSION_TIME if objective is None else objective
         x0 = np.asarray(state, dtype=float)
         u_prev = np.zeros(2) if prev_control is None else np.asarray(prev_control, dtype=float)
         kappa = self.params.kappa(objective)
+        eps = self.spec.clearance_m
         res = solve_seeded(x0, tuple(hulls), self.goal.center, kappa, u_prev, self.params,
-                           self.dynamics, incumbent, self.params.time_limit_s)
+                           self.dynamics, incumbent, self.params.time_limit_s, eps, self.area)
         info: dict[str, object] = {"solver_status": res.status, "optimal": res.optimal,
                                    "dual_bound": res.dual_bound, "n_binaries": res.n_binaries,
                                    "solver_objective": res.objective}
         if res.controls is None:
             status = PlanStatus.INFEASIBLE if res.status == "infeasible" else PlanStatus.TIMEOUT
             plan = Plan.failed(2, status, time.perf_counter() - t0, f"SCIP: {res.status}")
-            return Plan(**{**plan.__dict__, "objective": objective, "info": info})
+            return dataclasses.replace(plan, objective=objective, info=info)
         controls = np.clip(res.controls, -self.dynamics.u_max_n, self.dynamics.u_max_n)
         states = rollout(x0, controls, self.dynamics)
-        area = self.params.area_size_m if self.params.keep_in_area else None
-        verdict = verify_p2_plan(states, controls, tuple(hulls), self.dynamics,
-                                 self.params.epsilon_m, self.clearance_m, area, tol=1e-3)
+        verdict = verify_p2_plan(states, controls, tuple(hulls), self.dynamics, eps,
+                                 self.spec.d_safe_m, self.area, tol=1e-3)
         cost = p2_cost(states, controls, self.goal.center, kappa, u_prev)
         if not verdict.ok:
             plan = Plan.failed(2, PlanStatus.UNSAFE, time.perf_counter() - t0,
                                f"SCIP plan failed verification: {verdict.reason}")
-            return Plan(**{**plan.__dict__, "objective": objective, "info": info})
+            return dataclasses.replace(plan, objective=objective, info=info)
         return Plan(system=2, status=PlanStatus.OK, states=states, controls=controls,
                     compute_time_s=time.perf_counter() - t0, objective=objective, cost=cost,
                     info=info)

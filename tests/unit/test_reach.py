@@ -10,6 +10,7 @@ from dualpilot.system1.reach import certainly_unreachable, corridor, possibly_fr
 from dualpilot.system1.rrt import RrtParams, plan_path
 
 GOAL = Rect(900.0, 900.0, 100.0, 100.0)
+AREA = 1000.0
 START = np.array([50.0, 50.0])
 
 
@@ -22,7 +23,7 @@ def wall_with_gap(gap_m: float) -> tuple[Polytope, ...]:
 
 
 def test_a_closed_wall_is_proved_unreachable() -> None:
-    assert certainly_unreachable(START, GOAL, wall_with_gap(0.0), 25.0)
+    assert certainly_unreachable(START, GOAL, wall_with_gap(0.0), 25.0, AREA)
 
 
 @pytest.mark.parametrize(("gap_m", "proved"), [
@@ -33,11 +34,11 @@ def test_a_closed_wall_is_proved_unreachable() -> None:
     (60.0, False),   # a path exists through the middle (30 m from each side)
 ])
 def test_gap_widths_worked_by_hand(gap_m: float, proved: bool) -> None:
-    assert certainly_unreachable(START, GOAL, wall_with_gap(gap_m), 25.0) is proved
+    assert certainly_unreachable(START, GOAL, wall_with_gap(gap_m), 25.0, AREA) is proved
 
 
 def test_a_wide_gap_is_really_passable() -> None:
-    result = plan_path(START, GOAL, wall_with_gap(60.0), np.random.default_rng(1),
+    result = plan_path(START, GOAL, wall_with_gap(60.0), np.random.default_rng(1), 25.0, AREA,
                        RrtParams(max_iterations=20_000, max_wall_s=30.0))
     assert result.found
 
@@ -56,7 +57,7 @@ def test_cells_marked_by_hand() -> None:
 def test_an_escape_start_is_not_blocked_by_its_own_cell() -> None:
     hull = Rect(100.0, 100.0, 100.0, 100.0).polytope()  # start 22 m from its right side
     start = np.array([172.0, 100.0])
-    assert not certainly_unreachable(start, GOAL, (hull,), 25.0, start_clearance_m=22.0)
+    assert not certainly_unreachable(start, GOAL, (hull,), 25.0, AREA, start_clearance_m=22.0)
 
 
 def test_never_hides_a_path_the_rrt_finds() -> None:
@@ -67,11 +68,11 @@ def test_never_hides_a_path_the_rrt_finds() -> None:
         hulls = tuple(r.polytope() for r in rects)
         if any(h.distance(START) < 25.0 for h in hulls):
             continue
-        result = plan_path(START, GOAL, hulls, np.random.default_rng(0),
+        result = plan_path(START, GOAL, hulls, np.random.default_rng(0), 25.0, AREA,
                            RrtParams(reach_check=False, max_iterations=5000))
         if result.found:
             found += 1
-            assert not certainly_unreachable(START, GOAL, hulls, 25.0)
+            assert not certainly_unreachable(START, GOAL, hulls, 25.0, AREA)
     assert found >= 5
 
 
@@ -80,9 +81,9 @@ def test_finer_cells_prove_a_gap_the_coarse_grid_cannot() -> None:
     # centres (492.5 … 507.5) lie at most 20.5 m from a side, so all are blocked. Cells of
     # 10 m cannot tell (test_gap_widths_worked_by_hand).
     hulls = wall_with_gap(46.0)
-    assert not certainly_unreachable(START, GOAL, hulls, 25.0, cell_m=10.0)
-    assert certainly_unreachable(START, GOAL, hulls, 25.0, cell_m=5.0)
-    result = plan_path(START, GOAL, hulls, np.random.default_rng(1), RrtParams())
+    assert not certainly_unreachable(START, GOAL, hulls, 25.0, AREA, cell_m=10.0)
+    assert certainly_unreachable(START, GOAL, hulls, 25.0, AREA, cell_m=5.0)
+    result = plan_path(START, GOAL, hulls, np.random.default_rng(1), 25.0, AREA, RrtParams())
     # the paper's 500 samples fail, the 5 m grid then proves that no path exists
     assert (result.status, result.iterations) == ("unreachable", 500)
 
@@ -92,9 +93,9 @@ def test_the_coarse_component_only_saves_work(seed: int) -> None:
     rng = np.random.default_rng(seed)
     rects = [Rect(*rng.uniform(150, 850, 2), *rng.uniform(100, 250, 2)) for _ in range(8)]
     hulls = tuple(r.polytope() for r in rects) + wall_with_gap(70.0)
-    coarse, _ = start_component(START, GOAL, hulls, 25.0, cell_m=10.0)
-    fine, meets = start_component(START, GOAL, hulls, 25.0, cell_m=5.0)
-    restricted, meets_restricted = start_component(START, GOAL, hulls, 25.0, cell_m=5.0,
+    coarse, _ = start_component(START, GOAL, hulls, 25.0, AREA, cell_m=10.0)
+    fine, meets = start_component(START, GOAL, hulls, 25.0, AREA, cell_m=5.0)
+    restricted, meets_restricted = start_component(START, GOAL, hulls, 25.0, AREA, cell_m=5.0,
                                                    coarse=coarse)
     assert np.array_equal(fine, restricted) and meets == meets_restricted
     assert not np.any(fine & ~np.repeat(np.repeat(coarse, 2, axis=0), 2, axis=1))
@@ -104,7 +105,7 @@ def test_corridor_threads_the_gap() -> None:
     # Gap 60 m centred on x = 150 (sides at 120/180) in a wall at y ∈ [500, 520].
     left = Rect(60.0, 510.0, 120.0, 20.0).polytope()
     right = Rect(590.0, 510.0, 820.0, 20.0).polytope()
-    component, meets = start_component(START, GOAL, (left, right), 25.0)
+    component, meets = start_component(START, GOAL, (left, right), 25.0, AREA)
     assert meets
     chain = corridor(component, START, GOAL, 10.0)
     assert tuple(chain[0]) == (5, 5)                                  # the start's cell

@@ -7,11 +7,14 @@ import pytest
 
 from dualpilot.model.fire import FireField, FireParams
 from dualpilot.model.geometry import Polytope, Rect, path_clearance
+from dualpilot.spec import MissionSpec
 from dualpilot.system1.rrt import RrtParams, SegmentChecker, plan_path, shortcut
 
-GOAL = Rect(900.0, 900.0, 100.0, 100.0)
-START = np.array([50.0, 50.0])
-CLEAR = 25.0
+SPEC = MissionSpec()
+GOAL = SPEC.goal
+START = np.array(SPEC.start)
+CLEAR = SPEC.clearance_m
+AREA = SPEC.area_size_m
 # A needle pointing at the diagonal y = x: its tip lies 24 m from the line, above (500, 500).
 _TIP = np.array([500.0, 500.0]) + 24.0 * np.array([-1.0, 1.0]) / np.sqrt(2.0)
 NEEDLE = Polytope.from_vertices(
@@ -86,7 +89,7 @@ def test_exact_check_catches_a_corner_that_sampling_misses() -> None:
 
 def test_rrt_avoids_the_needle_tip_on_the_direct_line() -> None:
     hulls = (NEEDLE,)
-    result = plan_path(START, GOAL, hulls, np.random.default_rng(0))
+    result = plan_path(START, GOAL, hulls, np.random.default_rng(0), CLEAR, AREA)
     assert result.status == "exact" and result.path is not None
     assert result.iterations > 0
     assert sampled_min_distance(result.path, hulls) >= CLEAR - 1e-6
@@ -101,7 +104,7 @@ def test_paths_are_free_of_every_hull_and_end_in_goal(seed: int) -> None:
     checker = SegmentChecker(hulls)
     while checker.point_distance(start) < CLEAR:  # a start that is itself valid
         start = rng.uniform(0, 1000, 2)
-    result = plan_path(start, GOAL, hulls, np.random.default_rng(seed))
+    result = plan_path(start, GOAL, hulls, np.random.default_rng(seed), CLEAR, AREA)
     assert result.status == "exact" and result.path is not None
     path = result.path
     np.testing.assert_array_equal(path[0], start)
@@ -114,9 +117,9 @@ def test_paths_are_free_of_every_hull_and_end_in_goal(seed: int) -> None:
 
 def test_same_seed_gives_the_same_path() -> None:
     hulls = (NEEDLE, Rect(300.0, 650.0, 200.0, 150.0).polytope())
-    a = plan_path(START, GOAL, hulls, np.random.default_rng(42))
-    b = plan_path(START, GOAL, hulls, np.random.default_rng(42))
-    c = plan_path(START, GOAL, hulls, np.random.default_rng(43))
+    a = plan_path(START, GOAL, hulls, np.random.default_rng(42), CLEAR, AREA)
+    b = plan_path(START, GOAL, hulls, np.random.default_rng(42), CLEAR, AREA)
+    c = plan_path(START, GOAL, hulls, np.random.default_rng(43), CLEAR, AREA)
     assert a.path is not None and b.path is not None and c.path is not None
     assert a.tree_path is not None and b.tree_path is not None and c.tree_path is not None
     assert a.iterations == b.iterations
@@ -137,8 +140,10 @@ def test_guided_samples_thread_a_narrow_passage() -> None:
     # paper's 500 samples the tree is drawn along the grid corridor through the gap.
     hulls = narrow_gap(56.0, 150.0)
     plain = RrtParams(guide_after=10**6)
-    guided = [plan_path(START, GOAL, hulls, np.random.default_rng(k)) for k in range(8)]
-    unguided = [plan_path(START, GOAL, hulls, np.random.default_rng(k), plain) for k in range(8)]
+    guided = [plan_path(START, GOAL, hulls, np.random.default_rng(k), CLEAR, AREA)
+              for k in range(8)]
+    unguided = [plan_path(START, GOAL, hulls, np.random.default_rng(k), CLEAR, AREA, plain)
+                for k in range(8)]
     assert sum(r.found for r in unguided) < 8          # the premise: plain Alg. 1 misses it
     for result in guided:
         assert result.status == "exact" and result.path is not None
@@ -147,28 +152,29 @@ def test_guided_samples_thread_a_narrow_passage() -> None:
         assert sampled_min_distance(result.path, hulls) >= CLEAR - 1e-6
         assert result.tree_path is not None
         assert path_clearance(result.tree_path, hulls) >= CLEAR - 1e-9
-    again = plan_path(START, GOAL, hulls, np.random.default_rng(3))
+    again = plan_path(START, GOAL, hulls, np.random.default_rng(3), CLEAR, AREA)
     assert guided[3].tree_path is not None and again.tree_path is not None
     np.testing.assert_array_equal(again.tree_path, guided[3].tree_path)  # still deterministic
 
 
 def test_direct_line_when_free_and_start_in_goal() -> None:
-    direct = plan_path(START, GOAL, (), np.random.default_rng(0))
+    direct = plan_path(START, GOAL, (), np.random.default_rng(0), CLEAR, AREA)
     assert direct.status == "direct" and direct.iterations == 0
     np.testing.assert_array_equal(direct.path, [START, GOAL.center])
-    inside = plan_path(np.array([880.0, 870.0]), GOAL, (), np.random.default_rng(0))
+    inside = plan_path(np.array([880.0, 870.0]), GOAL, (), np.random.default_rng(0), CLEAR,
+                       AREA)
     np.testing.assert_array_equal(inside.path, [[880.0, 870.0], GOAL.center])
 
 
 def test_goal_covered_by_fire_is_a_result_not_an_error() -> None:
     hulls = (Rect(900.0, 900.0, 200.0, 200.0).polytope(),)
-    proved = plan_path(START, GOAL, hulls, np.random.default_rng(0))
+    proved = plan_path(START, GOAL, hulls, np.random.default_rng(0), CLEAR, AREA)
     assert proved.path is None and proved.status == "unreachable" and proved.iterations == 0
     params = RrtParams(max_iterations=300, reach_check=False)
-    result = plan_path(START, GOAL, hulls, np.random.default_rng(0), params)
+    result = plan_path(START, GOAL, hulls, np.random.default_rng(0), CLEAR, AREA, params)
     assert result.path is None and not result.found
     assert result.status == "iteration_cap" and result.iterations == 300
-    timed = plan_path(START, GOAL, hulls, np.random.default_rng(0),
+    timed = plan_path(START, GOAL, hulls, np.random.default_rng(0), CLEAR, AREA,
                       RrtParams(max_iterations=10_000, max_wall_s=1e-9, reach_check=False))
     assert timed.status == "time_cap" and timed.path is None
 
@@ -177,8 +183,9 @@ def test_escape_from_a_start_nearer_than_the_clearance() -> None:
     hull = Rect(100.0, 300.0, 100.0, 100.0).polytope()  # bottom face at y = 250
     start = np.array([100.0, 228.0])  # 22 m below it
     with pytest.raises(ValueError, match="from a fire hull"):
-        plan_path(start, GOAL, (hull,), np.random.default_rng(0))
-    result = plan_path(start, GOAL, (hull,), np.random.default_rng(0), start_clearance_m=20.0)
+        plan_path(start, GOAL, (hull,), np.random.default_rng(0), CLEAR, AREA)
+    result = plan_path(start, GOAL, (hull,), np.random.default_rng(0), CLEAR, AREA,
+                       start_clearance_m=20.0)
     assert result.path is not None
     first = SegmentChecker([hull]).distances(result.path[:1], result.path[1:2])[0]
     assert first >= 22.0 - 1e-9  # the first edge never moves closer to the hull
@@ -198,14 +205,14 @@ def test_shortcut_straightens_a_zigzag() -> None:
 def test_bad_input_raises() -> None:
     rng = np.random.default_rng(0)
     with pytest.raises(ValueError, match="finite"):
-        plan_path(np.array([np.nan, 50.0]), GOAL, (), rng)
+        plan_path(np.array([np.nan, 50.0]), GOAL, (), rng, CLEAR, AREA)
     with pytest.raises(ValueError, match="outside"):
-        plan_path(np.array([-5.0, 50.0]), GOAL, (), rng)
+        plan_path(np.array([-5.0, 50.0]), GOAL, (), rng, CLEAR, AREA)
     with pytest.raises(ValueError, match="goal .* outside"):
-        plan_path(START, Rect(990.0, 500.0, 100.0, 100.0), (), rng)
+        plan_path(START, Rect(990.0, 500.0, 100.0, 100.0), (), rng, CLEAR, AREA)
     with pytest.raises(ValueError, match="from a fire hull"):
-        plan_path(START, GOAL, (Rect(60.0, 60.0, 50.0, 50.0).polytope(),), rng)
+        plan_path(START, GOAL, (Rect(60.0, 60.0, 50.0, 50.0).polytope(),), rng, CLEAR, AREA)
     with pytest.raises(ValueError, match="from a fire hull"):  # outside, but within 25 m
-        plan_path(START, GOAL, (Rect(95.0, 50.0, 50.0, 50.0).polytope(),), rng)
+        plan_path(START, GOAL, (Rect(95.0, 50.0, 50.0, 50.0).polytope(),), rng, CLEAR, AREA)
     with pytest.raises(ValueError, match="max_iterations"):
         RrtParams(max_iterations=0)

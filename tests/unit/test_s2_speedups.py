@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from dualpilot.bench import GOAL, make_instance
+from dualpilot.instances import SPEC, make_instance
 from dualpilot.model.dynamics import DynamicsParams, reach_boxes
 from dualpilot.model.geometry import Polytope, Rect
 from dualpilot.plan import PlanStatus
@@ -13,13 +13,11 @@ from dualpilot.system2.fast.geometry import (
     FaceStack,
     HullStack,
     Inflated,
-    disjunction_margin,
-    inflate,
     support_toward,
 )
 from dualpilot.system2.fast.ipm import Rows, band_pairs, solve_qp
 from dualpilot.system2.fast.planner import FastSystem2
-from dualpilot.system2.problem import System2Params
+from dualpilot.system2.problem import System2Params, disjunction_margin
 
 DYN = DynamicsParams()
 SQUARE = Rect(500.0, 500.0, 200.0, 200.0).polytope()  # [400, 600]²; Q at ε = 25: [375, 625]²
@@ -68,7 +66,7 @@ def test_make_many_matches_inflate_per_hull():
     """Concatenated inflation of hulls with 3 and 4 faces equals each hull's own."""
     many = Inflated.make_many([TRIANGLE, SQUARE, TRIANGLE], 25.0)
     for q, hull in zip(many, [TRIANGLE, SQUARE, TRIANGLE], strict=True):
-        np.testing.assert_allclose(q.W, inflate(hull, 25.0))
+        np.testing.assert_allclose(q.W, Inflated.make(hull, 25.0).W)
         np.testing.assert_allclose(q.E, np.roll(q.W, -1, axis=0) - q.W)
         np.testing.assert_allclose(q.b, hull.b + 25.0)
     np.testing.assert_allclose(many[1].W, [[375.0, 375.0], [625.0, 375.0], [625.0, 625.0],
@@ -128,7 +126,7 @@ def _timing_reference(planner, path, speeds, v0, factor=1.0):
 
 
 def test_timing_is_the_same_recursion():
-    planner = FastSystem2(GOAL, System2Params(), DYN)
+    planner = FastSystem2(SPEC, System2Params())
     path = np.array([[50.0, 50.0], [300.0, 60.0], [300.0, 60.0], [500.0, 400.0], [950.0, 950.0]])
     rng = np.random.default_rng(2)
     speeds = rng.uniform(-1.0, 20.0, size=80)
@@ -166,17 +164,17 @@ def test_covered_goal_target_is_two_metres_outside():
     """G_o = (900, 900) inside Q = [825, 975]×[865, 985] (hull [850, 950]×[890, 960], ε = 25):
     the nearest face is y = 865 (35 m), pushed 2 m out: (900, 863); a far hull changes nothing."""
     params = System2Params()
-    planner = FastSystem2(GOAL, params, DYN)
+    planner = FastSystem2(SPEC, params)
     cover = Rect(900.0, 925.0, 100.0, 70.0).polytope()
     far = Rect(100.0, 100.0, 50.0, 50.0).polytope()
-    polys = Inflated.make_many([far, cover], params.epsilon_m)
+    polys = Inflated.make_many([far, cover], SPEC.clearance_m)
     np.testing.assert_allclose(planner._target(polys), [900.0, 863.0], atol=1e-9)
 
 
 def test_start_checks_name_the_right_hull_among_far_ones():
     """p_t = (95, 100) is 25 m from hull 2 (x ≥ 120), p_{t+1} = p_t + 1 s·(15, 0) = (110, 100)
     only 10 m (< ε = 25): INFEASIBLE, naming hull 2 behind two far hulls."""
-    planner = FastSystem2(GOAL, System2Params(), DYN)
+    planner = FastSystem2(SPEC, System2Params())
     far = [Rect(800.0, 100.0 + 100.0 * k, 20.0, 20.0).polytope() for k in range(2)]
     near = Rect(140.0, 100.0, 40.0, 80.0).polytope()  # [120, 160]×[60, 140]
     state = np.array([95.0, 100.0, 15.0 / DYN.dt_s, 0.0])

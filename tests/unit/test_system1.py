@@ -9,16 +9,18 @@ import dualpilot.system1.planner as s1mod
 from dualpilot.model.dynamics import DynamicsParams, hover_state, step
 from dualpilot.model.geometry import Polytope, Rect, path_clearance
 from dualpilot.plan import Objective, Plan, PlanStatus
+from dualpilot.spec import MissionSpec
 from dualpilot.system1.planner import System1, System1Params
 from dualpilot.verify import Verdict, verify_trajectory
 
-GOAL = Rect(900.0, 900.0, 100.0, 100.0)
+SPEC = MissionSpec()
+GOAL = SPEC.goal
 DYN = DynamicsParams()
 BLOCK = Rect(650.0, 650.0, 200.0, 200.0).polytope()  # on the diagonal to G
 
 
 def planner(seed: int = 0, **kw: object) -> System1:
-    return System1(GOAL, np.random.default_rng(seed), System1Params(**kw))  # type: ignore[arg-type]
+    return System1(SPEC, System1Params(**kw), np.random.default_rng(seed))  # type: ignore[arg-type]
 
 
 def iterations(plan: Plan) -> int:
@@ -177,7 +179,7 @@ def test_bad_input_raises() -> None:
     with pytest.raises(ValueError, match="outside"):
         s1.plan(hover_state(np.array([1200.0, 50.0])), ())
     with pytest.raises(ValueError, match="goal .* outside"):
-        System1(Rect(980.0, 900.0, 100.0, 100.0), np.random.default_rng(0))
+        System1(MissionSpec(goal=Rect(980.0, 900.0, 100.0, 100.0)))
     with pytest.raises(ValueError, match="shape"):
         s1.set_waypoints(np.empty((0, 2)))
     with pytest.raises(ValueError, match="finite"):
@@ -186,8 +188,6 @@ def test_bad_input_raises() -> None:
         s1.set_waypoints(np.array([[100.0, 100.0], [1500.0, 100.0]]))
     with pytest.raises(ValueError, match="horizon"):
         System1Params(horizon=0)
-    with pytest.raises(ValueError, match="verify_clearance_m"):
-        System1Params(verify_clearance_m=30.0)
     s1.set_waypoints(np.array([[100.0, 100.0]]))
     s1.set_waypoints(None)
     assert s1.waypoints is None

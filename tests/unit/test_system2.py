@@ -11,14 +11,16 @@ import pytest
 from dualpilot.model.dynamics import DynamicsParams, rollout, transition_matrices
 from dualpilot.model.geometry import Polytope, Rect
 from dualpilot.plan import Objective, PlanStatus
+from dualpilot.spec import MissionSpec
 from dualpilot.system2 import exact as s2mod
 from dualpilot.system2.exact import ExactSystem2, face_inflated, gurobi_available, outer_simplify
 from dualpilot.system2.problem import System2Params, p2_cost
 from dualpilot.verify import Verdict
 
-GOAL = Rect(900.0, 900.0, 100.0, 100.0)
+SPEC = MissionSpec()
+GOAL = SPEC.goal
 DYN = DynamicsParams()
-EPS = System2Params().epsilon_m
+EPS = SPEC.clearance_m
 T = 20
 
 
@@ -30,7 +32,7 @@ def params(**kw: object) -> System2Params:
 
 @pytest.fixture(scope="module")
 def planner() -> ExactSystem2:
-    return ExactSystem2(GOAL, params())
+    return ExactSystem2(SPEC, params())
 
 
 def hover(x: float, y: float) -> np.ndarray:
@@ -148,7 +150,7 @@ def test_time_plan_gets_closer_and_energy_plan_is_smoother(planner):
 
 
 def test_default_slots_and_a_many_faced_hull_are_handled():
-    planner = ExactSystem2(GOAL, System2Params(horizon=15))  # 10 hulls × 12 faces
+    planner = ExactSystem2(SPEC, System2Params(horizon=15))  # 10 hulls × 12 faces
     ang = np.linspace(0.0, 2 * np.pi, 24, endpoint=False)
     disc = Polytope.from_vertices(np.column_stack([300 + 60 * np.cos(ang),
                                                    250 + 60 * np.sin(ang)]))
@@ -198,7 +200,7 @@ def test_unreachable_hulls_are_dropped_exactly(planner):
 
 
 def test_too_many_reachable_hulls_is_reported():
-    planner = ExactSystem2(GOAL, params(horizon=15, max_hulls=1))
+    planner = ExactSystem2(SPEC, params(horizon=15, max_hulls=1))
     hulls = (BLOCK, Rect(150.0, 350.0, 60.0, 60.0).polytope())
     plan = planner.plan(hover(100.0, 100.0), hulls)
     assert plan.status is PlanStatus.INVALID_INPUT and "max_hulls" in plan.message
@@ -229,23 +231,23 @@ def test_invalid_inputs(planner):
 
 
 def test_bad_construction():
-    with pytest.raises(ValueError, match="outside the area"):
-        ExactSystem2(Rect(990.0, 500.0, 100.0, 100.0), params())
+    with pytest.raises(ValueError, match="goal .* outside"):
+        ExactSystem2(MissionSpec(goal=Rect(990.0, 500.0, 100.0, 100.0)), params())
     with pytest.raises(ValueError, match="horizon"):
-        ExactSystem2(GOAL, System2Params(horizon=0))
+        ExactSystem2(SPEC, System2Params(horizon=0))
     with pytest.raises(ValueError, match="solver"):
-        ExactSystem2(GOAL, params(), solver="CPLEX")
+        ExactSystem2(SPEC, params(), solver="CPLEX")
     with pytest.raises(ValueError, match="2-D"):
-        ExactSystem2(GOAL, params(), DynamicsParams(dim=3))
+        ExactSystem2(MissionSpec(dynamics=DynamicsParams(dim=3)), params())
     with pytest.raises(ValueError, match="max_faces"):
         outer_simplify(BLOCK, 3)
     if not gurobi_available():
         with pytest.raises(ValueError, match="gurobipy"):
-            ExactSystem2(GOAL, params(), solver="GUROBI")
+            ExactSystem2(SPEC, params(), solver="GUROBI")
 
 
 def test_solver_crash_is_an_error_plan(monkeypatch):
-    planner = ExactSystem2(GOAL, params(horizon=15))
+    planner = ExactSystem2(SPEC, params(horizon=15))
 
     def boom(*args, **kwargs):
         raise RuntimeError("simulated crash")
@@ -264,7 +266,7 @@ def test_a_plan_failing_verification_is_unsafe_never_ok(planner, monkeypatch):
 
 
 def test_time_limit_gives_timeout_or_a_verified_incumbent():
-    planner = ExactSystem2(GOAL, params(horizon=20, time_limit_s=1e-3))
+    planner = ExactSystem2(SPEC, params(horizon=20, time_limit_s=1e-3))
     plan = planner.plan(hover(100.0, 100.0), (BLOCK,))
     assert plan.status in (PlanStatus.TIMEOUT, PlanStatus.OK)
     if plan.ok:  # an incumbent is kept only because it verified
@@ -274,8 +276,8 @@ def test_time_limit_gives_timeout_or_a_verified_incumbent():
 
 def test_isolated_worker_matches_in_process_and_survives_a_kill():
     x0 = hover(100.0, 100.0)
-    inproc = ExactSystem2(GOAL, params(horizon=15)).plan(x0, (BLOCK,))
-    with ExactSystem2(GOAL, params(horizon=15), isolate=True) as planner:
+    inproc = ExactSystem2(SPEC, params(horizon=15)).plan(x0, (BLOCK,))
+    with ExactSystem2(SPEC, params(horizon=15), isolate=True) as planner:
         plan = planner.plan(x0, (BLOCK,))
         assert plan.ok, plan.message
         assert plan.cost == pytest.approx(inproc.cost, rel=1e-6)
@@ -288,7 +290,7 @@ def test_isolated_worker_matches_in_process_and_survives_a_kill():
 
 
 def test_isolated_worker_hard_deadline_gives_timeout():
-    with ExactSystem2(GOAL, params(horizon=15), isolate=True, hard_timeout_s=0.01) as planner:
+    with ExactSystem2(SPEC, params(horizon=15), isolate=True, hard_timeout_s=0.01) as planner:
         plan = planner.plan(hover(100.0, 100.0), (BLOCK,))
         assert plan.status is PlanStatus.TIMEOUT and "hard deadline" in plan.message
         assert planner._worker is not None and planner._worker.pid is None  # killed

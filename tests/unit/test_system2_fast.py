@@ -1,5 +1,6 @@
 """The fast System 2: agreement with the exact MIQP, verification, and a solver that fails."""
 
+import dataclasses
 import json
 import os
 import time
@@ -7,20 +8,17 @@ import time
 import numpy as np
 import pytest
 
-from dualpilot.bench import GOAL, make_instance, run_system2
+from dualpilot.bench import run_system2
+from dualpilot.instances import GOAL, SPEC, make_instance
 from dualpilot.model.dynamics import DynamicsParams, rollout, transition_matrices
 from dualpilot.model.geometry import Polytope, Rect
 from dualpilot.plan import Objective, Plan, PlanStatus
+from dualpilot.planners import METHODS, build_planner, build_planners
 from dualpilot.system2.fast.geometry import Inflated, homotopy_paths
-from dualpilot.system2.fast.planner import (
-    AnytimeSystem2,
-    ExactWorker,
-    FastSystem2,
-    make_system2,
-    verify_p2_plan,
-)
+from dualpilot.system2.fast.planner import AnytimeSystem2, FastSystem2
 from dualpilot.system2.fast.qp import P2Qp
-from dualpilot.system2.problem import System2Params
+from dualpilot.system2.problem import System2Params, verify_p2_plan
+from dualpilot.system2.worker import Worker
 
 DYN = DynamicsParams()
 SMALL = System2Params(horizon=20, time_limit_s=60.0)
@@ -32,8 +30,8 @@ def test_fast_matches_exact_on_small_instances():
     """T = 20, 3 hulls: SCIP proves optimality quickly; the fast plan is within the stated gap."""
     from dualpilot.system2.exact import ExactSystem2
 
-    fast = FastSystem2(GOAL, SMALL, DYN)
-    exact = ExactSystem2(GOAL, SMALL, DYN)
+    fast = FastSystem2(SPEC, SMALL)
+    exact = ExactSystem2(SPEC, SMALL)
     gaps, homotopies = [], []
     for index in (0, 4, 6):
         inst = make_instance(index, 5, 3)
@@ -52,7 +50,7 @@ def test_fast_matches_exact_on_small_instances():
 
 
 def test_unconstrained_optimum_is_returned_as_optimal():
-    fast = FastSystem2(GOAL, SMALL, DYN)
+    fast = FastSystem2(SPEC, SMALL)
     far = (Rect(100.0, 900.0, 100.0, 100.0).polytope(),)
     plan = fast.plan(np.array([300.0, 300.0, 5.0, 5.0]), far, Objective.MISSION_TIME)
     assert plan.ok and plan.info["homotopy"] == "relaxation" and plan.info["optimal"]
@@ -74,7 +72,7 @@ def test_verification_rejects_a_segment_that_clips_a_corner():
     controls = np.array([[-3.0, -3.0]])
     states = rollout(x0, controls, DYN)
     assert square.distance(states[0, :2]) > 20.0 and square.distance(states[1, :2]) > 20.0
-    verdict = verify_p2_plan(states, controls, (square,), DYN, epsilon_m=0.0)
+    verdict = verify_p2_plan(states, controls, (square,), DYN, 0.0, SPEC.d_safe_m, None)
     assert not verdict.ok and "clearance" in verdict.reason
 
 
@@ -84,15 +82,16 @@ def test_verification_rejects_a_point_inside_the_epsilon_corner():
     x0 = np.array([120.0, 120.0 - 0.0, 0.0, 0.0])
     controls = np.zeros((1, 2))
     states = rollout(x0, controls, DYN)
-    ok_clearance = verify_p2_plan(states, controls, (_square(),), DYN, epsilon_m=0.0)
+    ok_clearance = verify_p2_plan(states, controls, (_square(),), DYN, 0.0, SPEC.d_safe_m,
+                                  None)
     assert ok_clearance.ok
-    verdict = verify_p2_plan(states, controls, (_square(),), DYN, epsilon_m=25.0)
+    verdict = verify_p2_plan(states, controls, (_square(),), DYN, 25.0, SPEC.d_safe_m, None)
     assert not verdict.ok and "disjunction" in verdict.reason
 
 
 def test_a_plan_failing_verification_is_never_returned(monkeypatch):
     """If the solver's candidates were wrongly judged feasible, the final check still stops them."""
-    fast = FastSystem2(GOAL, SMALL, DYN)
+    fast = FastSystem2(SPEC, SMALL)
     monkeypatch.setattr(fast, "_violations", lambda pos, polys: np.zeros((0, 2), dtype=int))
     block = (Rect(450.0, 450.0, 150.0, 150.0).polytope(),)
     plan = fast.plan(np.array([300.0, 300.0, 10.0, 10.0]), block, Objective.MISSION_TIME)
@@ -101,7 +100,7 @@ def test_a_plan_failing_verification_is_never_returned(monkeypatch):
 
 
 def test_statuses_match_the_exact_solver():
-    fast = FastSystem2(GOAL, SMALL, DYN)
+    fast = FastSystem2(SPEC, SMALL)
     assert fast.plan(np.zeros(3), ()).status is PlanStatus.INVALID_INPUT
     sq = (_square(),)
     # x_(t+1|t) = (110, 50) lies 10 m past a face: (P2) is infeasible whatever the control
@@ -150,10 +149,34 @@ def test_transition_matrices_reading():
     assert phi[0, 2] == DYN.dt_s and gamma[0, 0] == 0.0
 
 
-def test_make_system2_by_name():
-    assert make_system2("fast", GOAL, SMALL, DYN).method == "fast"
+def test_planners_by_name_from_the_registry():
+    assert METHODS == {1: ("rrt",), 2: ("fast", "exact", "fast+exact", "thorough")}
+    fast = build_planner(2, SPEC, "fast", SMALL)
+    assert isinstance(fast, FastSystem2) and (fast.system, fast.method) == (2, "fast")
+    thorough = build_planner(2, SPEC, "thorough")
+    assert (thorough.system, thorough.method) == (2, "thorough")
+    both = build_planners(SPEC)
+    assert [(k, p.system, p.method) for k, p in both.items()] == [(1, 1, "rrt"), (2, 2, "fast")]
     with pytest.raises(ValueError, match="unknown System 2 method"):
-        make_system2("magic", GOAL, SMALL, DYN)
+        build_planner(2, SPEC, "magic")
+    with pytest.raises(ValueError, match="unknown system"):
+        build_planner(3, SPEC, "fast")
+    with pytest.raises(TypeError, match="System2Params"):
+        build_planner(1, SPEC, "rrt", SMALL)
+
+
+@pytest.mark.timeout(120)
+def test_exact_from_the_registry_solves_in_a_worker_process():
+    exact = build_planner(2, SPEC, "exact", SMALL)
+    try:
+        assert exact.method == "exact"
+        inst = make_instance(4, 5, 3)
+        plan = exact.plan(inst.state, inst.hulls, inst.objective, inst.prev_control)
+        assert plan.ok, plan.message
+        worker = exact._worker  # type: ignore[attr-defined]
+        assert worker is not None and worker.pid is not None and worker.pid != os.getpid()
+    finally:
+        exact.close()  # type: ignore[attr-defined]
 
 
 # ------------------------------------------------- a solver that misbehaves
@@ -185,16 +208,17 @@ def _query():
 @pytest.mark.timeout(60)
 @pytest.mark.parametrize("planner, outcome", [(_CrashPlanner, "crashed"), (_HangPlanner, "killed")])
 def test_worker_failure_leaves_the_best_verified_plan(planner, outcome):
-    worker = ExactWorker(planner, context="fork")
-    anytime = AnytimeSystem2(GOAL, SMALL, DYN, exact_budget_s=1.0, worker=worker)
+    worker = Worker(lambda: planner().plan, context="fork")
+    anytime = AnytimeSystem2(SPEC, SMALL, exact_budget_s=1.0, worker=worker)
     try:
         query = _query()
-        fast = FastSystem2(GOAL, SMALL, DYN).plan(*query)
+        fast = FastSystem2(SPEC, SMALL).plan(*query)
         plan = anytime.plan(*query)
         assert plan.ok and plan.info["source"] == "fast"
         assert str(plan.info["exact_outcome"]).startswith(outcome)
         assert plan.states == pytest.approx(fast.states)
-        assert verify_p2_plan(plan.states, plan.controls, query[1], DYN, 25.0).ok
+        assert verify_p2_plan(plan.states, plan.controls, query[1], DYN, SPEC.clearance_m,
+                              SPEC.d_safe_m, SPEC.area_size_m).ok
         assert not worker.alive()
         # the next request starts a fresh worker (and fails the same way)
         again = anytime.plan(*query)
@@ -206,23 +230,23 @@ def test_worker_failure_leaves_the_best_verified_plan(planner, outcome):
 @pytest.mark.timeout(60)
 def test_better_exact_plan_is_taken_and_a_bad_one_is_not():
     query = _query()
-    fast = FastSystem2(GOAL, SMALL, DYN).plan(*query)
+    fast = FastSystem2(SPEC, SMALL).plan(*query)
     assert fast.ok and fast.cost is not None
     # a "better" plan that fails verification (a position inside a hull) must be refused
     states = fast.states.copy()
     states[5, :2] = query[1][0].vertices.mean(axis=0)
-    bogus = Plan(**{**fast.__dict__, "states": states, "cost": 0.0})
-    anytime = AnytimeSystem2(GOAL, SMALL, DYN, exact_budget_s=5.0,
-                             worker=ExactWorker(lambda: _BetterPlanner(bogus), context="fork"))
+    bogus = dataclasses.replace(fast, states=states, cost=0.0)
+    anytime = AnytimeSystem2(SPEC, SMALL, exact_budget_s=5.0,
+                             worker=Worker(lambda: _BetterPlanner(bogus).plan, context="fork"))
     try:
         plan = anytime.plan(*query)
         assert plan.info["source"] == "fast" and plan.cost == pytest.approx(fast.cost)
     finally:
         anytime.close()
     # a verified, cheaper plan is taken
-    cheaper = Plan(**{**fast.__dict__, "cost": fast.cost * 0.5})
-    anytime = AnytimeSystem2(GOAL, SMALL, DYN, exact_budget_s=5.0,
-                             worker=ExactWorker(lambda: _BetterPlanner(cheaper), context="fork"))
+    cheaper = dataclasses.replace(fast, cost=fast.cost * 0.5)
+    anytime = AnytimeSystem2(SPEC, SMALL, exact_budget_s=5.0,
+                             worker=Worker(lambda: _BetterPlanner(cheaper).plan, context="fork"))
     try:
         plan = anytime.plan(*query)
         assert plan.info["source"] == "exact" and plan.cost == pytest.approx(0.5 * fast.cost)
@@ -249,12 +273,13 @@ def test_seeded_scip_proves_the_fast_plan_optimal_on_a_small_instance():
     from dualpilot.system2.scip import SeededExactSystem2
 
     inst = make_instance(4, 5, 3)
-    fast = FastSystem2(GOAL, SMALL, DYN).plan(inst.state, inst.hulls, inst.objective,
+    fast = FastSystem2(SPEC, SMALL).plan(inst.state, inst.hulls, inst.objective,
                                               inst.prev_control)
-    seeded = SeededExactSystem2(GOAL, SMALL, DYN).plan(inst.state, inst.hulls, inst.objective,
+    seeded = SeededExactSystem2(SPEC, SMALL).plan(inst.state, inst.hulls, inst.objective,
                                                        inst.prev_control, fast.controls)
     assert seeded.ok and seeded.info["optimal"]
     assert fast.cost is not None and seeded.cost is not None
     assert seeded.cost <= fast.cost * (1 + 1e-9)
     assert (fast.cost - seeded.cost) / seeded.cost < 1e-3
-    assert float(seeded.info["dual_bound"]) <= seeded.cost * (1 + 1e-6)
+    dual = seeded.info["dual_bound"]
+    assert isinstance(dual, float) and dual <= seeded.cost * (1 + 1e-6)

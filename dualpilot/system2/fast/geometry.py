@@ -19,24 +19,13 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 import scipy.sparse as sp
-from numpy.typing import NDArray
 from scipy.sparse.csgraph import dijkstra
 
-from dualpilot.model.geometry import Polytope
-
-Array = NDArray[Any]  # float, int or bool arrays
-
-def inflate(poly: Polytope, eps: float) -> Array:
-    """Vertices (CCW) of {p : α_l·p ≤ β_l + eps ∀l}; vertex k joins faces k−1 and k (m)."""
-    v = poly.vertices
-    n = poly.A  # row l is the normal of the edge v[l] -> v[l+1]
-    n_prev = np.roll(n, 1, axis=0)
-    c = np.einsum("ij,ij->i", n_prev, n)
-    return np.asarray(v + eps * (n_prev + n) / (1.0 + c)[:, None])
+from dualpilot.arrays import AnyArray
+from dualpilot.model.geometry import Polytope, point_segment_d2
 
 
 @dataclass(frozen=True)
@@ -44,15 +33,15 @@ class Inflated:
     """One hull and its ε-inflation Q in both forms (normals A, offsets b + ε, vertices W)."""
 
     hull: Polytope
-    A: Array
-    b: Array  # β + ε
-    W: Array  # vertices of Q, CCW
-    lo: Array  # bounding box of Q
-    hi: Array
-    E: Array  # edge vectors W[l+1] − W[l] (edge l lies on face l)
-    len2: Array  # their squared lengths
-    nsum: Array  # α_{l−1} + α_l at vertex l: a vertex moves by δ·nsum/den when faces move by δ
-    den: Array  # 1 + α_{l−1}·α_l
+    A: AnyArray
+    b: AnyArray  # β + ε
+    W: AnyArray  # vertices of Q, CCW
+    lo: AnyArray  # bounding box of Q
+    hi: AnyArray
+    E: AnyArray  # edge vectors W[l+1] − W[l] (edge l lies on face l)
+    len2: AnyArray  # their squared lengths
+    nsum: AnyArray  # α_{l−1} + α_l at vertex l: a vertex moves by δ·nsum/den when faces move by δ
+    den: AnyArray  # 1 + α_{l−1}·α_l
 
     @staticmethod
     def make(hull: Polytope, eps: float) -> Inflated:
@@ -60,7 +49,7 @@ class Inflated:
 
     @staticmethod
     def make_many(hulls: Sequence[Polytope], eps: float) -> list[Inflated]:
-        """:func:`inflate` and the edges of every hull, computed on all vertices at once."""
+        """Q of every hull (vertex k joins faces k−1 and k) and its edges, all at once."""
         if not hulls:
             return []
         sizes = np.array([len(h.b) for h in hulls])
@@ -83,12 +72,12 @@ class Inflated:
                                 nsum[sl], den[sl]))
         return out
 
-    def margin(self, points: Array) -> Array:
+    def margin(self, points: AnyArray) -> AnyArray:
         """max_l (α_l·p − β_l − ε) per point: ≥ 0 means the disjunction holds (m)."""
         pts = np.asarray(points, dtype=float).reshape(-1, 2)
         return np.asarray(np.max(pts @ self.A.T - self.b, axis=1))
 
-    def nearest(self, points: Array) -> tuple[Array, Array]:
+    def nearest(self, points: AnyArray) -> tuple[AnyArray, AnyArray]:
         """Nearest boundary point of Q and the distance to it, per point."""
         pts = np.asarray(points, dtype=float).reshape(-1, 2)
         a, e = self.W, self.E
@@ -100,7 +89,7 @@ class Inflated:
         k = np.arange(len(pts))
         return c[k, j], np.sqrt(d2[k, j])
 
-    def support(self, points: Array) -> tuple[Array, Array, Array]:
+    def support(self, points: AnyArray) -> tuple[AnyArray, AnyArray, AnyArray]:
         """Supporting half-planes n·p ≥ c of Q at the projections of ``points``.
 
         Returns (normals (k,2), offsets (k,), outside mask). For a point inside
@@ -132,9 +121,9 @@ class Inflated:
 class FaceStack:
     """The faces of several inflated hulls stacked, for margins of all of them at once."""
 
-    A: Array
-    b: Array
-    starts: Array  # first face of each hull
+    A: AnyArray
+    b: AnyArray
+    starts: AnyArray  # first face of each hull
     n: int
 
     @staticmethod
@@ -145,7 +134,7 @@ class FaceStack:
         return FaceStack(np.vstack([q.A for q in polys]), np.concatenate([q.b for q in polys]),
                          np.cumsum([0] + [len(q.b) for q in polys[:-1]]), len(polys))
 
-    def margins(self, points: Array) -> Array:
+    def margins(self, points: AnyArray) -> AnyArray:
         """Inflated.margin of every hull: array (n points, n hulls) (m).
 
         One matrix product over all faces and a segmented max (``reduceat``)
@@ -168,12 +157,12 @@ class HullStack:
     :class:`Inflated` method of that hull point by point.
     """
 
-    A: Array
-    b: Array
-    W: Array
-    E: Array
-    len2: Array
-    valid: Array
+    A: AnyArray
+    b: AnyArray
+    W: AnyArray
+    E: AnyArray
+    len2: AnyArray
+    valid: AnyArray
 
     @staticmethod
     def of(polys: Sequence[Inflated]) -> HullStack:
@@ -191,18 +180,18 @@ class HullStack:
             valid[i, :k] = True
         return HullStack(a, b, w, e, len2, valid)
 
-    def _face_margins(self, hid: Array, pts: Array) -> Array:
+    def _face_margins(self, hid: AnyArray, pts: AnyArray) -> AnyArray:
         """α_l·p − β_l − ε for every face of each point's hull, (k, F) (m)."""
         a = self.A[hid]
         return np.asarray(pts[:, None, 0] * a[..., 0] + pts[:, None, 1] * a[..., 1]
                           - self.b[hid])
 
-    def margin(self, hid: Array, points: Array) -> Array:
+    def margin(self, hid: AnyArray, points: AnyArray) -> AnyArray:
         """Inflated.margin of hull ``hid[k]`` at ``points[k]`` (m)."""
         pts = np.asarray(points, dtype=float).reshape(-1, 2)
         return np.asarray(np.max(self._face_margins(hid, pts), axis=1))
 
-    def nearest(self, hid: Array, points: Array) -> tuple[Array, Array]:
+    def nearest(self, hid: AnyArray, points: AnyArray) -> tuple[AnyArray, AnyArray]:
         """Inflated.nearest of hull ``hid[k]`` at ``points[k]``."""
         pts = np.asarray(points, dtype=float).reshape(-1, 2)
         a, e = self.W[hid], self.E[hid]
@@ -214,7 +203,7 @@ class HullStack:
         k = np.arange(len(pts))
         return c[k, j], np.sqrt(d2[k, j])
 
-    def support(self, hid: Array, points: Array) -> tuple[Array, Array, Array]:
+    def support(self, hid: AnyArray, points: AnyArray) -> tuple[AnyArray, AnyArray, AnyArray]:
         """Inflated.support of hull ``hid[k]`` at ``points[k]``: (normals, offsets, outside)."""
         pts = np.asarray(points, dtype=float).reshape(-1, 2)
         margins = self._face_margins(hid, pts)
@@ -236,16 +225,16 @@ class HullStack:
             offsets[sub] = np.where(good, np.einsum("ij,ij->i", nrm, c), offsets[sub])
         return normals, offsets, outside
 
-    def support_toward(self, hid: Array, points: Array, desired: Array,
+    def support_toward(self, hid: AnyArray, points: AnyArray, desired: AnyArray,
                        lambdas: tuple[float, ...] = (1.0, 0.5, 0.25), slack: float = 0.0
-                       ) -> tuple[Array, Array, Array]:
+                       ) -> tuple[AnyArray, AnyArray, AnyArray]:
         """:func:`support_toward` of hull ``hid[k]`` at ``points[k]``."""
         return _lean(lambda idx, x: self.support(hid[idx], x), points, desired, lambdas, slack)
 
 
-def support_toward(poly: Inflated, points: Array, desired: Array,
+def support_toward(poly: Inflated, points: AnyArray, desired: AnyArray,
                    lambdas: tuple[float, ...] = (1.0, 0.5, 0.25), slack: float = 0.0
-                   ) -> tuple[Array, Array, Array]:
+                   ) -> tuple[AnyArray, AnyArray, AnyArray]:
     """Supporting half-planes that contain ``points`` and lean towards ``desired``.
 
     For each point p (outside Q) the support is taken at the projection of
@@ -256,9 +245,9 @@ def support_toward(poly: Inflated, points: Array, desired: Array,
     return _lean(lambda _idx, x: poly.support(x), points, desired, lambdas, slack)
 
 
-def _lean(support: Callable[[Array, Array], tuple[Array, Array, Array]], points: Array,
-          desired: Array, lambdas: tuple[float, ...], slack: float
-          ) -> tuple[Array, Array, Array]:
+def _lean(support: Callable[[AnyArray, AnyArray], tuple[AnyArray, AnyArray, AnyArray]],
+          points: AnyArray, desired: AnyArray, lambdas: tuple[float, ...], slack: float
+          ) -> tuple[AnyArray, AnyArray, AnyArray]:
     """:func:`support_toward` given ``support(indices, x)``: the supports for points[indices]."""
     pts = np.asarray(points, dtype=float).reshape(-1, 2)
     nrm, off, outside = support(np.arange(len(pts)), pts)
@@ -277,16 +266,8 @@ def _lean(support: Callable[[Array, Array], tuple[Array, Array, Array]], points:
     return nrm, off, outside
 
 
-def disjunction_margin(points: Array, hulls: Sequence[Polytope], eps: float) -> float:
-    """min over points and hulls of max_l (α_l·p − β_l) − ε: ≥ 0 iff Eq. (P2_3)-(P2_4) hold (m)."""
-    pts = np.asarray(points, dtype=float).reshape(-1, 2)
-    if not hulls or not len(pts):
-        return float("inf")
-    return float(np.min(FaceStack.of(hulls).margins(pts))) - eps
-
-
 # --------------------------------------------------------------- homotopies
-def _segments_blocked(p: Array, q: Array, polys: Sequence[Inflated]) -> Array:
+def _segments_blocked(p: AnyArray, q: AnyArray, polys: Sequence[Inflated]) -> AnyArray:
     """True where segment p[k]–q[k] meets the interior of some Q (Cyrus–Beck, vectorised)."""
     blocked = np.zeros(len(p), dtype=bool)
     if not len(p):
@@ -313,7 +294,7 @@ def _segments_blocked(p: Array, q: Array, polys: Sequence[Inflated]) -> Array:
     return blocked
 
 
-def _ray_crossings(p: Array, q: Array, origins: Array, direction: Array) -> Array:
+def _ray_crossings(p: AnyArray, q: AnyArray, origins: AnyArray, direction: AnyArray) -> AnyArray:
     """(k, r) 1 where segment p[k]–q[k] crosses the ray origins[j] + s·direction, s ≥ 0.
 
     Each endpoint is put on one side of the ray's line by a fixed predicate
@@ -332,8 +313,8 @@ def _ray_crossings(p: Array, q: Array, origins: Array, direction: Array) -> Arra
 
 
 def homotopy_paths(
-    start: Array,
-    target: Array,
+    start: AnyArray,
+    target: AnyArray,
     polys: Sequence[Inflated],
     *,
     node_margin: float = 1.0,
@@ -342,7 +323,7 @@ def homotopy_paths(
     max_signature_hulls: int = 5,
     length_slack: float = 0.5,
     stack: HullStack | None = None,
-) -> list[Array]:
+) -> list[AnyArray]:
     """Shortest start→target polylines outside every Q, one per homotopy class.
 
     Nodes are the vertices of each Q pushed out by ``node_margin``; edges join
@@ -425,7 +406,7 @@ def homotopy_paths(
         d_t = np.minimum.reduceat(np.linalg.norm(w_all - target, axis=1), w_first)
         for k in np.flatnonzero(d_s + d_t <= bound + 1e-9).tolist():
             c = polys[k].W.mean(axis=0)
-            scores.append((_point_segment(c, start, target), k))
+            scores.append((float(point_segment_d2(c[0], c[1], *start, *(target - start))), k))
     scores.sort()
     sig = [k for _, k in scores[:max_signature_hulls]]
     r = len(sig)
@@ -446,7 +427,7 @@ def homotopy_paths(
     dist, pred = dijkstra(big, directed=False, indices=0, return_predecessors=True)
     ends = lay * n + 1
     order = np.argsort(dist[ends])
-    out: list[Array] = []
+    out: list[AnyArray] = []
     for li in order:
         d_end = dist[ends[li]]
         if not np.isfinite(d_end) or d_end > bound or len(out) >= max_paths:
@@ -462,7 +443,7 @@ def homotopy_paths(
     return out
 
 
-def _ring_neighbours(sizes: Array) -> tuple[Array, Array]:
+def _ring_neighbours(sizes: AnyArray) -> tuple[AnyArray, AnyArray]:
     """Previous and next index of each vertex when polygons of ``sizes`` vertices are stacked."""
     sizes = np.asarray(sizes, dtype=np.int64)
     first = np.repeat(np.cumsum(sizes) - sizes, sizes)
@@ -471,23 +452,16 @@ def _ring_neighbours(sizes: Array) -> tuple[Array, Array]:
     return first + (k - first - 1) % size, first + (k - first + 1) % size
 
 
-def _offset(poly: Inflated, margin: float) -> Array:
+def _offset(poly: Inflated, margin: float) -> AnyArray:
     """Vertices of Q pushed out face-wise by ``margin`` more (m)."""
     return np.asarray(poly.W + margin * poly.nsum / poly.den[:, None])
 
 
-def _cross2(a: Array, b: Array) -> Array:
+def _cross2(a: AnyArray, b: AnyArray) -> AnyArray:
     return np.asarray(a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0])
 
 
-def _point_segment(p: Array, a: Array, b: Array) -> float:
-    ab = b - a
-    len2 = float(ab @ ab)
-    t = 0.0 if len2 <= 0 else float(np.clip((p - a) @ ab / len2, 0.0, 1.0))
-    return float(np.linalg.norm(p - (a + t * ab)))
-
-
-def _reconstruct(graph: sp.csr_matrix, nodes: Array, i: int, j: int) -> Array:
+def _reconstruct(graph: sp.csr_matrix, nodes: AnyArray, i: int, j: int) -> AnyArray:
     _, pred = dijkstra(graph, directed=False, indices=i, return_predecessors=True)
     path = [j]
     while path[-1] != i:
@@ -495,7 +469,7 @@ def _reconstruct(graph: sp.csr_matrix, nodes: Array, i: int, j: int) -> Array:
     return nodes[np.array(path[::-1])]
 
 
-def resample(path: Array, arc: Array) -> Array:
+def resample(path: AnyArray, arc: AnyArray) -> AnyArray:
     """Points at arc lengths ``arc`` (m) along a polyline (clamped to its ends)."""
     seg = np.linalg.norm(np.diff(path, axis=0), axis=1)
     cum = np.concatenate([[0.0], np.cumsum(seg)])

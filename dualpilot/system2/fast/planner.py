@@ -31,46 +31,48 @@ Method ("fast", the service default):
    UNSAFE instead). If no homotopy yields a feasible plan, braking to a
    hover seeds one last run.
 
-``method="fast+exact"`` (:class:`AnytimeSystem2`) then runs SCIP seeded with the
-fast plan (:mod:`dualpilot.system2.scip`) in a killable worker process with a hard
-time limit and returns the better verified plan. ``method="exact"`` is the cvxpy
-MIQP of :mod:`dualpilot.system2.exact`. :func:`make_system2` builds any of them.
+"fast+exact" (:class:`AnytimeSystem2`) then runs SCIP seeded with the fast
+plan (:mod:`dualpilot.system2.scip`) in a :class:`dualpilot.system2.worker.Worker`
+and returns the better verified plan; "thorough" (:class:`ThoroughSystem2`)
+iterates every homotopy to convergence. ε, d_safe, G and the area come from
+the :class:`dualpilot.spec.MissionSpec`; :mod:`dualpilot.planners` builds each by name.
 """
 
 from __future__ import annotations
 
 import bisect
-import contextlib
+import dataclasses
 import math
-import multiprocessing as mp
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from multiprocessing.connection import Connection
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
-from dualpilot.model.dynamics import Array, DynamicsParams, rollout
-from dualpilot.model.geometry import Polytope, Rect, SegmentChecker
+from dualpilot.arrays import Array
+from dualpilot.model.dynamics import DynamicsParams, rollout
+from dualpilot.model.geometry import Polytope, SegmentChecker, hull_boxes
 from dualpilot.plan import Objective, Plan, PlanStatus
+from dualpilot.spec import MissionSpec
 from dualpilot.system2.fast.geometry import (
     FaceStack,
     HullStack,
     Inflated,
-    disjunction_margin,
     homotopy_paths,
     resample,
 )
 from dualpilot.system2.fast.qp import P2Qp, QpResult
-from dualpilot.system2.problem import System2Params, p2_cost
-from dualpilot.verify import Verdict, verify_trajectory
-
-D_SAFE_M = 20.0
-"""Sec. IV-A: a mission fails within d_safe of an active fire region (m)."""
-
-METHODS = ("fast", "exact", "fast+exact", "thorough")
+from dualpilot.system2.problem import (
+    System2Params,
+    check_request,
+    disjunction_margin,
+    p2_cost,
+    verify_p2_plan,
+)
+from dualpilot.system2.scip import SeededExactSystem2
+from dualpilot.system2.worker import PlannerFactory, Worker
 
 
 @dataclass(frozen=True)
@@ -312,16 +314,13 @@ class FastSystem2:
 
     Parameters
     ----------
-    goal : Rect
-        Goal region G; its centre is G_o of Eq. (S2).
+    spec : MissionSpec
+        Goal G (its centre is G_o of Eq. (S2)), area, ε (``clearance_m``),
+        the d_safe every returned plan is verified against, and Eq. (1).
     params : System2Params
-        T, ε, κ, area; ``max_hulls`` does not limit this method.
-    dynamics : DynamicsParams
-        Eq. (1) and the bounds U, X (planar).
+        T, κ; ``max_hulls`` does not limit this method.
     fast : FastParams
         Method knobs.
-    clearance_m : float
-        Clearance every returned plan is verified against (d_safe = 20 m).
     """
 
     system = 2
@@ -329,23 +328,23 @@ class FastSystem2:
 
     def __init__(
         self,
-        goal: Rect,
+        spec: MissionSpec,
         params: System2Params = System2Params(),
-        dynamics: DynamicsParams = DynamicsParams(),
         fast: FastParams = FastParams(),
-        *,
-        clearance_m: float = D_SAFE_M,
     ) -> None:
+        dynamics = spec.dynamics
         if dynamics.dim != 2:
             raise ValueError(f"FastSystem2 plans in 2-D (Sec. IV); got dim={dynamics.dim}")
         if params.horizon < 2:
             raise ValueError("FastSystem2 needs a horizon of at least 2 steps")
-        self.goal = goal
+        self.spec = spec
+        self.goal = spec.goal
         self.params = params
         self.dynamics = dynamics
         self.fast = fast
-        self.clearance_m = float(clearance_m)
-        self.area = params.area_size_m if params.keep_in_area else None
+        self.clearance_m = spec.d_safe_m  # every returned plan keeps d_safe
+        self.epsilon_m = spec.clearance_m  # ε of Eq. (P2_3)
+        self.area = spec.area_size_m if params.keep_in_area else None
         self.qp = P2Qp(params.horizon, dynamics, self.area)
         self._last: Plan | None = None
         self.stats: dict[str, Any] = {}
@@ -364,11 +363,12 @@ class FastSystem2:
     ) -> Plan:
         """Plan from ``state`` avoiding ``hulls``; ``prev_control`` is u_{t|t} (N)."""
         t0 = time.perf_counter()
-        checked = _check_inputs(state, hulls, objective, prev_control)
+        checked = check_request(state, hulls, objective, prev_control)
         if isinstance(checked, str):
             return _failed(PlanStatus.INVALID_INPUT, checked, t0, objective)
         x0, u_prev, hull_t = checked
-        early = _start_checks(x0, hull_t, self.params, self.dynamics, self.clearance_m)
+        early = _start_checks(x0, hull_t, self.dynamics, self.clearance_m, self.epsilon_m,
+                              self.area)
         if early is not None:
             return _failed(early[0], early[1], t0, objective)
         try:
@@ -385,7 +385,7 @@ class FastSystem2:
         kappa = p.kappa(objective)
         goal = self.goal.center
         T = p.horizon
-        eps = p.epsilon_m
+        eps = self.epsilon_m
         reach = _reach_radius(x0, p.horizon, self.dynamics)
         polys = Inflated.make_many(hulls, eps)
         polys = [q for q, m in zip(polys, FaceStack.of(polys).margins(x0[:2])[0], strict=True)
@@ -466,12 +466,12 @@ class FastSystem2:
         d = self.dynamics
         controls = np.clip(cand.controls, -d.u_max_n, d.u_max_n)
         states = rollout(x0, controls, d)
-        verdict = verify_p2_plan(states, controls, hulls, d, self.params.epsilon_m,
-                                 self.clearance_m, self.area)
+        verdict = verify_p2_plan(states, controls, hulls, d, self.epsilon_m, self.clearance_m,
+                                 self.area)
         if not verdict.ok:
             reasons.append(f"{cand.name}: {verdict.reason}")
             return None
-        margin = disjunction_margin(states[1:, :2], hulls, self.params.epsilon_m)
+        margin = disjunction_margin(states[1:, :2], hulls, self.epsilon_m)
         cost = p2_cost(states, controls, self.goal.center, kappa, u_prev)
         out = dict(info)
         out.update(homotopy=cand.name, cfs_iterations=cand.iterations,
@@ -641,54 +641,6 @@ class FastSystem2:
 
 
 # ------------------------------------------------------------------ helpers
-def verify_p2_plan(states: Array, controls: Array, hulls: Sequence[Polytope],
-                   dynamics: DynamicsParams, epsilon_m: float,
-                   clearance_m: float = D_SAFE_M, area_size_m: float | None = None,
-                   tol: float = 1e-6) -> Verdict:
-    """Every check a System 2 plan must pass before it is returned as OK.
-
-    :func:`dualpilot.verify.verify_trajectory` (Eq. (1), U and X, exact
-    segment clearance ≥ ``clearance_m``), then Eq. (P2_3)-(P2_4) at every
-    planned position p_{t+1|t}..p_{t+T|t} against the true hull faces
-    (max_l α·p − β ≥ ε − tol), then the area bounds if ``area_size_m``.
-    Hulls provably clear of every segment (by a bounding-box lower bound) are
-    skipped by the segment check only.
-    """
-    pts = np.asarray(states, dtype=float).reshape(-1, 4)[:, :2]
-    if len(pts) > 1 and np.all(np.isfinite(pts)):
-        # skip hulls that provably keep the clearance: every point of segment k lies
-        # within L_k / 2 of an end, so dist(segment, hull) ≥ min(d_k, d_k+1) − L_k / 2
-        # with d the (smaller) distance of each sample to the hull's bounding box
-        half = 0.5 * np.linalg.norm(np.diff(pts, axis=0), axis=1)
-        kept: list[Polytope] = []
-        if hulls:
-            lo, hi = _boxes(hulls)  # (H, 2) each
-            gap = np.maximum(0.0, np.maximum(lo[:, None, :] - pts[None],
-                                             pts[None] - hi[:, None, :]))
-            d = np.hypot(gap[..., 0], gap[..., 1])  # (H, points)
-            near = np.min(np.minimum(d[:, :-1], d[:, 1:]) - half, axis=1) < clearance_m + 1.0
-            kept = [h for h, k in zip(hulls, near.tolist(), strict=True) if k]
-    else:
-        kept = list(hulls)
-    verdict = verify_trajectory(states, controls, kept, dynamics, clearance_m=clearance_m)
-    if not verdict.ok:
-        return verdict
-    pos = np.asarray(states, dtype=float)[1:, :2]
-    margin = disjunction_margin(pos, hulls, epsilon_m)
-    if margin < -tol:
-        return Verdict(False, f"ε-disjunction of (P2) violated by {-margin:.3g} m",
-                       verdict.clearance_m)
-    if area_size_m is not None and (np.any(pos < -tol) or np.any(pos > area_size_m + tol)):
-        return Verdict(False, "a planned position leaves the area", verdict.clearance_m)
-    return verdict
-
-
-def _boxes(hulls: Sequence[Polytope]) -> tuple[Array, Array]:
-    """Lower and upper corners (H, 2) of each hull's bounding box (m)."""
-    return (np.array([h.vertices.min(axis=0) for h in hulls]),
-            np.array([h.vertices.max(axis=0) for h in hulls]))
-
-
 def _braking(x0: Array, horizon: int, dyn: DynamicsParams) -> Array:
     """Positions p_1..p_{T+1} (m) when braking to a hover as hard as U allows."""
     keep = 1.0 - dyn.zeta
@@ -708,32 +660,20 @@ def _reach_radius(x0: Array, horizon: int, dyn: DynamicsParams) -> float:
     return dyn.dt_s * (float(np.linalg.norm(x0[2:])) + (horizon - 1) * dyn.v_max_mps * math.sqrt(2))
 
 
-def _check_inputs(state: Array, hulls: Sequence[Polytope], objective: Objective,
-                  prev_control: Array | None) -> tuple[Array, Array, tuple[Polytope, ...]] | str:
-    x0 = np.asarray(state, dtype=float)
-    if x0.shape != (4,) or not np.all(np.isfinite(x0)):
-        return f"state must be 4 finite numbers, got {state}"
-    u_prev = np.zeros(2) if prev_control is None else np.asarray(prev_control, dtype=float)
-    if u_prev.shape != (2,) or not np.all(np.isfinite(u_prev)):
-        return f"prev_control must be 2 finite numbers, got {prev_control}"
-    if not isinstance(objective, Objective):
-        return f"unknown objective {objective!r}"
-    hull_t = tuple(hulls)
-    if not all(isinstance(h, Polytope) for h in hull_t):
-        return "hulls must be Polytope instances"
-    return x0, u_prev, hull_t
+def _start_checks(x0: Array, hulls: tuple[Polytope, ...], dyn: DynamicsParams,
+                  clearance_m: float, epsilon_m: float,
+                  area: float | None) -> tuple[PlanStatus, str] | None:
+    """The statuses ExactSystem2 gives before solving, for the same reasons.
 
-
-def _start_checks(x0: Array, hulls: tuple[Polytope, ...], params: System2Params,
-                  dyn: DynamicsParams, clearance_m: float) -> tuple[PlanStatus, str] | None:
-    """The statuses ExactSystem2 gives before solving, for the same reasons."""
+    ``clearance_m`` is d_safe, ``epsilon_m`` ε, ``area`` the area's side (None: no bounds).
+    """
     p0 = x0[:2]
     p1 = x0[:2] + dyn.dt_s * x0[2:]
     # only hulls whose bounding box comes within clearance_m (+1 m) of the first segment's
     # box can be nearer than clearance_m to p_t or to that segment
     near = hulls
     if hulls:
-        lo, hi = _boxes(hulls)
+        lo, hi = hull_boxes(hulls)
         gap = np.maximum(0.0, np.maximum(lo - np.maximum(p0, p1), np.minimum(p0, p1) - hi))
         close = np.hypot(gap[:, 0], gap[:, 1]) < clearance_m + 1.0
         near = tuple(h for h, c in zip(hulls, close.tolist(), strict=True) if c)
@@ -747,12 +687,12 @@ def _start_checks(x0: Array, hulls: tuple[Polytope, ...], params: System2Params,
                         "no safe plan can start here")
     if hulls:
         margins = FaceStack.of(hulls).margins(p1)[0]
-        bad = np.flatnonzero(margins < params.epsilon_m)
+        bad = np.flatnonzero(margins < epsilon_m)
         if len(bad):
             return (PlanStatus.INFEASIBLE,
                     f"x_(t+1|t) position {p1} is fixed by the current velocity and lies within "
-                    f"ε={params.epsilon_m} m of hull {int(bad[0])}: (P2) is infeasible")
-    if params.keep_in_area and not (np.all(p1 >= 0.0) and np.all(p1 <= params.area_size_m)):
+                    f"ε={epsilon_m} m of hull {int(bad[0])}: (P2) is infeasible")
+    if area is not None and not (np.all(p1 >= 0.0) and np.all(p1 <= area)):
         return (PlanStatus.INFEASIBLE,
                 f"x_(t+1|t) position {p1} is fixed by the current velocity and lies outside "
                 "the area: (P2) is infeasible")
@@ -767,175 +707,19 @@ def _start_checks(x0: Array, hulls: tuple[Polytope, ...], params: System2Params,
 def _failed(status: PlanStatus, msg: str, t0: float, objective: Objective | None,
             info: dict[str, object] | None = None) -> Plan:
     plan = Plan.failed(2, status, time.perf_counter() - t0, msg)
-    return Plan(**{**plan.__dict__, "objective": objective, "info": dict(info or {})})
+    return dataclasses.replace(plan, objective=objective, info=dict(info or {}))
 
 
-# ------------------------------------------------------- exact in a worker
-PlannerFactory = Callable[[], Any]
+class ThoroughSystem2(FastSystem2):
+    """"thorough": the fast method with every homotopy iterated to convergence (:data:`THOROUGH`).
 
-
-def _exact_factory(goal: Rect, params: System2Params, dynamics: DynamicsParams) -> Any:
-    from dualpilot.system2.exact import ExactSystem2
-
-    return ExactSystem2(goal, params, dynamics)
-
-
-class _ExactFactory:
-    """Picklable factory of ExactSystem2 (for spawn-started workers)."""
-
-    def __init__(self, goal: Rect, params: System2Params, dynamics: DynamicsParams) -> None:
-        self.goal, self.params, self.dynamics = goal, params, dynamics
-
-    def __call__(self) -> Any:
-        return _exact_factory(self.goal, self.params, self.dynamics)
-
-
-class _SeededFactory(_ExactFactory):
-    """Picklable factory of :class:`dualpilot.system2.scip.SeededExactSystem2`."""
-
-    def __call__(self) -> Any:
-        from dualpilot.system2.scip import SeededExactSystem2
-
-        return SeededExactSystem2(self.goal, self.params, self.dynamics)
-
-
-def _exit_with_parent(parent_pid: int) -> None:
-    """Watchdog thread: a worker never outlives the process that started it."""
-    import os
-
-    while True:
-        time.sleep(0.5)
-        if os.getppid() != parent_pid:
-            os._exit(0)
-
-
-def _worker_main(factory: PlannerFactory, conn: Connection, parent_pid: int) -> None:
-    """Worker loop: build the planner once, answer (state, hulls, objective, u_prev) requests."""
-    import threading
-
-    threading.Thread(target=_exit_with_parent, args=(parent_pid,), daemon=True).start()
-    planner = factory()
-    conn.send("ready")
-    while True:
-        try:
-            req = conn.recv()
-        except EOFError:
-            return
-        if req is None:
-            return
-        plan = planner.plan(*req)
-        conn.send(plan)
-
-
-class ExactWorker:
-    """A planner (the exact MIQP by default) in its own process, killed past a deadline.
-
-    A solver that crashes the process (e.g. glibc "double free") or exceeds the
-    deadline costs one answer: :meth:`solve` returns None and the next call
-    starts a fresh process. The service's own process never runs the solver.
-
-    Parameters
-    ----------
-    factory : callable
-        Builds the planner inside the worker (must be picklable for "spawn").
-    context : str
-        multiprocessing start method; "spawn" is safe in threaded services.
+    Slower; one more reference in the benchmark.
     """
 
-    def __init__(self, factory: PlannerFactory, context: str = "spawn",
-                 startup_timeout_s: float = 120.0) -> None:
-        self.factory = factory
-        self.ctx: Any = mp.get_context(context)
-        self.startup_timeout_s = float(startup_timeout_s)
-        self._proc: Any = None
-        self._conn: Connection | None = None
-        self._ready = False
-        self.restarts = 0
+    method = "thorough"
 
-    def start(self) -> None:
-        """Start the worker now (it builds its planner in the background)."""
-        if not self.alive():
-            self.stop()
-            self._start()
-
-    def _wait_ready(self) -> str | None:
-        """Wait for the worker's planner to be built; None when ready, else why not."""
-        if self._ready:
-            return None
-        assert self._conn is not None
-        t_end = time.monotonic() + self.startup_timeout_s
-        while time.monotonic() < t_end:
-            if self._conn.poll(0.05):
-                msg = self._conn.recv()
-                self._ready = msg == "ready"
-                return None if self._ready else f"bad start message {msg!r}"
-            if not self._proc.is_alive():
-                return f"crashed at start (exit code {self._proc.exitcode})"
-        return f"not ready after {self.startup_timeout_s:.0f} s"
-
-    def _start(self) -> None:
-        parent, child = self.ctx.Pipe()
-        import os
-
-        proc = self.ctx.Process(target=_worker_main, args=(self.factory, child, os.getpid()),
-                                daemon=True)
-        proc.start()
-        child.close()
-        self._proc, self._conn = proc, parent
-        self._ready = False
-        self.restarts += 1
-
-    def alive(self) -> bool:
-        return self._proc is not None and self._proc.is_alive()
-
-    def solve(self, request: tuple[Any, ...], deadline_s: float) -> tuple[Plan | None, str]:
-        """Send one plan request; the plan, or None and why ("crashed", "killed", …).
-
-        The deadline counts from the moment the worker is ready (a fresh worker
-        first builds its planner, bounded by ``startup_timeout_s``).
-        """
-        self.start()
-        assert self._conn is not None
-        try:
-            why = self._wait_ready()
-        except (EOFError, OSError) as exc:
-            why = f"crashed at start ({type(exc).__name__})"
-        if why is not None:
-            self.stop()
-            return None, why
-        t_end = time.monotonic() + deadline_s
-        try:
-            self._conn.send(request)
-            while True:
-                left = t_end - time.monotonic()
-                if left <= 0:
-                    self.stop()
-                    return None, f"killed after {deadline_s:.1f} s"
-                if self._conn.poll(min(left, 0.05)):
-                    plan = self._conn.recv()
-                    return (plan, "ok") if isinstance(plan, Plan) else (None, "bad answer")
-                if not self._proc.is_alive():
-                    code = self._proc.exitcode
-                    self.stop()
-                    return None, f"crashed (exit code {code})"
-        except (EOFError, OSError, BrokenPipeError) as exc:
-            self.stop()
-            return None, f"crashed ({type(exc).__name__})"
-
-    def stop(self) -> None:
-        """Kill the worker process (if any); the next :meth:`solve` starts a new one."""
-        proc, conn = self._proc, self._conn
-        self._proc, self._conn, self._ready = None, None, False
-        if conn is not None:
-            conn.close()
-        if proc is not None:
-            if proc.is_alive():
-                proc.kill()
-            proc.join(timeout=5.0)
-
-    def __del__(self) -> None:  # pragma: no cover - best effort at interpreter exit
-        with contextlib.suppress(Exception):
-            self.stop()
+    def __init__(self, spec: MissionSpec, params: System2Params = System2Params()) -> None:
+        super().__init__(spec, params, THOROUGH)
 
 
 class AnytimeSystem2:
@@ -952,18 +736,19 @@ class AnytimeSystem2:
     system = 2
     method = "fast+exact"
 
-    def __init__(self, goal: Rect, params: System2Params = System2Params(),
-                 dynamics: DynamicsParams = DynamicsParams(), *, exact_budget_s: float = 2.0,
-                 worker: ExactWorker | None = None, fast: FastParams = FastParams()) -> None:
+    def __init__(self, spec: MissionSpec, params: System2Params = System2Params(), *,
+                 exact_budget_s: float = 2.0, worker: Worker | None = None,
+                 fast: FastParams = FastParams()) -> None:
         if exact_budget_s <= 0:
             raise ValueError("exact_budget_s must be positive")
-        self.goal, self.params, self.dynamics = goal, params, dynamics
+        self.spec, self.params, self.dynamics = spec, params, spec.dynamics
+        self.goal = spec.goal
         self.exact_budget_s = float(exact_budget_s)
-        self.fast_planner = FastSystem2(goal, params, dynamics, fast)
+        self.fast_planner = FastSystem2(spec, params, fast)
         if worker is None:
             limit = max(0.2, 0.8 * exact_budget_s)
-            exact_params = _replace_time_limit(params, limit)
-            worker = ExactWorker(_SeededFactory(goal, exact_params, dynamics))
+            exact_params = dataclasses.replace(params, time_limit_s=float(limit))
+            worker = Worker(PlannerFactory(SeededExactSystem2, spec, exact_params))
         self.worker = worker
         worker.start()  # imports and model set-up happen before the first request
 
@@ -976,19 +761,23 @@ class AnytimeSystem2:
             return fast
         if fast.ok and fast.info.get("optimal"):
             # the relaxation's optimum is feasible: nothing to improve
-            return Plan(**{**fast.__dict__, "compute_time_s": time.perf_counter() - t0,
-                           "info": {**fast.info, "source": "fast",
-                                    "exact_outcome": "skipped (fast plan proven optimal)"}})
+            return dataclasses.replace(
+                fast, compute_time_s=time.perf_counter() - t0,
+                info={**fast.info, "source": "fast",
+                      "exact_outcome": "skipped (fast plan proven optimal)"})
         request = (np.asarray(state, dtype=float), tuple(hulls), objective, prev_control,
                    fast.controls if fast.ok else None)
         left = max(0.05, self.exact_budget_s - (time.perf_counter() - t0))
-        exact, why = self.worker.solve(request, left)
+        answer, why = self.worker.solve(request, left)
+        exact = answer if isinstance(answer, Plan) else None
+        if answer is not None and exact is None:
+            why = "bad answer"
         best = fast
         if exact is not None and exact.ok and exact.cost is not None:
-            d = self.dynamics
-            area = self.params.area_size_m if self.params.keep_in_area else None
-            verdict = verify_p2_plan(exact.states, exact.controls, tuple(hulls), d,
-                                     self.params.epsilon_m, D_SAFE_M, area, tol=1e-3)
+            spec = self.spec
+            area = spec.area_size_m if self.params.keep_in_area else None
+            verdict = verify_p2_plan(exact.states, exact.controls, tuple(hulls), self.dynamics,
+                                     spec.clearance_m, spec.d_safe_m, area, tol=1e-3)
             if verdict.ok and (
                     not fast.ok or fast.cost is None or exact.cost < fast.cost):
                 best = exact
@@ -1002,35 +791,3 @@ class AnytimeSystem2:
 
     def close(self) -> None:
         self.worker.stop()
-
-
-def _replace_time_limit(params: System2Params, limit_s: float) -> System2Params:
-    from dataclasses import replace
-
-    return replace(params, time_limit_s=float(limit_s))
-
-
-def make_system2(method: str, goal: Rect, params: System2Params = System2Params(),
-                 dynamics: DynamicsParams = DynamicsParams()) -> Any:
-    """System 2 planner by name.
-
-    "fast" (the service default), "exact" (the cvxpy MIQP, the reference),
-    "fast+exact" (fast, then SCIP seeded with it in a killable worker) and
-    "thorough" (the fast method with every homotopy iterated to convergence:
-    slower, used as one more reference in the benchmark).
-    """
-    if method == "fast":
-        return FastSystem2(goal, params, dynamics)
-    if method == "exact":
-        from dualpilot.system2.exact import ExactSystem2
-
-        planner = ExactSystem2(goal, params, dynamics)
-        planner.method = "exact"  # type: ignore[attr-defined]
-        return planner
-    if method == "fast+exact":
-        return AnytimeSystem2(goal, params, dynamics)
-    if method == "thorough":
-        thorough = FastSystem2(goal, params, dynamics, THOROUGH)
-        thorough.method = "thorough"
-        return thorough
-    raise ValueError(f"unknown System 2 method {method!r}; choose from {METHODS}")
