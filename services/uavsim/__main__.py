@@ -41,11 +41,12 @@ from __future__ import annotations
 
 import logging
 import math
+import os
 import select
 import socket
+import sys
 import threading
 import time
-from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
@@ -53,16 +54,18 @@ from services.common import bus, codec, mav
 from services.common import cli as common_cli
 from services.common.log import fields
 
+from . import clock as vclock
+from . import flavour as fl
+from .commands import Commands
+from .failsafe import check_offboard
+from .intervals import Schedule
 from .mission import MissionServer
+from .setpoint import normalised
 from .vehicle import Vehicle
 
 log = logging.getLogger("services.uavsim")
 m = mav.mavlink
 
-TELEMETRY_PERIOD_S = 0.1
-SLOW_PERIOD_S = 1.0
-HOME_PERIOD_S = 5.0
-FORCE_DISARM_MAGIC = 21196  # MAV_CMD_COMPONENT_ARM_DISARM param2: disarm even in the air
 #: UDP peers a ``udpin`` link sends to (those that sent a usable frame), the least recently
 #: heard dropped first; a peer silent for CLIENT_TIMEOUT_S is dropped (one is always kept).
 MAX_CLIENTS = 8
@@ -118,8 +121,14 @@ class Endpoint:
 
     def __init__(self, vehicle: Vehicle, links: dict[str, Any], sysid: int, altitude_m: float,
                  home: tuple[float, float], offboard_loss_s: float, area_size_m: float = 1000.0,
-                 tlog: mav.Tlog | None = None):
+                 tlog: mav.Tlog | None = None, flavour: fl.Flavour = fl.ARDUPILOT,
+                 clock: str = vclock.LOCKSTEP, speed_factor: float = 1.0):
         self.vehicle = vehicle
+        self.flavour = flavour
+        self.realtime = (vclock.RealtimeClock(speed_factor, int(vehicle.dyn.dt_s * 1000))
+                         if clock == vclock.REALTIME else None)
+        self.target: Any = None  # real time: the newest setpoint, flown every ΔT
+        self.schedule = Schedule(time.monotonic())
         self.links = links
         self.tlog = tlog
         self.send = {name: mav.Sender(conn, tlog) for name, conn in links.items()}
@@ -133,7 +142,7 @@ class Endpoint:
         self.params["SIM_ALT_M"].value = float(altitude_m)
         self.params["SIM_KP"].value = float(vehicle.kp)
         self.params["BAT_CAP_NS"].value = float(vehicle.capacity_ns)
-        self.mode = mav.MODE_LOITER
+        self.mode = fl.HOLD
         self.armed = False
         self.airborne = False
         self.failsafe = False
@@ -143,11 +152,12 @@ class Endpoint:
         self.rejected_seen = 0
         self.last_reject_note = 0.0
         self.peers: set[tuple[str, int, int]] = set()
-        self._after_ack: Callable[[], None] | None = None
+        self.commands = Commands(self)
         self.home_local = (float(vehicle.state[0]), float(vehicle.state[1]))
         self.area_size_m = area_size_m
         self.mission = MissionServer(self.send, home, area_size_m, on_change=self.mission_changed,
-                                     on_reject=self.reject)
+                                     on_reject=self.reject,
+                                     empty_upload_clears=flavour is fl.ARDUPILOT)
 
     # -- helpers ----------------------------------------------------------------------------------
     def p(self, name: str) -> float:
@@ -164,26 +174,32 @@ class Endpoint:
 
     def base_mode(self) -> int:
         base = m.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED | m.MAV_MODE_FLAG_STABILIZE_ENABLED
-        if self.mode == mav.MODE_GUIDED:
+        if self.mode == fl.OFFBOARD:
             base |= m.MAV_MODE_FLAG_GUIDED_ENABLED
         if self.armed:
             base |= m.MAV_MODE_FLAG_SAFETY_ARMED
         return int(base)
 
-    def set_mode(self, mode: int, why: str) -> None:
+    def mode_name(self, mode: str | None = None) -> str:
+        return self.flavour.name_of(self.flavour.custom_mode(mode or self.mode))
+
+    def set_mode(self, mode: str, why: str) -> None:
         if mode != self.mode:
             self.mode = mode
-            log.info("mode", extra=fields(mode=mav.MODE_NAMES.get(mode, str(mode)), why=why))
-            self.statustext(f"{mav.MODE_NAMES.get(mode, mode)}: {why}")
+            if mode == fl.HOLD:
+                self.target = None
+            log.info("mode", extra=fields(mode=self.mode_name(), why=why))
+            self.statustext(f"{self.mode_name()}: {why}")
             self.heartbeat()
 
     # -- outgoing -----------------------------------------------------------------------------
     def heartbeat(self) -> None:
         state = m.MAV_STATE_ACTIVE if self.armed else m.MAV_STATE_STANDBY
-        self.broadcast("heartbeat", m.MAV_TYPE_QUADROTOR, m.MAV_AUTOPILOT_GENERIC,
-                       self.base_mode(), self.mode, state)
+        self.broadcast("heartbeat", m.MAV_TYPE_QUADROTOR, self.flavour.autopilot,
+                       self.base_mode(), self.flavour.custom_mode(self.mode), state)
 
-    def telemetry(self) -> None:
+    def telemetry(self, only: int | None = None) -> None:
+        """LOCAL_POSITION_NED, GLOBAL_POSITION_INT and ATTITUDE (or ``only`` that one)."""
         x = self.vehicle.state
         alt = self.altitude_m
         n, e, d, vn, ve, vd = codec.state_to_ned(x, alt)
@@ -191,40 +207,67 @@ class Endpoint:
         t_ms = self.vehicle.time_ms
         hdg = int(math.degrees(math.atan2(ve, vn)) % 360 * 100) if (vn or ve) else 65535
         roll, pitch, yaw = self.vehicle.attitude()
-        self.broadcast("local_position_ned", t_ms, n, e, d, vn, ve, vd)
-        self.broadcast("global_position_int", t_ms, int(lat * 1e7), int(lon * 1e7),
-                       int(alt * 1000), int(alt * 1000), int(vn * 100), int(ve * 100),
-                       int(vd * 100), hdg)
-        self.broadcast("attitude", t_ms, roll, pitch, yaw, 0.0, 0.0, 0.0)
+        if only in (None, m.MAVLINK_MSG_ID_LOCAL_POSITION_NED):
+            self.broadcast("local_position_ned", t_ms, n, e, d, vn, ve, vd)
+        if only in (None, m.MAVLINK_MSG_ID_GLOBAL_POSITION_INT):
+            self.broadcast("global_position_int", t_ms, int(lat * 1e7), int(lon * 1e7),
+                           int(alt * 1000), int(alt * 1000), int(vn * 100), int(ve * 100),
+                           int(vd * 100), hdg)
+        if only in (None, m.MAVLINK_MSG_ID_ATTITUDE):
+            self.broadcast("attitude", t_ms, roll, pitch, yaw, 0.0, 0.0, 0.0)
 
-    def slow_telemetry(self) -> None:
+    def slow_telemetry(self, only: int | None = None) -> None:
+        """SYS_STATUS, GPS_RAW_INT, EXTENDED_SYS_STATE, MISSION_CURRENT (or ``only`` one)."""
         v = self.vehicle
-        sensors = (m.MAV_SYS_STATUS_SENSOR_3D_GYRO | m.MAV_SYS_STATUS_SENSOR_3D_ACCEL
-                   | m.MAV_SYS_STATUS_SENSOR_3D_MAG | m.MAV_SYS_STATUS_SENSOR_GPS
-                   | m.MAV_SYS_STATUS_SENSOR_BATTERY)
-        self.broadcast("sys_status", sensors, sensors, sensors, 100, int(v.voltage_v * 1000), -1,
-                       int(round(v.battery_fraction * 100)), 0,
-                       min(int(self.p("SIG_REJECTED")), 65535), 0, 0, 0, 0)
-        x = v.state
-        lat, lon = mav.to_geodetic(float(x[0]), float(x[1]), self.origin)
-        speed = math.hypot(float(x[2]), float(x[3]))
-        cog = int(math.degrees(math.atan2(float(x[2]), float(x[3]))) % 360 * 100) if speed else 0
-        self.broadcast("gps_raw_int", v.time_ms * 1000, m.GPS_FIX_TYPE_3D_FIX, int(lat * 1e7),
-                       int(lon * 1e7), int(self.altitude_m * 1000), 80, 120,
-                       int(speed * 100), cog, 14)
-        landed = m.MAV_LANDED_STATE_IN_AIR if self.airborne else m.MAV_LANDED_STATE_ON_GROUND
-        self.broadcast("extended_sys_state", m.MAV_VTOL_STATE_UNDEFINED, landed)
-        self.mission.send_current()
+        if only in (None, m.MAVLINK_MSG_ID_SYS_STATUS):
+            sensors = (m.MAV_SYS_STATUS_SENSOR_3D_GYRO | m.MAV_SYS_STATUS_SENSOR_3D_ACCEL
+                       | m.MAV_SYS_STATUS_SENSOR_3D_MAG | m.MAV_SYS_STATUS_SENSOR_GPS
+                       | m.MAV_SYS_STATUS_SENSOR_BATTERY | m.MAV_SYS_STATUS_PREARM_CHECK)
+            # the pre-arm check passes while there is charge left (arming's only condition)
+            healthy = sensors if v.battery_fraction > 0 else (
+                sensors & ~m.MAV_SYS_STATUS_PREARM_CHECK)
+            self.broadcast("sys_status", sensors, sensors, healthy, 100,
+                           int(v.voltage_v * 1000), -1, int(round(v.battery_fraction * 100)), 0,
+                           min(int(self.p("SIG_REJECTED")), 65535), 0, 0, 0, 0)
+        if only in (None, m.MAVLINK_MSG_ID_GPS_RAW_INT):
+            x = v.state
+            lat, lon = mav.to_geodetic(float(x[0]), float(x[1]), self.origin)
+            speed = math.hypot(float(x[2]), float(x[3]))
+            cog = (int(math.degrees(math.atan2(float(x[2]), float(x[3]))) % 360 * 100)
+                   if speed else 0)
+            self.broadcast("gps_raw_int", v.time_ms * 1000, m.GPS_FIX_TYPE_3D_FIX,
+                           int(lat * 1e7), int(lon * 1e7), int(self.altitude_m * 1000), 80, 120,
+                           int(speed * 100), cog, 14)
+        if only in (None, m.MAVLINK_MSG_ID_EXTENDED_SYS_STATE):
+            landed = (m.MAV_LANDED_STATE_IN_AIR if self.airborne
+                      else m.MAV_LANDED_STATE_ON_GROUND)
+            self.broadcast("extended_sys_state", m.MAV_VTOL_STATE_UNDEFINED, landed)
+        if only in (None, m.MAVLINK_MSG_ID_MISSION_CURRENT):
+            self.mission.send_current()
 
-    def home_position(self, link: str | None = None) -> None:
+    def stream(self, msg_id: int) -> None:
+        """Send one scheduled telemetry message (services/uavsim/intervals.py) on every link."""
+        if msg_id == m.MAVLINK_MSG_ID_HEARTBEAT:
+            self.heartbeat()
+        elif msg_id in (m.MAVLINK_MSG_ID_HOME_POSITION, m.MAVLINK_MSG_ID_GPS_GLOBAL_ORIGIN):
+            self.home_position(only=msg_id)
+        elif msg_id in (m.MAVLINK_MSG_ID_LOCAL_POSITION_NED, m.MAVLINK_MSG_ID_GLOBAL_POSITION_INT,
+                        m.MAVLINK_MSG_ID_ATTITUDE):
+            self.telemetry(only=msg_id)
+        else:
+            self.slow_telemetry(only=msg_id)
+
+    def home_position(self, link: str | None = None, only: int | None = None) -> None:
         lat, lon = mav.to_geodetic(*self.home_local, self.origin)
         args = (int(lat * 1e7), int(lon * 1e7), 0, self.home_local[1], self.home_local[0], 0.0,
                 [1.0, 0.0, 0.0, 0.0], 0.0, 0.0, 0.0, self.vehicle.time_ms * 1000)
         origin = (int(self.origin[0] * 1e7), int(self.origin[1] * 1e7), 0,
                   self.vehicle.time_ms * 1000)
         if link is None:
-            self.broadcast("home_position", *args)
-            self.broadcast("gps_global_origin", *origin)
+            if only in (None, m.MAVLINK_MSG_ID_HOME_POSITION):
+                self.broadcast("home_position", *args)
+            if only in (None, m.MAVLINK_MSG_ID_GPS_GLOBAL_ORIGIN):
+                self.broadcast("gps_global_origin", *origin)
         else:
             self.send[link]("home_position", *args)
             self.send[link]("gps_global_origin", *origin)
@@ -389,7 +432,7 @@ class Endpoint:
         elif kind == "PARAM_SET":
             return self.on_param_set(link, msg)
         elif kind == "COMMAND_LONG":
-            return self.on_command(link, msg)
+            return self.commands.on_command(link, msg)
         elif kind == "COMMAND_INT":
             result = m.MAV_RESULT_UNSUPPORTED
             try:
@@ -401,10 +444,8 @@ class Endpoint:
             self.send[link]("command_ack", msg.command, result, 0, 0,
                             msg.get_srcSystem(), msg.get_srcComponent())
             return result != m.MAV_RESULT_DENIED
-        elif kind == "SET_MODE":  # the legacy message (MAVProxy's ``mode``): acked as ArduPilot
-            result = self.mode_request(int(msg.base_mode), int(msg.custom_mode))
-            self.send[link]("command_ack", m.MAVLINK_MSG_ID_SET_MODE, result, 0, 0,
-                            msg.get_srcSystem(), msg.get_srcComponent())
+        elif kind == "SET_MODE":
+            self.commands.on_set_mode(link, msg)
         return True
 
     def count_unsigned(self, link: str) -> None:
@@ -460,21 +501,35 @@ class Endpoint:
     def on_setpoint(self, link: str, msg: Any, now: float) -> bool:
         """A setpoint that is not finite, far outside the area or due too far ahead is refused:
         the vehicle keeps its last target (or holds) and the stream is not kept alive."""
+        lead = (None if self.realtime is not None  # real time: the client's stamp is not a clock
+                else int(msg.time_boot_ms) - self.vehicle.time_ms)
         try:
-            target = codec.setpoint_from_mavlink(
-                msg, self.area_size_m, int(msg.time_boot_ms) - self.vehicle.time_ms)
+            target = codec.setpoint_from_mavlink(normalised(msg), self.area_size_m, lead)
         except codec.CodecError as err:
             self.reject(link, err, "setpoint")
             return False
         if now - self.last_setpoint > self.p("COM_OF_LOSS_T"):
             self.stream_since = now  # a new stream starts
         self.last_setpoint = now
-        if not (self.mode == mav.MODE_GUIDED and self.armed and self.airborne):
+        if not (self.mode == fl.OFFBOARD and self.armed and self.airborne):
             self.ignored_setpoints += 1
             return True
-        if self.vehicle.apply(target, int(msg.time_boot_ms)):
+        if self.realtime is not None:
+            self.target = target  # flown on the vehicle's own clock (fly_realtime)
+        elif self.vehicle.apply(target, int(msg.time_boot_ms)):
             self.after_step()
         return True
+
+    def fly_realtime(self, now: float) -> None:
+        """Real-time clock: one Eq. (1) step per ΔT towards the newest setpoint (offboard)."""
+        assert self.realtime is not None
+        for due_ms in self.realtime.due_steps(now):
+            if (self.target is not None and self.mode == fl.OFFBOARD and self.armed
+                    and self.airborne):
+                self.vehicle.apply(self.target, due_ms)
+                self.after_step()
+            else:
+                self.vehicle.time_ms = due_ms  # the clock runs whether or not it flies
 
     def after_step(self) -> None:
         self.telemetry()
@@ -493,157 +548,26 @@ class Endpoint:
         self.statustext(f"mission {self.mission.version}: {waypoints} waypoints")
         self.mission.send_current()
 
-    # -- commands -------------------------------------------------------------------------------
+    # -- commands (services/uavsim/commands.py) -------------------------------------------------
     def stream_live(self, now: float) -> bool:
         return bool(self.last_setpoint) and now - self.last_setpoint <= self.p("COM_OF_LOSS_T")
 
-    def mode_request(self, base_mode: int, custom_mode: int) -> int:
-        if not base_mode & m.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED:
-            return int(m.MAV_RESULT_UNSUPPORTED)
-        if custom_mode == mav.MODE_GUIDED:
-            if not self.stream_live(time.monotonic()):
-                self.statustext("GUIDED refused: no setpoint stream", m.MAV_SEVERITY_WARNING)
-                return int(m.MAV_RESULT_DENIED)
-            self.failsafe = False
-            if self.armed:
-                self.airborne = True
-            self.set_mode(mav.MODE_GUIDED, "offboard control")
-            return int(m.MAV_RESULT_ACCEPTED)
-        if custom_mode == mav.MODE_LOITER:
-            self.failsafe = False
-            if self.mode != mav.MODE_LOITER:
-                self.vehicle.brake()
-            self.set_mode(mav.MODE_LOITER, "hold (commanded)")
-            return int(m.MAV_RESULT_ACCEPTED)
-        return int(m.MAV_RESULT_UNSUPPORTED)
-
-    def arm(self, arm: bool, force: bool) -> int:
-        if arm:
-            if self.vehicle.battery_fraction <= 0:
-                self.statustext("arming refused: battery empty", m.MAV_SEVERITY_WARNING)
-                return int(m.MAV_RESULT_DENIED)
-            if not self.armed:
-                self.armed = True
-                if self.mode == mav.MODE_GUIDED:
-                    self.airborne = True  # offboard take-off straight to SIM_ALT_M (2-D)
-                log.info("armed", extra=fields(mode=mav.MODE_NAMES[self.mode]))
-                self.statustext("armed")
-                self.heartbeat()
-            return int(m.MAV_RESULT_ACCEPTED)
-        if self.airborne and not force:
-            self.statustext("disarm refused: in the air", m.MAV_SEVERITY_WARNING)
-            return int(m.MAV_RESULT_DENIED)
-        if self.armed:
-            self.armed = self.airborne = False
-            self.vehicle.brake()
-            log.info("disarmed", extra=fields(forced=force))
-            self.statustext("disarmed")
-            self.heartbeat()
-        return int(m.MAV_RESULT_ACCEPTED)
-
-    def request_message(self, link: str, msg_id: int) -> int:
-        senders: dict[int, Callable[[], None]] = {
-            m.MAVLINK_MSG_ID_AUTOPILOT_VERSION: lambda: self.autopilot_version(link),
-            m.MAVLINK_MSG_ID_HOME_POSITION: lambda: self.home_position(link),
-            m.MAVLINK_MSG_ID_GPS_GLOBAL_ORIGIN: lambda: self.home_position(link),
-            m.MAVLINK_MSG_ID_HEARTBEAT: self.heartbeat,
-            m.MAVLINK_MSG_ID_LOCAL_POSITION_NED: self.telemetry,
-            m.MAVLINK_MSG_ID_GLOBAL_POSITION_INT: self.telemetry,
-            m.MAVLINK_MSG_ID_ATTITUDE: self.telemetry,
-            m.MAVLINK_MSG_ID_SYS_STATUS: self.slow_telemetry,
-            m.MAVLINK_MSG_ID_GPS_RAW_INT: self.slow_telemetry,
-            m.MAVLINK_MSG_ID_EXTENDED_SYS_STATE: self.slow_telemetry,
-            m.MAVLINK_MSG_ID_MISSION_CURRENT: lambda: self.mission.send_current(link),
-        }
-        fn = senders.get(msg_id)
-        if fn is None:
-            return int(m.MAV_RESULT_UNSUPPORTED)
-        self._after_ack = fn
-        return int(m.MAV_RESULT_ACCEPTED)
-
-    def autopilot_version(self, link: str) -> None:
-        caps = (m.MAV_PROTOCOL_CAPABILITY_MAVLINK2 | m.MAV_PROTOCOL_CAPABILITY_MISSION_INT
-                | m.MAV_PROTOCOL_CAPABILITY_SET_POSITION_TARGET_LOCAL_NED)
-        self.send[link]("autopilot_version", caps, 1, 0, 0, 0, [0] * 8, [0] * 8, [0] * 8,
-                        0, 0, self.sysid)
-
-    def on_command(self, link: str, msg: Any) -> bool:
-        cmd = int(msg.command)
-        self._after_ack = None
-        result = int(m.MAV_RESULT_UNSUPPORTED)
-        try:
-            codec.check_finite_fields(msg, [f"param{k}" for k in range(1, 8)], "COMMAND_LONG")
-        except codec.CodecError as err:  # NaN/inf where the vehicle needs a number: refused
-            self.reject(link, err, "COMMAND_LONG")
-            self.send[link]("command_ack", cmd, m.MAV_RESULT_DENIED, 0, 0,
-                            msg.get_srcSystem(), msg.get_srcComponent())
-            return False
-        if cmd == m.MAV_CMD_COMPONENT_ARM_DISARM:
-            result = self.arm(msg.param1 >= 0.5, int(msg.param2) == FORCE_DISARM_MAGIC)
-        elif cmd == m.MAV_CMD_NAV_TAKEOFF:
-            if not self.armed:
-                result = int(m.MAV_RESULT_DENIED)
-            else:  # 2-D evaluation: the climb to SIM_ALT_M is instantaneous
-                self.airborne = True
-                result = int(m.MAV_RESULT_ACCEPTED)
-        elif cmd == m.MAV_CMD_DO_SET_MODE:
-            result = self.mode_request(int(msg.param1), int(msg.param2))
-        elif cmd == m.MAV_CMD_REQUEST_MESSAGE:
-            result = self.request_message(link, int(msg.param1))
-        elif cmd == m.MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES:
-            result = self.request_message(link, m.MAVLINK_MSG_ID_AUTOPILOT_VERSION)
-        elif cmd == m.MAV_CMD_GET_HOME_POSITION:
-            result = self.request_message(link, m.MAVLINK_MSG_ID_HOME_POSITION)
-        elif cmd in (m.MAV_CMD_NAV_LAND, m.MAV_CMD_NAV_RETURN_TO_LAUNCH, m.MAV_CMD_MISSION_START):
-            result = int(m.MAV_RESULT_DENIED)  # operator missions are flown by System 1
-        self.send[link]("command_ack", cmd, result, 0, 0, msg.get_srcSystem(),
-                        msg.get_srcComponent())
-        if result != m.MAV_RESULT_ACCEPTED:
-            log.info("command refused", extra=fields(
-                link=link, command=m.enums["MAV_CMD"][cmd].name if cmd in m.enums["MAV_CMD"]
-                else cmd, result=m.enums["MAV_RESULT"][result].name))
-        if self._after_ack is not None:
-            self._after_ack()
-            self._after_ack = None
-        return True
-
     # -- loop -----------------------------------------------------------------------------------
-    def check_offboard(self, now: float) -> None:
-        """The offboard-loss failsafe and the return of the stream."""
-        if self.mode == mav.MODE_GUIDED and self.last_setpoint and not self.stream_live(now):
-            self.failsafe = True
-            self.vehicle.brake()
-            log.warning("offboard setpoints lost: holding", extra=fields(
-                silence_s=round(now - self.last_setpoint, 3)))
-            self.set_mode(mav.MODE_LOITER, "offboard lost, holding")
-        elif (self.failsafe and self.mode == mav.MODE_LOITER and self.stream_live(now)
-              and now - self.stream_since >= self.p("COM_OF_RSM_T")):
-            self.failsafe = False
-            log.info("offboard setpoints back: resuming")
-            self.set_mode(mav.MODE_GUIDED, "offboard stream back")
-
     def run(self, stop: threading.Event) -> None:
-        next_hb = next_tel = next_slow = next_home = time.monotonic()
         self.statustext("dualpilot uavsim ready")
         fds = {conn.fd: name for name, conn in self.links.items()}
         while not stop.is_set():
             now = time.monotonic()
-            if now >= next_hb:
-                self.heartbeat()
-                next_hb = now + 1.0
-            if now >= next_tel:
-                self.telemetry()
-                next_tel = now + TELEMETRY_PERIOD_S
-            if now >= next_slow:
-                self.slow_telemetry()
-                next_slow = now + SLOW_PERIOD_S
-            if now >= next_home:
-                self.home_position()
-                next_home = now + HOME_PERIOD_S
-            self.check_offboard(now)
+            if self.realtime is not None:
+                self.fly_realtime(now)
+            for msg_id in self.schedule.due(now):
+                self.stream(msg_id)
+            check_offboard(self, now)
             self.mission.poll(now)
-            timeout = max(0.0, min(next_hb, next_tel, now + 0.05) - time.monotonic())
-            ready, _, _ = select.select(list(fds), [], [], timeout)
+            timeout = min(self.schedule.wait_s(now), 0.05)
+            if self.realtime is not None:
+                timeout = min(timeout, self.realtime.wall_until_next(now))
+            ready, _, _ = select.select(list(fds), [], [], max(0.0, timeout))
             for fd in ready:
                 self.receive(fds[fd])
 
@@ -687,7 +611,23 @@ def main(argv: list[str] | None = None) -> int:
                         "[MAVLINK_SIGNING_PASSPHRASE]")
     p.add_argument("--tlog", default=env("TLOG_PATH", ""),
                    help="record the vehicle's MAVLink traffic here (.tlog) [TLOG_PATH]")
+    p.add_argument("--autopilot", choices=sorted(fl.FLAVOURS),
+                   default=env("UAV_AUTOPILOT", fl.ARDUPILOT.name),
+                   help="the autopilot the vehicle claims to be: HEARTBEAT autopilot and mode "
+                        "numbers (ardupilot: GUIDED/LOITER; px4: OFFBOARD/AUTO.LOITER) "
+                        "[UAV_AUTOPILOT]")
+    p.add_argument("--clock", choices=vclock.CLOCKS, default=env("UAV_CLOCK", vclock.LOCKSTEP),
+                   help="lockstep: each new setpoint stamp is one step of Eq. (1) (the stack); "
+                        "realtime: the vehicle flies on its own clock at --speed-factor, as "
+                        "PX4 SITL (MAVSDK and other offboard clients) [UAV_CLOCK]")
+    p.add_argument("--zenoh", choices=("auto", "on", "off"), default=env("UAV_ZENOH", "auto"),
+                   help="hold a liveliness token on Zenoh; auto: only when ZENOH_CONNECT or "
+                        "--zenoh-connect is given (the vehicle needs no router) [UAV_ZENOH]")
+    raw_argv = sys.argv[1:] if argv is None else argv
     args = p.parse_args(argv)
+    use_zenoh = args.zenoh == "on" or (args.zenoh == "auto" and (
+        "ZENOH_CONNECT" in os.environ
+        or any(a.startswith("--zenoh-connect") for a in raw_argv)))
     try:
         settings = common_cli.settings("uavsim", args)
         start = parse_pair(args.start, "--start")
@@ -703,6 +643,9 @@ def main(argv: list[str] | None = None) -> int:
         key = mav.resolve_key(args.signing_passphrase, args.signing_key_file)
         vehicle = Vehicle.at(*start)
         vehicle.kp = args.kp
+        speed = settings.speed_factor
+        if args.clock == vclock.REALTIME and not speed > 0:
+            raise ValueError("--clock realtime needs --speed-factor > 0 (1 is real time)")
     except (ValueError, OSError) as err:
         p.error(str(err))
 
@@ -712,12 +655,15 @@ def main(argv: list[str] | None = None) -> int:
                                          mav.MAV_COMP_ID_AUTOPILOT1, key=key)}
         if args.gcs_url:
             links["gcs"] = mav.connect(args.gcs_url, args.sysid, mav.MAV_COMP_ID_AUTOPILOT1)
-        log.info("mavlink links open", extra=fields(
+        log.info("serving MAVLink", extra=fields(
             offboard=settings.mavlink_url, gcs=args.gcs_url, signed=key is not None,
-            east_m=start[0], north_m=start[1], tlog=args.tlog))
+            autopilot=args.autopilot, clock=args.clock, speed_factor=speed,
+            zenoh=use_zenoh, east_m=start[0], north_m=start[1], tlog=args.tlog))
         endpoint = Endpoint(vehicle, links, args.sysid, args.altitude_m, home,
-                            args.offboard_loss_s, args.area_size_m, tlog)
-        ctx.announce()
+                            args.offboard_loss_s, args.area_size_m, tlog,
+                            fl.FLAVOURS[args.autopilot], args.clock, speed)
+        if ctx.session is not None:
+            ctx.announce()
         try:
             endpoint.run(ctx.stop)
         finally:
@@ -727,7 +673,7 @@ def main(argv: list[str] | None = None) -> int:
                 tlog.close()
                 log.info("tlog closed", extra=fields(path=args.tlog, frames=tlog.frames))
 
-    return bus.run_service(settings, body)
+    return bus.run_service(settings, body, zenoh_session=use_zenoh)
 
 
 if __name__ == "__main__":

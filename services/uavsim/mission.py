@@ -26,7 +26,9 @@ Every refused item (and a MISSION_COUNT over ``max_items``) is also reported
 to ``on_reject`` (link, :class:`services.common.codec.CodecError`) so the
 vehicle counts it as bad input (reasons ``not_finite``, ``out_of_range``,
 ``invalid``, ``size``); so is a bad item that arrives outside an upload,
-which is otherwise ignored as a late duplicate.
+which is otherwise ignored as a late duplicate. With ``empty_upload_clears`` (the
+ArduPilot flavour) a one-item upload whose item 0 lies at lat/lon 0/0 clears the
+mission, as ArduPilot reads it (MAVSDK's ``mission_raw.clear_mission`` sends that).
 
 The area is the square [0, area]² of local metres east/north of the geodetic
 origin. Item 0 in MAV_FRAME_GLOBAL(_INT) is ArduPilot's home slot (files
@@ -92,8 +94,10 @@ class MissionServer:
     def __init__(self, senders: dict[str, mav.Sender], origin: tuple[float, float],
                  area_size_m: float, on_change: Callable[[], None] = lambda: None,
                  max_items: int = MAX_ITEMS, item_timeout_s: float = 0.5, retries: int = 5,
-                 on_reject: Callable[[str, codec.CodecError], None] = lambda _l, _e: None):
+                 on_reject: Callable[[str, codec.CodecError], None] = lambda _l, _e: None,
+                 empty_upload_clears: bool = False):
         self.senders = senders
+        self.empty_upload_clears = empty_upload_clears
         self.on_reject = on_reject
         self.origin = origin
         self.area_size_m = area_size_m
@@ -206,6 +210,13 @@ class MissionServer:
             if result != m.MAV_MISSION_ACCEPTED:  # does; a bad one is still counted
                 self._refused(link, msg, result)
                 return False
+            return True
+        if (self.empty_upload_clears and up.count == 1 and msg.seq == 0
+                and msg.get_type() == "MISSION_ITEM_INT" and msg.x == 0 and msg.y == 0):
+            # ArduPilot's way to clear (MAVSDK sends it): a mission of only an empty item 0
+            del self.uploads[link]
+            self._commit([])
+            self._ack(link, up.peer, m.MAV_MISSION_ACCEPTED, MISSION)
             return True
         if msg.seq != len(up.items):
             if msg.seq > len(up.items):

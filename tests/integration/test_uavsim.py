@@ -140,11 +140,12 @@ def test_offboard_sequence_then_setpoints_fly_one_step_of_eq1_each(vehicle: Any)
         t, got = position(conn, 0)
     assert t == due and np.allclose(got, x, atol=1e-3)
     assert "rejected setpoint" in vehicle.log("uavsim")
-    status = recv(conn, "SYS_STATUS")
-    assert 0 < status.battery_remaining < 100  # Σ‖u‖ΔT ≈ 24 N·s of 1000
-    att = recv(conn, "ATTITUDE")
+    att = recv(conn, "ATTITUDE")  # 10 Hz: before the failsafe brakes (1 s without setpoints)
     assert math.isclose(att.roll, math.atan2(0.0, 1.05 * 9.81), abs_tol=1e-6)
     assert math.isclose(att.pitch, -math.atan2(1.0, 1.05 * 9.81), rel_tol=1e-5)
+    status = recv(conn, "SYS_STATUS")
+    assert 0 < status.battery_remaining < 100  # Σ‖u‖ΔT ≈ 24 N·s of 1000
+    assert status.onboard_control_sensors_health & m.MAV_SYS_STATUS_PREARM_CHECK  # armable
 
     # the failsafe: no setpoint for COM_OF_LOSS_T = 1 s → LOITER (hold) within 1.5 s
     t_quiet = time.monotonic()
