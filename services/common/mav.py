@@ -4,9 +4,10 @@
 import time). A ``udpin`` end binds and learns its peer from the first packet;
 a ``udpout`` end must send first (a heartbeat) — see ARCHITECTURE §10.
 
-Flight modes (HEARTBEAT ``custom_mode``) use ArduCopter's numbers, because a
-ground station that sees a generic-autopilot quadrotor (MAVProxy, pymavlink's
-``mode_string_v10``) names them that way:
+Flight modes (HEARTBEAT ``custom_mode``) of uavsim's default ``ardupilot``
+flavour (MAV_AUTOPILOT_ARDUPILOTMEGA) use ArduCopter's numbers, which MAVProxy,
+MAVSDK and QGroundControl name that way (the ``px4`` flavour's numbers are in
+services/uavsim/flavour.py); the supervisor asks for these:
 
 =========  ===========  =====================================================
 custom     name         meaning in uavsim

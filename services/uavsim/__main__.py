@@ -13,8 +13,9 @@ Links (pymavlink, MAVLink 2, system ``--sysid``, component 1), like PX4 SITL:
   QGroundControl connect here (send first, e.g. ``mavproxy.py
   --master=udpout:127.0.0.1:14550``).
 
-Both links get HEARTBEAT at 1 Hz (MAV_TYPE_QUADROTOR, component 1, the mode
-of services/common/mav.py: GUIDED = offboard, LOITER = hold), SYS_STATUS
+Both links get HEARTBEAT at 1 Hz (MAV_TYPE_QUADROTOR, component 1, the
+autopilot and mode numbers of ``--autopilot``, services/uavsim/flavour.py:
+ardupilot GUIDED/LOITER, px4 OFFBOARD/AUTO.LOITER), SYS_STATUS
 (battery, services/uavsim/vehicle.py), GPS_RAW_INT, EXTENDED_SYS_STATE and
 MISSION_CURRENT at 1 Hz, LOCAL_POSITION_NED, GLOBAL_POSITION_INT and ATTITUDE
 at 10 Hz and after every step, HOME_POSITION and GPS_GLOBAL_ORIGIN every 5 s.
@@ -34,7 +35,13 @@ stream (lockstep, services/common/clock.py). Without setpoints for
 failsafe); setpoints take control back only once the stream has been live
 again for ``COM_OF_RSM_T`` s. ``--tlog`` records every frame received and sent
 (telemetry once) in MAVProxy's ``.tlog`` format. uavsim publishes nothing on
-Zenoh: it only holds a liveliness token.
+Zenoh: it only holds a liveliness token, and runs without Zenoh unless
+``ZENOH_CONNECT``/``--zenoh-connect`` is given (``--zenoh``).
+
+That is the lockstep clock (``--clock lockstep``, our missions); ``--clock
+realtime`` flies on the vehicle's own clock instead (services/uavsim/clock.py).
+Modules: commands.py (COMMAND_LONG), failsafe.py, intervals.py (stream
+rates), setpoint.py (type masks), mission.py, vehicle.py (physics).
 """
 
 from __future__ import annotations
