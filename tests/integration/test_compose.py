@@ -125,3 +125,18 @@ def test_yaml_and_launcher_agree_on_every_variable(doc: dict[str, Any], tmp_path
             if key in launch.ENDPOINT_KEYS or key in overridden:
                 continue
             assert env[key] == value, (name, key)
+
+
+def test_compose_v1_accepts_the_file_and_the_router_override() -> None:
+    """Compose v1.29 (Debian's docker-compose) rejects a top-level ``name:``; the override
+    swaps the eclipse/zenoh router for the project's own, from the project's image."""
+    raw = yaml.safe_load(launch.COMPOSE.read_text())
+    assert set(raw) <= {"services", "x-service", "x-env"}, sorted(raw)
+    override_path = launch.COMPOSE.with_name("docker-compose.router.yml")
+    override = yaml.safe_load(override_path.read_text())
+    zenoh = override["services"]["zenoh"]
+    assert zenoh["image"] == raw["services"]["ews"]["image"]
+    assert zenoh["command"][:3] == ["python", "-m", "services.router"]
+    assert "tcp/0.0.0.0:7447" in zenoh["command"]
+    assert compose_spec_errors(override_path.read_text()) == ""
+    assert raw["services"]["supervisor"]["environment"]["EXIT_AFTER_MISSION"] == "1"
