@@ -649,7 +649,8 @@ def plan_request_msg(req: PlanRequest, stamper: Stamper, sim_time_s: float,
 
 
 def plan_request_from_msg(m: plan_pb2.PlanRequest) -> PlanRequest:
-    """A PlanRequest in core types (field checks; :func:`check_in_area` once the spec is known)."""
+    """A PlanRequest in core types: field checks, and :func:`check_in_area` when it carries
+    the spec (a planner checks later requests against the spec it was prepared with)."""
     if m.system not in (1, 2):
         raise invalid(f"system must be 1 or 2, got {m.system}", Reason.OUT_OF_RANGE)
     if not m.HasField("state"):
@@ -670,13 +671,16 @@ def plan_request_from_msg(m: plan_pb2.PlanRequest) -> PlanRequest:
     assert objective is not None
     _count(len(m.obstacles), "obstacles", MAX_FRONTS * 2)
     obstacles = tuple(polygon_from_msg(p, f"obstacle {i}") for i, p in enumerate(m.obstacles))
-    return PlanRequest(
+    req = PlanRequest(
         seq=int(m.header.seq), mission_id=mission_id, step=int(m.step), system=int(m.system),
         objective=objective, state=state_from_msg(m.state),
         prev_control=force_from_msg(m.prev_control, "prev_control"), obstacles=obstacles,
         deadline_s=float(m.deadline_s), waypoints_revision=int(m.waypoints_revision),
         prepare=m.prepare, spec=spec,
     )
+    if spec is not None:
+        check_in_area(req, spec)
+    return req
 
 
 def check_in_area(req: PlanRequest, spec: MissionSpec) -> None:

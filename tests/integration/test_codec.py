@@ -14,8 +14,9 @@ import pytest
 
 from dualpilot.model.dynamics import DynamicsParams, step
 from dualpilot.model.fire import FireField, FireParams
-from dualpilot.model.geometry import Polytope, Rect
+from dualpilot.model.geometry import Polytope
 from dualpilot.plan import Objective, Plan, PlanStatus
+from dualpilot.spec import MissionSpec
 from dualpilot.supervisor.decision import Supervisor
 from services import protogen
 from services.common import codec
@@ -122,16 +123,17 @@ def test_decision_round_trip() -> None:
     assert codec.decision_from_msg(no_fire).d_t == math.inf
 
 
-def _request(**changes: object) -> plan_pb2.PlanRequest:
+def _request(prepare: bool = True, **changes: object) -> plan_pb2.PlanRequest:
+    """A plan request for step 0 avoiding the hulls of :func:`_fires` (with the spec when
+    ``prepare``), with ``changes`` applied (``a__b`` is the field b of a)."""
     field = _fires()
     stamper = codec.Stamper("supervisor", "uav1")
-    fires = codec.fire_state_msg(field.fronts, [], 0, 1, 0.5, stamper, 0.0)
     req = codec.PlanRequest(
-        seq=0, mission=codec.MissionSpec("m-1", 7, Rect(900, 900, 100, 100), 1000.0, None),
-        step=0, system=1, objective=Objective.MISSION_TIME,
+        seq=0, mission_id="m-1", step=0, system=1, objective=Objective.MISSION_TIME,
         state=np.array([50.0, 50.0, 0.0, 0.0]), prev_control=np.zeros(2),
-        fires=codec.snapshot_from_msg(fires), deadline_s=5.0)
-    msg = codec.plan_request_msg(req, fires, stamper, 0.0)
+        obstacles=field.snapshot().hulls, deadline_s=5.0, prepare=prepare,
+        spec=MissionSpec(seed=7) if prepare else None)
+    msg = codec.plan_request_msg(req, stamper, 0.0)
     for path, value in changes.items():
         obj: object = msg
         *parents, leaf = path.split("__")
@@ -143,8 +145,12 @@ def _request(**changes: object) -> plan_pb2.PlanRequest:
 
 def test_plan_request_round_trip() -> None:
     req = codec.plan_request_from_msg(_request())
-    assert req.system == 1 and req.mission.goal == Rect(900, 900, 100, 100)
+    assert req.system == 1 and req.spec == MissionSpec(seed=7) and req.mission_id == "m-1"
     assert np.array_equal(req.state, [50.0, 50.0, 0.0, 0.0]) and req.deadline_s == 5.0
+    assert [h.vertices.tolist() for h in req.obstacles] == [
+        h.vertices.tolist() for h in _fires().snapshot().hulls]
+    plain = codec.plan_request_from_msg(_request(prepare=False))
+    assert plain.spec is None and plain.mission_id == "m-1" and not plain.prepare
 
 
 @pytest.mark.parametrize(
@@ -156,6 +162,10 @@ def test_plan_request_round_trip() -> None:
         ({"system": 3}, "system must be 1 or 2"),
         ({"deadline_s": 0.0}, "deadline_s"),
         ({"mission__goal__width_m": -1.0}, "positive"),
+        ({"mission__d_safe_m": 30.0}, "d_safe_m <= clearance_m"),
+        ({"mission__start__east_m": -5.0}, "start"),
+        ({"mission__dynamics__mass_kg": 0.0}, "dynamics"),
+        ({"mission_id": "another"}, "differs from the spec"),
         ({"objective": 0}, "objective"),
         ({"prev_control__east_n": math.inf}, "finite"),
     ],
@@ -167,20 +177,57 @@ def test_invalid_plan_requests_are_rejected(changes: dict[str, object], match: s
     assert info.value.code == common_pb2.ERROR_CODE_INVALID
 
 
+def test_a_plan_request_needs_its_mission() -> None:
+    with pytest.raises(codec.CodecError, match="without a mission_id"):
+        codec.plan_request_from_msg(_request(prepare=False, mission_id=""))
+    msg = _request(prepare=False)
+    msg.prepare = True  # a prepare request without the spec
+    with pytest.raises(codec.CodecError, match="must carry the mission spec"):
+        codec.plan_request_from_msg(msg)
+
+
+def test_obstacles_and_state_must_lie_near_the_area() -> None:
+    req = codec.plan_request_from_msg(_request(prepare=False))
+    codec.check_in_area(req, MissionSpec())
+    far = codec.plan_request_from_msg(_request(prepare=False, state__east_m=2500.0))
+    with pytest.raises(codec.CodecError, match="the vehicle state"):
+        codec.check_in_area(far, MissionSpec())
+    msg = _request(prepare=False)
+    msg.obstacles[0].vertices_m[0] = 5000.0
+    with pytest.raises(codec.CodecError, match="obstacle 0"):
+        codec.check_in_area(codec.plan_request_from_msg(msg), MissionSpec())
+
+
 def test_bad_geometry_and_sizes_are_rejected() -> None:
     msg = _request()
-    msg.fires.fronts[0].hull.vertices_m[:] = [0.0, 0.0, 1.0, 1.0, 2.0, 2.0]  # collinear
-    with pytest.raises(codec.CodecError, match="hull"):
+    msg.obstacles[0].vertices_m[:] = [0.0, 0.0, 1.0, 1.0, 2.0, 2.0]  # collinear
+    with pytest.raises(codec.CodecError, match="obstacle"):
         codec.plan_request_from_msg(msg)
     msg = _request()
-    msg.fires.fronts[0].hull.vertices_m.append(1.0)  # odd number of coordinates
+    msg.obstacles[0].vertices_m.append(1.0)  # odd number of coordinates
     with pytest.raises(codec.CodecError, match="multiple of 2"):
         codec.plan_request_from_msg(msg)
     msg = _request()
-    for _ in range(codec.MAX_FRONTS + 1):
-        msg.fires.fronts.add()
-    with pytest.raises(codec.CodecError, match="fronts"):
+    for _ in range(2 * codec.MAX_FRONTS + 1):
+        msg.obstacles.add()
+    with pytest.raises(codec.CodecError, match="obstacles"):
         codec.plan_request_from_msg(msg)
+
+
+def test_fire_commands_carry_the_area_and_the_ignition_clearance() -> None:
+    reset = fire_pb2.FireCommand(mission_id="m-1")
+    reset.reset.seed, reset.reset.area_size_m = 3, 800.0
+    cmd = codec.fire_command_from_msg(reset)
+    assert (cmd.kind, cmd.seed, cmd.area_size_m) == ("reset", 3, 800.0)
+    adv = fire_pb2.FireCommand(mission_id="m-1")
+    adv.advance.step, adv.advance.substeps = 4, 10
+    assert codec.fire_command_from_msg(adv).keep_out is None
+    adv.advance.keep_out.east_m, adv.advance.keep_out.north_m, adv.advance.keep_out_m = 1, 2, 20
+    keep = codec.fire_command_from_msg(adv).keep_out
+    assert keep is not None and keep[0].tolist() == [1.0, 2.0] and keep[1] == 20.0
+    adv.advance.keep_out_m = -1.0
+    with pytest.raises(codec.CodecError, match="keep_out_m"):
+        codec.fire_command_from_msg(adv)
 
 
 def test_garbage_is_malformed_and_counted() -> None:

@@ -34,6 +34,7 @@ from dualpilot.model.dynamics import DynamicsParams, rollout
 from dualpilot.model.fire import FireField, FireParams
 from dualpilot.model.geometry import Polytope, Rect
 from dualpilot.plan import Objective, Plan, PlanStatus
+from dualpilot.spec import MissionSpec
 from dualpilot.supervisor.decision import Decision, Supervisor
 from services.common import codec
 from services.common.clock import Anchor
@@ -74,15 +75,18 @@ def fire_msg(seed: int = 3, fronts: int = 3, substeps: int = 4) -> fire_pb2.Fire
 
 
 def plan_request(seed: int = 3, x: tuple[float, ...] = (50.0, 50.0, 0.0, 0.0),
-                 waypoints: np.ndarray | None = None, goal: Rect = Rect(900, 900, 100, 100),
-                 system: int = 1, objective: Objective = Objective.MISSION_TIME,
-                 fires: fire_pb2.FireState | None = None) -> plan_pb2.PlanRequest:
+                 goal: Rect = Rect(900, 900, 100, 100), system: int = 1,
+                 objective: Objective = Objective.MISSION_TIME,
+                 fires: fire_pb2.FireState | None = None,
+                 prepare: bool = True) -> plan_pb2.PlanRequest:
+    """A plan request avoiding the hulls of ``fires`` (with the mission spec when ``prepare``)."""
     fires = fire_msg(seed) if fires is None else fires
     req = codec.PlanRequest(
-        seq=0, mission=codec.MissionSpec("m-1", seed, goal, AREA, waypoints), step=4,
-        system=system, objective=objective, state=np.array(x), prev_control=np.array([1.0, -2.0]),
-        fires=codec.snapshot_from_msg(fires), deadline_s=5.0)
-    return codec.plan_request_msg(req, fires, codec.Stamper("supervisor", "uav1"), 2.0)
+        seq=0, mission_id="m-1", step=4, system=system, objective=objective, state=np.array(x),
+        prev_control=np.array([1.0, -2.0]), obstacles=codec.snapshot_from_msg(fires).hulls,
+        deadline_s=5.0, waypoints_revision=2, prepare=prepare,
+        spec=MissionSpec(goal=goal, area_size_m=AREA, seed=seed) if prepare else None)
+    return codec.plan_request_msg(req, codec.Stamper("supervisor", "uav1"), 2.0)
 
 
 def stamped_state() -> vehicle_pb2.VehicleState:
@@ -153,21 +157,22 @@ def ok_state(x: np.ndarray) -> None:
 
 
 def ok_plan_request(r: codec.PlanRequest) -> None:
-    assert r.system in (1, 2) and isinstance(r.objective, Objective)
-    area = r.mission.area_size_m
-    assert math.isfinite(area) and 0 < area <= codec.MAX_ABS_M
-    assert r.mission.goal.inside(Rect(area / 2, area / 2, area, area))
-    lo, hi = -codec.AREA_MARGIN * area, (1 + codec.AREA_MARGIN) * area
+    assert r.system in (1, 2) and isinstance(r.objective, Objective) and r.mission_id
     ok_state(r.state)
-    assert np.all((r.state[:2] >= lo) & (r.state[:2] <= hi))
     assert r.prev_control.shape == (2,) and np.all(np.isfinite(r.prev_control))
     assert math.isfinite(r.deadline_s) and 0 < r.deadline_s <= 3600
-    ok_snapshot(r.fires)
-    for h in r.fires.hulls:
-        assert np.all((h.vertices >= lo) & (h.vertices <= hi))
-    if r.mission.waypoints is not None:
-        _ok_points(r.mission.waypoints, 2, hi)
-        assert np.all(r.mission.waypoints >= lo)
+    assert len(r.obstacles) <= 2 * codec.MAX_FRONTS
+    for h in r.obstacles:
+        _ok_polytope(h)
+    assert not r.prepare or r.spec is not None
+    if r.spec is not None:
+        area = r.spec.area_size_m
+        assert math.isfinite(area) and 0 < area <= codec.MAX_ABS_M
+        assert r.spec.goal.inside(r.spec.area)
+        lo, hi = -codec.AREA_MARGIN * area, (1 + codec.AREA_MARGIN) * area
+        assert np.all((r.state[:2] >= lo) & (r.state[:2] <= hi))
+        for h in r.obstacles:
+            assert np.all((h.vertices >= lo) & (h.vertices <= hi))
 
 
 def ok_plan(p: Plan) -> None:
@@ -202,10 +207,11 @@ def ok_anchor(a: Anchor) -> None:
         assert abs(a.wall_ns - time.time_ns()) <= codec.MAX_CLOCK_SKEW_S * 1e9 + 60e9
 
 
-def ok_waypoints(w: np.ndarray | None) -> None:
-    if w is not None:
-        _ok_points(w, 2, codec.MAX_ABS_M)
-        assert 1 <= len(w) <= codec.MAX_WAYPOINTS
+def ok_waypoints(w: codec.Waypoints) -> None:
+    assert w.revision >= 0 and isinstance(w.mission_id, str)
+    if w.points is not None:
+        _ok_points(w.points, 2, codec.MAX_ABS_M)
+        assert 1 <= len(w.points) <= codec.MAX_WAYPOINTS
 
 
 #: every decoder of a bus message: (message type, decode, validity check, a valid example)
@@ -215,7 +221,7 @@ DECODERS: dict[str, tuple[type[Message], Callable[[Any], Any], Callable[[Any], N
     "FireState.regions": (fire_pb2.FireState, codec.regions_from_msg, ok_regions,
                           lambda: fire_msg()),
     "PlanRequest": (plan_pb2.PlanRequest, codec.plan_request_from_msg, ok_plan_request,
-                    lambda: plan_request(waypoints=np.array([[100.0, 800.0], [800.0, 900.0]]))),
+                    lambda: plan_request()),
     "Plan": (plan_pb2.Plan, codec.plan_from_msg, ok_plan,
              lambda: codec.plan_to_msg(
                  flown_plan(np.array([50.0, 50.0, 1.0, 0.0]), np.array([[1.0, 2.0], [0.5, -1.0]]),
@@ -229,8 +235,9 @@ DECODERS: dict[str, tuple[type[Message], Callable[[Any], Any], Callable[[Any], N
                      lambda: codec.state_to_msg(np.array([50.0, 60.0, 1.0, -2.0]), 3,
                                                 stamped_state(), 50.0)),
     "OperatorWaypoints": (vehicle_pb2.OperatorWaypoints, codec.waypoints_from_msg, ok_waypoints,
-                          lambda: codec.waypoints_msg(np.array([[1.0, 2.0], [3.0, 4.0]]),
-                                                      codec.Stamper("operator", "uav1"))),
+                          lambda: codec.waypoints_msg(
+                              codec.Waypoints("m-1", 3, np.array([[1.0, 2.0], [3.0, 4.0]])),
+                              codec.Stamper("operator", "uav1"))),
     "FireCommand": (fire_pb2.FireCommand, codec.fire_command_from_msg, ok_fire_command,
                     lambda: _advance_cmd()),
     "Clock": (common_pb2.Clock, codec.clock_from_msg, ok_anchor,
@@ -282,10 +289,13 @@ def test_points_and_packed_round_trip(pts: np.ndarray) -> None:
     poly = common_pb2.Polygon()
     codec.packed_to_msg(pts, poly.vertices_m)
     assert np.array_equal(codec.packed_from_msg(poly.vertices_m, "p", 2, 1000, 1e5), pts)
+    sent = codec.Waypoints("m-1", 4, pts if len(pts) else None)
     back = codec.waypoints_from_msg(codec.parse(
-        codec.waypoints_msg(pts, codec.Stamper("op", "u")).SerializeToString(),
+        codec.waypoints_msg(sent, codec.Stamper("op", "u")).SerializeToString(),
         vehicle_pb2.OperatorWaypoints))
-    assert (back is None) == (len(pts) == 0) and (back is None or np.array_equal(back, pts))
+    assert (back.mission_id, back.revision) == ("m-1", 4)
+    assert (back.points is None) == (len(pts) == 0)
+    assert back.points is None or np.array_equal(back.points, pts)
 
 
 @PROPS
@@ -383,24 +393,24 @@ def test_fire_command_decodes_what_was_sent(kind: str, seed: int, step: int, sub
 
 @PROPS
 @given(st.integers(0, 2**31), in_area, in_area, st.floats(-15, 15), st.floats(-15, 15),
-       st.lists(st.tuples(in_area, in_area), max_size=5), st.sampled_from([1, 2]),
-       st.sampled_from(list(Objective)), st.floats(0, 850), st.floats(0, 850))
+       st.sampled_from([1, 2]), st.sampled_from(list(Objective)), st.floats(0, 850),
+       st.floats(0, 850), st.booleans())
 def test_plan_request_round_trip(seed: int, e: float, n: float, ve: float, vn: float,
-                                 wps: list[tuple[float, float]], system: int,
-                                 objective: Objective, gx: float, gy: float) -> None:
+                                 system: int, objective: Objective, gx: float, gy: float,
+                                 prepare: bool) -> None:
     goal = Rect(gx + 75, gy + 75, 100, 100)
-    waypoints = np.array(wps) if wps else None
     fires = fire_msg(seed % 1000, 2, seed % 7)
-    msg = plan_request(seed, (e, n, ve, vn), waypoints, goal, system, objective, fires)
+    msg = plan_request(seed, (e, n, ve, vn), goal, system, objective, fires, prepare)
     req = decode("PlanRequest", msg.SerializeToString(), codec.encoding_name(msg))
-    assert np.array_equal(req.state, [e, n, ve, vn]) and req.mission.goal == goal
+    assert np.array_equal(req.state, [e, n, ve, vn]) and req.mission_id == "m-1"
     assert (req.system, req.objective, req.step, req.deadline_s) == (system, objective, 4, 5.0)
-    assert req.mission.seed == seed and req.mission.area_size_m == AREA
-    got = req.mission.waypoints
-    assert (got is None and waypoints is None) or (
-        got is not None and waypoints is not None and np.array_equal(got, waypoints))
-    snap = codec.snapshot_from_msg(fires)
-    assert req.fires.regions == snap.regions and len(req.fires.hulls) == len(snap.hulls)
+    assert req.waypoints_revision == 2 and req.prepare == prepare
+    if prepare:
+        assert req.spec == MissionSpec(goal=goal, area_size_m=AREA, seed=seed)
+    else:
+        assert req.spec is None
+    hulls = codec.snapshot_from_msg(fires).hulls
+    assert [h.vertices.tolist() for h in req.obstacles] == [h.vertices.tolist() for h in hulls]
     assert np.array_equal(req.prev_control, [1.0, -2.0])
 
 
@@ -570,7 +580,7 @@ def test_unknown_schema_versions_are_rejected(name: str, version: int) -> None:
 
 
 @PROPS
-@given(st.sampled_from(["state__header", "fires__header"]), st.integers(2, 2**32 - 1))
+@given(st.sampled_from(["state__header"]), st.integers(2, 2**32 - 1))
 def test_nested_headers_are_checked(which: str, version: int) -> None:
     msg = plan_request()
     getattr(msg, which.split("__")[0]).header.schema_version = version
@@ -619,17 +629,15 @@ def test_non_finite_states_are_rejected(field: str, value: float) -> None:
 
 
 @PROPS
-@given(st.sampled_from(["state", "waypoint", "hull", "goal"]),
+@given(st.sampled_from(["state", "obstacle", "goal"]),
        st.floats(HI + 1e-6, codec.MAX_ABS_M) | st.floats(-codec.MAX_ABS_M, LO - 1e-6))
 def test_far_outside_the_area_is_rejected(what: str, far: float) -> None:
     """Within MAX_ABS_M (a plausible number) but not near this mission's area."""
-    req = plan_request(waypoints=np.array([[100.0, 100.0]]))
+    req = plan_request()
     if what == "state":
         req.state.east_m = far
-    elif what == "waypoint":
-        req.mission.operator_waypoints[0].north_m = far
-    elif what == "hull":
-        req.fires.fronts[0].hull.vertices_m[0] = far
+    elif what == "obstacle":
+        req.obstacles[0].vertices_m[0] = far
     else:
         req.mission.goal.center_east_m = far
     err = rejects(lambda: decode("PlanRequest", req.SerializeToString()))

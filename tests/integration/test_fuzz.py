@@ -38,8 +38,8 @@ from google.protobuf.message import Message
 
 from dualpilot.model.dynamics import DynamicsParams
 from dualpilot.model.fire import FireField, FireParams
-from dualpilot.model.geometry import Rect
 from dualpilot.plan import Objective, PlanStatus
+from dualpilot.spec import MissionSpec, Stream, stream_rng
 from dualpilot.verify import verify_trajectory
 from services.common import bus, codec, keys
 from services.common.clock import Anchor
@@ -63,20 +63,21 @@ def fire_state(uav: str, seed: int = 5) -> fire_pb2.FireState:
 
 
 def plan_request(uav: str, system: int, mission_id: str = "fuzz-mission",
-                 fires: fire_pb2.FireState | None = None) -> plan_pb2.PlanRequest:
-    """A valid request (a fire at (500, 500), start (50, 50)), as in test_planner_services."""
+                 fires: fire_pb2.FireState | None = None,
+                 prepare: bool = True) -> plan_pb2.PlanRequest:
+    """A valid request (a fire at (500, 500), start (50, 50)), as in test_planner_services;
+    with the mission spec (a prepare request) unless ``prepare`` is False."""
     if fires is None:
         rng = np.random.default_rng(5)
         f = FireField(params=FireParams(p_survive=1.0))
         f.spawn(rng, 0, center=(500.0, 500.0))
         fires = codec.fire_state_msg(f.fronts, [], 0, 1, 0.5, codec.Stamper("fuzz", uav), 0.0)
     req = codec.PlanRequest(
-        seq=0, mission=codec.MissionSpec(mission_id, 7, Rect(900, 900, 100, 100), 1000.0,
-                                         np.array([[300.0, 100.0], [900.0, 900.0]])),
-        step=0, system=system, objective=Objective.MISSION_TIME,
+        seq=0, mission_id=mission_id, step=0, system=system, objective=Objective.MISSION_TIME,
         state=np.array([50.0, 50.0, 0.0, 0.0]), prev_control=np.zeros(2),
-        fires=codec.snapshot_from_msg(fires), deadline_s=60.0)
-    return codec.plan_request_msg(req, fires, codec.Stamper("fuzz", uav), 0.0)
+        obstacles=codec.snapshot_from_msg(fires).hulls, deadline_s=60.0, prepare=prepare,
+        spec=MissionSpec(seed=7) if prepare else None)
+    return codec.plan_request_msg(req, codec.Stamper("fuzz", uav), 0.0)
 
 
 def fire_command(uav: str, kind: str, mission_id: str = "fuzz-mission", seed: int = 3,
@@ -92,8 +93,9 @@ def fire_command(uav: str, kind: str, mission_id: str = "fuzz-mission", seed: in
 
 
 def waypoints(uav: str) -> vehicle_pb2.OperatorWaypoints:
-    return codec.waypoints_msg(np.array([[100.0, 200.0], [800.0, 900.0]]),
-                               codec.Stamper("fuzz", uav))
+    return codec.waypoints_msg(
+        codec.Waypoints("fuzz-mission", 1, np.array([[100.0, 200.0], [800.0, 900.0]])),
+        codec.Stamper("fuzz", uav))
 
 
 def other_messages(uav: str) -> list[Message]:
@@ -270,13 +272,11 @@ class Corpus:
         far = float(self._choice([1, -1]) * self.rng.uniform(2.5e3, 9e4))
         name = self.entry.cls.DESCRIPTOR.name
         if name == "PlanRequest":
-            target = self._choice(["state", "hull", "waypoint", "goal"])
+            target = self._choice(["state", "obstacle", "goal"])
             if target == "state":
                 m.state.east_m = far
-            elif target == "hull":
-                m.fires.fronts[0].hull.vertices_m[1] = far
-            elif target == "waypoint":
-                m.mission.operator_waypoints[0].north_m = far
+            elif target == "obstacle":
+                m.obstacles[0].vertices_m[1] = far
             else:
                 m.mission.goal.center_north_m = far
         elif name == "OperatorWaypoints":
@@ -484,8 +484,9 @@ def counters(session: Any, uav: str) -> dict[tuple[str, str], collections.Counte
 def check_still_serving(session: Any, uav: str, mission_id: str) -> None:
     """After the flood: verified plans from both planners, and a correct fire process."""
     for system in (1, 2):
+        bus.request(session, keys.plan(uav, system), plan_request(uav, system, mission_id), 120.0)
         payload, enc = bus.request(session, keys.plan(uav, system),
-                                   plan_request(uav, system, mission_id), 120.0)
+                                   plan_request(uav, system, mission_id, prepare=False), 120.0)
         plan = codec.plan_from_msg(codec.parse(payload, plan_pb2.Plan, enc), system)
         assert plan.status is PlanStatus.OK, plan.message
         assert np.array_equal(plan.states[0], [50.0, 50.0, 0.0, 0.0])
@@ -493,7 +494,7 @@ def check_still_serving(session: Any, uav: str, mission_id: str) -> None:
         f = FireField(params=FireParams(p_survive=1.0))
         f.spawn(rng, 0, center=(500.0, 500.0))
         verdict = verify_trajectory(plan.states, plan.controls, tuple(x.hull for x in f.fronts),
-                                    DynamicsParams(), 20.0)
+                                    DynamicsParams(), MissionSpec().d_safe_m)
         assert verdict.ok, verdict.reason
     payload, enc = bus.request(session, keys.fire_command(uav),
                                fire_command(uav, "reset", mission_id, seed=11), 30.0)
@@ -505,7 +506,7 @@ def check_still_serving(session: Any, uav: str, mission_id: str) -> None:
     assert [s.substeps_done for s in update.states] == [1, 2, 3]
     # the same seed in-process gives the same fire (the flood changed nothing)
     ref = FireField(params=FireParams())
-    ref_rng = np.random.default_rng(np.random.SeedSequence(11).spawn(2)[0])
+    ref_rng = stream_rng(11, Stream.FIRE)
     for _ in range(3):
         ref.substep(ref_rng, 0)
     assert codec.snapshot_from_msg(update.states[-1]).regions == ref.snapshot().regions

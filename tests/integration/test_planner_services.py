@@ -11,8 +11,8 @@ import zenoh
 
 from dualpilot.model.dynamics import DynamicsParams
 from dualpilot.model.fire import FireField, FireParams
-from dualpilot.model.geometry import Rect
 from dualpilot.plan import Objective, PlanStatus
+from dualpilot.spec import MissionSpec
 from dualpilot.verify import verify_trajectory
 from services.common import bus, codec, keys
 from services.msgs import common_pb2, plan_pb2
@@ -39,18 +39,28 @@ def raw_query(session: Any, key: str, payload: bytes, timeout_s: float = 30.0) -
     return reply
 
 
-def request(system: int, mission_id: str = "itest-mission", **state: float) -> bytes:
-    rng = np.random.default_rng(5)
-    field = FireField(params=FireParams(p_survive=1.0))
-    field.spawn(rng, 0, center=(500.0, 500.0))
+def request(system: int, mission_id: str = "itest-mission", prepare: bool = False,
+            revision: int = 0, **state: float) -> bytes:
+    """A plan request from (50, 50) around one fire at (500, 500); the spec if ``prepare``."""
     stamper = codec.Stamper("test", "itest")
-    fires = codec.fire_state_msg(field.fronts, [], 0, 1, 0.5, stamper, 0.0)
     x = np.array([state.get("east", 50.0), state.get("north", 50.0), 0.0, 0.0])
     req = codec.PlanRequest(
-        seq=0, mission=codec.MissionSpec(mission_id, 7, Rect(900, 900, 100, 100), 1000.0, None),
-        step=0, system=system, objective=Objective.MISSION_TIME, state=x,
-        prev_control=np.zeros(2), fires=codec.snapshot_from_msg(fires), deadline_s=60.0)
-    return codec.plan_request_msg(req, fires, stamper, 0.0).SerializeToString()
+        seq=0, mission_id=mission_id, step=0, system=system, objective=Objective.MISSION_TIME,
+        state=x, prev_control=np.zeros(2), obstacles=tuple(f.hull for f in _one_fire()),
+        deadline_s=60.0, waypoints_revision=revision, prepare=prepare,
+        spec=MissionSpec(seed=7) if prepare else None)
+    return codec.plan_request_msg(req, stamper, 0.0).SerializeToString()
+
+
+def prepare(session: Any, uav: str, system: int, mission_id: str = "itest-mission") -> None:
+    reply = raw_query(session, keys.plan(uav, system), request(system, mission_id, prepare=True))
+    assert reply.ok is not None, common_pb2.Error.FromString(reply.err.payload.to_bytes())
+    assert plan_pb2.Plan.FromString(reply.ok.payload.to_bytes()).message == "prepared"
+
+
+def error_of(reply: Any) -> common_pb2.Error:
+    assert reply.err is not None, "expected an error reply"
+    return common_pb2.Error.FromString(reply.err.payload.to_bytes())
 
 
 @pytest.mark.parametrize("system", [1, 2])
@@ -65,6 +75,7 @@ def test_malformed_payload_gets_an_error_reply(planners: Any, session: Any,
     assert str(reply.err.encoding) == "application/protobuf;dualpilot.v1.Error"
     # still alive and answering
     assert f"system{system}" in liveliness.alive
+    prepare(session, planners.uav, system)
     reply = raw_query(session, key, request(system))
     assert reply.ok is not None
 
@@ -82,19 +93,33 @@ def test_invalid_values_get_an_error_reply(planners: Any, session: Any) -> None:
 
 
 @pytest.mark.parametrize("system", [1, 2])
+def test_a_mission_is_prepared_once_then_planned(planners: Any, session: Any,
+                                                 system: int) -> None:
+    """Without its spec a planner cannot plan: an UNPREPARED error, so the supervisor prepares."""
+    key = keys.plan(planners.uav, system)
+    err = error_of(raw_query(session, key, request(system, mission_id=f"never-{system}")))
+    assert err.code == common_pb2.ERROR_CODE_UNPREPARED and "not prepared" in err.message
+    prepare(session, planners.uav, system, f"never-{system}")
+    assert raw_query(session, key, request(system, mission_id=f"never-{system}")).ok is not None
+
+
+@pytest.mark.parametrize("system", [1, 2])
 def test_valid_request_gets_a_verified_plan(planners: Any, session: Any, system: int) -> None:
+    prepare(session, planners.uav, system)
     reply = raw_query(session, keys.plan(planners.uav, system), request(system))
     plan = codec.plan_from_msg(plan_pb2.Plan.FromString(reply.ok.payload.to_bytes()), system)
     assert plan.status is PlanStatus.OK, plan.message
     assert plan.compute_time_s > 0
     assert np.array_equal(plan.states[0], [50.0, 50.0, 0.0, 0.0])
     hulls = tuple(f.hull for f in _one_fire())
-    verdict = verify_trajectory(plan.states, plan.controls, hulls, DynamicsParams(), 20.0)
+    verdict = verify_trajectory(plan.states, plan.controls, hulls, DynamicsParams(),
+                                MissionSpec().d_safe_m)
     assert verdict.ok, verdict.reason
 
 
 def test_a_planner_value_error_is_an_invalid_input_plan(planners: Any, session: Any) -> None:
     """A state inside a fire reaches System 1, which refuses it: INVALID_INPUT, not a crash."""
+    prepare(session, planners.uav, 1)
     reply = raw_query(session, keys.plan(planners.uav, 1), request(1, east=500.0, north=500.0))
     plan = codec.plan_from_msg(plan_pb2.Plan.FromString(reply.ok.payload.to_bytes()), 1)
     assert plan.status is PlanStatus.INVALID_INPUT
@@ -102,17 +127,24 @@ def test_a_planner_value_error_is_an_invalid_input_plan(planners: Any, session: 
 
 
 def test_operator_waypoints_reach_system1(planners: Any, session: Any, wait_until: Any) -> None:
-    """Waypoints published on operator/waypoints are used at System 1's next plan."""
+    """Waypoints published on operator/waypoints (revision 1) are used by the next plan that
+    names that revision; until the service has it, such a plan is refused as UNPREPARED."""
     wps = np.array([[900.0, 100.0], [900.0, 900.0]])  # around the fire at (500, 500)
-    msg = codec.waypoints_msg(wps, codec.Stamper("operator", planners.uav))
+    key = keys.plan(planners.uav, 1)
+    prepare(session, planners.uav, 1, "with-operator")
+    err = error_of(raw_query(session, key, request(1, "with-operator", revision=1)))
+    assert err.code == common_pb2.ERROR_CODE_UNPREPARED and "revision 1" in err.message
+    msg = codec.waypoints_msg(codec.Waypoints("with-operator", 1, wps),
+                              codec.Stamper("operator", planners.uav))
+    replies: list[Any] = []
 
-    def published_and_seen() -> bool:  # re-publish until the service logs it (no fixed sleep)
+    def published_and_used() -> bool:  # re-publish until a plan uses them (no fixed sleep)
         bus.put(session, keys.waypoints(planners.uav), msg)
-        return "operator waypoints" in planners.log("system1")
+        replies.append(raw_query(session, key, request(1, "with-operator", revision=1)))
+        return replies[-1].ok is not None
 
-    assert wait_until(published_and_seen, 10)
-    reply = raw_query(session, keys.plan(planners.uav, 1), request(1, mission_id="with-operator"))
-    plan = codec.plan_from_msg(plan_pb2.Plan.FromString(reply.ok.payload.to_bytes()), 1)
+    assert wait_until(published_and_used, 10)
+    plan = codec.plan_from_msg(plan_pb2.Plan.FromString(replies[-1].ok.payload.to_bytes()), 1)
     assert plan.status is PlanStatus.OK and plan.info.get("source") == "operator"
     assert plan.path is not None and np.allclose(plan.path[1:], wps)
 

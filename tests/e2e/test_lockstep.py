@@ -1,0 +1,109 @@
+"""The stack and the in-process loop run the one mission step: identical step records.
+
+Every mission below is flown twice: through the stack (a shared router, EWS and
+planner pair; a uavsim and a supervisor per vehicle, unpaced) and in-process
+(dualpilot.mission.local). The records must agree step for step over the
+whole mission: the decision (Ξ, P, A, Ψ, S), the system flown, the plan
+statuses, the fire sub-steps, the planned positions, the state and control,
+and the outcome. Numbers that crossed MAVLink (float32 positions and
+setpoints) are compared to 1e-3; everything discrete exactly.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+from dualpilot.mission.local import local_mission
+from dualpilot.mission.params import Controller, MissionParams, Timing
+from dualpilot.mission.records import read_step_log, result_from_log
+from dualpilot.mission.result import MissionResult
+from dualpilot.spec import MissionSpec
+from services import launch
+
+pytestmark = [pytest.mark.slow, pytest.mark.timeout(600)]
+
+SEEDS = (0, 1, 2, 3, 4)
+#: numbers that crossed MAVLink as float32 (m, m/s, N)
+ATOL = 1e-3
+
+
+def assert_same_mission(stack: MissionResult, local: MissionResult, what: str) -> None:
+    assert (stack.success, stack.failure_cause, stack.steps) == (
+        local.success, local.failure_cause, local.steps), what
+    assert len(stack.records) == len(local.records), what
+    for a, b in zip(stack.records, local.records, strict=True):
+        where = f"{what}, step {b.t}"
+        assert (a.t, a.system, a.plan_status, a.fire_substeps, a.fires_active) == (
+            b.t, b.system, b.plan_status, b.fire_substeps, b.fires_active), where
+        da, db = a.decision, b.decision
+        assert (da.attention, da.system, da.objective) == (db.attention, db.system,
+                                                           db.objective), where
+        for name in ("xi", "p", "psi"):
+            assert np.allclose(getattr(da, name), getattr(db, name), atol=ATOL), (where, name)
+        assert np.allclose(a.state, b.state, atol=ATOL), (where, a.state, b.state)
+        assert np.allclose(a.control, b.control, atol=ATOL), (where, a.control, b.control)
+        assert a.planned_positions.shape == b.planned_positions.shape, where
+        assert np.allclose(a.planned_positions, b.planned_positions, atol=1e-2), where
+    assert stack.energy == pytest.approx(local.energy, rel=1e-5, abs=1e-3), what
+
+
+def fly(fleet: launch.Fleet, runs: list[tuple[int, str, str, float | None]],
+        out: Path) -> dict[tuple[int, str, str, float | None], MissionResult]:
+    """Fly ``runs`` (seed, controller, timing, ignition clearance) at once, one vehicle each."""
+    mission_ids = {}
+    for k, (seed, controller, timing, clear) in enumerate(runs):
+        uav = fleet.uav_ids[k]
+        env = {"CONTROLLER": controller, "TIMING": timing, "SPEED_FACTOR": "0",
+               "IGNITION_CLEARANCE_M": "" if clear is None else repr(clear)}
+        run_dir = out / f"{controller}-{timing}-s{seed}-ic{clear}"
+        mission_ids[uav] = fleet.start_vehicle(uav, seed, run_dir, env=env).mission_id
+    outcomes = fleet.wait_end(mission_ids, 300.0)
+    results = {}
+    for k, run in enumerate(runs):
+        uav = fleet.uav_ids[k]
+        v = fleet.vehicles[uav]
+        assert outcomes[uav].ended, (run, outcomes[uav], (v.run_dir / "logs").iterdir())
+        assert all(code == 0 for code in fleet.stop_vehicle(uav).values()), run
+        results[run] = result_from_log(read_step_log(v.run_dir / "steps.jsonl"))
+    return results
+
+
+def in_process(seed: int, controller: str, timing: str, clear: float | None) -> MissionResult:
+    return local_mission(Controller(controller), MissionSpec(seed=seed), timing=Timing(timing),
+                         params=MissionParams(ignition_clearance_m=clear)).run()
+
+
+@pytest.fixture(scope="module")
+def fleet(tmp_path_factory: pytest.TempPathFactory) -> Any:
+    out = tmp_path_factory.mktemp("lockstep")
+    cfg = launch.StackConfig(run_dir=out / "shared", speed_factor=0.0, free_ports=True,
+                             log_format="text")
+    with launch.Fleet(cfg, [f"ls{k}" for k in range(len(SEEDS))]) as f:
+        yield f, out
+
+
+@pytest.mark.parametrize("timing", ["paper", "measured"])
+@pytest.mark.parametrize("controller", ["cc", "s1", "s2"])
+def test_stack_and_in_process_records_are_identical(fleet: Any, controller: str,
+                                                    timing: str) -> None:
+    f, out = fleet
+    runs = [(seed, controller, timing, None) for seed in SEEDS]
+    for run, result in fly(f, runs, out).items():
+        assert_same_mission(result, in_process(*run), str(run))
+
+
+def test_the_ignition_clearance_reaches_the_stack(fleet: Any) -> None:
+    """--ignition-clearance through the stack: the EWS keeps new fronts 20 m off the UAV, and
+    the missions are those of the in-process loop with the same reading."""
+    f, out = fleet
+    runs = [(seed, "cc", "paper", 20.0) for seed in SEEDS[:3]]
+    results = fly(f, runs, out)
+    for run, result in results.items():
+        assert_same_mission(result, in_process(*run), str(run))
+    # the reading matters: without it, some of these missions differ
+    plain = [in_process(seed, "cc", "paper", None) for seed, *_ in runs]
+    assert [r.steps for r in plain] != [results[run].steps for run in runs]
