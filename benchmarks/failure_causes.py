@@ -20,13 +20,17 @@ from dualpilot.mission.local import LocalFires, local_mission
 from dualpilot.mission.params import Controller, Timing
 from dualpilot.mission.ports import KeepOut
 from dualpilot.model.geometry import Rect
+from dualpilot.spec import MissionSpec
 
 
 class ProbedFires(LocalFires):
     """The in-process fires, remembering which front first came within d_safe of the UAV."""
 
-    cause: tuple[str, float | None] | None = None
-    position = None
+    def __init__(self, spec: MissionSpec):
+        super().__init__(spec)
+        self.d_safe = spec.d_safe_m
+        self.position = np.array(spec.start)
+        self.cause: tuple[str, float | None] | None = None
 
     def advance(self, t: int, n: int, keep_out: KeepOut | None) -> list[tuple[Rect, ...]]:
         position = self.position
@@ -46,7 +50,6 @@ def main(controller: str, n: int) -> None:
         spec = mission_spec(0, i)
         mission = local_mission(Controller(controller), spec, timing=Timing.PAPER)
         probe = ProbedFires(spec)
-        probe.d_safe = spec.d_safe_m
         mission.fires = probe
         while not mission.done:
             probe.position = mission.state[:2].copy()

@@ -12,12 +12,9 @@ import enum
 from dataclasses import dataclass, field
 
 import numpy as np
-from numpy.typing import NDArray
 
 from dualpilot.model.dynamics import DynamicsParams
 from dualpilot.model.geometry import Rect
-
-Array = NDArray[np.float64]
 
 #: Sec. IV: "a predefined safety threshold (denoted as d_safe = 20 m)".
 D_SAFE_M = 20.0

@@ -17,6 +17,7 @@ import enum
 import json
 import os
 import time
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -302,8 +303,9 @@ def result_from_log(entries: list[dict[str, Any]], dt_s: float = 1.0) -> Mission
     g = head["goal"]
     spec = MissionSpec(start=(float(head["start"][0]), float(head["start"][1])),
                        goal=Rect(*(float(v) for v in g)), area_size_m=float(head["area_size_m"]),
-                       seed=int(head["seed"]),
-                       **{k: float(head[k]) for k in ("d_safe_m", "clearance_m") if k in head})
+                       seed=int(head["seed"]))
+    spec = replace(spec, d_safe_m=float(head.get("d_safe_m", spec.d_safe_m)),
+                   clearance_m=float(head.get("clearance_m", spec.clearance_m)))
     result = MissionResult(controller=str(head["controller"]), timing=str(head["timing"]),
                            spec=spec)
     steps = [e for e in entries if e.get("kind") == "step"]

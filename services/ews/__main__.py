@@ -74,8 +74,8 @@ class Ews:
     def handle(self, cmd: codec.FireCommand) -> fire_pb2.FireUpdate:
         update = fire_pb2.FireUpdate()
         if cmd.kind == "reset":
-            area = {"area_size_m": cmd.area_size_m} if cmd.area_size_m > 0 else {}
-            self.field = FireField(params=self.params, **area)
+            self.field = (FireField(params=self.params, area_size_m=cmd.area_size_m)
+                          if cmd.area_size_m > 0 else FireField(params=self.params))
             self.rng = stream_rng(cmd.seed, Stream.FIRE)
             self.mission_id, self.step, self.sim_time_s = cmd.mission_id, 0, 0.0
             state = self.state_msg()

@@ -28,6 +28,7 @@ import threading
 import time
 from dataclasses import replace
 from pathlib import Path
+from typing import cast
 
 import numpy as np
 import zenoh
@@ -279,8 +280,8 @@ class StackSession:
             self.spec = replace(self.spec, start=(float(x0[0]), float(x0[1])))
         else:
             head = next(e for e in prior if e.get("kind") == "mission")
-            self.spec = replace(self.spec, start=(float(head["start"][0]),
-                                                  float(head["start"][1])))
+            start = cast(list[float], head["start"])
+            self.spec = replace(self.spec, start=(float(start[0]), float(start[1])))
         self.fires = StackFires(self.b, self.spec, self.fire_params, self._caught_up)
         self.planners = StackPlanners(self.b, self.spec, systems_of(self.controller))
         if self.waypoints is not None:

@@ -11,6 +11,7 @@ setpoints) are compared to 1e-3; everything discrete exactly.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -51,8 +52,11 @@ def assert_same_mission(stack: MissionResult, local: MissionResult, what: str) -
     assert stack.energy == pytest.approx(local.energy, rel=1e-5, abs=1e-3), what
 
 
-def fly(fleet: launch.Fleet, runs: list[tuple[int, str, str, float | None]],
-        out: Path) -> dict[tuple[int, str, str, float | None], MissionResult]:
+Run = tuple[int, str, str, float | None]  # seed, controller, timing, ignition clearance (m)
+
+
+def fly(fleet: launch.Fleet, runs: Sequence[Run],
+        out: Path) -> dict[Run, MissionResult]:
     """Fly ``runs`` (seed, controller, timing, ignition clearance) at once, one vehicle each."""
     mission_ids = {}
     for k, (seed, controller, timing, clear) in enumerate(runs):

@@ -123,7 +123,7 @@ def test_decision_round_trip() -> None:
     assert codec.decision_from_msg(no_fire).d_t == math.inf
 
 
-def _request(prepare: bool = True, **changes: object) -> plan_pb2.PlanRequest:
+def _request(prepare: bool = True, **changes: Any) -> plan_pb2.PlanRequest:
     """A plan request for step 0 avoiding the hulls of :func:`_fires` (with the spec when
     ``prepare``), with ``changes`` applied (``a__b`` is the field b of a)."""
     field = _fires()
@@ -170,7 +170,7 @@ def test_plan_request_round_trip() -> None:
         ({"prev_control__east_n": math.inf}, "finite"),
     ],
 )
-def test_invalid_plan_requests_are_rejected(changes: dict[str, object], match: str) -> None:
+def test_invalid_plan_requests_are_rejected(changes: dict[str, Any], match: str) -> None:
     with pytest.raises(codec.CodecError, match=match) as info:
         codec.plan_request_from_msg(codec.parse(_request(**changes).SerializeToString(),
                                                 plan_pb2.PlanRequest))
