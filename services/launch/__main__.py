@@ -1,0 +1,79 @@
+"""Run the whole stack locally: a Zenoh router and every service of docker-compose.yml as processes.
+
+``python -m services.launch --seed 7 --speed-factor 20 --controller cc --timing paper``
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import re
+import sys
+import time
+from pathlib import Path
+
+from services.launch.compose import COMPOSE, REPO
+from services.launch.stack import StackConfig, run_mission
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(prog="python -m services.launch",
+                                description=__doc__.splitlines()[0])
+    p.add_argument("--seed", type=int, default=7)
+    p.add_argument("--speed-factor", type=float, default=20.0,
+                   help="simulated s per wall s (0 or inf: unpaced)")
+    p.add_argument("--controller", choices=["cc", "s1", "s2"], default="cc")
+    p.add_argument("--timing", choices=["paper", "measured"], default="paper")
+    p.add_argument("--s2-method", default="fast", help="System 2 method (fast, exact, ...)")
+    p.add_argument("--max-steps", type=int, default=150)
+    p.add_argument("--ignition-clearance", type=float, default=None,
+                   help="no front ignites within this distance (m) of the UAV (as dualpilot "
+                        "mission --ignition-clearance)")
+    p.add_argument("--waypoints", default="", help="System 1 operator waypoints 'e1,n1;e2,n2'")
+    p.add_argument("--out", default="",
+                   help="run directory (default runs/<time>-<controller>-s<seed>)")
+    p.add_argument("--compose", type=Path, default=COMPOSE)
+    p.add_argument("--free-ports", action="store_true",
+                   help="free local ports instead of the published 7447 / 14550")
+    p.add_argument("--timeout-s", type=float, default=600.0)
+    p.add_argument("--log-format", choices=["json", "text"], default="json")
+    p.add_argument("--no-figures", action="store_true")
+    p.add_argument("--quiet", action="store_true")
+    args = p.parse_args(argv)
+    run_id = f"{time.strftime('%Y%m%d-%H%M%S')}-{args.controller}-s{args.seed}"
+    run_dir = Path(args.out) if args.out else REPO / "runs" / run_id
+    cfg = StackConfig(run_dir=run_dir.resolve(), seed=args.seed, speed_factor=args.speed_factor,
+                      controller=args.controller, timing=args.timing, s2_method=args.s2_method,
+                      max_steps=args.max_steps, waypoints=args.waypoints,
+                      ignition_clearance_m=args.ignition_clearance,
+                      free_ports=args.free_ports, log_format=args.log_format,
+                      mission_id=re.sub(r"[^A-Za-z0-9_\-]", "-", run_dir.name)[:64])
+    t0 = time.perf_counter()
+    try:
+        outcome, codes = run_mission(cfg, args.timeout_s, not args.no_figures, args.quiet,
+                                     args.compose)
+    except ValueError as err:
+        print(f"launch: error: {err}", file=sys.stderr)
+        return 2
+    wall = time.perf_counter() - t0
+    summary_path = cfg.run_dir / "summary.json"
+    if summary_path.is_file():
+        s = json.loads(summary_path.read_text())
+        keep = ("controller", "seed", "timing", "success", "failure_cause", "steps",
+                "mission_time_s", "energy", "switches")
+        print(json.dumps({k: s.get(k) for k in keep}))
+        overhead = s.get("stack", {}).get("setpoint_overhead", {})
+        if overhead:
+            print(f"tick→setpoint overhead: median {overhead['median_ms']:.2f} ms, "
+                  f"p99 {overhead['p99_ms']:.2f} ms")
+    bad = {n: c for n, c in codes.items() if c != 0}
+    print(f"wall time {wall:.1f} s; services stopped "
+          f"({'all cleanly' if not bad else f'non-zero exits: {bad}'}); results in {cfg.run_dir}/")
+    if not outcome.ended:
+        print(f"launch: mission did not end: {outcome.message}", file=sys.stderr)
+        return 1
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

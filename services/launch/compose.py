@@ -1,0 +1,135 @@
+"""docker-compose.yml, the one description of the services: load and check it, its published
+ports, and the map of container ports onto local ones (:class:`PortMap`)."""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from services.launch.processes import REPO, free_port, port_is_free
+
+COMPOSE = REPO / "docker-compose.yml"
+ROUTER_IMAGE = "eclipse/zenoh"
+ENDPOINT_KEYS = ("ZENOH_CONNECT", "ZENOH_LISTEN", "MAVLINK_URL", "GCS_URL")
+#: ``udpin:host:port`` (pymavlink) or ``tcp/host:port`` (Zenoh endpoint)
+_ENDPOINT = re.compile(r"^(?P<scheme>[a-z]+[:/])(?P<host>[^:/,]+|\[[^\]]+\]):(?P<port>\d{1,5})$")
+
+
+# -- the compose file -----------------------------------------------------------------------------
+def load_compose(path: Path = COMPOSE) -> dict[str, Any]:
+    """Parse and structurally check the compose file (see :func:`check_compose`)."""
+    import yaml
+
+    doc = yaml.safe_load(Path(path).read_text())
+    check_compose(doc)
+    return doc  # type: ignore[no-any-return]
+
+
+def check_compose(doc: Any) -> None:
+    """The subset of the compose spec the stack relies on; raises ValueError with every problem.
+
+    Checks: a ``services`` mapping; exactly one router service from the
+    ``eclipse/zenoh`` image at a pinned tag (not ``latest``); every other
+    service has an ``image`` and a ``build``, a list-form ``command`` running
+    ``python -m services.<name>`` for an existing module, a string-valued
+    ``environment`` mapping that connects to the router by its service name,
+    and ``depends_on`` the router; ports are ``"host:container[/proto]"``.
+    """
+    problems: list[str] = []
+    if not isinstance(doc, dict) or not isinstance(doc.get("services"), dict):
+        raise ValueError("compose file needs a 'services' mapping")
+    services: dict[str, Any] = doc["services"]
+    routers = [n for n, s in services.items()
+               if isinstance(s, dict) and str(s.get("image", "")).startswith(ROUTER_IMAGE + ":")]
+    if len(routers) != 1:
+        problems.append(f"exactly one {ROUTER_IMAGE}:<tag> router service needed, got {routers}")
+    for name in routers:
+        tag = str(services[name]["image"]).split(":", 1)[1]
+        if not re.fullmatch(r"\d+\.\d+\.\d+", tag):
+            problems.append(f"router image tag must be pinned (x.y.z), got {tag!r}")
+    router = routers[0] if len(routers) == 1 else "zenoh"
+    images = set()
+    for name, svc in services.items():
+        if name in routers:
+            continue
+        if not isinstance(svc, dict):
+            problems.append(f"{name}: not a mapping")
+            continue
+        for key in ("image", "build", "command", "environment"):
+            if key not in svc:
+                problems.append(f"{name}: missing {key}")
+        images.add(svc.get("image"))
+        cmd = svc.get("command")
+        if not (isinstance(cmd, list) and len(cmd) >= 3 and cmd[:2] == ["python", "-m"]
+                and all(isinstance(c, str) for c in cmd)):
+            problems.append(f"{name}: command must be a list ['python', '-m', 'services.<x>', ...]")
+        else:
+            module = cmd[2]
+            mod_path = REPO / Path(*module.split("."))
+            if not module.startswith("services.") or not (
+                    (mod_path / "__main__.py").is_file() or mod_path.with_suffix(".py").is_file()):
+                problems.append(f"{name}: {module} is not a service module")
+        env = svc.get("environment", {})
+        if not isinstance(env, dict) or not all(isinstance(v, str) for v in env.values()):
+            problems.append(f"{name}: environment must map names to strings (quote numbers)")
+        elif not re.fullmatch(rf"tcp/{re.escape(router)}:\d+", env.get("ZENOH_CONNECT", "")):
+            problems.append(f"{name}: ZENOH_CONNECT must be tcp/{router}:<port>")
+        deps = svc.get("depends_on", [])
+        dep_names = list(deps) if isinstance(deps, (list, dict)) else []
+        if router not in dep_names:
+            problems.append(f"{name}: must depend_on {router}")
+        for dep in dep_names:
+            if dep not in services:
+                problems.append(f"{name}: depends_on unknown service {dep}")
+    for name, svc in services.items():
+        for port in (svc.get("ports", []) if isinstance(svc, dict) else []):
+            if not re.fullmatch(r"\d{1,5}:\d{1,5}(/(tcp|udp))?", str(port)):
+                problems.append(f"{name}: port {port!r} is not 'host:container[/proto]'")
+    if len(images) > 1:
+        problems.append(f"every service should use one image, got {sorted(map(str, images))}")
+    if problems:
+        raise ValueError("docker-compose.yml: " + "; ".join(problems))
+
+
+def published_ports(doc: Mapping[str, Any]) -> dict[int, str]:
+    """Container ports published by any service → protocol."""
+    out: dict[int, str] = {}
+    for svc in doc["services"].values():
+        for port in svc.get("ports", []):
+            spec, _, proto = str(port).partition("/")
+            out[int(spec.split(":")[1])] = proto or "tcp"
+    return out
+
+
+def _proto_of(key: str, value: str) -> str:
+    return "tcp" if key == "ZENOH_CONNECT" or value.startswith("tcp") else "udp"
+
+
+@dataclass
+class PortMap:
+    """Container port → local port, decided once per stack."""
+
+    published: dict[int, str]
+    free_ports: bool
+    ports: dict[int, int] = field(default_factory=dict)
+
+    def local(self, port: int, proto: str) -> int:
+        if port not in self.ports:
+            keep = (not self.free_ports and port in self.published and port_is_free(port, proto))
+            self.ports[port] = port if keep else free_port(proto)
+        return self.ports[port]
+
+    def rewrite(self, key: str, value: str) -> str:
+        """``scheme:host:port`` / ``proto/host:port`` → loopback and a local port (or a list)."""
+        proto = _proto_of(key, value)
+        out = []
+        for item in filter(None, (v.strip() for v in value.split(","))):
+            m = _ENDPOINT.match(item)
+            if m is None:
+                raise ValueError(f"{key}: cannot map endpoint {item!r} to loopback")
+            port = int(m.group("port"))  # 0: the system picks one (each process its own)
+            out.append(f"{m.group('scheme')}127.0.0.1:{self.local(port, proto) if port else 0}")
+        return ",".join(out)

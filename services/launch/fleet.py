@@ -1,0 +1,149 @@
+"""Several vehicles against one EWS and one pair of planner services (benchmarks/load_vehicles.py),
+and mission after mission on the same shared services (benchmarks/soak.py)."""
+
+from __future__ import annotations
+
+import re
+import time
+from collections.abc import Mapping
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Any
+
+from services.launch.compose import COMPOSE
+from services.launch.processes import Proc, free_port
+from services.launch.stack import Outcome, Stack, StackConfig, client_session, next_event
+
+# -- several vehicles, repeated missions -----------------------------------------------------------
+#: services one fleet shares (they serve every vehicle id: ``UAV_IDS``, services/common/fleet.py)
+SHARED_SERVICES = ("ews", "system1", "system2")
+#: services each vehicle has for itself, started per mission
+VEHICLE_SERVICES = ("uavsim", "supervisor")
+
+
+@dataclass
+class Vehicle:
+    """One vehicle's processes and mission: its uavsim, its supervisor, their MAVLink port."""
+
+    uav_id: str
+    seed: int
+    run_dir: Path
+    mission_id: str
+    offboard_port: int
+    procs: list[Proc] = field(default_factory=list)
+
+
+class Fleet:
+    """The router and one EWS and pair of planner services shared by several vehicles, each
+    vehicle with its own uavsim and supervisor (a context manager).
+
+    ``uav_ids`` are the ids the shared services serve; :meth:`start_vehicle`
+    starts one vehicle's uavsim and supervisor for one mission (offboard link on
+    a free loopback port, no ground-station link), :meth:`wait_end` waits for
+    its MissionEvent ENDED/ABORTED, :meth:`stop_vehicle` stops them. The same
+    vehicle id can fly mission after mission (a soak): the shared services
+    keep running. ``cfg.run_dir`` holds the shared services' logs.
+    """
+
+    def __init__(self, cfg: StackConfig, uav_ids: list[str], compose: Path = COMPOSE):
+        ids = ",".join(uav_ids)
+        extra = {name: {"UAV_IDS": ids, **cfg.extra_env.get(name, {})}
+                 for name in SHARED_SERVICES}
+        self.cfg = cfg
+        self.stack = Stack(replace(cfg, services=SHARED_SERVICES, uav_id=uav_ids[0],
+                                   extra_env={**cfg.extra_env, **extra}), compose)
+        self.uav_ids = list(uav_ids)
+        self.vehicles: dict[str, Vehicle] = {}
+        self._events: Any = None
+        self._session_cm: Any = None
+        self._sub: Any = None
+
+    @property
+    def endpoint(self) -> str:
+        return self.stack.endpoint
+
+    def __enter__(self) -> Fleet:
+        import queue
+
+        from services.common import keys
+
+        self.stack.__enter__()
+        try:
+            self._events = queue.Queue()
+            self._session_cm = client_session(self.endpoint)
+            session = self._session_cm.__enter__()
+            self._sub = session.declare_subscriber(
+                f"{keys.ROOT}/*/mission/event", lambda s: self._events.put(s.payload.to_bytes()))
+        except BaseException:
+            self.stack.stop()
+            raise
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        try:
+            if self._sub is not None:
+                self._sub.undeclare()
+            if self._session_cm is not None:
+                self._session_cm.__exit__(None, None, None)
+        finally:
+            self.stack.stop()
+
+    def start_vehicle(self, uav_id: str, seed: int, run_dir: Path, mission_id: str = "",
+                      env: Mapping[str, str] | None = None) -> Vehicle:
+        """Start ``uav_id``'s uavsim and supervisor flying seed ``seed`` into ``run_dir``."""
+        port = free_port("udp")
+        run_dir.mkdir(parents=True, exist_ok=True)
+        mid = mission_id or re.sub(r"[^A-Za-z0-9_\-]", "-", f"{uav_id}-{run_dir.name}")[:64]
+        common = {"UAV_ID": uav_id, "UAV_IDS": "", "MISSION_SEED": str(seed),
+                  "RUN_DIR": str(run_dir), "MISSION_ID": mid,
+                  "TLOG_PATH": str(run_dir / "vehicle.tlog"), **(env or {})}
+        own = {"uavsim": {"MAVLINK_URL": f"udpin:127.0.0.1:{port}", "GCS_URL": ""},
+               "supervisor": {"MAVLINK_URL": f"udpout:127.0.0.1:{port}"}}
+        v = Vehicle(uav_id, seed, run_dir, mid, port)
+        for name in VEHICLE_SERVICES:
+            penv = self.stack.service_env(name)
+            penv.update(common)
+            penv.update(own[name])
+            v.procs.append(self.stack.group.start(f"{name}-{uav_id}", self.stack.argv(name),
+                                                  penv, run_dir / "logs" / f"{name}.log"))
+        self.vehicles[uav_id] = v
+        return v
+
+    def stop_vehicle(self, uav_id: str) -> dict[str, int]:
+        """Stop a vehicle's processes (SIGINT, then SIGKILL); returns their exit codes."""
+        v = self.vehicles.pop(uav_id)
+        codes: dict[str, int] = {}
+        for proc in v.procs:
+            codes[proc.name] = self.stack.group.stop(proc)
+            self.stack.group.procs.remove(proc)
+        return codes
+
+    def wait_end(self, mission_ids: dict[str, str], timeout_s: float) -> dict[str, Outcome]:
+        """Wait for the end of the missions {uav: mission id}; a vehicle whose process died or
+        that did not end in time gets an Outcome with ``ended=False``."""
+
+        from services.msgs import supervisor_pb2
+
+        out: dict[str, Outcome] = {}
+        deadline = time.monotonic() + timeout_s
+        ends = (supervisor_pb2.MISSION_EVENT_KIND_ENDED, supervisor_pb2.MISSION_EVENT_KIND_ABORTED)
+        by_mission = {mid: uav for uav, mid in mission_ids.items()}
+        while len(out) < len(mission_ids) and time.monotonic() < deadline:
+            for proc in self.stack.group.dead():
+                uav = next((u for u, v in self.vehicles.items() if proc in v.procs), None)
+                if uav in mission_ids and uav not in out:
+                    out[uav] = Outcome(False, message=f"{proc.name} exited "
+                                                      f"{proc.popen.returncode}")
+            ev = next_event(self._events)
+            if ev is None:
+                continue
+            uav = by_mission.get(ev.mission_id)
+            if uav is None or uav in out or ev.kind not in ends:
+                continue
+            if ev.kind == supervisor_pb2.MISSION_EVENT_KIND_ENDED:
+                out[uav] = Outcome(True, ev.success, ev.failure_cause, ev.step, ev.message)
+            else:
+                out[uav] = Outcome(False, message=f"aborted: {ev.message}")
+        for uav in mission_ids:
+            out.setdefault(uav, Outcome(False, message=f"no mission end within {timeout_s:.0f} s"))
+        return out

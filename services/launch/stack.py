@@ -1,0 +1,251 @@
+"""The router and the services of the compose file as local processes (:class:`Stack`), and
+following one mission on ``mission/event`` (:func:`follow`, :func:`run_mission`)."""
+
+from __future__ import annotations
+
+import json
+import os
+import socket
+import sys
+import time
+from collections.abc import Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from services.launch.compose import (
+    COMPOSE,
+    ENDPOINT_KEYS,
+    REPO,
+    ROUTER_IMAGE,
+    PortMap,
+    load_compose,
+    published_ports,
+)
+from services.launch.processes import ProcessGroup
+
+
+def next_event(events: Any, timeout_s: float = 0.2) -> Any:
+    """The next readable MissionEvent from the queue ``events`` within ``timeout_s``, else None."""
+    import queue
+
+    from services.common import codec
+    from services.msgs import supervisor_pb2
+
+    try:
+        raw = events.get(timeout=timeout_s)
+    except queue.Empty:
+        return None
+    try:
+        return codec.parse(raw, supervisor_pb2.MissionEvent)
+    except codec.CodecError:
+        return None
+
+
+# -- the stack ------------------------------------------------------------------------------------
+@dataclass
+class StackConfig:
+    """What to run and how (flags of the launcher; environment overrides of the services)."""
+
+    run_dir: Path
+    seed: int = 7
+    speed_factor: float = 20.0
+    controller: str = "cc"
+    timing: str = "paper"
+    s2_method: str = "fast"
+    max_steps: int = 150
+    ignition_clearance_m: float | None = None  # MissionParams.ignition_clearance_m
+    uav_id: str = "uav1"
+    waypoints: str = ""
+    free_ports: bool = False
+    log_format: str = "json"
+    log_level: str = "INFO"
+    mission_id: str = ""
+    services: tuple[str, ...] = ()  # empty: every service of the compose file
+    extra_env: dict[str, dict[str, str]] = field(default_factory=dict)  # per service
+
+
+class Stack:
+    """The router and the services of the compose file as local processes (a context manager)."""
+
+    def __init__(self, cfg: StackConfig, compose: Path = COMPOSE):
+        self.cfg = cfg
+        self.doc = load_compose(compose)
+        services = self.doc["services"]
+        self.router_name = next(n for n, s in services.items()
+                                if str(s.get("image", "")).startswith(ROUTER_IMAGE))
+        self.ports = PortMap(published_ports(self.doc), cfg.free_ports)
+        self.zenoh_port = self.ports.local(7447, "tcp")
+        self.endpoint = f"tcp/127.0.0.1:{self.zenoh_port}"
+        self.group = ProcessGroup()
+        self.logs = cfg.run_dir / "logs"
+
+    def overrides(self) -> dict[str, str]:
+        c = self.cfg
+        return {
+            "UAV_ID": c.uav_id, "SPEED_FACTOR": str(c.speed_factor), "MISSION_SEED": str(c.seed),
+            "CONTROLLER": c.controller, "TIMING": c.timing, "S2_METHOD": c.s2_method,
+            "MAX_STEPS": str(c.max_steps), "RUN_DIR": str(c.run_dir),
+            "MISSION_ID": c.mission_id or c.run_dir.name, "EXIT_AFTER_MISSION": "0",
+            "OPERATOR_WAYPOINTS": c.waypoints, "LOG_FORMAT": c.log_format,
+            "IGNITION_CLEARANCE_M": ("" if c.ignition_clearance_m is None
+                                     else repr(c.ignition_clearance_m)),
+            "TLOG_PATH": str(c.run_dir / "vehicle.tlog"),
+            "LOG_LEVEL": c.log_level, "PYTHONUNBUFFERED": "1",
+        }
+
+    def service_env(self, name: str) -> dict[str, str]:
+        svc = self.doc["services"][name]
+        env = dict(os.environ)
+        env["PYTHONPATH"] = os.pathsep.join([str(REPO), env.get("PYTHONPATH", "")]).rstrip(
+            os.pathsep)
+        for key, value in svc.get("environment", {}).items():
+            env[key] = self.ports.rewrite(key, value) if key in ENDPOINT_KEYS else str(value)
+        env.update(self.overrides())
+        env.update(self.cfg.extra_env.get(name, {}))
+        return env
+
+    def argv(self, name: str) -> list[str]:
+        cmd = list(self.doc["services"][name]["command"])
+        return [sys.executable if cmd[0] == "python" else cmd[0], *cmd[1:]]
+
+    def service_names(self) -> list[str]:
+        names = [n for n in self.doc["services"] if n != self.router_name]
+        return [n for n in names if not self.cfg.services or n in self.cfg.services]
+
+    def start(self) -> None:
+        self.logs.mkdir(parents=True, exist_ok=True)
+        env = dict(os.environ, PYTHONPATH=str(REPO), PYTHONUNBUFFERED="1",
+                   LOG_FORMAT=self.cfg.log_format, UAV_ID=self.cfg.uav_id)
+        self.group.start("router", [sys.executable, "-m", "services.router", "--zenoh-listen",
+                                    self.endpoint], env, self.logs / "router.log")
+        for name in self.service_names():
+            self.group.start(name, self.argv(name), self.service_env(name),
+                             self.logs / f"{name}.log")
+
+    def stop(self) -> dict[str, int]:
+        return self.group.stop_all(last="router")
+
+    def __enter__(self) -> Stack:
+        try:
+            self.start()
+        except BaseException:
+            self.stop()
+            raise
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.stop()
+
+
+def wait_router(endpoint: str, timeout_s: float = 30.0) -> None:
+    """Wait until the router's TCP ``endpoint`` accepts connections (then zenoh.open is quick).
+
+    Raises TimeoutError after ``timeout_s``.
+    """
+    host, port = endpoint.removeprefix("tcp/").rsplit(":", 1)
+    deadline = time.monotonic() + timeout_s
+    while True:
+        try:
+            socket.create_connection((host, int(port)), timeout=0.5).close()
+            return
+        except OSError:
+            if time.monotonic() > deadline:
+                raise TimeoutError(f"no router at {endpoint} within {timeout_s} s") from None
+            time.sleep(0.05)
+
+
+@contextmanager
+def client_session(endpoint: str) -> Iterator[Any]:
+    """A Zenoh client session on ``endpoint`` (blocks until the router answers)."""
+    import zenoh
+
+    conf = zenoh.Config()
+    conf.insert_json5("mode", '"client"')
+    conf.insert_json5("scouting/multicast/enabled", "false")
+    conf.insert_json5("connect/endpoints", json.dumps([endpoint]))
+    conf.insert_json5("connect/timeout_ms", "-1")
+    conf.insert_json5("connect/exit_on_failure", "false")
+    conf.insert_json5("connect/retry",
+                      "{period_init_ms: 50, period_max_ms: 500, period_increase_factor: 2}")
+    with zenoh.open(conf) as session:
+        yield session
+
+
+# -- following a mission --------------------------------------------------------------------------
+@dataclass
+class Outcome:
+    ended: bool
+    success: bool = False
+    failure_cause: str = ""
+    steps: int = 0
+    message: str = ""
+
+
+def follow(stack: Stack, timeout_s: float, quiet: bool = False) -> Outcome:
+    """Print the mission's progress until it ends, a process dies or ``timeout_s`` passes."""
+    import queue
+
+    from services.common import keys
+    from services.msgs import supervisor_pb2
+
+    events: queue.Queue[bytes] = queue.Queue()
+    with client_session(stack.endpoint) as session:
+        sub = session.declare_subscriber(keys.mission_event(stack.cfg.uav_id),
+                                         lambda s: events.put(s.payload.to_bytes()))
+        deadline = time.monotonic() + timeout_s
+        try:
+            while time.monotonic() < deadline:
+                dead = stack.group.dead()
+                if dead:
+                    names = ", ".join(f"{p.name} (exit {p.popen.returncode})" for p in dead)
+                    return Outcome(False, message=f"process ended early: {names}")
+                ev = next_event(events)
+                if ev is None:
+                    continue
+                kind = ev.kind
+                if kind == supervisor_pb2.MISSION_EVENT_KIND_STARTED and not quiet:
+                    print(f"mission {ev.mission_id} started: controller={ev.controller} "
+                          f"seed={ev.seed} {ev.message}", flush=True)
+                elif kind == supervisor_pb2.MISSION_EVENT_KIND_STEP and not quiet:
+                    print(f"t={ev.step:3d} S{ev.flown_system} pos=({ev.position.east_m:6.1f},"
+                          f"{ev.position.north_m:6.1f}) fires={ev.fires_active} "
+                          f"plan={ev.plan_status}", flush=True)
+                elif kind in (supervisor_pb2.MISSION_EVENT_KIND_PAUSED,
+                              supervisor_pb2.MISSION_EVENT_KIND_RESUMED,
+                              supervisor_pb2.MISSION_EVENT_KIND_WAYPOINTS) and not quiet:
+                    name = supervisor_pb2.MissionEventKind.Name(kind).rsplit("_", 1)[-1].lower()
+                    print(f"t={ev.step:3d} {name}: {ev.message}", flush=True)
+                elif kind == supervisor_pb2.MISSION_EVENT_KIND_ENDED:
+                    return Outcome(True, ev.success, ev.failure_cause, ev.step, ev.message)
+                elif kind == supervisor_pb2.MISSION_EVENT_KIND_ABORTED:
+                    return Outcome(False, message=f"aborted: {ev.message}")
+            return Outcome(False, message=f"no mission end within {timeout_s:.0f} s")
+        finally:
+            sub.undeclare()
+
+
+def run_mission(cfg: StackConfig, timeout_s: float = 600.0, figures: bool = True,
+                quiet: bool = False, compose: Path = COMPOSE) -> tuple[Outcome, dict[str, int]]:
+    """Start the stack, follow one mission, stop everything; returns the outcome and exit codes."""
+    cfg.run_dir.mkdir(parents=True, exist_ok=True)
+    stack = Stack(cfg, compose)
+    with stack:
+        if not quiet:
+            print(f"stack: router {stack.endpoint}, services {', '.join(stack.service_names())}"
+                  f" (MAVLink ports {dict(stack.ports.ports)}); logs in {stack.logs}/",
+                  flush=True)
+        try:
+            outcome = follow(stack, timeout_s, quiet)
+        except KeyboardInterrupt:
+            outcome = Outcome(False, message="interrupted")
+    codes = {p.name: int(p.popen.returncode) for p in stack.group.procs}
+    if figures and outcome.ended and (cfg.run_dir / "steps.csv").is_file():
+        try:
+            from dualpilot.viz.mission import make_figures
+        except ImportError:
+            pass
+        else:
+            make_figures(cfg.run_dir)
+    return outcome, codes
