@@ -19,7 +19,7 @@ $(STAMP): pyproject.toml
 	touch $(STAMP)
 
 # the distributed stack: a Zenoh router and the five services as processes on loopback
-# (services/launch.py reads docker-compose.yml, the one description of the services)
+# (services/launch/ reads docker-compose.yml, the one description of the services)
 run: setup
 	$(BIN)/python -m services.launch --controller cc --seed $(SEED) --timing paper \
 		--speed-factor $(SPEED) --out $(OUT)

@@ -1,5 +1,14 @@
 """docker-compose.yml, the one description of the services: load and check it, its published
-ports, and the map of container ports onto local ones (:class:`PortMap`)."""
+ports, and :class:`PortMap`, which puts the services on loopback.
+
+For each service the launcher runs its ``command`` (``python`` → this
+interpreter) with its ``environment``. Compose host names (``zenoh``,
+``uavsim``, ``0.0.0.0``) become 127.0.0.1, and every port in ``ZENOH_CONNECT``,
+``MAVLINK_URL`` and ``GCS_URL`` is mapped to a local one: the published port
+(7447, 14550) when it is free, else a free one (``--free-ports``: always a free
+one). The ``eclipse/zenoh`` router is replaced by ``python -m services.router``
+(a zenoh-python session in router mode).
+"""
 
 from __future__ import annotations
 

@@ -1,5 +1,5 @@
 """Several vehicles against one EWS and one pair of planner services (benchmarks/load_vehicles.py),
-and mission after mission on the same shared services (benchmarks/soak.py)."""
+and mission after mission on the same shared services (benchmarks/soak.py): :class:`Fleet`."""
 
 from __future__ import annotations
 
@@ -121,12 +121,8 @@ class Fleet:
     def wait_end(self, mission_ids: dict[str, str], timeout_s: float) -> dict[str, Outcome]:
         """Wait for the end of the missions {uav: mission id}; a vehicle whose process died or
         that did not end in time gets an Outcome with ``ended=False``."""
-
-        from services.msgs import supervisor_pb2
-
         out: dict[str, Outcome] = {}
         deadline = time.monotonic() + timeout_s
-        ends = (supervisor_pb2.MISSION_EVENT_KIND_ENDED, supervisor_pb2.MISSION_EVENT_KIND_ABORTED)
         by_mission = {mid: uav for uav, mid in mission_ids.items()}
         while len(out) < len(mission_ids) and time.monotonic() < deadline:
             for proc in self.stack.group.dead():
@@ -138,12 +134,9 @@ class Fleet:
             if ev is None:
                 continue
             uav = by_mission.get(ev.mission_id)
-            if uav is None or uav in out or ev.kind not in ends:
-                continue
-            if ev.kind == supervisor_pb2.MISSION_EVENT_KIND_ENDED:
-                out[uav] = Outcome(True, ev.success, ev.failure_cause, ev.step, ev.message)
-            else:
-                out[uav] = Outcome(False, message=f"aborted: {ev.message}")
+            outcome = Outcome.of(ev)
+            if uav is not None and uav not in out and outcome is not None:
+                out[uav] = outcome
         for uav in mission_ids:
             out.setdefault(uav, Outcome(False, message=f"no mission end within {timeout_s:.0f} s"))
         return out

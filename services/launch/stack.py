@@ -1,5 +1,12 @@
 """The router and the services of the compose file as local processes (:class:`Stack`), and
-following one mission on ``mission/event`` (:func:`follow`, :func:`run_mission`)."""
+following one mission on ``mission/event`` (:func:`follow`, :func:`run_mission`).
+
+:func:`run_mission` prints progress and a summary, stops every process
+(SIGINT, then SIGKILL after 2 s) and leaves ``runs/<id>/`` with
+``summary.json``, ``steps.csv``, ``trace.json``, ``latency.csv``,
+``vehicle.tlog`` (the vehicle's MAVLink traffic), the figures and
+``logs/<service>.log``.
+"""
 
 from __future__ import annotations
 
@@ -182,6 +189,17 @@ class Outcome:
     steps: int = 0
     message: str = ""
 
+    @classmethod
+    def of(cls, ev: Any) -> Outcome | None:
+        """The outcome a MissionEvent ENDED or ABORTED tells; None for any other event."""
+        from services.msgs import supervisor_pb2
+
+        if ev.kind == supervisor_pb2.MISSION_EVENT_KIND_ENDED:
+            return cls(True, ev.success, ev.failure_cause, ev.step, ev.message)
+        if ev.kind == supervisor_pb2.MISSION_EVENT_KIND_ABORTED:
+            return cls(False, message=f"aborted: {ev.message}")
+        return None
+
 
 def follow(stack: Stack, timeout_s: float, quiet: bool = False) -> Outcome:
     """Print the mission's progress until it ends, a process dies or ``timeout_s`` passes."""
@@ -217,10 +235,8 @@ def follow(stack: Stack, timeout_s: float, quiet: bool = False) -> Outcome:
                               supervisor_pb2.MISSION_EVENT_KIND_WAYPOINTS) and not quiet:
                     name = supervisor_pb2.MissionEventKind.Name(kind).rsplit("_", 1)[-1].lower()
                     print(f"t={ev.step:3d} {name}: {ev.message}", flush=True)
-                elif kind == supervisor_pb2.MISSION_EVENT_KIND_ENDED:
-                    return Outcome(True, ev.success, ev.failure_cause, ev.step, ev.message)
-                elif kind == supervisor_pb2.MISSION_EVENT_KIND_ABORTED:
-                    return Outcome(False, message=f"aborted: {ev.message}")
+                elif (outcome := Outcome.of(ev)) is not None:
+                    return outcome
             return Outcome(False, message=f"no mission end within {timeout_s:.0f} s")
         finally:
             sub.undeclare()
