@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from dualpilot.mission import monitor
 from dualpilot.mission.params import Controller, MissionParams, Timing
 from dualpilot.mission.ports import (
     FirePort,
@@ -38,7 +39,7 @@ from dualpilot.model.dynamics import Array, DynamicsParams, step
 from dualpilot.model.fire import FireParams, FireSnapshot, substeps_for
 from dualpilot.model.geometry import Rect
 from dualpilot.model.stale_fire import grown_snapshot
-from dualpilot.plan import Objective, Plan
+from dualpilot.plan import Objective, Plan, PlanStatus
 from dualpilot.spec import MissionSpec, Stream
 from dualpilot.supervisor.decision import Supervisor, SupervisorParams
 
@@ -183,6 +184,12 @@ class Mission:
                 obstacles=obstacles, objective=objective))
             self.result.planning_time_s[f"s{system}"].append(candidate.compute_time_s)
             planning += planning_time(candidate, self.timing, self.params)
+            verdict = monitor.check(candidate, self.state, obstacles, self.spec) if (
+                candidate.ok) else None
+            if verdict is not None and not verdict.ok:  # never flown: a failed plan
+                statuses.append(f"s{system}:{PlanStatus.UNSAFE.value}"
+                                f"{monitor.status_note(verdict)}")
+                continue
             statuses.append(f"s{system}:{candidate.status.value}")
             if candidate.ok:
                 return candidate, statuses, planning

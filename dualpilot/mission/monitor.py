@@ -1,0 +1,122 @@
+"""The run-time safety monitor of the one step (simplex style): no plan is flown unchecked.
+
+Whoever computed a plan (a planner in this process, a planner service over
+the network, an impostor on the bus), the step checks it itself before a
+setpoint leaves (:func:`check_plan`). A plan is accepted only if
+
+1. its shapes are (T+1, 2·dim) states and (T, dim) controls, T ≥ 1, all finite;
+2. it **starts at the measured state**: ‖x_{t|t} − x_t‖_∞ ≤ ``start_tol``;
+3. it **follows Eq. (1)** step by step: ‖x_{k+1} − (Φ x_k + Γ u_k)‖_∞ ≤
+   ``dynamics_tol`` for every k (no clipping: a plan that needs the
+   autopilot's clip is not the plan that will be flown);
+4. it keeps **|u| ≤ u_max and |v| ≤ v_max** per axis (+ ``limit_tol``);
+5. every planned position lies **in the area** [0, area]² (± ``area_tol_m``);
+6. **every segment** of the planned polyline keeps at least d_safe from each
+   obstacle the step itself sent (the fire regions and hulls △(C^i_{1:t}) of
+   :meth:`dualpilot.model.fire.FireSnapshot.obstacles_for`), checked exactly.
+
+The honest planners verify their own plans with stricter checks (the
+planners' clearance, dualpilot/verify.py), so the monitor rejects none of
+theirs: it is the independent second check against a planner that is wrong,
+compromised or impersonated. A rejected plan is a failed plan (status UNSAFE
+with the monitor's reason): the step asks the fallback system, then brakes.
+Tolerances are in m and m/s (states) and N (controls).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from dualpilot.model.dynamics import Array, DynamicsParams, transition_matrices
+from dualpilot.model.geometry import Polytope, path_clearance
+from dualpilot.plan import Plan
+from dualpilot.spec import MissionSpec
+
+#: prefix of every plan status and message the monitor writes ("s2:unsafe[monitor: …]")
+TAG = "monitor"
+
+
+@dataclass(frozen=True)
+class MonitorParams:
+    """The monitor's tolerances (stated, not hidden)."""
+
+    #: how far (m, m/s, ∞-norm) the plan's first state may be from the measured one
+    start_tol: float = 1e-3
+    #: one-step residual of Eq. (1) allowed (m, m/s, ∞-norm): float round-off only
+    dynamics_tol: float = 1e-3
+    #: allowance on |u| ≤ u_max (N) and |v| ≤ v_max (m/s)
+    limit_tol: float = 1e-3
+    #: allowance on the area bounds (m)
+    area_tol_m: float = 1e-3
+    #: allowance on the d_safe clearance (m)
+    clearance_tol_m: float = 1e-6
+
+
+@dataclass(frozen=True)
+class MonitorVerdict:
+    ok: bool
+    reason: str
+    clearance_m: float = float("nan")
+
+
+def one_step_residual(states: Array, controls: Array, dyn: DynamicsParams) -> float:
+    """max_k ‖x_{k+1} − (Φ x_k + Γ u_k)‖_∞ (Eq. (1) without clipping)."""
+    phi, gamma = transition_matrices(dyn)
+    predicted = states[:-1] @ phi.T + controls @ gamma.T
+    return float(np.max(np.abs(predicted - states[1:])))
+
+
+def check_plan(
+    states: Array,
+    controls: Array,
+    measured: Array,
+    obstacles: Sequence[Polytope],
+    spec: MissionSpec,
+    params: MonitorParams = MonitorParams(),
+) -> MonitorVerdict:
+    """Accept or reject a plan before it is flown (module docstring); pure."""
+    dyn = spec.dynamics
+    n = dyn.dim
+    states = np.asarray(states, dtype=float)
+    controls = np.asarray(controls, dtype=float)
+    measured = np.asarray(measured, dtype=float)
+    if (states.ndim != 2 or states.shape[1] != 2 * n or controls.ndim != 2
+            or controls.shape[1] != n or len(controls) < 1 or len(states) != len(controls) + 1):
+        return MonitorVerdict(False, f"bad shapes {states.shape} / {controls.shape}")
+    if not (np.all(np.isfinite(states)) and np.all(np.isfinite(controls))):
+        return MonitorVerdict(False, "non-finite values")
+    off = float(np.max(np.abs(states[0] - measured)))
+    if off > params.start_tol:
+        return MonitorVerdict(False, f"starts {off:.3g} from the measured state")
+    u = float(np.max(np.abs(controls)))
+    if u > dyn.u_max_n + params.limit_tol:
+        return MonitorVerdict(False, f"|u| {u:.4g} N exceeds {dyn.u_max_n:g} N")
+    v = float(np.max(np.abs(states[1:, n:])))
+    if v > dyn.v_max_mps + params.limit_tol:
+        return MonitorVerdict(False, f"|v| {v:.4g} m/s exceeds {dyn.v_max_mps:g} m/s")
+    resid = one_step_residual(states, controls, dyn)
+    if resid > params.dynamics_tol:
+        return MonitorVerdict(False, f"violates Eq. (1) by {resid:.3g}")
+    pos = states[:, :n]
+    lo, hi = -params.area_tol_m, spec.area_size_m + params.area_tol_m
+    if np.any(pos[1:] < lo) or np.any(pos[1:] > hi):
+        return MonitorVerdict(False, "leaves the area")
+    clearance = path_clearance(pos[:, :2], list(obstacles))
+    if clearance < spec.d_safe_m - params.clearance_tol_m:
+        return MonitorVerdict(False, f"passes {clearance:.2f} m from a fire region or hull "
+                                     f"(d_safe {spec.d_safe_m:g} m)", clearance)
+    return MonitorVerdict(True, "ok", clearance)
+
+
+def check(plan: Plan, measured: Array, obstacles: Sequence[Polytope], spec: MissionSpec,
+          params: MonitorParams = MonitorParams()) -> MonitorVerdict:
+    """:func:`check_plan` of an OK plan's states and controls."""
+    return check_plan(plan.states, plan.controls, measured, obstacles, spec, params)
+
+
+def status_note(verdict: MonitorVerdict) -> str:
+    """The rejection as it goes into a plan status (no ';', the status separator)."""
+    return f"[{TAG}: {verdict.reason.replace(';', ',')}]"
