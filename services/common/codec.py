@@ -46,6 +46,7 @@ from services.msgs import (
     vehicle_pb2,
 )
 
+from . import mav
 from .clock import Anchor, check_speed_factor
 
 log = logging.getLogger(__name__)
@@ -834,12 +835,18 @@ def parse_waypoints(text: str) -> Array | None:
     return _finite(pts.ravel(), "waypoints", MAX_ABS_M).reshape(-1, 2)
 
 
-# -- MAVLink --------------------------------------------------------------------------------------
-#: SET_POSITION_TARGET_LOCAL_NED.type_mask: use position and velocity, ignore the rest.
-TYPE_MASK_POS_VEL = 3520
-#: ... position only.
-TYPE_MASK_POS = 3576
-MAV_FRAME_LOCAL_NED = 1
+# -- MAVLink (its constants: services/common/mav.py) ---------------------------------------------
+#: A setpoint may lie at most this fraction of the area outside it (a braking target near the
+#: edge can overshoot; planners keep their plans inside).
+SETPOINT_AREA_MARGIN = 0.1
+MAX_SETPOINT_SPEED_MPS = 100.0
+MAX_SETPOINT_ALT_M = 10_000.0
+#: The longest a setpoint may be stamped ahead of the vehicle's clock (s of simulated time):
+#: one step is ΔT plus the planning interval, at most the supervisor's plan deadline.
+MAX_SETPOINT_LEAD_S = 600.0
+#: The largest UDP datagram a vehicle link parses (one MAVLink 2 frame is at most 280 bytes;
+#: a sender may pack a few); larger ones are rejected unread (``too_large``).
+MAX_MAVLINK_DATAGRAM = 4096
 
 
 def state_to_ned(x: Array, altitude_m: float) -> tuple[float, float, float, float, float, float]:
@@ -866,14 +873,16 @@ def setpoint_from_mavlink(msg: Any, area_size_m: float | None = None,
     most :data:`MAX_SETPOINT_LEAD_S` ahead. Raises CodecError (reasons
     ``invalid``, ``not_finite``, ``out_of_range``).
     """
-    if msg.coordinate_frame != MAV_FRAME_LOCAL_NED:
-        raise invalid(f"setpoint frame {msg.coordinate_frame}, only LOCAL_NED (1) is supported")
-    if msg.type_mask == TYPE_MASK_POS_VEL:
+    if msg.coordinate_frame != mav.MAV_FRAME_LOCAL_NED:
+        raise invalid(f"setpoint frame {msg.coordinate_frame}, only LOCAL_NED "
+                      f"({mav.MAV_FRAME_LOCAL_NED}) is supported")
+    if msg.type_mask == mav.TYPE_MASK_POS_VEL:
         x = state_from_ned(msg.x, msg.y, msg.vx, msg.vy)
-    elif msg.type_mask == TYPE_MASK_POS:
+    elif msg.type_mask == mav.TYPE_MASK_POS:
         x = state_from_ned(msg.x, msg.y, 0.0, 0.0)
     else:
-        raise invalid(f"setpoint type_mask {msg.type_mask}: only 3520 and 3576 are supported")
+        raise invalid(f"setpoint type_mask {msg.type_mask}: only {mav.TYPE_MASK_POS_VEL} and "
+                      f"{mav.TYPE_MASK_POS} are supported")
     if area_size_m is not None:
         _finite([msg.z], "setpoint z", MAX_SETPOINT_ALT_M)
         margin = SETPOINT_AREA_MARGIN * area_size_m
@@ -888,18 +897,6 @@ def setpoint_from_mavlink(msg: Any, area_size_m: float | None = None,
                       f"(at most {MAX_SETPOINT_LEAD_S:g} s)", Reason.OUT_OF_RANGE)
     return x
 
-
-#: A setpoint may lie at most this fraction of the area outside it (a braking target near the
-#: edge can overshoot; planners keep their plans inside).
-SETPOINT_AREA_MARGIN = 0.1
-MAX_SETPOINT_SPEED_MPS = 100.0
-MAX_SETPOINT_ALT_M = 10_000.0
-#: The longest a setpoint may be stamped ahead of the vehicle's clock (s of simulated time):
-#: one step is ΔT plus the planning interval, at most the supervisor's plan deadline.
-MAX_SETPOINT_LEAD_S = 600.0
-#: The largest UDP datagram a vehicle link parses (one MAVLink 2 frame is at most 280 bytes;
-#: a sender may pack a few); larger ones are rejected unread (``too_large``).
-MAX_MAVLINK_DATAGRAM = 4096
 
 
 def mavlink_frame_reason(bad_data_reason: str) -> Reason:

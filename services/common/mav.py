@@ -48,6 +48,27 @@ MODE_NAMES = {MODE_GUIDED: "GUIDED", MODE_LOITER: "LOITER"}
 EARTH_RADIUS_M = 6_378_137.0
 SIGNING_KEY_LEN = 32
 
+# -- SET_POSITION_TARGET_LOCAL_NED ----------------------------------------------------------------
+#: The setpoints' frame: LOCAL_NED (1), x north, y east, z down (m); altitude is ``-z``.
+MAV_FRAME_LOCAL_NED = mavlink.MAV_FRAME_LOCAL_NED
+#: POSITION_TARGET_TYPEMASK bit groups; a set bit means *ignore*.
+TYPE_MASK_POSITION_BITS = (mavlink.POSITION_TARGET_TYPEMASK_X_IGNORE
+                           | mavlink.POSITION_TARGET_TYPEMASK_Y_IGNORE
+                           | mavlink.POSITION_TARGET_TYPEMASK_Z_IGNORE)  # bits 0-2
+TYPE_MASK_VELOCITY_BITS = (mavlink.POSITION_TARGET_TYPEMASK_VX_IGNORE
+                           | mavlink.POSITION_TARGET_TYPEMASK_VY_IGNORE
+                           | mavlink.POSITION_TARGET_TYPEMASK_VZ_IGNORE)  # bits 3-5
+TYPE_MASK_ACCEL_BITS = (mavlink.POSITION_TARGET_TYPEMASK_AX_IGNORE
+                        | mavlink.POSITION_TARGET_TYPEMASK_AY_IGNORE
+                        | mavlink.POSITION_TARGET_TYPEMASK_AZ_IGNORE)  # bits 6-8
+TYPE_MASK_FORCE_BIT = mavlink.POSITION_TARGET_TYPEMASK_FORCE_SET  # bit 9
+TYPE_MASK_YAW_BITS = (mavlink.POSITION_TARGET_TYPEMASK_YAW_IGNORE
+                      | mavlink.POSITION_TARGET_TYPEMASK_YAW_RATE_IGNORE)  # bits 10-11
+#: type_mask: use position and velocity, ignore the rest (3520).
+TYPE_MASK_POS_VEL = TYPE_MASK_ACCEL_BITS | TYPE_MASK_YAW_BITS
+#: type_mask: position only (3576).
+TYPE_MASK_POS = TYPE_MASK_POS_VEL | TYPE_MASK_VELOCITY_BITS
+
 
 # -- signing --------------------------------------------------------------------------------------
 def signing_key(passphrase: str) -> bytes:

@@ -130,7 +130,7 @@ class VehicleLink:
     def _send_target(self, target: Array, due_ms: int) -> None:
         n, e, d, vn, ve, vd = codec.state_to_ned(target, self.altitude_m)
         self.send("set_position_target_local_ned", int(due_ms), *self.target,
-                  codec.MAV_FRAME_LOCAL_NED, codec.TYPE_MASK_POS_VEL,
+                  mav.MAV_FRAME_LOCAL_NED, mav.TYPE_MASK_POS_VEL,
                   n, e, d, vn, ve, vd, 0.0, 0.0, 0.0, 0.0, 0.0)
         self.sent += 1
 

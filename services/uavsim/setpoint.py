@@ -20,26 +20,25 @@ from __future__ import annotations
 
 from typing import Any
 
-from services.common import codec
+from services.common import mav
 
-POSITION_BITS = 0b111
-VELOCITY_BITS = 0b111 << 3
-ACCEL_BITS = 0b111 << 6
-IGNORED_EITHER_WAY = (1 << 9) | (1 << 10) | (1 << 11)
-KNOWN_BITS = POSITION_BITS | VELOCITY_BITS | ACCEL_BITS | IGNORED_EITHER_WAY
+#: bits the vehicle accepts either way: force setpoint, yaw, yaw rate
+IGNORED_EITHER_WAY = mav.TYPE_MASK_FORCE_BIT | mav.TYPE_MASK_YAW_BITS
+KNOWN_BITS = (mav.TYPE_MASK_POSITION_BITS | mav.TYPE_MASK_VELOCITY_BITS
+              | mav.TYPE_MASK_ACCEL_BITS | IGNORED_EITHER_WAY)
 
 
 def canonical_mask(type_mask: int) -> int | None:
     """3520 (position + velocity) or 3576 (position only) for an accepted mask, else None."""
-    if type_mask & ~KNOWN_BITS or type_mask & POSITION_BITS:
+    if type_mask & ~KNOWN_BITS or type_mask & mav.TYPE_MASK_POSITION_BITS:
         return None
-    if type_mask & ACCEL_BITS != ACCEL_BITS:
+    if type_mask & mav.TYPE_MASK_ACCEL_BITS != mav.TYPE_MASK_ACCEL_BITS:
         return None
-    vel = type_mask & VELOCITY_BITS
+    vel = type_mask & mav.TYPE_MASK_VELOCITY_BITS
     if vel == 0:
-        return codec.TYPE_MASK_POS_VEL
-    if vel == VELOCITY_BITS:
-        return codec.TYPE_MASK_POS
+        return mav.TYPE_MASK_POS_VEL
+    if vel == mav.TYPE_MASK_VELOCITY_BITS:
+        return mav.TYPE_MASK_POS
     return None
 
 

@@ -36,7 +36,7 @@ from dualpilot.model.geometry import Polytope, Rect
 from dualpilot.plan import Objective, Plan, PlanStatus
 from dualpilot.spec import MissionSpec
 from dualpilot.supervisor.decision import Decision, Supervisor
-from services.common import codec
+from services.common import codec, mav
 from services.common.clock import Anchor
 from services.msgs import common_pb2, fire_pb2, plan_pb2, supervisor_pb2, vehicle_pb2
 
@@ -327,13 +327,13 @@ def test_state_and_ned_round_trip(e: float, n: float, ve: float, vn: float, step
 @given(finite, finite, st.floats(-1e3, 1e3), st.floats(-1e3, 1e3), st.booleans())
 def test_setpoint_from_mavlink_round_trip(e: float, n: float, ve: float, vn: float,
                                           with_velocity: bool) -> None:
-    from pymavlink.dialects.v20 import common as mav
+    from pymavlink.dialects.v20 import common as dialect
 
     x = np.array([e, n, ve, vn])
     north, east, down, v_n, v_e, v_d = codec.state_to_ned(x, 50.0)
-    mask = codec.TYPE_MASK_POS_VEL if with_velocity else codec.TYPE_MASK_POS
-    msg = mav.MAVLink_set_position_target_local_ned_message(
-        0, 1, 1, codec.MAV_FRAME_LOCAL_NED, mask, north, east, down, v_n, v_e, v_d,
+    mask = mav.TYPE_MASK_POS_VEL if with_velocity else mav.TYPE_MASK_POS
+    msg = dialect.MAVLink_set_position_target_local_ned_message(
+        0, 1, 1, mav.MAV_FRAME_LOCAL_NED, mask, north, east, down, v_n, v_e, v_d,
         0, 0, 0, 0, 0)
     back = codec.setpoint_from_mavlink(msg)
     assert np.array_equal(back, x if with_velocity else [e, n, 0.0, 0.0])
