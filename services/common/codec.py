@@ -179,10 +179,9 @@ class Rejections:
             self.by_label.clear()
 
 
-#: Rejected inputs of this process per key and reason (each service serves it as its status).
+#: Rejected inputs of this process per key and reason (each service serves it as its status);
+#: ``REJECTED.by_label``: by kind (the label passed to :func:`rejected`) since the process started.
 REJECTED = Rejections()
-#: Rejected messages by kind (the label passed to :func:`rejected`) since the process started.
-REJECTIONS = REJECTED.by_label
 
 
 def rejected(what: str, err: Exception, logger: logging.Logger = log, key: str | None = None,

@@ -510,7 +510,7 @@ class StackSession:
             "mission_id": self.b.mission_id, "transport": "zenoh + mavlink",
             "speed_factor": self.clock.speed_factor or "unpaced",
             "setpoint_overhead": self.latency.overhead_ms(),
-            "setpoints_sent": self.link.sent, "rejected_messages": dict(codec.REJECTIONS),
+            "setpoints_sent": self.link.sent, "rejected_messages": dict(codec.REJECTED.by_label),
             **extra,
         }
         (out / "summary.json").write_text(json.dumps(summary, indent=2, default=str) + "\n")

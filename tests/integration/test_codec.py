@@ -231,12 +231,12 @@ def test_fire_commands_carry_the_area_and_the_ignition_clearance() -> None:
 
 
 def test_garbage_is_malformed_and_counted() -> None:
-    before = codec.REJECTIONS["PlanRequest-test"]
+    before = codec.REJECTED.by_label["PlanRequest-test"]
     with pytest.raises(codec.CodecError) as info:
         codec.parse(b"\xff\xff\xff\x00garbage", plan_pb2.PlanRequest)
     assert info.value.code == common_pb2.ERROR_CODE_MALFORMED
     codec.rejected("PlanRequest-test", info.value)
-    assert codec.REJECTIONS["PlanRequest-test"] == before + 1
+    assert codec.REJECTED.by_label["PlanRequest-test"] == before + 1
     with pytest.raises(codec.CodecError, match="expected dualpilot.v1.Plan"):
         codec.parse(b"", plan_pb2.Plan, "application/protobuf;dualpilot.v1.Decision")
 
