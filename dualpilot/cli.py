@@ -135,12 +135,9 @@ def build_parser() -> argparse.ArgumentParser:
     e.add_argument("--out", default="runs/eval")
     e.set_defaults(func=_evaluate)
 
-    try:
-        from dualpilot.bench import add_bench_parser
-    except ImportError:  # pragma: no cover - bench is optional until it lands
-        pass
-    else:
-        add_bench_parser(sub)
+    from dualpilot.bench import add_bench_parser
+
+    add_bench_parser(sub)
 
     from dualpilot.viz.bound import add_bound_parser  # the supervisor's bound (issue 13.4)
 
