@@ -99,7 +99,3 @@ def status(uav: str, service: str) -> str:
     if not _ID.match(service):
         raise ValueError(f"bad service name {service!r}")
     return f"{ns(uav)}/status/{service}"
-
-
-def status_all(uav: str) -> str:
-    return f"{ns(uav)}/status/*"
