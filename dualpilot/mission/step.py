@@ -57,13 +57,45 @@ def segment_region_distance(p0: Array, p1: Array, regions: tuple[Rect, ...]) -> 
 def attention_distance(
     position: Array, snapshot: FireSnapshot, t: int, params: MissionParams
 ) -> float:
-    """d_t of Eq. (KSI) under ``params.d_t_reading`` (m; inf when no region counts)."""
+    """d_t of Eq. (KSI) under ``params.d_t_reading`` (m; inf when no region counts).
+
+    Fronts are stamped with the step during whose sub-steps they ignited, so
+    at step t's decision the fronts that emerged since the last one ("newborn")
+    carry ``born_step == t - 1``.
+    """
+    if params.d_t_reading == "hull":
+        return min((h.distance(position) for h in snapshot.hulls), default=float("inf"))
     regions = snapshot.regions
     if params.d_t_reading == "newborn":
         regions = tuple(
-            r for r, b in zip(snapshot.regions, snapshot.born_steps, strict=True) if b == t
+            r for r, b in zip(snapshot.regions, snapshot.born_steps, strict=True) if b == t - 1
         )
     return nearest_region_distance(position, regions)
+
+
+def counted_regions(snapshot: FireSnapshot, t: int, params: MissionParams, d_safe_m: float,
+                    previous: dict[int, float]) -> tuple[Rect, ...]:
+    """The regions whose coming within d_safe fails the mission at step t (``failure_rule``).
+
+    "any": every active region; "newborn": those born during step t; "become":
+    those whose distance was >= ``d_safe_m`` at the previous check
+    (``previous``: front id → distance (m), see :func:`remember_distances`).
+    """
+    rule = params.failure_rule
+    if rule == "any":
+        return snapshot.regions
+    fronts = zip(snapshot.regions, snapshot.front_ids, snapshot.born_steps, strict=True)
+    if rule == "newborn":
+        return tuple(r for r, _, b in fronts if b == t)
+    return tuple(r for r, i, _ in fronts if previous.get(i, 0.0) >= d_safe_m)
+
+
+def remember_distances(position: Array, snapshot: FireSnapshot,
+                       previous: dict[int, float]) -> None:
+    """Each active front's distance (m) from ``position``, for the "become" rule's next check."""
+    previous.clear()
+    previous.update((i, r.distance(position))
+                    for r, i in zip(snapshot.regions, snapshot.front_ids, strict=True))
 
 
 def planning_time(plan: Plan, timing: Timing, params: MissionParams) -> float:
@@ -142,8 +174,12 @@ class Mission:
         self.prev_control = np.zeros(self.dyn.dim)
         self.result = MissionResult(controller=controller.value, timing=timing.value, spec=spec)
         self.done = False
-        if self._within_d_safe(fires.snapshot().regions):
+        #: front id → distance (m) at the last fire check (the "become" failure rule)
+        self.front_distances: dict[int, float] = {}
+        first = fires.snapshot()
+        if self._within_d_safe(first.regions):
             raise ValueError("the start lies within d_safe of a fire")
+        remember_distances(self.state[:2], first, self.front_distances)
 
     def resume(self, result: MissionResult) -> None:
         """Continue a mission whose steps are in ``result`` (a restarted supervisor).
@@ -165,9 +201,29 @@ class Mission:
         clear = self.params.ignition_clearance_m
         return None if clear is None else (self.state[:2].copy(), clear)
 
+    def _counted(self, t: int, snapshot: FireSnapshot) -> tuple[Rect, ...]:
+        return counted_regions(snapshot, t, self.params, self.spec.d_safe_m,
+                               self.front_distances)
+
+    def _fire_fails(self, t: int, snapshot: FireSnapshot) -> bool:
+        """The failure rule at the idle UAV; remembers the distances for the next check."""
+        failed = self._within_d_safe(self._counted(t, snapshot))
+        remember_distances(self.state[:2], snapshot, self.front_distances)
+        return failed
+
     def _caught(self, t: int, n: int) -> bool:
-        """Advance ``n`` sub-steps with the UAV idle; True if a region came within d_safe."""
-        return any(self._within_d_safe(r) for r in self.fires.advance(t, n, self._keep_out()))
+        """Advance ``n`` sub-steps with the UAV idle; True if the failure rule is met.
+
+        The rules other than "any" need each sub-step's fronts (ids, birth
+        steps), so the fires then advance one sub-step at a time.
+        """
+        if self.params.failure_rule == "any":
+            return any(self._within_d_safe(r) for r in self.fires.advance(t, n, self._keep_out()))
+        caught = False
+        for _ in range(n):
+            if self.fires.advance(t, 1, self._keep_out()):
+                caught = self._fire_fails(t, self.fires.snapshot()) or caught
+        return caught
 
     def _plan(self, t: int, order: list[int], snapshot: FireSnapshot,
               objective: Objective) -> tuple[Plan | None, list[str], float]:
@@ -201,7 +257,7 @@ class Mission:
             return None
         t = self.result.steps
         snapshot = self.fires.snapshot()
-        if self.result.records and self._within_d_safe(snapshot.regions):
+        if self.result.records and self._within_d_safe(self._counted(t, snapshot)):
             # fire data that caught up (the stack's EWS was back) reached the UAV
             return self._finish(False, "fire_while_stale", self.result.records[-1])
         d_t = attention_distance(self.state[:2], snapshot, t, self.params)
@@ -251,8 +307,10 @@ class Mission:
         motion = self.params.fire_substeps_per_motion
         if motion and self._caught(t, motion):
             return self._finish(False, "fire_in_flight", record)
-        outcome = flight_outcome(prev_pos, self.state[:2], self.fires.snapshot().regions,
+        after = self.fires.snapshot()
+        outcome = flight_outcome(prev_pos, self.state[:2], self._counted(t, after),
                                  self.result.steps, self.spec, self.params)
+        remember_distances(self.state[:2], after, self.front_distances)
         return record if outcome is None else self._finish(outcome == "", outcome, record)
 
     def _finish(self, success: bool, cause: str, record: StepRecord) -> StepRecord:

@@ -9,19 +9,34 @@ One propagation sub-step lasts ``T_f`` seconds. Per sub-step:
 * its extent is a rectangle whose two sides are drawn from U[100, 250] m;
 * with probability p_b a new front is born, centre uniform in the area.
 
+Two readings of Sec. II-B/IV are parameters (:class:`FireParams`): the time
+base of birth and survival (``life_base``: every sub-step T_f, or once per
+time-step ΔT, the other sub-steps only moving the fronts) and when the extent
+is drawn (``extent``: every sub-step, once per time-step, or once at birth).
+A time-step starts at the first sub-step run with a new mission step number.
+
 Each front remembers the convex hull of every rectangle it has occupied,
 △(C^i_{1:t}), the region planners must avoid (constraint P1_4).
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from math import ceil, cos, sin, sqrt
+from typing import Literal, get_args
 
 import numpy as np
 
 from dualpilot.model.geometry import Polytope, Rect
 from dualpilot.spec import MissionSpec
+
+#: Time base of birth and survival: every sub-step T_f, or once per time-step ΔT.
+LifeBase = Literal["substep", "step"]
+#: When a front's rectangle is drawn: every sub-step, every time-step, once at birth.
+Extent = Literal["substep", "step", "birth"]
+#: Draws of a birth (or a redraw) that must keep clear of a keep-out before giving up.
+MAX_DRAWS = 1000
 
 
 @dataclass(frozen=True)
@@ -41,8 +56,22 @@ class FireParams:
     #: Reading of Ĉ_t: False keeps the hulls of active fronts only (an
     #: extinguished front no longer threatens the UAV); True keeps every hull.
     keep_extinct_hulls: bool = False
+    #: Reading of "p_s ... propagates to the next time-step": Bernoulli birth and
+    #: survival every sub-step T_f ("substep") or once per time-step ΔT ("step").
+    life_base: LifeBase = "substep"
+    #: Reading of "the extend ... at each time-step ... uniformly sampled": sides
+    #: redrawn every sub-step, every time-step, or drawn once at birth.
+    extent: Extent = "substep"
+    #: Apply a sub-step's keep-out (the ignition clearance) to extent redraws too,
+    #: not only to births: a redraw never puts the region within it of the UAV.
+    redraw_clearance: bool = False
 
     def __post_init__(self) -> None:
+        if self.life_base not in get_args(LifeBase):
+            raise ValueError(f"life_base must be one of {get_args(LifeBase)}, "
+                             f"not {self.life_base!r}")
+        if self.extent not in get_args(Extent):
+            raise ValueError(f"extent must be one of {get_args(Extent)}, not {self.extent!r}")
         for name in ("p_birth", "p_survive", "gamma"):
             val = getattr(self, name)
             if not 0.0 <= val <= 1.0:
@@ -71,8 +100,22 @@ class FireFront:
     region: Rect
     hull: Polytope
 
-    def advance(self, rng: np.random.Generator, params: FireParams) -> FireFront:
+    def advance(self, rng: np.random.Generator, params: FireParams, redraw: bool = True,
+                keep_out: tuple[np.ndarray, float] | None = None) -> FireFront:
         """One Gauss–Markov propagation sub-step (Eq. in Sec. II-B)."""
+        return self.advance_clear(rng, params, redraw, keep_out)[0]
+
+    def advance_clear(
+        self, rng: np.random.Generator, params: FireParams, redraw: bool = True,
+        keep_out: tuple[np.ndarray, float] | None = None,
+    ) -> tuple[FireFront, bool]:
+        """:meth:`advance`; also whether the region keeps clear of ``keep_out``.
+
+        ``redraw`` False keeps the sides (the centre still moves); ``keep_out =
+        (position, radius_m)`` redraws the sides until the region stays
+        ``radius_m`` from ``position``. When even the smallest rectangle cannot
+        (the front moved there), the previous sides are kept and False returned.
+        """
         g = params.gamma
         noise = sqrt(1.0 - g * g)
         speed = (
@@ -88,14 +131,40 @@ class FireFront:
         dist = speed * params.substep_s
         cx = self.region.center_x + dist * cos(direction)
         cy = self.region.center_y + dist * sin(direction)
-        region = _draw_rect(cx, cy, rng, params)
+        kept = Rect(cx, cy, self.region.width, self.region.height)
+        clear = True
+        if not redraw:
+            region = kept
+        elif keep_out is None:
+            region = _draw_rect(cx, cy, rng, params)
+        else:
+            smallest = Rect(cx, cy, params.side_min_m, params.side_min_m)
+            drawn = None
+            if _clear_of(smallest, keep_out):  # else every draw contains a violating one
+                drawn = _draw_clear(lambda: _draw_rect(cx, cy, rng, params), keep_out)
+            clear = drawn is not None
+            region = drawn if drawn is not None else kept
         hull = Polytope.from_vertices(np.vstack([self.hull.vertices, region.corners()]))
-        return replace(self, speed_mps=speed, direction_rad=direction, region=region, hull=hull)
+        moved = replace(self, speed_mps=speed, direction_rad=direction, region=region, hull=hull)
+        return moved, clear
 
 
 def _draw_rect(cx: float, cy: float, rng: np.random.Generator, params: FireParams) -> Rect:
     w, h = rng.uniform(params.side_min_m, params.side_max_m, size=2)
     return Rect(cx, cy, float(w), float(h))
+
+
+def _clear_of(region: Rect, keep_out: tuple[np.ndarray, float]) -> bool:
+    return bool(region.polytope().distance(keep_out[0]) >= keep_out[1])
+
+
+def _draw_clear(draw: Callable[[], Rect], keep_out: tuple[np.ndarray, float]) -> Rect | None:
+    """The first of :data:`MAX_DRAWS` draws that keeps clear of ``keep_out``; None if none."""
+    for _ in range(MAX_DRAWS):
+        region = draw()
+        if _clear_of(region, keep_out):
+            return region
+    return None
 
 
 @dataclass(frozen=True)
@@ -136,6 +205,25 @@ class FireField:
     extinct_hulls: list[Polytope] = field(default_factory=list)
     substeps_done: int = 0
     next_id: int = 0
+    #: mission step of the last sub-step (a new number starts a time-step)
+    last_step: int | None = None
+    #: births dropped because no draw kept clear of the keep-out (see :meth:`substep`)
+    births_skipped: int = 0
+    #: redraws that could not keep clear (the front itself moved within the keep-out)
+    redraws_unclear: int = 0
+
+    def _birth_region(self, rng: np.random.Generator, center: tuple[float, float] | None,
+                      keep_out: tuple[np.ndarray, float] | None) -> Rect | None:
+        p = self.params
+
+        def draw() -> Rect:
+            if center is None:
+                cx, cy = (float(v) for v in rng.uniform(0.0, self.area_size_m, size=2))
+            else:
+                cx, cy = center
+            return _draw_rect(cx, cy, rng, p)
+
+        return draw() if keep_out is None else _draw_clear(draw, keep_out)
 
     def spawn(
         self,
@@ -147,17 +235,18 @@ class FireField:
         """Birth of a front: centre uniform in the area (b_t), state from the means.
 
         ``keep_out = (position, radius_m)`` makes b_t uniform over the places
-        whose region stays ``radius_m`` from ``position`` (redrawn until it does).
+        whose region stays ``radius_m`` from ``position`` (redrawn until it
+        does, at most :data:`MAX_DRAWS` times: ValueError when none does).
         """
+        region = self._birth_region(rng, center, keep_out)
+        if region is None:
+            assert keep_out is not None
+            raise ValueError(f"no birth region in {MAX_DRAWS} draws keeps {keep_out[1]:g} m "
+                             f"clear of {keep_out[0]}")
+        return self._add(region, step)
+
+    def _add(self, region: Rect, step: int) -> FireFront:
         p = self.params
-        for _ in range(1000):
-            if center is None:
-                cx, cy = (float(v) for v in rng.uniform(0.0, self.area_size_m, size=2))
-            else:
-                cx, cy = center
-            region = _draw_rect(cx, cy, rng, p)
-            if keep_out is None or region.polytope().distance(keep_out[0]) >= keep_out[1]:
-                break
         front = FireFront(
             front_id=self.next_id,
             born_step=step,
@@ -176,19 +265,37 @@ class FireField:
         step: int,
         keep_out: tuple[np.ndarray, float] | None = None,
     ) -> list[FireFront]:
-        """One sub-step of T_f: survival, propagation, then birth. Returns the newborn fronts.
+        """One sub-step of T_f during mission step ``step``: survival, propagation, then birth.
 
-        ``keep_out`` is passed to :meth:`spawn` for the birth.
+        Returns the newborn fronts. With ``life_base = "step"`` survival and
+        birth are drawn only at the first sub-step of a time-step (a new
+        ``step``); ``extent`` says when the sides are redrawn. ``keep_out`` (the
+        ignition clearance) applies to births, and to redraws when
+        ``redraw_clearance``; a birth no draw can keep clear is skipped and
+        counted in :attr:`births_skipped`.
         """
         p = self.params
+        new_step = step != self.last_step
+        self.last_step = step
+        life = p.life_base == "substep" or new_step
+        redraw = p.extent == "substep" or (p.extent == "step" and new_step)
+        redraw_keep = keep_out if p.redraw_clearance else None
         survivors: list[FireFront] = []
         for front in self.fronts:
-            if rng.random() < p.p_survive:
-                survivors.append(front.advance(rng, p))
+            if not life or rng.random() < p.p_survive:
+                moved, clear = front.advance_clear(rng, p, redraw, redraw_keep)
+                self.redraws_unclear += not clear
+                survivors.append(moved)
             elif p.keep_extinct_hulls:
                 self.extinct_hulls.append(front.hull)
         self.fronts = survivors
-        born = [self.spawn(rng, step, keep_out=keep_out)] if rng.random() < p.p_birth else []
+        born: list[FireFront] = []
+        if life and rng.random() < p.p_birth:
+            region = self._birth_region(rng, None, keep_out)
+            if region is None:
+                self.births_skipped += 1
+            else:
+                born.append(self._add(region, step))
         self.substeps_done += 1
         return born
 

@@ -12,6 +12,7 @@ attribute 3 → energy; attribute 1 (response time) keeps the previous objective
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Literal, get_args
 
 import numpy as np
 
@@ -21,6 +22,10 @@ from dualpilot.supervisor.attention import AttentionParams, sample_attention, xi
 
 B_MATRIX = np.array([[1.0, -1.0], [-1.0, 1.0]])
 
+#: How A_t is drawn: "sample" (P_t ~ Dir(Ξ_t), A_t ~ Cat(P_t), as the paper) or
+#: "argmax" (A_t = argmax Ξ_t, P_t = Ξ_t / ΣΞ_t, the mean of Dir(Ξ_t); analysis only).
+AttentionDraw = Literal["sample", "argmax"]
+
 
 @dataclass(frozen=True)
 class SupervisorParams:
@@ -29,6 +34,13 @@ class SupervisorParams:
     q: tuple[tuple[float, ...], ...] = ((0.8, 0.5, 0.3), (0.4, 0.9, 0.9))
     h: float = 0.5
     attention: AttentionParams = field(default_factory=AttentionParams)
+    #: Reading of Eqs. (dir), (categorical), see :data:`AttentionDraw`.
+    attention_draw: AttentionDraw = "sample"
+
+    def __post_init__(self) -> None:
+        if self.attention_draw not in get_args(AttentionDraw):
+            raise ValueError(f"attention_draw must be one of {get_args(AttentionDraw)}, "
+                             f"not {self.attention_draw!r}")
 
     @property
     def q_matrix(self) -> Array:
@@ -68,7 +80,10 @@ class Supervisor:
     def decide(self, t: int, d_t: float) -> Decision:
         """Attention at step t with fire distance d_t (m), then Ψ and the system in control."""
         xi_t = xi(t, d_t, self.params.attention)
-        p, a = sample_attention(xi_t, self.rng)
+        if self.params.attention_draw == "argmax":  # no draw from the stream
+            p, a = xi_t / xi_t.sum(), int(np.argmax(xi_t))
+        else:
+            p, a = sample_attention(xi_t, self.rng)
         self.psi = psi_update(self.psi, a, self.params)
         system = int(np.argmax(self.psi)) + 1  # ties (only Ψ = 0) go to System 1
         if a == 1:

@@ -1,0 +1,222 @@
+"""Named readings of the paper and the profiles that group them (Sec. II-B, III-C, IV).
+
+A *reading* is a field of :class:`~dualpilot.model.fire.FireParams`,
+:class:`~dualpilot.mission.params.MissionParams` or
+:class:`~dualpilot.supervisor.decision.SupervisorParams` where the paper can
+reasonably be read two ways. A :class:`Profile` is a frozen set of the three,
+with the sentences of the paper it rests on. Every field is addressed by its
+bare name (the three classes share none), so ``--set life_base=step`` works on
+``mission``, ``evaluate`` and ``sweep`` alike.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import types
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass, field, replace
+from typing import Any, Literal, Union, get_args, get_origin, get_type_hints
+
+from dualpilot.mission.params import MissionParams
+from dualpilot.model.fire import FireParams
+from dualpilot.supervisor.decision import SupervisorParams
+
+#: The fields that are readings of the paper (the rest are its Sec. IV-A numbers).
+READINGS = ("life_base", "extent", "redraw_clearance", "keep_extinct_hulls",
+            "ignition_clearance_m", "d_t_reading", "failure_rule", "fire_substeps_per_motion",
+            "attention_draw")
+
+_PARTS = {"fire": FireParams, "mission": MissionParams, "supervisor": SupervisorParams}
+
+
+@dataclass(frozen=True)
+class Profile:
+    """One reading of the paper: fire, mission and supervisor parameters, and its sources."""
+
+    name: str
+    fire: FireParams = field(default_factory=FireParams)
+    mission: MissionParams = field(default_factory=MissionParams)
+    supervisor: SupervisorParams = field(default_factory=SupervisorParams)
+    summary: str = ""
+    #: the sentences of the paper (or the reason) each reading rests on
+    sources: tuple[str, ...] = ()
+
+    def values(self) -> dict[str, Any]:
+        """Every scalar parameter by name (nested and tuple fields left out)."""
+        out: dict[str, Any] = {}
+        for part in (self.fire, self.mission, self.supervisor):
+            for f in dataclasses.fields(part):
+                v = getattr(part, f.name)
+                if v is None or isinstance(v, (bool, int, float, str)):
+                    out[f.name] = v
+        return out
+
+    def readings(self) -> dict[str, Any]:
+        """The reading fields only, in :data:`READINGS` order."""
+        values = self.values()
+        return {k: values[k] for k in READINGS}
+
+    def with_settings(self, settings: Mapping[str, Any], name: str | None = None) -> Profile:
+        """This profile with ``settings`` (field name → value, or its text) applied."""
+        changes: dict[str, dict[str, Any]] = {k: {} for k in _PARTS}
+        for key, value in settings.items():
+            part = part_of(key)
+            changes[part][key] = parse_value(key, value) if isinstance(value, str) else value
+        return replace(
+            self,
+            name=name or self.name,
+            fire=replace(self.fire, **changes["fire"]),
+            mission=replace(self.mission, **changes["mission"]),
+            supervisor=replace(self.supervisor, **changes["supervisor"]),
+        )
+
+
+def part_of(name: str) -> str:
+    """Which parameter class ("fire", "mission", "supervisor") holds field ``name``."""
+    for part, cls in _PARTS.items():
+        if name in {f.name for f in dataclasses.fields(cls)}:
+            return part
+    raise ValueError(f"unknown parameter {name!r}; known: {', '.join(sorted(settable()))}")
+
+
+def settable() -> list[str]:
+    """Every field a setting can name."""
+    return sorted(Profile(name="").values())
+
+
+def _field_type(name: str) -> Any:
+    cls = _PARTS[part_of(name)]
+    return get_type_hints(cls)[name]
+
+
+def parse_value(name: str, text: str) -> Any:
+    """The value of field ``name`` written as ``text`` ("none" for None, "true"/"false")."""
+    tp = _field_type(name)
+    args = get_args(tp)
+    optional = get_origin(tp) in (Union, types.UnionType) and type(None) in args
+    if optional:
+        if text.strip().lower() in ("none", "", "null"):
+            return None
+        tp = next(a for a in args if a is not type(None))
+    if tp is bool:
+        low = text.strip().lower()
+        if low not in ("true", "false", "1", "0", "yes", "no"):
+            raise ValueError(f"{name} takes true or false, not {text!r}")
+        return low in ("true", "1", "yes")
+    if tp is int:
+        return int(text)
+    if tp is float:
+        return float(text)
+    if get_origin(tp) is Literal:
+        if text not in get_args(tp):
+            raise ValueError(f"{name} takes one of {get_args(tp)}, not {text!r}")
+        return text
+    if tp is str:
+        return text
+    raise ValueError(f"{name} ({tp}) cannot be set from the command line")
+
+
+def parse_settings(items: Iterable[str]) -> dict[str, str]:
+    """``["name=value", ...]`` as a dict (values still text)."""
+    out: dict[str, str] = {}
+    for item in items:
+        key, sep, value = item.partition("=")
+        if not sep or not key.strip():
+            raise ValueError(f"a setting is 'name=value', got {item!r}")
+        part_of(key.strip())
+        out[key.strip()] = value.strip()
+    return out
+
+
+_TODAY = Profile(
+    name="today",
+    summary="this project's defaults: birth/survival and extent redraw every sub-step T_f, "
+            "fronts ignite anywhere, any active region within d_safe fails the mission",
+    sources=(
+        "Sec. IV: 'we set the firefront propagation time to T_f = 0.5 s ... we propagate the "
+        "firefronts ⌈T_s/T_f⌉ times in sequence' — read as: every sub-step is a full step of "
+        "the process of Sec. II-B (birth, survival, motion, a new extent).",
+        "Sec. IV-A: 'the birth density b_t(.) is uniform inside the environment' — fronts may "
+        "ignite on the UAV.",
+        "Sec. IV: 'check whether the distance between the propagated firefronts and the agent's "
+        "idle position ... has dropped below d_safe' — read as: any active region.",
+        "Sec. III-C: 'the location of the nearest firefront' → d_t to the nearest active "
+        "region (ARCHITECTURE.md §9: a birth-step-only d_t makes ξ₁ a one-step spike).",
+    ),
+)
+
+_LITERAL = Profile(
+    name="literal",
+    fire=FireParams(life_base="step", extent="step"),
+    mission=MissionParams(d_t_reading="newborn", failure_rule="become"),
+    summary="the most literal reading of Sec. II-B/IV: birth and survival once per time-step, "
+            "the extent drawn per time-step, d_t to the fronts that emerged at t, failure when "
+            "the distance becomes less than d_safe; fronts ignite anywhere",
+    sources=(
+        "Sec. II-B: 'at each time step t, a stochastic number N_t of firefronts emerge' and "
+        "'p_s is the probability that the firefront propagates to the next time-step' → "
+        "life_base = step.",
+        "Sec. IV-A: 'the extend (i.e., size) of each firefront at each time-step is represented "
+        "as a rectangle with dimensions uniformly sampled from the range [100,250] m' → "
+        "extent = step.",
+        "Sec. IV-A: 'the birth density b_t(.) is uniform inside the environment' → no "
+        "ignition clearance.",
+        "Sec. III-C: 'the location of the nearest firefront, ŷ_t, which emerged at time-step t' "
+        "→ d_t_reading = newborn.",
+        "Sec. IV: 'the distance between the agent and a newly emerged firefront becomes less "
+        "than ... d_safe' and '... has dropped below d_safe' → failure_rule = become.",
+        "Sec. IV: 'Before transitioning the agent to the next state, we propagate the "
+        "firefronts ⌈T_s/T_f⌉ times' → no fire motion while the UAV flies.",
+    ),
+)
+
+_FIG_R5 = Profile(
+    name="fig-r5",
+    fire=FireParams(life_base="step", extent="birth"),
+    mission=MissionParams(ignition_clearance_m=20.0),
+    summary="the reading closest to Fig. r5 (issue 13's table: 95/94/97 on 100 missions): "
+            "birth and survival once per time-step, the extent drawn once at birth, no front "
+            "ignites within 20 m (d_safe) of the UAV",
+    sources=(
+        "Sec. II-B: 'p_s is the probability that the firefront propagates to the next "
+        "time-step' → life_base = step.",
+        "Sec. II-B: 'a firefront Y_t occupies a distinct volume ... a time-varying rectangular "
+        "cuboid C_t' — read as one front, one rectangle that moves → extent = birth.",
+        "Sec. IV: 'A mission is considered failed if the agent is trapped by a firefront' — a "
+        "front igniting on the UAV traps no one, it ends the mission by chance: "
+        "ignition_clearance_m = d_safe.",
+        "Sec. IV: 'approximately 40% of the missions using System 2 ..., compared to around 95% "
+        "with System 1 ... CC ... around 90%' — the target; this profile comes closest on S1 "
+        "and CC, no reading found brings S2 down to 40 % with S1 at 95 % (README, Fig. r5).",
+    ),
+)
+
+PROFILES: dict[str, Profile] = {p.name: p for p in (_TODAY, _LITERAL, _FIG_R5)}
+
+
+def get_profile(name: str) -> Profile:
+    """The profile called ``name``."""
+    try:
+        return PROFILES[name]
+    except KeyError:
+        raise ValueError(f"unknown profile {name!r}; known: {', '.join(PROFILES)}") from None
+
+
+def profile_table() -> str:
+    """The profiles' readings side by side (text), then their sources."""
+    names = list(PROFILES)
+    rows = [("parameter", *names)]
+    for key in READINGS:
+        rows.append((key, *(str(PROFILES[n].readings()[key]) for n in names)))
+    base = PROFILES["today"].values()
+    for key, v in base.items():
+        if key in READINGS:
+            continue
+        if any(PROFILES[n].values()[key] != v for n in names):
+            rows.append((key, *(str(PROFILES[n].values()[key]) for n in names)))
+    widths = [max(len(r[i]) for r in rows) for i in range(len(rows[0]))]
+    lines = ["  ".join(c.ljust(w) for c, w in zip(r, widths, strict=True)) for r in rows]
+    for n in names:
+        p = PROFILES[n]
+        lines += ["", f"{n}: {p.summary}"] + [f"  - {s}" for s in p.sources]
+    return "\n".join(lines)
