@@ -8,19 +8,48 @@ import sys
 import time
 from pathlib import Path
 
-from dualpilot.mission.params import Controller, MissionParams, Timing
+from dualpilot.mission.params import Controller, Timing
+from dualpilot.readings import (
+    PROFILES,
+    Profile,
+    get_profile,
+    parse_settings,
+    profile_table,
+    settable,
+)
 from dualpilot.spec import MissionSpec
+
+
+def _reading(args: argparse.Namespace) -> Profile:
+    """The profile of ``--profile`` with ``--set`` and ``--ignition-clearance`` applied."""
+    settings: dict[str, object] = dict(parse_settings(args.set))
+    if args.ignition_clearance is not None:
+        settings["ignition_clearance_m"] = args.ignition_clearance
+    return get_profile(args.profile).with_settings(settings)
+
+
+def _add_reading_flags(p: argparse.ArgumentParser, grid: bool = False) -> None:
+    p.add_argument("--profile", default="today", choices=list(PROFILES),
+                   help="named reading of the paper (dualpilot profiles)")
+    p.add_argument("--set", action="append", default=[], metavar="NAME=V1,V2" if grid
+                   else "NAME=VALUE",
+                   help=("a grid axis: parameter NAME takes each value (repeat for more axes)"
+                         if grid else "set one parameter of the reading (repeatable)")
+                   + f"; names: {', '.join(settable())}")
 
 
 def _mission(args: argparse.Namespace) -> int:
     from dualpilot.mission.local import local_mission
     from dualpilot.mission.records import write_all
 
+    reading = _reading(args)
     mission = local_mission(
         Controller(args.controller),
         MissionSpec(seed=args.seed),
         timing=Timing(args.timing),
-        params=MissionParams(ignition_clearance_m=args.ignition_clearance),
+        params=reading.mission,
+        fire_params=reading.fire,
+        supervisor_params=reading.supervisor,
         system2_method=args.s2_method,
     )
     t0 = time.perf_counter()
@@ -86,9 +115,41 @@ def _evaluate(args: argparse.Namespace) -> int:
         controllers=args.controllers.split(","),
         s2_method=args.s2_method,
         ignition_clearance_m=args.ignition_clearance,
+        profile=args.profile,
+        settings=parse_settings(args.set),
+        scheduler=args.scheduler,
     )
     print(json.dumps(summary, indent=2))
     print(f"results in {out}/: results.csv summary.json fig_r5.png")
+    return 0
+
+
+def _sweep(args: argparse.Namespace) -> int:
+    from dualpilot.sweep import grid_points, load_grid, parse_axes, sweep
+
+    doc = load_grid(Path(args.grid)) if args.grid else {}
+    axes = {**{k: list(v) for k, v in (doc.get("grid") or {}).items()}, **parse_axes(args.set)}
+    points = grid_points(axes, doc.get("profile", args.profile), doc.get("points") or ())
+    controllers = args.controllers or ",".join(doc.get("controllers") or ["cc", "s1", "s2"])
+    summary = sweep(
+        points, args.missions or int(doc.get("missions", 200)), Path(args.out),
+        seed=args.seed if args.seed is not None else int(doc.get("seed", 0)),
+        timing=args.timing or str(doc.get("timing", "paper")),
+        controllers=controllers.split(","),
+        s2_method=args.s2_method or str(doc.get("s2_method", "fast")),
+        jobs=args.jobs, scheduler=args.scheduler, figures=not args.no_figures,
+    )
+    for p in summary["points"]:
+        rates = " ".join(f"{c.upper()} {100 * v['success_rate']:5.1f}%"
+                         for c, v in p["controllers"].items())
+        print(f"[{p['point']:2d}] {rates}  {p['label']}")
+    print(f"wall time {summary['wall_s']:.1f} s; results in {args.out}/: results.csv "
+          "results.parquet summary.json" + ("" if args.no_figures else " fig_sweep.png"))
+    return 0
+
+
+def _profiles(args: argparse.Namespace) -> int:
+    print(profile_table())
     return 0
 
 
@@ -111,6 +172,7 @@ def build_parser() -> argparse.ArgumentParser:
         help="no front ignites within M m of the UAV (default: anywhere)",
     )
     m.add_argument("--quiet", action="store_true")
+    _add_reading_flags(m)
     m.set_defaults(func=_mission)
 
     f = sub.add_parser("figures", help="draw the paper's figures for a recorded run")
@@ -133,7 +195,33 @@ def build_parser() -> argparse.ArgumentParser:
         help="no front ignites within M m of the UAV (default: anywhere, as the paper states)",
     )
     e.add_argument("--out", default="runs/eval")
+    e.add_argument("--scheduler", default=None, metavar="tcp://HOST:8786",
+                   help="run on this Dask cluster (default: a LocalCluster of --jobs workers)")
+    _add_reading_flags(e)
     e.set_defaults(func=_evaluate)
+
+    w = sub.add_parser("sweep", help="a grid of readings × controllers × missions on Dask")
+    w.add_argument("--grid", default="", help="YAML: profile, grid (name: [values]), points, "
+                   "missions, controllers, seed, timing")
+    w.add_argument("--missions", type=int, default=0, help="per grid point (default 200)")
+    w.add_argument("--controllers", default="")
+    w.add_argument("--seed", type=int, default=None)
+    w.add_argument("--timing", choices=[t.value for t in Timing], default=None)
+    w.add_argument("--s2-method", default="")
+    w.add_argument("--jobs", type=int, default=0, help="LocalCluster workers (default: cores)")
+    w.add_argument("--scheduler", default=None, metavar="tcp://HOST:8786",
+                   help="use this Dask cluster (workers: dask worker tcp://HOST:8786)")
+    w.add_argument("--out", default="runs/sweep")
+    w.add_argument("--no-figures", action="store_true")
+    _add_reading_flags(w, grid=True)
+    w.set_defaults(func=_sweep)
+
+    pr = sub.add_parser("profiles", help="the named readings and their parameter values")
+    pr.set_defaults(func=_profiles)
+
+    from dualpilot.viz.showcase import add_showcase_parser  # the Fig. r1 story (issue 13.5)
+
+    add_showcase_parser(sub)
 
     from dualpilot.bench import add_bench_parser
 
