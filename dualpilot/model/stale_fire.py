@@ -1,30 +1,15 @@
 """Fire data the planners can no longer trust: how stale it is and how far fronts may have spread.
 
-The fire world advances only on the supervisor's FireAdvance commands
-(lockstep, in the distributed stack). When a command is not answered (the
-EWS was killed, or the router is down) the sub-steps it should have
-propagated are *owed*: the fire data's **age** is owed sub-steps × T_f of
-simulated time (0 in normal flight). Data at least ``stale_after_s`` old is
-**stale** (:class:`StaleFireParams`; default one sub-step, T_f = 0.5 s).
-
-While the data is stale the planners avoid the last known hulls grown by the
-fastest credible spread over that age, :func:`credible_margin_m`:
+Age: the sub-steps a FireAdvance left unanswered (*owed*) × T_f, in s of
+simulated time (0 in normal flight); data at least ``stale_after_s`` old is
+stale (:class:`StaleFireParams`; default one sub-step, T_f = 0.5 s). While it
+is stale the planners avoid the last known hulls grown (:func:`grow_polygon`)
+by :func:`credible_margin_m`, in m:
 
     r(a) = (ȳ^ν + k σ^ν) · a + (side_max − side_min) / 2
 
-* the Gauss–Markov speed y_k = γ y_{k−1} + (1 − γ) ȳ + √(1 − γ²) ŷ, ŷ ~ N(0, σ),
-  has the stationary law N(ȳ, σ) (Var = γ² Var + (1 − γ²) σ²), so
-  |y^ν| ≤ ȳ^ν + k σ^ν except with probability ≈ 3·10⁻⁵ per draw for k = 4
-  (3 + 4 · 0.8 = 6.2 m/s with the paper's values): a centre moves at most
-  that speed × a, in any direction;
-* a rectangle is redrawn every sub-step with sides in [side_min, side_max],
-  so a region of width w can grow by (side_max − w)/2 ≤ (side_max − side_min)/2
-  = 75 m on each side at the very next sub-step.
-
-A later region of a front therefore lies inside its current region grown by
-r(a) on every side, and its path hull inside the current hull ⊕ [−r, r]²
-(:func:`grow_polygon`). Fronts born while the EWS is silent cannot be bounded:
-no margin covers them (they are uniform over the area).
+with ȳ, σ the Gauss–Markov speed's mean and deviation (m/s) and k = 4. Fronts
+born while the EWS is silent are not bounded.
 """
 
 from __future__ import annotations

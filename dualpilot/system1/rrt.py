@@ -1,43 +1,13 @@
 """System 1's path planner, Alg. 1: an RRT from the UAV's position to the goal region G.
 
-The tree is grown by OMPL's RRT (``ompl`` 2.x) in a 2-D RealVectorStateSpace
-over the area with step size (range) 15 m (Sec. IV-A). Our reading of the
-paper's loose points, each a parameter of :class:`RrtParams`:
-
-* **PathFree** (Alg. 1, line 8) is exact: an edge is accepted only if the
-  whole segment keeps ``clearance_m`` (``MissionSpec.clearance_m``) from
-  every hull △(C^i_{1:t}).
-  OMPL's own motion check samples the segment and can clip a corner, so we
-  install :class:`ExactMotionValidator` instead.
-* **Iterations** count samples x̃ (one per pass of Alg. 1's loop). The paper
-  caps them at 500; with exact checks that cap fails on many random fire
-  fields (see ``max_iterations``), so our default is larger. A wall-clock cap
-  bounds the answer time as well.
-* **Determinism**: every sample comes from our ``numpy.random.Generator``.
-  The bindings do not expose ``setStateSamplerAllocator``, so we set OMPL's
-  goal bias to 1 and hand RRT a goal whose ``sampleGoal`` draws a uniform
-  state of the area (or, with probability ``goal_bias``, a state of G). RRT's
-  internal RNG then decides nothing, and the same seed gives the same path.
-* Before growing a tree, a grid test (:mod:`dualpilot.system1.reach`) looks for a
-  proof that G cannot be reached with the clearance; with one, the answer is
-  "no path" at once instead of after ``max_iterations`` samples. The test is
-  conservative, so it never hides a path (``reach_check``). Without a
-  proof, area samples x̃ are drawn only from the cells that such a path
-  could visit (``sample_reachable``): the paper draws "a point in the
-  space"; samples in fire or in pockets the UAV cannot reach only waste
-  iterations (about 25 % fewer iterations on solvable instances).
-* **Narrow passages.** If G is not reached after the paper's 500 samples
-  (``guide_after``), the grid test is repeated on cells half as large. A
-  proof then ends the search ("unreachable"). Otherwise samples come from
-  the finer component, and a share ``guide_share`` of them from just ahead
-  of the tree along a fewest-cell chain of cells from the start to G
-  (:func:`dualpilot.system1.reach.corridor`): within ``guide_window`` cells of the
-  farthest chain cell a tree node has reached. The tree is drawn through
-  the passage an operator would see on the map, instead of filling the
-  open area around it.
-* The raw tree path is shortcut greedily (exact checks), as an operator would
-  not zig-zag, and it ends at G's centre when that is reachable in a straight
-  free segment (else at the first tree state inside G).
+OMPL's RRT (``ompl`` 2.x) in a 2-D RealVectorStateSpace over the area, range
+15 m (Sec. IV-A). PathFree (Alg. 1, line 8) is exact
+(:class:`ExactMotionValidator`: the whole segment keeps ``clearance_m`` from
+every hull △(C^i_{1:t})); every sample comes from our
+``numpy.random.Generator``, so a seed gives the same path; a grid test
+(:mod:`dualpilot.system1.reach`) proves G unreachable or narrows the samples;
+the path is shortcut greedily. The readings of the paper's loose points are
+the fields of :class:`RrtParams`.
 
 Lengths are metres, times seconds.
 """

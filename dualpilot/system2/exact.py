@@ -4,32 +4,13 @@ Eq. (S2) objective, Eq. (P2_1)-(P2_6) constraints, solved to optimality by
 SCIP (or Gurobi when a working licence is present). The problem is built once
 with DPP parameters and re-solved each tick by updating ``.value``.
 
-Readings and choices (see also the README):
-
-* Avoidance, Eq. (P2_3)-(P2_4), is written for a general H-polytope with F
-  faces: α_{i,l}·p_τ ≥ β_{i,l} + ε − M b_{τ,i,l}, Σ_l b_{τ,i,l} ≤ F − 1, for
-  τ = 1..T (x_{t|t} is given, not planned). α are unit outward normals, so a
-  position satisfying it lies at least ε from the hull.
-* Fixed slots (``max_hulls`` × ``max_faces``) keep one compiled problem: a
-  padded face slot of a hull gets α = 0, β = M/2, which forces its b to 1 so
-  Σ_l b ≤ F − 1 still demands one real face (exact; repeating a real face
-  instead made SCIP branch over symmetric copies and ran ~2x slower); an
-  unused hull slot gets α = 0, β = −M (the constraint is vacuous). A hull with
-  more than ``max_faces`` faces is replaced by a containing polygon made by
-  greedily dropping the edge whose removal adds the least area (conservative).
-* Hulls that no position x_{t+τ|t} can reach within the horizon at the speed
-  limit are dropped (exact). If more than ``max_hulls`` reachable hulls remain
-  the plan is refused with INVALID_INPUT and a message (construct with a larger
-  ``System2Params.max_hulls``); no hull that matters is ever dropped silently.
-* The returned states are the roll-out of Eq. (1) under the solver's controls
-  (clipped to U by at most the solver tolerance), so a plan is exactly
-  dynamically consistent; every plan is verified with
-  :func:`dualpilot.verify.verify_trajectory` at the spec's d_safe before it is OK.
-* The objective is divided by a constant internally (``objective_scale``) for
-  the solver's numerics; ``Plan.cost`` is the true Eq. (S2) value.
-* ``isolate=True`` (the registry's "exact") runs the solver in a
-  :class:`dualpilot.system2.worker.Worker` with a hard deadline: a crash
-  becomes an ERROR plan, an overrun a TIMEOUT, and the worker restarts.
+Avoidance, Eq. (P2_3)-(P2_4), is big-M over the faces of each H-polytope (unit
+outward normals α, margin ε in m) in fixed slots (``max_hulls`` ×
+``max_faces``); more reachable hulls than slots: INVALID_INPUT. A plan is the
+roll-out of Eq. (1) under the solver's controls, verified at the spec's d_safe;
+``Plan.cost`` is the Eq. (S2) value. ``isolate=True`` (the registry's "exact")
+runs the solver in a :class:`dualpilot.system2.worker.Worker` with a hard
+deadline.
 """
 
 from __future__ import annotations

@@ -1,29 +1,11 @@
 """The stack's one simulated clock, paced by a speed factor.
 
-The supervisor is the clock's master (lockstep, as PX4 SITL's lockstep
-simulators): simulated time advances only by mission events and never runs
-ahead of ``speed_factor`` × wall time. Each mission step t, starting at τ_t,
-is two intervals — the paper's "fires propagate ⌈T_s/T_f⌉ sub-steps while
-the plan is computed" (Sec. IV) mapped onto processes:
-
-* **planning**, n = ⌈T_s / T_f⌉ fire sub-steps long, T_s being the planners'
-  reported compute time (``--timing measured``) or the paper's 155 ms / 5 s
-  (``--timing paper``). When the plan is known the supervisor tells the EWS
-  how many sub-steps elapsed (query ``ews/command``, a FireAdvance carrying
-  this clock); the EWS propagates them and publishes sub-step k when the
-  clock reaches τ_t + k·T_f. The vehicle is paused meanwhile: the paper's
-  "agent remains still while computing its plan". If a region comes within
-  d_safe of it, the mission has failed.
-* **flight**, ΔT long: the plan's next state is the setpoint, stamped with
-  the time it is due, τ_t + n·T_f + ΔT (MAVLink ``time_boot_ms``); the
-  vehicle flies one step of Eq. (1) towards it. The supervisor sends it as
-  soon as the plan is known — the fire propagation is the simulated world
-  catching up, not part of the control path.
-
-``speed_factor`` 1 is real time, 20 flies a 1 s step in 50 ms of wall time,
-0 (or inf) is unpaced: as fast as the processes go. When a process is slower
-than the factor allows the clock falls behind (it is re-anchored at the next
-step), so a seeded mission gives the same result at any speed factor.
+The supervisor is its master (lockstep): simulated time (s) advances only by
+mission events and never runs ahead of ``speed_factor`` × wall time. Step t,
+starting at τ_t, is *planning*, n = ⌈T_s / T_f⌉ fire sub-steps with the
+vehicle paused (Sec. IV), then *flight*, ΔT, towards a setpoint due at
+τ_t + n·T_f + ΔT (MAVLink ``time_boot_ms``). ``speed_factor`` 1 is real time,
+20 flies a 1 s step in 50 ms of wall time, 0 (or inf) is unpaced.
 """
 
 from __future__ import annotations

@@ -1,42 +1,15 @@
 """uavsim: a simulated vehicle that speaks MAVLink like an autopilot and flies Eq. (1).
 
 Links (pymavlink, MAVLink 2, system ``--sysid``, component 1), like PX4 SITL:
-
-* offboard (``--mavlink-url``, default ``udpin:0.0.0.0:14540``): the
-  supervisor, the vehicle's offboard companion, streams
-  SET_POSITION_TARGET_LOCAL_NED (frame LOCAL_NED, type_mask 3520 or 3576);
-  signed with ``--signing-key-file`` (32 raw bytes, or a passphrase hashed
-  with sha256 as MAVProxy does) or ``--signing-passphrase``: unsigned and
-  wrongly signed frames are then ignored and counted (log, STATUSTEXT,
-  parameter ``SIG_REJECTED``, SYS_STATUS ``errors_comm``);
-* ground station (``--gcs-url``, default ``udpin:0.0.0.0:14550``): MAVProxy or
-  QGroundControl connect here (send first, e.g. ``mavproxy.py
-  --master=udpout:127.0.0.1:14550``).
-
-Both links get HEARTBEAT at 1 Hz (MAV_TYPE_QUADROTOR, component 1, the
-autopilot and mode numbers of ``--autopilot``, services/uavsim/flavour.py:
-ardupilot GUIDED/LOITER, px4 OFFBOARD/AUTO.LOITER), SYS_STATUS
-(battery, services/uavsim/vehicle.py), GPS_RAW_INT, EXTENDED_SYS_STATE and
-MISSION_CURRENT at 1 Hz, LOCAL_POSITION_NED, GLOBAL_POSITION_INT and ATTITUDE
-at 10 Hz and after every step, HOME_POSITION and GPS_GLOBAL_ORIGIN every 5 s.
-They answer PARAM_REQUEST_LIST/READ and PARAM_SET (parameters that drive the
-simulation: :data:`PARAMS`), COMMAND_LONG with COMMAND_ACK (arm, disarm,
-takeoff, mode change, request message; the rest UNSUPPORTED or DENIED) and
-the mission protocol (services/uavsim/mission.py). The geodetic origin
-(``--home``) is the local frame's (0, 0), the area's south-west corner.
-
-Flight: the vehicle boots disarmed on the ground in LOITER. The offboard
-sequence (PX4/MAVSDK): stream setpoints, switch to GUIDED (denied without a
-live setpoint stream), arm — it is then airborne at ``SIM_ALT_M`` (Sec. IV
-is 2-D) and each new setpoint, stamped with the simulated time it is due
-(``time_boot_ms``), is one ΔT step of Eq. (1); repeats are the keep-alive
-stream (lockstep, services/common/clock.py). Without setpoints for
-``COM_OF_LOSS_T`` s of wall time it brakes to a stop and reports LOITER (the
-failsafe); setpoints take control back only once the stream has been live
-again for ``COM_OF_RSM_T`` s. ``--tlog`` records every frame received and sent
-(telemetry once) in MAVProxy's ``.tlog`` format. uavsim publishes nothing on
-Zenoh: it only holds a liveliness token, and runs without Zenoh unless
-``ZENOH_CONNECT``/``--zenoh-connect`` is given (``--zenoh``).
+offboard (``--mavlink-url``, default ``udpin:0.0.0.0:14540``), where the
+supervisor streams SET_POSITION_TARGET_LOCAL_NED, optionally signed; ground
+station (``--gcs-url``, default ``udpin:0.0.0.0:14550``) for MAVProxy or
+QGroundControl. Both get HEARTBEAT and telemetry and answer parameters
+(:data:`PARAMS`), COMMAND_LONG and the mission protocol; ``--tlog`` records
+them in MAVProxy's ``.tlog`` format. The local frame (m east/north) has its
+origin at ``--home``, the area's south-west corner; the vehicle flies at
+``SIM_ALT_M`` (m). Each setpoint, stamped with the simulated time it is due,
+is one ΔT step of Eq. (1).
 
 That is the lockstep clock (``--clock lockstep``, our missions); ``--clock
 realtime`` flies on the vehicle's own clock instead (services/uavsim/clock.py).

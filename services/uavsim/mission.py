@@ -1,43 +1,13 @@
 """The vehicle's side of the MAVLink mission protocol (upload, download, clear, current item).
 
-Upload (https://mavlink.io/en/services/mission.html): the ground station sends
-MISSION_COUNT; the vehicle requests each item with MISSION_REQUEST_INT (the
-answer may be MISSION_ITEM_INT or MISSION_ITEM), re-requesting an item after
-``item_timeout_s`` up to ``retries`` times before it cancels the transfer
-(MISSION_ACK OPERATION_CANCELLED). Each item is checked as it arrives; a bad
-one ends the transfer with the matching MAV_MISSION_* result and the previous
-mission stays:
-
-=================================  =============================================
-item                               MISSION_ACK result
-=================================  =============================================
-command other than NAV_WAYPOINT    MAV_MISSION_UNSUPPORTED
-frame not global (lat/lon)         MAV_MISSION_UNSUPPORTED_FRAME
-latitude non-finite / north of     MAV_MISSION_INVALID_PARAM5_X
-  the area or south of it
-longitude non-finite / outside     MAV_MISSION_INVALID_PARAM6_Y
-altitude non-finite                MAV_MISSION_INVALID_PARAM7
-param1..4 infinite                 MAV_MISSION_INVALID_PARAM1..4 (NaN = unset)
-more than ``max_items``            MAV_MISSION_NO_SPACE
-fence / rally mission types        MAV_MISSION_UNSUPPORTED
-=================================  =============================================
-
-Every refused item (and a MISSION_COUNT over ``max_items``) is also reported
-to ``on_reject`` (link, :class:`services.common.codec.CodecError`) so the
-vehicle counts it as bad input (reasons ``not_finite``, ``out_of_range``,
-``invalid``, ``size``); so is a bad item that arrives outside an upload,
-which is otherwise ignored as a late duplicate. With ``empty_upload_clears`` (the
-ArduPilot flavour) a one-item upload whose item 0 lies at lat/lon 0/0 clears the
-mission, as ArduPilot reads it (MAVSDK's ``mission_raw.clear_mission`` sends that).
-
-The area is the square [0, area]² of local metres east/north of the geodetic
-origin. Item 0 in MAV_FRAME_GLOBAL(_INT) is ArduPilot's home slot (files
-saved by MAVProxy ``wp save`` start with it): it is kept and downloaded, not
-flown, and not checked against the area. A completed upload replaces the
-mission atomically and bumps :attr:`MissionServer.version` (the vehicle's
-``MIS_ID`` parameter). Download: MISSION_REQUEST_LIST → MISSION_COUNT, then
-the item asked for with MISSION_REQUEST_INT (as MISSION_ITEM_INT) or
-MISSION_REQUEST (as MISSION_ITEM) — exactly the items uploaded.
+Upload (https://mavlink.io/en/services/mission.html): MISSION_COUNT, then a
+MISSION_REQUEST_INT per item (re-requested after ``item_timeout_s``, at most
+``retries`` times). Only NAV_WAYPOINT items in a global frame inside the area
+[0, area]² (m east/north of the geodetic origin) are accepted; a bad item ends
+the transfer with its MAV_MISSION_* result, the previous mission stays, and
+``on_reject`` counts it. A completed upload replaces the mission atomically
+and bumps :attr:`MissionServer.version` (``MIS_ID``). Download:
+MISSION_REQUEST_LIST → MISSION_COUNT, then each item as asked.
 """
 
 from __future__ import annotations

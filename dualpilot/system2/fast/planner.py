@@ -1,35 +1,12 @@
 """System 2 in real time: a fast, verified, near-optimal solver for Problem (P2).
 
-Method ("fast", the service default):
-
-1. **Restriction.** For every planned position p_τ (τ = 2..T; p_1 = p_t + ΔT v_t
-   is fixed by the state) and every hull i near it, fix one half-plane outside
-   the ε-inflated hull Q_i (a face, or a line through a vertex of Q_i). (P2)
-   becomes a convex QP in the positions only (:class:`dualpilot.system2.fast.qp.P2Qp`),
-   whose Newton systems are banded; a small Mehrotra interior-point solver
-   (:mod:`dualpilot.system2.fast.ipm`) solves it in a few ms. Every QP solution is
-   feasible for (P2).
-2. **Relaxation first.** The QP with no hull at all is solved first; if it
-   already satisfies the disjunction it is the global optimum of (P2).
-3. **Homotopies.** Shortest paths around the hulls, one per homotopy class
-   (:func:`dualpilot.system2.fast.geometry.homotopy_paths`), the relaxation pushed out
-   of the hulls through their nearest faces ("projected", which also finds
-   dead ends near a covered goal), and the previous plan shifted by one step
-   are time-parametrised within Eq. (1)'s limits; each fixes the first
-   half-planes. A reference whose QP is infeasible is re-timed slower.
-4. **Convex-feasible-set iteration.** Re-choose each half-plane as a support
-   of Q_i through the current position, leaning towards the relaxation's
-   position, and re-solve; the cost never increases. Only (τ, i) pairs within
-   ``near_m`` of Q_i are in the QP; a missing pair that a solution violates
-   is added. Screening: every homotopy gets one QP, the cheapest is iterated
-   to convergence, the others only while they can still win.
-5. **Verification.** A candidate is returned only if its rolled-out states
-   pass :func:`verify_p2_plan`: :func:`dualpilot.verify.verify_trajectory`
-   at d_safe (Eq. (1), U, X, exact segment clearance) and the ε-disjunction
-   at every τ against the true hull faces, and the area. The cheapest
-   verified candidate is returned; an unverified plan never is (status
-   UNSAFE instead). If no homotopy yields a feasible plan, braking to a
-   hover seeds one last run.
+Method "fast" (the service default): one half-plane outside each ε-inflated
+hull per planned position makes (P2) a convex QP
+(:class:`dualpilot.system2.fast.qp.P2Qp`, solved by
+:mod:`dualpilot.system2.fast.ipm`), started from the relaxation, the homotopy
+paths (:func:`dualpilot.system2.fast.geometry.homotopy_paths`) and the previous
+plan, and improved by convex-feasible-set iteration; the cheapest candidate
+that passes :func:`verify_p2_plan` is returned, else UNSAFE.
 
 "fast+exact" (:class:`AnytimeSystem2`) then runs SCIP seeded with the fast
 plan (:mod:`dualpilot.system2.scip`) in a :class:`dualpilot.system2.worker.Worker`
