@@ -7,6 +7,7 @@ STAMP := $(VENV)/.installed
 SEED ?= 26
 OUT ?= runs/latest
 SPEED ?= 20
+PROFILE ?= today
 
 .PHONY: setup run mission proto test test-fast lint bench figures clean compose-check
 
@@ -22,7 +23,7 @@ $(STAMP): pyproject.toml
 # (services/launch/ reads docker-compose.yml, the one description of the services)
 run: setup
 	$(BIN)/python -m services.launch --controller cc --seed $(SEED) --timing paper \
-		--speed-factor $(SPEED) --out $(OUT)
+		--speed-factor $(SPEED) --profile $(PROFILE) --out $(OUT)
 
 # the same mission in one process (no Zenoh, no MAVLink)
 mission: setup

@@ -63,6 +63,7 @@ class StackConfig:
     s2_method: str = "fast"
     max_steps: int = 150
     ignition_clearance_m: float | None = None  # MissionParams.ignition_clearance_m
+    profile: str = "today"  # dualpilot.readings profile of the supervisor and the EWS
     uav_id: str = "uav1"
     waypoints: str = ""
     free_ports: bool = False
@@ -98,6 +99,7 @@ class Stack:
             "OPERATOR_WAYPOINTS": c.waypoints, "LOG_FORMAT": c.log_format,
             "IGNITION_CLEARANCE_M": ("" if c.ignition_clearance_m is None
                                      else repr(c.ignition_clearance_m)),
+            "READINGS_PROFILE": c.profile,  # the readings profile (dualpilot profiles)
             "TLOG_PATH": str(c.run_dir / "vehicle.tlog"),
             "LOG_LEVEL": c.log_level, "PYTHONUNBUFFERED": "1",
         }
