@@ -6,8 +6,9 @@ status) is known: random bytes (any framing reason; a datagram that happens
 to decode to a real message is not sent), truncated frames, bad CRCs,
 oversize datagrams, MAVLink 1 frames, unknown message ids, valid frames of
 types the vehicle does not accept, frames for another system, NaN/±inf in
-SET_POSITION_TARGET_LOCAL_NED / MISSION_ITEM(_INT) / PARAM_SET /
-COMMAND_LONG / COMMAND_INT, setpoints far outside the area or due far in the
+SET_POSITION_TARGET_LOCAL_NED / MISSION_ITEM(_INT) / PARAM_SET / COMMAND_INT,
+±inf in COMMAND_LONG or NaN (MAVLink's "unset") in a parameter the command
+needs, setpoints far outside the area or due far in the
 future, out-of-range parameters and oversized missions. While the fuzzer
 sends, a companion streams a hold setpoint: the vehicle must not move, must
 not crash, and must still fly a good setpoint afterwards. Only 127.0.0.1.
@@ -42,6 +43,11 @@ SLOW_INPUTS = 10_000
 FRAMING = {"malformed", "bad_crc", "unknown_message", "mavlink1"}
 #: messages the vehicle sends: a ground station or companion must not send them to it
 WRONG_TYPES = ("attitude", "gps_raw_int", "local_position_ned", "vfr_hud", "battery_status")
+#: COMMAND_LONG commands of the corpus → the parameters (1-based) each needs (NaN there: refused)
+COMMAND_NEEDS: dict[int, tuple[int, ...]] = {
+    m.MAV_CMD_COMPONENT_ARM_DISARM: (1,), m.MAV_CMD_DO_SET_MODE: (1, 2),
+    m.MAV_CMD_REQUEST_MESSAGE: (1,), m.MAV_CMD_NAV_TAKEOFF: (),
+}
 
 
 class Corpus:
@@ -188,10 +194,14 @@ class Corpus:
             pid = r.choice([b"NO_SUCH_PARAM", b"MIS_ID", b"SIG_REJECTED", b"\xff\xfe"])
             return self._pack(self.enc.param_set_encode(self.sysid, 1, pid, 1.0, 9)), "invalid"
         if kind == "command_nan":
+            # NaN is "unset" in COMMAND_LONG (MAVSDK sends it): refused only in a parameter the
+            # command needs; ±inf is refused anywhere
             params = [1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]
-            params[r.randrange(7)] = self._bad()
-            cmd = r.choice([m.MAV_CMD_COMPONENT_ARM_DISARM, m.MAV_CMD_DO_SET_MODE,
-                            m.MAV_CMD_REQUEST_MESSAGE, m.MAV_CMD_NAV_TAKEOFF])
+            cmd = r.choice(list(COMMAND_NEEDS))
+            if COMMAND_NEEDS[cmd] and r.random() < 0.5:
+                params[r.choice(COMMAND_NEEDS[cmd]) - 1] = math.nan
+            else:
+                params[r.randrange(7)] = r.choice([math.inf, -math.inf])
             return self._pack(self.enc.command_long_encode(self.sysid, 1, cmd, 0, *params)), \
                 "not_finite"
         if kind == "command_int_nan":
