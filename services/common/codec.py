@@ -33,7 +33,7 @@ import numpy as np
 from google.protobuf.message import DecodeError, Message
 
 from dualpilot.model.dynamics import Array, DynamicsParams
-from dualpilot.model.fire import FireFront, FireSnapshot
+from dualpilot.model.fire import FireFront, FireParams, FireSnapshot
 from dualpilot.model.geometry import Polytope, Rect
 from dualpilot.plan import Objective, Plan, PlanStatus
 from dualpilot.spec import MissionSpec
@@ -507,6 +507,36 @@ def clock_from_msg(m: common_pb2.Clock, now_ns: int | None = None) -> Anchor:
     return Anchor(float(m.sim_time_s), int(m.anchor_wall_ns), factor)
 
 
+_LIFE_BASES = {"substep": fire_pb2.FIRE_LIFE_BASE_SUBSTEP, "step": fire_pb2.FIRE_LIFE_BASE_STEP}
+_EXTENTS = {"substep": fire_pb2.FIRE_EXTENT_SUBSTEP, "step": fire_pb2.FIRE_EXTENT_STEP,
+            "birth": fire_pb2.FIRE_EXTENT_BIRTH}
+
+
+def fire_readings_to_msg(params: FireParams, out: fire_pb2.FireReset) -> fire_pb2.FireReset:
+    """The readings of ``params`` (FireParams) into a FireReset, for the EWS to run them."""
+    r = out.readings
+    r.life_base = _LIFE_BASES[params.life_base]
+    r.extent = _EXTENTS[params.extent]
+    r.redraw_clearance = params.redraw_clearance
+    r.keep_extinct_hulls = params.keep_extinct_hulls
+    return out
+
+
+def fire_readings_from_msg(m: fire_pb2.FireReadings) -> dict[str, object]:
+    """A FireReadings as FireParams fields (an unspecified enum: left to the EWS)."""
+    out: dict[str, object] = {"redraw_clearance": bool(m.redraw_clearance),
+                              "keep_extinct_hulls": bool(m.keep_extinct_hulls)}
+    for name, value, table in (("life_base", m.life_base, _LIFE_BASES),
+                               ("extent", m.extent, _EXTENTS)):
+        if value == 0:
+            continue
+        back = {v: k for k, v in table.items()}
+        if value not in back:
+            raise invalid(f"unknown {name} {value}", Reason.OUT_OF_RANGE)
+        out[name] = back[value]
+    return out
+
+
 @dataclass(frozen=True)
 class FireCommand:
     mission_id: str
@@ -517,6 +547,8 @@ class FireCommand:
     substeps: int = 0
     anchor: Anchor | None = None
     keep_out: tuple[Array, float] | None = None  # advance: (position, ignition clearance m)
+    #: reset: FireParams fields to run (None: the EWS's own readings)
+    readings: tuple[tuple[str, object], ...] | None = None
 
 
 def fire_command_from_msg(m: fire_pb2.FireCommand) -> FireCommand:
@@ -526,7 +558,10 @@ def fire_command_from_msg(m: fire_pb2.FireCommand) -> FireCommand:
         area = _check_floats([m.reset.area_size_m], "area_size_m", MAX_ABS_M)[0]
         if area < 0:
             raise invalid(f"area_size_m must be >= 0, got {area}", Reason.OUT_OF_RANGE)
-        return FireCommand(mission_id, "reset", seed=int(m.reset.seed), area_size_m=area)
+        readings = (tuple(fire_readings_from_msg(m.reset.readings).items())
+                    if m.reset.HasField("readings") else None)
+        return FireCommand(mission_id, "reset", seed=int(m.reset.seed), area_size_m=area,
+                           readings=readings)
     if kind == "advance":
         a = m.advance
         _count(a.substeps, "substeps", MAX_SUBSTEPS)

@@ -2,8 +2,10 @@
 
 * ``<ns>/ews/command`` (queryable, FireCommand → FireUpdate): ``reset`` starts
   a mission's fire process from its seed and area (the spec's fire stream, as
-  the in-process mission); ``advance`` propagates n sub-steps for mission step
-  t, no front igniting within the command's keep-out radius of the UAV.
+  the in-process mission), with the reset's fire readings (FireParams.life_base,
+  extent, redraw_clearance, keep_extinct_hulls; absent: the EWS's own, from
+  ``--profile`` and its flags); ``advance`` propagates n sub-steps for mission
+  step t, no front igniting within the command's keep-out radius of the UAV.
   Sub-step k is published on
   ``<ns>/ews/fires`` when the stack's clock (carried in the command) reaches
   ``τ_t + k·T_f``: the fires propagate while the plan is computed (see
@@ -27,11 +29,13 @@ import logging
 import math
 import threading
 import time
+from dataclasses import replace
 
 import numpy as np
 import zenoh
 
 from dualpilot.model.fire import FireField, FireParams
+from dualpilot.readings import PROFILES, get_profile
 from dualpilot.spec import Stream, stream_rng
 from services.common import bus, codec, fleet, keys
 from services.common import cli as common_cli
@@ -74,8 +78,14 @@ class Ews:
     def handle(self, cmd: codec.FireCommand) -> fire_pb2.FireUpdate:
         update = fire_pb2.FireUpdate()
         if cmd.kind == "reset":
-            self.field = (FireField(params=self.params, area_size_m=cmd.area_size_m)
-                          if cmd.area_size_m > 0 else FireField(params=self.params))
+            params = self.params
+            if cmd.readings is not None:  # the supervisor's readings (FireReset.readings)
+                try:
+                    params = replace(self.params, **dict(cmd.readings))
+                except (TypeError, ValueError) as err:
+                    raise codec.invalid(f"bad fire readings: {err}") from err
+            self.field = (FireField(params=params, area_size_m=cmd.area_size_m)
+                          if cmd.area_size_m > 0 else FireField(params=params))
             self.rng = stream_rng(cmd.seed, Stream.FIRE)
             self.mission_id, self.step, self.sim_time_s = cmd.mission_id, 0, 0.0
             state = self.state_msg()
@@ -117,7 +127,7 @@ class Ews:
                                   horizon_s=self.forecast_substeps * self.params.substep_s)
         self.stamper.stamp(m.header, self.sim_time_s)
         for front in self.field.fronts:
-            regions = forecast_regions(front, self.params, self.forecast_substeps)
+            regions = forecast_regions(front, self.field.params, self.forecast_substeps)
             fm = m.fronts.add(front_id=front.front_id)
             for r in regions:
                 codec.rect_to_msg(r, fm.regions.add())
@@ -160,6 +170,15 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--substep-s", type=float,
                    default=common_cli.env("FIRE_SUBSTEP_S", str(FireParams().substep_s)),
                    help="fire propagation sub-step T_f in s [FIRE_SUBSTEP_S]")
+    p.add_argument("--profile", default=common_cli.env("READINGS_PROFILE", "today"),
+                   choices=list(PROFILES),
+                   help="the fire readings when a reset carries none [READINGS_PROFILE]")
+    p.add_argument("--fire-life-base", default=common_cli.env("FIRE_LIFE_BASE", ""),
+                   help="override: substep or step [FIRE_LIFE_BASE]")
+    p.add_argument("--fire-extent", default=common_cli.env("FIRE_EXTENT", ""),
+                   help="override: substep, step or birth [FIRE_EXTENT]")
+    p.add_argument("--redraw-clearance", default=common_cli.env("FIRE_REDRAW_CLEARANCE", ""),
+                   help="override: true or false [FIRE_REDRAW_CLEARANCE]")
     p.add_argument("--forecast-horizon-s", type=float,
                    default=common_cli.env("FORECAST_HORIZON_S", "80"),
                    help="forecast horizon in simulated s [FORECAST_HORIZON_S]")
@@ -168,7 +187,9 @@ def main(argv: list[str] | None = None) -> int:
     try:
         settings = common_cli.settings("ews", args)
         uavs = fleet.uav_ids(args.uav_ids, settings.uav_id)
-        params = FireParams(substep_s=args.substep_s)
+        params = replace(get_profile(args.profile).with_settings({k: v for k, v in (
+            ("life_base", args.fire_life_base), ("extent", args.fire_extent),
+            ("redraw_clearance", args.redraw_clearance)) if v}).fire, substep_s=args.substep_s)
         if not (math.isfinite(args.forecast_horizon_s) and args.forecast_horizon_s >= 0):
             raise ValueError("--forecast-horizon-s must be finite and >= 0")
     except ValueError as err:

@@ -15,8 +15,9 @@ import logging
 import time
 from pathlib import Path
 
-from dualpilot.mission.params import Controller, MissionParams, Timing
+from dualpilot.mission.params import Controller, Timing
 from dualpilot.model.geometry import Rect
+from dualpilot.readings import PROFILES, get_profile
 from dualpilot.spec import MissionSpec
 from services.common import bus, codec, keys, mav
 from services.common import cli as common_cli
@@ -63,6 +64,19 @@ def main(argv: list[str] | None = None) -> int:
                    default=env("IGNITION_CLEARANCE_M", "") or None,
                    help="no front ignites within this distance (m) of the UAV; unset: anywhere "
                         "[IGNITION_CLEARANCE_M]")
+    r = p.add_argument_group("readings (dualpilot profiles; a flag overrides the profile)")
+    r.add_argument("--profile", default=env("READINGS_PROFILE", "today"), choices=list(PROFILES),
+                   help="[READINGS_PROFILE]")
+    for flag, name, var in (("--d-t-reading", "d_t_reading", "D_T_READING"),
+                            ("--failure-rule", "failure_rule", "FAILURE_RULE"),
+                            ("--fire-substeps-per-motion", "fire_substeps_per_motion",
+                             "FIRE_SUBSTEPS_PER_MOTION"),
+                            ("--fire-life-base", "life_base", "FIRE_LIFE_BASE"),
+                            ("--fire-extent", "extent", "FIRE_EXTENT"),
+                            ("--redraw-clearance", "redraw_clearance", "FIRE_REDRAW_CLEARANCE"),
+                            ("--attention-draw", "attention_draw", "ATTENTION_DRAW")):
+        r.add_argument(flag, dest=f"reading_{name}", default=env(var, ""),
+                       help=f"{name} [{var}]")
     g.add_argument("--waypoints", default=env("OPERATOR_WAYPOINTS", ""),
                    help="System 1's operator waypoints 'e1,n1;e2,n2' [OPERATOR_WAYPOINTS]")
     g.add_argument("--mission-id", default=env("MISSION_ID", ""),
@@ -99,8 +113,13 @@ def main(argv: list[str] | None = None) -> int:
         deadlines = tuple(float(v) for v in args.plan_deadline_s.split(","))
         if len(deadlines) != 2 or min(deadlines) <= 0:
             raise ValueError("--plan-deadline-s must be two positive numbers 's1,s2'")
-        params = MissionParams(max_steps=args.max_steps,
-                               ignition_clearance_m=args.ignition_clearance)
+        chosen: dict[str, object] = {k.removeprefix("reading_"): v for k, v in vars(args).items()
+                                     if k.startswith("reading_") and v}
+        chosen["max_steps"] = args.max_steps
+        if args.ignition_clearance is not None:
+            chosen["ignition_clearance_m"] = args.ignition_clearance
+        reading = get_profile(args.profile).with_settings(chosen)
+        params = reading.mission
         # the start is the vehicle's position when the mission starts (StackSession.start)
         spec = MissionSpec(goal=goal, area_size_m=args.area_size_m, seed=args.seed)
         stack = StackParams(plan_deadline_s=(deadlines[0], deadlines[1]),
@@ -139,6 +158,7 @@ def main(argv: list[str] | None = None) -> int:
             mission = StackSession(
                 ctx.session, link, settings.uav_id, mission_id, controller, spec, timing,
                 SimClock(settings.speed_factor), ctx.stop, waypoints=waypoints, params=params,
+                fire_params=reading.fire, supervisor_params=reading.supervisor,
                 stack=stack, live=live, record_dir=Path(args.out) if args.out else None)
             t0 = time.perf_counter()
             aborted = ""

@@ -1,0 +1,108 @@
+"""Each profile's fire readings reach a real EWS: it runs the in-process fire process exactly.
+
+The reset carries the readings (FireReset.readings); the advances carry the
+step number (a new one starts a time-step) and the ignition clearance as a
+keep-out. An EWS started with ``READINGS_PROFILE`` runs that profile's
+readings when a reset carries none.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+import pytest
+
+from dualpilot.model.fire import FireField, FireParams
+from dualpilot.readings import PROFILES, get_profile
+from dualpilot.spec import Stream, stream_rng
+from services.common import bus, codec, keys
+from services.msgs import fire_pb2
+
+pytestmark = pytest.mark.timeout(120)
+
+UAV_POS = np.array([500.0, 500.0])
+#: (step, sub-steps) per advance: S2 waits, S1 steps, and a step advanced sub-step by sub-step
+#: (as the mission does under the failure rules other than "any")
+ADVANCES = [(0, 10), (1, 1), (2, 10), (3, 1), (3, 1), (3, 1), (4, 10), (5, 10), (6, 1), (7, 10)]
+
+
+@pytest.fixture(scope="module")
+def ews(services: Any, liveliness: bus.Liveliness) -> Any:
+    services.start("ews")
+    assert liveliness.wait_for(["ews"], 60), services.log("ews")[-2000:]
+    return services
+
+
+def _send(session: Any, uav: str, cmd: fire_pb2.FireCommand) -> fire_pb2.FireUpdate:
+    codec.Stamper("test", uav).stamp(cmd.header)
+    payload, enc = bus.request(session, keys.fire_command(uav), cmd, 30.0)
+    return codec.parse(payload, fire_pb2.FireUpdate, enc)
+
+
+def _replay(session: Any, uav: str, mission: str, seed: int, fire: FireParams | None,
+            clearance: float | None, want: FireParams) -> int:
+    """Reset (with ``fire``'s readings unless None), advance, compare every sub-step."""
+    cmd = fire_pb2.FireCommand(mission_id=mission)
+    cmd.reset.seed = seed
+    if fire is not None:
+        codec.fire_readings_to_msg(fire, cmd.reset)
+    _send(session, uav, cmd)
+    field = FireField(params=want)
+    rng = stream_rng(seed, Stream.FIRE)
+    keep = None if clearance is None else (UAV_POS, clearance)
+    compared = 0
+    for t, n in ADVANCES:
+        cmd = fire_pb2.FireCommand(mission_id=mission)
+        cmd.advance.step, cmd.advance.substeps = t, n
+        if keep is not None:
+            cmd.advance.keep_out.east_m, cmd.advance.keep_out.north_m = UAV_POS
+            cmd.advance.keep_out_m = keep[1]
+        update = _send(session, uav, cmd)
+        assert len(update.states) == n
+        for state in update.states:
+            field.substep(rng, t, keep_out=keep)
+            got, exp = codec.snapshot_from_msg(state), field.snapshot()
+            assert got.regions == exp.regions
+            assert got.front_ids == exp.front_ids and got.born_steps == exp.born_steps
+            assert all(np.array_equal(a.vertices, b.vertices)
+                       for a, b in zip(got.hulls, exp.hulls, strict=True))
+            compared += 1
+    assert field.next_id > 0, "the seed should give some fires"
+    return compared
+
+
+@pytest.mark.parametrize("name", list(PROFILES))
+def test_each_profile_runs_on_the_ews_sub_step_for_sub_step(ews: Any, session: Any,
+                                                            name: str) -> None:
+    p = get_profile(name)
+    n = _replay(session, ews.uav, f"profile-{name}", 26, p.fire, p.mission.ignition_clearance_m,
+                p.fire)
+    assert n == sum(k for _, k in ADVANCES)
+
+
+def test_readings_differ_so_the_comparison_means_something(ews: Any, session: Any) -> None:
+    """The fig-r5 EWS process is not today's: the same seed gives other regions."""
+    a = FireField(params=get_profile("fig-r5").fire)
+    b = FireField(params=get_profile("today").fire)
+    ra, rb = stream_rng(26, Stream.FIRE), stream_rng(26, Stream.FIRE)
+    for t, n in ADVANCES:
+        for _ in range(n):
+            a.substep(ra, t)
+            b.substep(rb, t)
+    assert a.snapshot().regions != b.snapshot().regions
+
+
+def test_a_reset_without_readings_runs_the_ews_profile(services: Any, session: Any) -> None:
+    uav = "itestlit"
+    services.start("ews-literal", module="services.ews", UAV_ID=uav, READINGS_PROFILE="literal")
+    assert bus.Liveliness(session, uav).wait_for(["ews"], 60), services.log("ews-literal")[-2000:]
+    _replay(session, uav, "no-readings", 26, None, None, get_profile("literal").fire)
+
+
+def test_bad_readings_get_an_error_reply(ews: Any, session: Any) -> None:
+    cmd = fire_pb2.FireCommand(mission_id="bad")
+    cmd.reset.seed = 1
+    cmd.reset.readings.extent = 42  # type: ignore[assignment]
+    with pytest.raises(bus.QueryError, match="extent"):
+        _send(session, ews.uav, cmd)
