@@ -5,8 +5,9 @@ and a MAVLink heartbeat), takes the vehicle in MAVSDK/PX4 order (setpoints,
 offboard mode, arm; services/supervisor/link.py), takes the vehicle's mission
 as System 1's operator waypoints, flies one mission (services/supervisor/session.py),
 writes its records to ``--out`` and announces the end on ``mission/event``.
-It then keeps streaming the last setpoint until stopped (or exits with
-``--exit-after-mission``).
+It then keeps streaming the last setpoint until stopped, or, with
+``--exit-after-mission``, exits: 0 when the mission succeeded, 1 when it was
+aborted (or could not start), 3 when it ended in failure.
 """
 
 from __future__ import annotations
@@ -28,6 +29,10 @@ from .link import VehicleLink
 from .session import Aborted, StackParams, StackSession
 
 log = logging.getLogger("services.supervisor")
+
+
+#: exit codes with ``--exit-after-mission`` (``docker compose up --exit-code-from supervisor``)
+EXIT_SUCCESS, EXIT_ABORTED, EXIT_FAILED = 0, 1, 3
 
 
 def needed_services(controller: Controller) -> set[str]:
@@ -84,7 +89,11 @@ def main(argv: list[str] | None = None) -> int:
     g.add_argument("--out", default=env("RUN_DIR", ""),
                    help="write summary.json, steps.csv, trace.json, latency.csv here [RUN_DIR]")
     g.add_argument("--exit-after-mission", action="store_true",
-                   default=env("EXIT_AFTER_MISSION", "0") == "1", help="[EXIT_AFTER_MISSION=1]")
+                   default=env("EXIT_AFTER_MISSION", "0") == "1",
+                   help=f"exit when the mission ends: {EXIT_SUCCESS} success, {EXIT_ABORTED} "
+                        f"aborted (or could not start), {EXIT_FAILED} ended in failure, as "
+                        "docker compose --exit-code-from supervisor reports it "
+                        "[EXIT_AFTER_MISSION=1]")
     s = p.add_argument_group("stack")
     s.add_argument("--wait-services-s", type=float, default=env("WAIT_SERVICES_S", "120"),
                    help="how long to wait for the other services [WAIT_SERVICES_S]")
@@ -147,13 +156,13 @@ def main(argv: list[str] | None = None) -> int:
                 if not ctx.stop.is_set():
                     log.error("services missing", extra=fields(
                         missing=",".join(sorted(live.missing(needed)))))
-                    ctx.exit_code = 1
+                    ctx.exit_code = EXIT_ABORTED
                 return
             if not link.wait_vehicle(args.wait_services_s, ctx.stop):
                 if not ctx.stop.is_set():
                     log.error("no heartbeat from the vehicle",
                               extra=fields(url=settings.mavlink_url))
-                    ctx.exit_code = 1
+                    ctx.exit_code = EXIT_ABORTED
                 return
             mission = StackSession(
                 ctx.session, link, settings.uav_id, mission_id, controller, spec, timing,
@@ -168,7 +177,7 @@ def main(argv: list[str] | None = None) -> int:
                 aborted = str(err)
                 if not ctx.stop.is_set():
                     log.error("mission aborted", extra=fields(reason=aborted))
-                    ctx.exit_code = 1
+                    ctx.exit_code = EXIT_ABORTED
             finally:
                 mission.close_record()
             wall = time.perf_counter() - t0
@@ -188,6 +197,8 @@ def main(argv: list[str] | None = None) -> int:
                        for k, v in mission.latency.overhead_ms().items()}))
             if not args.exit_after_mission:
                 ctx.stop.wait()
+            elif r is not None and not aborted and not r.success:
+                ctx.exit_code = EXIT_FAILED
         finally:
             link.close()
 
