@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import csv
 import enum
+import io
 import json
 import os
 import time
@@ -63,15 +64,34 @@ def _num(v: float) -> float | str:
     return v if np.isfinite(v) else "inf" if v > 0 else "nan"
 
 
-def write_summary(result: MissionResult, out: Path) -> Path:
-    path = out / "summary.json"
-    path.write_text(json.dumps(result.summary(), indent=2) + "\n")
+def atomic_write(path: Path, text: str) -> Path:
+    """Write ``text`` to ``path`` atomically: a temporary file beside it, fsync, rename.
+
+    A reader (or a crash, or a full disk) sees the old file or the whole new
+    one, never a truncated one; on an error the temporary file is removed and
+    the OSError raised.
+    """
+    path = Path(path)
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    try:
+        with tmp.open("w", encoding="utf-8", newline="") as fh:
+            fh.write(text)
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
     return path
+
+
+def write_summary(result: MissionResult, out: Path) -> Path:
+    return atomic_write(out / "summary.json", json.dumps(result.summary(), indent=2) + "\n")
 
 
 def write_steps_csv(result: MissionResult, out: Path) -> Path:
     path = out / "steps.csv"
-    with path.open("w", newline="") as fh:
+    with io.StringIO(newline="") as fh:
         writer = csv.writer(fh)
         writer.writerow(STEP_COLUMNS)
         for r in result.records:
@@ -95,7 +115,7 @@ def write_steps_csv(result: MissionResult, out: Path) -> Path:
                     r.info.get("source", ""),
                 ]
             )
-    return path
+        return atomic_write(path, fh.getvalue())
 
 
 def write_trace(result: MissionResult, out: Path) -> Path:
@@ -126,9 +146,7 @@ def write_trace(result: MissionResult, out: Path) -> Path:
         "final_position": [float(v) for v in final[:2]],
         "steps": steps,
     }
-    path = out / "trace.json"
-    path.write_text(json.dumps(doc) + "\n")
-    return path
+    return atomic_write(out / "trace.json", json.dumps(doc) + "\n")
 
 
 def write_all(result: MissionResult, out: Path) -> list[Path]:
@@ -227,19 +245,31 @@ class StepLog:
         self.fsync_every_s = fsync_every_s
         self._flushed = self._synced = time.monotonic()
         self.lines = 0
+        self.failed: OSError | None = None
 
     def write(self, kind: str, **fields: object) -> None:
-        """Append ``{"kind": kind, **fields}`` as one line."""
+        """Append ``{"kind": kind, **fields}`` as one line.
+
+        After a write error (a full disk) the record stops: this and every later
+        write raises the OSError (:attr:`failed`), so no line is written after
+        a partly written one.
+        """
+        if self.failed is not None:
+            raise self.failed
         line = json.dumps(_clean({"kind": kind, **fields}), allow_nan=False)
-        self.fh.write(line + "\n")
-        self.lines += 1
-        now = time.monotonic()
-        if now - self._flushed >= self.flush_every_s:
-            self.fh.flush()
-            self._flushed = now
-            if self.fsync_every_s is not None and now - self._synced >= self.fsync_every_s:
-                os.fsync(self.fh.fileno())
-                self._synced = now
+        try:
+            self.fh.write(line + "\n")
+            self.lines += 1
+            now = time.monotonic()
+            if now - self._flushed >= self.flush_every_s:
+                self.fh.flush()
+                self._flushed = now
+                if self.fsync_every_s is not None and now - self._synced >= self.fsync_every_s:
+                    os.fsync(self.fh.fileno())
+                    self._synced = now
+        except OSError as err:
+            self.failed = err
+            raise
 
     def step(self, record: StepRecord, **extra: object) -> None:
         """Append one step: the record (:func:`record_to_json`) and ``extra`` fields."""
@@ -247,8 +277,10 @@ class StepLog:
 
     def close(self) -> None:
         if not self.fh.closed:
-            self.fh.flush()
-            self.fh.close()
+            try:
+                self.fh.close()  # flushes what is buffered
+            except OSError as err:
+                self.failed = self.failed or err
 
     def __enter__(self) -> StepLog:
         return self

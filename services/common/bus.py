@@ -100,6 +100,7 @@ class Received:
     encoding: str
     query: zenoh.Query | None = None
     received_ns: int = 0
+    attachment: bytes = b""  # a query's attachment: the session id the querier states
 
 
 class Inbox:
@@ -141,7 +142,9 @@ class Inbox:
     def on_query(self, query: zenoh.Query) -> None:
         payload = query.payload.to_bytes() if query.payload is not None else b""
         enc = str(query.encoding) if query.encoding is not None else ""
-        self._push(Received(str(query.key_expr), payload, enc, query, time.perf_counter_ns()))
+        att = query.attachment.to_bytes()[:64] if query.attachment is not None else b""
+        self._push(Received(str(query.key_expr), payload, enc, query, time.perf_counter_ns(),
+                            att))
 
     def get(self, timeout: float | None = None) -> Received | None:
         try:
@@ -221,14 +224,24 @@ class Stop(threading.Event):
             self._tokens.discard(token)
 
 
+def replier(reply: zenoh.Reply) -> str:
+    """The Zenoh id of the session that sent ``reply`` ("" when Zenoh does not say)."""
+    rid = reply.replier_id
+    return "" if rid is None else str(rid.zid)
+
+
 def first_reply(session: zenoh.Session, key: str, timeout_s: float,
-                stop: threading.Event | None = None, **get: Any) -> zenoh.Reply:
+                stop: threading.Event | None = None, trusted: str | None = None,
+                **get: Any) -> zenoh.Reply:
     """Send a query (``get``: payload, encoding, …) and wait for its first reply.
 
     The calling thread waits in Zenoh's own reply channel (no Python callback
     and no hand-off between threads on the way back). A :class:`Stop` ends
     the wait when it is set; with a plain Event the wait ends at the timeout.
-    Raises TimeoutError when nobody answers within ``timeout_s`` (or on stop).
+    With ``trusted`` (a Zenoh id; "" trusts nobody) only a reply from that
+    session counts: one from any other session is logged and counted
+    (reason ``untrusted``) and the wait goes on.
+    Raises TimeoutError when nobody (trusted) answers within ``timeout_s`` (or on stop).
     """
     if stop is not None and stop.is_set():
         raise TimeoutError(f"stopped before asking {key}")
@@ -238,28 +251,54 @@ def first_reply(session: zenoh.Session, key: str, timeout_s: float,
     try:
         replies = session.get(key, timeout=timeout_s, consolidation=zenoh.ConsolidationMode.NONE,
                               cancellation_token=token, **get)
-        try:
-            reply: zenoh.Reply = replies.recv()
-        except zenoh.ZError:  # the channel closed without a reply: cancelled, or nobody answered
-            why = "stopped" if stop is not None and stop.is_set() else "no reply"
-            raise TimeoutError(f"{why} on {key} within {timeout_s:.3g} s") from None
+        untrusted = 0
+        while True:
+            try:
+                reply: zenoh.Reply = replies.recv()
+            except zenoh.ZError:  # the channel closed without a reply: cancelled, or none came
+                why = "stopped" if stop is not None and stop.is_set() else "no reply"
+                if untrusted:
+                    why = f"no reply from the token holder ({untrusted} from others)"
+                raise TimeoutError(f"{why} on {key} within {timeout_s:.3g} s") from None
+            if trusted is None or _is_local_timeout(reply):
+                break
+            sender = replier(reply)
+            if sender and sender == trusted:
+                break
+            untrusted += 1
+            codec.rejected("reply", codec.invalid(
+                f"reply on {key} from session {sender or '?'}, not from the holder of the "
+                f"service's liveliness token ({trusted or 'none'})"), log, key=key,
+                reason=UNTRUSTED)
     finally:
         if isinstance(stop, Stop):
             stop.forget(token)
-    if reply.err is not None and reply.err.payload.to_bytes().strip().lower() == b"timeout":
+    if _is_local_timeout(reply):
         raise TimeoutError(f"no reply on {key} within {timeout_s:.3g} s")  # Zenoh's own reply
     return reply
 
 
+#: the rejection reason of a reply from a session that does not hold the service's token
+UNTRUSTED = "untrusted"
+
+
+def _is_local_timeout(reply: zenoh.Reply) -> bool:
+    """Zenoh's own "Timeout" error reply (no replier)."""
+    return (reply.err is not None and reply.replier_id is None
+            and reply.err.payload.to_bytes().strip().lower() == b"timeout")
+
+
 def request(session: zenoh.Session, key: str, msg: Message, timeout_s: float,
-            stop: threading.Event | None = None) -> tuple[bytes, str]:
-    """Send ``msg`` as a query and return the first reply's (payload, encoding).
+            stop: threading.Event | None = None,
+            trusted: str | None = None) -> tuple[bytes, str]:
+    """Send ``msg`` as a query and return the first (trusted) reply's (payload, encoding).
 
     Waits as :func:`first_reply`; raises TimeoutError when nobody answers
     within ``timeout_s`` (or on stop) and QueryError for an error reply.
     """
-    item = first_reply(session, key, timeout_s, stop, payload=msg.SerializeToString(),
-                       encoding=encoding(msg))
+    item = first_reply(session, key, timeout_s, stop, trusted,
+                       payload=msg.SerializeToString(), encoding=encoding(msg),
+                       attachment=str(session.info.zid()).encode())
     if item.ok is not None:
         return item.ok.payload.to_bytes(), str(item.ok.encoding)
     assert item.err is not None  # a reply is either ok or an error
@@ -273,22 +312,59 @@ def request(session: zenoh.Session, key: str, msg: Message, timeout_s: float,
 
 
 class Liveliness:
-    """Tracks which services of a vehicle are alive (liveliness subscriber with history)."""
+    """Tracks which services of a vehicle are alive and which session holds each one's token.
+
+    A service is alive while its ``alive/<service>`` token is up. Its holder is
+    the session named by its ``alive/<service>/<zid>`` token (declared first,
+    :meth:`Context.announce`); while several sessions claim one service the
+    first seen stays the holder (:meth:`holder`) and every other claim is
+    logged and counted (``alive/<service>``, reason ``untrusted``).
+    """
 
     def __init__(self, session: zenoh.Session, uav: str):
         self.alive: set[str] = set()
+        self.holders: dict[str, list[str]] = {}
+        self.claims = 0  # holder tokens beyond the first per service (impostors, duplicates)
+        self.uav = uav
         self.cond = threading.Condition()
         self.sub = session.liveliness().declare_subscriber(
-            keys.alive_all(uav), self._on, history=True)
+            keys.alive_tree(uav), self._on, history=True)
 
     def _on(self, sample: zenoh.Sample) -> None:
-        name = keys.service_of(str(sample.key_expr))
+        key = str(sample.key_expr)
+        held = keys.holder_of(key)
+        put = sample.kind == zenoh.SampleKind.PUT
+        second = ""
         with self.cond:
-            if sample.kind == zenoh.SampleKind.PUT:
-                self.alive.add(name)
+            if held is None:
+                if put:
+                    self.alive.add(keys.service_of(key))
+                else:
+                    self.alive.discard(keys.service_of(key))
             else:
-                self.alive.discard(name)
+                name, zid = held
+                zids = self.holders.setdefault(name, [])
+                if put and zid not in zids:
+                    zids.append(zid)
+                    if len(zids) > 1:
+                        self.claims += 1
+                        second = f"{name} claimed by {zid} while {zids[0]} holds it"
+                elif not put and zid in zids:
+                    zids.remove(zid)
             self.cond.notify_all()
+        if second:  # only counting and logging here: never Zenoh in a callback
+            codec.rejected("liveliness", codec.invalid(second), log, key=key, reason=UNTRUSTED)
+
+    def holder(self, service: str) -> str:
+        """The Zenoh id of the session holding ``service``'s token ("" while nobody does)."""
+        with self.cond:
+            zids = self.holders.get(service)
+            return zids[0] if zids else ""
+
+    def others(self, service: str, own: str) -> list[str]:
+        """Sessions other than ``own`` that claim ``service``."""
+        with self.cond:
+            return [z for z in self.holders.get(service, []) if z != own]
 
     def wait_for(self, services: Iterable[str], timeout_s: float,
                  stop: threading.Event | None = None) -> bool:
@@ -384,9 +460,10 @@ def serve_status(session: zenoh.Session, settings: Settings, stop: threading.Eve
 
 
 def query_status(session: zenoh.Session, uav: str, service: str,
-                 timeout_s: float = 5.0) -> dict[str, Any]:
-    """Ask a service for its status (raises TimeoutError if it does not answer)."""
-    reply = first_reply(session, keys.status(uav, service), timeout_s)
+                 timeout_s: float = 5.0, trusted: str | None = None,
+                 stop: threading.Event | None = None) -> dict[str, Any]:
+    """Ask a service for its status (raises TimeoutError if it (``trusted``) does not answer)."""
+    reply = first_reply(session, keys.status(uav, service), timeout_s, stop, trusted)
     if reply.ok is None:
         raise TimeoutError(f"no status from {service} within {timeout_s:.3g} s")
     doc: dict[str, Any] = json.loads(reply.ok.payload.to_bytes())
@@ -402,6 +479,7 @@ class Context:
     stop: threading.Event
     session: zenoh.Session | None = None
     token: zenoh.LivelinessToken | None = None
+    holder_token: zenoh.LivelinessToken | None = None
     exit_code: int = 0
 
     def announce(self) -> None:
@@ -413,6 +491,9 @@ class Context:
         assert self.session is not None
         settle_heap()
         s = self.settings
+        zid = str(self.session.info.zid())
+        self.holder_token = self.session.liveliness().declare_token(  # who: before the token
+            keys.holder(s.uav_id, s.service, zid))
         self.token = self.session.liveliness().declare_token(keys.alive(s.uav_id, s.service))
         log.info("alive", extra=logsetup.fields(key=keys.alive(s.uav_id, s.service)))
 
@@ -491,8 +572,9 @@ def run_service(settings: Settings, body: Body, zenoh_session: bool = True) -> i
                     body(ctx)
                 finally:
                     close_status()
-                if ctx.token is not None:
-                    ctx.token.undeclare()
+                for token in (ctx.token, ctx.holder_token):
+                    if token is not None:
+                        token.undeclare()
         except Exception:
             log.exception("service failed")
             ctx.exit_code = 1

@@ -17,6 +17,7 @@ mission/event           pub/sub     MissionEvent (started, step, ended)
 operator/waypoints      pub/sub     OperatorWaypoints for System 1
 clock                   pub/sub     Clock, the simulated clock's anchor
 alive/<service>         liveliness  token while the service runs
+alive/<service>/<zid>   liveliness  the same, naming the holder's Zenoh session id
 ======================  ==========  =====================================
 """
 
@@ -87,6 +88,30 @@ def alive(uav: str, service: str) -> str:
 
 def alive_all(uav: str) -> str:
     return f"{ns(uav)}/alive/*"
+
+
+def holder(uav: str, service: str, zid: str) -> str:
+    """Liveliness token naming the session (Zenoh id ``zid``) that holds ``service``'s token.
+
+    Liveliness samples do not say who declared them, so the holder declares
+    this second token; replies are trusted only from that session
+    (services/common/bus.py).
+    """
+    if not _ID.match(zid):
+        raise ValueError(f"bad session id {zid!r}")
+    return f"{alive(uav, service)}/{zid}"
+
+
+def alive_tree(uav: str) -> str:
+    """Every liveliness token of one vehicle: ``alive/<service>`` and ``alive/<service>/<zid>``."""
+    return f"{ns(uav)}/alive/**"
+
+
+def holder_of(alive_key: str) -> tuple[str, str] | None:
+    """(service, zid) of a holder token; None for a plain ``alive/<service>`` token."""
+    head, _, tail = str(alive_key).partition("/alive/")
+    parts = tail.split("/")
+    return (parts[0], parts[1]) if len(parts) == 2 else None
 
 
 def service_of(alive_key: str) -> str:

@@ -81,7 +81,7 @@ class Ews:
             params = self.params
             if cmd.readings is not None:  # the supervisor's readings (FireReset.readings)
                 try:
-                    params = replace(self.params, **dict(cmd.readings))
+                    params = replace(self.params, **dict(cmd.readings))  # type: ignore[arg-type]
                 except (TypeError, ValueError) as err:
                     raise codec.invalid(f"bad fire readings: {err}") from err
             self.field = (FireField(params=params, area_size_m=cmd.area_size_m)
@@ -135,6 +135,34 @@ class Ews:
         bus.put(self.forecast_pub, "", m)
 
 
+class Binding:
+    """The fire process belongs to the session that reset it (the query's stated session id).
+
+    While that session holds the vehicle's ``alive/supervisor`` token, commands
+    from any other session are refused (a second supervisor, a replayed or
+    rogue command); once it is gone, a reset from another session takes the
+    fire process over (a restarted supervisor resuming the mission).
+    """
+
+    def __init__(self, live: bus.Liveliness):
+        self.live = live
+        self.session = ""
+        self.mission_id = ""
+
+    def check(self, cmd: codec.FireCommand, who: str) -> None:
+        """Raise CodecError when ``who`` may not send ``cmd``; a reset binds."""
+        bound = self.session
+        if bound and who != bound and bound in self.live.holders.get("supervisor", []):
+            raise codec.invalid(f"fire process of mission {self.mission_id!r} is bound to "
+                                f"supervisor session {bound}; {cmd.kind} from {who or '?'} "
+                                f"refused")
+        if cmd.kind == "reset":
+            if bound and who != bound:
+                log.warning("fire process taken over", extra=fields(
+                    mission=cmd.mission_id, previous=bound, session=who))
+            self.session, self.mission_id = who, cmd.mission_id
+
+
 def body(ctx: bus.Context, params: FireParams, forecast_horizon_s: float) -> None:
     assert ctx.session is not None
     uav = ctx.settings.uav_id
@@ -142,6 +170,7 @@ def body(ctx: bus.Context, params: FireParams, forecast_horizon_s: float) -> Non
     key = keys.fire_command(uav)
     inbox = bus.Inbox(key)
     queryable = ctx.session.declare_queryable(key, inbox.on_query)
+    binding = Binding(bus.Liveliness(ctx.session, uav))
     ctx.announce()
     while not ctx.stop.is_set():
         item = inbox.get(timeout=0.2)
@@ -150,6 +179,7 @@ def body(ctx: bus.Context, params: FireParams, forecast_horizon_s: float) -> Non
         try:
             cmd = codec.fire_command_from_msg(
                 codec.parse(item.payload, fire_pb2.FireCommand, item.encoding))
+            binding.check(cmd, item.attachment.decode("ascii", "replace"))
             update = ews.handle(cmd)
             # Before the reply: once answered, the supervisor starts its next step at once,
             # and a forecast computed then would take the CPU its plan request needs.

@@ -16,6 +16,8 @@ import logging
 import time
 from pathlib import Path
 
+import zenoh
+
 from dualpilot.mission.params import Controller, Timing
 from dualpilot.model.geometry import Rect
 from dualpilot.readings import PROFILES, get_profile
@@ -26,7 +28,7 @@ from services.common.clock import SimClock
 from services.common.log import fields
 
 from .link import VehicleLink
-from .session import Aborted, StackParams, StackSession
+from .session import Aborted, StackParams, StackSession, VehicleGone
 
 log = logging.getLogger("services.supervisor")
 
@@ -39,6 +41,16 @@ def needed_services(controller: Controller) -> set[str]:
     planners = {Controller.CC: {"system1", "system2"}, Controller.S1: {"system1"},
                 Controller.S2: {"system2"}}[controller]
     return {"ews", "uavsim"} | planners
+
+
+def other_supervisors(session: zenoh.Session, uav: str, timeout_s: float = 2.0) -> list[str]:
+    """Sessions holding ``uav``'s supervisor tokens now (liveliness query; [] if none)."""
+    found = []
+    for reply in session.liveliness().get(keys.alive(uav, "supervisor") + "/**",
+                                          timeout=timeout_s):
+        if reply.ok is not None:
+            found.append(str(reply.ok.key_expr).rsplit("/", 1)[-1])
+    return found
 
 
 def parse_goal(text: str) -> Rect:
@@ -97,7 +109,7 @@ def main(argv: list[str] | None = None) -> int:
     s = p.add_argument_group("stack")
     s.add_argument("--wait-services-s", type=float, default=env("WAIT_SERVICES_S", "120"),
                    help="how long to wait for the other services [WAIT_SERVICES_S]")
-    s.add_argument("--plan-deadline-s", default=env("PLAN_DEADLINE_S", "30,120"),
+    s.add_argument("--plan-deadline-s", default=env("PLAN_DEADLINE_S", ""),
                    help="'s1,s2' wall seconds a plan request waits [PLAN_DEADLINE_S]")
     s.add_argument("--setpoint-rate-hz", type=float, default=env("SETPOINT_RATE_HZ", "20"),
                    help="setpoint stream rate, >= 10 [SETPOINT_RATE_HZ]")
@@ -119,7 +131,9 @@ def main(argv: list[str] | None = None) -> int:
         controller, timing = Controller(args.controller), Timing(args.timing)
         goal = parse_goal(args.goal)
         waypoints = codec.parse_waypoints(args.waypoints)
-        deadlines = tuple(float(v) for v in args.plan_deadline_s.split(","))
+        # default: tied to the control period (StackParams.plan_deadline_periods)
+        deadlines = tuple(float(v) for v in args.plan_deadline_s.split(",")) if (
+            args.plan_deadline_s) else StackParams().plan_deadline_periods
         if len(deadlines) != 2 or min(deadlines) <= 0:
             raise ValueError("--plan-deadline-s must be two positive numbers 's1,s2'")
         chosen: dict[str, object] = {k.removeprefix("reading_"): v for k, v in vars(args).items()
@@ -131,7 +145,8 @@ def main(argv: list[str] | None = None) -> int:
         params = reading.mission
         # the start is the vehicle's position when the mission starts (StackSession.start)
         spec = MissionSpec(goal=goal, area_size_m=args.area_size_m, seed=args.seed)
-        stack = StackParams(plan_deadline_s=(deadlines[0], deadlines[1]),
+        stack = StackParams(plan_deadline_s=(deadlines[0], deadlines[1]) if (
+                                args.plan_deadline_s) else None,
                             altitude_m=args.altitude_m)
         SimClock(settings.speed_factor)
         key = mav.resolve_key(args.signing_passphrase, args.signing_key_file)
@@ -144,12 +159,25 @@ def main(argv: list[str] | None = None) -> int:
 
     def body(ctx: bus.Context) -> None:
         assert ctx.session is not None
+        holders = other_supervisors(ctx.session, settings.uav_id)
+        if holders:  # one supervisor per vehicle: never touch a vehicle another one flies
+            log.error("another supervisor holds this vehicle: not starting", extra=fields(
+                uav=settings.uav_id, holders=",".join(holders)))
+            ctx.exit_code = EXIT_ABORTED
+            return
         link = VehicleLink(settings.mavlink_url, args.sysid, args.altitude_m,
                            args.setpoint_rate_hz, key=key, lost_after_s=args.vehicle_lost_s)
         link.start()
         live = bus.Liveliness(ctx.session, settings.uav_id)
         ctx.announce()
         try:
+            own = str(ctx.session.info.zid())
+            live.wait_for(["supervisor"], 5.0, ctx.stop)
+            if live.holder("supervisor") not in ("", own):  # another started at the same time
+                log.error("another supervisor claimed this vehicle first: not starting",
+                          extra=fields(holder=live.holder("supervisor")))
+                ctx.exit_code = EXIT_ABORTED
+                return
             needed = needed_services(controller)
             log.info("waiting for services", extra=fields(services=",".join(sorted(needed))))
             if not live.wait_for(needed, args.wait_services_s, ctx.stop):
@@ -173,6 +201,8 @@ def main(argv: list[str] | None = None) -> int:
             aborted = ""
             try:
                 mission.run()
+            except VehicleGone as err:  # the mission ends (an end line), not aborted
+                mission.end_lost("vehicle_lost", str(err))
             except Aborted as err:
                 aborted = str(err)
                 if not ctx.stop.is_set():
@@ -183,9 +213,14 @@ def main(argv: list[str] | None = None) -> int:
             wall = time.perf_counter() - t0
             out = Path(args.out) if args.out else None
             if out is not None and mission.result is not None and mission.result.records:
-                paths = mission.write(out, {"wall_time_s": round(wall, 3),
-                                            "aborted": aborted or None})
-                log.info("records written", extra=fields(files=",".join(p.name for p in paths)))
+                try:
+                    paths = mission.write(out, {"wall_time_s": round(wall, 3),
+                                                "aborted": aborted or None})
+                    log.info("records written", extra=fields(
+                        files=",".join(p.name for p in paths)))
+                except OSError as err:  # a full or read-only disk: logged, the end announced
+                    codec.rejected("records", codec.invalid(f"records not written: {err}"),
+                                   log, key="storage/records", reason="write_error")
             mission.announce_end(str(out or ""), aborted)
             r = mission.result
             if r is not None and not aborted:

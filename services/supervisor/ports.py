@@ -43,7 +43,20 @@ class Aborted(RuntimeError):
 class StackParams:
     """How the supervisor talks to the stack."""
 
-    plan_deadline_s: tuple[float, float] = (30.0, 120.0)  # System 1, System 2 (wall s)
+    #: how long a plan request waits (wall s), System 1 and System 2; None: tied to the
+    #: control period ΔT by ``plan_deadline_periods`` (the paper's modelled planning times
+    #: stay a modelling choice of the step, never a wait)
+    plan_deadline_s: tuple[float, float] | None = None
+    #: the deadlines in control periods ΔT: 2 ΔT for System 1, 5 ΔT (the paper's 5 s) for System 2
+    plan_deadline_periods: tuple[float, float] = (2.0, 5.0)
+    #: a planner that misses this many deadlines in a row is unavailable until it answers a
+    #: health query (its ``status/<service>`` queryable)
+    deadline_misses: int = 2
+    health_every_s: float = 2.0    # wall s between health queries of an unavailable planner
+    health_timeout_s: float = 0.5
+    #: uavsim's token gone and no heartbeat for this long (s, after the link's 3 s): the
+    #: mission ends ("vehicle_lost", an ``end`` line) instead of waiting ``pause_limit_s``
+    vehicle_gone_s: float = 5.0
     fire_timeout_s: float = 30.0
     vehicle_timeout_s: float = 10.0
     altitude_m: float = 50.0
@@ -69,10 +82,23 @@ class Bus:
     stop: threading.Event
     stack: StackParams
     live: bus.Liveliness | None = None
+    dt_s: float = 1.0  # the control period ΔT (s)
+
+    def deadline_s(self, system: int) -> float:
+        """The plan deadline of ``system`` (wall s): the explicit one, or periods × ΔT."""
+        st = self.stack
+        if st.plan_deadline_s is not None:
+            return st.plan_deadline_s[system - 1]
+        return st.plan_deadline_periods[system - 1] * self.dt_s
 
     def alive(self, service: str) -> bool:
         """The service's liveliness token is up (always True without a tracker)."""
         return self.live is None or not self.live.missing({service})
+
+    def trusted(self, service: str) -> str | None:
+        """Whose replies count for ``service``: the token holder's Zenoh id ("" nobody yet);
+        None (anyone) without a tracker."""
+        return None if self.live is None else self.live.holder(service)
 
     def clock_msg(self, out: common_pb2.Clock) -> None:
         """``out`` as the anchor that maps the current τ_t to the wall clock."""
@@ -111,7 +137,7 @@ class StackFires:
         key = keys.fire_command(self.b.uav)
         try:
             payload, enc = bus.request(self.b.session, key, cmd, self.b.stack.fire_timeout_s,
-                                       self.b.stop)
+                                       self.b.stop, trusted=self.b.trusted("ews"))
             update = codec.parse(payload, fire_pb2.FireUpdate, enc)
         except codec.CodecError as err:
             codec.rejected("FireUpdate", err, log, key=key)
@@ -249,6 +275,8 @@ class StackPlanners:
         self.last_info: dict[int, dict[str, object]] = {}
         self.request_wall = self.service_time = self.compute = 0.0
         self.requests = 0
+        self.misses = {1: 0, 2: 0}  # deadlines missed in a row
+        self.demoted: dict[int, float] = {}  # system → monotonic time of its last health query
 
     def begin_step(self) -> None:
         self.request_wall = self.service_time = self.compute = 0.0
@@ -256,7 +284,39 @@ class StackPlanners:
         self.last_info = {}
 
     def available(self, system: int) -> bool:
-        return self.b.alive(f"system{system}")
+        if not self.b.alive(f"system{system}"):
+            return False
+        return system not in self.demoted or self._healthy(system)
+
+    def _healthy(self, system: int) -> bool:
+        """An unavailable planner's health query (at most every ``health_every_s``)."""
+        now = time.monotonic()
+        if now - self.demoted[system] < self.b.stack.health_every_s:
+            return False
+        self.demoted[system] = now
+        name = f"system{system}"
+        try:
+            bus.query_status(self.b.session, self.b.uav, name, self.b.stack.health_timeout_s,
+                             trusted=self.b.trusted(name), stop=self.b.stop)
+        except (TimeoutError, ValueError) as err:
+            log.info("planner still unavailable", extra=fields(system=system, error=str(err)))
+            return False
+        log.info("planner available again: it answered its health query",
+                 extra=fields(system=system))
+        del self.demoted[system]
+        self.misses[system] = 0
+        return True
+
+    def _count_miss(self, system: int, plan: Plan) -> None:
+        if plan.status is not PlanStatus.TIMEOUT:
+            self.misses[system] = 0
+            return
+        self.misses[system] += 1
+        if self.misses[system] >= self.b.stack.deadline_misses and system not in self.demoted:
+            self.demoted[system] = time.monotonic()
+            log.warning("planner unavailable: missed its deadline", extra=fields(
+                system=system, misses=self.misses[system],
+                deadline_s=self.b.deadline_s(system)))
 
     def _message(self, system: int, req: PlanRequest | None) -> plan_pb2.PlanRequest:
         core = codec.PlanRequest(
@@ -265,7 +325,7 @@ class StackPlanners:
             state=req.state if req is not None else np.zeros(4),
             prev_control=req.prev_control if req is not None else np.zeros(2),
             obstacles=req.obstacles if req is not None else (),
-            deadline_s=self.b.stack.plan_deadline_s[system - 1],
+            deadline_s=self.b.deadline_s(system),
             waypoints_revision=self.waypoints.revision, prepare=req is None,
             spec=self.spec if req is None else None)
         return codec.plan_request_msg(core, self.b.stamper, self.b.clock.now_s)
@@ -277,8 +337,8 @@ class StackPlanners:
             try:
                 payload, enc = bus.request(
                     self.b.session, keys.plan(self.b.uav, system), msg,
-                    max(self.b.stack.plan_deadline_s[system - 1], self.b.stack.prepare_timeout_s),
-                    self.b.stop)
+                    max(self.b.deadline_s(system), self.b.stack.prepare_timeout_s),
+                    self.b.stop, trusted=self.b.trusted(f"system{system}"))
                 codec.parse(payload, plan_pb2.Plan, enc)
             except (TimeoutError, bus.QueryError, codec.CodecError) as err:
                 raise Aborted(f"system{system} could not prepare the mission: {err}") from err
@@ -305,6 +365,7 @@ class StackPlanners:
                 log.warning("planner could not be prepared again", extra=fields(error=str(err)))
             else:
                 plan = self._ask(request)
+        self._count_miss(request.system, plan)
         self.compute += plan.compute_time_s
         if request.system == 1:
             self.last_info[1] = dict(plan.info)
@@ -312,13 +373,14 @@ class StackPlanners:
 
     def _ask(self, request: PlanRequest) -> Plan:
         system, t = request.system, request.t
-        deadline = self.b.stack.plan_deadline_s[system - 1]
+        deadline = self.b.deadline_s(system)
         msg = self._message(system, request)
         t0 = time.perf_counter()
         key = keys.plan(self.b.uav, system)
         self.requests += 1
         try:
-            payload, enc = bus.request(self.b.session, key, msg, deadline, self.b.stop)
+            payload, enc = bus.request(self.b.session, key, msg, deadline, self.b.stop,
+                                       trusted=self.b.trusted(f"system{system}"))
             reply = codec.parse(payload, plan_pb2.Plan, enc)
             plan = codec.plan_from_msg(reply, system)
             self.service_time += reply.service_time_s

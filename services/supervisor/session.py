@@ -22,8 +22,10 @@ runs, with the ports of services/supervisor/ports.py. The session
 
 from __future__ import annotations
 
+import fcntl
 import json
 import logging
+import os
 import threading
 import time
 from dataclasses import replace
@@ -33,10 +35,12 @@ from typing import cast
 import numpy as np
 import zenoh
 
+from dualpilot.mission import monitor
 from dualpilot.mission.params import Controller, MissionParams, Timing
 from dualpilot.mission.records import (
     STEP_LOG,
     StepLog,
+    atomic_write,
     read_step_log,
     record_to_json,
     result_from_log,
@@ -59,7 +63,18 @@ from .runlog import Latency, OperatorRecord, write_operator_columns
 
 log = logging.getLogger(__name__)
 
-__all__ = ["Aborted", "StackParams", "StackSession"]
+__all__ = ["Aborted", "StackParams", "StackSession", "VehicleGone"]
+
+#: the run directory's lock file: one supervisor at a time writes a run directory
+LOCK_FILE = ".supervisor.lock"
+
+
+class VehicleGone(Aborted):
+    """The vehicle is lost for good: its token is gone and its heartbeat too (the mission ends)."""
+
+
+class StorageFault(Aborted):
+    """The step record could not be written (a full or read-only disk): the mission ends."""
 
 
 class StackSession:
@@ -99,7 +114,7 @@ class StackSession:
         self.waypoints = waypoints
         self.mission_rev = 0  # the vehicle's mission download last seen
         self.b = Bus(session, uav, mission_id, codec.Stamper("supervisor", uav), clock, stop,
-                     stack, live)
+                     stack, live, dt_s=spec.dynamics.dt_s)
         self.pubs = {
             name: session.declare_publisher(key) for name, key in (
                 ("decision", keys.decision(uav)), ("state", keys.vehicle_state(uav)),
@@ -117,6 +132,10 @@ class StackSession:
         self._tick = 0.0
         self._step_why: dict[str, object] = {}
         self._decision: tuple[Decision, int] | None = None
+        self.lock_fh: object | None = None  # the run directory's lock (held while flying)
+        self.monitor_rejected = 0  # plans the run-time monitor refused (dualpilot/mission/monitor)
+        self.storage_errors = 0
+        self.storage_fault = ""
 
     @property
     def result(self) -> MissionResult | None:
@@ -135,8 +154,12 @@ class StackSession:
         if self.step_log is not None and not self.step_log.fh.closed:
             try:
                 self.step_log.write(kind, wall_time_s=round(time.time(), 3), **fields_)
-            except (OSError, ValueError) as err:  # a full disk must not stop the vehicle
-                log.error("step record not written", extra=fields(error=str(err)))
+            except (OSError, ValueError) as err:  # a full disk must not crash the supervisor
+                self.storage_errors += 1
+                if not self.storage_fault:
+                    self.storage_fault = f"step record not written: {err}"
+                    codec.rejected("record", codec.invalid(self.storage_fault), log,
+                                   key="storage/steps.jsonl", reason="write_error")
 
     def _steps(self) -> int:
         return self.result.steps if self.result is not None else 0
@@ -181,9 +204,18 @@ class StackSession:
                   else f"vehicle not flying offboard ({self.link.status()})")
         log.warning("mission paused", extra=fields(reason=reason))
         self._event(supervisor_pb2.MISSION_EVENT_KIND_PAUSED, message=reason, step=self._steps())
+        gone_since: float | None = None
         while not self.link.offboard():
             if self.stop.is_set():
                 raise Aborted("stopped")
+            gone = not self.link.alive() and not self.b.alive("uavsim")
+            if not gone:
+                gone_since = None
+            elif gone_since is None:
+                gone_since = time.monotonic()
+            elif time.monotonic() - gone_since > self.stack.vehicle_gone_s:
+                raise VehicleGone(f"vehicle lost: no heartbeat and its liveliness token gone "
+                                  f"for {self.stack.vehicle_gone_s:g} s")
             if time.monotonic() - t0 > self.stack.pause_limit_s:
                 raise Aborted(f"paused for more than {self.stack.pause_limit_s:g} s: {reason}")
             if not self.link.alive():
@@ -265,8 +297,42 @@ class StackSession:
                     message=f"{names_back} back after {paused:.1f} s", step=self._steps())
 
     # -- start ------------------------------------------------------------------------------------
+    def claim_run_dir(self) -> None:
+        """Before the vehicle is taken: lock the run directory and check it is writable.
+
+        The lock (``fcntl.flock``, exclusive) is held until the process ends, so
+        a second supervisor never writes (or resumes) a record its owner is
+        still writing; the probe file is written, fsynced and removed. Raises
+        Aborted (nothing armed) otherwise.
+        """
+        if self.record_dir is None:
+            return
+        try:
+            self.record_dir.mkdir(parents=True, exist_ok=True)
+            fh = (self.record_dir / LOCK_FILE).open("a+")
+        except OSError as err:
+            raise Aborted(f"run directory {self.record_dir} not usable: {err}") from err
+        try:
+            fcntl.flock(fh.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError as err:
+            fh.close()
+            raise Aborted(f"run directory {self.record_dir} is locked by another supervisor"
+                          ) from err
+        self.lock_fh = fh
+        probe = self.record_dir / f".probe.{os.getpid()}"
+        try:
+            with probe.open("w") as pf:
+                pf.write("x" * 4096)
+                pf.flush()
+                os.fsync(pf.fileno())
+            probe.unlink()
+        except OSError as err:
+            probe.unlink(missing_ok=True)
+            raise Aborted(f"run directory {self.record_dir} not writable: {err}") from err
+
     def start(self) -> None:
         """Take the vehicle, then start the mission from its state or resume its record."""
+        self.claim_run_dir()
         self._take_vehicle()
         if not self.link.wait_mission(self.stack.mission_wait_s, self.stop):
             log.warning("the vehicle's mission was not downloaded before the start")
@@ -430,6 +496,11 @@ class StackSession:
         return "no OK plan" if alive else "no planner alive"
 
     def recorded(self, record: StepRecord, flown: bool) -> None:
+        rejected = record.plan_status.count(f"[{monitor.TAG}:")
+        if rejected:
+            self.monitor_rejected += rejected
+            log.warning("plan refused by the run-time monitor", extra=fields(
+                step=record.t, plan_status=record.plan_status, total=self.monitor_rejected))
         why = dict(self._step_why)
         if record.system == 0:
             why["hold_reason"] = self._hold_reason()
@@ -463,6 +534,7 @@ class StackSession:
         assert self.mission is not None and self.planners is not None
         if self.mission.done:
             return None
+        self.check_storage()
         self._ensure_offboard()
         self._update_waypoints()
         self._hold_without_planners()
@@ -486,9 +558,27 @@ class StackSession:
         assert self.result is not None
         return self.result
 
+    def end_lost(self, cause: str, reason: str) -> None:
+        """The mission ends without a last step (the vehicle lost for good): the ``end`` line."""
+        if self.result is None:
+            return
+        self.result.success, self.result.failure_cause = False, cause
+        self._record("end", success=False, failure_cause=cause, steps=self.result.steps,
+                     final_state=[float(v) for v in self.state], reason=reason)
+        log.error("mission ended", extra=fields(cause=cause, reason=reason,
+                                                steps=self.result.steps))
+
+    def check_storage(self) -> None:
+        """Raise StorageFault after a record write error (policy: the mission ends, the
+        vehicle holds: the supervisor stops commanding new targets)."""
+        if self.storage_fault:
+            raise StorageFault(f"storage fault: {self.storage_fault}")
+
     def close_record(self) -> None:
         if self.step_log is not None:
             self.step_log.close()
+            if self.step_log.failed is not None and not self.storage_fault:
+                self.storage_fault = f"step record not written: {self.step_log.failed}"
 
     def announce_end(self, run_dir: str, aborted: str = "") -> None:
         r = self.result
@@ -511,8 +601,16 @@ class StackSession:
             "speed_factor": self.clock.speed_factor or "unpaced",
             "setpoint_overhead": self.latency.overhead_ms(),
             "setpoints_sent": self.link.sent, "rejected_messages": dict(codec.REJECTED.by_label),
+            "monitor_rejected": self.monitor_rejected, "untrusted": _untrusted_counts(),
+            "storage_errors": self.storage_errors,
             **extra,
         }
-        (out / "summary.json").write_text(json.dumps(summary, indent=2, default=str) + "\n")
+        atomic_write(out / "summary.json", json.dumps(summary, indent=2, default=str) + "\n")
         paths.append(self.latency.write(out))
         return paths
+
+
+def _untrusted_counts() -> dict[str, int]:
+    """Replies and liveliness claims refused as not from the token holder, per key."""
+    return {key: reasons[bus.UNTRUSTED] for key, reasons in codec.REJECTED.snapshot().items()
+            if bus.UNTRUSTED in reasons}

@@ -41,6 +41,7 @@ from .failsafe import check_offboard
 from .intervals import Schedule
 from .mission import MissionServer
 from .setpoint import normalised
+from .storage import open_tlog
 from .vehicle import Vehicle
 
 log = logging.getLogger("services.uavsim")
@@ -93,7 +94,27 @@ PARAMS: dict[str, tuple[float, float | None, float | None, str]] = {
     "MIS_ACC_RAD": (15.0, 1.0, 200.0, "a mission waypoint counts as reached within this, m"),
     "MIS_ID": (0.0, None, None, "mission version, +1 on every upload or clear"),
     "SIG_REJECTED": (0.0, None, None, "unsigned or wrongly signed frames ignored (offboard)"),
+    "COM_SP_LEAD_S": (7.0, 1.0, 600.0, "a setpoint due later than this after the vehicle's "
+                                       "clock is refused (one step: 5 dT planning + dT, +0.5)"),
+    "CTL_REFUSED": (0.0, None, None, "control messages refused: not from the link and peer "
+                                     "in control"),
 }
+#: Messages that steer the vehicle: only from the link and peer in control (the offboard
+#: companion, or a ground station that took control with a mode command), and on a signed
+#: ground-station link only signed.
+CONTROL_COMMANDS = frozenset({m.MAV_CMD_COMPONENT_ARM_DISARM, m.MAV_CMD_DO_SET_MODE,
+                              m.MAV_CMD_NAV_TAKEOFF, m.MAV_CMD_NAV_LAND})
+#: Messages a keyed ground-station link refuses unsigned (control, mission upload, parameters).
+SIGNED_ONLY = frozenset({"SET_POSITION_TARGET_LOCAL_NED", "COMMAND_LONG", "COMMAND_INT",
+                         "SET_MODE", "PARAM_SET", "MISSION_COUNT", "MISSION_ITEM_INT",
+                         "MISSION_ITEM", "MISSION_CLEAR_ALL", "MISSION_SET_CURRENT"})
+
+
+def steers(msg: Any) -> bool:
+    """A setpoint, a mode change, arming, take-off or landing (not a request or a parameter)."""
+    kind = msg.get_type()
+    return kind in ("SET_POSITION_TARGET_LOCAL_NED", "SET_MODE") or (
+        kind == "COMMAND_LONG" and int(msg.command) in CONTROL_COMMANDS)
 
 
 class Endpoint:
@@ -132,6 +153,13 @@ class Endpoint:
         self.rejected_seen = 0
         self.last_reject_note = 0.0
         self.peers: set[tuple[str, int, int]] = set()
+        #: who may steer: the link in control ("offboard" until a ground station takes over
+        #: with a mode command) and the peer (address, sysid, compid) streaming on it
+        self.control_link = "offboard"
+        self.controller: tuple[Any, int, int] | None = None
+        self.controller_heard = 0.0
+        self.addr: Any = None  # the address of the datagram being handled
+        self.fault = ""  # a storage fault to report (STATUSTEXT) from the loop
         self.commands = Commands(self)
         self.home_local = (float(vehicle.state[0]), float(vehicle.state[1]))
         self.area_size_m = area_size_m
@@ -305,6 +333,7 @@ class Endpoint:
                 log.debug("recv failed", extra=fields(link=link, error=str(err)))
                 return
             try:
+                self.addr = addr
                 if self.datagram(link, conn, data):
                     self.add_client(conn, addr)
             except Exception:  # a bug must not take the vehicle down: count it, go on
@@ -394,6 +423,8 @@ class Endpoint:
                 codec.Reason.WRONG_TARGET))
             return False
         now = time.monotonic()
+        if steers(msg) and not self.may_control(link, msg, now):
+            return False
         handled = self.mission.handle(link, msg, now)
         if handled is not None:
             return handled
@@ -427,6 +458,44 @@ class Endpoint:
         elif kind == "SET_MODE":
             self.commands.on_set_mode(link, msg)
         return True
+
+    def may_control(self, link: str, msg: Any, now: float) -> bool:
+        """Control only from the link and peer in control; False after counting a refusal.
+
+        A mode command (DO_SET_MODE, SET_MODE) from the ground-station link is its
+        explicit take-over: the ground station is then in control until it
+        commands offboard mode (the companion's setpoints are refused meanwhile).
+        On the link in control, the first peer streams; another peer is refused
+        until the first has been silent for COM_OF_LOSS_T (one controller at a time).
+        """
+        kind = msg.get_type()
+        peer = (self.addr, msg.get_srcSystem(), msg.get_srcComponent())
+        mode_cmd = kind == "SET_MODE" or (kind == "COMMAND_LONG"
+                                          and int(msg.command) == m.MAV_CMD_DO_SET_MODE)
+        if link != self.control_link:
+            if link == "gcs" and mode_cmd:
+                log.warning("ground station takes control", extra=fields(peer=str(peer)))
+                self.statustext("ground station in control", m.MAV_SEVERITY_WARNING)
+                self.control_link, self.controller, self.controller_heard = link, peer, now
+                return True
+            return self.refuse(link, f"{kind} from the {link} link: the {self.control_link} "
+                                     f"link is in control")
+        silent = now - self.controller_heard > self.p("COM_OF_LOSS_T")
+        if self.controller is None or self.controller == peer or silent:
+            if self.controller != peer and self.controller is not None:
+                log.info("controller changed", extra=fields(link=link, peer=str(peer)))
+            self.controller, self.controller_heard = peer, now
+            if link == "gcs" and mode_cmd and self.commands.hands_back(msg):
+                self.control_link, self.controller = "offboard", None
+                log.info("ground station hands control back to the offboard link")
+            return True
+        return self.refuse(link, f"{kind} from a second peer {peer[1]}:{peer[2]} while "
+                                 f"{self.controller[1]}:{self.controller[2]} is in control")
+
+    def refuse(self, link: str, why: str) -> bool:
+        self.reject(link, codec.invalid(why, codec.Reason.WRONG_TARGET), "control")
+        self.set_param("CTL_REFUSED", self.p("CTL_REFUSED") + 1)
+        return False
 
     def count_unsigned(self, link: str) -> None:
         """An unsigned or wrongly signed frame on a signed link: SIG_REJECTED, a STATUSTEXT.
@@ -483,6 +552,12 @@ class Endpoint:
         the vehicle keeps its last target (or holds) and the stream is not kept alive."""
         lead = (None if self.realtime is not None  # real time: the client's stamp is not a clock
                 else int(msg.time_boot_ms) - self.vehicle.time_ms)
+        if lead is not None and lead > self.p("COM_SP_LEAD_S") * 1000:  # never moves the clock
+            self.reject(link, codec.invalid(
+                f"setpoint due {lead / 1000:.6g} s after the vehicle's clock (more than one step,"
+                f" COM_SP_LEAD_S = {self.p('COM_SP_LEAD_S'):g} s)", codec.Reason.OUT_OF_RANGE),
+                "setpoint")
+            return False
         try:
             target = codec.setpoint_from_mavlink(normalised(msg), self.area_size_m, lead)
         except codec.CodecError as err:
@@ -544,6 +619,9 @@ class Endpoint:
                 self.stream(msg_id)
             check_offboard(self, now)
             self.mission.poll(now)
+            if self.fault:
+                self.statustext(self.fault[:50], m.MAV_SEVERITY_ERROR)
+                self.fault = ""
             timeout = min(self.schedule.wait_s(now), 0.05)
             if self.realtime is not None:
                 timeout = min(timeout, self.realtime.wall_until_next(now))
@@ -630,11 +708,16 @@ def main(argv: list[str] | None = None) -> int:
         p.error(str(err))
 
     def body(ctx: bus.Context) -> None:
-        tlog = mav.Tlog(args.tlog) if args.tlog else None
+        tlog = open_tlog(args.tlog) if args.tlog else None
         links = {"offboard": mav.connect(settings.mavlink_url, args.sysid,
                                          mav.MAV_COMP_ID_AUTOPILOT1, key=key)}
         if args.gcs_url:
             links["gcs"] = mav.connect(args.gcs_url, args.sysid, mav.MAV_COMP_ID_AUTOPILOT1)
+            if key is not None:  # signed too: unsigned control, uploads and PARAM_SET refused
+                signed_only = {getattr(m, f"MAVLINK_MSG_ID_{k}") for k in SIGNED_ONLY}
+                links["gcs"].setup_signing(
+                    key, sign_outgoing=True,
+                    allow_unsigned_callback=lambda _mav, msg_id: msg_id not in signed_only)
         log.info("serving MAVLink", extra=fields(
             offboard=settings.mavlink_url, gcs=args.gcs_url, signed=key is not None,
             autopilot=args.autopilot, clock=args.clock, speed_factor=speed,
@@ -642,6 +725,10 @@ def main(argv: list[str] | None = None) -> int:
         endpoint = Endpoint(vehicle, links, args.sysid, args.altitude_m, home,
                             args.offboard_loss_s, args.area_size_m, tlog,
                             fl.FLAVOURS[args.autopilot], args.clock, speed)
+        if tlog is not None:
+            tlog.on_fault = lambda text: setattr(endpoint, "fault", text)
+        elif args.tlog:
+            endpoint.fault = "tlog not created: flying without it"
         if ctx.session is not None:
             ctx.announce()
         try:

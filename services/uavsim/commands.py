@@ -241,6 +241,14 @@ class Commands:
             self._after_ack = None
         return True
 
+    def hands_back(self, msg: Any) -> bool:
+        """A mode command (SET_MODE or DO_SET_MODE) that asks for offboard mode."""
+        if msg.get_type() == "SET_MODE":
+            custom: int | None = int(msg.custom_mode)
+        else:
+            custom = self.ep.flavour.from_command(float(msg.param2), float(msg.param3))
+        return custom is not None and self.ep.flavour.mode_of(custom) == fl.OFFBOARD
+
     def on_set_mode(self, link: str, msg: Any) -> None:
         """The legacy SET_MODE message (MAVProxy's ``mode``): acked as ArduPilot does."""
         result = self.mode_request(int(msg.base_mode), int(msg.custom_mode))
