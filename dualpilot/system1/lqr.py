@@ -21,6 +21,12 @@ Our reading, each a parameter:
   exactly, so the result passes :func:`dualpilot.verify.verify_trajectory`'s
   dynamics check.
 
+Option (not the paper's; System 1's ``tracker="lqr_du"``): an LQR on the state
+augmented with the previous control, z = [x − x̂; w₋] with input Δw
+(:func:`lqr_du_gain`), stage cost eᵀQe + wᵀRw + ΔwᵀR_Δ Δw, where w = u − u_ff
+is the feedback part of u (u itself without the feed-forward), started from the
+control last applied (:func:`track` with ``prev_control``).
+
 Indexing follows :class:`dualpilot.plan.Plan`: ``states[k+1] = Φ states[k] + Γ controls[k]``.
 """
 
@@ -70,6 +76,45 @@ def lqr_gain(dynamics: DynamicsParams = DynamicsParams(), q: float = 2.0,
     rm = r * np.eye(dynamics.dim)
     p = solve_discrete_are(phi, gamma, qm, rm)
     k = np.linalg.solve(rm + gamma.T @ p @ gamma, gamma.T @ p @ phi)
+    return np.asarray(k, dtype=float), np.asarray(p, dtype=float)
+
+
+#: R_Δ = r_delta_u·I, the weight on Δu of :func:`lqr_du_gain` (against Q = 2·I,
+#: R = 0.1·I). At 100: k_p, k_v, k_u ≈ 0.090, 0.292, 0.594 (plain: 0.629, 1.453, 1),
+#: closed-loop spectral radius 0.74 (plain 0.37); the first jump of a handover and
+#: a plan's Σ‖Δu‖² fall ~4x and ~2.5x (median) with the same plans verifying, for a
+#: larger cross-track overshoot when the UAV arrives with a velocity across the path
+#: (18 m instead of 11 m at 10 m/s); 300 and more start needing slower retries.
+#: benchmarks/handover_energy.py measures it.
+R_DELTA_U = 100.0
+
+
+def lqr_du_gain(dynamics: DynamicsParams = DynamicsParams(), q: float = 2.0, r: float = 0.1,
+                r_delta_u: float = R_DELTA_U) -> tuple[Array, Array]:
+    """Discrete LQR on Eq. (1) augmented with the previous control: returns (K_z, P_z).
+
+    z = [x; u₋] (2·dim + dim), input Δu with u = u₋ + Δu:
+    z' = A z + B Δu, A = [[Φ, Γ], [0, I]], B = [[Γ], [I]]. The stage cost
+    xᵀQx + uᵀRu + ΔuᵀR_Δ Δu (Q = q·I, R = r·I, R_Δ = r_delta_u·I) is
+    zᵀ diag(Q, R) z + Δuᵀ(R + R_Δ)Δu + 2 zᵀS Δu with S = [[0], [R]]; P_z solves
+    that DARE and K_z = (R + R_Δ + BᵀP_zB)⁻¹(BᵀP_zA + Sᵀ), so Δu = −K_z z.
+    K_z = [k_p·I, k_v·I, k_u·I]; as R_Δ → 0 it tends to [K, I] with K of
+    :func:`lqr_gain` (u = −Kx, the plain LQR).
+    """
+    if not (q > 0 and r > 0):
+        raise ValueError(f"LQR weights must be positive, got q={q}, r={r}")
+    if not (r_delta_u >= 0 and np.isfinite(r_delta_u)):
+        raise ValueError(f"r_delta_u must be finite and >= 0, got {r_delta_u}")
+    phi, gamma = transition_matrices(dynamics)
+    n, nx = dynamics.dim, dynamics.state_dim
+    eye = np.eye(n)
+    a = np.block([[phi, gamma], [np.zeros((n, nx)), eye]])
+    b = np.vstack([gamma, eye])
+    qz = np.block([[q * np.eye(nx), np.zeros((nx, n))], [np.zeros((n, nx)), r * eye]])
+    rz = (r + r_delta_u) * eye
+    s = np.vstack([np.zeros((nx, n)), r * eye])
+    p = solve_discrete_are(a, b, qz, rz, s=s)
+    k = np.linalg.solve(rz + b.T @ p @ b, b.T @ p @ a + s.T)
     return np.asarray(k, dtype=float), np.asarray(p, dtype=float)
 
 
@@ -133,6 +178,7 @@ def reference_states(
 def track(
     x0: Array, reference: Array, gain: Array,
     dynamics: DynamicsParams = DynamicsParams(), feedforward: bool = True,
+    prev_control: Array | None = None,
 ) -> tuple[Array, Array]:
     """Closed loop u_k = u_ff,k − K(x_k − x̂_k), clipped to U and to the speed limit.
 
@@ -142,6 +188,11 @@ def track(
     and Q = q·I, R = r·I act on each axis alike, so the axes decouple); the
     loop then runs per axis in plain floats, ~10x faster than numpy on
     4-vectors at T = 80.
+
+    A gain [k_p·I, k_v·I, k_u·I] of :func:`lqr_du_gain` runs the Δu tracker
+    instead, from u₋₁ = ``prev_control`` (u_{t|t}, N; None: zero), see
+    :func:`_track_du`. ``prev_control`` is refused with the plain gain,
+    which has no use for it.
     """
     x = check_state(x0, dynamics)
     ref = np.asarray(reference, dtype=float)
@@ -149,6 +200,10 @@ def track(
     if ref.ndim != 2 or ref.shape[1] != 2 * n or len(ref) < 2:
         raise ValueError(f"reference must have shape (T+1 >= 2, {2 * n}), got {ref.shape}")
     k = np.asarray(gain, dtype=float)
+    if k.shape == (n, 3 * n):
+        return _track_du(x, ref, k, dynamics, feedforward, prev_control)
+    if prev_control is not None:
+        raise ValueError("prev_control needs the Δu gain of lqr_du_gain (shape (dim, 3·dim))")
     kp, kv = float(k[0, 0]), float(k[0, n])
     if k.shape != (n, 2 * n) or not np.allclose(k, np.hstack([kp * np.eye(n), kv * np.eye(n)])):
         raise ValueError(f"gain must be [k_p·I, k_v·I] of shape ({n}, {2 * n}), got {k}")
@@ -171,6 +226,67 @@ def track(
             lo = max(-u_max, (-v_max - v_free) * m_dt)
             hi = min(u_max, (v_max - v_free) * m_dt)
             u = min(max(min(max(u, lo), hi), -u_max), u_max)  # U wins when |v_k| > v_max
+            p, v = p + dt * v, v_free + dt_m * u
+            ps.append(p)
+            vs.append(v)
+            us.append(u)
+        states[:, i], states[:, n + i], controls[:, i] = ps, vs, us
+    return states, controls
+
+
+def _track_du(
+    x: Array, ref: Array, k: Array, dynamics: DynamicsParams, feedforward: bool,
+    prev_control: Array | None,
+) -> tuple[Array, Array]:
+    """The Δu tracker: u_k = u_ff,k + w_k, w_k = w_{k−1} − k_p e_p − k_v e_v − k_u w_{k−1}.
+
+    e = x_k − x̂_k and w_k = u_k − u_ff,k is the feedback part of the control
+    applied (after the clips), so [e; w₋] is the augmented state of
+    :func:`lqr_du_gain` in error coordinates (the reference satisfies Eq. (1)
+    under u_ff). The control before the horizon is u₋₁ = ``prev_control`` with
+    u_ff,−1 := u_ff,0 (the reference is taken as steady before it starts).
+    Clips as in :func:`track`.
+
+    First jump. Unclipped, Δu_0 = u_0 − u₋₁ = −k_p e_p,0 − k_v e_v,0 − k_u w₋₁ per
+    axis, w₋₁ = u₋₁ − u_ff,0. The clip of axis i is the projection on an
+    interval [lo_i, hi_i] (U ∩ the speed limit at v_0), 1-Lipschitz, so
+
+        |u_0,i − u₋₁,i| ≤ |k_p e_p,0,i + k_v e_v,0,i + k_u w₋₁,i| + dist(u₋₁,i, [lo_i, hi_i]),
+
+    the last term 0 when u₋₁ is feasible at x_0 (|u| ≤ u_max and |v_1| ≤ v_max).
+    System 1's references start at the UAV's position (e_p,0 = 0), so then
+    ‖u_0 − u₋₁‖ ≤ k_v‖e_v,0‖ + k_u‖u₋₁ − u_ff,0‖; the plain tracker's
+    u_0 = clip(u_ff,0 − k_v e_v,0) ignores u₋₁, so its jump can reach 2√2·u_max.
+    """
+    n = dynamics.dim
+    kp, kv, ku = float(k[0, 0]), float(k[0, n]), float(k[0, 2 * n])
+    eye = np.eye(n)
+    if not np.allclose(k, np.hstack([kp * eye, kv * eye, ku * eye])):
+        raise ValueError(f"gain must be [k_p·I, k_v·I, k_u·I] of shape ({n}, {3 * n}), got {k}")
+    u_prev_all = np.zeros(n) if prev_control is None else np.asarray(prev_control, dtype=float)
+    if u_prev_all.shape != (n,) or not np.all(np.isfinite(u_prev_all)):
+        raise ValueError(f"prev_control must be finite with shape ({n},), got {u_prev_all}")
+    horizon = len(ref) - 1
+    dt, decay = dynamics.dt_s, 1.0 - dynamics.zeta
+    m_dt = dynamics.mass_kg / dt
+    dt_m = dt / dynamics.mass_kg
+    u_max, v_max = dynamics.u_max_n, dynamics.v_max_mps
+    ff = 1.0 if feedforward else 0.0
+    states = np.empty((horizon + 1, 2 * n))
+    controls = np.empty((horizon, n))
+    for i in range(n):
+        rp, rv = ref[:, i].tolist(), ref[:, n + i].tolist()
+        p, v = float(x[i]), float(x[n + i])
+        w = float(u_prev_all[i]) - ff * m_dt * (rv[1] - decay * rv[0])  # w₋₁
+        ps, vs, us = [p], [v], []
+        for t in range(horizon):
+            u_ff = ff * m_dt * (rv[t + 1] - decay * rv[t])
+            u = u_ff + (1.0 - ku) * w - kp * (p - rp[t]) - kv * (v - rv[t])
+            v_free = decay * v
+            lo = max(-u_max, (-v_max - v_free) * m_dt)
+            hi = min(u_max, (v_max - v_free) * m_dt)
+            u = min(max(min(max(u, lo), hi), -u_max), u_max)  # U wins when |v_k| > v_max
+            w = u - u_ff
             p, v = p + dt * v, v_free + dt_m * u
             ps.append(p)
             vs.append(v)
