@@ -31,6 +31,14 @@ def _rrt(spec: MissionSpec, params: System1Params | None) -> Planner:
     return System1(spec, params or System1Params())
 
 
+def _rrt_du(spec: MissionSpec, params: System1Params | None) -> Planner:
+    from dataclasses import replace
+
+    from dualpilot.system1.planner import System1, System1Params
+
+    return System1(spec, replace(params or System1Params(), tracker="lqr_du"))
+
+
 def _fast(spec: MissionSpec, params: System2Params | None) -> Planner:
     from dualpilot.system2.fast.planner import FastSystem2
 
@@ -55,7 +63,7 @@ def _thorough(spec: MissionSpec, params: System2Params | None) -> Planner:
     return ThoroughSystem2(spec, params or System2Params())
 
 
-SYSTEM1: Mapping[str, System1Constructor] = {"rrt": _rrt}
+SYSTEM1: Mapping[str, System1Constructor] = {"rrt": _rrt, "rrt+du": _rrt_du}
 SYSTEM2: Mapping[str, System2Constructor] = {
     "fast": _fast, "exact": _exact, "fast+exact": _anytime, "thorough": _thorough,
 }

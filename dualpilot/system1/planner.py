@@ -18,7 +18,9 @@ The predicted trajectory is verified independently
 that cuts a corner too close is retried at a lower reference speed, then
 with a fresh RRT path; a plan that never verifies is returned as UNSAFE,
 never as OK. The attention's objective does not change System 1 (it
-optimises response time only); ``prev_control`` is unused.
+optimises response time only). ``prev_control`` (u_{t|t}) is unused by the
+paper's tracker; ``tracker="lqr_du"`` starts its Δu-penalising LQR from it
+(:func:`dualpilot.system1.lqr.lqr_du_gain`).
 """
 
 from __future__ import annotations
@@ -26,6 +28,7 @@ from __future__ import annotations
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Literal
 
 import numpy as np
 
@@ -34,7 +37,14 @@ from dualpilot.model.dynamics import check_state
 from dualpilot.model.geometry import Polytope
 from dualpilot.plan import Objective, Plan, PlanStatus
 from dualpilot.spec import MissionSpec, Stream
-from dualpilot.system1.lqr import LqrParams, lqr_gain, reference_states, track
+from dualpilot.system1.lqr import (
+    R_DELTA_U,
+    LqrParams,
+    lqr_du_gain,
+    lqr_gain,
+    reference_states,
+    track,
+)
 from dualpilot.system1.rrt import RrtParams, RrtResult, SegmentChecker, plan_path
 from dualpilot.verify import verify_trajectory
 
@@ -51,6 +61,10 @@ class System1Params:
     the paths and d_safe come from the :class:`dualpilot.spec.MissionSpec`.
     ``reach_check`` lets the RRT answer "no path" at once when a grid proves
     G unreachable (:mod:`dualpilot.system1.reach`).
+    ``tracker`` is "lqr" (the paper's, u = u_ff − K(x − x̂)) or "lqr_du" (ours,
+    for a smooth handover: the LQR on x augmented with the previous control,
+    weight ``r_delta_u`` on Δu, started from ``prev_control``; see
+    :func:`dualpilot.system1.lqr.lqr_du_gain`); ``r_delta_u`` is unused by "lqr".
     """
 
     step_size_m: float = 15.0
@@ -70,6 +84,8 @@ class System1Params:
     shortcut: bool = True
     aim_goal_center: bool = True
     reach_check: bool = True
+    tracker: Literal["lqr", "lqr_du"] = "lqr"
+    r_delta_u: float = R_DELTA_U
 
     def __post_init__(self) -> None:
         if self.horizon < 1:
@@ -78,6 +94,10 @@ class System1Params:
             raise ValueError("ref_speed_mps > 0 and speed_retries >= 0 are required")
         if self.reuse_max_offset_m < 0:
             raise ValueError("reuse_max_offset_m must be >= 0")
+        if self.tracker not in ("lqr", "lqr_du"):
+            raise ValueError(f"tracker must be 'lqr' or 'lqr_du', got {self.tracker!r}")
+        if not (self.r_delta_u >= 0 and np.isfinite(self.r_delta_u)):
+            raise ValueError(f"r_delta_u must be finite and >= 0, got {self.r_delta_u}")
         self.rrt_params()  # validates the RRT fields
         self.lqr_params()
 
@@ -154,7 +174,11 @@ class System1:
         self.area_size_m = spec.area_size_m
         self.clearance_m = spec.clearance_m  # PathFree's margin (Alg. 1)
         self.d_safe_m = spec.d_safe_m  # what every returned trajectory keeps
-        self.gain, _ = lqr_gain(dynamics, params.q_lqr, params.r_lqr)
+        if params.tracker == "lqr":
+            self.gain, _ = lqr_gain(dynamics, params.q_lqr, params.r_lqr)
+        else:
+            self.gain, _ = lqr_du_gain(dynamics, params.q_lqr, params.r_lqr, params.r_delta_u)
+            self.method = "rrt+du"
         self._rrt_params = params.rrt_params()
         self._lqr_params = params.lqr_params()
         self._waypoints: Array | None = None
@@ -205,6 +229,13 @@ class System1:
         t0 = time.perf_counter()
         p = self.params
         x = check_state(state, self.dyn)
+        u_prev = None
+        if p.tracker == "lqr_du":
+            u_prev = np.zeros(self.dyn.dim) if prev_control is None else np.asarray(
+                prev_control, dtype=float)
+            if u_prev.shape != (self.dyn.dim,) or not np.all(np.isfinite(u_prev)):
+                raise ValueError(f"prev_control must be finite with shape "
+                                 f"({self.dyn.dim},), got {prev_control}")
         pos = x[:2].copy()
         if not self.area.contains(pos):
             raise ValueError(f"position {pos} lies outside the {self.area_size_m} m area")
@@ -251,7 +282,7 @@ class System1:
                                         f"{result.iterations} iterations)")
                 candidates.append(("rrt", result.path))
             source, ref = candidates.pop(0)
-            traj = self._track(x, ref, hulls, attempts, source, checker)
+            traj = self._track(x, ref, hulls, attempts, source, checker, u_prev)
             if traj is None:
                 continue
             states, controls, speed, clearance = traj
@@ -284,8 +315,12 @@ class System1:
                          self._rrt_params, start_clearance_m=self.d_safe_m, checker=checker)
 
     def _track(self, x: Array, ref: Array, hulls: Sequence[Polytope], attempts: list[str],
-               source: str, checker: SegmentChecker) -> tuple[Array, Array, float, float] | None:
-        """LQR-track ``ref`` at the reference speed, halving it on failed verification."""
+               source: str, checker: SegmentChecker,
+               u_prev: Array | None = None) -> tuple[Array, Array, float, float] | None:
+        """LQR-track ``ref`` at the reference speed, halving it on failed verification.
+
+        ``u_prev`` (the Δu tracker's u₋₁) is None for the paper's tracker.
+        """
         p = self.params
         # current speed along the path, measured towards the point 15 m ahead on it
         # (the first segment can be a short hop back onto a reused path)
@@ -299,7 +334,11 @@ class System1:
         speed = p.ref_speed_mps
         for _ in range(p.speed_retries + 1):
             reference = reference_states(ref, p.horizon, speed, self.dyn, v0, self._lqr_params)
-            states, controls = track(x, reference, self.gain, self.dyn, p.feedforward)
+            if u_prev is None:
+                states, controls = track(x, reference, self.gain, self.dyn, p.feedforward)
+            else:
+                states, controls = track(x, reference, self.gain, self.dyn, p.feedforward,
+                                         prev_control=u_prev)
             verdict = verify_trajectory(states, controls, hulls, self.dyn, self.d_safe_m,
                                         checker=checker)
             if verdict.ok:
