@@ -264,12 +264,13 @@ def first_reply(session: zenoh.Session, key: str, timeout_s: float,
                 break
             sender = replier(reply)
             if sender and sender == trusted:
+                # answers from others already here are counted too (not waited for)
+                while (late := _try_recv(replies)) is not None:
+                    if replier(late) != trusted and not _is_local_timeout(late):
+                        _count_untrusted(key, replier(late), trusted)
                 break
             untrusted += 1
-            codec.rejected("reply", codec.invalid(
-                f"reply on {key} from session {sender or '?'}, not from the holder of the "
-                f"service's liveliness token ({trusted or 'none'})"), log, key=key,
-                reason=UNTRUSTED)
+            _count_untrusted(key, sender, trusted)
     finally:
         if isinstance(stop, Stop):
             stop.forget(token)
@@ -280,6 +281,20 @@ def first_reply(session: zenoh.Session, key: str, timeout_s: float,
 
 #: the rejection reason of a reply from a session that does not hold the service's token
 UNTRUSTED = "untrusted"
+
+
+def _count_untrusted(key: str, sender: str, trusted: str) -> None:
+    codec.rejected("reply", codec.invalid(
+        f"reply on {key} from session {sender or '?'}, not from the holder of the "
+        f"service's liveliness token ({trusted or 'none'})"), log, key=key, reason=UNTRUSTED)
+
+
+def _try_recv(replies: Any) -> zenoh.Reply | None:
+    try:
+        got: zenoh.Reply | None = replies.try_recv()
+    except zenoh.ZError:
+        return None
+    return got
 
 
 def _is_local_timeout(reply: zenoh.Reply) -> bool:
