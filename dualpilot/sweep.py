@@ -292,7 +292,7 @@ def execute(tasks: Sequence[Any], jobs: int = 1, scheduler: str | None = None,
         cluster = None
     else:
         cluster = LocalCluster(n_workers=jobs, threads_per_worker=1, processes=processes,
-                               dashboard_address=None, silence_logs=logging.ERROR)
+                               dashboard_address=":0", silence_logs=logging.ERROR)
         client = Client(cluster)
     try:
         futures = client.map(fn, list(tasks), pure=False)

@@ -36,8 +36,7 @@ def plot_sweep(summary: dict[str, Any], path: Path) -> Path:
         ("energy Σ‖u_t − u_{t−1}‖² (N²)", "energy_mean", "energy_ci95", 1.0),
     ]
     n = len(points)
-    fig, axes = plt.subplots(3, 1, figsize=(max(6.0, 1.1 * n * len(names) / 1.5), 10),
-                             sharex=True)
+    fig, axes = plt.subplots(3, 1, figsize=(max(7.0, 0.75 * n + 2.0), 10), sharex=True)
     x = np.arange(n)
     width = 0.8 / max(len(names), 1)
     for ax, (ylabel, key, ci_key, scale) in zip(axes, panels, strict=True):
@@ -55,11 +54,12 @@ def plot_sweep(summary: dict[str, Any], path: Path) -> Path:
         ax.grid(axis="y", alpha=0.3)
     axes[0].set_ylim(-2, 102)
     axes[0].legend(title="dashed: paper (Fig. r5a)", fontsize=8, ncols=3, loc="lower right")
-    axes[-1].set_xticks(x, [_short(p["label"]) for p in points], fontsize=7, rotation=0)
+    axes[-1].set_xticks(x, [f"[{p['point']}]\n{_short(p['label'])}" for p in points],
+                        fontsize=6 if n > 8 else 7, rotation=90 if n > 8 else 0)
     axes[0].set_title(
         f"{summary['missions']} missions per point, timing = {summary['timing']}, seed "
-        f"{summary['seed']} (time and energy over successful missions; bars: 95 % CI)",
-        fontsize=9)
+        f"{summary['seed']}\n(Wilson 95 % intervals; time and energy over successful "
+        "missions, 95 % CI)", fontsize=9)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
