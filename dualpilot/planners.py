@@ -98,7 +98,9 @@ def build_planner(system: int, spec: MissionSpec, method: str | None = None,
 
 def build_planners(spec: MissionSpec, system2_method: str = "fast",
                    system1_params: System1Params | None = None,
-                   system2_params: System2Params | None = None) -> dict[int, Planner]:
-    """Both planners of a mission: {1: System 1 ("rrt"), 2: System 2 (``system2_method``)}."""
-    return {1: build_planner(1, spec, "rrt", system1_params),
+                   system2_params: System2Params | None = None,
+                   system1_method: str = "rrt") -> dict[int, Planner]:
+    """Both planners of a mission: {1: System 1 (``system1_method``), 2: System 2
+    (``system2_method``)}."""
+    return {1: build_planner(1, spec, system1_method, system1_params),
             2: build_planner(2, spec, system2_method, system2_params)}

@@ -16,6 +16,10 @@ from dualpilot.plan import Plan, Planner, PlanStatus
 from dualpilot.spec import MissionSpec, Stream
 from dualpilot.supervisor.decision import SupervisorParams
 
+#: System 1's method under each supervisor: the concurrent supervisor hands over between the
+#: systems every few steps, so its System 1 tracks with the Δu penalty (dualpilot/system1/lqr.py)
+SUPERVISORS = {"paper": "rrt", "concurrent": "rrt+du"}
+
 
 class LocalFires:
     """The fire process of Sec. II-B in this process, on the spec's fire stream."""
@@ -56,6 +60,14 @@ class LocalPlanners:
             return Plan.failed(request.system, PlanStatus.INVALID_INPUT,
                                time.perf_counter() - t0, str(err))
 
+    def launch(self, request: PlanRequest) -> object:
+        """In one process the background plan is computed at once (it is due later)."""
+        return self.plan(request)
+
+    def collect(self, ticket: object) -> Plan:
+        assert isinstance(ticket, Plan)
+        return ticket
+
 
 class LocalVehicle:
     """Eq. (1) with the commanded control: the vehicle reaches x_{t+1} = Φ x_t + Γ u_t."""
@@ -84,13 +96,16 @@ def local_mission(
     fire_params: FireParams = FireParams(),
     supervisor_params: SupervisorParams = SupervisorParams(),
     system2_method: str = "fast",
+    supervisor: str = "paper",
 ) -> Mission:
     """The mission of ``spec`` flown in this process (planners built from the spec by default)."""
     if planners is None:
         from dualpilot.planners import build_planners
 
-        planners = build_planners(spec, system2_method=system2_method)
+        planners = build_planners(spec, system2_method=system2_method,
+                                  system1_method=SUPERVISORS[supervisor])
     state = hover_state(np.array(spec.start), spec.dynamics)
     return Mission(controller, spec, LocalFires(spec, fire_params), LocalPlanners(planners),
                    LocalVehicle(state, spec.dynamics), state, timing=timing, params=params,
-                   fire_params=fire_params, supervisor_params=supervisor_params)
+                   fire_params=fire_params, supervisor_params=supervisor_params,
+                   supervisor=supervisor)

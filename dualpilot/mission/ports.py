@@ -59,6 +59,14 @@ class PlannerPort(Protocol):
         """A plan of any status; a planner that rejects its input answers INVALID_INPUT."""
         ...
 
+    def launch(self, request: PlanRequest) -> object:
+        """Start planning in the background; a ticket for :meth:`collect`."""
+        ...
+
+    def collect(self, ticket: object) -> Plan:
+        """The plan of a launched request (waits for it; TIMEOUT when it never came)."""
+        ...
+
 
 class VehiclePort(Protocol):
     def command(self, target: Array, control: Array, after_s: float) -> None:

@@ -22,9 +22,12 @@ The step is written once; :mod:`dualpilot.mission.local` runs it in one process,
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 from dualpilot.mission import monitor
+from dualpilot.mission.concurrent import ConcurrentPlanning
 from dualpilot.mission.params import Controller, MissionParams, Timing
 from dualpilot.mission.ports import (
     FirePort,
@@ -41,7 +44,7 @@ from dualpilot.model.geometry import Rect
 from dualpilot.model.stale_fire import grown_snapshot
 from dualpilot.plan import Objective, Plan, PlanStatus
 from dualpilot.spec import MissionSpec, Stream
-from dualpilot.supervisor.decision import Supervisor, SupervisorParams
+from dualpilot.supervisor.decision import Decision, Supervisor, SupervisorParams
 
 
 def nearest_region_distance(position: Array, regions: tuple[Rect, ...]) -> float:
@@ -158,6 +161,7 @@ class Mission:
         fire_params: FireParams = FireParams(),
         supervisor_params: SupervisorParams = SupervisorParams(),
         observer: StepObserver | None = None,
+        supervisor: str = "paper",
     ):
         self.controller = controller
         self.spec = spec
@@ -170,6 +174,16 @@ class Mission:
         self.fire_params = fire_params
         self.observer = observer
         self.supervisor = Supervisor(spec.rng(Stream.SUPERVISOR), supervisor_params)
+        #: the planning phase of the concurrent supervisor (None: the paper's supervisor)
+        self.planning: ConcurrentPlanning | None = None
+        if supervisor == "concurrent":
+            if controller is not Controller.CC:
+                raise ValueError("the concurrent supervisor runs the cognitive controller (cc)")
+            self.planning = ConcurrentPlanning(spec, timing, params, fire_params,
+                                               supervisor_params)
+        elif supervisor != "paper":
+            raise ValueError(f"supervisor must be 'paper' or 'concurrent', not {supervisor!r}")
+        self.sim_time_s = 0.0  # simulated time: the fires' sub-steps and the flights
         self.state = np.asarray(state, dtype=float).copy()
         self.prev_control = np.zeros(self.dyn.dim)
         self.result = MissionResult(controller=controller.value, timing=timing.value, spec=spec)
@@ -251,6 +265,35 @@ class Mission:
                 return candidate, statuses, planning
         return None, statuses, planning
 
+    def _plan_concurrent(self, t: int, d_t: float, snapshot: FireSnapshot
+                         ) -> tuple[Decision, Plan | None, list[str], float, str]:
+        assert self.planning is not None
+        flying = 0 if self.planning.flown is None else self.planning.flown.plan.system
+        paper = self.supervisor.decide(t, d_t)  # the attention stream: S2's objective
+        decision = self.planning.decide(t, d_t, flying, paper.objective)
+        seen = grown_snapshot(snapshot, self.fires.margin_m())  # stale data: grown
+
+        def record_time(system: int, seconds: float) -> None:
+            self.result.planning_time_s[f"s{system}"].append(seconds)
+
+        choice = self.planning.choose(t, self.sim_time_s, self.state, self.prev_control,
+                                      snapshot, seen, self.planners, record_time)
+        if choice.plan is not None:  # the run-time monitor has the last word, as for the paper's
+            obstacles = seen.obstacles_for(self.state[:2], self.spec.clearance_m)
+            k = self.planning.params.check_steps  # a kept plan is re-checked every step
+            verdict = monitor.check_plan(choice.plan.states[: k + 1], choice.plan.controls[:k],
+                                         self.state, obstacles, self.spec)
+            if not verdict.ok:
+                choice.statuses.append(f"s{choice.plan.system}:{PlanStatus.UNSAFE.value}"
+                                       f"{monitor.status_note(verdict)}")
+                choice.plan = None
+                self.planning.flown = None
+        if choice.plan is not None:
+            decision = replace(decision, system=choice.plan.system)
+        if self.observer is not None:
+            self.observer.decided(t, decision, decision.system)
+        return decision, choice.plan, choice.statuses, choice.wait_s, choice.note
+
     def step(self) -> StepRecord | None:
         """Run one step; returns its record, or None when the mission is over."""
         if self.done:
@@ -261,11 +304,15 @@ class Mission:
             # fire data that caught up (the stack's EWS was back) reached the UAV
             return self._finish(False, "fire_while_stale", self.result.records[-1])
         d_t = attention_distance(self.state[:2], snapshot, t, self.params)
-        decision = self.supervisor.decide(t, d_t)
-        order = planning_order(self.controller, decision.system, self.params)
-        if self.observer is not None:
-            self.observer.decided(t, decision, order[0])
-        plan, statuses, planning = self._plan(t, order, snapshot, decision.objective)
+        note = ""
+        if self.planning is None:  # the paper's supervisor: wait for the chosen plan
+            decision = self.supervisor.decide(t, d_t)
+            order = planning_order(self.controller, decision.system, self.params)
+            if self.observer is not None:
+                self.observer.decided(t, decision, order[0])
+            plan, statuses, planning = self._plan(t, order, snapshot, decision.objective)
+        else:  # the concurrent supervisor: System 2 deliberates while the UAV flies
+            decision, plan, statuses, planning, note = self._plan_concurrent(t, d_t, snapshot)
         n_sub = substeps_for(planning, self.fire_params)
 
         if plan is not None:
@@ -274,10 +321,12 @@ class Mission:
             planned = np.asarray(plan.states[:, : self.dyn.dim])
             info = dict(plan.info)
         else:
+            info = {}
             control = brake_control(self.state, self.dyn)
             target = step(self.state, control, self.dyn)
             planned = np.empty((0, self.dyn.dim))
-            info = {}
+        if note:
+            info["supervisor"] = note
         # the setpoint leaves as soon as the plan is known, due after the planning
         # interval and one ΔT of flight
         self.vehicle.command(target, control, n_sub * self.fire_params.substep_s + self.dyn.dt_s)
@@ -285,6 +334,7 @@ class Mission:
         if self.observer is not None:
             self.observer.commanded(t, flown, info)
         caught = self._caught(t, n_sub)
+        self.sim_time_s += n_sub * self.fire_params.substep_s
         record = StepRecord(
             t=t, state=self.state.copy(), control=control, decision=decision,
             system=flown, plan_status=";".join(statuses),
@@ -301,10 +351,15 @@ class Mission:
         prev_pos = self.state[:2].copy()
         self.state = np.asarray(self.vehicle.observe(), dtype=float)
         self.result.add_flight(control, self.prev_control, self.dyn.dt_s)
+        self.sim_time_s += self.dyn.dt_s
+        if self.planning is not None:
+            self.planning.after_flight(flown, prev_pos, self.state[:2],
+                                       float(np.sum((control - self.prev_control) ** 2)))
         self.prev_control = control
         if self.observer is not None:
             self.observer.recorded(record, True)
         motion = self.params.fire_substeps_per_motion
+        self.sim_time_s += motion * self.fire_params.substep_s
         if motion and self._caught(t, motion):
             return self._finish(False, "fire_in_flight", record)
         after = self.fires.snapshot()

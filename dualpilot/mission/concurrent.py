@@ -1,0 +1,259 @@
+"""The mission step's planning phase under the concurrent supervisor.
+
+The rule is in :mod:`dualpilot.supervisor.concurrent`; this is its state over
+a mission: the plan being flown, the System 2 plan being deliberated, the
+online Q. Times are simulated seconds of the mission (the step's clock).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import replace
+
+import numpy as np
+
+from dualpilot.mission.params import MissionParams, Timing
+from dualpilot.mission.ports import PlannerPort, PlanRequest
+from dualpilot.model.dynamics import Array, DynamicsParams, step
+from dualpilot.model.fire import FireParams, FireSnapshot, substeps_for
+from dualpilot.model.geometry import Polytope
+from dualpilot.plan import Objective, Plan, PlanStatus
+from dualpilot.spec import MissionSpec
+from dualpilot.supervisor.attention import xi
+from dualpilot.supervisor.concurrent import (
+    Choice,
+    ConcurrentParams,
+    Deliberation,
+    Flown,
+    OnlineQ,
+    check_near,
+    reanchor,
+    steps_until,
+    threatened,
+    wait_hazard,
+)
+from dualpilot.supervisor.decision import Decision, SupervisorParams
+
+
+def braking_plan(state: Array, steps: int, dynamics: DynamicsParams) -> Plan:
+    """The UAV braking for ``steps`` steps (the step's braking force, Eq. 1)."""
+    from dualpilot.mission.step import brake_control
+
+    states, controls = [np.asarray(state, dtype=float)], []
+    for _ in range(steps):
+        u = brake_control(states[-1], dynamics)
+        controls.append(u)
+        states.append(step(states[-1], u, dynamics))
+    return Plan(0, PlanStatus.OK, np.array(states), np.array(controls), 0.0)
+
+
+class ConcurrentPlanning:
+    """Chooses, each step, what the UAV flies; keeps System 2 deliberating in the background."""
+
+    def __init__(self, spec: MissionSpec, timing: Timing, mission: MissionParams,
+                 fire: FireParams, supervisor: SupervisorParams,
+                 params: ConcurrentParams = ConcurrentParams()):
+        self.spec = spec
+        self.timing = timing
+        self.mission = mission
+        self.fire = fire
+        self.supervisor = supervisor
+        self.params = params
+        dyn = spec.dynamics
+        self.q = OnlineQ(supervisor.q_matrix, params, dyn.dt_s, dyn.v_max_mps)
+        self.flown: Flown | None = None
+        self.pending: Deliberation | None = None
+        self.s2_expected_s = mission.paper_planning_time_s[1] if timing is Timing.PAPER else 0.0
+        self.objective = Objective.MISSION_TIME
+        self.utilities = np.zeros(2)
+        self.p_mean = np.full(3, 1 / 3)
+        self.switch_du2: list[float] = []
+
+    # -- what the record shows as the decision ---------------------------------------------------
+    def decide(self, t: int, d_t: float, system_hint: int, objective: Objective) -> Decision:
+        """Ξ_t (Eq. KSI), its mean p̄ = Ξ/ΣΞ, the attribute it favours, and Σ p̄ Q_t per system.
+
+        System 2's objective is the paper's attention's (``objective``, drawn by the
+        paper's supervisor from the same stream as for the S2-only agent).
+        """
+        xi_t = xi(t, d_t, self.supervisor.attention)
+        self.p_mean = xi_t / xi_t.sum()
+        a = int(np.argmax(self.p_mean))
+        self.objective = objective
+        self.utilities = np.array([self.q.utility(s, self.p_mean) for s in (1, 2)])
+        return Decision(t=t, d_t=d_t, xi=xi_t, p=self.p_mean.copy(), attention=a + 1,
+                        psi=self.utilities.copy(), system=system_hint or 1,
+                        objective=self.objective)
+
+    # -- times -----------------------------------------------------------------------------------
+    def response_s(self, system: int, plan: Plan) -> float:
+        """T_s of a plan: the paper's 155 ms / 5 s, or its measured compute time."""
+        if self.timing is Timing.PAPER:
+            return self.mission.paper_planning_time_s[system - 1]
+        return plan.compute_time_s
+
+    def _step_s(self) -> float:
+        """The simulated length of a step that waits only for System 1 (s)."""
+        t_s1 = self.mission.paper_planning_time_s[0] if self.timing is Timing.PAPER else 0.0
+        n = substeps_for(t_s1, self.fire) + self.mission.fire_substeps_per_motion
+        return n * self.fire.substep_s + self.spec.dynamics.dt_s
+
+    # -- one step --------------------------------------------------------------------------------
+    def choose(self, t: int, sim_s: float, state: Array, prev_control: Array,
+               snapshot: FireSnapshot, seen: FireSnapshot, planners: PlannerPort,
+               record_time: Callable[[int, float], None]) -> Choice:
+        """What the UAV flies from ``state`` at step t (``seen``: the fires planners avoid)."""
+        p, spec = self.params, self.spec
+        pos = state[: spec.dynamics.dim]
+        obstacles = seen.obstacles_for(pos, spec.clearance_m)
+        choice = Choice(plan=None)
+        known_now = frozenset(snapshot.front_ids)
+        options: list[Flown] = []
+
+        margin = spec.clearance_m if p.threat_margin_m is None else p.threat_margin_m
+
+        def safe(f: Flown) -> bool:
+            return not threatened(f.plan, seen, f.known, margin, p.check_steps)
+
+        due = self._collect(t, sim_s, state, obstacles, planners, choice, record_time)
+        if due is not None and safe(due):
+            options.append(due)
+        kept = self._kept(state, obstacles, choice)
+        if kept is not None and safe(kept):
+            options.append(kept)
+        if not options:
+            fresh = self._ask(1, t, state, prev_control, obstacles, planners, choice,
+                              record_time)
+            if fresh is not None:
+                options.append(Flown(fresh, 0, known_now))
+            elif kept is not None:  # System 1 has nothing: the known plan, if still safe
+                options.append(kept)
+        if not options and self.pending is None:
+            n = substeps_for(self.s2_expected_s, self.fire)
+            hazard = wait_hazard(n, self.fire, spec.area_size_m, spec.d_safe_m)
+            if hazard <= p.max_wait_hazard:  # the wait for System 2 is worth its risk
+                slow = self._ask(2, t, state, prev_control, obstacles, planners, choice,
+                                 record_time)
+                if slow is not None:
+                    options.append(Flown(slow, 0, known_now))
+        if options:
+            chosen = self._best(options)
+            if self.flown is not None and chosen.plan.system != self.flown.plan.system:
+                choice.note = f"switch s{self.flown.plan.system}->s{chosen.plan.system}"
+            self.flown = chosen
+            choice.plan = chosen.plan
+        else:
+            self.flown = None
+        if self.pending is not None and self.flown is not None and threatened(
+                self.flown.plan, seen, self.pending.known, margin, p.check_steps):
+            self.pending = None  # deliberating on a picture without a front that matters
+            choice.statuses.append("s2:restarted")
+        if self.pending is None:
+            self._launch(t, sim_s, state, seen, known_now, planners, choice)
+        return choice
+
+    def _best(self, options: list[Flown]) -> Flown:
+        """The option of the system with the larger Σ p̄ Q; the system flying keeps a margin."""
+        current = 0 if self.flown is None else self.flown.plan.system
+
+        def score(f: Flown) -> float:
+            bonus = self.params.switch_margin if f.plan.system == current else 0.0
+            return self.utilities[f.plan.system - 1] + bonus
+
+        return max(options, key=score)
+
+    def _collect(self, t: int, sim_s: float, state: Array, obstacles: tuple[Polytope, ...],
+                 planners: PlannerPort, choice: Choice,
+                 record_time: Callable[[int, float], None]) -> Flown | None:
+        """The deliberated System 2 plan, once due: re-anchored and verified, or None."""
+        d = self.pending
+        if d is None or t < d.due_t or sim_s + 1e-9 < d.ready_s:
+            return None
+        self.pending = None
+        got = planners.collect(d.ticket)
+        record_time(2, got.compute_time_s)
+        if self.timing is Timing.MEASURED:
+            self.s2_expected_s = 0.7 * self.s2_expected_s + 0.3 * got.compute_time_s
+        self.q.response(2, self.response_s(2, got))
+        if not got.ok:
+            choice.statuses.append(f"s2:{got.status.value}")
+            return None
+        late = t - d.due_t
+        plan = got if not late else replace(got, states=got.states[late:],
+                                            controls=got.controls[late:])
+        anchored = reanchor(plan, state, self.params, self.spec.dynamics)
+        if anchored is None:
+            choice.statuses.append("s2:stale_start")
+            return None
+        why = check_near(anchored, state, obstacles, self.spec, self.params.check_steps)
+        if why:
+            choice.statuses.append("s2:unsafe_at_adoption")
+            choice.note = f"s2 plan refused: {why}"
+            return None
+        choice.statuses.append("s2:adopted")
+        return Flown(anchored, 0, d.known)
+
+    def _kept(self, state: Array, obstacles: tuple[Polytope, ...],
+              choice: Choice) -> Flown | None:
+        """The flown plan's remainder from the UAV's state, if it still verifies."""
+        if self.flown is None:
+            return None
+        rest = self.flown.remainder(state)
+        anchored = None if rest is None else reanchor(rest, state, self.params,
+                                                      self.spec.dynamics)
+        if anchored is None or check_near(anchored, state, obstacles, self.spec,
+                                          self.params.check_steps):
+            return None
+        return Flown(anchored, 0, self.flown.known)
+
+    def _ask(self, system: int, t: int, state: Array, prev_control: Array,
+             obstacles: tuple[Polytope, ...], planners: PlannerPort, choice: Choice,
+             record_time: Callable[[int, float], None]) -> Plan | None:
+        """A plan now (the UAV waits its response time); None unless it is OK and verifies."""
+        if not planners.available(system):
+            choice.statuses.append(f"s{system}:unavailable")
+            return None
+        plan = planners.plan(PlanRequest(t=t, system=system, state=state.copy(),
+                                         prev_control=prev_control, obstacles=obstacles,
+                                         objective=self.objective))
+        record_time(system, plan.compute_time_s)
+        wait = self.response_s(system, plan)
+        choice.wait_s += wait
+        self.q.response(system, wait)
+        choice.statuses.append(f"s{system}:{plan.status.value}")
+        if not plan.ok or check_near(plan, state, obstacles, self.spec, self.params.check_steps):
+            return None
+        return plan
+
+    def _launch(self, t: int, sim_s: float, state: Array, seen: FireSnapshot,
+                known: frozenset[int], planners: PlannerPort, choice: Choice) -> None:
+        """Start System 2 from the state the UAV reaches when its plan will be due: along the
+        flown plan, or braking when nothing is flown."""
+        if not planners.available(2):
+            return
+        k = steps_until(self.s2_expected_s, self._step_s())
+        plan = self.flown.plan if self.flown is not None else braking_plan(
+            state, k, self.spec.dynamics)
+        if k >= len(plan.states):
+            return
+        x_hat = plan.states[k]
+        dim = self.spec.dynamics.dim
+        try:
+            obstacles = seen.obstacles_for(x_hat[:dim], self.spec.clearance_m)
+        except ValueError:
+            return
+        ticket = planners.launch(PlanRequest(
+            t=t + k, system=2, state=x_hat.copy(), prev_control=plan.controls[k - 1].copy(),
+            obstacles=obstacles, objective=self.objective))
+        self.pending = Deliberation(ticket=ticket, due_t=t + k, ready_s=sim_s + self.s2_expected_s,
+                                    start=x_hat.copy(), known=known, launched_t=t)
+        choice.statuses.append("s2:launched")
+
+    def after_flight(self, system: int, p0: Array, p1: Array, du2: float) -> None:
+        """One step flown by ``system`` from p0 to p1 with ‖u_t − u_{t−1}‖² = du2."""
+        goal = self.spec.goal.center
+        progress = float(np.linalg.norm(goal - p0) - np.linalg.norm(goal - p1))
+        if system:
+            self.q.flown(system, progress, du2)
+        if self.flown is not None:
+            self.flown.offset += 1

@@ -1,0 +1,212 @@
+"""A concurrent supervisor: System 2 deliberates while the UAV flies; System 1 answers at once.
+
+The paper's supervisor (:mod:`dualpilot.supervisor.decision`) waits for the
+plan of the system it picks: System 2's 5 s are ten fire sub-steps with the
+UAV hovering, and the fronts that end missions ignite in that wait. This
+supervisor never waits for System 2:
+
+* **Deliberate while flying.** System 2 is launched in the background from
+  the state x̂ the UAV will reach when its plan is due (the flown plan's
+  state k steps ahead, k from System 2's response time and the step length)
+  with u_{t|t} the control the flown plan applies just before, so its Δu term
+  starts from the control actually applied (Eq. S2). When it is due, its plan
+  is adopted only if it starts where the UAV is (re-anchored within a
+  tolerance, else discarded) and it verifies against the fires of that
+  moment (Eq. 1, limits, d_safe from the current obstacles over the next
+  ``check_steps``).
+* **Fly what is safe and knew the fires.** A plan is kept (its remainder
+  flown, no planner asked) while it verifies and no front it did not know
+  comes within the planners' clearance of its next steps; a front the flown
+  plan did not know threatening it, or no plan that verifies, asks System 1
+  at once (its response time is the only wait).
+* **Weigh the risk of waiting.** Waiting T_s for a plan lets the fires run
+  ⌈T_s/T_f⌉ sub-steps; the hazard of that wait is the probability that a
+  front ignites within reach of the UAV (:func:`wait_hazard`). System 2 is
+  waited for only when no safe plan exists and its wait's hazard is below
+  ``max_wait_hazard``; otherwise System 1 answers.
+* **Q online.** The performance matrix Q of Eq. (Psi) is updated after every
+  step from measured response time, progress and energy (:class:`OnlineQ`);
+  when System 1's fresh plan and a System 2 plan are both safe, the system
+  with the larger Σ_a p̄_a Q_t(s, a), p̄ = Ξ_t / ΣΞ_t (the attention's mean),
+  flies, with a hysteresis margin so that a switch must pay for itself.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+from math import ceil
+
+import numpy as np
+
+from dualpilot.model.dynamics import Array, DynamicsParams, rollout
+from dualpilot.model.fire import FireParams, FireSnapshot
+from dualpilot.model.geometry import Polytope, path_clearance
+from dualpilot.plan import Plan
+from dualpilot.spec import MissionSpec
+from dualpilot.verify import verify_trajectory
+
+
+@dataclass(frozen=True)
+class ConcurrentParams:
+    """The concurrent supervisor's settings (lengths m, speeds m/s, times s)."""
+
+    #: a front the flown plan did not know, within this distance of its next ``check_steps``
+    #: (None: the spec's clearance, the margin System 2 keeps from the fronts it knows),
+    #: hands over to System 1
+    threat_margin_m: float | None = None
+    #: steps of a plan verified against the current obstacles before it is (kept) flown
+    check_steps: int = 10
+    #: a due System 2 plan starting this close to the UAV's state is re-anchored
+    reanchor_tol_m: float = 2.0
+    reanchor_tol_mps: float = 1.0
+    #: wait for System 2 only while its wait's hazard (:func:`wait_hazard`) is below this
+    max_wait_hazard: float = 0.01
+    #: rate of the online update of Q (EMA weight of the newest measurement)
+    q_rate: float = 0.2
+    #: a switch between two safe plans must raise Σ p̄ Q by more than this
+    switch_margin: float = 0.05
+    #: energy scale of the energy attribute (N²): score 1 / (1 + ‖Δu‖² / scale)
+    energy_scale_n2: float = 4.0
+
+    def __post_init__(self) -> None:
+        if min(self.threat_margin_m or 0.0, self.reanchor_tol_m, self.reanchor_tol_mps) < 0:
+            raise ValueError("radii and tolerances must be >= 0")
+        if self.check_steps < 1 or not 0 < self.q_rate <= 1 or self.energy_scale_n2 <= 0:
+            raise ValueError("check_steps >= 1, 0 < q_rate <= 1 and energy_scale_n2 > 0")
+        if not 0 <= self.max_wait_hazard <= 1:
+            raise ValueError("max_wait_hazard must be in [0, 1]")
+
+
+def wait_hazard(n_substeps: int, fire: FireParams, area_size_m: float, d_safe_m: float,
+                speed_mps: float = 0.0, wait_s: float = 0.0) -> float:
+    """P(a front ignites within reach of the UAV during a wait of ``n_substeps`` sub-steps).
+
+    A newborn front's region (sides U[side_min, side_max]) comes within
+    d_safe of the UAV when its centre lies in the square of half-side
+    side_max/2 + d_safe (+ the UAV's travel during the wait) around it; with
+    centres uniform over the area, the chance per sub-step is p_b times that
+    square's share of the area (an upper bound), and the wait's hazard is
+    1 − (1 − p)^n.
+    """
+    if n_substeps < 0 or not area_size_m > 0:
+        raise ValueError("n_substeps >= 0 and area_size_m > 0 are required")
+    half = fire.side_max_m / 2 + d_safe_m + speed_mps * wait_s
+    share = min(1.0, (2 * half) ** 2 / area_size_m**2)
+    return float(1.0 - (1.0 - fire.p_birth * share) ** n_substeps)
+
+
+class OnlineQ:
+    """Q(s, a) of Eq. (Psi), updated from measurements (rows: systems; columns: response time,
+    mission progress, energy), each attribute scored in [0, 1]."""
+
+    def __init__(self, q0: Array, params: ConcurrentParams, dt_s: float, v_max_mps: float):
+        self.q = np.array(q0, dtype=float)
+        self.params = params
+        self.dt_s = dt_s
+        self.v_max_mps = v_max_mps
+
+    def _update(self, system: int, attribute: int, score: float) -> None:
+        b = self.params.q_rate
+        self.q[system - 1, attribute] = (1 - b) * self.q[system - 1, attribute] + b * score
+
+    def response(self, system: int, response_s: float) -> None:
+        """A plan of ``system`` took ``response_s`` (s): score 1 / (1 + T_s / ΔT)."""
+        self._update(system, 0, 1.0 / (1.0 + response_s / self.dt_s))
+
+    def flown(self, system: int, progress_m: float, du2_n2: float) -> None:
+        """One step flown by ``system``: progress towards G (m) and ‖u_t − u_{t−1}‖² (N²)."""
+        self._update(system, 1, float(np.clip(progress_m / (self.v_max_mps * self.dt_s), 0, 1)))
+        self._update(system, 2, 1.0 / (1.0 + du2_n2 / self.params.energy_scale_n2))
+
+    def utility(self, system: int, p_mean: Array) -> float:
+        """Σ_a p̄_a Q(s, a) for the attention's mean p̄ = Ξ / ΣΞ."""
+        return float(self.q[system - 1] @ p_mean)
+
+
+@dataclass
+class Flown:
+    """A plan being flown: ``offset`` steps of it are done; ``known`` the front ids it knew."""
+
+    plan: Plan
+    offset: int
+    known: frozenset[int]
+
+    def remainder(self, state: Array) -> Plan | None:
+        """The rest of the plan from ``state`` (None when it has run out)."""
+        if self.offset + 1 >= len(self.plan.states):
+            return None
+        return replace(self.plan, states=self.plan.states[self.offset:],
+                       controls=self.plan.controls[self.offset:])
+
+
+@dataclass
+class Deliberation:
+    """A System 2 plan being computed in the background."""
+
+    ticket: object
+    due_t: int  # the step its plan is for (its first state is the predicted x̂ of that step)
+    ready_s: float  # simulated time it is ready (launch + response time)
+    start: Array
+    known: frozenset[int]
+    launched_t: int
+
+
+@dataclass
+class Choice:
+    """What the concurrent supervisor decided at one step."""
+
+    plan: Plan | None
+    statuses: list[str] = field(default_factory=list)
+    wait_s: float = 0.0  # the time the UAV waited for a planner this step
+    note: str = ""
+
+
+def threatened(plan: Plan, seen: FireSnapshot, known: frozenset[int], margin_m: float,
+               steps: int) -> bool:
+    """A front not in ``known`` comes within ``margin_m`` of the next ``steps`` of ``plan``.
+
+    ``seen`` gives the obstacles (hull, or region where the hull grew around the
+    plan's start) of every front; only those the plan did not know count: the
+    others it was planned to keep the clearance from.
+    """
+    dim = plan.states.shape[1] // 2
+    pts = plan.states[: steps + 1, :dim]
+    unknown = [o for o, fid in zip(seen.obstacles_for(pts[0], margin_m), seen.front_ids,
+                                   strict=False) if fid not in known]
+    return bool(unknown) and path_clearance(pts, unknown) < margin_m
+
+
+def check_near(plan: Plan, state: Array, obstacles: tuple[Polytope, ...], spec: MissionSpec,
+               steps: int) -> str:
+    """"" when ``plan`` starts at ``state`` and its next ``steps`` steps verify; else why not."""
+    if not plan.ok or len(plan.states) < 2:
+        return "no plan"
+    if not np.allclose(plan.states[0], state, atol=1e-6):
+        return "does not start at the UAV's state"
+    k = min(steps, len(plan.controls))
+    verdict = verify_trajectory(plan.states[: k + 1], plan.controls[:k], obstacles,
+                                spec.dynamics, spec.d_safe_m)
+    return "" if verdict.ok else verdict.reason
+
+
+def reanchor(plan: Plan, state: Array, params: ConcurrentParams,
+             dynamics: DynamicsParams) -> Plan | None:
+    """``plan`` moved to start at ``state`` (its controls rolled out again by Eq. 1), or None
+    when ``state`` is farther than the re-anchoring tolerances from the plan's start."""
+    n = dynamics.dim
+    d = np.asarray(state, dtype=float) - plan.states[0]
+    if np.linalg.norm(d[:n]) > params.reanchor_tol_m or (
+            np.linalg.norm(d[n:]) > params.reanchor_tol_mps):
+        return None
+    if not np.any(d):
+        return plan
+    return replace(plan, states=rollout(np.asarray(state, dtype=float), plan.controls, dynamics))
+
+
+def steps_until(response_s: float, step_s: float) -> int:
+    """Steps after which a plan launched now with response time ``response_s`` is ready."""
+    return max(1, ceil(response_s / step_s - 1e-9))
+
+
+__all__ = ["Choice", "ConcurrentParams", "Deliberation", "Flown", "OnlineQ", "check_near",
+           "reanchor", "threatened", "steps_until", "wait_hazard"]
