@@ -138,6 +138,8 @@ class ConcurrentPlanning:
                     options.append(Flown(slow, 0, known_now))
         if options:
             chosen = self._best(options)
+            if due is not None and due in options:
+                choice.statuses.append("s2:adopted" if chosen is due else "s2:declined")
             if self.flown is not None and chosen.plan.system != self.flown.plan.system:
                 choice.note = f"switch s{self.flown.plan.system}->s{chosen.plan.system}"
             self.flown = chosen
@@ -190,7 +192,6 @@ class ConcurrentPlanning:
             choice.statuses.append("s2:unsafe_at_adoption")
             choice.note = f"s2 plan refused: {why}"
             return None
-        choice.statuses.append("s2:adopted")
         return Flown(anchored, 0, d.known)
 
     def _kept(self, state: Array, obstacles: tuple[Polytope, ...],

@@ -26,9 +26,10 @@ supervisor never waits for System 2:
   ``max_wait_hazard``; otherwise System 1 answers.
 * **Q online.** The performance matrix Q of Eq. (Psi) is updated after every
   step from measured response time, progress and energy (:class:`OnlineQ`);
-  when System 1's fresh plan and a System 2 plan are both safe, the system
-  with the larger Σ_a p̄_a Q_t(s, a), p̄ = Ξ_t / ΣΞ_t (the attention's mean),
-  flies, with a hysteresis margin so that a switch must pay for itself.
+  when a kept plan and a due plan are both safe, the system with the larger
+  utility over the mission-time and energy attributes, weighted by the
+  attention's mean p̄ = Ξ_t / ΣΞ_t (:meth:`OnlineQ.utility`), flies, with a
+  hysteresis margin so that a switch must pay for itself.
 """
 
 from __future__ import annotations
@@ -119,8 +120,15 @@ class OnlineQ:
         self._update(system, 2, 1.0 / (1.0 + du2_n2 / self.params.energy_scale_n2))
 
     def utility(self, system: int, p_mean: Array) -> float:
-        """Σ_a p̄_a Q(s, a) for the attention's mean p̄ = Ξ / ΣΞ."""
-        return float(self.q[system - 1] @ p_mean)
+        """Σ_a w_a Q(s, a) over mission progress and energy, w = (p̄_2, p̄_3) / (p̄_2 + p̄_3)
+        for the attention's mean p̄ = Ξ / ΣΞ.
+
+        Between two safe plans the response-time attribute does not decide: System 2's
+        latency is hidden by deliberating while the UAV flies, and a front that needs a
+        fast answer is the threat rule's (System 1 answers at once).
+        """
+        w = np.asarray(p_mean[1:], dtype=float)
+        return float(self.q[system - 1, 1:] @ (w / w.sum()))
 
 
 @dataclass
