@@ -8,6 +8,7 @@ SEED ?= 26
 OUT ?= runs/latest
 SPEED ?= 20
 PROFILE ?= today
+SUPERVISOR ?= paper
 
 .PHONY: setup run mission proto test test-fast lint bench figures clean compose-check
 
@@ -23,7 +24,7 @@ $(STAMP): pyproject.toml
 # (services/launch/ reads docker-compose.yml, the one description of the services)
 run: setup
 	$(BIN)/python -m services.launch --controller cc --seed $(SEED) --timing paper \
-		--speed-factor $(SPEED) --profile $(PROFILE) --out $(OUT)
+		--speed-factor $(SPEED) --profile $(PROFILE) --supervisor $(SUPERVISOR) --out $(OUT)
 
 # the same mission in one process (no Zenoh, no MAVLink)
 mission: setup

@@ -664,6 +664,7 @@ class PlanRequest:
     waypoints_revision: int = 0
     prepare: bool = False
     spec: MissionSpec | None = None
+    method: str = ""  # with prepare: the planner method ("" the service's default)
 
 
 def plan_request_msg(req: PlanRequest, stamper: Stamper, sim_time_s: float,
@@ -671,7 +672,8 @@ def plan_request_msg(req: PlanRequest, stamper: Stamper, sim_time_s: float,
     """Build a PlanRequest message (the spec goes only with ``prepare``)."""
     m = plan_pb2.PlanRequest(step=req.step, system=req.system, mission_id=req.mission_id,
                              objective=objective_to_msg(req.objective), deadline_s=req.deadline_s,
-                             prepare=req.prepare, waypoints_revision=req.waypoints_revision)
+                             prepare=req.prepare, waypoints_revision=req.waypoints_revision,
+                             method=req.method)
     stamper.stamp(m.header, sim_time_s)
     if req.spec is not None:
         spec_to_msg(req.mission_id, req.spec, m.mission)
@@ -711,7 +713,7 @@ def plan_request_from_msg(m: plan_pb2.PlanRequest) -> PlanRequest:
         objective=objective, state=state_from_msg(m.state),
         prev_control=force_from_msg(m.prev_control, "prev_control"), obstacles=obstacles,
         deadline_s=float(m.deadline_s), waypoints_revision=int(m.waypoints_revision),
-        prepare=m.prepare, spec=spec,
+        prepare=m.prepare, spec=spec, method=_text(m.method, "method", 64),
     )
     if spec is not None:
         check_in_area(req, spec)

@@ -36,12 +36,14 @@ from .log import fields
 
 log = logging.getLogger(__name__)
 
-PlannerMaker = Callable[[MissionSpec], Planner]
+#: (spec, method; "" for the service's default) -> the mission's planner
+PlannerMaker = Callable[[MissionSpec, str], Planner]
 
 
 @dataclass
 class _Prepared:
     spec: MissionSpec
+    method: str
     planner: Planner
     waypoints_revision: int = 0  # the revision applied to the planner
 
@@ -58,12 +60,14 @@ class PlannerService:
         self.keep = keep_missions
         self.waypoints: OrderedDict[str, codec.Waypoints] = OrderedDict()  # newest per mission
 
-    def prepare(self, mission_id: str, spec: MissionSpec) -> _Prepared:
-        """The mission's planner, built from its spec (again only if the spec changed)."""
+    def prepare(self, mission_id: str, spec: MissionSpec, method: str = "") -> _Prepared:
+        """The mission's planner, built from its spec and method (again only if they changed).
+
+        Raises ValueError for an unknown method."""
         held = self.missions.get(mission_id)
-        if held is not None and held.spec == spec:
+        if held is not None and held.spec == spec and held.method == method:
             return held
-        held = _Prepared(spec, self.make(spec))
+        held = _Prepared(spec, method, self.make(spec, method))
         self.missions[mission_id] = held
         while len(self.missions) > self.keep:
             self.missions.popitem(last=False)
@@ -126,7 +130,7 @@ class PlannerService:
         if req.prepare:
             assert req.spec is not None
             try:
-                self.prepare(req.mission_id, req.spec)
+                self.prepare(req.mission_id, req.spec, req.method)
             except ValueError as err:
                 codec.rejected("PlanRequest", err, log, key=self.key)
                 return codec.error_msg(self.stamper, common_pb2.ERROR_CODE_INVALID, str(err))

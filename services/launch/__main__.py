@@ -29,6 +29,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--ignition-clearance", type=float, default=None,
                    help="no front ignites within this distance (m) of the UAV (as dualpilot "
                         "mission --ignition-clearance)")
+    p.add_argument("--supervisor", choices=["paper", "concurrent"], default="paper",
+                   help="the cognitive controller's supervisor (dualpilot mission --supervisor)")
     p.add_argument("--profile", default="today",  # readings profile: supervisor and EWS
                    help="named reading of the paper (dualpilot profiles) [READINGS_PROFILE]")
     p.add_argument("--waypoints", default="", help="System 1 operator waypoints 'e1,n1;e2,n2'")
@@ -49,6 +51,7 @@ def main(argv: list[str] | None = None) -> int:
                       max_steps=args.max_steps, waypoints=args.waypoints,
                       ignition_clearance_m=args.ignition_clearance,
                       profile=args.profile,  # readings profile: supervisor and EWS
+                      supervisor=args.supervisor,
                       free_ports=args.free_ports, log_format=args.log_format,
                       mission_id=re.sub(r"[^A-Za-z0-9_\-]", "-", run_dir.name)[:64])
     t0 = time.perf_counter()

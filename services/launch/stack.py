@@ -64,6 +64,7 @@ class StackConfig:
     max_steps: int = 150
     ignition_clearance_m: float | None = None  # MissionParams.ignition_clearance_m
     profile: str = "today"  # dualpilot.readings profile of the supervisor and the EWS
+    supervisor: str = "paper"  # the cognitive controller's: "paper" or "concurrent"
     uav_id: str = "uav1"
     waypoints: str = ""
     free_ports: bool = False
@@ -100,6 +101,7 @@ class Stack:
             "IGNITION_CLEARANCE_M": ("" if c.ignition_clearance_m is None
                                      else repr(c.ignition_clearance_m)),
             "READINGS_PROFILE": c.profile,  # the readings profile (dualpilot profiles)
+            "SUPERVISOR": c.supervisor,
             "TLOG_PATH": str(c.run_dir / "vehicle.tlog"),
             "LOG_LEVEL": c.log_level, "PYTHONUNBUFFERED": "1",
         }

@@ -81,6 +81,11 @@ def main(argv: list[str] | None = None) -> int:
                    default=env("IGNITION_CLEARANCE_M", "") or None,
                    help="no front ignites within this distance (m) of the UAV; unset: anywhere "
                         "[IGNITION_CLEARANCE_M]")
+    g.add_argument("--supervisor", default=env("SUPERVISOR", "paper"),
+                   choices=["paper", "concurrent"],
+                   help="the cognitive controller's supervisor: the paper's, or the concurrent "
+                        "one (System 2 deliberates while the UAV flies; System 1 prepared with "
+                        "the Δu tracker, rrt+du) [SUPERVISOR]")
     r = p.add_argument_group("readings (dualpilot profiles; a flag overrides the profile)")
     r.add_argument("--profile", default=env("READINGS_PROFILE", "today"), choices=list(PROFILES),
                    help="[READINGS_PROFILE]")
@@ -196,7 +201,8 @@ def main(argv: list[str] | None = None) -> int:
                 ctx.session, link, settings.uav_id, mission_id, controller, spec, timing,
                 SimClock(settings.speed_factor), ctx.stop, waypoints=waypoints, params=params,
                 fire_params=reading.fire, supervisor_params=reading.supervisor,
-                stack=stack, live=live, record_dir=Path(args.out) if args.out else None)
+                supervisor=args.supervisor, stack=stack, live=live,
+                record_dir=Path(args.out) if args.out else None)
             t0 = time.perf_counter()
             aborted = ""
             try:

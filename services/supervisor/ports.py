@@ -13,6 +13,7 @@ import logging
 import threading
 import time
 from collections.abc import Callable
+from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -267,15 +268,18 @@ class StackPlanners:
     restarted) is prepared again and asked once more.
     """
 
-    def __init__(self, b: Bus, spec: MissionSpec, systems: list[int]):
+    def __init__(self, b: Bus, spec: MissionSpec, systems: list[int],
+                 methods: dict[int, str] | None = None):
         self.b = b
         self.spec = spec
         self.systems = systems
+        self.methods = methods or {}  # system → planner method named in the prepare request
         self.waypoints = codec.Waypoints(b.mission_id, 0, None)
         self.last_info: dict[int, dict[str, object]] = {}
         self.request_wall = self.service_time = self.compute = 0.0
         self.requests = 0
         self.misses = {1: 0, 2: 0}  # deadlines missed in a row
+        self._pool: ThreadPoolExecutor | None = None  # background requests (launch/collect)
         self.demoted: dict[int, float] = {}  # system → monotonic time of its last health query
 
     def begin_step(self) -> None:
@@ -327,7 +331,8 @@ class StackPlanners:
             obstacles=req.obstacles if req is not None else (),
             deadline_s=self.b.deadline_s(system),
             waypoints_revision=self.waypoints.revision, prepare=req is None,
-            spec=self.spec if req is None else None)
+            spec=self.spec if req is None else None,
+            method=self.methods.get(system, "") if req is None else "")
         return codec.plan_request_msg(core, self.b.stamper, self.b.clock.now_s)
 
     def prepare(self, systems: list[int]) -> None:
@@ -353,6 +358,23 @@ class StackPlanners:
         pub = self.b.session.declare_publisher(keys.waypoints(self.b.uav))
         bus.put(pub, "", codec.waypoints_msg(self.waypoints, self.b.stamper))
         pub.undeclare()
+
+    def launch(self, request: PlanRequest) -> object:
+        """Ask in the background (the concurrent supervisor's System 2): the query leaves now,
+        on a thread of its own; :meth:`collect` takes its checked reply."""
+        if self._pool is None:
+            self._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="deliberate")
+        return self._pool.submit(self._ask, request)
+
+    def collect(self, ticket: object) -> Plan:
+        """The launched request's plan (a failed plan when it was late or not this step's)."""
+        assert isinstance(ticket, Future)
+        plan: Plan = ticket.result()
+        return plan
+
+    def close(self) -> None:
+        if self._pool is not None:
+            self._pool.shutdown(wait=False, cancel_futures=True)
 
     def plan(self, request: PlanRequest) -> Plan:
         plan = self._ask(request)

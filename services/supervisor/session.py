@@ -36,6 +36,7 @@ import numpy as np
 import zenoh
 
 from dualpilot.mission import monitor
+from dualpilot.mission.local import SUPERVISORS
 from dualpilot.mission.params import Controller, MissionParams, Timing
 from dualpilot.mission.records import (
     STEP_LOG,
@@ -95,6 +96,7 @@ class StackSession:
         params: MissionParams = MissionParams(),
         fire_params: FireParams = FireParams(),
         supervisor_params: SupervisorParams = SupervisorParams(),
+        supervisor: str = "paper",
         stack: StackParams = StackParams(),
         live: bus.Liveliness | None = None,
         record_dir: Path | None = None,
@@ -108,6 +110,7 @@ class StackSession:
         self.params = params
         self.fire_params = fire_params
         self.supervisor_params = supervisor_params
+        self.supervisor_name = supervisor
         self.stack = stack
         self.live = live
         self.record_dir = record_dir
@@ -349,7 +352,8 @@ class StackSession:
             start = cast(list[float], head["start"])
             self.spec = replace(self.spec, start=(float(start[0]), float(start[1])))
         self.fires = StackFires(self.b, self.spec, self.fire_params, self._caught_up)
-        self.planners = StackPlanners(self.b, self.spec, systems_of(self.controller))
+        self.planners = StackPlanners(self.b, self.spec, systems_of(self.controller),
+                                      {1: SUPERVISORS[self.supervisor_name]})
         if self.waypoints is not None:
             self.planners.set_waypoints(self.waypoints, publish=False)
         if prior is not None:
@@ -374,7 +378,8 @@ class StackSession:
             return Mission(self.controller, self.spec, self.fires, self.planners, self.vehicle,
                            state, timing=self.timing, params=self.params,
                            fire_params=self.fire_params,
-                           supervisor_params=self.supervisor_params, observer=self)
+                           supervisor_params=self.supervisor_params, observer=self,
+                           supervisor=self.supervisor_name)
         except ValueError as err:
             raise Aborted(str(err)) from err
 
@@ -575,6 +580,8 @@ class StackSession:
             raise StorageFault(f"storage fault: {self.storage_fault}")
 
     def close_record(self) -> None:
+        if self.planners is not None:
+            self.planners.close()
         if self.step_log is not None:
             self.step_log.close()
             if self.step_log.failed is not None and not self.storage_fault:

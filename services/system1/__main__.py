@@ -12,20 +12,25 @@ a fleet (services/common/fleet.py): one planner loop per vehicle id.
 from __future__ import annotations
 
 from dualpilot.plan import Planner
-from dualpilot.planners import build_planner
+from dualpilot.planners import METHODS, build_planner
 from dualpilot.spec import MissionSpec
 from services.common import bus, fleet, planning
 from services.common import cli as common_cli
 
 
-def make(spec: MissionSpec) -> Planner:
-    return build_planner(1, spec, "rrt")
-
-
 def main(argv: list[str] | None = None) -> int:
     p = common_cli.parser("system1", __doc__.splitlines()[0])
+    p.add_argument("--method", default=common_cli.env("S1_METHOD", "rrt"),
+                   choices=list(METHODS[1]),
+                   help="the default method (a prepare request may name another): rrt, the "
+                        "paper's LQR tracking; rrt+du, the tracker that penalises Δu "
+                        "[S1_METHOD]")
     fleet.add_argument(p)
     args = p.parse_args(argv)
+
+    def make(spec: MissionSpec, method: str) -> Planner:
+        return build_planner(1, spec, method or args.method)
+
     try:
         settings = common_cli.settings("system1", args)
         uavs = fleet.uav_ids(args.uav_ids, settings.uav_id)

@@ -36,8 +36,8 @@ def main(argv: list[str] | None = None) -> int:
     except ValueError as err:
         p.error(str(err))
 
-    def make(spec: MissionSpec) -> Planner:
-        return build_planner(2, spec, args.method, params)
+    def make(spec: MissionSpec, method: str) -> Planner:
+        return build_planner(2, spec, method or args.method, params)
 
     return bus.run_service(settings, lambda ctx: fleet.for_each(
         ctx, uavs, lambda sub: planning.run(sub, 2, make)))

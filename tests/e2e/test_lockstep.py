@@ -52,7 +52,8 @@ def assert_same_mission(stack: MissionResult, local: MissionResult, what: str) -
     assert stack.energy == pytest.approx(local.energy, rel=1e-5, abs=1e-3), what
 
 
-Run = tuple[int, str, str, float | None]  # seed, controller, timing, ignition clearance (m)
+#: seed, controller ("concurrent": cc with the concurrent supervisor), timing, ignition clearance
+Run = tuple[int, str, str, float | None]
 
 
 def fly(fleet: launch.Fleet, runs: Sequence[Run],
@@ -61,8 +62,10 @@ def fly(fleet: launch.Fleet, runs: Sequence[Run],
     mission_ids = {}
     for k, (seed, controller, timing, clear) in enumerate(runs):
         uav = fleet.uav_ids[k]
-        env = {"CONTROLLER": controller, "TIMING": timing, "SPEED_FACTOR": "0",
-               "IGNITION_CLEARANCE_M": "" if clear is None else repr(clear)}
+        concurrent = controller == "concurrent"
+        env = {"CONTROLLER": "cc" if concurrent else controller, "TIMING": timing,
+               "SPEED_FACTOR": "0", "IGNITION_CLEARANCE_M": "" if clear is None else repr(clear),
+               "SUPERVISOR": "concurrent" if concurrent else "paper"}
         run_dir = out / f"{controller}-{timing}-s{seed}-ic{clear}"
         mission_ids[uav] = fleet.start_vehicle(uav, seed, run_dir, env=env).mission_id
     outcomes = fleet.wait_end(mission_ids, 300.0)
@@ -77,8 +80,10 @@ def fly(fleet: launch.Fleet, runs: Sequence[Run],
 
 
 def in_process(seed: int, controller: str, timing: str, clear: float | None) -> MissionResult:
-    return local_mission(Controller(controller), MissionSpec(seed=seed), timing=Timing(timing),
-                         params=MissionParams(ignition_clearance_m=clear)).run()
+    concurrent = controller == "concurrent"
+    return local_mission(Controller("cc" if concurrent else controller), MissionSpec(seed=seed),
+                         timing=Timing(timing), params=MissionParams(ignition_clearance_m=clear),
+                         supervisor="concurrent" if concurrent else "paper").run()
 
 
 @pytest.fixture(scope="module")
@@ -91,7 +96,7 @@ def fleet(tmp_path_factory: pytest.TempPathFactory) -> Any:
 
 
 @pytest.mark.parametrize("timing", ["paper", "measured"])
-@pytest.mark.parametrize("controller", ["cc", "s1", "s2"])
+@pytest.mark.parametrize("controller", ["cc", "s1", "s2", "concurrent"])
 def test_stack_and_in_process_records_are_identical(fleet: Any, controller: str,
                                                     timing: str) -> None:
     f, out = fleet
