@@ -46,6 +46,7 @@ def _mission(args: argparse.Namespace) -> int:
     mission = local_mission(
         Controller(args.controller),
         MissionSpec(seed=args.seed),
+        supervisor=args.supervisor,
         timing=Timing(args.timing),
         params=reading.mission,
         fire_params=reading.fire,
@@ -159,6 +160,9 @@ def build_parser() -> argparse.ArgumentParser:
 
     m = sub.add_parser("mission", help="fly one mission in-process")
     m.add_argument("--controller", choices=[c.value for c in Controller], default="cc")
+    m.add_argument("--supervisor", choices=["paper", "concurrent"], default="paper",
+                   help="the cognitive controller's supervisor: the paper's (Sec. III-C) or the "
+                        "concurrent one (System 2 deliberates while the UAV flies)")
     m.add_argument("--seed", type=int, default=7)
     m.add_argument("--timing", choices=[t.value for t in Timing], default="paper")
     m.add_argument("--s2-method", default="fast", help="System 2 solver: fast or exact")
@@ -185,7 +189,9 @@ def build_parser() -> argparse.ArgumentParser:
     e.add_argument("--timing", choices=[t.value for t in Timing], default="paper")
     e.add_argument("--jobs", type=int, default=0, help="worker processes (default: all cores)")
     e.add_argument("--seed", type=int, default=0)
-    e.add_argument("--controllers", default="cc,s1,s2")
+    e.add_argument("--controllers", default="cc,s1,s2",
+                   help="any of cc,s1,s2,concurrent (concurrent: cc with the concurrent "
+                        "supervisor)")
     e.add_argument("--s2-method", default="fast")
     e.add_argument(
         "--ignition-clearance",

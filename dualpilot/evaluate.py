@@ -19,6 +19,7 @@ from typing import Any
 
 import numpy as np
 
+from dualpilot.mission.params import CONTROLLER_NAMES
 from dualpilot.readings import get_profile
 from dualpilot.sweep import (  # noqa: F401 - the runner's names, re-exported
     COLUMNS,
@@ -111,7 +112,7 @@ def summarize(
     """summary.json: per controller success rate, mission time, energy, planning time, with CIs."""
     result: dict[str, object] = {"missions": missions, "timing": timing, "wall_s": wall_s}
     ctrl: dict[str, object] = {}
-    for c in CONTROLLERS:
+    for c in CONTROLLER_NAMES:
         rs = [r for r in rows if r["controller"] == c]
         if not rs:
             continue
@@ -133,6 +134,9 @@ def summarize(
             "energy_mean": e_mean,
             "energy_ci95": [e_lo, e_hi],
             "planning_time_s_median": float(np.median(plan_t)) if plan_t else float("nan"),
+            "switches_mean": float(np.mean([float(r["switches"]) for r in ok])) if ok else 0.0,
+            "switch_energy_mean": float(np.mean([float(r.get("switch_energy") or 0.0)
+                                                 for r in ok])) if ok else 0.0,
             "errors": sum(1 for r in rs if r["error"]),
             "failure_causes": causes,
         }

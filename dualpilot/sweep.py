@@ -29,7 +29,7 @@ from typing import Any
 
 import numpy as np
 
-from dualpilot.mission.params import Controller, Timing
+from dualpilot.mission.params import Timing, controller_of
 from dualpilot.readings import Profile, get_profile, parse_value, settable
 from dualpilot.spec import MissionSpec
 
@@ -37,8 +37,9 @@ CONTROLLERS = ("cc", "s1", "s2")
 #: evaluate's results.csv (unchanged by the sweep)
 COLUMNS = [
     "mission", "seed", "controller", "timing", "success", "failure_cause", "steps",
-    "mission_time_s", "energy", "switches", "s1_plans", "s2_plans", "planning_time_s_median",
-    "planning_time_s_p95", "planning_time_s_total", "start_x", "start_y", "goal_x", "goal_y",
+    "mission_time_s", "energy", "switches", "switch_energy", "s1_plans", "s2_plans",
+    "planning_time_s_median", "planning_time_s_p95", "planning_time_s_total", "start_x",
+    "start_y", "goal_x", "goal_y",
     "wall_s", "error",
 ]
 #: the sweep's tidy table: the grid point and every parameter value, then COLUMNS
@@ -95,16 +96,19 @@ def run_task(task: Task) -> dict[str, object]:
     try:
         reading = task.reading()
         row.update(reading.values())
+        controller, supervisor = controller_of(task.controller)
         result = local_mission(
-            Controller(task.controller), config, timing=Timing(task.timing),
+            controller, config, timing=Timing(task.timing),
             params=reading.mission, fire_params=reading.fire,
             supervisor_params=reading.supervisor, system2_method=task.s2_method,
+            supervisor=supervisor,
         ).run()
         times = result.planning_time_s["s1"] + result.planning_time_s["s2"]
         row.update(
             success=int(result.success), failure_cause=result.failure_cause,
             steps=result.steps, mission_time_s=result.mission_time_s,
             energy=round(result.energy, 6), switches=result.switches,
+            switch_energy=round(result.switch_energy, 6),
             s1_plans=len(result.planning_time_s["s1"]),
             s2_plans=len(result.planning_time_s["s2"]),
             planning_time_s_median=float(np.median(times)) if times else "",

@@ -18,6 +18,18 @@ class Controller(enum.Enum):
     S2 = "s2"
 
 
+#: The controllers an evaluation compares: the paper's three, and the cognitive controller
+#: with the concurrent supervisor (dualpilot/supervisor/concurrent.py).
+CONTROLLER_NAMES = ("cc", "s1", "s2", "concurrent")
+
+
+def controller_of(name: str) -> tuple[Controller, str]:
+    """(controller, supervisor) of an evaluation's controller name."""
+    if name == "concurrent":
+        return Controller.CC, "concurrent"
+    return Controller(name), "paper"
+
+
 class Timing(enum.Enum):
     MEASURED = "measured"
     PAPER = "paper"

@@ -47,6 +47,7 @@ class MissionResult:
     energy: float = 0.0
     planning_time_s: dict[str, list[float]] = field(default_factory=lambda: {"s1": [], "s2": []})
     switches: int = 0
+    switch_energy: float = 0.0  # the part of ``energy`` spent at the switch steps (N²)
     records: list[StepRecord] = field(default_factory=list)
     final_state: Array | None = None
 
@@ -60,11 +61,13 @@ class MissionResult:
         Energy is Σ‖u_t − u_{t−1}‖² (N²); a switch is a change of the system in
         control, braking steps (system 0) do not count.
         """
-        self.energy += float(np.sum((np.asarray(control) - np.asarray(prev_control)) ** 2))
+        du2 = float(np.sum((np.asarray(control) - np.asarray(prev_control)) ** 2))
+        self.energy += du2
         flown = self.records[-1].system
         earlier = next((r.system for r in reversed(self.records[:-1]) if r.system), 0)
         if flown and earlier and flown != earlier:
             self.switches += 1
+            self.switch_energy += du2
         self.steps += 1
         self.mission_time_s = self.steps * dt_s
 
@@ -81,6 +84,7 @@ class MissionResult:
             "energy": self.energy,
             "planning_time_s": self.planning_time_s,
             "switches": self.switches,
+            "switch_energy": self.switch_energy,
             "start": list(s.start),
             "goal": {
                 "center": [s.goal.center_x, s.goal.center_y],

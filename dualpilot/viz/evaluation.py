@@ -11,13 +11,13 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-LABELS = {"cc": "CC", "s1": "S1", "s2": "S2"}
-COLORS = {"cc": "#2ca02c", "s1": "#1f77b4", "s2": "#d62ca8"}
+LABELS = {"cc": "CC", "s1": "S1", "s2": "S2", "concurrent": "CC (concurrent)"}
+COLORS = {"cc": "#2ca02c", "s1": "#1f77b4", "s2": "#d62ca8", "concurrent": "#ff7f0e"}
 
 
 def plot_fig_r5(summary: dict[str, Any], path: Path) -> Path:
     ctrl = summary["controllers"]
-    names = [c for c in ("cc", "s1", "s2") if c in ctrl]
+    names = [c for c in LABELS if c in ctrl]
     panels = [
         ("(a) Success rate", "success rate (%)", "success_rate", "success_rate_ci95", 100.0),
         (

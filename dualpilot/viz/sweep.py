@@ -29,7 +29,7 @@ def _short(label: str) -> str:
 def plot_sweep(summary: dict[str, Any], path: Path) -> Path:
     """Three stacked panels over the grid points; returns ``path``."""
     points = summary["points"]
-    names = [c for c in ("cc", "s1", "s2") if c in summary["controllers"]]
+    names = [c for c in LABELS if c in summary["controllers"]]
     panels = [
         ("success rate (%)", "success_rate", "success_rate_ci95", 100.0),
         ("mission time (s)", "mission_time_s_mean", "mission_time_s_ci95", 1.0),
@@ -48,7 +48,7 @@ def plot_sweep(summary: dict[str, Any], path: Path) -> Path:
             err = np.nan_to_num(np.abs(np.vstack([vals - ci[:, 0], ci[:, 1] - vals])))
             ax.errorbar(x + (j - (len(names) - 1) / 2) * width, vals, yerr=err, fmt="o",
                         capsize=4, color=COLORS[c], label=LABELS[c])
-            if key == "success_rate":
+            if key == "success_rate" and c in PAPER_SUCCESS:  # the paper's Fig. r5
                 ax.axhline(PAPER_SUCCESS[c], color=COLORS[c], ls="--", lw=1, alpha=0.7)
         ax.set_ylabel(ylabel)
         ax.grid(axis="y", alpha=0.3)
