@@ -37,7 +37,8 @@ CONTROLLERS = ("cc", "s1", "s2")
 #: evaluate's results.csv (unchanged by the sweep)
 COLUMNS = [
     "mission", "seed", "controller", "timing", "success", "failure_cause", "steps",
-    "mission_time_s", "energy", "switches", "switch_energy", "s1_plans", "s2_plans",
+    "mission_time_s", "energy", "switches", "switch_energy", "fire_substeps", "s1_plans",
+    "s2_plans",
     "planning_time_s_median", "planning_time_s_p95", "planning_time_s_total", "start_x",
     "start_y", "goal_x", "goal_y",
     "wall_s", "error",
@@ -109,6 +110,8 @@ def run_task(task: Task) -> dict[str, object]:
             steps=result.steps, mission_time_s=result.mission_time_s,
             energy=round(result.energy, 6), switches=result.switches,
             switch_energy=round(result.switch_energy, 6),
+            fire_substeps=sum(r.fire_substeps for r in result.records)
+            + reading.mission.fire_substeps_per_motion * result.steps,
             s1_plans=len(result.planning_time_s["s1"]),
             s2_plans=len(result.planning_time_s["s2"]),
             planning_time_s_median=float(np.median(times)) if times else "",
