@@ -298,8 +298,14 @@ def _try_recv(replies: Any) -> zenoh.Reply | None:
 
 
 def _is_local_timeout(reply: zenoh.Reply) -> bool:
-    """Zenoh's own "Timeout" error reply (no replier)."""
-    return (reply.err is not None and reply.replier_id is None
+    """Zenoh's own "Timeout" error reply.
+
+    It comes from this session (no replier id) or from a router or the
+    queryable's session on the way (their id), so it ends the wait whoever
+    sent it: at worst an impostor makes a query time out early, it never
+    gets an answer accepted.
+    """
+    return (reply.err is not None
             and reply.err.payload.to_bytes().strip().lower() == b"timeout")
 
 
