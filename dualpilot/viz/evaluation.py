@@ -11,7 +11,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-LABELS = {"cc": "CC", "s1": "S1", "s2": "S2", "concurrent": "CC (concurrent)"}
+LABELS = {"cc": "CC", "s1": "S1", "s2": "S2", "concurrent": "CC\n(concurrent)"}
 COLORS = {"cc": "#2ca02c", "s1": "#1f77b4", "s2": "#d62ca8", "concurrent": "#ff7f0e"}
 
 
