@@ -136,7 +136,7 @@ def summarize(
             "planning_time_s_median": float(np.median(plan_t)) if plan_t else float("nan"),
             "fire_substeps_per_step": float(
                 np.sum([float(r.get("fire_substeps") or 0.0) for r in rs])
-                / max(1.0, float(np.sum([max(1.0, float(r["steps"])) for r in rs])))),
+                / max(1.0, float(np.sum([max(1.0, float(r["steps"] or 0.0)) for r in rs])))),
             "switches_mean": float(np.mean([float(r["switches"]) for r in ok])) if ok else 0.0,
             "switch_energy_mean": float(np.mean([float(r.get("switch_energy") or 0.0)
                                                  for r in ok])) if ok else 0.0,

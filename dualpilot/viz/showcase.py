@@ -13,7 +13,7 @@ again and drawn with :func:`dualpilot.viz.mission.make_figures`.
 Found with ``dualpilot showcase --profile literal --seeds 0:500`` (paper
 timing; README, Fig. r1): the longest S1 run in 500 CC missions is 3 steps
 (7 missions, 1.4 %); 16 % reach 2 steps; 26 missions (5.2 %) tell the story
-at all, the best (seed 235) with a 2-step run at t = 37, a front born 10 m
+at all, the best (seed 235) with a 2-step run at t = 37, a front born 26 m
 away. The paper's ~20-step run is out of reach of its own supervisor
 (:mod:`dualpilot.supervisor.bound`: ≤ 1e-7).
 """
