@@ -99,22 +99,10 @@ PARAMS: dict[str, tuple[float, float | None, float | None, str]] = {
     "CTL_REFUSED": (0.0, None, None, "control messages refused: not from the link and peer "
                                      "in control"),
 }
-#: Messages that steer the vehicle: only from the link and peer in control (the offboard
-#: companion, or a ground station that took control with a mode command), and on a signed
-#: ground-station link only signed.
-CONTROL_COMMANDS = frozenset({m.MAV_CMD_COMPONENT_ARM_DISARM, m.MAV_CMD_DO_SET_MODE,
-                              m.MAV_CMD_NAV_TAKEOFF, m.MAV_CMD_NAV_LAND})
 #: Messages a keyed ground-station link refuses unsigned (control, mission upload, parameters).
 SIGNED_ONLY = frozenset({"SET_POSITION_TARGET_LOCAL_NED", "COMMAND_LONG", "COMMAND_INT",
                          "SET_MODE", "PARAM_SET", "MISSION_COUNT", "MISSION_ITEM_INT",
                          "MISSION_ITEM", "MISSION_CLEAR_ALL", "MISSION_SET_CURRENT"})
-
-
-def steers(msg: Any) -> bool:
-    """A setpoint, a mode change, arming, take-off or landing (not a request or a parameter)."""
-    kind = msg.get_type()
-    return kind in ("SET_POSITION_TARGET_LOCAL_NED", "SET_MODE") or (
-        kind == "COMMAND_LONG" and int(msg.command) in CONTROL_COMMANDS)
 
 
 class Endpoint:
@@ -423,8 +411,6 @@ class Endpoint:
                 codec.Reason.WRONG_TARGET))
             return False
         now = time.monotonic()
-        if steers(msg) and not self.may_control(link, msg, now):
-            return False
         handled = self.mission.handle(link, msg, now)
         if handled is not None:
             return handled
@@ -562,6 +548,8 @@ class Endpoint:
             target = codec.setpoint_from_mavlink(normalised(msg), self.area_size_m, lead)
         except codec.CodecError as err:
             self.reject(link, err, "setpoint")
+            return False
+        if not self.may_control(link, msg, now):  # checked once the setpoint itself is valid
             return False
         if now - self.last_setpoint > self.p("COM_OF_LOSS_T"):
             self.stream_since = now  # a new stream starts

@@ -42,6 +42,9 @@ if TYPE_CHECKING:
 log = logging.getLogger("services.uavsim")
 m = mav.mavlink
 
+#: commands that steer the vehicle: only from the link and peer in control (Endpoint.may_control)
+CONTROL_COMMANDS = frozenset({m.MAV_CMD_COMPONENT_ARM_DISARM, m.MAV_CMD_DO_SET_MODE,
+                              m.MAV_CMD_NAV_TAKEOFF, m.MAV_CMD_NAV_LAND})
 FORCE_DISARM_MAGIC = 21196  # MAV_CMD_COMPONENT_ARM_DISARM param2: disarm even in the air
 #: parameters (1-based) a command cannot do without: NaN there is refused
 REQUIRED: dict[int, tuple[int, ...]] = {
@@ -208,6 +211,9 @@ class Commands:
             ep.reject(link, err, "COMMAND_LONG")
             ack(int(m.MAV_RESULT_DENIED))
             return False
+        if cmd in CONTROL_COMMANDS and not ep.may_control(link, msg, time.monotonic()):
+            ack(int(m.MAV_RESULT_DENIED))  # not from the link and peer in control
+            return False
         if cmd == m.MAV_CMD_COMPONENT_ARM_DISARM:
             result = self.arm(p[1] >= 0.5, int(p[2]) == FORCE_DISARM_MAGIC)
         elif cmd == m.MAV_CMD_NAV_TAKEOFF:
@@ -251,6 +257,10 @@ class Commands:
 
     def on_set_mode(self, link: str, msg: Any) -> None:
         """The legacy SET_MODE message (MAVProxy's ``mode``): acked as ArduPilot does."""
+        if not self.ep.may_control(link, msg, time.monotonic()):
+            self.ep.send[link]("command_ack", m.MAVLINK_MSG_ID_SET_MODE, m.MAV_RESULT_DENIED,
+                               0, 0, msg.get_srcSystem(), msg.get_srcComponent())
+            return
         result = self.mode_request(int(msg.base_mode), int(msg.custom_mode))
         self.ep.send[link]("command_ack", m.MAVLINK_MSG_ID_SET_MODE, result, 0, 0,
                            msg.get_srcSystem(), msg.get_srcComponent())

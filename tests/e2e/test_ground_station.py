@@ -42,7 +42,7 @@ HOME = (35.1450, 33.4110)  # uavsim's default origin
 SEED = 3
 #: the operator's route (local east, north m) from the start (50, 50) to the goal (900, 900)
 ROUTE = [(250.0, 150.0), (500.0, 450.0), (900.0, 900.0)]
-PASSPHRASE = "e2e ground station"
+PASSPHRASE = "e2e-ground-station"  # one word: MAVProxy's "signing key" takes one
 
 if not MAVPROXY.exists():  # pragma: no cover - MAVProxy is in the dev extra
     pytest.skip("MAVProxy is not installed (pip install -e '.[dev]')", allow_module_level=True)
@@ -66,7 +66,7 @@ class MavProxy:
         self.proc = subprocess.Popen(
             [sys.executable, str(MAVPROXY), f"--master=udpout:127.0.0.1:{gcs_port}",
              f"--out=udp:127.0.0.1:{out_port}", "--no-state", f"--state-basedir={workdir}",
-             "--default-modules=wp,mode,param,cmdlong,arm,link"],
+             "--default-modules=wp,mode,param,cmdlong,arm,link,signing"],
             cwd=workdir, stdin=subprocess.PIPE, stdout=self.fh, stderr=subprocess.STDOUT,
             start_new_session=True)
 
@@ -160,6 +160,7 @@ def run(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Run]:
     observer = Observer(out_port)
     with stack:
         gcs = MavProxy(gcs_port, out_port, work)
+        gcs.send(f"signing key {PASSPHRASE}")  # a keyed vehicle refuses unsigned uploads
         r = Run(stack, cfg.run_dir, gcs, observer, offboard_port)
         try:
             with launch.client_session(stack.endpoint) as session:
