@@ -138,7 +138,7 @@ class ConcurrentPlanning:
                     options.append(Flown(slow, 0, known_now))
         if options:
             chosen = self._best(options)
-            if due is not None and due in options:
+            if due is not None and any(o is due for o in options):  # identity: plans hold arrays
                 choice.statuses.append("s2:adopted" if chosen is due else "s2:declined")
             if self.flown is not None and chosen.plan.system != self.flown.plan.system:
                 choice.note = f"switch s{self.flown.plan.system}->s{chosen.plan.system}"
