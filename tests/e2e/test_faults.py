@@ -293,7 +293,11 @@ class DelayProxy:
                 conn, _ = self.srv.accept()
             except OSError:
                 continue
-            up = socket.create_connection(("127.0.0.1", self.target_port))
+            try:
+                up = socket.create_connection(("127.0.0.1", self.target_port))
+            except OSError:  # the router is not listening yet: the client retries
+                conn.close()
+                continue
             for a, b in ((conn, up), (up, conn)):
                 q: queue.Queue[tuple[float, bytes]] = queue.Queue()
                 threading.Thread(target=self._read, args=(a, q), daemon=True).start()
