@@ -162,6 +162,7 @@ class StackFires:
         """Start the mission's fire process; returns its first state. Raises Aborted."""
         cmd = fire_pb2.FireCommand()
         cmd.reset.seed, cmd.reset.area_size_m = self.spec.seed, self.spec.area_size_m
+        codec.fire_readings_to_msg(self.params, cmd.reset)  # the EWS runs the same readings
         first = self._command(cmd).states[0]
         self.params = replace(self.params, substep_s=first.substep_s)
         return self._take(first)
@@ -171,6 +172,7 @@ class StackFires:
         mission had, whatever the EWS lost. Raises Aborted when the EWS does not answer."""
         cmd = fire_pb2.FireCommand()
         cmd.reset.seed, cmd.reset.area_size_m = self.spec.seed, self.spec.area_size_m
+        codec.fire_readings_to_msg(self.params, cmd.reset)  # the EWS runs the same readings
         last = self._command(cmd).states[-1]
         for t, n, keep in self.history:
             if n:

@@ -273,15 +273,20 @@ class Fuzzer:
         self.sock.close()
 
 
-@pytest.fixture(scope="module")
-def vehicle(services: Any, liveliness: bus.Liveliness) -> Any:
+@pytest.fixture
+def vehicle(services: Any, liveliness: bus.Liveliness) -> Iterator[Any]:
+    """A fresh vehicle per test: a fuzzed mode command on the GCS link can take control
+    (the ground station's explicit take-over), which a later test must not inherit."""
     ports = {"offboard": free_port("udp"), "gcs": free_port("udp")}
-    services.start("uavsim", MAVLINK_URL=f"udpin:127.0.0.1:{ports['offboard']}",
-                   GCS_URL=f"udpin:127.0.0.1:{ports['gcs']}", UAV_START="300,400",
-                   UAV_HOME=f"{HOME[0]},{HOME[1]}")
+    proc = services.start("uavsim", MAVLINK_URL=f"udpin:127.0.0.1:{ports['offboard']}",
+                          GCS_URL=f"udpin:127.0.0.1:{ports['gcs']}", UAV_START="300,400",
+                          UAV_HOME=f"{HOME[0]},{HOME[1]}")
     assert liveliness.wait_for(["uavsim"], 60), services.log("uavsim")[-2000:]
     services.ports = ports
-    return services
+    yield services
+    services.group.stop(proc)
+    services.group.procs.remove(proc)
+    assert liveliness.wait_gone("uavsim", 30), "the test's uavsim did not stop"
 
 
 def rejected(session: Any, link: str) -> collections.Counter[str]:
