@@ -116,3 +116,33 @@ def test_the_ignition_clearance_reaches_the_stack(fleet: Any) -> None:
     # the reading matters: without it, some of these missions differ
     plain = [in_process(seed, "cc", "paper", None) for seed, *_ in runs]
     assert [r.steps for r in plain] != [results[run].steps for run in runs]
+
+
+@pytest.mark.parametrize("profile", ["literal", "fig-r5"])
+def test_a_profile_given_to_the_supervisor_alone_reaches_the_ews(fleet: Any,
+                                                                 profile: str) -> None:
+    """The shared EWS runs its default reading; the supervisor's profile (its
+    READINGS_PROFILE) travels in every FireReset, so the missions are the in-process ones
+    under that profile."""
+    from dualpilot.readings import get_profile
+
+    f, out = fleet
+    reading = get_profile(profile)
+    mission_ids = {}
+    for k, seed in enumerate(SEEDS[:3]):
+        uav = f.uav_ids[k]
+        env = {"CONTROLLER": "cc", "TIMING": "paper", "SPEED_FACTOR": "0",
+               "READINGS_PROFILE": profile, "IGNITION_CLEARANCE_M": "", "SUPERVISOR": "paper"}
+        v = f.start_vehicle(uav, seed, out / f"profile-{profile}-s{seed}", env=env)
+        mission_ids[uav] = v.mission_id
+    outcomes = f.wait_end(mission_ids, 300.0)
+    for k, seed in enumerate(SEEDS[:3]):
+        uav = f.uav_ids[k]
+        run_dir = f.vehicles[uav].run_dir
+        assert outcomes[uav].ended, outcomes[uav]
+        assert all(code == 0 for code in f.stop_vehicle(uav).values())
+        stack = result_from_log(read_step_log(run_dir / "steps.jsonl"))
+        local = local_mission(Controller.CC, MissionSpec(seed=seed), timing=Timing.PAPER,
+                              params=reading.mission, fire_params=reading.fire,
+                              supervisor_params=reading.supervisor).run()
+        assert_same_mission(stack, local, f"{profile} seed {seed}")
