@@ -37,7 +37,7 @@ from typing import Any, TypeVar
 import zenoh
 from google.protobuf.message import Message
 
-from . import codec, keys
+from . import acl, codec, keys
 from . import log as logsetup
 from .cli import Settings
 
@@ -63,19 +63,59 @@ def zenoh_config(s: Settings) -> zenoh.Config:
     inside the first such send, which stalled the sender for 5–6 ms early in
     every mission; our messages are a few kB, and containers do not share
     /dev/shm anyway.
+
+    With ``ZENOH_TLS_DIR`` (``s.tls_dir``) the endpoints are ``tls/``, each
+    session presents its service's certificate (mutual TLS, :func:`tls_config`),
+    every non-router session is a client, and the router enforces the access
+    control of :mod:`services.common.acl`.
     """
     conf = zenoh.Config()
-    conf.insert_json5("mode", json.dumps(s.zenoh_mode))
+    mode, connect, listen = s.zenoh_mode, list(s.zenoh_connect), list(s.zenoh_listen)
+    if s.tls_dir:
+        # TLS and access control (services/common/acl.py): every service is a client, so all
+        # its traffic crosses the router, where the access control is enforced (a peer's
+        # direct links to other peers would bypass it)
+        if mode != "router":
+            mode, listen = "client", []
+        connect, listen = tls_endpoints(connect), tls_endpoints(listen)
+        conf.insert_json5("transport/link/tls", json.dumps(tls_config(s.tls_dir, s.service)))
+        if mode == "router":
+            conf.insert_json5("access_control", json.dumps(acl.config()))
+    conf.insert_json5("mode", json.dumps(mode))
     conf.insert_json5("scouting/multicast/enabled", "false")
     conf.insert_json5("transport/shared_memory/enabled", "false")
-    conf.insert_json5("connect/endpoints", json.dumps(list(s.zenoh_connect)))
-    conf.insert_json5("listen/endpoints", json.dumps(list(s.zenoh_listen)))
+    conf.insert_json5("connect/endpoints", json.dumps(connect))
+    conf.insert_json5("listen/endpoints", json.dumps(listen))
     # wait (forever) for the router, retrying quickly: compose starts services in any order
     conf.insert_json5("connect/timeout_ms", "-1")
     conf.insert_json5("connect/exit_on_failure", "false")
     conf.insert_json5("connect/retry",
                       "{period_init_ms: 100, period_max_ms: 1000, period_increase_factor: 2}")
     return conf
+
+
+def tls_endpoints(endpoints: Iterable[str]) -> list[str]:
+    """``tcp/host:port`` → ``tls/host:port`` (other endpoints as they are)."""
+    return ["tls/" + e.removeprefix("tcp/") if e.startswith("tcp/") else e for e in endpoints]
+
+
+def tls_config(tls_dir: str, identity: str) -> dict[str, Any]:
+    """``transport/link/tls`` for mutual TLS: ``identity``'s key and certificate from
+    ``tls_dir`` (made by ``python -m services.certs``) both ways, peers checked against its CA.
+
+    The names are checked too (``verify_name_on_connect``): the router's certificate names
+    localhost, 127.0.0.1 and the compose host ``zenoh``.
+    """
+    d = os.path.abspath(tls_dir)
+    key, cert = os.path.join(d, f"{identity}.key"), os.path.join(d, f"{identity}.pem")
+    for path in (key, cert, os.path.join(d, "ca.pem")):
+        if not os.path.isfile(path):
+            raise FileNotFoundError(f"ZENOH_TLS_DIR: no {path} (python -m services.certs "
+                                    f"--out {tls_dir})")
+    return {"root_ca_certificate": os.path.join(d, "ca.pem"), "enable_mtls": True,
+            "listen_private_key": key, "listen_certificate": cert,
+            "connect_private_key": key, "connect_certificate": cert,
+            "verify_name_on_connect": True}
 
 
 def encoding(msg: Message | type[Message]) -> zenoh.Encoding:
@@ -586,7 +626,9 @@ def run_service(settings: Settings, body: Body, zenoh_session: bool = True) -> i
                 if stop.is_set():
                     return
                 log.info("zenoh session open", extra=logsetup.fields(
-                    mode=settings.zenoh_mode, connect=",".join(settings.zenoh_connect),
+                    mode=("client" if settings.tls_dir and settings.zenoh_mode != "router"
+                          else settings.zenoh_mode),
+                    connect=",".join(settings.zenoh_connect), tls=settings.tls_dir,
                     zid=str(session.info.zid())))
                 close_status = serve_status(session, settings, stop, started)
                 try:

@@ -7,6 +7,9 @@ flag               environment         default
 --zenoh-connect    ZENOH_CONNECT       tcp/127.0.0.1:7447 (comma-separated)
 --zenoh-listen     ZENOH_LISTEN        (none)
 --zenoh-mode       ZENOH_MODE          client
+--zenoh-tls-dir    ZENOH_TLS_DIR       (none: plain TCP; a directory made by
+                                       ``python -m services.certs``: mutual TLS,
+                                       client mode, the router's access control)
 --speed-factor     SPEED_FACTOR        1 (0 or inf: unpaced)
 --mavlink-url      MAVLINK_URL         per service (supervisor, uavsim)
 --log-level        LOG_LEVEL           INFO
@@ -41,6 +44,7 @@ class Settings:
     mavlink_url: str
     log_level: str
     log_format: str
+    tls_dir: str = ""  # ZENOH_TLS_DIR: certificates of services.certs; "" is plain TCP
 
 
 def _endpoints(text: str) -> tuple[str, ...]:
@@ -58,6 +62,9 @@ def parser(service: str, description: str, mavlink_default: str = "") -> argpars
                    help="comma-separated Zenoh endpoints to listen on [ZENOH_LISTEN]")
     g.add_argument("--zenoh-mode", default=env("ZENOH_MODE", "client"),
                    choices=["client", "peer", "router"], help="Zenoh mode [ZENOH_MODE]")
+    g.add_argument("--zenoh-tls-dir", default=env("ZENOH_TLS_DIR", ""),
+                   help="mutual TLS and access control with the CA and certificates in this "
+                        "directory (python -m services.certs) [ZENOH_TLS_DIR]")
     g.add_argument("--speed-factor", type=float, default=env("SPEED_FACTOR", "1"),
                    help="simulated seconds per wall second; 0 or inf: unpaced [SPEED_FACTOR]")
     if mavlink_default:
@@ -85,4 +92,5 @@ def settings(service: str, args: argparse.Namespace) -> Settings:
         mavlink_url=getattr(args, "mavlink_url", ""),
         log_level=args.log_level,
         log_format=args.log_format,
+        tls_dir=getattr(args, "zenoh_tls_dir", ""),
     )
