@@ -39,6 +39,11 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--compose", type=Path, default=COMPOSE)
     p.add_argument("--free-ports", action="store_true",
                    help="free local ports instead of the published 7447 / 14550")
+    p.add_argument("--tls", action="store_true",
+                   help="mutual TLS and the router's access control (ZENOH_TLS_DIR); "
+                        "certificates made in <out>/tls unless --tls-dir is given")
+    p.add_argument("--tls-dir", type=Path, default=None,
+                   help="certificates of python -m services.certs (implies --tls)")
     p.add_argument("--timeout-s", type=float, default=600.0)
     p.add_argument("--log-format", choices=["json", "text"], default="json")
     p.add_argument("--no-figures", action="store_true")
@@ -53,6 +58,8 @@ def main(argv: list[str] | None = None) -> int:
                       profile=args.profile,  # readings profile: supervisor and EWS
                       supervisor=args.supervisor,
                       free_ports=args.free_ports, log_format=args.log_format,
+                      tls=args.tls or args.tls_dir is not None,
+                      tls_dir=args.tls_dir.resolve() if args.tls_dir else None,
                       mission_id=re.sub(r"[^A-Za-z0-9_\-]", "-", run_dir.name)[:64])
     t0 = time.perf_counter()
     try:

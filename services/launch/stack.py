@@ -73,6 +73,10 @@ class StackConfig:
     mission_id: str = ""
     services: tuple[str, ...] = ()  # empty: every service of the compose file
     extra_env: dict[str, dict[str, str]] = field(default_factory=dict)  # per service
+    # mutual TLS and the router's access control (ZENOH_TLS_DIR): a directory of
+    # services.certs; with tls and none given, certificates are made in <run_dir>/tls
+    tls: bool = False
+    tls_dir: Path | None = None
 
 
 class Stack:
@@ -89,6 +93,9 @@ class Stack:
         self.endpoint = f"tcp/127.0.0.1:{self.zenoh_port}"
         self.group = ProcessGroup()
         self.logs = cfg.run_dir / "logs"
+        self.tls_dir: Path | None = None
+        if cfg.tls or cfg.tls_dir is not None:
+            self.tls_dir = (cfg.tls_dir or cfg.run_dir / "tls").resolve()
 
     def overrides(self) -> dict[str, str]:
         c = self.cfg
@@ -104,6 +111,7 @@ class Stack:
             "SUPERVISOR": c.supervisor,
             "TLOG_PATH": str(c.run_dir / "vehicle.tlog"),
             "LOG_LEVEL": c.log_level, "PYTHONUNBUFFERED": "1",
+            "ZENOH_TLS_DIR": str(self.tls_dir or ""),
         }
 
     def service_env(self, name: str) -> dict[str, str]:
@@ -127,8 +135,13 @@ class Stack:
 
     def start(self) -> None:
         self.logs.mkdir(parents=True, exist_ok=True)
+        if self.tls_dir is not None:
+            from services import certs
+
+            certs.make(self.tls_dir)  # keeps a complete directory as it is
         env = dict(os.environ, PYTHONPATH=str(REPO), PYTHONUNBUFFERED="1",
-                   LOG_FORMAT=self.cfg.log_format, UAV_ID=self.cfg.uav_id)
+                   LOG_FORMAT=self.cfg.log_format, UAV_ID=self.cfg.uav_id,
+                   ZENOH_TLS_DIR=str(self.tls_dir or ""))
         self.group.start("router", [sys.executable, "-m", "services.router", "--zenoh-listen",
                                     self.endpoint], env, self.logs / "router.log")
         for name in self.service_names():
@@ -168,13 +181,24 @@ def wait_router(endpoint: str, timeout_s: float = 30.0) -> None:
 
 
 @contextmanager
-def client_session(endpoint: str) -> Iterator[Any]:
-    """A Zenoh client session on ``endpoint`` (blocks until the router answers)."""
+def client_session(endpoint: str, tls_dir: Path | str | None = None,
+                   identity: str = "monitor") -> Iterator[Any]:
+    """A Zenoh client session on ``endpoint`` (blocks until the router answers).
+
+    With ``tls_dir`` (services.certs) it connects over mutual TLS as ``identity``
+    ("monitor" may only listen: services/common/acl.py).
+    """
     import zenoh
+
+    from services.common import bus
 
     conf = zenoh.Config()
     conf.insert_json5("mode", '"client"')
     conf.insert_json5("scouting/multicast/enabled", "false")
+    if tls_dir:
+        endpoint = bus.tls_endpoints([endpoint])[0]
+        conf.insert_json5("transport/link/tls", json.dumps(bus.tls_config(str(tls_dir),
+                                                                          identity)))
     conf.insert_json5("connect/endpoints", json.dumps([endpoint]))
     conf.insert_json5("connect/timeout_ms", "-1")
     conf.insert_json5("connect/exit_on_failure", "false")
@@ -213,7 +237,7 @@ def follow(stack: Stack, timeout_s: float, quiet: bool = False) -> Outcome:
     from services.msgs import supervisor_pb2
 
     events: queue.Queue[bytes] = queue.Queue()
-    with client_session(stack.endpoint) as session:
+    with client_session(stack.endpoint, stack.tls_dir) as session:
         sub = session.declare_subscriber(keys.mission_event(stack.cfg.uav_id),
                                          lambda s: events.put(s.payload.to_bytes()))
         deadline = time.monotonic() + timeout_s
@@ -253,8 +277,10 @@ def run_mission(cfg: StackConfig, timeout_s: float = 600.0, figures: bool = True
     stack = Stack(cfg, compose)
     with stack:
         if not quiet:
-            print(f"stack: router {stack.endpoint}, services {', '.join(stack.service_names())}"
-                  f" (MAVLink ports {dict(stack.ports.ports)}); logs in {stack.logs}/",
+            tls = f" (TLS: {stack.tls_dir})" if stack.tls_dir else ""
+            print(f"stack: router {stack.endpoint}{tls}, services "
+                  f"{', '.join(stack.service_names())} (MAVLink ports "
+                  f"{dict(stack.ports.ports)}); logs in {stack.logs}/",
                   flush=True)
         try:
             outcome = follow(stack, timeout_s, quiet)
