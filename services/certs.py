@@ -10,6 +10,11 @@ services/common/acl.py; "monitor" may only listen), its subject alternative name
 ``127.0.0.1`` and the service's compose host name. ``ZENOH_TLS_DIR=DIR``
 turns TLS and access control on (services/common/bus.py).
 
+It also writes ``DIR/zenohd.json5``, the same router configuration for the
+``eclipse/zenoh`` image's ``zenohd --config`` (TLS listener on port 7447, the
+access control), naming the files as mounted at ``--mount`` (default
+``/certs``) in the container: docker-compose.yml shows how.
+
 Keys are EC P-256, certificates valid for ``--days`` (default 825) days.
 An existing directory is left as it is unless ``--force`` is given.
 """
@@ -19,6 +24,7 @@ from __future__ import annotations
 import argparse
 import datetime as dt
 import ipaddress
+import json
 import os
 import sys
 from pathlib import Path
@@ -28,6 +34,7 @@ from cryptography.hazmat.primitives import hashes, serialization
 from cryptography.hazmat.primitives.asymmetric import ec
 from cryptography.x509.oid import ExtendedKeyUsageOID, NameOID
 
+from services.common import acl
 from services.common.keys import SERVICES
 
 #: the identities a CA made here names: the router, every service and the launcher's read-only
@@ -103,17 +110,35 @@ def make_identity(out: Path, name: str, ca_key: ec.EllipticCurvePrivateKey,
     _write_cert(out / f"{name}.pem", cert)
 
 
+def zenohd_config(mount: str = "/certs") -> dict[str, object]:
+    """The router's config for ``zenohd --config`` with the certificates at ``mount``."""
+    key, cert = f"{mount}/router.key", f"{mount}/router.pem"
+    return {
+        "mode": "router",
+        "listen": {"endpoints": ["tls/[::]:7447"]},
+        "scouting": {"multicast": {"enabled": False}},
+        "transport": {"link": {"tls": {
+            "root_ca_certificate": f"{mount}/ca.pem", "enable_mtls": True,
+            "listen_private_key": key, "listen_certificate": cert,
+            "connect_private_key": key, "connect_certificate": cert,
+            "verify_name_on_connect": True}}},
+        "access_control": acl.config(),
+    }
+
+
 def is_complete(out: Path, names: tuple[str, ...] = IDENTITIES) -> bool:
     files = ["ca.pem", *(f"{n}.{ext}" for n in names for ext in ("pem", "key"))]
     return all((out / f).is_file() for f in files)
 
 
 def make(out: Path, names: tuple[str, ...] = IDENTITIES, force: bool = False,
-         days: int = 825, ca_name: str = "dualpilot local CA") -> bool:
-    """Make the CA and the identities in ``out``; False (nothing written) when they exist."""
+         days: int = 825, ca_name: str = "dualpilot local CA", mount: str = "/certs") -> bool:
+    """Make the CA, the identities and zenohd.json5 in ``out``; False (nothing written) when
+    they exist."""
     if is_complete(out, names) and not force:
         return False
     out.mkdir(parents=True, exist_ok=True)
+    (out / "zenohd.json5").write_text(json.dumps(zenohd_config(mount), indent=2) + "\n")
     ca_key, ca_cert = make_ca(out, ca_name, days)
     for name in names:
         make_identity(out, name, ca_key, ca_cert, days)
@@ -125,9 +150,11 @@ def main(argv: list[str] | None = None) -> int:
                                 description=__doc__.splitlines()[0])
     p.add_argument("--out", type=Path, required=True, help="directory to write (ZENOH_TLS_DIR)")
     p.add_argument("--days", type=int, default=825)
+    p.add_argument("--mount", default="/certs",
+                   help="where a container sees DIR (the paths in DIR/zenohd.json5)")
     p.add_argument("--force", action="store_true", help="replace an existing CA and keys")
     args = p.parse_args(argv)
-    made = make(args.out, force=args.force, days=args.days)
+    made = make(args.out, force=args.force, days=args.days, mount=args.mount)
     print(f"{'made' if made else 'kept the existing'} CA and certificates for "
           f"{', '.join(IDENTITIES)} in {args.out}/", file=sys.stderr)
     return 0

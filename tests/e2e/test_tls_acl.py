@@ -1,0 +1,170 @@
+"""Mutual TLS and the router's access control (issue 15), real processes on loopback.
+
+The stack runs with ``ZENOH_TLS_DIR`` (certificates of ``services.certs``):
+the test process plays the supervisor with the supervisor's certificate and
+checks that System 2 answers it; a peer without credentials (plain TCP, or
+TLS with a certificate of another CA) cannot connect at all; a peer with a
+valid certificate of the wrong service ("uavsim") can neither answer
+``plan/system2`` nor publish on ``ews/*`` or ``plan/*`` nor claim System 2's
+liveliness token. Last, a short mission through ``services.launch --tls``.
+"""
+
+from __future__ import annotations
+
+import json
+import queue
+import subprocess
+import sys
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import pytest
+import zenoh
+
+from services import certs, launch
+from services.common import bus, keys
+
+pytestmark = [pytest.mark.slow, pytest.mark.timeout(180)]
+
+UAV = "tls1"
+PLAN2 = keys.plan(UAV, 2)
+
+
+@pytest.fixture(scope="module")
+def stack(tmp_path_factory: pytest.TempPathFactory) -> Iterator[launch.Stack]:
+    """Router, EWS, both planners and uavsim with TLS and access control; no supervisor."""
+    run_dir = tmp_path_factory.mktemp("tls") / "stack"
+    cfg = launch.StackConfig(run_dir=run_dir, free_ports=True, uav_id=UAV, log_format="text",
+                             services=("ews", "system1", "system2", "uavsim"), tls=True)
+    with launch.Stack(cfg) as st:
+        launch.wait_router(st.endpoint)
+        yield st
+
+
+def session(st: launch.Stack, identity: str) -> Any:
+    assert st.tls_dir is not None
+    return launch.client_session(st.endpoint, st.tls_dir, identity)
+
+
+def holder(live: bus.Liveliness, service: str, timeout_s: float = 60.0) -> str:
+    assert live.wait_for([service], timeout_s), f"no {service} token: {live.missing([service])}"
+    with live.cond:
+        assert live.cond.wait_for(lambda: live.holders.get(service), timeout_s)
+    return live.holder(service)
+
+
+def replies(sess: Any, key: str, timeout_s: float = 20.0) -> list[tuple[str, bytes, bool]]:
+    """(replier zid, payload, ok) of every reply; the channel closes once every queryable the
+    router routed the query to has answered (or at the timeout)."""
+    out = []
+    for rep in sess.get(key, payload=b"\x00not a plan request", timeout=timeout_s,
+                        consolidation=zenoh.ConsolidationMode.NONE):
+        body = rep.ok if rep.ok is not None else rep.err
+        out.append((bus.replier(rep), body.payload.to_bytes(), rep.ok is not None))
+    return out
+
+
+def test_certs_name_each_service(tmp_path: Path) -> None:
+    from cryptography import x509
+    from cryptography.x509.oid import NameOID
+
+    assert certs.make(tmp_path) and not certs.make(tmp_path)  # a complete directory is kept
+    for name in certs.IDENTITIES:
+        cert = x509.load_pem_x509_certificate((tmp_path / f"{name}.pem").read_bytes())
+        cn = cert.subject.get_attributes_for_oid(NameOID.COMMON_NAME)[0].value
+        assert cn == name
+        assert (tmp_path / f"{name}.key").stat().st_mode & 0o077 == 0
+    zenoh.Config.from_json5((tmp_path / "zenohd.json5").read_text())  # zenohd's, as compose's
+
+
+def test_supervisor_credentials_get_the_real_planner(stack: launch.Stack) -> None:
+    with session(stack, "supervisor") as sup:
+        live = bus.Liveliness(sup, UAV)
+        real = holder(live, "system2")
+        got = replies(sup, PLAN2)
+    assert got and {zid for zid, _, _ in got} == {real}, got
+
+
+def plain_or_foreign_open(conf: zenoh.Config) -> None:
+    conf.insert_json5("mode", '"client"')
+    conf.insert_json5("scouting/multicast/enabled", "false")
+    conf.insert_json5("connect/timeout_ms", "3000")
+    conf.insert_json5("connect/exit_on_failure", "true")
+    with pytest.raises(zenoh.ZError):
+        zenoh.open(conf).close()
+
+
+def test_no_credentials_no_connection(stack: launch.Stack, tmp_path: Path) -> None:
+    plain = zenoh.Config()  # plain TCP to the router's TLS port
+    plain.insert_json5("connect/endpoints", json.dumps([stack.endpoint]))
+    plain_or_foreign_open(plain)
+    certs.make(tmp_path, ca_name="another CA")  # a valid-looking "supervisor" of another CA
+    foreign = zenoh.Config()
+    foreign.insert_json5("connect/endpoints", json.dumps(bus.tls_endpoints([stack.endpoint])))
+    foreign.insert_json5("transport/link/tls",
+                         json.dumps(bus.tls_config(str(tmp_path), "supervisor")))
+    plain_or_foreign_open(foreign)
+
+
+def test_wrong_service_can_neither_answer_nor_publish(stack: launch.Stack) -> None:
+    fires = keys.fires(UAV)
+    with session(stack, "supervisor") as sup, session(stack, "uavsim") as rogue, \
+            session(stack, "ews") as ews:
+        live = bus.Liveliness(sup, UAV)
+        real = holder(live, "system2")
+        received: queue.Queue[tuple[str, bytes]] = queue.Queue()
+        sub = sup.declare_subscriber(f"{keys.ns(UAV)}/**", lambda s: received.put(
+            (str(s.key_expr), s.payload.to_bytes())))
+        asked: queue.Queue[str] = queue.Queue()
+
+        def answer(q: zenoh.Query) -> None:  # a callback that only enqueues and replies
+            asked.put(str(q.key_expr))
+            q.reply(q.key_expr, b"impostor")
+            q.drop()
+
+        rogue_zid = str(rogue.info.zid())
+        impostor = rogue.declare_queryable(PLAN2, answer)
+        claim = rogue.liveliness().declare_token(keys.holder(UAV, "system2", rogue_zid))
+        # the supervisor's query still reaches only the real planner
+        got = replies(sup, PLAN2)
+        assert got and {zid for zid, _, _ in got} == {real}, got
+        assert all(body != b"impostor" for _, body, _ in got)
+        assert asked.empty()
+        # puts on the EWS's and a planner's keys are dropped at the router
+        rogue.put(fires, b"rogue fires")
+        rogue.put(PLAN2, b"rogue plan")
+        rogue.put(keys.fire_command(UAV), b"rogue command")
+        # a marker the router lets through after them (same link, in order): its own token
+        marker = keys.holder(UAV, "uavsim", rogue_zid)
+        seen: queue.Queue[str] = queue.Queue()
+        msub = sup.liveliness().declare_subscriber(marker, lambda s: seen.put(str(s.key_expr)))
+        mark = rogue.liveliness().declare_token(marker)
+        assert seen.get(timeout=20) == marker
+        ews.put(fires, b"real fires")  # the owner's put does arrive
+        while (item := received.get(timeout=20)) != (fires, b"real fires"):
+            assert item[1] not in (b"rogue fires", b"rogue plan", b"rogue command"), item
+        rest = []
+        while not received.empty():
+            rest.append(received.get())
+        assert all(body not in (b"rogue fires", b"rogue plan", b"rogue command")
+                   for _, body in rest), rest
+        # and its claim on System 2's token never reached anyone
+        assert live.holders.get("system2") == [real]
+        for obj in (mark, msub, claim, impostor, sub, live.sub):
+            obj.undeclare()
+
+
+def test_mission_through_launch_tls(tmp_path: Path) -> None:
+    out = tmp_path / "run"
+    proc = subprocess.run(
+        [sys.executable, "-m", "services.launch", "--tls", "--max-steps", "5", "--free-ports",
+         "--speed-factor", "50", "--no-figures", "--quiet", "--log-format", "text",
+         "--timeout-s", "120", "--out", str(out)],
+        cwd=launch.REPO, capture_output=True, text=True, timeout=170)
+    assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["steps"] == 5 and summary["failure_cause"] == "step_limit", summary
+    assert certs.is_complete(out / "tls")
+    assert "all cleanly" in proc.stdout
+    assert "tls=" in (out / "logs" / "system2.log").read_text()
