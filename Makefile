@@ -9,8 +9,14 @@ OUT ?= runs/latest
 SPEED ?= 20
 PROFILE ?= today
 SUPERVISOR ?= paper
+# TLS=1: mutual TLS and the router's access control (services/common/acl.py), off by default
+# (every service then a Zenoh client, one hop more per query than the default peers);
+# certificates from CERTS (made there if missing), else made in $(OUT)/tls
+TLS ?=
+CERTS ?=
+TLS_FLAGS := $(if $(TLS),$(if $(CERTS),--tls-dir $(CERTS),--tls))
 
-.PHONY: setup run mission proto test test-fast lint bench figures clean compose-check
+.PHONY: setup run certs mission proto test test-fast lint bench figures clean compose-check
 
 setup: $(STAMP)
 
@@ -24,7 +30,12 @@ $(STAMP): pyproject.toml
 # (services/launch/ reads docker-compose.yml, the one description of the services)
 run: setup
 	$(BIN)/python -m services.launch --controller cc --seed $(SEED) --timing paper \
-		--speed-factor $(SPEED) --profile $(PROFILE) --supervisor $(SUPERVISOR) --out $(OUT)
+		--speed-factor $(SPEED) --profile $(PROFILE) --supervisor $(SUPERVISOR) --out $(OUT) \
+		$(TLS_FLAGS)
+
+# a local CA and a key and certificate per service (ZENOH_TLS_DIR; docker-compose.yml)
+certs: setup
+	$(BIN)/python -m services.certs --out $(or $(CERTS),runs/certs)
 
 # the same mission in one process (no Zenoh, no MAVLink)
 mission: setup
