@@ -4,6 +4,12 @@ No package here ships zenohd; a zenoh-python session in ``router`` mode
 routes for clients just the same (ARCHITECTURE §10). ``docker compose`` uses
 the ``eclipse/zenoh`` image instead. ``python -m services.router --listen
 tcp/127.0.0.1:7447``.
+
+With ``ZENOH_TLS_DIR`` (``--zenoh-tls-dir``, certificates of ``python -m
+services.certs``) it listens on ``tls/`` instead, requires each session's
+certificate from that CA (mutual TLS) and enforces the access control of
+services/common/acl.py (default deny; what each service may publish, answer
+and ask, by certificate common name): bus.zenoh_config builds it all.
 """
 
 from __future__ import annotations
