@@ -67,7 +67,6 @@ class ConcurrentPlanning:
         self.objective = Objective.MISSION_TIME
         self.utilities = np.zeros(2)
         self.p_mean = np.full(3, 1 / 3)
-        self.switch_du2: list[float] = []
 
     # -- what the record shows as the decision ---------------------------------------------------
     def decide(self, t: int, d_t: float, system_hint: int, objective: Objective) -> Decision:
@@ -247,7 +246,7 @@ class ConcurrentPlanning:
             t=t + k, system=2, state=x_hat.copy(), prev_control=plan.controls[k - 1].copy(),
             obstacles=obstacles, objective=self.objective))
         self.pending = Deliberation(ticket=ticket, due_t=t + k, ready_s=sim_s + self.s2_expected_s,
-                                    start=x_hat.copy(), known=known, launched_t=t)
+                                    known=known)
         choice.statuses.append("s2:launched")
 
     def after_flight(self, system: int, p0: Array, p1: Array, du2: float) -> None:

@@ -154,9 +154,7 @@ class Deliberation:
     ticket: object
     due_t: int  # the step its plan is for (its first state is the predicted x̂ of that step)
     ready_s: float  # simulated time it is ready (launch + response time)
-    start: Array
-    known: frozenset[int]
-    launched_t: int
+    known: frozenset[int]  # the front ids the fires it plans against had
 
 
 @dataclass

@@ -366,7 +366,7 @@ class StackPlanners:
         on a thread of its own; :meth:`collect` takes its checked reply."""
         if self._pool is None:
             self._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="deliberate")
-        return self._pool.submit(self._ask, request)
+        return self._pool.submit(self._ask, request, False)
 
     def collect(self, ticket: object) -> Plan:
         """The launched request's plan (a failed plan when it was late or not this step's)."""
@@ -395,19 +395,23 @@ class StackPlanners:
             self.last_info[1] = dict(plan.info)
         return plan
 
-    def _ask(self, request: PlanRequest) -> Plan:
+    def _ask(self, request: PlanRequest, account: bool = True) -> Plan:
+        """One checked request; ``account``: add it to this step's latency counters (a
+        background request runs on its own thread and is not part of the step's)."""
         system, t = request.system, request.t
         deadline = self.b.deadline_s(system)
         msg = self._message(system, request)
         t0 = time.perf_counter()
         key = keys.plan(self.b.uav, system)
-        self.requests += 1
+        if account:
+            self.requests += 1
         try:
             payload, enc = bus.request(self.b.session, key, msg, deadline, self.b.stop,
                                        trusted=self.b.trusted(f"system{system}"))
             reply = codec.parse(payload, plan_pb2.Plan, enc)
             plan = codec.plan_from_msg(reply, system)
-            self.service_time += reply.service_time_s
+            if account:
+                self.service_time += reply.service_time_s
             age = time.perf_counter() - t0
             if reply.step != t or reply.request_seq != msg.header.seq:
                 plan = Plan.failed(system, PlanStatus.ERROR, plan.compute_time_s,
@@ -430,7 +434,8 @@ class StackPlanners:
         except codec.CodecError as err:
             codec.rejected("Plan", err, log, key=key)
             plan = Plan.failed(system, PlanStatus.ERROR, time.perf_counter() - t0, str(err))
-        self.request_wall += time.perf_counter() - t0
+        if account:
+            self.request_wall += time.perf_counter() - t0
         if self.b.stop.is_set():
             raise Aborted("stopped")
         return plan
