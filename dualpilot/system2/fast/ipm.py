@@ -2,12 +2,13 @@
 
 Solves  min ½ zᵀHz + qᵀz  s.t.  lo ≤ L z ≤ hi  (row-wise, ±inf allowed),
 where H is symmetric positive definite with lower bandwidth ``bw`` and every
-row of L has at most three nonzeros within ``bw`` of each other. Then the
+row of L has a few nonzeros (three, or four for a speed polygon) within ``bw``
+of each other. Then the
 Newton matrix H + Lᵀ D L is banded too, and each iteration costs one banded
 Cholesky factorisation (LAPACK ``dpbtrf``) and two solves — O(n·bw²) — which
 is what makes the convex restrictions of Problem (P2) cheap: n = 2T = 160.
 
-Rows are kept in a padded form: ``cols`` and ``vals`` of shape (R, 3).
+Rows are kept in a padded form: ``cols`` and ``vals`` of shape (R, k).
 """
 
 from __future__ import annotations
@@ -39,8 +40,8 @@ except ImportError:  # pragma: no cover - a scipy without them: the public produ
 class Rows:
     """Rows lo ≤ Σ_k vals[r,k]·z[cols[r,k]] ≤ hi, each row scaled to unit norm."""
 
-    cols: AnyArray  # (R, 3) int
-    vals: AnyArray  # (R, 3)
+    cols: AnyArray  # (R, k) int
+    vals: AnyArray  # (R, k)
     lo: AnyArray
     hi: AnyArray
 
@@ -55,8 +56,18 @@ class Rows:
 
     @staticmethod
     def stack(parts: list[Rows]) -> Rows:
+        k = max(p.width for p in parts)
+        parts = [p.widen(k) for p in parts]
         return Rows(np.vstack([p.cols for p in parts]), np.vstack([p.vals for p in parts]),
                     np.concatenate([p.lo for p in parts]), np.concatenate([p.hi for p in parts]))
+
+    @property
+    def width(self) -> int:
+        return int(self.cols.shape[1])
+
+    def widen(self, k: int) -> Rows:
+        """The same rows with ``k`` entries each (padding repeats column 0 with value 0)."""
+        return Rows(*widen(self.cols, self.vals, k), self.lo, self.hi)
 
     def __len__(self) -> int:
         return len(self.lo)
@@ -70,20 +81,35 @@ class IpmResult:
     iterations: int
 
 
-_PAIRS = [(0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2)]
+def widen(cols: AnyArray, vals: AnyArray, k: int) -> tuple[AnyArray, AnyArray]:
+    """Padded rows with ``k`` entries each: extra entries repeat column 0 with value 0."""
+    w = cols.shape[1]
+    if w == k:
+        return cols, vals
+    if w > k:
+        raise ValueError(f"cannot narrow rows of width {w} to {k}")
+    pad = k - w
+    return (np.hstack([cols, np.repeat(cols[:, :1], pad, axis=1)]),
+            np.hstack([vals, np.zeros((len(vals), pad))]))
+
+
+def pairs_of(k: int) -> list[tuple[int, int]]:
+    """The entry pairs (p, q) of a width-k row's LᵀDL terms: the k squares, then p < q."""
+    return [(p, p) for p in range(k)] + [(p, q) for p in range(k) for q in range(p + 1, k)]
 
 
 def band_pairs(rows: Rows, n: int) -> tuple[AnyArray, AnyArray, AnyArray]:
     """Flat band indices d·n + min(i, j), coefficients and row ids of every LᵀDL term.
 
-    Row-major: the six terms of row r are entries 6r … 6r + 5, so the terms of
-    stacked row sets are the concatenation of their terms.
+    Row-major: the P = k(k+1)/2 terms of row r are entries P·r … P·r + P − 1, so
+    the terms of stacked row sets (of one width) are the concatenation of their terms.
     """
-    i = rows.cols[:, [p for p, _ in _PAIRS]]
-    j = rows.cols[:, [q for _, q in _PAIRS]]
-    c = rows.vals[:, [p for p, _ in _PAIRS]] * rows.vals[:, [q for _, q in _PAIRS]]
+    pairs = pairs_of(rows.width)
+    i = rows.cols[:, [p for p, _ in pairs]]
+    j = rows.cols[:, [q for _, q in pairs]]
+    c = rows.vals[:, [p for p, _ in pairs]] * rows.vals[:, [q for _, q in pairs]]
     idx = np.abs(i - j) * n + np.minimum(i, j)
-    rid = np.repeat(np.arange(len(rows.cols)), len(_PAIRS))
+    rid = np.repeat(np.arange(len(rows.cols)), len(pairs))
     return idx.ravel(), c.ravel(), rid
 
 
@@ -122,7 +148,8 @@ class BandedQp:
         self.g_cols = rows.cols[ridx]
         self.g_vals = rows.vals[ridx] * sg[:, None]
         p_idx, p_coef, _ = pairs
-        n_pairs = len(_PAIRS)
+        self.width = rows.width
+        n_pairs = len(pairs_of(self.width))
         g_pair = (ridx[:, None] * n_pairs + np.arange(n_pairs)[None, :]).ravel()
         rowid = np.repeat(np.arange(m), n_pairs)
         coef = p_coef[g_pair]
@@ -152,11 +179,12 @@ class BandedQp:
         """
         n, bw1 = self.n, self.bw1
         if extra is not None and len(extra.cols):
-            # lo ≤ L z  ⇔  −L z ≤ −lo
-            g_cols = np.vstack([self.g_cols, extra.cols])
-            g_vals = np.vstack([self.g_vals, -extra.vals])
+            # lo ≤ L z  ⇔  −L z ≤ −lo (the fixed rows are at least as wide as the extra ones)
+            e_cols, e_vals = widen(extra.cols, extra.vals, self.width)
+            g_cols = np.vstack([self.g_cols, e_cols])
+            g_vals = np.vstack([self.g_vals, -e_vals])
             h = np.concatenate([self.h, -extra.lo])
-            ep = band_pairs(extra, n)
+            ep = band_pairs(Rows(e_cols, e_vals, extra.lo, extra.hi), n)
             nz = ep[1] != 0.0
             p_idx = np.concatenate([self.p_idx, ep[0][nz]])
             p_coef = np.concatenate([self.p_coef, ep[1][nz]])
@@ -166,7 +194,7 @@ class BandedQp:
             h, p_idx, p_coef, p_row = self.h, self.p_idx, self.p_coef, self.p_row
         m = len(h)
         h_dense = self.h_dense
-        # G in CSR arrays (3 entries a row); the band map's CSC arrays (p_row is
+        # G in CSR arrays (k entries a row); the band map's CSC arrays (p_row is
         # non-decreasing: the terms of row r are one contiguous run)
         k_g = g_cols.shape[1]
         g_ptr = np.arange(0, k_g * m + 1, k_g, dtype=np.int64)

@@ -170,24 +170,24 @@ class P2Qp:
         return h
 
     @staticmethod
-    def _padded(mat: sp.csr_matrix) -> tuple[AnyArray, AnyArray]:
-        """(cols, vals) of shape (rows, 3) for a CSR matrix with ≤ 3 nonzeros per row."""
+    def _padded(mat: sp.csr_matrix, width: int = 3) -> tuple[AnyArray, AnyArray]:
+        """(cols, vals) of shape (rows, width) for a CSR matrix with ≤ width nonzeros a row."""
         mat = mat.tocsr(copy=True)
         mat.eliminate_zeros()
         mat.sort_indices()
         nnz = np.diff(mat.indptr)
-        if np.any(nnz > 3):
-            raise ValueError("rows with more than 3 nonzeros")
+        if np.any(nnz > width):
+            raise ValueError(f"rows with more than {width} nonzeros")
         rows = mat.shape[0]
-        cols = np.zeros((rows, 3), dtype=np.int64)
-        vals = np.zeros((rows, 3))
-        for k in range(3):
+        cols = np.zeros((rows, width), dtype=np.int64)
+        vals = np.zeros((rows, width))
+        for k in range(width):
             has = nnz > k
             pos = mat.indptr[:-1][has] + k
             cols[has, k] = mat.indices[pos]
             vals[has, k] = mat.data[pos]
         # padding repeats the first column with value 0 (keeps band offsets small)
-        for k in range(1, 3):
+        for k in range(1, width):
             pad = nnz <= k
             cols[pad, k] = cols[pad, 0]
         return cols, vals
