@@ -17,23 +17,20 @@ import copy
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.sparse as sp
-from scipy.linalg.lapack import dpbtrf, dpbtrs
 
 from dualpilot.arrays import AnyArray
+from dualpilot.system2.fast.mehrotra import (
+    DIVERGED,
+    FACTORIZATION,
+    MAX_ITER,
+    SOLVED,
+    STALLED,
+    mehrotra,
+)
 
-try:  # the compiled kernels behind scipy.sparse's matrix-vector products (no per-call checks)
-    from scipy.sparse._sparsetools import csc_matvec as _csc_matvec
-    from scipy.sparse._sparsetools import csr_matvec as _csr_matvec
-except ImportError:  # pragma: no cover - a scipy without them: the public products
-
-    def _csr_matvec(n_row: int, n_col: int, ptr: AnyArray, idx: AnyArray, dat: AnyArray,
-                    x: AnyArray, out: AnyArray) -> None:
-        out += sp.csr_matrix((dat, idx, ptr), shape=(n_row, n_col)) @ x
-
-    def _csc_matvec(n_row: int, n_col: int, ptr: AnyArray, idx: AnyArray, dat: AnyArray,
-                    x: AnyArray, out: AnyArray) -> None:
-        out += sp.csc_matrix((dat, idx, ptr), shape=(n_row, n_col)) @ x
+#: the status of each code :func:`mehrotra` returns
+_STATUS = {SOLVED: "solved", MAX_ITER: "max_iter", DIVERGED: "diverged",
+           STALLED: "stalled (likely infeasible)"}
 
 
 @dataclass(frozen=True)
@@ -113,6 +110,31 @@ def band_pairs(rows: Rows, n: int) -> tuple[AnyArray, AnyArray, AnyArray]:
     return idx.ravel(), c.ravel(), rid
 
 
+_HESSIANS: dict[bytes, tuple[float, AnyArray, AnyArray]] = {}
+
+
+def _scaled_hessian(h_band: AnyArray) -> tuple[float, AnyArray, AnyArray]:
+    """(c, H/c in band form, H/c dense) with c = max diag H (1 if not positive), cached."""
+    key = h_band.tobytes() + str(h_band.shape).encode()
+    hit = _HESSIANS.get(key)
+    if hit is not None:
+        return hit
+    c_obj = float(np.max(h_band[0]))
+    c_obj = c_obj if c_obj > 0 else 1.0
+    band = h_band / c_obj
+    n = band.shape[1]
+    dense = np.diag(band[0])
+    for d in range(1, band.shape[0]):
+        off = np.diag(band[d, : n - d], -d)
+        dense += off + off.T
+    band.setflags(write=False)
+    dense.setflags(write=False)
+    if len(_HESSIANS) >= 16:
+        _HESSIANS.clear()
+    _HESSIANS[key] = (c_obj, band, dense)
+    return c_obj, band, dense
+
+
 class BandedQp:
     """The fixed part of a banded QP (objective and fixed rows), ready for many solves.
 
@@ -125,18 +147,8 @@ class BandedQp:
     def __init__(self, h_band: AnyArray, q: AnyArray, rows: Rows,
                  pairs: tuple[AnyArray, AnyArray, AnyArray]) -> None:
         self.bw1, self.n = h_band.shape
-        n = self.n
-        c_obj = float(np.max(h_band[0]))
-        c_obj = c_obj if c_obj > 0 else 1.0
-        self.c_obj = c_obj
-        self.h_band = h_band / c_obj
-        self.q = q / c_obj
-        self.h_flat = self.h_band.ravel()
-        h_dense = np.diag(self.h_band[0])
-        for d in range(1, self.bw1):
-            off = np.diag(self.h_band[d, : n - d], -d)
-            h_dense += off + off.T
-        self.h_dense = h_dense
+        self.c_obj, self.h_band, self.h_dense = _scaled_hessian(h_band)
+        self.q = q / self.c_obj
         il = np.flatnonzero(np.isfinite(rows.lo))
         iu = np.flatnonzero(np.isfinite(rows.hi))
         self.il, self.iu = il, iu
@@ -172,12 +184,10 @@ class BandedQp:
         """Mehrotra predictor-corrector with the fixed rows plus ``extra`` (lower bounds).
 
         G (CSR arrays; read as CSC they are Gᵀ) and the map w ↦ band(GᵀWG) (CSC,
-        one column per row of G) are set up once per solve, so an iteration is a
-        handful of compiled sparse products (scipy's ``_sparsetools`` kernels,
-        without the per-call checks of ``@``); they add the terms in the same
-        order as a gather / ``bincount`` formulation.
+        one column per row of G) are set up once per solve; the iterations run
+        compiled (:func:`dualpilot.system2.fast.mehrotra.mehrotra`).
         """
-        n, bw1 = self.n, self.bw1
+        n = self.n
         if extra is not None and len(extra.cols):
             # lo ≤ L z  ⇔  −L z ≤ −lo (the fixed rows are at least as wide as the extra ones)
             e_cols, e_vals = widen(extra.cols, extra.vals, self.width)
@@ -193,7 +203,6 @@ class BandedQp:
             g_cols, g_vals = self.g_cols, self.g_vals
             h, p_idx, p_coef, p_row = self.h, self.p_idx, self.p_coef, self.p_row
         m = len(h)
-        h_dense = self.h_dense
         # G in CSR arrays (k entries a row); the band map's CSC arrays (p_row is
         # non-decreasing: the terms of row r are one contiguous run)
         k_g = g_cols.shape[1]
@@ -203,74 +212,12 @@ class BandedQp:
         b_ptr = np.searchsorted(p_row, np.arange(m + 1)).astype(np.int64)
         b_idx = np.ascontiguousarray(p_idx, dtype=np.int64)
         b_dat = np.ascontiguousarray(p_coef, dtype=float)
-        nb = bw1 * n
-
-        def gmul(x: AnyArray) -> AnyArray:  # G x
-            out = np.zeros(m)
-            _csr_matvec(m, n, g_ptr, g_idx, g_dat, x, out)
-            return out
-
-        def gtmul(v: AnyArray) -> AnyArray:  # Gᵀ v (G's CSR arrays read as the CSC of Gᵀ)
-            out = np.zeros(n)
-            _csc_matvec(n, m, g_ptr, g_idx, g_dat, v, out)
-            return out
-
-        q = self.q
-        z = np.zeros(n) if z0 is None else np.asarray(z0, dtype=float).copy()
-        s = np.maximum(h - gmul(z), slack0)
-        lam = np.ones(m)
-        history: list[float] = []
-        q_norm = 1.0 + float(np.max(np.abs(q), initial=0.0))
-        b_norm = 1.0 + float(np.max(np.abs(h), initial=0.0))
-        status = "max_iter"
-        it = 0
-        m1 = max(m, 1)
-        h_flat = self.h_flat
-        for it in range(1, max_iter + 1):  # noqa: B007 - `it` is reported
-            r_d = h_dense @ z + q + gtmul(lam)
-            r_p = gmul(z) + s - h
-            mu = float(s @ lam) / m1
-            res_p = float(np.abs(r_p).max()) if m else 0.0
-            res_d = float(np.abs(r_d).max())
-            if res_p <= tol * b_norm and res_d <= tol * q_norm and mu <= tol:
-                status = "solved"
-                break
-            if not (np.isfinite(mu) and np.isfinite(res_d)) or mu > 1e14:
-                status = "diverged"
-                break
-            history.append(res_p)
-            if (detect_infeasible and it >= 12 and res_p > 1e-4 * b_norm
-                    and res_p > 0.5 * history[-6]):
-                status = "stalled (likely infeasible)"
-                break
-            w = lam / s
-            band = np.zeros(nb)
-            _csc_matvec(nb, m, b_ptr, b_idx, b_dat, w, band)
-            mband = h_flat + band
-            cb, info = dpbtrf(mband.reshape(bw1, n), lower=1)
-            if info != 0:
-                status = f"factorization failed ({info})"
-                break
-            # (H + GᵀWG)Δz = −r_d + Gᵀ(S⁻¹r_c − W r_p); Δs = −r_p − GΔz; Δλ = −S⁻¹r_c − WΔs
-            # (negation is exact: −r_c/s = −(r_c/s), so shared terms are computed once)
-            wr_p = w * r_p
-            neg_rd, neg_rp = -r_d, -r_p
-            sl = s * lam
-            rcs = sl / s
-            dz_a, _ = dpbtrs(cb, neg_rd + gtmul(rcs - wr_p), lower=1)
-            ds_a = neg_rp - gmul(dz_a)
-            dl_a = -rcs - w * ds_a
-            a_aff = _step(s, lam, ds_a, dl_a)
-            mu_aff = float((s + a_aff * ds_a) @ (lam + a_aff * dl_a)) / m1
-            sigma = (mu_aff / mu) ** 3 if mu > 0 else 0.0
-            rcs = (sl + ds_a * dl_a - sigma * mu) / s
-            dz, _ = dpbtrs(cb, neg_rd + gtmul(rcs - wr_p), lower=1)
-            ds = neg_rp - gmul(dz)
-            dl = -rcs - w * ds
-            a = min(1.0, 0.99 * _step(s, lam, ds, dl))
-            z = z + a * dz
-            s = s + a * ds
-            lam = lam + a * dl
+        z_start = np.zeros(n) if z0 is None else np.array(z0, dtype=float)
+        code, z, it, info = mehrotra(
+            self.h_dense, self.h_band, self.q, np.ascontiguousarray(h, dtype=float), g_ptr,
+            g_idx, g_dat, b_ptr, b_idx, b_dat, z_start, float(slack0), int(max_iter),
+            float(tol), bool(detect_infeasible))
+        status = _STATUS[code] if code != FACTORIZATION else f"factorization failed ({info})"
         return IpmResult(status == "solved", status, z, it)
 
 
@@ -286,10 +233,3 @@ def solve_qp(h_band: AnyArray, q: AnyArray, rows: Rows, pairs: tuple[AnyArray, A
     """
     return BandedQp(h_band, q, rows, pairs).solve(
         max_iter=max_iter, tol=tol, z0=z0, slack0=slack0, detect_infeasible=detect_infeasible)
-
-
-def _step(s: AnyArray, lam: AnyArray, ds: AnyArray, dl: AnyArray) -> float:
-    """Largest step in (0, 1] keeping s + αΔs ≥ 0 and λ + αΔλ ≥ 0 (s, λ > 0)."""
-    # max(−Δs/s) = −min(Δs/s) exactly (negation is exact)
-    worst = max(-float((ds / s).min(initial=0.0)), -float((dl / lam).min(initial=0.0)), 1.0)
-    return 1.0 / worst

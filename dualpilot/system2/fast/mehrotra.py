@@ -1,0 +1,203 @@
+"""The compiled Mehrotra iterations of :class:`dualpilot.system2.fast.ipm.BandedQp`.
+
+One call runs the whole predictor-corrector loop in machine code (Numba,
+cached on disk). The banded Cholesky factorisation and solves are LAPACK's
+``dpbtrf`` / ``dpbtrs`` (scipy's, by address), H z and the dot products are
+BLAS, and every sparse product adds its terms in the order of scipy's
+``csr_matvec`` / ``csc_matvec``: the iterates are those of the same loop
+written with numpy and scipy, bit for bit.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import llvmlite.binding as llvm
+import numpy as np
+from numba import njit, types
+from numba.extending import get_cython_function_address
+
+from dualpilot.arrays import AnyArray
+
+for _name in ("dpbtrf", "dpbtrs"):  # resolved by name, so the compiled loop can be cached
+    llvm.add_symbol(f"dualpilot_{_name}",
+                    get_cython_function_address("scipy.linalg.cython_lapack", _name))
+_P = types.voidptr
+_dpbtrf: Any = types.ExternalFunction("dualpilot_dpbtrf", types.void(_P, _P, _P, _P, _P, _P))
+_dpbtrs: Any = types.ExternalFunction("dualpilot_dpbtrs",
+                                 types.void(_P, _P, _P, _P, _P, _P, _P, _P, _P))
+
+#: status codes of :func:`mehrotra`
+SOLVED, MAX_ITER, DIVERGED, STALLED, FACTORIZATION = 0, 1, 2, 3, 4
+
+
+@njit(cache=True)
+def _gmul(ptr: AnyArray, idx: AnyArray, dat: AnyArray, x: AnyArray, out: AnyArray) -> None:
+    """out = G x (G in CSR arrays; scipy's csr_matvec order)."""
+    for i in range(len(out)):
+        acc = 0.0
+        for jj in range(ptr[i], ptr[i + 1]):
+            acc += dat[jj] * x[idx[jj]]
+        out[i] = acc
+
+
+@njit(cache=True)
+def _ctmul(ptr: AnyArray, idx: AnyArray, dat: AnyArray, v: AnyArray, out: AnyArray) -> None:
+    """out = A v for A in CSC arrays (scipy's csc_matvec order); Gᵀv from G's CSR arrays."""
+    out[:] = 0.0
+    for j in range(len(ptr) - 1):
+        vj = v[j]
+        for ii in range(ptr[j], ptr[j + 1]):
+            out[idx[ii]] += dat[ii] * vj
+
+
+@njit(cache=True)
+def _min_ratio(num: AnyArray, den: AnyArray) -> float:
+    """min(0, min_i num_i / den_i), NaN if any ratio is NaN (numpy's ``min(initial=0)``)."""
+    out = 0.0
+    for i in range(len(num)):
+        r = num[i] / den[i]
+        if np.isnan(r):
+            return r
+        if r < out:
+            out = r
+    return out
+
+
+@njit(cache=True)
+def _step(s: AnyArray, lam: AnyArray, ds: AnyArray, dl: AnyArray) -> float:
+    """Largest step in (0, 1] keeping s + αΔs ≥ 0 and λ + αΔλ ≥ 0 (s, λ > 0)."""
+    worst = -_min_ratio(ds, s)
+    b = -_min_ratio(dl, lam)
+    if b > worst:
+        worst = b
+    if worst < 1.0:
+        worst = 1.0
+    return 1.0 / worst
+
+
+@njit(cache=True)
+def _abs_max(x: AnyArray, initial: float) -> float:
+    """max |x_i| (and ``initial``), NaN if any x_i is NaN."""
+    out = initial
+    for i in range(len(x)):
+        a = abs(x[i])
+        if np.isnan(a):
+            return a
+        if a > out:
+            out = a
+    return out
+
+
+@njit(cache=True)
+def mehrotra(h_dense: AnyArray, h_band: AnyArray, q: AnyArray, h: AnyArray, g_ptr: AnyArray,
+             g_idx: AnyArray, g_dat: AnyArray, b_ptr: AnyArray, b_idx: AnyArray,
+             b_dat: AnyArray, z0: AnyArray, slack0: float, max_iter: int, tol: float,
+             detect_infeasible: bool) -> tuple[int, AnyArray, int, int]:
+    """Mehrotra predictor-corrector for min ½zᵀHz + qᵀz s.t. G z ≤ h.
+
+    ``h_band`` is H in lower band form (bw+1, n); ``b_*`` the CSC map w ↦
+    band(GᵀWG) with band entries indexed d·n + j. Returns (status, z,
+    iterations, LAPACK info).
+    """
+    bw1, n = h_band.shape
+    m = len(h)
+    m1 = max(m, 1)
+    # LAPACK's band storage is column-major: entry (d, j) at j·(bw+1) + d
+    hf = np.empty(bw1 * n)
+    for d in range(bw1):
+        for j in range(n):
+            hf[j * bw1 + d] = h_band[d, j]
+    bf_idx = np.empty_like(b_idx)
+    for k in range(len(b_idx)):
+        d, j = divmod(b_idx[k], n)
+        bf_idx[k] = j * bw1 + d
+    uplo = np.array([76], dtype=np.uint8)  # 'L'
+    ints = np.array([n, bw1 - 1, 1, bw1, n, 0], dtype=np.int32)  # n kd nrhs ldab ldb info
+    n_p, kd_p, nrhs_p, ldab_p = ints[0:].ctypes, ints[1:].ctypes, ints[2:].ctypes, ints[3:].ctypes
+    ldb_p, info_p = ints[4:].ctypes, ints[5:].ctypes
+
+    z = z0.copy()
+    gz = np.empty(m)
+    _gmul(g_ptr, g_idx, g_dat, z, gz)
+    s = np.empty(m)
+    for i in range(m):
+        s[i] = max(h[i] - gz[i], slack0)
+    lam = np.ones(m)
+    q_norm = 1.0 + _abs_max(q, 0.0)
+    b_norm = 1.0 + _abs_max(h, 0.0)
+    history = np.zeros(max_iter + 1)
+    gtl, r_d, r_p, w = np.empty(n), np.empty(n), np.empty(m), np.empty(m)
+    band, rhs, tmp_m, rcs = np.empty(bw1 * n), np.empty(n), np.empty(m), np.empty(m)
+    ds_a, dl_a, ds, dl = np.empty(m), np.empty(m), np.empty(m), np.empty(m)
+    s_a, l_a, gd = np.empty(m), np.empty(m), np.empty(m)
+    status = MAX_ITER
+    it = 0
+    for it in range(1, max_iter + 1):
+        hz = h_dense @ z
+        _ctmul(g_ptr, g_idx, g_dat, lam, gtl)
+        for i in range(n):
+            r_d[i] = hz[i] + q[i] + gtl[i]
+        _gmul(g_ptr, g_idx, g_dat, z, gz)
+        for i in range(m):
+            r_p[i] = gz[i] + s[i] - h[i]
+        mu = np.dot(s, lam) / m1
+        res_p = _abs_max(r_p, -np.inf) if m else 0.0
+        res_d = _abs_max(r_d, -np.inf)
+        if res_p <= tol * b_norm and res_d <= tol * q_norm and mu <= tol:
+            status = SOLVED
+            break
+        if not (np.isfinite(mu) and np.isfinite(res_d)) or mu > 1e14:
+            status = DIVERGED
+            break
+        history[it] = res_p
+        if (detect_infeasible and it >= 12 and res_p > 1e-4 * b_norm
+                and res_p > 0.5 * history[it - 5]):
+            status = STALLED
+            break
+        for i in range(m):
+            w[i] = lam[i] / s[i]
+        _ctmul(b_ptr, bf_idx, b_dat, w, band)
+        for k in range(bw1 * n):
+            band[k] = hf[k] + band[k]
+        _dpbtrf(uplo.ctypes, n_p, kd_p, band.ctypes, ldab_p, info_p)
+        if ints[5] != 0:
+            status = FACTORIZATION
+            break
+        # (H + GᵀWG)Δz = −r_d + Gᵀ(S⁻¹r_c − W r_p); Δs = −r_p − GΔz; Δλ = −S⁻¹r_c − WΔs
+        for i in range(m):
+            rcs[i] = (s[i] * lam[i]) / s[i]
+            tmp_m[i] = rcs[i] - w[i] * r_p[i]
+        _ctmul(g_ptr, g_idx, g_dat, tmp_m, gtl)
+        for i in range(n):
+            rhs[i] = -r_d[i] + gtl[i]
+        _dpbtrs(uplo.ctypes, n_p, kd_p, nrhs_p, band.ctypes, ldab_p, rhs.ctypes, ldb_p, info_p)
+        _gmul(g_ptr, g_idx, g_dat, rhs, gd)
+        for i in range(m):
+            ds_a[i] = -r_p[i] - gd[i]
+            dl_a[i] = -rcs[i] - w[i] * ds_a[i]
+        a_aff = _step(s, lam, ds_a, dl_a)
+        for i in range(m):
+            s_a[i] = s[i] + a_aff * ds_a[i]
+            l_a[i] = lam[i] + a_aff * dl_a[i]
+        mu_aff = np.dot(s_a, l_a) / m1
+        sigma = (mu_aff / mu) ** 3.0 if mu > 0 else 0.0
+        for i in range(m):
+            rcs[i] = (s[i] * lam[i] + ds_a[i] * dl_a[i] - sigma * mu) / s[i]
+            tmp_m[i] = rcs[i] - w[i] * r_p[i]
+        _ctmul(g_ptr, g_idx, g_dat, tmp_m, gtl)
+        for i in range(n):
+            rhs[i] = -r_d[i] + gtl[i]
+        _dpbtrs(uplo.ctypes, n_p, kd_p, nrhs_p, band.ctypes, ldab_p, rhs.ctypes, ldb_p, info_p)
+        _gmul(g_ptr, g_idx, g_dat, rhs, gd)
+        for i in range(m):
+            ds[i] = -r_p[i] - gd[i]
+            dl[i] = -rcs[i] - w[i] * ds[i]
+        step = 0.99 * _step(s, lam, ds, dl)
+        a = step if step < 1.0 else 1.0
+        for i in range(n):
+            z[i] = z[i] + a * rhs[i]
+        for i in range(m):
+            s[i] = s[i] + a * ds[i]
+            lam[i] = lam[i] + a * dl[i]
+    return status, z, it, int(ints[5])
