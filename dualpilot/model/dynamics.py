@@ -8,10 +8,12 @@ altitude). Control u is the applied force (N).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
+from numba import njit
 
-from dualpilot.arrays import Array
+from dualpilot.arrays import AnyArray, Array
 
 
 @dataclass(frozen=True)
@@ -38,8 +40,9 @@ class DynamicsParams:
         return 2 * self.dim
 
 
+@lru_cache(maxsize=64)
 def transition_matrices(params: DynamicsParams = DynamicsParams()) -> tuple[Array, Array]:
-    """Return (Φ, Γ) of Eq. (1).
+    """Return (Φ, Γ) of Eq. (1), read-only (computed once per parameter set).
 
     Φ = [[I, ΔT·I], [0, (1-ζ)·I]],  Γ = [[0], [ΔT/m·I]].
     """
@@ -47,7 +50,25 @@ def transition_matrices(params: DynamicsParams = DynamicsParams()) -> tuple[Arra
     eye = np.eye(n)
     phi = np.block([[eye, params.dt_s * eye], [np.zeros((n, n)), (1.0 - params.zeta) * eye]])
     gamma = np.vstack([np.zeros((n, n)), (params.dt_s / params.mass_kg) * eye])
-    return phi, gamma
+    return _frozen(phi), _frozen(gamma)
+
+
+def _frozen(a: AnyArray) -> Array:
+    """``a`` as a read-only float array (shared by every caller of a cache)."""
+    out = np.asarray(a, dtype=float)
+    out.setflags(write=False)
+    return out
+
+
+@lru_cache(maxsize=64)
+def _rollout_weights(params: DynamicsParams, horizon: int) -> tuple[Array, Array]:
+    """(1-ζ)^k (column, k = 0..T) and the (T+1, T) control weights of :func:`rollout`."""
+    decay = 1.0 - params.zeta
+    k = np.arange(horizon + 1)
+    expo = k[:, None] - 1 - k[None, :horizon]
+    gain = params.dt_s / params.mass_kg
+    weights = np.where(expo >= 0, decay ** np.maximum(expo, 0), 0.0) * gain
+    return _frozen(decay ** k[:, None]), _frozen(weights)
 
 
 def check_state(x: Array, params: DynamicsParams) -> Array:
@@ -84,12 +105,8 @@ def rollout(x0: Array, controls: Array, params: DynamicsParams = DynamicsParams(
     n, horizon = params.dim, len(controls)
     # Φ, Γ of transition_matrices in closed form: v_k = (1-ζ)^k v_0 + Σ_j (1-ζ)^(k-1-j) (ΔT/m) u_j,
     # p_k = p_0 + ΔT Σ_{j<k} v_j; one lower-triangular matrix product instead of T steps.
-    decay = 1.0 - params.zeta
-    k = np.arange(horizon + 1)
-    expo = k[:, None] - 1 - k[None, :horizon]
-    gain = params.dt_s / params.mass_kg
-    weights = np.where(expo >= 0, decay ** np.maximum(expo, 0), 0.0) * gain
-    vel = decay ** k[:, None] * x0[n:] + weights @ controls
+    decay_k, weights = _rollout_weights(params, horizon)
+    vel = decay_k * x0[n:] + weights @ controls
     pos = x0[:n] + params.dt_s * np.vstack([np.zeros((1, n)), np.cumsum(vel[:-1], axis=0)])
     return np.hstack([pos, vel])
 
@@ -103,24 +120,25 @@ def hover_state(position: Array, params: DynamicsParams = DynamicsParams()) -> A
 def reach_boxes(x0: Array, horizon: int, dyn: DynamicsParams) -> tuple[Array, Array]:
     """Per-axis bounds on p_{t+τ|t}, τ = 1..T, under |u| ≤ u_max and |v| ≤ v_max (m).
 
-    Eq. (1) per axis with the force and speed at their limits; plain floats (it runs
+    Eq. (1) per axis with the force and speed at their limits (compiled: it runs
     for every QP of a plan). Returns (lo, hi), each (T, 2).
     """
-    keep = 1.0 - dyn.zeta
-    acc = dyn.dt_s / dyn.mass_kg * dyn.u_max_n
-    vmax, dt = dyn.v_max_mps, dyn.dt_s
-    lo_cols, hi_cols = [], []
+    return _reach(np.asarray(x0, dtype=float), int(horizon), 1.0 - dyn.zeta,
+                  dyn.dt_s / dyn.mass_kg * dyn.u_max_n, float(dyn.v_max_mps), float(dyn.dt_s))
+
+
+@njit(cache=True)
+def _reach(x0: Array, horizon: int, keep: float, acc: float, vmax: float,
+           dt: float) -> tuple[Array, Array]:
+    lo, hi = np.empty((horizon, 2)), np.empty((horizon, 2))
     for a in range(2):
-        v_hi = v_lo = float(x0[2 + a])
-        p_hi = p_lo = float(x0[a]) + dt * v_hi
-        lo_c, hi_c = [p_lo], [p_hi]
-        for _ in range(horizon - 1):
+        v_hi = v_lo = x0[2 + a]
+        p_hi = p_lo = x0[a] + dt * v_hi
+        lo[0, a], hi[0, a] = p_lo, p_hi
+        for k in range(1, horizon):
             v_hi = min(keep * v_hi + acc, vmax)
             v_lo = max(keep * v_lo - acc, -vmax)
             p_hi = p_hi + dt * v_hi
             p_lo = p_lo + dt * v_lo
-            lo_c.append(p_lo)
-            hi_c.append(p_hi)
-        lo_cols.append(lo_c)
-        hi_cols.append(hi_c)
-    return np.array(lo_cols).T, np.array(hi_cols).T
+            lo[k, a], hi[k, a] = p_lo, p_hi
+    return lo, hi

@@ -11,6 +11,7 @@ from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
+from numba import njit
 from numpy.typing import ArrayLike
 
 from dualpilot.arrays import Array
@@ -67,26 +68,68 @@ class Rect:
         return Polytope.from_vertices(self.corners())
 
 
-def _cross(o: Array, a: Array, b: Array) -> float:
-    return float((a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0]))
+@njit(cache=True)
+def _cross(ox: float, oy: float, ax: float, ay: float, bx: float, by: float) -> float:
+    return (ax - ox) * (by - oy) - (ay - oy) * (bx - ox)
+
+
+@njit(cache=True)
+def _monotone_chain(pts: Array) -> tuple[Array, int]:
+    """Andrew's monotone chain over the distinct rows of ``pts``, sorted by (x, y).
+
+    Returns the hull (counter-clockwise) and the number of distinct points.
+    """
+    order = np.argsort(pts[:, 1], kind="mergesort")
+    order = order[np.argsort(pts[order, 0], kind="mergesort")]
+    uniq = np.empty((len(pts), 2))
+    k = 0
+    for i in order:
+        if k and pts[i, 0] == uniq[k - 1, 0] and pts[i, 1] == uniq[k - 1, 1]:
+            continue
+        uniq[k] = pts[i]
+        k += 1
+    if k < 3:
+        return uniq[:k], k
+    chain = np.empty((2 * k, 2))
+    n = 0
+    for i in range(k):  # lower chain
+        while n >= 2 and _cross(chain[n - 2, 0], chain[n - 2, 1], chain[n - 1, 0],
+                                chain[n - 1, 1], uniq[i, 0], uniq[i, 1]) <= 1e-9:
+            n -= 1
+        chain[n] = uniq[i]
+        n += 1
+    n -= 1  # the last point starts the upper chain
+    base = n
+    for i in range(k - 1, -1, -1):  # upper chain
+        while n - base >= 2 and _cross(chain[n - 2, 0], chain[n - 2, 1], chain[n - 1, 0],
+                                       chain[n - 1, 1], uniq[i, 0], uniq[i, 1]) <= 1e-9:
+            n -= 1
+        chain[n] = uniq[i]
+        n += 1
+    return chain[: n - 1].copy(), k
+
+
+@njit(cache=True)
+def _faces(v: Array) -> tuple[Array, Array]:
+    """Unit outward normals α_l and offsets β_l of the edges of CCW vertices ``v``."""
+    k = len(v)
+    normals = np.empty((k, 2))
+    b = np.empty(k)
+    for i in range(k):
+        j = (i + 1) % k
+        nx, ny = v[j, 1] - v[i, 1], -(v[j, 0] - v[i, 0])
+        norm = np.sqrt(nx * nx + ny * ny)
+        normals[i, 0], normals[i, 1] = nx / norm, ny / norm
+        b[i] = normals[i, 0] * v[i, 0] + normals[i, 1] * v[i, 1]
+    return normals, b
 
 
 def convex_hull_vertices(points: Array) -> Array:
     """Counter-clockwise hull vertices of 2-D points (Andrew's monotone chain), shape (k, 2)."""
-    pts = np.unique(np.asarray(points, dtype=float).reshape(-1, 2), axis=0)
-    if len(pts) < 3:
+    pts = np.ascontiguousarray(np.asarray(points, dtype=float).reshape(-1, 2))
+    hull, distinct = _monotone_chain(pts)
+    if distinct < 3:
         raise ValueError("a convex hull needs at least 3 distinct points")
-    lower: list[Array] = []
-    for p in pts:
-        while len(lower) >= 2 and _cross(lower[-2], lower[-1], p) <= 1e-9:
-            lower.pop()
-        lower.append(p)
-    upper: list[Array] = []
-    for p in pts[::-1]:
-        while len(upper) >= 2 and _cross(upper[-2], upper[-1], p) <= 1e-9:
-            upper.pop()
-        upper.append(p)
-    hull = np.array(lower[:-1] + upper[:-1])
     if len(hull) < 3:
         raise ValueError("points are collinear: the hull has no interior")
     return hull
@@ -104,10 +147,7 @@ class Polytope:
     def from_vertices(points: Array) -> Polytope:
         """The convex hull of ``points`` (any order, duplicates allowed)."""
         v = convex_hull_vertices(points)
-        edges = np.roll(v, -1, axis=0) - v
-        normals = np.column_stack([edges[:, 1], -edges[:, 0]])  # outward for CCW order
-        normals /= np.linalg.norm(normals, axis=1, keepdims=True)
-        b = np.einsum("ij,ij->i", normals, v)
+        normals, b = _faces(v)
         return Polytope(vertices=v, A=normals, b=b)
 
     @property
