@@ -100,10 +100,9 @@ def test_lqr_tracker_keeps_the_disc_on_a_fast_diagonal_reference(du: bool) -> No
     path = np.array([[0.0, 0.0], [800.0, 800.0]])
     ref = reference_states(path, 40, 25.0, NORM)  # asks for 25 m/s along the diagonal
     x0 = hover_state(np.array([0.0, 0.0]), NORM)
-    kw = {"prev_control": np.zeros(2)} if du else {}
     for dyn in (AXIS, NORM):
         gain = (lqr_du_gain(dyn) if du else lqr_gain(dyn))[0]
-        states, controls = track(x0, ref, gain, dyn, **kw)
+        states, controls = track(x0, ref, gain, dyn, prev_control=np.zeros(2) if du else None)
         speeds = np.linalg.norm(states[1:, 2:], axis=1)
         assert np.all(np.abs(controls) <= 7.5 + 1e-12)
         assert np.allclose(states[1:], states[:-1] @ np.array(
