@@ -45,7 +45,7 @@ def _mission(args: argparse.Namespace) -> int:
     reading = _reading(args)
     mission = local_mission(
         Controller(args.controller),
-        MissionSpec(seed=args.seed),
+        reading.spec(MissionSpec(seed=args.seed)),
         supervisor=args.supervisor,
         timing=Timing(args.timing),
         params=reading.mission,

@@ -1,12 +1,14 @@
 """Named readings of the paper and the profiles that group them (Sec. II-B, III-C, IV).
 
 A *reading* is a field of :class:`~dualpilot.model.fire.FireParams`,
-:class:`~dualpilot.mission.params.MissionParams` or
-:class:`~dualpilot.supervisor.decision.SupervisorParams` where the paper can
-reasonably be read two ways. A :class:`Profile` is a frozen set of the three,
-with the sentences of the paper it rests on. Every field is addressed by its
-bare name (the three classes share none), so ``--set life_base=step`` works on
-``mission``, ``evaluate`` and ``sweep`` alike.
+:class:`~dualpilot.mission.params.MissionParams`,
+:class:`~dualpilot.supervisor.decision.SupervisorParams` or
+:class:`~dualpilot.model.dynamics.DynamicsParams` where the paper can
+reasonably be read two ways. A :class:`Profile` is a frozen set of the four,
+with the sentences of the paper it rests on; its dynamics go into the mission
+spec (:meth:`Profile.spec`). Every field is addressed by its bare name (the four
+classes share none), so ``--set life_base=step`` works on ``mission``,
+``evaluate`` and ``sweep`` alike.
 """
 
 from __future__ import annotations
@@ -18,25 +20,30 @@ from dataclasses import dataclass, field, replace
 from typing import Any, Literal, Union, get_args, get_origin, get_type_hints
 
 from dualpilot.mission.params import MissionParams
+from dualpilot.model.dynamics import DynamicsParams
 from dualpilot.model.fire import FireParams
+from dualpilot.spec import MissionSpec
 from dualpilot.supervisor.decision import SupervisorParams
 
 #: The fields that are readings of the paper (the rest are its Sec. IV-A numbers).
 READINGS = ("life_base", "extent", "redraw_clearance", "keep_extinct_hulls",
             "ignition_clearance_m", "d_t_reading", "failure_rule", "fire_substeps_per_motion",
-            "attention_draw")
+            "attention_draw", "speed_limit")
 
-_PARTS = {"fire": FireParams, "mission": MissionParams, "supervisor": SupervisorParams}
+_PARTS = {"fire": FireParams, "mission": MissionParams, "supervisor": SupervisorParams,
+          "dynamics": DynamicsParams}
 
 
 @dataclass(frozen=True)
 class Profile:
-    """One reading of the paper: fire, mission and supervisor parameters, and its sources."""
+    """One reading of the paper: fire, mission, supervisor and dynamics parameters, and its
+    sources."""
 
     name: str
     fire: FireParams = field(default_factory=FireParams)
     mission: MissionParams = field(default_factory=MissionParams)
     supervisor: SupervisorParams = field(default_factory=SupervisorParams)
+    dynamics: DynamicsParams = field(default_factory=DynamicsParams)
     summary: str = ""
     #: the sentences of the paper (or the reason) each reading rests on
     sources: tuple[str, ...] = ()
@@ -44,7 +51,7 @@ class Profile:
     def values(self) -> dict[str, Any]:
         """Every scalar parameter by name (nested and tuple fields left out)."""
         out: dict[str, Any] = {}
-        for part in (self.fire, self.mission, self.supervisor):
+        for part in (self.fire, self.mission, self.supervisor, self.dynamics):
             for f in dataclasses.fields(part):
                 v = getattr(part, f.name)
                 if v is None or isinstance(v, (bool, int, float, str)):
@@ -68,11 +75,16 @@ class Profile:
             fire=replace(self.fire, **changes["fire"]),
             mission=replace(self.mission, **changes["mission"]),
             supervisor=replace(self.supervisor, **changes["supervisor"]),
+            dynamics=replace(self.dynamics, **changes["dynamics"]),
         )
+
+    def spec(self, base: MissionSpec) -> MissionSpec:
+        """``base`` flown with this profile's dynamics (Eq. (1) and its limits)."""
+        return base if base.dynamics == self.dynamics else replace(base, dynamics=self.dynamics)
 
 
 def part_of(name: str) -> str:
-    """Which parameter class ("fire", "mission", "supervisor") holds field ``name``."""
+    """Which parameter class ("fire", "mission", "supervisor", "dynamics") holds ``name``."""
     for part, cls in _PARTS.items():
         if name in {f.name for f in dataclasses.fields(cls)}:
             return part
@@ -142,6 +154,9 @@ _TODAY = Profile(
         "idle position ... has dropped below d_safe' — read as: any active region.",
         "Sec. III-C: 'the location of the nearest firefront' → d_t to the nearest active "
         "region (ARCHITECTURE.md §9: a birth-step-only d_t makes ξ₁ a one-step spike).",
+        "Sec. IV-A: 'The UAV agent can reach a maximum velocity of 15m/s, utilizing an input "
+        "control force in the range of [-7.5,7.5]N' — read like the force, per axis: "
+        "speed_limit = axis (≈ 21.2 m/s on a diagonal).",
     ),
 )
 
@@ -149,9 +164,11 @@ _LITERAL = Profile(
     name="literal",
     fire=FireParams(life_base="step", extent="step"),
     mission=MissionParams(d_t_reading="newborn", failure_rule="become"),
+    dynamics=DynamicsParams(speed_limit="norm"),
     summary="the most literal reading of Sec. II-B/IV: birth and survival once per time-step, "
             "the extent drawn per time-step, d_t to the fronts that emerged at t, failure when "
-            "the distance becomes less than d_safe; fronts ignite anywhere",
+            "the distance becomes less than d_safe; fronts ignite anywhere; the speed limit "
+            "bounds |v|",
     sources=(
         "Sec. II-B: 'at each time step t, a stochastic number N_t of firefronts emerge' and "
         "'p_s is the probability that the firefront propagates to the next time-step' → "
@@ -167,6 +184,9 @@ _LITERAL = Profile(
         "than ... d_safe' and '... has dropped below d_safe' → failure_rule = become.",
         "Sec. IV: 'Before transitioning the agent to the next state, we propagate the "
         "firefronts ⌈T_s/T_f⌉ times' → no fire motion while the UAV flies.",
+        "Sec. IV-A: 'The UAV agent can reach a maximum velocity of 15m/s, utilizing an input "
+        "control force in the range of [-7.5,7.5]N' → speed_limit = norm (a maximum velocity "
+        "is a speed, |v| ≤ 15 m/s; the force, a range, stays per axis).",
     ),
 )
 

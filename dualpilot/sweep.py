@@ -99,7 +99,7 @@ def run_task(task: Task) -> dict[str, object]:
         row.update(reading.values())
         controller, supervisor = controller_of(task.controller)
         result = local_mission(
-            controller, config, timing=Timing(task.timing),
+            controller, reading.spec(config), timing=Timing(task.timing),
             params=reading.mission, fire_params=reading.fire,
             supervisor_params=reading.supervisor, system2_method=task.s2_method,
             supervisor=supervisor,

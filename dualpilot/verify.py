@@ -1,7 +1,8 @@
 """Independent checks a plan must pass before anyone flies it.
 
 A plan is accepted only if (i) its states follow Eq. (1) from its first
-state under its controls, (ii) controls and velocities respect U and X, and
+state under its controls, (ii) controls and velocities respect U and X (the speed limit per axis or
+as a norm, :attr:`DynamicsParams.speed_limit`), and
 (iii) the polyline through its positions keeps at least ``clearance_m``
 from every hull, every segment checked exactly (no corner clipping).
 """
@@ -51,7 +52,10 @@ def verify_trajectory(
         return Verdict(False, f"states violate Eq. (1) by {err:.3g}", float("nan"))
     if np.any(np.abs(controls) > dynamics.u_max_n + tol):
         return Verdict(False, f"control exceeds {dynamics.u_max_n} N", float("nan"))
-    if np.any(np.abs(states[1:, n:]) > dynamics.v_max_mps + tol):
+    if dynamics.speed_limit == "norm":  # ‖v‖ ≤ v_max
+        if np.any(dynamics.speeds(states[1:, n:]) > dynamics.v_max_mps + tol):
+            return Verdict(False, f"speed exceeds {dynamics.v_max_mps} m/s", float("nan"))
+    elif np.any(np.abs(states[1:, n:]) > dynamics.v_max_mps + tol):
         return Verdict(False, f"velocity exceeds {dynamics.v_max_mps} m/s", float("nan"))
     clearance = (path_clearance(states[:, :2], hulls) if checker is None
                  else checker.path_clearance(states[:, :2]))

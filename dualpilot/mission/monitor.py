@@ -9,7 +9,8 @@ setpoint leaves (:func:`check_plan`). A plan is accepted only if
 3. it **follows Eq. (1)** step by step: ‖x_{k+1} − (Φ x_k + Γ u_k)‖_∞ ≤
    ``dynamics_tol`` for every k (no clipping: a plan that needs the
    autopilot's clip is not the plan that will be flown);
-4. it keeps **|u| ≤ u_max and |v| ≤ v_max** per axis (+ ``limit_tol``);
+4. it keeps **|u| ≤ u_max** per axis and **|v| ≤ v_max** per axis, or ‖v‖ ≤ v_max
+   under ``DynamicsParams.speed_limit = "norm"`` (+ ``limit_tol``);
 5. every planned position lies **in the area** [0, area]² (± ``area_tol_m``);
 6. **every segment** of the planned polyline keeps at least d_safe from each
    obstacle the step itself sent (the fire regions and hulls △(C^i_{1:t}) of
@@ -94,7 +95,7 @@ def check_plan(
     u = float(np.max(np.abs(controls)))
     if u > dyn.u_max_n + params.limit_tol:
         return MonitorVerdict(False, f"|u| {u:.4g} N exceeds {dyn.u_max_n:g} N")
-    v = float(np.max(np.abs(states[1:, n:])))
+    v = float(np.max(dyn.speeds(states[1:, n:])))  # max |v_i|, or ‖v‖ under "norm"
     if v > dyn.v_max_mps + params.limit_tol:
         return MonitorVerdict(False, f"|v| {v:.4g} m/s exceeds {dyn.v_max_mps:g} m/s")
     resid = one_step_residual(states, controls, dyn)

@@ -7,18 +7,23 @@ altitude). Control u is the applied force (N).
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from functools import lru_cache
+from typing import Literal, get_args
 
 import numpy as np
 from numba import njit
 
 from dualpilot.arrays import AnyArray, Array
 
+#: Readings of the speed limit X, see :attr:`DynamicsParams.speed_limit`.
+SpeedLimit = Literal["axis", "norm"]
+
 
 @dataclass(frozen=True)
 class DynamicsParams:
-    """Sec. IV-A values: ΔT = 1 s, ζ = 0.2, m = 1.05 kg, |u| ≤ 7.5 N, |v| ≤ 15 m/s per axis."""
+    """Sec. IV-A values: ΔT = 1 s, ζ = 0.2, m = 1.05 kg, |u| ≤ 7.5 N per axis, v_max = 15 m/s."""
 
     dt_s: float = 1.0
     zeta: float = 0.2
@@ -26,6 +31,11 @@ class DynamicsParams:
     u_max_n: float = 7.5
     v_max_mps: float = 15.0
     dim: int = 2
+    #: Reading of Sec. IV-A ("The UAV agent can reach a maximum velocity of 15m/s,
+    #: utilizing an input control force in the range of [-7.5,7.5]N"): "axis" bounds
+    #: every velocity component, |v_i| ≤ v_max (≈ 21.2 m/s on a diagonal); "norm"
+    #: bounds the speed, ‖v‖ ≤ v_max. The force is a per-axis box in both.
+    speed_limit: SpeedLimit = "axis"
 
     def __post_init__(self) -> None:
         if not (self.dt_s > 0 and self.mass_kg > 0 and 0 <= self.zeta < 1):
@@ -34,10 +44,47 @@ class DynamicsParams:
             raise ValueError(f"dim must be 2 or 3, got {self.dim}")
         if not (self.u_max_n > 0 and self.v_max_mps > 0):
             raise ValueError("force and speed limits must be positive")
+        if self.speed_limit not in get_args(SpeedLimit):
+            raise ValueError(f"speed_limit must be one of {get_args(SpeedLimit)}, "
+                             f"not {self.speed_limit!r}")
 
     @property
     def state_dim(self) -> int:
         return 2 * self.dim
+
+    @property
+    def max_speed_mps(self) -> float:
+        """The largest ‖v‖ the speed limit allows: v_max·√dim per axis, v_max as a norm (m/s)."""
+        if self.speed_limit == "norm":
+            return self.v_max_mps
+        return self.v_max_mps * math.sqrt(self.dim)
+
+    def speeds(self, velocities: Array) -> Array:
+        """The measure the speed limit bounds, per row of ``velocities`` (…, dim): max_i |v_i|
+        per axis, ‖v‖ as a norm (m/s)."""
+        v = np.asarray(velocities, dtype=float)
+        if self.speed_limit == "norm":
+            return np.asarray(np.linalg.norm(v, axis=-1))
+        return np.asarray(np.max(np.abs(v), axis=-1))
+
+
+def clip_velocity(v: Array, params: DynamicsParams) -> Array:
+    """``v`` (m/s) clipped to the speed limit: per axis, or scaled onto the disc ‖v‖ = v_max."""
+    if params.speed_limit == "norm":
+        speed = float(np.linalg.norm(v))
+        if speed > params.v_max_mps:
+            return np.asarray(v, dtype=float) * (params.v_max_mps / speed)
+        return np.asarray(v, dtype=float)
+    return np.clip(v, -params.v_max_mps, params.v_max_mps)
+
+
+def speed_polygon(sides: int) -> tuple[Array, float]:
+    """Normals n_k = (cos 2πk/K, sin 2πk/K), k < K, and cos(π/K): the regular K-gon
+    n_k·v ≤ v_max·cos(π/K) lies inside the disc ‖v‖ ≤ v_max (its vertices on the circle)."""
+    if sides < 3:
+        raise ValueError(f"a speed polygon needs at least 3 sides, got {sides}")
+    ang = 2.0 * math.pi * np.arange(sides) / sides
+    return np.column_stack([np.cos(ang), np.sin(ang)]), math.cos(math.pi / sides)
 
 
 @lru_cache(maxsize=64)
@@ -94,7 +141,7 @@ def step(x: Array, u: Array, params: DynamicsParams = DynamicsParams()) -> Array
     phi, gamma = transition_matrices(params)
     nxt = phi @ x + gamma @ u
     n = params.dim
-    nxt[n:] = np.clip(nxt[n:], -params.v_max_mps, params.v_max_mps)
+    nxt[n:] = clip_velocity(nxt[n:], params)
     return np.asarray(nxt, dtype=float)
 
 
@@ -120,8 +167,9 @@ def hover_state(position: Array, params: DynamicsParams = DynamicsParams()) -> A
 def reach_boxes(x0: Array, horizon: int, dyn: DynamicsParams) -> tuple[Array, Array]:
     """Per-axis bounds on p_{t+τ|t}, τ = 1..T, under |u| ≤ u_max and |v| ≤ v_max (m).
 
-    Eq. (1) per axis with the force and speed at their limits (compiled: it runs
-    for every QP of a plan). Returns (lo, hi), each (T, 2).
+    Valid under both speed limits (‖v‖ ≤ v_max implies |v_i| ≤ v_max). Eq. (1)
+    per axis with the force and speed at their limits (compiled: it runs for
+    every QP of a plan). Returns (lo, hi), each (T, 2).
     """
     return _reach(np.asarray(x0, dtype=float), int(horizon), 1.0 - dyn.zeta,
                   dyn.dt_s / dyn.mass_kg * dyn.u_max_n, float(dyn.v_max_mps), float(dyn.dt_s))

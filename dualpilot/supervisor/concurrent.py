@@ -115,7 +115,11 @@ class OnlineQ:
         self._update(system, 0, 1.0 / (1.0 + response_s / self.dt_s))
 
     def flown(self, system: int, progress_m: float, du2_n2: float) -> None:
-        """One step flown by ``system``: progress towards G (m) and ‖u_t − u_{t−1}‖² (N²)."""
+        """One step flown by ``system``: progress towards G (m) and ‖u_t − u_{t−1}‖² (N²).
+
+        Progress is scored against v_max·ΔT, the most a step can make under
+        ``speed_limit = "norm"`` (per axis a diagonal step can make √2 times more: score 1).
+        """
         self._update(system, 1, float(np.clip(progress_m / (self.v_max_mps * self.dt_s), 0, 1)))
         self._update(system, 2, 1.0 / (1.0 + du2_n2 / self.params.energy_scale_n2))
 

@@ -19,7 +19,9 @@ Our reading, each a parameter:
 * u is clipped to U (|u| ≤ 7.5 N per axis) and, per axis, reduced so the next
   velocity stays within |v| ≤ 15 m/s; states are rolled out with Eq. (1)
   exactly, so the result passes :func:`dualpilot.verify.verify_trajectory`'s
-  dynamics check.
+  dynamics check. Under ``DynamicsParams.speed_limit = "norm"`` the clipped u
+  is scaled by the largest α ∈ [0, 1] with ‖(1 − ζ) v_k + α u ΔT/m‖ ≤ 15 m/s
+  (:func:`_track_norm`).
 
 Option (not the paper's; System 1's ``tracker="lqr_du"``): an LQR on the state
 augmented with the previous control, z = [x − x̂; w₋] with input Δw
@@ -200,6 +202,8 @@ def track(
     if ref.ndim != 2 or ref.shape[1] != 2 * n or len(ref) < 2:
         raise ValueError(f"reference must have shape (T+1 >= 2, {2 * n}), got {ref.shape}")
     k = np.asarray(gain, dtype=float)
+    if dynamics.speed_limit == "norm":
+        return _track_norm(x, ref, k, dynamics, feedforward, prev_control)
     if k.shape == (n, 3 * n):
         return _track_du(x, ref, k, dynamics, feedforward, prev_control)
     if prev_control is not None:
@@ -292,4 +296,75 @@ def _track_du(
             vs.append(v)
             us.append(u)
         states[:, i], states[:, n + i], controls[:, i] = ps, vs, us
+    return states, controls
+
+
+def _norm_step(u: Array, v_free: Array, dynamics: DynamicsParams) -> Array:
+    """u clipped to U, then scaled so ‖v_free + u ΔT/m‖ ≤ v_max (``speed_limit = "norm"``).
+
+    With ‖v_free‖ ≤ v_max the scale is the largest α ∈ [0, 1] that keeps the
+    next velocity on the disc (α·u stays in U); otherwise the control that
+    brings the velocity closest to the disc's edge, clipped to U.
+    """
+    u_max, v_max = dynamics.u_max_n, dynamics.v_max_mps
+    dt_m = dynamics.dt_s / dynamics.mass_kg
+    u = np.clip(u, -u_max, u_max)
+    v_next = v_free + dt_m * u
+    if float(v_next @ v_next) <= v_max * v_max:
+        return np.asarray(u)
+    c = float(v_free @ v_free) - v_max * v_max
+    if c > 0.0:  # already above the limit after the drag: brake towards the disc
+        target = v_free * (v_max / math.sqrt(float(v_free @ v_free)))
+        return np.asarray(np.clip((target - v_free) / dt_m, -u_max, u_max))
+    a = dt_m * dt_m * float(u @ u)
+    b = 2.0 * dt_m * float(v_free @ u)
+    alpha = (-b + math.sqrt(max(b * b - 4.0 * a * c, 0.0))) / (2.0 * a)
+    return np.asarray(min(max(alpha, 0.0), 1.0) * u)
+
+
+def _track_norm(
+    x: Array, ref: Array, k: Array, dynamics: DynamicsParams, feedforward: bool,
+    prev_control: Array | None,
+) -> tuple[Array, Array]:
+    """:func:`track` and :func:`_track_du` under ‖v‖ ≤ v_max: the axes couple, so the loop
+    runs over time with vectors; each control goes through :func:`_norm_step`."""
+    n = dynamics.dim
+    kp, kv = float(k[0, 0]), float(k[0, n])
+    du = k.shape == (n, 3 * n)
+    if du:
+        ku = float(k[0, 2 * n])
+        if not np.allclose(k, np.hstack([kp * np.eye(n), kv * np.eye(n), ku * np.eye(n)])):
+            raise ValueError(f"gain must be [k_p·I, k_v·I, k_u·I] of shape ({n}, {3 * n}), "
+                             f"got {k}")
+    else:
+        if prev_control is not None:
+            raise ValueError("prev_control needs the Δu gain of lqr_du_gain "
+                             "(shape (dim, 3·dim))")
+        if k.shape != (n, 2 * n) or not np.allclose(k, np.hstack([kp * np.eye(n),
+                                                                   kv * np.eye(n)])):
+            raise ValueError(f"gain must be [k_p·I, k_v·I] of shape ({n}, {2 * n}), got {k}")
+        ku = 1.0  # no memory of the previous feedback
+    u_prev = np.zeros(n) if prev_control is None else np.asarray(prev_control, dtype=float)
+    if u_prev.shape != (n,) or not np.all(np.isfinite(u_prev)):
+        raise ValueError(f"prev_control must be finite with shape ({n},), got {u_prev}")
+    horizon = len(ref) - 1
+    dt, decay = dynamics.dt_s, 1.0 - dynamics.zeta
+    m_dt = dynamics.mass_kg / dt
+    dt_m = dt / dynamics.mass_kg
+    ff = 1.0 if feedforward else 0.0
+    rp, rv = ref[:, :n], ref[:, n:]
+    p, v = x[:n].copy(), x[n:].copy()
+    w = u_prev - ff * m_dt * (rv[1] - decay * rv[0]) if du else np.zeros(n)
+    states = np.empty((horizon + 1, 2 * n))
+    controls = np.empty((horizon, n))
+    states[0] = x
+    for t in range(horizon):
+        u_ff = ff * m_dt * (rv[t + 1] - decay * rv[t])
+        u = u_ff + (1.0 - ku) * w - kp * (p - rp[t]) - kv * (v - rv[t])
+        v_free = decay * v
+        u = _norm_step(u, v_free, dynamics)
+        w = u - u_ff
+        p, v = p + dt * v, v_free + dt_m * u
+        states[t + 1, :n], states[t + 1, n:] = p, v
+        controls[t] = u
     return states, controls

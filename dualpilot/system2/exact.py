@@ -28,7 +28,7 @@ import cvxpy as cp
 import numpy as np
 
 from dualpilot.arrays import Array
-from dualpilot.model.dynamics import rollout, transition_matrices
+from dualpilot.model.dynamics import rollout, speed_polygon, transition_matrices
 from dualpilot.model.geometry import Polytope
 from dualpilot.plan import Objective, Plan, PlanStatus
 from dualpilot.spec import MissionSpec
@@ -227,6 +227,10 @@ class ExactSystem2:
         self._B = cp.Variable((H * F, T), boolean=True, name="b")
         xs, us, bs = self._X, self._U, self._B
         pos = xs[:, :2]
+        speed: list[cp.Constraint] = []
+        if d.speed_limit == "norm":  # X: n_k·v_τ ≤ v_max cos(π/K), inside the disc
+            normals, cos_k = speed_polygon(p.speed_polygon_sides)
+            speed.append(xs[:, 2:] @ normals.T <= d.v_max_mps * cos_k)
 
         cons = [
             xs[0] == phi @ self._x0 + gamma @ us[0],  # Eq. (P2_1)-(P2_2)
@@ -235,6 +239,7 @@ class ExactSystem2:
             self._alpha @ pos.T - self._beta @ np.ones((1, T)) >= eps - big_m * bs,
             # Eq. (P2_4): Σ_l b ≤ F − 1 per hull and τ
             np.kron(np.eye(H), np.ones((1, F))) @ bs <= F - 1,
+            *speed,
         ]
         dist = self._w1 * pos - np.ones((T, 1)) @ cp.reshape(self._w1_goal, (1, 2), order="C")
         du0 = self._w2 * us[0] - self._w2_uprev
@@ -256,6 +261,8 @@ class ExactSystem2:
     def _reach_radius(self, v0: Array) -> float:
         """Upper bound on ‖p_{t+τ|t} − p_t‖ for τ ≤ T (m)."""
         d = self.dynamics
+        if d.speed_limit == "norm":
+            return d.dt_s * (float(np.linalg.norm(v0)) + (self.params.horizon - 1) * d.v_max_mps)
         return d.dt_s * (float(np.linalg.norm(v0))
                          + (self.params.horizon - 1) * d.v_max_mps * math.sqrt(2.0))
 

@@ -27,7 +27,10 @@ class System2Params:
     """Sec. IV-A: T = 80, M = 1e5, κ per objective; ε, d_safe and the area come from the spec.
 
     ``keep_in_area`` keeps every planned position in the area; ``max_hulls``
-    and ``max_faces`` size the exact method's compiled problem.
+    and ``max_faces`` size the exact method's compiled problem. Under
+    ``DynamicsParams.speed_limit = "norm"`` both methods bound v_τ by the regular
+    K-gon inside the disc, n_k·v_τ ≤ v_max·cos(π/K), K = ``speed_polygon_sides``,
+    so (P2) stays a mixed-integer QP.
     """
 
     horizon: int = 80
@@ -38,10 +41,13 @@ class System2Params:
     time_limit_s: float = 60.0
     max_hulls: int = 10
     max_faces: int = 12
+    speed_polygon_sides: int = 16
 
     def __post_init__(self) -> None:
         if self.horizon < 1:
             raise ValueError(f"horizon must be >= 1, got {self.horizon}")
+        if self.speed_polygon_sides < 3:
+            raise ValueError(f"speed_polygon_sides must be >= 3, got {self.speed_polygon_sides}")
         if self.big_m <= 0 or self.time_limit_s <= 0:
             raise ValueError("big_m > 0 and time_limit_s > 0 are required")
 

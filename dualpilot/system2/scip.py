@@ -29,7 +29,13 @@ from typing import Any
 import numpy as np
 
 from dualpilot.arrays import AnyArray
-from dualpilot.model.dynamics import DynamicsParams, reach_boxes, rollout, transition_matrices
+from dualpilot.model.dynamics import (
+    DynamicsParams,
+    reach_boxes,
+    rollout,
+    speed_polygon,
+    transition_matrices,
+)
 from dualpilot.model.geometry import Polytope
 from dualpilot.plan import Objective, Plan, PlanStatus
 from dualpilot.spec import MissionSpec
@@ -79,6 +85,11 @@ def solve_seeded(x0: AnyArray, hulls: Sequence[Polytope], goal: AnyArray,
         for r in range(4):
             m.addCons(x[k][r] == quicksum(phi[r, c] * prev[c] for c in range(4) if phi[r, c])
                       + quicksum(gamma[r, c] * u[k][c] for c in range(2) if gamma[r, c]))
+    if dyn.speed_limit == "norm":  # X: n_j·v_τ ≤ v_max cos(π/K), inside the disc
+        normals, cos_k = speed_polygon(params.speed_polygon_sides)
+        for k in range(T):
+            for nx, ny in normals.tolist():
+                m.addCons(nx * x[k][2] + ny * x[k][3] <= dyn.v_max_mps * cos_k)
     lo, hi = reach_boxes(x0, T, dyn)
     if area is not None:
         lo, hi = np.maximum(lo, 0.0), np.minimum(hi, area)

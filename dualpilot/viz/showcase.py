@@ -55,7 +55,8 @@ def fly(job: Search) -> MissionResult:
     from dualpilot.mission.local import local_mission
 
     reading = get_profile(job.profile)
-    return local_mission(Controller.CC, MissionSpec(seed=job.seed), timing=Timing(job.timing),
+    return local_mission(Controller.CC, reading.spec(MissionSpec(seed=job.seed)),
+                         timing=Timing(job.timing),
                          params=reading.mission, fire_params=reading.fire,
                          supervisor_params=reading.supervisor).run()
 

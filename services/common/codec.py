@@ -32,7 +32,7 @@ from typing import Any, TypeVar, cast
 import numpy as np
 from google.protobuf.message import DecodeError, Message
 
-from dualpilot.model.dynamics import Array, DynamicsParams
+from dualpilot.model.dynamics import Array, DynamicsParams, SpeedLimit
 from dualpilot.model.fire import FireFront, FireParams, FireSnapshot
 from dualpilot.model.geometry import Polytope, Rect
 from dualpilot.plan import Objective, Plan, PlanStatus
@@ -612,6 +612,20 @@ def status_from_msg(v: plan_pb2.PlanStatus) -> PlanStatus:
     return PlanStatus[name.removeprefix("PLAN_STATUS_")]
 
 
+_SPEED_LIMITS: dict[SpeedLimit, plan_pb2.SpeedLimit] = {
+    "axis": plan_pb2.SPEED_LIMIT_AXIS, "norm": plan_pb2.SPEED_LIMIT_NORM}
+
+
+def speed_limit_from_msg(value: int) -> SpeedLimit:
+    """DynamicsParams.speed_limit of a SpeedLimit value (unspecified: "axis")."""
+    if value == plan_pb2.SPEED_LIMIT_UNSPECIFIED:
+        return "axis"
+    for name, number in _SPEED_LIMITS.items():
+        if value == number:
+            return name
+    raise invalid(f"unknown speed_limit {value}", Reason.OUT_OF_RANGE)
+
+
 def spec_to_msg(mission_id: str, spec: MissionSpec, out: plan_pb2.MissionSpec) -> None:
     """The core's frozen mission spec as a message (sent once, when a mission is prepared)."""
     out.mission_id, out.seed, out.area_size_m = mission_id, spec.seed, spec.area_size_m
@@ -621,6 +635,7 @@ def spec_to_msg(mission_id: str, spec: MissionSpec, out: plan_pb2.MissionSpec) -
     d = spec.dynamics
     out.dynamics.dt_s, out.dynamics.zeta, out.dynamics.mass_kg = d.dt_s, d.zeta, d.mass_kg
     out.dynamics.u_max_n, out.dynamics.v_max_mps = d.u_max_n, d.v_max_mps
+    out.dynamics.speed_limit = _SPEED_LIMITS[d.speed_limit]
 
 
 def spec_from_msg(m: plan_pb2.MissionSpec) -> tuple[str, MissionSpec]:
@@ -636,13 +651,15 @@ def spec_from_msg(m: plan_pb2.MissionSpec) -> tuple[str, MissionSpec]:
     d = m.dynamics
     dyn = _check_floats([d.dt_s, d.zeta, d.mass_kg, d.u_max_n, d.v_max_mps], "dynamics",
                         MAX_FORCE_N)
+    speed_limit = speed_limit_from_msg(d.speed_limit)
     start = _finite((m.start.east_m, m.start.north_m), "start", MAX_ABS_M)
     try:
         spec = MissionSpec(start=(float(start[0]), float(start[1])),
                            goal=rect_from_msg(m.goal, "goal"), area_size_m=area, d_safe_m=d_safe,
                            clearance_m=clear, seed=int(m.seed),
                            dynamics=DynamicsParams(dt_s=dyn[0], zeta=dyn[1], mass_kg=dyn[2],
-                                                   u_max_n=dyn[3], v_max_mps=dyn[4]))
+                                                   u_max_n=dyn[3], v_max_mps=dyn[4],
+                                                   speed_limit=speed_limit))
     except ValueError as err:
         raise invalid(f"mission spec: {err}", Reason.OUT_OF_RANGE) from err
     return mission_id, spec

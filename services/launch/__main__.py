@@ -31,7 +31,7 @@ def main(argv: list[str] | None = None) -> int:
                         "mission --ignition-clearance)")
     p.add_argument("--supervisor", choices=["paper", "concurrent"], default="paper",
                    help="the cognitive controller's supervisor (dualpilot mission --supervisor)")
-    p.add_argument("--profile", default="today",  # readings profile: supervisor and EWS
+    p.add_argument("--profile", default="today",  # readings profile: supervisor, EWS, uavsim
                    help="named reading of the paper (dualpilot profiles) [READINGS_PROFILE]")
     p.add_argument("--waypoints", default="", help="System 1 operator waypoints 'e1,n1;e2,n2'")
     p.add_argument("--out", default="",
@@ -55,7 +55,7 @@ def main(argv: list[str] | None = None) -> int:
                       controller=args.controller, timing=args.timing, s2_method=args.s2_method,
                       max_steps=args.max_steps, waypoints=args.waypoints,
                       ignition_clearance_m=args.ignition_clearance,
-                      profile=args.profile,  # readings profile: supervisor and EWS
+                      profile=args.profile,  # readings profile: supervisor, EWS, uavsim
                       supervisor=args.supervisor,
                       free_ports=args.free_ports, log_format=args.log_format,
                       tls=args.tls or args.tls_dir is not None,

@@ -63,7 +63,7 @@ class StackConfig:
     s2_method: str = "fast"
     max_steps: int = 150
     ignition_clearance_m: float | None = None  # MissionParams.ignition_clearance_m
-    profile: str = "today"  # dualpilot.readings profile of the supervisor and the EWS
+    profile: str = "today"  # dualpilot.readings profile of the supervisor, the EWS and uavsim
     supervisor: str = "paper"  # the cognitive controller's: "paper" or "concurrent"
     uav_id: str = "uav1"
     waypoints: str = ""

@@ -25,6 +25,12 @@ class PlanStatus(int, metaclass=_enum_type_wrapper.EnumTypeWrapper):
     PLAN_STATUS_UNSAFE: _ClassVar[PlanStatus]
     PLAN_STATUS_INVALID_INPUT: _ClassVar[PlanStatus]
     PLAN_STATUS_ERROR: _ClassVar[PlanStatus]
+
+class SpeedLimit(int, metaclass=_enum_type_wrapper.EnumTypeWrapper):
+    __slots__ = ()
+    SPEED_LIMIT_UNSPECIFIED: _ClassVar[SpeedLimit]
+    SPEED_LIMIT_AXIS: _ClassVar[SpeedLimit]
+    SPEED_LIMIT_NORM: _ClassVar[SpeedLimit]
 OBJECTIVE_UNSPECIFIED: Objective
 OBJECTIVE_MISSION_TIME: Objective
 OBJECTIVE_ENERGY: Objective
@@ -36,20 +42,25 @@ PLAN_STATUS_NO_PATH: PlanStatus
 PLAN_STATUS_UNSAFE: PlanStatus
 PLAN_STATUS_INVALID_INPUT: PlanStatus
 PLAN_STATUS_ERROR: PlanStatus
+SPEED_LIMIT_UNSPECIFIED: SpeedLimit
+SPEED_LIMIT_AXIS: SpeedLimit
+SPEED_LIMIT_NORM: SpeedLimit
 
 class Dynamics(_message.Message):
-    __slots__ = ("dt_s", "zeta", "mass_kg", "u_max_n", "v_max_mps")
+    __slots__ = ("dt_s", "zeta", "mass_kg", "u_max_n", "v_max_mps", "speed_limit")
     DT_S_FIELD_NUMBER: _ClassVar[int]
     ZETA_FIELD_NUMBER: _ClassVar[int]
     MASS_KG_FIELD_NUMBER: _ClassVar[int]
     U_MAX_N_FIELD_NUMBER: _ClassVar[int]
     V_MAX_MPS_FIELD_NUMBER: _ClassVar[int]
+    SPEED_LIMIT_FIELD_NUMBER: _ClassVar[int]
     dt_s: float
     zeta: float
     mass_kg: float
     u_max_n: float
     v_max_mps: float
-    def __init__(self, dt_s: _Optional[float] = ..., zeta: _Optional[float] = ..., mass_kg: _Optional[float] = ..., u_max_n: _Optional[float] = ..., v_max_mps: _Optional[float] = ...) -> None: ...
+    speed_limit: SpeedLimit
+    def __init__(self, dt_s: _Optional[float] = ..., zeta: _Optional[float] = ..., mass_kg: _Optional[float] = ..., u_max_n: _Optional[float] = ..., v_max_mps: _Optional[float] = ..., speed_limit: _Optional[_Union[SpeedLimit, str]] = ...) -> None: ...
 
 class MissionSpec(_message.Message):
     __slots__ = ("mission_id", "seed", "goal", "area_size_m", "start", "d_safe_m", "clearance_m", "dynamics")

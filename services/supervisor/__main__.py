@@ -96,7 +96,8 @@ def main(argv: list[str] | None = None) -> int:
                             ("--fire-life-base", "life_base", "FIRE_LIFE_BASE"),
                             ("--fire-extent", "extent", "FIRE_EXTENT"),
                             ("--redraw-clearance", "redraw_clearance", "FIRE_REDRAW_CLEARANCE"),
-                            ("--attention-draw", "attention_draw", "ATTENTION_DRAW")):
+                            ("--attention-draw", "attention_draw", "ATTENTION_DRAW"),
+                            ("--speed-limit", "speed_limit", "SPEED_LIMIT")):
         r.add_argument(flag, dest=f"reading_{name}", default=env(var, ""),
                        help=f"{name} [{var}]")
     g.add_argument("--waypoints", default=env("OPERATOR_WAYPOINTS", ""),
@@ -149,7 +150,7 @@ def main(argv: list[str] | None = None) -> int:
         reading = get_profile(args.profile).with_settings(chosen)
         params = reading.mission
         # the start is the vehicle's position when the mission starts (StackSession.start)
-        spec = MissionSpec(goal=goal, area_size_m=args.area_size_m, seed=args.seed)
+        spec = reading.spec(MissionSpec(goal=goal, area_size_m=args.area_size_m, seed=args.seed))
         stack = StackParams(plan_deadline_s=(deadlines[0], deadlines[1]) if (
                                 args.plan_deadline_s) else None,
                             altitude_m=args.altitude_m)

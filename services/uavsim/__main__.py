@@ -9,7 +9,8 @@ QGroundControl. Both get HEARTBEAT and telemetry and answer parameters
 them in MAVProxy's ``.tlog`` format. The local frame (m east/north) has its
 origin at ``--home``, the area's south-west corner; the vehicle flies at
 ``SIM_ALT_M`` (m). Each setpoint, stamped with the simulated time it is due,
-is one ΔT step of Eq. (1).
+is one ΔT step of Eq. (1), with the dynamics of the readings profile
+``--profile`` (its speed limit per axis or as a norm, ``--speed-limit``).
 
 That is the lockstep clock (``--clock lockstep``, our missions); ``--clock
 realtime`` flies on the vehicle's own clock instead (services/uavsim/clock.py).
@@ -30,6 +31,7 @@ import time
 from dataclasses import dataclass
 from typing import Any
 
+from dualpilot.readings import PROFILES, get_profile
 from services.common import bus, codec, mav
 from services.common import cli as common_cli
 from services.common.log import fields
@@ -86,7 +88,8 @@ PARAMS: dict[str, tuple[float, float | None, float | None, str]] = {
     "MAV_SYS_ID": (1.0, None, None, "system id (--sysid)"),
     "COM_OF_LOSS_T": (1.0, 0.1, 60.0, "s without a setpoint before the failsafe hold (PX4)"),
     "COM_OF_RSM_T": (0.5, 0.0, 10.0, "s of live setpoint stream before it resumes control"),
-    "MPC_XY_VEL_MAX": (15.0, 0.1, 15.0, "speed limit per axis, m/s (paper: 15)"),
+    "MPC_XY_VEL_MAX": (15.0, 0.1, 15.0, "speed limit per axis, or of |v| with --speed-limit "
+                                        "norm, m/s (paper: 15)"),
     "SIM_U_MAX_N": (7.5, 0.1, 7.5, "force limit per axis, N (paper: 7.5)"),
     "SIM_KP": (0.5, 0.0, 1.0, "position gain of the tracking controller"),
     "SIM_ALT_M": (50.0, 1.0, 500.0, "flight altitude above home, m"),
@@ -666,6 +669,11 @@ def main(argv: list[str] | None = None) -> int:
                    help="lockstep: each new setpoint stamp is one step of Eq. (1) (the stack); "
                         "realtime: the vehicle flies on its own clock at --speed-factor, as "
                         "PX4 SITL (MAVSDK and other offboard clients) [UAV_CLOCK]")
+    p.add_argument("--profile", default=env("READINGS_PROFILE", "today"), choices=list(PROFILES),
+                   help="the reading of the paper whose dynamics the vehicle flies (Eq. (1), "
+                        "its force and speed limits; dualpilot profiles) [READINGS_PROFILE]")
+    p.add_argument("--speed-limit", default=env("SPEED_LIMIT", ""),
+                   help="override: axis (|v_i| <= v_max) or norm (|v| <= v_max) [SPEED_LIMIT]")
     p.add_argument("--zenoh", choices=("auto", "on", "off"), default=env("UAV_ZENOH", "auto"),
                    help="hold a liveliness token on Zenoh; auto: only when ZENOH_CONNECT or "
                         "--zenoh-connect is given (the vehicle needs no router) [UAV_ZENOH]")
@@ -687,7 +695,9 @@ def main(argv: list[str] | None = None) -> int:
         if not 0 < args.area_size_m <= 1e5:
             raise ValueError("--area-size-m must be in (0, 1e5]")
         key = mav.resolve_key(args.signing_passphrase, args.signing_key_file)
-        vehicle = Vehicle.at(*start)
+        dynamics = get_profile(args.profile).with_settings(
+            {"speed_limit": args.speed_limit} if args.speed_limit else {}).dynamics
+        vehicle = Vehicle.at(*start, dyn=dynamics)
         vehicle.kp = args.kp
         speed = settings.speed_factor
         if args.clock == vclock.REALTIME and not speed > 0:
@@ -709,6 +719,7 @@ def main(argv: list[str] | None = None) -> int:
         log.info("serving MAVLink", extra=fields(
             offboard=settings.mavlink_url, gcs=args.gcs_url, signed=key is not None,
             autopilot=args.autopilot, clock=args.clock, speed_factor=speed,
+            speed_limit=vehicle.dyn.speed_limit,
             zenoh=use_zenoh, east_m=start[0], north_m=start[1], tlog=args.tlog))
         endpoint = Endpoint(vehicle, links, args.sysid, args.altitude_m, home,
                             args.offboard_loss_s, args.area_size_m, tlog,

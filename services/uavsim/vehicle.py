@@ -1,7 +1,8 @@
 """The simulated vehicle's physics, controller, battery and attitude (no I/O here).
 
 Physics: Eq. (1), x_t = Φ x_{t−1} + Γ u_t with ΔT = 1 s (:func:`dualpilot.dynamics.step`,
-which clips u to U and v to the speed limit, like an autopilot's limits).
+which clips u to U and v to the speed limit, per axis or as a norm
+(``DynamicsParams.speed_limit``), like an autopilot's limits).
 
 Controller: a setpoint gives the target state x* = [p*, v*] due at the end of
 the step. In Eq. (1) the next position p + ΔT·v does not depend on u, so the

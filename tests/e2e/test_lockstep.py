@@ -22,6 +22,7 @@ from dualpilot.mission.local import local_mission
 from dualpilot.mission.params import Controller, MissionParams, Timing
 from dualpilot.mission.records import read_step_log, result_from_log
 from dualpilot.mission.result import MissionResult
+from dualpilot.model.dynamics import DynamicsParams
 from dualpilot.spec import MissionSpec
 from services import launch
 
@@ -30,9 +31,15 @@ pytestmark = [pytest.mark.slow, pytest.mark.timeout(600)]
 SEEDS = (0, 1, 2, 3, 4)
 #: numbers that crossed MAVLink as float32 (m, m/s, N)
 ATOL = 1e-3
+#: the same under speed_limit = norm: flying along a face of System 2's speed polygon (the
+#: diagonal from (50, 50) to G is the normal n_2), the plan's component across the face is
+#: set by the objective alone, and the float32 round trips grow to ~1e-2 over 70 steps
+#: (an axis clip left anywhere would differ by metres per second)
+ATOL_NORM = 2e-2
 
 
-def assert_same_mission(stack: MissionResult, local: MissionResult, what: str) -> None:
+def assert_same_mission(stack: MissionResult, local: MissionResult, what: str,
+                        atol: float = ATOL) -> None:
     assert (stack.success, stack.failure_cause, stack.steps) == (
         local.success, local.failure_cause, local.steps), what
     assert len(stack.records) == len(local.records), what
@@ -44,11 +51,12 @@ def assert_same_mission(stack: MissionResult, local: MissionResult, what: str) -
         assert (da.attention, da.system, da.objective) == (db.attention, db.system,
                                                            db.objective), where
         for name in ("xi", "p", "psi"):
-            assert np.allclose(getattr(da, name), getattr(db, name), atol=ATOL), (where, name)
-        assert np.allclose(a.state, b.state, atol=ATOL), (where, a.state, b.state)
-        assert np.allclose(a.control, b.control, atol=ATOL), (where, a.control, b.control)
+            assert np.allclose(getattr(da, name), getattr(db, name), atol=atol), (where, name)
+        assert np.allclose(a.state, b.state, atol=atol), (where, a.state, b.state)
+        assert np.allclose(a.control, b.control, atol=atol), (where, a.control, b.control)
         assert a.planned_positions.shape == b.planned_positions.shape, where
-        assert np.allclose(a.planned_positions, b.planned_positions, atol=1e-2), where
+        assert np.allclose(a.planned_positions, b.planned_positions,
+                           atol=max(1e-2, atol)), where
     assert stack.energy == pytest.approx(local.energy, rel=1e-5, abs=1e-3), what
 
 
@@ -142,7 +150,42 @@ def test_a_profile_given_to_the_supervisor_alone_reaches_the_ews(fleet: Any,
         assert outcomes[uav].ended, outcomes[uav]
         assert all(code == 0 for code in f.stop_vehicle(uav).values())
         stack = result_from_log(read_step_log(run_dir / "steps.jsonl"))
-        local = local_mission(Controller.CC, MissionSpec(seed=seed), timing=Timing.PAPER,
-                              params=reading.mission, fire_params=reading.fire,
+        local = local_mission(Controller.CC, reading.spec(MissionSpec(seed=seed)),
+                              timing=Timing.PAPER, params=reading.mission,
+                              fire_params=reading.fire,
                               supervisor_params=reading.supervisor).run()
-        assert_same_mission(stack, local, f"{profile} seed {seed}")
+        assert_same_mission(stack, local, f"{profile} seed {seed}",
+                            ATOL_NORM if reading.dynamics.speed_limit == "norm" else ATOL)
+
+
+def test_the_speed_limit_reaches_system1_system2_and_uavsim(fleet: Any) -> None:
+    """SPEED_LIMIT=norm (|v| ≤ 15 m/s) on the supervisor and uavsim of today's profile: the
+    spec carries it to the planner services, and every step is the in-process loop's under
+    the same reading. A place still clipping per axis would fly faster on the diagonal."""
+    f, out = fleet
+    norm = DynamicsParams(speed_limit="norm")
+    mission_ids = {}
+    for k, seed in enumerate(SEEDS[:2]):
+        uav = f.uav_ids[k]
+        env = {"CONTROLLER": "cc", "TIMING": "paper", "SPEED_FACTOR": "0",
+               "READINGS_PROFILE": "today", "SPEED_LIMIT": "norm", "IGNITION_CLEARANCE_M": "",
+               "SUPERVISOR": "paper"}
+        v = f.start_vehicle(uav, seed, out / f"speed-norm-s{seed}", env=env)
+        mission_ids[uav] = v.mission_id
+    outcomes = f.wait_end(mission_ids, 300.0)
+    for k, seed in enumerate(SEEDS[:2]):
+        uav = f.uav_ids[k]
+        run_dir = f.vehicles[uav].run_dir
+        assert outcomes[uav].ended, outcomes[uav]
+        assert all(code == 0 for code in f.stop_vehicle(uav).values())
+        assert "speed_limit=norm" in (run_dir / "logs" / "uavsim.log").read_text()
+        stack = result_from_log(read_step_log(run_dir / "steps.jsonl"))
+        local = local_mission(Controller.CC, MissionSpec(seed=seed, dynamics=norm),
+                              timing=Timing.PAPER).run()
+        assert_same_mission(stack, local, f"norm seed {seed}", ATOL_NORM)
+        systems = {r.system for r in stack.records}
+        assert {1, 2} <= systems, systems  # both planners flew under the reading
+        speeds = [float(np.hypot(*r.state[2:])) for r in stack.records]
+        assert max(speeds) <= 15.0 + ATOL
+        axis = local_mission(Controller.CC, MissionSpec(seed=seed), timing=Timing.PAPER).run()
+        assert max(float(np.hypot(*r.state[2:])) for r in axis.records) > 15.5

@@ -165,6 +165,7 @@ def test_plan_request_round_trip() -> None:
         ({"mission__d_safe_m": 30.0}, "d_safe_m <= clearance_m"),
         ({"mission__start__east_m": -5.0}, "start"),
         ({"mission__dynamics__mass_kg": 0.0}, "dynamics"),
+        ({"mission__dynamics__speed_limit": 7}, "unknown speed_limit 7"),
         ({"mission_id": "another"}, "differs from the spec"),
         ({"objective": 0}, "objective"),
         ({"prev_control__east_n": math.inf}, "finite"),
@@ -175,6 +176,19 @@ def test_invalid_plan_requests_are_rejected(changes: dict[str, Any], match: str)
         codec.plan_request_from_msg(codec.parse(_request(**changes).SerializeToString(),
                                                 plan_pb2.PlanRequest))
     assert info.value.code == common_pb2.ERROR_CODE_INVALID
+
+
+@pytest.mark.parametrize("speed_limit", ["axis", "norm"])
+def test_the_speed_limit_reading_travels_in_the_spec(speed_limit: str) -> None:
+    spec = MissionSpec(seed=7, dynamics=DynamicsParams(speed_limit=speed_limit))  # type: ignore[arg-type]
+    msg = plan_pb2.MissionSpec()
+    codec.spec_to_msg("m-1", spec, msg)
+    assert msg.dynamics.speed_limit == {"axis": plan_pb2.SPEED_LIMIT_AXIS,
+                                        "norm": plan_pb2.SPEED_LIMIT_NORM}[speed_limit]
+    back = codec.spec_from_msg(codec.parse(msg.SerializeToString(), plan_pb2.MissionSpec))[1]
+    assert back == spec and back.dynamics.speed_limit == speed_limit
+    msg.dynamics.speed_limit = plan_pb2.SPEED_LIMIT_UNSPECIFIED  # a sender without the field
+    assert codec.spec_from_msg(msg)[1].dynamics.speed_limit == "axis"
 
 
 def test_a_plan_request_needs_its_mission() -> None:

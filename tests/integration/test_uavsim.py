@@ -360,3 +360,18 @@ def test_signing_key_file_reading(tmp_path: Path) -> None:
         mav.read_signing_key(empty)
     east, north = mav.to_local(*mav.to_geodetic(321.5, 876.25, HOME), HOME)
     assert math.isclose(east, 321.5, abs_tol=1e-6) and math.isclose(north, 876.25, abs_tol=1e-6)
+
+
+@pytest.mark.parametrize(("speed_limit", "speed"), [("axis", 15.0 * math.sqrt(2.0)),
+                                                    ("norm", 15.0)])
+def test_the_vehicle_clips_the_speed_as_its_reading_says(speed_limit: str, speed: float) -> None:
+    """A setpoint asking for 30 m/s per axis on the diagonal, held for 20 steps: full force,
+    the speed settles at the limit (|v_i| = 15 per axis, |v| = 15 as a norm)."""
+    from services.uavsim.vehicle import Vehicle
+
+    v = Vehicle.at(0.0, 0.0, DynamicsParams(speed_limit=speed_limit))  # type: ignore[arg-type]
+    for k in range(20):
+        v.apply(np.array([1000.0, 1000.0, 30.0, 30.0]), 1000 * (k + 1))
+    assert float(np.hypot(*v.state[2:])) == pytest.approx(speed, abs=1e-9)
+    v.set_limits(v_max_mps=10.0)  # MPC_XY_VEL_MAX keeps the reading
+    assert v.dyn.speed_limit == speed_limit

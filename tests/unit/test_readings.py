@@ -11,6 +11,7 @@ import pytest
 from dualpilot.mission.local import local_mission
 from dualpilot.mission.params import Controller, MissionParams
 from dualpilot.mission.step import attention_distance, counted_regions
+from dualpilot.model.dynamics import DynamicsParams
 from dualpilot.model.fire import FireField, FireParams, FireSnapshot
 from dualpilot.model.geometry import Rect
 from dualpilot.readings import PROFILES, READINGS, get_profile, parse_settings, parse_value
@@ -173,6 +174,10 @@ def test_bad_readings_are_refused() -> None:
         MissionParams(failure_rule="never")  # type: ignore[arg-type]
     with pytest.raises(ValueError, match="attention_draw"):
         SupervisorParams(attention_draw="vote")  # type: ignore[arg-type]
+    with pytest.raises(ValueError, match="speed_limit"):
+        DynamicsParams(speed_limit="box")  # type: ignore[arg-type]
+    with pytest.raises(ValueError, match="one of"):
+        parse_value("speed_limit", "box")
 
 
 # -- the attention draw -----------------------------------------------------------------------
@@ -221,6 +226,47 @@ def test_settings_are_parsed_by_the_field_type() -> None:
         parse_settings(["warp=9"])
     with pytest.raises(ValueError, match="one of"):
         parse_value("d_t_reading", "closest")
+
+
+def test_the_speed_limit_is_a_reading_of_the_profiles() -> None:
+    """Sec. IV-A "a maximum velocity of 15m/s": literal bounds |v|, today and fig-r5 per axis."""
+    assert "speed_limit" in READINGS
+    assert get_profile("today").dynamics == DynamicsParams()
+    assert get_profile("fig-r5").dynamics.speed_limit == "axis"
+    lit = get_profile("literal")
+    assert lit.dynamics == DynamicsParams(speed_limit="norm")
+    assert lit.readings()["speed_limit"] == "norm"
+    assert any("maximum velocity of 15m/s" in s for s in lit.sources)
+    norm = get_profile("today").with_settings(parse_settings(["speed_limit=norm"]))
+    assert norm.dynamics.speed_limit == "norm" and norm.mission == MissionParams()
+    spec = MissionSpec(seed=3)
+    assert norm.spec(spec) == replace(spec, dynamics=DynamicsParams(speed_limit="norm"))
+    assert get_profile("today").spec(spec) is spec
+
+
+def test_the_speed_limit_reaches_mission_and_evaluate(tmp_path, capsys) -> None:  # type: ignore
+    """--set speed_limit=norm on ``mission`` and ``evaluate``: the flown speeds stay ≤ 15 m/s,
+    while the default flies faster on the diagonal (S2, 12 steps from (50, 50))."""
+    from dualpilot.cli import main
+    from dualpilot.mission.records import read_steps_csv
+
+    speeds = {}
+    for sl in ("axis", "norm"):
+        out = tmp_path / sl
+        assert main(["mission", "--controller", "s2", "--seed", "1", "--quiet", "--out",
+                     str(out), "--no-figures", "--set", "max_steps=12",
+                     "--set", f"speed_limit={sl}"]) == 0
+        steps = read_steps_csv(out / "steps.csv")
+        speeds[sl] = float(np.max(np.hypot(steps["vx"], steps["vy"])))
+    assert speeds["norm"] <= 15.0 + 1e-6 < speeds["axis"]
+    argv = ["evaluate", "--missions", "1", "--jobs", "1", "--controllers", "s2",
+            "--set", "max_steps=3", "--set", "speed_limit=norm", "--out", str(tmp_path / "e")]
+    assert main(argv) == 0
+    summary = json.loads((tmp_path / "e" / "summary.json").read_text())
+    assert summary["readings"]["speed_limit"] == "norm"
+    capsys.readouterr()
+    assert main(["profiles"]) == 0
+    assert "speed_limit" in capsys.readouterr().out
 
 
 def test_profiles_command_lists_the_values(capsys: pytest.CaptureFixture[str]) -> None:

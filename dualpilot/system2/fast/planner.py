@@ -322,7 +322,8 @@ class FastSystem2:
         self.clearance_m = spec.d_safe_m  # every returned plan keeps d_safe
         self.epsilon_m = spec.clearance_m  # ε of Eq. (P2_3)
         self.area = spec.area_size_m if params.keep_in_area else None
-        self.qp = P2Qp(params.horizon, dynamics, self.area)
+        self.qp = P2Qp(params.horizon, dynamics, self.area,
+                       speed_sides=params.speed_polygon_sides)
         self._last: Plan | None = None
         self.stats: dict[str, Any] = {}
 
@@ -518,7 +519,9 @@ class FastSystem2:
         The speed is the relaxation's, capped by a point-mass profile that
         starts from v_t's component along the path and respects Eq. (1)'s drag
         and the per-axis bounds on u and v in each segment's direction
-        (times ``speed_factor``), so that the first half-planes are reachable.
+        (times ``speed_factor``), so that the first half-planes are reachable;
+        under ``speed_limit = "norm"`` the speed cap is v_max·cos(π/K), the
+        inscribed radius of the QP's speed polygon.
         """
         rho = self.fast.speed_factor * factor
         dyn = self.dynamics
@@ -530,7 +533,11 @@ class FastSystem2:
         d, seg = d[good], seg[good]
         cum = np.concatenate([[0.0], np.cumsum(seg)])
         axis_factor = seg / np.maximum(np.max(np.abs(d), axis=1), 1e-9)  # 1..√2
-        v_cap = rho * dyn.v_max_mps * axis_factor
+        if dyn.speed_limit == "norm":
+            v_cap = np.full(len(seg), rho * dyn.v_max_mps
+                            * math.cos(math.pi / self.params.speed_polygon_sides))
+        else:
+            v_cap = rho * dyn.v_max_mps * axis_factor
         a_cap = rho * dyn.u_max_n / dyn.mass_kg * axis_factor
         keep = 1.0 - dyn.zeta
         dt = dyn.dt_s
@@ -634,6 +641,8 @@ def _braking(x0: Array, horizon: int, dyn: DynamicsParams) -> Array:
 
 def _reach_radius(x0: Array, horizon: int, dyn: DynamicsParams) -> float:
     """Upper bound on ‖p_{t+τ|t} − p_t‖ for τ ≤ T, plus the slack of a face-wise margin (m)."""
+    if dyn.speed_limit == "norm":
+        return dyn.dt_s * (float(np.linalg.norm(x0[2:])) + (horizon - 1) * dyn.v_max_mps)
     return dyn.dt_s * (float(np.linalg.norm(x0[2:])) + (horizon - 1) * dyn.v_max_mps * math.sqrt(2))
 
 

@@ -14,7 +14,10 @@ virtual (it defines v_{t+T|t}). Eq. (1) then gives, exactly and linearly,
 * u_τ = m / ΔT · (v_τ − (1 − ζ) v_{τ−1}),
 
 so the dynamics need no equality constraints and every constraint row
-(U, X, area, half-planes) touches at most three consecutive positions.
+(U, X, area, half-planes) touches at most three consecutive positions. Under
+``DynamicsParams.speed_limit = "norm"`` X is the regular K-gon inside the disc,
+n_k·v_τ ≤ v_max·cos(π/K) (:func:`dualpilot.model.dynamics.speed_polygon`), rows
+that touch the four coordinates of p_τ and p_{τ+1}.
 """
 
 from __future__ import annotations
@@ -27,7 +30,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from dualpilot.arrays import AnyArray
-from dualpilot.model.dynamics import DynamicsParams, reach_boxes
+from dualpilot.model.dynamics import DynamicsParams, reach_boxes, speed_polygon
 from dualpilot.system2.fast.ipm import BandedQp, Rows, band_pairs
 
 
@@ -60,11 +63,14 @@ class P2Qp:
         tolerance never shows as a violation of the true bounds.
     scale : float
         Positions are solved in units of ``scale`` metres (numerics only).
+    speed_sides : int
+        K of the speed polygon under ``speed_limit = "norm"`` (unused per axis).
     """
 
     def __init__(self, horizon: int, dynamics: DynamicsParams, area_size_m: float | None,
                  *, v_margin: float = 1e-4, u_margin: float = 1e-5, area_margin: float = 1e-3,
-                 scale: float = 100.0, tol: float = 1e-8, backend: str = "ipm") -> None:
+                 scale: float = 100.0, tol: float = 1e-8, backend: str = "ipm",
+                 speed_sides: int = 16) -> None:
         if backend not in ("ipm", "clarabel"):
             raise ValueError(f"backend must be 'ipm' or 'clarabel', got {backend!r}")
         if dynamics.dim != 2:
@@ -99,7 +105,15 @@ class P2Qp:
         self._selT = sel.T.tocsr()
         self._H_pos = (sel.T @ sel).tocsc()
         self._H_du = (self._dU.T @ self._dU).tocsc()
-        self._box = sp.vstack([self._U, -self._U, self._V, -self._V]).tocsr()
+        self._norm = dynamics.speed_limit == "norm"
+        if self._norm:  # n_k·v_τ ≤ v_max cos(π/K): one row per (τ, k), τ-major
+            normals, cos_k = speed_polygon(speed_sides)
+            self._vpoly = (dynamics.v_max_mps * cos_k - v_margin)
+            self._N = sp.kron(sp.identity(T, format="csr"), sp.csr_matrix(normals)).tocsr()
+            self._P = (self._N @ self._V).tocsr()
+            self._box = sp.vstack([self._U, -self._U, self._P]).tocsr()
+        else:
+            self._box = sp.vstack([self._U, -self._U, self._V, -self._V]).tocsr()
         self._H_cache: dict[tuple[float, float], sp.csc_matrix] = {}
         self._settings = clarabel.DefaultSettings()
         self._settings.verbose = False
@@ -111,11 +125,14 @@ class P2Qp:
         self._settings.equilibrate_enable = False
         self.backend = backend
         # padded rows of the banded interior-point solver: U, V (two-sided) and the area
-        self._fixed_rows = [self._padded(self._U), self._padded(self._V)]
+        # (the speed polygon's rows have four entries: then every fixed row has four)
+        width = 4 if self._norm else 3
+        self._fixed_rows = [self._padded(self._U, width),
+                            self._padded(self._P if self._norm else self._V, width)]
         if area_size_m is not None:
             j = np.arange(2 * (T - 1))
-            cols = np.column_stack([j, j, j])
-            vals = np.column_stack([np.full(len(j), s), np.zeros(len(j)), np.zeros(len(j))])
+            cols = np.column_stack([j] * width)
+            vals = np.column_stack([np.full(len(j), s)] + [np.zeros(len(j))] * (width - 1))
             self._fixed_rows.append((cols, vals))
         self._fixed_norm = [np.linalg.norm(v, axis=1) for _, v in self._fixed_rows]
         self._fixed = Rows(np.vstack([c for c, _ in self._fixed_rows]),
@@ -217,8 +234,12 @@ class P2Qp:
         T = self.T
         vc, uc, _, _ = self.offsets(x0, u_prev)
         nu, nv = self._fixed_norm[0], self._fixed_norm[1]
-        lo = [(-self._umax - uc) / nu, (-self._vmax - vc) / nv]
-        hi = [(self._umax - uc) / nu, (self._vmax - vc) / nv]
+        if self._norm:  # one-sided: n_k·v_τ ≤ v_max cos(π/K)
+            lo = [(-self._umax - uc) / nu, np.full(len(nv), -np.inf)]
+            hi = [(self._umax - uc) / nu, (self._vpoly - self._N @ vc) / nv]
+        else:
+            lo = [(-self._umax - uc) / nu, (-self._vmax - vc) / nv]
+            hi = [(self._umax - uc) / nu, (self._vmax - vc) / nv]
         if self.area is not None:
             # a side of the area that p_τ cannot reach (per-axis reach at the limits) is
             # left out: its bound is infinite, so it adds no inequality
@@ -324,7 +345,9 @@ class P2Qp:
             q = np.concatenate([q, np.full(n_sl, float(elastic or 0.0))])
             box = sp.hstack([box, sp.csr_matrix((box.shape[0], n_sl))], format="csr")
         blocks: list[sp.spmatrix] = [box]
-        bs = [self._umax - uc, self._umax + uc, self._vmax - vc, self._vmax + vc]
+        bs = [self._umax - uc, self._umax + uc]
+        bs += ([self._vpoly - self._N @ vc] if self._norm
+               else [self._vmax - vc, self._vmax + vc])
         if m:
             tau = np.asarray(tau, dtype=int)
             if np.any(tau < 2) or np.any(tau > T):
