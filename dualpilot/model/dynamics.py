@@ -79,11 +79,17 @@ def clip_velocity(v: Array, params: DynamicsParams) -> Array:
 
 
 def speed_polygon(sides: int) -> tuple[Array, float]:
-    """Normals n_k = (cos 2πk/K, sin 2πk/K), k < K, and cos(π/K): the regular K-gon
-    n_k·v ≤ v_max·cos(π/K) lies inside the disc ‖v‖ ≤ v_max (its vertices on the circle)."""
+    """Normals n_k = (cos θ_k, sin θ_k), θ_k = (2k+1)π/K, k < K, and cos(π/K).
+
+    The regular K-gon n_k·v ≤ v_max·cos(π/K) lies inside the disc ‖v‖ ≤ v_max,
+    its vertices on the circle at angles 2πk/K: for K a multiple of 8 the axes
+    and the diagonals point at vertices, so a plan along them has one best
+    speed, v_max (along a face the speed across it would be set only by the
+    second-order terms of Eq. (S2)).
+    """
     if sides < 3:
         raise ValueError(f"a speed polygon needs at least 3 sides, got {sides}")
-    ang = 2.0 * math.pi * np.arange(sides) / sides
+    ang = math.pi * (2.0 * np.arange(sides) + 1.0) / sides
     return np.column_stack([np.cos(ang), np.sin(ang)]), math.cos(math.pi / sides)
 
 
