@@ -34,11 +34,52 @@ SOLVED, MAX_ITER, DIVERGED, STALLED, FACTORIZATION = 0, 1, 2, 3, 4
 @njit(cache=True)
 def _gmul(ptr: AnyArray, idx: AnyArray, dat: AnyArray, x: AnyArray, out: AnyArray) -> None:
     """out = G x (G in CSR arrays; scipy's csr_matvec order)."""
+    k = ptr[1] - ptr[0] if len(ptr) > 1 else 0
+    if k == 3 and ptr[-1] == 3 * len(out):  # padded rows of width 3: unrolled
+        for i in range(len(out)):
+            b = 3 * i
+            acc = 0.0
+            acc += dat[b] * x[idx[b]]
+            acc += dat[b + 1] * x[idx[b + 1]]
+            acc += dat[b + 2] * x[idx[b + 2]]
+            out[i] = acc
+        return
     for i in range(len(out)):
         acc = 0.0
         for jj in range(ptr[i], ptr[i + 1]):
             acc += dat[jj] * x[idx[jj]]
         out[i] = acc
+
+
+@njit(cache=True)
+def _transpose(ptr: AnyArray, idx: AnyArray, dat: AnyArray,
+               n_out: int) -> tuple[AnyArray, AnyArray, AnyArray]:
+    """CSR arrays (ptr, source row, value) of Aᵀ for A in CSR arrays, each output's
+    entries in the order a scatter over A's rows would add them."""
+    tptr = np.zeros(n_out + 1, np.int64)
+    for e in range(len(idx)):
+        tptr[idx[e] + 1] += 1
+    for c in range(n_out):
+        tptr[c + 1] += tptr[c]
+    fill = tptr[:-1].copy()
+    trow, tdat = np.empty(len(idx), np.int64), np.empty(len(idx))
+    for r in range(len(ptr) - 1):
+        for e in range(ptr[r], ptr[r + 1]):
+            c = idx[e]
+            trow[fill[c]], tdat[fill[c]] = r, dat[e]
+            fill[c] += 1
+    return tptr, trow, tdat
+
+
+@njit(cache=True)
+def _tmul(tptr: AnyArray, trow: AnyArray, tdat: AnyArray, v: AnyArray, out: AnyArray) -> None:
+    """out = Aᵀ v from :func:`_transpose`'s arrays: the sums of scipy's csc_matvec of A's
+    CSR arrays, term for term in the same order, gathered instead of scattered."""
+    for c in range(len(out)):
+        acc = 0.0
+        for e in range(tptr[c], tptr[c + 1]):
+            acc += tdat[e] * v[trow[e]]
+        out[c] = acc
 
 
 @njit(cache=True)
@@ -117,6 +158,7 @@ def mehrotra(h_dense: AnyArray, h_band: AnyArray, q: AnyArray, h: AnyArray, g_pt
     n_p, kd_p, nrhs_p, ldab_p = ints[0:].ctypes, ints[1:].ctypes, ints[2:].ctypes, ints[3:].ctypes
     ldb_p, info_p = ints[4:].ctypes, ints[5:].ctypes
 
+    t_ptr, t_row, t_dat = _transpose(g_ptr, g_idx, g_dat, n)  # Gᵀ, gathered
     z = z0.copy()
     gz = np.empty(m)
     _gmul(g_ptr, g_idx, g_dat, z, gz)
@@ -135,7 +177,7 @@ def mehrotra(h_dense: AnyArray, h_band: AnyArray, q: AnyArray, h: AnyArray, g_pt
     it = 0
     for it in range(1, max_iter + 1):
         hz = h_dense @ z
-        _ctmul(g_ptr, g_idx, g_dat, lam, gtl)
+        _tmul(t_ptr, t_row, t_dat, lam, gtl)
         for i in range(n):
             r_d[i] = hz[i] + q[i] + gtl[i]
         _gmul(g_ptr, g_idx, g_dat, z, gz)
@@ -168,7 +210,7 @@ def mehrotra(h_dense: AnyArray, h_band: AnyArray, q: AnyArray, h: AnyArray, g_pt
         for i in range(m):
             rcs[i] = (s[i] * lam[i]) / s[i]
             tmp_m[i] = rcs[i] - w[i] * r_p[i]
-        _ctmul(g_ptr, g_idx, g_dat, tmp_m, gtl)
+        _tmul(t_ptr, t_row, t_dat, tmp_m, gtl)
         for i in range(n):
             rhs[i] = -r_d[i] + gtl[i]
         _dpbtrs(uplo.ctypes, n_p, kd_p, nrhs_p, band.ctypes, ldab_p, rhs.ctypes, ldb_p, info_p)
@@ -185,7 +227,7 @@ def mehrotra(h_dense: AnyArray, h_band: AnyArray, q: AnyArray, h: AnyArray, g_pt
         for i in range(m):
             rcs[i] = (s[i] * lam[i] + ds_a[i] * dl_a[i] - sigma * mu) / s[i]
             tmp_m[i] = rcs[i] - w[i] * r_p[i]
-        _ctmul(g_ptr, g_idx, g_dat, tmp_m, gtl)
+        _tmul(t_ptr, t_row, t_dat, tmp_m, gtl)
         for i in range(n):
             rhs[i] = -r_d[i] + gtl[i]
         _dpbtrs(uplo.ctypes, n_p, kd_p, nrhs_p, band.ctypes, ldab_p, rhs.ctypes, ldb_p, info_p)
