@@ -24,6 +24,7 @@ $(STAMP): pyproject.toml
 	test -x $(BIN)/python || $(PY) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
 	$(BIN)/python -m pip install --quiet -e '.[dev]'
+	$(BIN)/python -m dualpilot.warmup  # compiles the Numba kernels into their disk cache
 	touch $(STAMP)
 
 # the distributed stack: a Zenoh router and the five services as processes on loopback

@@ -81,6 +81,9 @@ def build_planner(system: int, spec: MissionSpec, method: str | None = None,
     """
     if system not in METHODS:
         raise ValueError(f"unknown system {system!r}; choose 1 or 2")
+    from dualpilot.warmup import warm_up
+
+    warm_up()  # the compiled kernels, once a process, before any plan is timed
     method = METHODS[system][0] if method is None else method
     if method not in METHODS[system]:
         raise ValueError(f"unknown System {system} method {method!r}; "

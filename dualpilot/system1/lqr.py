@@ -326,27 +326,44 @@ def _track_du(
     return states, controls
 
 
-def _norm_step(u: Array, v_free: Array, dynamics: DynamicsParams) -> Array:
-    """u clipped to U, then scaled so ‖v_free + u ΔT/m‖ ≤ v_max (``speed_limit = "norm"``).
+@njit(cache=True)
+def _dot(a: Array, b: Array) -> float:
+    acc = 0.0
+    for i in range(len(a)):
+        acc += a[i] * b[i]
+    return acc
+
+
+@njit(cache=True)
+def _clip(x: float, lo: float, hi: float) -> float:
+    return min(max(x, lo), hi)
+
+
+@njit(cache=True)
+def _norm_step(u: Array, v_free: Array, u_max: float, v_max: float, dt_m: float) -> None:
+    """u (in place) clipped to U, then scaled so ‖v_free + u ΔT/m‖ ≤ v_max (``norm``).
 
     With ‖v_free‖ ≤ v_max the scale is the largest α ∈ [0, 1] that keeps the
     next velocity on the disc (α·u stays in U); otherwise the control that
     brings the velocity closest to the disc's edge, clipped to U.
     """
-    u_max, v_max = dynamics.u_max_n, dynamics.v_max_mps
-    dt_m = dynamics.dt_s / dynamics.mass_kg
-    u = np.clip(u, -u_max, u_max)
+    n = len(u)
+    for i in range(n):
+        u[i] = _clip(u[i], -u_max, u_max)
     v_next = v_free + dt_m * u
-    if float(v_next @ v_next) <= v_max * v_max:
-        return np.asarray(u)
-    c = float(v_free @ v_free) - v_max * v_max
+    if _dot(v_next, v_next) <= v_max * v_max:
+        return
+    c = _dot(v_free, v_free) - v_max * v_max
     if c > 0.0:  # already above the limit after the drag: brake towards the disc
-        target = v_free * (v_max / math.sqrt(float(v_free @ v_free)))
-        return np.asarray(np.clip((target - v_free) / dt_m, -u_max, u_max))
-    a = dt_m * dt_m * float(u @ u)
-    b = 2.0 * dt_m * float(v_free @ u)
-    alpha = (-b + math.sqrt(max(b * b - 4.0 * a * c, 0.0))) / (2.0 * a)
-    return np.asarray(min(max(alpha, 0.0), 1.0) * u)
+        scale = v_max / math.sqrt(_dot(v_free, v_free))
+        for i in range(n):
+            u[i] = _clip((v_free[i] * scale - v_free[i]) / dt_m, -u_max, u_max)
+        return
+    a = dt_m * dt_m * _dot(u, u)
+    b = 2.0 * dt_m * _dot(v_free, u)
+    alpha = _clip((-b + math.sqrt(max(b * b - 4.0 * a * c, 0.0))) / (2.0 * a), 0.0, 1.0)
+    for i in range(n):
+        u[i] = alpha * u[i]
 
 
 def _track_norm(
@@ -374,22 +391,34 @@ def _track_norm(
     u_prev = np.zeros(n) if prev_control is None else np.asarray(prev_control, dtype=float)
     if u_prev.shape != (n,) or not np.all(np.isfinite(u_prev)):
         raise ValueError(f"prev_control must be finite with shape ({n},), got {u_prev}")
-    horizon = len(ref) - 1
     dt, decay = dynamics.dt_s, 1.0 - dynamics.zeta
     m_dt = dynamics.mass_kg / dt
-    dt_m = dt / dynamics.mass_kg
     ff = 1.0 if feedforward else 0.0
-    rp, rv = ref[:, :n], ref[:, n:]
+    w = u_prev - ff * m_dt * (ref[1, n:] - decay * ref[0, n:]) if du else np.zeros(n)
+    return _norm_loop(x, ref, kp, kv, ku, ff, w, dt, decay, dynamics.u_max_n,
+                      dynamics.v_max_mps, dynamics.mass_kg)
+
+
+@njit(cache=True)
+def _norm_loop(x: Array, ref: Array, kp: float, kv: float, ku: float, ff: float, w: Array,
+               dt: float, decay: float, u_max: float, v_max: float,
+               mass: float) -> tuple[Array, Array]:
+    """The loop of :func:`_track_norm` (compiled)."""
+    n = len(x) // 2
+    horizon = ref.shape[0] - 1
+    m_dt, dt_m = mass / dt, dt / mass
     p, v = x[:n].copy(), x[n:].copy()
-    w = u_prev - ff * m_dt * (rv[1] - decay * rv[0]) if du else np.zeros(n)
     states = np.empty((horizon + 1, 2 * n))
     controls = np.empty((horizon, n))
     states[0] = x
+    u = np.empty(n)
     for t in range(horizon):
-        u_ff = ff * m_dt * (rv[t + 1] - decay * rv[t])
-        u = u_ff + (1.0 - ku) * w - kp * (p - rp[t]) - kv * (v - rv[t])
+        u_ff = ff * m_dt * (ref[t + 1, n:] - decay * ref[t, n:])
+        for i in range(n):
+            u[i] = (u_ff[i] + (1.0 - ku) * w[i] - kp * (p[i] - ref[t, i])
+                    - kv * (v[i] - ref[t, n + i]))
         v_free = decay * v
-        u = _norm_step(u, v_free, dynamics)
+        _norm_step(u, v_free, u_max, v_max, dt_m)
         w = u - u_ff
         p, v = p + dt * v, v_free + dt_m * u
         states[t + 1, :n], states[t + 1, n:] = p, v
