@@ -31,6 +31,9 @@ COPY dualpilot ./dualpilot
 COPY services ./services
 # runs as root so the supervisor can write to the ./runs bind mount of any host user
 RUN pip install --no-deps . && mkdir -p /app/runs
+# the Numba kernels compiled once into the image (each service would otherwise compile them)
+ENV NUMBA_CACHE_DIR=/app/.numba
+RUN python -m dualpilot.warmup
 
 # MAVLink: offboard link (supervisor → uavsim) and ground station
 EXPOSE 14540/udp 14550/udp
