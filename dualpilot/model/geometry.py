@@ -14,7 +14,7 @@ import numpy as np
 from numba import njit
 from numpy.typing import ArrayLike
 
-from dualpilot.arrays import Array
+from dualpilot.arrays import AnyArray, Array
 
 
 @dataclass(frozen=True)
@@ -423,24 +423,62 @@ class _HullEdges:
         self.starts = np.cumsum([0] + [h.n_faces for h in hulls[:-1]])
 
     def distances(self, p0: Array, p1: Array) -> Array:
-        x0, y0 = p0[:, :1], p0[:, 1:2]  # (n, 1)
-        x1, y1 = p1[:, :1], p1[:, 1:2]
-        ax, ay, dx, dy = self.ax, self.ay, self.dx, self.dy  # (m,)
-        d2 = np.minimum(point_segment_d2(x0, y0, ax, ay, dx, dy, self.inv_len2),
-                        point_segment_d2(x1, y1, ax, ay, dx, dy, self.inv_len2))
+        return _hull_distances(np.ascontiguousarray(p0, dtype=float),
+                               np.ascontiguousarray(p1, dtype=float), self.ax, self.ay,
+                               self.dx, self.dy, self.inv_len2, self.nx, self.ny,
+                               self.offsets, np.asarray(self.starts, dtype=np.int64))
+
+
+@njit(cache=True)
+def _pseg_d2(px: float, py: float, ax: float, ay: float, dx: float, dy: float,
+             inv_len2: float) -> float:
+    """:func:`point_segment_d2` for one point and one segment (the same operations)."""
+    t = min(max(((px - ax) * dx + (py - ay) * dy) * inv_len2, 0.0), 1.0)
+    ex = px - ax - t * dx
+    ey = py - ay - t * dy
+    return ex * ex + ey * ey
+
+
+@njit(cache=True)
+def _hull_distances(p0: Array, p1: Array, ax: Array, ay: Array, dx: Array, dy: Array,
+                    inv_len2: Array, nx: Array, ny: Array, offsets: Array,
+                    starts: AnyArray) -> Array:
+    """Distance from each segment p0[i]–p1[i] to the nearest of the hulls (0 on contact).
+
+    The nearest of the endpoint-to-edge and vertex-to-segment distances, 0 when
+    the segment properly crosses an edge or starts inside a hull (every face's
+    slack ≤ 0); the hulls' faces are the runs of ``starts``.
+    """
+    n, m, h = len(p0), len(ax), len(starts)
+    out = np.empty(n)
+    for i in range(n):
+        x0, y0, x1, y1 = p0[i, 0], p0[i, 1], p1[i, 0], p1[i, 1]
         sx, sy = x1 - x0, y1 - y0
         slen2 = sx * sx + sy * sy
-        inv = 1.0 / np.where(slen2 > 0, slen2, 1.0)
-        d2 = np.minimum(d2, point_segment_d2(ax, ay, x0, y0, sx, sy, inv))
-        d = np.sqrt(d2.min(axis=1))
-        # proper crossings of the segment with a hull edge (orientation tests)
-        o1 = sx * (ay - y0) - sy * (ax - x0)
-        o2 = sx * (ay + dy - y0) - sy * (ax + dx - x0)
-        o3 = dx * (y0 - ay) - dy * (x0 - ax)
-        o4 = dx * (y1 - ay) - dy * (x1 - ax)
-        crossing = ((o1 * o2) < 0) & ((o3 * o4) < 0)
-        # a segment wholly inside a hull crosses nothing: test one endpoint
-        slack = x0 * self.nx + y0 * self.ny - self.offsets  # (n, faces)
-        inside = np.maximum.reduceat(slack, self.starts, axis=1) <= 0.0
-        hit = crossing.any(axis=1) | inside.any(axis=1)
-        return np.where(hit, 0.0, d)
+        inv = 1.0 / (slen2 if slen2 > 0 else 1.0)
+        best = np.inf
+        hit = False
+        for j in range(m):
+            d2 = min(_pseg_d2(x0, y0, ax[j], ay[j], dx[j], dy[j], inv_len2[j]),
+                     _pseg_d2(x1, y1, ax[j], ay[j], dx[j], dy[j], inv_len2[j]))
+            d2 = min(d2, _pseg_d2(ax[j], ay[j], x0, y0, sx, sy, inv))
+            if d2 < best:
+                best = d2
+            # a proper crossing of the segment with edge j (orientation tests)
+            o1 = sx * (ay[j] - y0) - sy * (ax[j] - x0)
+            o2 = sx * (ay[j] + dy[j] - y0) - sy * (ax[j] + dx[j] - x0)
+            o3 = dx[j] * (y0 - ay[j]) - dy[j] * (x0 - ax[j])
+            o4 = dx[j] * (y1 - ay[j]) - dy[j] * (x1 - ax[j])
+            if (o1 * o2) < 0 and (o3 * o4) < 0:
+                hit = True
+        for k in range(h):  # the first endpoint inside hull k: every slack ≤ 0
+            stop = starts[k + 1] if k + 1 < h else m
+            worst = -np.inf
+            for j in range(starts[k], stop):
+                slack = x0 * nx[j] + y0 * ny[j] - offsets[j]
+                if slack > worst:
+                    worst = slack
+            if worst <= 0.0:
+                hit = True
+        out[i] = 0.0 if hit else np.sqrt(best)
+    return out
