@@ -67,5 +67,8 @@ def sample_attention(xi_t: Array, rng: np.random.Generator) -> tuple[Array, int]
     if xi_t.shape != (3,) or not np.all(np.isfinite(xi_t)) or np.any(xi_t <= 0):
         raise ValueError(f"Ξ must be three positive finite numbers, got {xi_t}")
     p = rng.dirichlet(xi_t)
-    a = int(rng.choice(3, p=p))
+    # Generator.choice(3, p=p) without its checks: one uniform draw against the cdf
+    cdf = np.cumsum(p)
+    cdf /= cdf[-1]
+    a = int(np.searchsorted(cdf, rng.random(), side="right"))
     return p, a

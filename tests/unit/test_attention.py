@@ -102,3 +102,16 @@ def test_bad_attention_input(t, d):
 def test_bad_xi_for_sampling():
     with pytest.raises(ValueError, match="positive"):
         sample_attention(np.array([1.0, 0.0, 1.0]), np.random.default_rng(0))
+
+
+def test_the_categorical_draw_is_generator_choice_on_the_same_stream() -> None:
+    # A_t ~ Categorical(P_t) consumes the stream exactly as Generator.choice(3, p=P_t)
+    for seed in range(500):
+        ours, ref = np.random.default_rng(seed), np.random.default_rng(seed)
+        xi_t = ours.uniform(0.05, 10.0, 3)
+        ref.uniform(0.05, 10.0, 3)
+        p, a = sample_attention(xi_t, ours)
+        p_ref = ref.dirichlet(xi_t)
+        assert np.array_equal(p, p_ref)
+        assert a == int(ref.choice(3, p=p_ref))
+        assert ours.random() == ref.random()  # and leaves it at the same place
