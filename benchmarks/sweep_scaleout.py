@@ -15,9 +15,10 @@ import tempfile
 import time
 from pathlib import Path
 
-from distributed import LocalCluster
+from distributed import Client, LocalCluster
 
 from dualpilot.sweep import grid_points, sweep
+from dualpilot.warmup import warm_up
 
 
 def main() -> int:
@@ -33,6 +34,8 @@ def main() -> int:
         with tempfile.TemporaryDirectory() as tmp, LocalCluster(
                 n_workers=n, threads_per_worker=1, processes=True, dashboard_address=":0",
                 silence_logs=logging.ERROR) as cluster:
+            with Client(cluster) as client:  # every worker compiled/loaded before the clock
+                client.run(warm_up)
             t0 = time.perf_counter()
             sweep(points, args.missions, Path(tmp), seed=args.seed, progress=False,
                   scheduler=cluster.scheduler_address, figures=False)
