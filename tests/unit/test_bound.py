@@ -64,8 +64,8 @@ class _FixedAttention:
     def dirichlet(self, alpha):
         return np.eye(3)[self.a]
 
-    def choice(self, n, p):
-        return self.a
+    def random(self):  # the uniform of the categorical draw: P_t = e_a picks a for any u < 1
+        return 0.5
 
 
 def test_real_supervisor_breaks_that_tie_to_system_1():
