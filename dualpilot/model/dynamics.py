@@ -68,6 +68,12 @@ class DynamicsParams:
         return np.asarray(np.max(np.abs(v), axis=-1))
 
 
+def reach_radius(v0: Array, horizon: int, params: DynamicsParams) -> float:
+    """Upper bound on ‖p_{t+τ|t} − p_t‖ for τ ≤ T from velocity v0 (m): ΔT·(‖v0‖ + (T−1)·the
+    largest speed the limit allows)."""
+    return params.dt_s * (float(np.linalg.norm(v0)) + (horizon - 1) * params.max_speed_mps)
+
+
 def clip_velocity(v: Array, params: DynamicsParams) -> Array:
     """``v`` (m/s) clipped to the speed limit: per axis, or scaled onto the disc ‖v‖ = v_max."""
     if params.speed_limit == "norm":

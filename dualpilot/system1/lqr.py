@@ -211,22 +211,39 @@ def track(
     n = dynamics.dim
     if ref.ndim != 2 or ref.shape[1] != 2 * n or len(ref) < 2:
         raise ValueError(f"reference must have shape (T+1 >= 2, {2 * n}), got {ref.shape}")
-    k = np.asarray(gain, dtype=float)
+    kp, kv, ku, u_prev = _gain_terms(np.asarray(gain, dtype=float), n, prev_control)
     if dynamics.speed_limit == "norm":
-        return _track_norm(x, ref, k, dynamics, feedforward, prev_control)
-    if k.shape == (n, 3 * n):
-        return _track_du(x, ref, k, dynamics, feedforward, prev_control)
-    if prev_control is not None:
-        raise ValueError("prev_control needs the Δu gain of lqr_du_gain (shape (dim, 3·dim))")
-    kp, kv = float(k[0, 0]), float(k[0, n])
-    if k.shape != (n, 2 * n) or not np.allclose(k, np.hstack([kp * np.eye(n), kv * np.eye(n)])):
-        raise ValueError(f"gain must be [k_p·I, k_v·I] of shape ({n}, {2 * n}), got {k}")
+        return _track_norm(x, ref, kp, kv, ku, u_prev, dynamics, feedforward)
+    if ku is not None:
+        return _track_du(x, ref, kp, kv, ku, u_prev, dynamics, feedforward)
     dt, decay = dynamics.dt_s, 1.0 - dynamics.zeta
     m_dt = dynamics.mass_kg / dt
     dt_m = dt / dynamics.mass_kg
     u_max, v_max = dynamics.u_max_n, dynamics.v_max_mps
     return _track_axes(x, ref, kp, kv, 1.0 if feedforward else 0.0, dt, decay, m_dt, dt_m,
                        u_max, v_max)
+
+
+def _gain_terms(k: Array, n: int, prev_control: Array | None
+                ) -> tuple[float, float, float | None, Array]:
+    """(k_p, k_v, k_u, u₋₁) of a gain of :func:`lqr_gain` (k_u None, u₋₁ = 0) or of
+    :func:`lqr_du_gain` (u₋₁ = ``prev_control``, None: 0); ValueError for any other."""
+    kp, kv = float(k[0, 0]), float(k[0, n])
+    eye = np.eye(n)
+    if k.shape == (n, 3 * n):
+        ku = float(k[0, 2 * n])
+        if not np.allclose(k, np.hstack([kp * eye, kv * eye, ku * eye])):
+            raise ValueError(f"gain must be [k_p·I, k_v·I, k_u·I] of shape ({n}, {3 * n}), "
+                             f"got {k}")
+        u_prev = np.zeros(n) if prev_control is None else np.asarray(prev_control, dtype=float)
+        if u_prev.shape != (n,) or not np.all(np.isfinite(u_prev)):
+            raise ValueError(f"prev_control must be finite with shape ({n},), got {u_prev}")
+        return kp, kv, ku, u_prev
+    if prev_control is not None:
+        raise ValueError("prev_control needs the Δu gain of lqr_du_gain (shape (dim, 3·dim))")
+    if k.shape != (n, 2 * n) or not np.allclose(k, np.hstack([kp * eye, kv * eye])):
+        raise ValueError(f"gain must be [k_p·I, k_v·I] of shape ({n}, {2 * n}), got {k}")
+    return kp, kv, None, np.zeros(n)
 
 
 @njit(cache=True)
@@ -266,8 +283,8 @@ def _track_axes(x: Array, ref: Array, kp: float, kv: float, ff: float, dt: float
 
 
 def _track_du(
-    x: Array, ref: Array, k: Array, dynamics: DynamicsParams, feedforward: bool,
-    prev_control: Array | None,
+    x: Array, ref: Array, kp: float, kv: float, ku: float, u_prev_all: Array,
+    dynamics: DynamicsParams, feedforward: bool,
 ) -> tuple[Array, Array]:
     """The Δu tracker: u_k = u_ff,k + w_k, w_k = w_{k−1} − k_p e_p − k_v e_v − k_u w_{k−1}.
 
@@ -290,13 +307,6 @@ def _track_du(
     u_0 = clip(u_ff,0 − k_v e_v,0) ignores u₋₁, so its jump can reach 2√2·u_max.
     """
     n = dynamics.dim
-    kp, kv, ku = float(k[0, 0]), float(k[0, n]), float(k[0, 2 * n])
-    eye = np.eye(n)
-    if not np.allclose(k, np.hstack([kp * eye, kv * eye, ku * eye])):
-        raise ValueError(f"gain must be [k_p·I, k_v·I, k_u·I] of shape ({n}, {3 * n}), got {k}")
-    u_prev_all = np.zeros(n) if prev_control is None else np.asarray(prev_control, dtype=float)
-    if u_prev_all.shape != (n,) or not np.all(np.isfinite(u_prev_all)):
-        raise ValueError(f"prev_control must be finite with shape ({n},), got {u_prev_all}")
     horizon = len(ref) - 1
     dt, decay = dynamics.dt_s, 1.0 - dynamics.zeta
     m_dt = dynamics.mass_kg / dt
@@ -367,34 +377,19 @@ def _norm_step(u: Array, v_free: Array, u_max: float, v_max: float, dt_m: float)
 
 
 def _track_norm(
-    x: Array, ref: Array, k: Array, dynamics: DynamicsParams, feedforward: bool,
-    prev_control: Array | None,
+    x: Array, ref: Array, kp: float, kv: float, ku: float | None, u_prev: Array,
+    dynamics: DynamicsParams, feedforward: bool,
 ) -> tuple[Array, Array]:
-    """:func:`track` and :func:`_track_du` under ‖v‖ ≤ v_max: the axes couple, so the loop
-    runs over time with vectors; each control goes through :func:`_norm_step`."""
+    """:func:`track` and :func:`_track_du` (``ku`` given) under ‖v‖ ≤ v_max: the axes
+    couple, so the loop runs over time with vectors; each control goes through
+    :func:`_norm_step`."""
     n = dynamics.dim
-    kp, kv = float(k[0, 0]), float(k[0, n])
-    du = k.shape == (n, 3 * n)
-    if du:
-        ku = float(k[0, 2 * n])
-        if not np.allclose(k, np.hstack([kp * np.eye(n), kv * np.eye(n), ku * np.eye(n)])):
-            raise ValueError(f"gain must be [k_p·I, k_v·I, k_u·I] of shape ({n}, {3 * n}), "
-                             f"got {k}")
-    else:
-        if prev_control is not None:
-            raise ValueError("prev_control needs the Δu gain of lqr_du_gain "
-                             "(shape (dim, 3·dim))")
-        if k.shape != (n, 2 * n) or not np.allclose(k, np.hstack([kp * np.eye(n),
-                                                                   kv * np.eye(n)])):
-            raise ValueError(f"gain must be [k_p·I, k_v·I] of shape ({n}, {2 * n}), got {k}")
-        ku = 1.0  # no memory of the previous feedback
-    u_prev = np.zeros(n) if prev_control is None else np.asarray(prev_control, dtype=float)
-    if u_prev.shape != (n,) or not np.all(np.isfinite(u_prev)):
-        raise ValueError(f"prev_control must be finite with shape ({n},), got {u_prev}")
     dt, decay = dynamics.dt_s, 1.0 - dynamics.zeta
-    m_dt = dynamics.mass_kg / dt
     ff = 1.0 if feedforward else 0.0
-    w = u_prev - ff * m_dt * (ref[1, n:] - decay * ref[0, n:]) if du else np.zeros(n)
+    if ku is None:  # the plain tracker: no memory of the previous feedback
+        ku, w = 1.0, np.zeros(n)
+    else:  # w₋₁ = u₋₁ − u_ff,0
+        w = u_prev - ff * (dynamics.mass_kg / dt) * (ref[1, n:] - decay * ref[0, n:])
     return _norm_loop(x, ref, kp, kv, ku, ff, w, dt, decay, dynamics.u_max_n,
                       dynamics.v_max_mps, dynamics.mass_kg)
 

@@ -28,7 +28,7 @@ import cvxpy as cp
 import numpy as np
 
 from dualpilot.arrays import Array
-from dualpilot.model.dynamics import rollout, speed_polygon, transition_matrices
+from dualpilot.model.dynamics import reach_radius, rollout, speed_polygon, transition_matrices
 from dualpilot.model.geometry import Polytope
 from dualpilot.plan import Objective, Plan, PlanStatus
 from dualpilot.spec import MissionSpec
@@ -258,20 +258,12 @@ class ExactSystem2:
         self._w2_uprev.value = np.zeros(2)
 
     # -------------------------------------------------------------- helpers
-    def _reach_radius(self, v0: Array) -> float:
-        """Upper bound on ‖p_{t+τ|t} − p_t‖ for τ ≤ T (m)."""
-        d = self.dynamics
-        if d.speed_limit == "norm":
-            return d.dt_s * (float(np.linalg.norm(v0)) + (self.params.horizon - 1) * d.v_max_mps)
-        return d.dt_s * (float(np.linalg.norm(v0))
-                         + (self.params.horizon - 1) * d.v_max_mps * math.sqrt(2.0))
-
     def _select_hulls(
         self, state: Array, hulls: Sequence[Polytope]
     ) -> tuple[list[tuple[int, Polytope]], list[int]]:
         """Reachable hulls (index, polygon ≤ max_faces) sorted by distance; simplified indices."""
         eps = self.epsilon_m
-        reach = self._reach_radius(state[2:])
+        reach = reach_radius(state[2:], self.params.horizon, self.dynamics)
         kept: list[tuple[float, int, Polytope]] = []
         simplified: list[int] = []
         for i, hull in enumerate(hulls):
@@ -306,7 +298,7 @@ class ExactSystem2:
         if p.keep_in_area:
             lo, hi = np.zeros(2), np.full(2, self.area_size_m)
         else:
-            r = self._reach_radius(state[2:])
+            r = reach_radius(state[2:], self.params.horizon, self.dynamics)
             lo, hi = state[:2] - r, state[:2] + r
         corners = np.array([[lo[0], lo[1]], [hi[0], lo[1]], [hi[0], hi[1]], [lo[0], hi[1]]])
         for poly in polys:

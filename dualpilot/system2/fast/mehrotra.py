@@ -131,6 +131,30 @@ def _abs_max(x: AnyArray, initial: float) -> float:
 
 
 @njit(cache=True)
+def _direction(rcs: AnyArray, w: AnyArray, r_p: AnyArray, r_d: AnyArray, t_ptr: AnyArray,
+               t_row: AnyArray, t_dat: AnyArray, g_ptr: AnyArray, g_idx: AnyArray,
+               g_dat: AnyArray, uplo: AnyArray, ints: AnyArray, factor: AnyArray,
+               tmp_m: AnyArray, gtl: AnyArray, dz: AnyArray, gd: AnyArray, ds: AnyArray,
+               dl: AnyArray) -> None:
+    """One Newton direction for ``rcs`` = S⁻¹r_c, the band's Cholesky factor given:
+    (H + GᵀWG)Δz = −r_d + Gᵀ(S⁻¹r_c − W r_p); Δs = −r_p − GΔz; Δλ = −S⁻¹r_c − WΔs.
+
+    ``ints`` holds LAPACK's n, kd, nrhs, ldab, ldb, info.
+    """
+    for i in range(len(rcs)):
+        tmp_m[i] = rcs[i] - w[i] * r_p[i]
+    _tmul(t_ptr, t_row, t_dat, tmp_m, gtl)
+    for i in range(len(dz)):
+        dz[i] = -r_d[i] + gtl[i]
+    _dpbtrs(uplo.ctypes, ints[0:].ctypes, ints[1:].ctypes, ints[2:].ctypes, factor.ctypes,
+            ints[3:].ctypes, dz.ctypes, ints[4:].ctypes, ints[5:].ctypes)
+    _gmul(g_ptr, g_idx, g_dat, dz, gd)
+    for i in range(len(rcs)):
+        ds[i] = -r_p[i] - gd[i]
+        dl[i] = -rcs[i] - w[i] * ds[i]
+
+
+@njit(cache=True)
 def mehrotra(h_dense: AnyArray, h_band: AnyArray, q: AnyArray, h: AnyArray, g_ptr: AnyArray,
              g_idx: AnyArray, g_dat: AnyArray, b_ptr: AnyArray, b_idx: AnyArray,
              b_dat: AnyArray, z0: AnyArray, slack0: float, max_iter: int, tol: float,
@@ -155,8 +179,7 @@ def mehrotra(h_dense: AnyArray, h_band: AnyArray, q: AnyArray, h: AnyArray, g_pt
         bf_idx[k] = j * bw1 + d
     uplo = np.array([76], dtype=np.uint8)  # 'L'
     ints = np.array([n, bw1 - 1, 1, bw1, n, 0], dtype=np.int32)  # n kd nrhs ldab ldb info
-    n_p, kd_p, nrhs_p, ldab_p = ints[0:].ctypes, ints[1:].ctypes, ints[2:].ctypes, ints[3:].ctypes
-    ldb_p, info_p = ints[4:].ctypes, ints[5:].ctypes
+    n_p, kd_p, ldab_p, info_p = ints[0:].ctypes, ints[1:].ctypes, ints[3:].ctypes, ints[5:].ctypes
 
     t_ptr, t_row, t_dat = _transpose(g_ptr, g_idx, g_dat, n)  # Gᵀ, gathered
     z = z0.copy()
@@ -206,18 +229,10 @@ def mehrotra(h_dense: AnyArray, h_band: AnyArray, q: AnyArray, h: AnyArray, g_pt
         if ints[5] != 0:
             status = FACTORIZATION
             break
-        # (H + GᵀWG)Δz = −r_d + Gᵀ(S⁻¹r_c − W r_p); Δs = −r_p − GΔz; Δλ = −S⁻¹r_c − WΔs
         for i in range(m):
             rcs[i] = (s[i] * lam[i]) / s[i]
-            tmp_m[i] = rcs[i] - w[i] * r_p[i]
-        _tmul(t_ptr, t_row, t_dat, tmp_m, gtl)
-        for i in range(n):
-            rhs[i] = -r_d[i] + gtl[i]
-        _dpbtrs(uplo.ctypes, n_p, kd_p, nrhs_p, band.ctypes, ldab_p, rhs.ctypes, ldb_p, info_p)
-        _gmul(g_ptr, g_idx, g_dat, rhs, gd)
-        for i in range(m):
-            ds_a[i] = -r_p[i] - gd[i]
-            dl_a[i] = -rcs[i] - w[i] * ds_a[i]
+        _direction(rcs, w, r_p, r_d, t_ptr, t_row, t_dat, g_ptr, g_idx, g_dat, uplo, ints,
+                   band, tmp_m, gtl, rhs, gd, ds_a, dl_a)  # the predictor
         a_aff = _step(s, lam, ds_a, dl_a)
         for i in range(m):
             s_a[i] = s[i] + a_aff * ds_a[i]
@@ -226,15 +241,8 @@ def mehrotra(h_dense: AnyArray, h_band: AnyArray, q: AnyArray, h: AnyArray, g_pt
         sigma = (mu_aff / mu) ** 3.0 if mu > 0 else 0.0
         for i in range(m):
             rcs[i] = (s[i] * lam[i] + ds_a[i] * dl_a[i] - sigma * mu) / s[i]
-            tmp_m[i] = rcs[i] - w[i] * r_p[i]
-        _tmul(t_ptr, t_row, t_dat, tmp_m, gtl)
-        for i in range(n):
-            rhs[i] = -r_d[i] + gtl[i]
-        _dpbtrs(uplo.ctypes, n_p, kd_p, nrhs_p, band.ctypes, ldab_p, rhs.ctypes, ldb_p, info_p)
-        _gmul(g_ptr, g_idx, g_dat, rhs, gd)
-        for i in range(m):
-            ds[i] = -r_p[i] - gd[i]
-            dl[i] = -rcs[i] - w[i] * ds[i]
+        _direction(rcs, w, r_p, r_d, t_ptr, t_row, t_dat, g_ptr, g_idx, g_dat, uplo, ints,
+                   band, tmp_m, gtl, rhs, gd, ds, dl)  # the corrector
         step = 0.99 * _step(s, lam, ds, dl)
         a = step if step < 1.0 else 1.0
         for i in range(n):

@@ -29,7 +29,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from dualpilot.arrays import Array
-from dualpilot.model.dynamics import DynamicsParams, rollout
+from dualpilot.model.dynamics import DynamicsParams, reach_radius, rollout
 from dualpilot.model.geometry import Polytope, SegmentChecker, hull_boxes
 from dualpilot.plan import Objective, Plan, PlanStatus
 from dualpilot.spec import MissionSpec
@@ -364,7 +364,7 @@ class FastSystem2:
         goal = self.goal.center
         T = p.horizon
         eps = self.epsilon_m
-        reach = _reach_radius(x0, p.horizon, self.dynamics)
+        reach = reach_radius(x0[2:], p.horizon, self.dynamics)
         polys = Inflated.make_many(hulls, eps)
         polys = [q for q, m in zip(polys, FaceStack.of(polys).margins(x0[:2])[0], strict=True)
                  if m <= reach]
@@ -637,13 +637,6 @@ def _braking(x0: Array, horizon: int, dyn: DynamicsParams) -> Array:
         p = p + dyn.dt_s * v
         out.append(p.copy())
     return np.array(out)
-
-
-def _reach_radius(x0: Array, horizon: int, dyn: DynamicsParams) -> float:
-    """Upper bound on ‖p_{t+τ|t} − p_t‖ for τ ≤ T, plus the slack of a face-wise margin (m)."""
-    if dyn.speed_limit == "norm":
-        return dyn.dt_s * (float(np.linalg.norm(x0[2:])) + (horizon - 1) * dyn.v_max_mps)
-    return dyn.dt_s * (float(np.linalg.norm(x0[2:])) + (horizon - 1) * dyn.v_max_mps * math.sqrt(2))
 
 
 def _start_checks(x0: Array, hulls: tuple[Polytope, ...], dyn: DynamicsParams,
