@@ -121,6 +121,29 @@ def test_the_ignition_clearance_reaches_the_stack(fleet: Any) -> None:
     assert [r.steps for r in plain] != [results[run].steps for run in runs]
 
 
+def fly_cc_on_stack(fleet: Any, seeds: tuple[int, ...], env: dict[str, str], tag: str
+                    ) -> list[tuple[int, Path, MissionResult]]:
+    """CC missions of ``seeds`` with paper timing on the stack, ``env`` added to the
+    supervisor's and uavsim's settings: (seed, run directory, the records as a result)."""
+    f, out = fleet
+    base = {"CONTROLLER": "cc", "TIMING": "paper", "SPEED_FACTOR": "0",
+            "IGNITION_CLEARANCE_M": "", "SUPERVISOR": "paper"}
+    mission_ids = {}
+    for k, seed in enumerate(seeds):
+        uav = f.uav_ids[k]
+        v = f.start_vehicle(uav, seed, out / f"{tag}-s{seed}", env={**base, **env})
+        mission_ids[uav] = v.mission_id
+    outcomes = f.wait_end(mission_ids, 300.0)
+    flown = []
+    for k, seed in enumerate(seeds):
+        uav = f.uav_ids[k]
+        run_dir = f.vehicles[uav].run_dir
+        assert outcomes[uav].ended, outcomes[uav]
+        assert all(code == 0 for code in f.stop_vehicle(uav).values())
+        flown.append((seed, run_dir, result_from_log(read_step_log(run_dir / "steps.jsonl"))))
+    return flown
+
+
 @pytest.mark.parametrize("profile", ["literal", "fig-r5"])
 def test_a_profile_given_to_the_supervisor_alone_reaches_the_ews(fleet: Any,
                                                                  profile: str) -> None:
@@ -129,22 +152,9 @@ def test_a_profile_given_to_the_supervisor_alone_reaches_the_ews(fleet: Any,
     under that profile."""
     from dualpilot.readings import get_profile
 
-    f, out = fleet
     reading = get_profile(profile)
-    mission_ids = {}
-    for k, seed in enumerate(SEEDS[:3]):
-        uav = f.uav_ids[k]
-        env = {"CONTROLLER": "cc", "TIMING": "paper", "SPEED_FACTOR": "0",
-               "READINGS_PROFILE": profile, "IGNITION_CLEARANCE_M": "", "SUPERVISOR": "paper"}
-        v = f.start_vehicle(uav, seed, out / f"profile-{profile}-s{seed}", env=env)
-        mission_ids[uav] = v.mission_id
-    outcomes = f.wait_end(mission_ids, 300.0)
-    for k, seed in enumerate(SEEDS[:3]):
-        uav = f.uav_ids[k]
-        run_dir = f.vehicles[uav].run_dir
-        assert outcomes[uav].ended, outcomes[uav]
-        assert all(code == 0 for code in f.stop_vehicle(uav).values())
-        stack = result_from_log(read_step_log(run_dir / "steps.jsonl"))
+    env = {"READINGS_PROFILE": profile}
+    for seed, _, stack in fly_cc_on_stack(fleet, SEEDS[:3], env, f"profile-{profile}"):
         local = local_mission(Controller.CC, reading.spec(MissionSpec(seed=seed)),
                               timing=Timing.PAPER, params=reading.mission,
                               fire_params=reading.fire,
@@ -157,24 +167,10 @@ def test_the_speed_limit_reaches_system1_system2_and_uavsim(fleet: Any) -> None:
     """SPEED_LIMIT=norm (|v| ≤ 15 m/s) on the supervisor and uavsim of today's profile: the
     spec carries it to the planner services, and every step is the in-process loop's under
     the same reading. A place still clipping per axis would fly faster on the diagonal."""
-    f, out = fleet
     norm = DynamicsParams(speed_limit="norm")
-    mission_ids = {}
-    for k, seed in enumerate(SEEDS[:2]):
-        uav = f.uav_ids[k]
-        env = {"CONTROLLER": "cc", "TIMING": "paper", "SPEED_FACTOR": "0",
-               "READINGS_PROFILE": "today", "SPEED_LIMIT": "norm", "IGNITION_CLEARANCE_M": "",
-               "SUPERVISOR": "paper"}
-        v = f.start_vehicle(uav, seed, out / f"speed-norm-s{seed}", env=env)
-        mission_ids[uav] = v.mission_id
-    outcomes = f.wait_end(mission_ids, 300.0)
-    for k, seed in enumerate(SEEDS[:2]):
-        uav = f.uav_ids[k]
-        run_dir = f.vehicles[uav].run_dir
-        assert outcomes[uav].ended, outcomes[uav]
-        assert all(code == 0 for code in f.stop_vehicle(uav).values())
+    env = {"READINGS_PROFILE": "today", "SPEED_LIMIT": "norm"}
+    for seed, run_dir, stack in fly_cc_on_stack(fleet, SEEDS[:2], env, "speed-norm"):
         assert "speed_limit=norm" in (run_dir / "logs" / "uavsim.log").read_text()
-        stack = result_from_log(read_step_log(run_dir / "steps.jsonl"))
         local = local_mission(Controller.CC, MissionSpec(seed=seed, dynamics=norm),
                               timing=Timing.PAPER).run()
         assert_same_mission(stack, local, f"norm seed {seed}", ATOL)
