@@ -167,6 +167,7 @@ class BandedQp:
         coef = p_coef[g_pair]
         nz = coef != 0.0  # padding terms add nothing
         self.p_idx, self.p_coef, self.p_row = p_idx[g_pair][nz], coef[nz], rowid[nz]
+        self._arrays: tuple[AnyArray, ...] | None = None  # made by the first solve
 
     def rebound(self, q: AnyArray, lo: AnyArray, hi: AnyArray) -> BandedQp:
         """The same QP with a new linear term and new row bounds (same finite pattern)."""
@@ -199,19 +200,14 @@ class BandedQp:
             p_idx = np.concatenate([self.p_idx, ep[0][nz]])
             p_coef = np.concatenate([self.p_coef, ep[1][nz]])
             p_row = np.concatenate([self.p_row, ep[2][nz] + self.m])
+            arrays = _solver_arrays(g_cols, g_vals, p_idx, p_coef, p_row)
         else:
-            g_cols, g_vals = self.g_cols, self.g_vals
-            h, p_idx, p_coef, p_row = self.h, self.p_idx, self.p_coef, self.p_row
-        m = len(h)
-        # G in CSR arrays (k entries a row); the band map's CSC arrays (p_row is
-        # non-decreasing: the terms of row r are one contiguous run)
-        k_g = g_cols.shape[1]
-        g_ptr = np.arange(0, k_g * m + 1, k_g, dtype=np.int64)
-        g_idx = np.ascontiguousarray(g_cols, dtype=np.int64).ravel()
-        g_dat = np.ascontiguousarray(g_vals, dtype=float).ravel()
-        b_ptr = np.searchsorted(p_row, np.arange(m + 1)).astype(np.int64)
-        b_idx = np.ascontiguousarray(p_idx, dtype=np.int64)
-        b_dat = np.ascontiguousarray(p_coef, dtype=float)
+            h = self.h
+            if self._arrays is None:  # the fixed rows alone: the same arrays every solve
+                self._arrays = _solver_arrays(self.g_cols, self.g_vals, self.p_idx,
+                                              self.p_coef, self.p_row)
+            arrays = self._arrays
+        g_ptr, g_idx, g_dat, b_ptr, b_idx, b_dat = arrays
         z_start = np.zeros(n) if z0 is None else np.array(z0, dtype=float)
         code, z, it, info = mehrotra(
             self.h_dense, self.h_band, self.q, np.ascontiguousarray(h, dtype=float), g_ptr,
@@ -219,6 +215,20 @@ class BandedQp:
             float(tol), bool(detect_infeasible))
         status = _STATUS[code] if code != FACTORIZATION else f"factorization failed ({info})"
         return IpmResult(status == "solved", status, z, it)
+
+
+def _solver_arrays(g_cols: AnyArray, g_vals: AnyArray, p_idx: AnyArray, p_coef: AnyArray,
+                   p_row: AnyArray) -> tuple[AnyArray, ...]:
+    """G in CSR arrays (k entries a row) and the band map's CSC arrays (p_row is
+    non-decreasing: the terms of row r are one contiguous run), as :func:`mehrotra` reads them."""
+    m, k_g = g_cols.shape
+    g_ptr = np.arange(0, k_g * m + 1, k_g, dtype=np.int64)
+    g_idx = np.ascontiguousarray(g_cols, dtype=np.int64).ravel()
+    g_dat = np.ascontiguousarray(g_vals, dtype=float).ravel()
+    b_ptr = np.searchsorted(p_row, np.arange(m + 1)).astype(np.int64)
+    b_idx = np.ascontiguousarray(p_idx, dtype=np.int64)
+    b_dat = np.ascontiguousarray(p_coef, dtype=float)
+    return g_ptr, g_idx, g_dat, b_ptr, b_idx, b_dat
 
 
 def solve_qp(h_band: AnyArray, q: AnyArray, rows: Rows, pairs: tuple[AnyArray, AnyArray, AnyArray],

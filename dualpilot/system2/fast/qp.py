@@ -23,7 +23,10 @@ that touch the four coordinates of p_τ and p_{τ+1}.
 from __future__ import annotations
 
 import time
+from collections import OrderedDict
 from dataclasses import dataclass
+from functools import lru_cache
+from typing import Any
 
 import clarabel
 import numpy as np
@@ -47,6 +50,87 @@ class QpResult:
     solve_time_s: float
 
 
+#: interior-point structures (one per κ and pattern of reachable area sides) kept per shape;
+#: about 0.25 MB each (0.5 MB with a speed polygon)
+STRUCTURES_KEPT = 128
+
+
+@lru_cache(maxsize=8)
+def _structure(T: int, dynamics: DynamicsParams, area_size_m: float | None, v_margin: float,
+               u_margin: float, area_margin: float, s: float, speed_sides: int
+               ) -> dict[str, Any]:
+    """The attributes of every :class:`P2Qp` of one shape: the sparse maps of Eq. (1), the
+    banded solver's fixed rows, and the memo tables (Hessians, bands, interior-point
+    structures) they share. Built once a process; nothing in it is written after."""
+    n = 2 * T
+    dt, a, mass = dynamics.dt_s, 1.0 - dynamics.zeta, dynamics.mass_kg
+    eye2 = sp.identity(2, format="csr")
+    # P = [p_1; p_2..p_{T+1}] = M z + e, e = [p_1; 0]
+    m_pos = sp.vstack([sp.csr_matrix((2, n)), s * sp.identity(n, format="csr")]).tocsr()
+    d_v = sp.kron(sp.diags([-np.ones(T), np.ones(T)], [0, 1], shape=(T, T + 1)), eye2) / dt
+    V = (d_v @ m_pos).tocsr()  # v_1..v_T (without the p_1 offset)
+    shift = sp.kron(sp.diags([np.ones(T - 1)], [-1], shape=(T, T)), eye2).tocsr()
+    U = ((mass / dt) * (V - a * (shift @ V))).tocsr()
+    diff = sp.kron(sp.diags([np.ones(T), -np.ones(T - 1)], [0, -1], shape=(T, T)), eye2).tocsr()
+    dU = (diff @ U).tocsr()
+    # costed positions p_1..p_T: p_1 constant, p_2..p_T = s z[:2(T-1)]
+    sel = sp.hstack([s * sp.identity(2 * (T - 1)), sp.csr_matrix((2 * (T - 1), 2))]).tocsr()
+    out: dict[str, Any] = dict(
+        T=T, dyn=dynamics, area=area_size_m, scale=s, n=n, bw=6,
+        _vmax=dynamics.v_max_mps - v_margin, _umax=dynamics.u_max_n - u_margin,
+        _area_margin=area_margin, _V=V, _dv=d_v.tocsr(), _shift=shift, _U=U, _diff=diff,
+        _dU=dU, _dUT=dU.T.tocsr(), _sel=sel, _selT=sel.T.tocsr(), _H_pos=(sel.T @ sel).tocsc(),
+        _H_du=(dU.T @ dU).tocsc(), _norm=dynamics.speed_limit == "norm",
+        _H_cache={}, _band_cache={}, _struct_cache=OrderedDict())
+    if out["_norm"]:  # n_k·v_τ ≤ v_max cos(π/K): one row per (τ, k), τ-major
+        normals, cos_k = speed_polygon(speed_sides)
+        N = sp.kron(sp.identity(T, format="csr"), sp.csr_matrix(normals)).tocsr()
+        out.update(_vpoly=dynamics.v_max_mps * cos_k - v_margin, _N=N, _P=(N @ V).tocsr())
+        out["_box"] = sp.vstack([U, -U, out["_P"]]).tocsr()
+    else:
+        out["_box"] = sp.vstack([U, -U, V, -V]).tocsr()
+    # padded rows of the banded interior-point solver: U, V (two-sided) and the area
+    # (the speed polygon's rows have four entries: then every fixed row has four)
+    width = 4 if out["_norm"] else 3
+    fixed_rows = [_padded(U, width), _padded(out["_P"] if out["_norm"] else V, width)]
+    if area_size_m is not None:
+        j = np.arange(2 * (T - 1))
+        cols = np.column_stack([j] * width)
+        vals = np.column_stack([np.full(len(j), s)] + [np.zeros(len(j))] * (width - 1))
+        fixed_rows.append((cols, vals))
+    fixed_norm = [np.linalg.norm(v, axis=1) for _, v in fixed_rows]
+    fixed = Rows(np.vstack([c for c, _ in fixed_rows]),
+                 np.vstack([v / nr[:, None] for (_, v), nr in
+                            zip(fixed_rows, fixed_norm, strict=True)]),
+                 np.zeros(0), np.zeros(0))
+    out.update(_fixed_rows=fixed_rows, _fixed_norm=fixed_norm, _fixed=fixed,
+               _fixed_pairs=band_pairs(fixed, n))
+    return out
+
+
+def _padded(mat: sp.csr_matrix, width: int = 3) -> tuple[AnyArray, AnyArray]:
+    """(cols, vals) of shape (rows, width) for a CSR matrix with ≤ width nonzeros a row."""
+    mat = mat.tocsr(copy=True)
+    mat.eliminate_zeros()
+    mat.sort_indices()
+    nnz = np.diff(mat.indptr)
+    if np.any(nnz > width):
+        raise ValueError(f"rows with more than {width} nonzeros")
+    rows = mat.shape[0]
+    cols = np.zeros((rows, width), dtype=np.int64)
+    vals = np.zeros((rows, width))
+    for k in range(width):
+        has = nnz > k
+        pos = mat.indptr[:-1][has] + k
+        cols[has, k] = mat.indices[pos]
+        vals[has, k] = mat.data[pos]
+    # padding repeats the first column with value 0 (keeps band offsets small)
+    for k in range(1, width):
+        pad = nnz <= k
+        cols[pad, k] = cols[pad, 0]
+    return cols, vals
+
+
 class P2Qp:
     """The convex restriction of (P2) for a fixed set of half-planes.
 
@@ -67,6 +151,40 @@ class P2Qp:
         K of the speed polygon under ``speed_limit = "norm"`` (unused per axis).
     """
 
+    # shared by every P2Qp of one shape (:func:`_structure`)
+    T: int
+    dyn: DynamicsParams
+    area: float | None
+    scale: float
+    n: int
+    bw: int
+    _vmax: float
+    _umax: float
+    _area_margin: float
+    _V: sp.csr_matrix
+    _dv: sp.csr_matrix
+    _shift: sp.csr_matrix
+    _U: sp.csr_matrix
+    _diff: sp.csr_matrix
+    _dU: sp.csr_matrix
+    _dUT: sp.csr_matrix
+    _sel: sp.csr_matrix
+    _selT: sp.csr_matrix
+    _H_pos: sp.csc_matrix
+    _H_du: sp.csc_matrix
+    _norm: bool
+    _vpoly: AnyArray
+    _N: sp.csr_matrix
+    _P: sp.csr_matrix
+    _box: sp.csr_matrix
+    _fixed_rows: list[tuple[AnyArray, AnyArray]]
+    _fixed_norm: list[AnyArray]
+    _fixed: Rows
+    _fixed_pairs: tuple[AnyArray, AnyArray, AnyArray]
+    _H_cache: dict[tuple[float, float], sp.csc_matrix]
+    _band_cache: dict[tuple[float, float], AnyArray]
+    _struct_cache: OrderedDict[tuple[float, float, bytes, bytes], BandedQp]
+
     def __init__(self, horizon: int, dynamics: DynamicsParams, area_size_m: float | None,
                  *, v_margin: float = 1e-4, u_margin: float = 1e-5, area_margin: float = 1e-3,
                  scale: float = 100.0, tol: float = 1e-8, backend: str = "ipm",
@@ -77,44 +195,10 @@ class P2Qp:
             raise ValueError(f"the P2 QP is planar, got dim={dynamics.dim}")
         if horizon < 2:
             raise ValueError(f"horizon must be >= 2, got {horizon}")
-        self.T = T = int(horizon)
-        self.dyn = dynamics
-        self.area = area_size_m
-        self.scale = s = float(scale)
-        self.n = n = 2 * T
-        self._vmax = dynamics.v_max_mps - v_margin
-        self._umax = dynamics.u_max_n - u_margin
-        self._area_margin = area_margin
-        dt, a, mass = dynamics.dt_s, 1.0 - dynamics.zeta, dynamics.mass_kg
-        eye2 = sp.identity(2, format="csr")
-        # P = [p_1; p_2..p_{T+1}] = M z + e, e = [p_1; 0]
-        m_pos = sp.vstack([sp.csr_matrix((2, n)), s * sp.identity(n, format="csr")]).tocsr()
-        d_v = sp.kron(sp.diags([-np.ones(T), np.ones(T)], [0, 1], shape=(T, T + 1)), eye2) / dt
-        self._V = (d_v @ m_pos).tocsr()  # v_1..v_T (without the p_1 offset)
-        self._dv = d_v.tocsr()
-        shift = sp.kron(sp.diags([np.ones(T - 1)], [-1], shape=(T, T)), eye2).tocsr()
-        self._shift = shift
-        self._U = ((mass / dt) * (self._V - a * (shift @ self._V))).tocsr()
-        diff = sp.kron(sp.diags([np.ones(T), -np.ones(T - 1)], [0, -1], shape=(T, T)), eye2)
-        self._diff = diff.tocsr()
-        self._dU = (self._diff @ self._U).tocsr()
-        self._dUT = self._dU.T.tocsr()
-        # costed positions p_1..p_T: p_1 constant, p_2..p_T = s z[:2(T-1)]
-        sel = sp.hstack([s * sp.identity(2 * (T - 1)), sp.csr_matrix((2 * (T - 1), 2))]).tocsr()
-        self._sel = sel
-        self._selT = sel.T.tocsr()
-        self._H_pos = (sel.T @ sel).tocsc()
-        self._H_du = (self._dU.T @ self._dU).tocsc()
-        self._norm = dynamics.speed_limit == "norm"
-        if self._norm:  # n_k·v_τ ≤ v_max cos(π/K): one row per (τ, k), τ-major
-            normals, cos_k = speed_polygon(speed_sides)
-            self._vpoly = (dynamics.v_max_mps * cos_k - v_margin)
-            self._N = sp.kron(sp.identity(T, format="csr"), sp.csr_matrix(normals)).tocsr()
-            self._P = (self._N @ self._V).tocsr()
-            self._box = sp.vstack([self._U, -self._U, self._P]).tocsr()
-        else:
-            self._box = sp.vstack([self._U, -self._U, self._V, -self._V]).tocsr()
-        self._H_cache: dict[tuple[float, float], sp.csc_matrix] = {}
+        # the matrices and the memo tables of this shape, built once a process (read-only)
+        vars(self).update(_structure(int(horizon), dynamics, area_size_m, float(v_margin),
+                                     float(u_margin), float(area_margin), float(scale),
+                                     int(speed_sides)))
         self._settings = clarabel.DefaultSettings()
         self._settings.verbose = False
         self._settings.tol_gap_abs = tol
@@ -124,29 +208,13 @@ class P2Qp:
         self._settings.max_iter = 60
         self._settings.equilibrate_enable = False
         self.backend = backend
-        # padded rows of the banded interior-point solver: U, V (two-sided) and the area
-        # (the speed polygon's rows have four entries: then every fixed row has four)
-        width = 4 if self._norm else 3
-        self._fixed_rows = [self._padded(self._U, width),
-                            self._padded(self._P if self._norm else self._V, width)]
-        if area_size_m is not None:
-            j = np.arange(2 * (T - 1))
-            cols = np.column_stack([j] * width)
-            vals = np.column_stack([np.full(len(j), s)] + [np.zeros(len(j))] * (width - 1))
-            self._fixed_rows.append((cols, vals))
-        self._fixed_norm = [np.linalg.norm(v, axis=1) for _, v in self._fixed_rows]
-        self._fixed = Rows(np.vstack([c for c, _ in self._fixed_rows]),
-                           np.vstack([v / nr[:, None] for (_, v), nr in
-                                      zip(self._fixed_rows, self._fixed_norm, strict=True)]),
-                           np.zeros(0), np.zeros(0))
-        self._fixed_pairs = band_pairs(self._fixed, n)
-        self._band_cache: dict[tuple[float, float], AnyArray] = {}
+        # the last plan's offsets and interior-point context (every QP of one plan shares them)
         self._ctx: BandedQp | None = None
         self._ctx_key: tuple[bytes, bytes, float, float] | None = None
-        self.bw = 6
         self._off: tuple[AnyArray, AnyArray, AnyArray, AnyArray] | None = None
-        self._struct_cache: dict[tuple[float, float, bytes, bytes], BandedQp] = {}
         self._off_key: tuple[bytes, bytes] | None = None
+        self._q: AnyArray | None = None
+        self._q_key: tuple[object, ...] | None = None
 
     # ----------------------------------------------------------------- maps
     def offsets(self, x0: AnyArray, u_prev: AnyArray
@@ -185,29 +253,6 @@ class P2Qp:
             h = sp.triu(2.0 * key[0] * self._H_pos + 2.0 * key[1] * self._H_du).tocsc()
             self._H_cache[key] = h
         return h
-
-    @staticmethod
-    def _padded(mat: sp.csr_matrix, width: int = 3) -> tuple[AnyArray, AnyArray]:
-        """(cols, vals) of shape (rows, width) for a CSR matrix with ≤ width nonzeros a row."""
-        mat = mat.tocsr(copy=True)
-        mat.eliminate_zeros()
-        mat.sort_indices()
-        nnz = np.diff(mat.indptr)
-        if np.any(nnz > width):
-            raise ValueError(f"rows with more than {width} nonzeros")
-        rows = mat.shape[0]
-        cols = np.zeros((rows, width), dtype=np.int64)
-        vals = np.zeros((rows, width))
-        for k in range(width):
-            has = nnz > k
-            pos = mat.indptr[:-1][has] + k
-            cols[has, k] = mat.indices[pos]
-            vals[has, k] = mat.data[pos]
-        # padding repeats the first column with value 0 (keeps band offsets small)
-        for k in range(1, width):
-            pad = nnz <= k
-            cols[pad, k] = cols[pad, 0]
-        return cols, vals
 
     def hessian_band(self, kappa: tuple[float, float]) -> AnyArray:
         """H of the QP in lower band form (bw+1, n)."""
@@ -255,15 +300,17 @@ class P2Qp:
         # the factor-independent structure depends only on κ and which bounds are finite
         skey = (float(kappa[0]), float(kappa[1]), np.isfinite(lo_a).tobytes(),
                 np.isfinite(hi_a).tobytes())
-        base = self._struct_cache.get(skey)
+        cache = self._struct_cache
+        base = cache.get(skey)
         if base is None:
             fixed = Rows(self._fixed.cols, self._fixed.vals, lo_a, hi_a)
             base = BandedQp(self.hessian_band(kappa), q, fixed, self._fixed_pairs)
-            if len(self._struct_cache) > 64:
-                self._struct_cache.clear()
-            self._struct_cache[skey] = base
+            if len(cache) >= STRUCTURES_KEPT:
+                cache.popitem(last=False)  # the least recently used
+            cache[skey] = base
             self._ctx = base
         else:
+            cache.move_to_end(skey)
             self._ctx = base.rebound(q, lo_a, hi_a)
         self._ctx_key = key
         return self._ctx
@@ -301,6 +348,20 @@ class P2Qp:
         du = np.diff(np.vstack([u_prev, controls]), axis=0)
         return float(kappa[0] * np.sum((pos - goal) ** 2) + kappa[1] * np.sum(du**2))
 
+    def _linear_term(self, goal: AnyArray, kappa: tuple[float, float], duc: AnyArray
+                     ) -> AnyArray:
+        """q of the QP (the cost's linear term) for the last offsets; every QP of one plan
+        shares it, so the last one is kept."""
+        key = (self._off_key, np.asarray(goal, dtype=float).tobytes(), float(kappa[0]),
+               float(kappa[1]))
+        if self._q_key == key and self._q is not None:
+            return self._q
+        goal_vec = np.tile(goal, self.T - 1)
+        q = -2.0 * kappa[0] * (self._selT @ goal_vec) + 2.0 * kappa[1] * (self._dUT @ duc)
+        q.setflags(write=False)
+        self._q, self._q_key = q, key
+        return q
+
     # ---------------------------------------------------------------- solve
     def solve(self, x0: AnyArray, u_prev: AnyArray, goal: AnyArray, kappa: tuple[float, float],
               tau: AnyArray, normals: AnyArray, rhs: AnyArray, area_rows: AnyArray | None = None,
@@ -320,9 +381,7 @@ class P2Qp:
         n_sl = m if elastic is not None else 0
         n = self.n + n_sl
         vc, uc, duc, _ = self.offsets(x0, u_prev)
-        h = self.hessian(kappa)
-        goal_vec = np.tile(goal, T - 1)
-        q = -2.0 * kappa[0] * (self._selT @ goal_vec) + 2.0 * kappa[1] * (self._dUT @ duc)
+        q = self._linear_term(goal, kappa, duc)
         if self.backend == "ipm" and not n_sl:
             t_start = time.perf_counter()
             zs = None if z0 is None else np.asarray(z0, dtype=float).ravel() / s
@@ -339,6 +398,7 @@ class P2Qp:
                 return QpResult(True, status, pos, ctrl, cost, iters,
                                 time.perf_counter() - t_start)
             area_rows = None  # Clarabel decides, with every area row
+        h = self.hessian(kappa)
         box = self._box
         if n_sl:
             h = sp.block_diag([h, sp.csc_matrix((n_sl, n_sl))], format="csc")
