@@ -135,7 +135,7 @@ def check_state(x: Array, params: DynamicsParams) -> Array:
     arr = np.asarray(x, dtype=float)
     if arr.shape != (params.state_dim,):
         raise ValueError(f"state must have shape ({params.state_dim},), got {arr.shape}")
-    if not np.all(np.isfinite(arr)):
+    if not np.isfinite(arr).all():
         raise ValueError(f"state must be finite, got {arr}")
     return arr
 

@@ -7,6 +7,7 @@ counter-clockwise order. All lengths are metres.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
 
@@ -28,7 +29,7 @@ class Rect:
 
     def __post_init__(self) -> None:
         vals = (self.center_x, self.center_y, self.width, self.height)
-        if not all(np.isfinite(vals)):
+        if not all(math.isfinite(v) for v in vals):
             raise ValueError(f"rectangle must be finite: {self}")
         if self.width <= 0 or self.height <= 0:
             raise ValueError(f"rectangle sides must be positive: {self}")
@@ -65,7 +66,12 @@ class Rect:
         return bool(np.all(self.lo >= outer.lo) and np.all(self.hi <= outer.hi))
 
     def polytope(self) -> Polytope:
-        return Polytope.from_vertices(self.corners())
+        """The rectangle as a :class:`Polytope` (made on the first call, then kept)."""
+        poly = self.__dict__.get("_polytope")
+        if poly is None:
+            poly = Polytope.from_vertices(self.corners())
+            object.__setattr__(self, "_polytope", poly)  # a cache, not a field
+        return poly
 
 
 @njit(cache=True)
@@ -168,7 +174,10 @@ class Polytope:
     def _edge_d2(self, p: Array) -> Array:
         """Squared distances (m²) from point p to each edge."""
         a = self.vertices
-        e = np.roll(a, -1, axis=0) - a
+        e = self.__dict__.get("_edges")
+        if e is None:  # the edge vectors, kept (a cache, not a field)
+            e = np.roll(a, -1, axis=0) - a
+            object.__setattr__(self, "_edges", e)
         return point_segment_d2(p[0], p[1], a[:, 0], a[:, 1], e[:, 0], e[:, 1])
 
     def distances(self, points: Array) -> Array:

@@ -36,6 +36,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 from numba import njit
@@ -74,6 +75,13 @@ def lqr_gain(dynamics: DynamicsParams = DynamicsParams(), q: float = 2.0,
     """
     if not (q > 0 and r > 0):
         raise ValueError(f"LQR weights must be positive, got q={q}, r={r}")
+    k, p = _lqr_gain(dynamics, float(q), float(r))
+    return k.copy(), p.copy()
+
+
+@lru_cache(maxsize=16)
+def _lqr_gain(dynamics: DynamicsParams, q: float, r: float) -> tuple[Array, Array]:
+    """:func:`lqr_gain`, solved once a process per (dynamics, q, r)."""
     phi, gamma = transition_matrices(dynamics)
     qm = q * np.eye(dynamics.state_dim)
     rm = r * np.eye(dynamics.dim)
@@ -108,6 +116,14 @@ def lqr_du_gain(dynamics: DynamicsParams = DynamicsParams(), q: float = 2.0, r: 
         raise ValueError(f"LQR weights must be positive, got q={q}, r={r}")
     if not (r_delta_u >= 0 and np.isfinite(r_delta_u)):
         raise ValueError(f"r_delta_u must be finite and >= 0, got {r_delta_u}")
+    k, p = _lqr_du_gain(dynamics, float(q), float(r), float(r_delta_u))
+    return k.copy(), p.copy()
+
+
+@lru_cache(maxsize=16)
+def _lqr_du_gain(dynamics: DynamicsParams, q: float, r: float, r_delta_u: float
+                 ) -> tuple[Array, Array]:
+    """:func:`lqr_du_gain`, solved once a process per (dynamics, q, r, r_delta_u)."""
     phi, gamma = transition_matrices(dynamics)
     n, nx = dynamics.dim, dynamics.state_dim
     eye = np.eye(n)
@@ -228,6 +244,22 @@ def _gain_terms(k: Array, n: int, prev_control: Array | None
                 ) -> tuple[float, float, float | None, Array]:
     """(k_p, k_v, k_u, u₋₁) of a gain of :func:`lqr_gain` (k_u None, u₋₁ = 0) or of
     :func:`lqr_du_gain` (u₋₁ = ``prev_control``, None: 0); ValueError for any other."""
+    kp, kv, ku = _gain_form(k.tobytes(), k.shape, n)
+    if ku is not None:
+        u_prev = np.zeros(n) if prev_control is None else np.asarray(prev_control, dtype=float)
+        if u_prev.shape != (n,) or not np.all(np.isfinite(u_prev)):
+            raise ValueError(f"prev_control must be finite with shape ({n},), got {u_prev}")
+        return kp, kv, ku, u_prev
+    if prev_control is not None:
+        raise ValueError("prev_control needs the Δu gain of lqr_du_gain (shape (dim, 3·dim))")
+    return kp, kv, None, np.zeros(n)
+
+
+@lru_cache(maxsize=64)
+def _gain_form(data: bytes, shape: tuple[int, ...], n: int) -> tuple[float, float, float | None]:
+    """(k_p, k_v, k_u) of a gain [k_p·I, k_v·I] (k_u None) or [k_p·I, k_v·I, k_u·I] given
+    by its bytes and shape (checked once per gain); ValueError for any other."""
+    k = np.frombuffer(data, dtype=float).reshape(shape)
     kp, kv = float(k[0, 0]), float(k[0, n])
     eye = np.eye(n)
     if k.shape == (n, 3 * n):
@@ -235,15 +267,10 @@ def _gain_terms(k: Array, n: int, prev_control: Array | None
         if not np.allclose(k, np.hstack([kp * eye, kv * eye, ku * eye])):
             raise ValueError(f"gain must be [k_p·I, k_v·I, k_u·I] of shape ({n}, {3 * n}), "
                              f"got {k}")
-        u_prev = np.zeros(n) if prev_control is None else np.asarray(prev_control, dtype=float)
-        if u_prev.shape != (n,) or not np.all(np.isfinite(u_prev)):
-            raise ValueError(f"prev_control must be finite with shape ({n},), got {u_prev}")
-        return kp, kv, ku, u_prev
-    if prev_control is not None:
-        raise ValueError("prev_control needs the Δu gain of lqr_du_gain (shape (dim, 3·dim))")
+        return kp, kv, ku
     if k.shape != (n, 2 * n) or not np.allclose(k, np.hstack([kp * eye, kv * eye])):
         raise ValueError(f"gain must be [k_p·I, k_v·I] of shape ({n}, {2 * n}), got {k}")
-    return kp, kv, None, np.zeros(n)
+    return kp, kv, None
 
 
 @njit(cache=True)

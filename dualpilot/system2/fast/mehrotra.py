@@ -52,6 +52,18 @@ def _gmul(ptr: AnyArray, idx: AnyArray, dat: AnyArray, x: AnyArray, out: AnyArra
 
 
 @njit(cache=True)
+def csr_matvec(ptr: AnyArray, idx: AnyArray, dat: AnyArray, x: AnyArray) -> AnyArray:
+    """A x for A in CSR arrays, term for term as scipy's ``csr_matvec`` (``A @ x``)."""
+    out = np.empty(len(ptr) - 1)
+    for i in range(len(out)):
+        acc = 0.0
+        for jj in range(ptr[i], ptr[i + 1]):
+            acc += dat[jj] * x[idx[jj]]
+        out[i] = acc
+    return out
+
+
+@njit(cache=True)
 def _transpose(ptr: AnyArray, idx: AnyArray, dat: AnyArray,
                n_out: int) -> tuple[AnyArray, AnyArray, AnyArray]:
     """CSR arrays (ptr, source row, value) of Aᵀ for A in CSR arrays, each output's

@@ -35,6 +35,7 @@ import scipy.sparse as sp
 from dualpilot.arrays import AnyArray
 from dualpilot.model.dynamics import DynamicsParams, reach_boxes, speed_polygon
 from dualpilot.system2.fast.ipm import BandedQp, Rows, band_pairs
+from dualpilot.system2.fast.mehrotra import csr_matvec
 
 
 @dataclass(frozen=True)
@@ -106,6 +107,11 @@ def _structure(T: int, dynamics: DynamicsParams, area_size_m: float | None, v_ma
     out.update(_fixed_rows=fixed_rows, _fixed_norm=fixed_norm, _fixed=fixed,
                _fixed_pairs=band_pairs(fixed, n))
     return out
+
+
+def _mv(mat: sp.csr_matrix, x: AnyArray) -> AnyArray:
+    """``mat @ x`` for a CSR matrix, compiled (the sums of scipy's, term for term)."""
+    return csr_matvec(mat.indptr, mat.indices, mat.data, np.ascontiguousarray(x, dtype=float))
 
 
 def _padded(mat: sp.csr_matrix, width: int = 3) -> tuple[AnyArray, AnyArray]:
@@ -234,11 +240,11 @@ class P2Qp:
         p1 = x0[:2] + dt * x0[2:]
         e = np.zeros(2 * (T + 1))
         e[:2] = p1
-        vc = self._dv @ e
-        vprev = self._shift @ vc
+        vc = _mv(self._dv, e)
+        vprev = _mv(self._shift, vc)
         vprev[:2] += x0[2:]
         uc = (mass / dt) * (vc - a * vprev)
-        duc = self._diff @ uc
+        duc = _mv(self._diff, uc)
         duc[:2] -= u_prev
         out = (vc, uc, duc, p1)
         for arr in out:
@@ -281,7 +287,7 @@ class P2Qp:
         nu, nv = self._fixed_norm[0], self._fixed_norm[1]
         if self._norm:  # one-sided: n_k·v_τ ≤ v_max cos(π/K)
             lo = [(-self._umax - uc) / nu, np.full(len(nv), -np.inf)]
-            hi = [(self._umax - uc) / nu, (self._vpoly - self._N @ vc) / nv]
+            hi = [(self._umax - uc) / nu, (self._vpoly - _mv(self._N, vc)) / nv]
         else:
             lo = [(-self._umax - uc) / nu, (-self._vmax - vc) / nv]
             hi = [(self._umax - uc) / nu, (self._vmax - vc) / nv]
@@ -339,7 +345,7 @@ class P2Qp:
 
     def controls(self, z: AnyArray, x0: AnyArray, u_prev: AnyArray) -> AnyArray:
         _, uc, _, _ = self.offsets(x0, u_prev)
-        return np.asarray(self._U @ z + uc).reshape(-1, 2)
+        return np.asarray(_mv(self._U, z) + uc).reshape(-1, 2)
 
     def cost(self, positions: AnyArray, controls: AnyArray, goal: AnyArray,
              kappa: tuple[float, float], u_prev: AnyArray) -> float:
@@ -357,7 +363,7 @@ class P2Qp:
         if self._q_key == key and self._q is not None:
             return self._q
         goal_vec = np.tile(goal, self.T - 1)
-        q = -2.0 * kappa[0] * (self._selT @ goal_vec) + 2.0 * kappa[1] * (self._dUT @ duc)
+        q = -2.0 * kappa[0] * _mv(self._selT, goal_vec) + 2.0 * kappa[1] * _mv(self._dUT, duc)
         q.setflags(write=False)
         self._q, self._q_key = q, key
         return q
@@ -393,7 +399,7 @@ class P2Qp:
                                 time.perf_counter() - t_start)
             if ok:
                 pos = self.positions(z, x0)
-                ctrl = np.asarray(self._U @ z + uc).reshape(-1, 2)
+                ctrl = np.asarray(_mv(self._U, z) + uc).reshape(-1, 2)
                 cost = self.cost(pos, ctrl, goal, kappa, u_prev)
                 return QpResult(True, status, pos, ctrl, cost, iters,
                                 time.perf_counter() - t_start)
@@ -448,7 +454,7 @@ class P2Qp:
             return QpResult(False, status, empty, empty, float("inf"), int(sol.iterations),
                             float(sol.solve_time))
         pos = self.positions(z, x0)
-        ctrl = np.asarray(self._U @ z + uc).reshape(-1, 2)
+        ctrl = np.asarray(_mv(self._U, z) + uc).reshape(-1, 2)
         cost = self.cost(pos, ctrl, goal, kappa, u_prev)
         if n_sl:
             slack = float(np.max(np.asarray(sol.x)[self.n:], initial=0.0))
