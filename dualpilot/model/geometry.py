@@ -52,14 +52,19 @@ class Rect:
         return np.array([[x0, y0], [x1, y0], [x1, y1], [x0, y1]])
 
     def contains(self, p: ArrayLike, margin: float = 0.0) -> bool:
-        p = np.asarray(p, dtype=float)[:2]
-        return bool(np.all(p >= self.lo - margin) and np.all(p <= self.hi + margin))
+        x, y = _xy(p)
+        hw, hh = self.width / 2, self.height / 2
+        return bool((x >= (self.center_x - hw) - margin and y >= (self.center_y - hh) - margin)
+                    and (x <= (self.center_x + hw) + margin
+                         and y <= (self.center_y + hh) + margin))
 
     def distance(self, p: ArrayLike) -> float:
         """Euclidean distance from p to the rectangle (0 inside)."""
-        q = np.asarray(p, dtype=float)[:2]
-        gap = np.maximum(0.0, np.maximum(self.lo - q, q - self.hi))
-        return float(np.hypot(gap[0], gap[1]))
+        x, y = _xy(p)
+        hw, hh = self.width / 2, self.height / 2
+        gx = max(0.0, max((self.center_x - hw) - x, x - (self.center_x + hw)))
+        gy = max(0.0, max((self.center_y - hh) - y, y - (self.center_y + hh)))
+        return float(np.hypot(gx, gy))
 
     def inside(self, outer: Rect) -> bool:
         """True if this rectangle lies within ``outer``."""
@@ -69,9 +74,18 @@ class Rect:
         """The rectangle as a :class:`Polytope` (made on the first call, then kept)."""
         poly = self.__dict__.get("_polytope")
         if poly is None:
-            poly = Polytope.from_vertices(self.corners())
+            # the corners are already the hull, counter-clockwise from the lowest (x, y)
+            corners = self.corners()
+            normals, b = _faces(corners)
+            poly = Polytope(vertices=corners, A=normals, b=b)
             object.__setattr__(self, "_polytope", poly)  # a cache, not a field
         return poly
+
+
+def _xy(p: ArrayLike) -> tuple[float, float]:
+    """The first two coordinates of a point as floats (m)."""
+    q = np.asarray(p, dtype=float)
+    return float(q[0]), float(q[1])
 
 
 @njit(cache=True)
