@@ -67,7 +67,7 @@ def one_step_residual(states: Array, controls: Array, dyn: DynamicsParams) -> fl
     """max_k ‖x_{k+1} − (Φ x_k + Γ u_k)‖_∞ (Eq. (1) without clipping)."""
     phi, gamma = transition_matrices(dyn)
     predicted = states[:-1] @ phi.T + controls @ gamma.T
-    return float(np.max(np.abs(predicted - states[1:])))
+    return float(np.abs(predicted - states[1:]).max())
 
 
 def check_plan(
@@ -87,15 +87,15 @@ def check_plan(
     if (states.ndim != 2 or states.shape[1] != 2 * n or controls.ndim != 2
             or controls.shape[1] != n or len(controls) < 1 or len(states) != len(controls) + 1):
         return MonitorVerdict(False, f"bad shapes {states.shape} / {controls.shape}")
-    if not (np.all(np.isfinite(states)) and np.all(np.isfinite(controls))):
+    if not (np.isfinite(states).all() and np.isfinite(controls).all()):
         return MonitorVerdict(False, "non-finite values")
-    off = float(np.max(np.abs(states[0] - measured)))
+    off = float(np.abs(states[0] - measured).max())
     if off > params.start_tol:
         return MonitorVerdict(False, f"starts {off:.3g} from the measured state")
-    u = float(np.max(np.abs(controls)))
+    u = float(np.abs(controls).max())
     if u > dyn.u_max_n + params.limit_tol:
         return MonitorVerdict(False, f"|u| {u:.4g} N exceeds {dyn.u_max_n:g} N")
-    v = float(np.max(dyn.speeds(states[1:, n:])))  # max |v_i|, or ‖v‖ under "norm"
+    v = float(dyn.speeds(states[1:, n:]).max())  # max |v_i|, or ‖v‖ under "norm"
     if v > dyn.v_max_mps + params.limit_tol:
         return MonitorVerdict(False, f"|v| {v:.4g} m/s exceeds {dyn.v_max_mps:g} m/s")
     resid = one_step_residual(states, controls, dyn)
@@ -103,7 +103,7 @@ def check_plan(
         return MonitorVerdict(False, f"violates Eq. (1) by {resid:.3g}")
     pos = states[:, :n]
     lo, hi = -params.area_tol_m, spec.area_size_m + params.area_tol_m
-    if np.any(pos[1:] < lo) or np.any(pos[1:] > hi):
+    if (pos[1:] < lo).any() or (pos[1:] > hi).any():
         return MonitorVerdict(False, "leaves the area")
     clearance = path_clearance(pos[:, :2], list(obstacles))
     if clearance < spec.d_safe_m - params.clearance_tol_m:

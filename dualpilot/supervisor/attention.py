@@ -64,11 +64,14 @@ def xi(t: float, d_t: float, params: AttentionParams = AttentionParams()) -> Arr
 def sample_attention(xi_t: Array, rng: np.random.Generator) -> tuple[Array, int]:
     """Draw P_t ~ Dirichlet(Ξ_t) and A_t ~ Categorical(P_t); returns (P_t, a) with a in {0,1,2}."""
     xi_t = np.asarray(xi_t, dtype=float)
-    if xi_t.shape != (3,) or not np.all(np.isfinite(xi_t)) or np.any(xi_t <= 0):
+    if xi_t.shape != (3,) or not (np.isfinite(xi_t).all() and (xi_t > 0).all()):
         raise ValueError(f"Ξ must be three positive finite numbers, got {xi_t}")
     p = rng.dirichlet(xi_t)
     # Generator.choice(3, p=p) without its checks: one uniform draw against the cdf
-    cdf = np.cumsum(p)
-    cdf /= cdf[-1]
-    a = int(np.searchsorted(cdf, rng.random(), side="right"))
-    return p, a
+    # (the cdf's running sums, normalised by the last; a = how many are <= the draw)
+    c0 = float(p[0])
+    c1 = c0 + float(p[1])
+    c2 = c1 + float(p[2])
+    u = rng.random()
+    a = (c0 / c2 <= u) + (c1 / c2 <= u) + (c2 / c2 <= u)
+    return p, int(a)

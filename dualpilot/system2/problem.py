@@ -104,7 +104,8 @@ def disjunction_margin(points: Array, hulls: Sequence[Polytope], eps: float) -> 
 
 def verify_p2_plan(states: Array, controls: Array, hulls: Sequence[Polytope],
                    dynamics: DynamicsParams, epsilon_m: float, d_safe_m: float,
-                   area_size_m: float | None, tol: float = 1e-6) -> Verdict:
+                   area_size_m: float | None, tol: float = 1e-6,
+                   rolled_out: bool = False) -> Verdict:
     """Every check a System 2 plan must pass before it is returned as OK.
 
     :func:`dualpilot.verify.verify_trajectory` (Eq. (1), U and X, exact
@@ -112,7 +113,8 @@ def verify_p2_plan(states: Array, controls: Array, hulls: Sequence[Polytope],
     planned position p_{t+1|t}..p_{t+T|t} against the true hull faces
     (max_l α·p − β ≥ ε − tol), then the area bounds unless ``area_size_m`` is None.
     Hulls provably clear of every segment (by a bounding-box lower bound) are
-    skipped by the segment check only.
+    skipped by the segment check only. ``rolled_out``: the caller made ``states`` by
+    :func:`dualpilot.model.dynamics.rollout` of ``controls`` (Eq. (1) holds exactly).
     """
     pts = np.asarray(states, dtype=float).reshape(-1, 4)[:, :2]
     if len(pts) > 1 and np.all(np.isfinite(pts)):
@@ -130,7 +132,8 @@ def verify_p2_plan(states: Array, controls: Array, hulls: Sequence[Polytope],
             kept = [h for h, k in zip(hulls, near.tolist(), strict=True) if k]
     else:
         kept = list(hulls)
-    verdict = verify_trajectory(states, controls, kept, dynamics, clearance_m=d_safe_m)
+    verdict = verify_trajectory(states, controls, kept, dynamics, clearance_m=d_safe_m,
+                                rolled_out=rolled_out)
     if not verdict.ok:
         return verdict
     pos = np.asarray(states, dtype=float)[1:, :2]

@@ -445,7 +445,7 @@ class FastSystem2:
         controls = np.clip(cand.controls, -d.u_max_n, d.u_max_n)
         states = rollout(x0, controls, d)
         verdict = verify_p2_plan(states, controls, hulls, d, self.epsilon_m, self.clearance_m,
-                                 self.area)
+                                 self.area, rolled_out=True)
         if not verdict.ok:
             reasons.append(f"{cand.name}: {verdict.reason}")
             return None
