@@ -166,8 +166,13 @@ def rollout(x0: Array, controls: Array, params: DynamicsParams = DynamicsParams(
     # p_k = p_0 + ΔT Σ_{j<k} v_j; one lower-triangular matrix product instead of T steps.
     decay_k, weights = _rollout_weights(params, horizon)
     vel = decay_k * x0[n:] + weights @ controls
-    pos = x0[:n] + params.dt_s * np.vstack([np.zeros((1, n)), np.cumsum(vel[:-1], axis=0)])
-    return np.hstack([pos, vel])
+    out = np.empty((horizon + 1, 2 * n))
+    travelled = out[:, :n]  # Σ_{j<k} v_j, then p_k = p_0 + ΔT Σ_{j<k} v_j
+    travelled[0] = 0.0
+    np.cumsum(vel[:-1], axis=0, out=travelled[1:])
+    out[:, :n] = x0[:n] + params.dt_s * travelled
+    out[:, n:] = vel
+    return out
 
 
 def hover_state(position: Array, params: DynamicsParams = DynamicsParams()) -> Array:

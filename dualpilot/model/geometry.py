@@ -189,8 +189,10 @@ class Polytope:
         """Squared distances (m²) from point p to each edge."""
         a = self.vertices
         e = self.__dict__.get("_edges")
-        if e is None:  # the edge vectors, kept (a cache, not a field)
-            e = np.roll(a, -1, axis=0) - a
+        if e is None:  # the edge vectors a_{l+1} − a_l, kept (a cache, not a field)
+            e = np.empty_like(a)
+            e[:-1] = a[1:] - a[:-1]
+            e[-1] = a[0] - a[-1]
             object.__setattr__(self, "_edges", e)
         return point_segment_d2(p[0], p[1], a[:, 0], a[:, 1], e[:, 0], e[:, 1])
 

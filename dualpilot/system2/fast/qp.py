@@ -109,6 +109,14 @@ def _structure(T: int, dynamics: DynamicsParams, area_size_m: float | None, v_ma
     return out
 
 
+def _control_steps(u_prev: AnyArray, controls: AnyArray) -> AnyArray:
+    """Δu_τ = u_τ − u_{τ−1}, τ = 1..T, with u_0 = ``u_prev`` (N), shape of ``controls``."""
+    du = np.empty(controls.shape)
+    du[0] = controls[0] - u_prev
+    du[1:] = controls[1:] - controls[:-1]
+    return du
+
+
 def _mv(mat: sp.csr_matrix, x: AnyArray) -> AnyArray:
     """``mat @ x`` for a CSR matrix, compiled (the sums of scipy's, term for term)."""
     return csr_matvec(mat.indptr, mat.indices, mat.data, np.ascontiguousarray(x, dtype=float))
@@ -351,7 +359,7 @@ class P2Qp:
              kappa: tuple[float, float], u_prev: AnyArray) -> float:
         """Eq. (S2) for p_1..p_T (rows 0..T-1 of ``positions``) and u_1..u_T."""
         pos = positions[: self.T]
-        du = np.diff(np.vstack([u_prev, controls]), axis=0)
+        du = _control_steps(u_prev, controls)
         return float(kappa[0] * np.sum((pos - goal) ** 2) + kappa[1] * np.sum(du**2))
 
     def _linear_term(self, goal: AnyArray, kappa: tuple[float, float], duc: AnyArray
