@@ -174,6 +174,10 @@ class BandedQp:
         if not (np.array_equal(np.flatnonzero(np.isfinite(lo)), self.il)
                 and np.array_equal(np.flatnonzero(np.isfinite(hi)), self.iu)):
             raise ValueError("rebound needs the same finite bounds")
+        return self.rebound_unchecked(q, lo, hi)
+
+    def rebound_unchecked(self, q: AnyArray, lo: AnyArray, hi: AnyArray) -> BandedQp:
+        """:meth:`rebound` for bounds the caller knows to have this QP's finite pattern."""
         out = copy.copy(self)
         out.q = q / self.c_obj
         out.h = np.concatenate([-lo[self.il], hi[self.iu]])

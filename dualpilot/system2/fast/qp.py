@@ -325,7 +325,7 @@ class P2Qp:
             self._ctx = base
         else:
             cache.move_to_end(skey)
-            self._ctx = base.rebound(q, lo_a, hi_a)
+            self._ctx = base.rebound_unchecked(q, lo_a, hi_a)  # skey holds the pattern
         self._ctx_key = key
         return self._ctx
 
