@@ -57,6 +57,23 @@ def segment_region_distance(p0: Array, p1: Array, regions: tuple[Rect, ...]) -> 
     return min((r.polytope().segment_distance(p0, p1) for r in regions), default=float("inf"))
 
 
+def segment_within(p0: Array, p1: Array, regions: tuple[Rect, ...], d_m: float) -> bool:
+    """Whether the segment p0–p1 passes within ``d_m`` (m) of a region: the exact distance
+    (:func:`segment_region_distance`) of the regions whose box gap to the segment's box,
+    a lower bound on it, is below ``d_m``."""
+    x0, y0, x1, y1 = float(p0[0]), float(p0[1]), float(p1[0]), float(p1[1])
+    lox, hix = min(x0, x1), max(x0, x1)
+    loy, hiy = min(y0, y1), max(y0, y1)
+    near = []
+    for r in regions:
+        hw, hh = r.width / 2, r.height / 2
+        gx = max(0.0, (r.center_x - hw) - hix, lox - (r.center_x + hw))
+        gy = max(0.0, (r.center_y - hh) - hiy, loy - (r.center_y + hh))
+        if gx * gx + gy * gy < d_m * d_m:
+            near.append(r)
+    return segment_region_distance(p0, p1, tuple(near)) < d_m
+
+
 def attention_distance(
     position: Array, snapshot: FireSnapshot, t: int, params: MissionParams
 ) -> float:
@@ -125,7 +142,7 @@ def flight_outcome(
     params: MissionParams,
 ) -> str | None:
     """After flying p0 → p1: a failure cause, "" for success (in G), None to go on."""
-    if segment_region_distance(p0, p1, regions) < spec.d_safe_m:
+    if segment_within(p0, p1, regions, spec.d_safe_m):
         return "fire_contact"
     if spec.goal.contains(p1):
         return ""

@@ -22,7 +22,7 @@ Each front remembers the convex hull of every rectangle it has occupied,
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from math import ceil, cos, sin, sqrt
 from typing import Literal, get_args
 
@@ -131,10 +131,9 @@ class FireFront:
         dist = speed * params.substep_s
         cx = self.region.center_x + dist * cos(direction)
         cy = self.region.center_y + dist * sin(direction)
-        kept = Rect(cx, cy, self.region.width, self.region.height)
         clear = True
         if not redraw:
-            region = kept
+            region = Rect(cx, cy, self.region.width, self.region.height)
         elif keep_out is None:
             region = _draw_rect(cx, cy, rng, params)
         else:
@@ -143,9 +142,10 @@ class FireFront:
             if _clear_of(smallest, keep_out):  # else every draw contains a violating one
                 drawn = _draw_clear(lambda: _draw_rect(cx, cy, rng, params), keep_out)
             clear = drawn is not None
-            region = drawn if drawn is not None else kept
+            region = drawn if drawn is not None else Rect(cx, cy, self.region.width,
+                                                           self.region.height)
         hull = Polytope.from_vertices(np.vstack([self.hull.vertices, region.corners()]))
-        moved = replace(self, speed_mps=speed, direction_rad=direction, region=region, hull=hull)
+        moved = FireFront(self.front_id, self.born_step, speed, direction, region, hull)
         return moved, clear
 
 

@@ -10,6 +10,7 @@ from __future__ import annotations
 import math
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
+from functools import cached_property
 
 import numpy as np
 from numba import njit
@@ -282,14 +283,24 @@ class SegmentChecker:
 
     def __init__(self, hulls: Sequence[Polytope]):
         self.n_hulls = len(hulls)
+        self._hulls = tuple(hulls)
         self._all = _HullEdges(hulls) if hulls else None
         self._box_lo, self._box_hi = hull_boxes(hulls)
-        self._boxes = [(float(a[0]), float(a[1]), float(b[0]), float(b[1]))
-                       for a, b in zip(self._box_lo, self._box_hi, strict=True)]
-        # plain-float faces (nx, ny, β) and vertices for the scalar test
-        self._faces = [list(zip(h.A[:, 0].tolist(), h.A[:, 1].tolist(), h.b.tolist(),
-                                strict=True)) for h in hulls]
-        self._verts = [[(float(x), float(y)) for x, y in h.vertices.tolist()] for h in hulls]
+
+    # plain-float boxes, faces (nx, ny, β) and vertices for the scalar tests, made on first use
+    @cached_property
+    def _boxes(self) -> list[tuple[float, float, float, float]]:
+        return [(float(a[0]), float(a[1]), float(b[0]), float(b[1]))
+                for a, b in zip(self._box_lo, self._box_hi, strict=True)]
+
+    @cached_property
+    def _faces(self) -> list[list[tuple[float, float, float]]]:
+        return [list(zip(h.A[:, 0].tolist(), h.A[:, 1].tolist(), h.b.tolist(), strict=True))
+                for h in self._hulls]
+
+    @cached_property
+    def _verts(self) -> list[list[tuple[float, float]]]:
+        return [[(float(x), float(y)) for x, y in h.vertices.tolist()] for h in self._hulls]
 
     def segment_clear(self, x0: float, y0: float, x1: float, y1: float, need_m: float) -> bool:
         """Whether the single segment (x0, y0)–(x1, y1) keeps ``need_m`` from every hull.

@@ -61,3 +61,34 @@ def test_bad_rectangles_and_hulls():
         Rect(np.nan, 0, 1, 1)
     with pytest.raises(ValueError, match="collinear|3 distinct"):
         Polytope.from_vertices(np.array([[0, 0], [1, 1], [2, 2]]))
+
+
+def test_rectangle_polytope_is_the_hull_of_its_corners_bit_for_bit():
+    """Rect.polytope skips the hull (its corners already are one, counter-clockwise from the
+    lowest corner): the same vertices, normals and offsets as Polytope.from_vertices."""
+    rng = np.random.default_rng(7)
+    for i in range(2000):
+        r = Rect(*rng.uniform(-100.0, 1100.0, 2), *rng.uniform(0.01 if i % 2 else 50.0, 300.0, 2))
+        got, want = r.polytope(), Polytope.from_vertices(r.corners())
+        assert np.array_equal(got.vertices, want.vertices)
+        assert np.array_equal(got.A, want.A) and np.array_equal(got.b, want.b)
+        assert r.polytope() is got  # made once, then kept
+
+
+def test_rectangle_distance_and_contains_equal_the_array_formulas():
+    """The float forms give the numpy formulas' values exactly (distance by hand: 3-4-5)."""
+    r = Rect(0.0, 0.0, 2.0, 2.0)
+    assert r.distance([4.0, 5.0]) == 5.0 and r.distance([0.5, -0.5]) == 0.0
+    assert r.contains([1.0, -1.0]) and not r.contains([1.0 + 1e-9, 0.0])
+    assert r.contains([1.5, 0.0], margin=0.5) and not r.contains([0.0, -1.2], margin=0.1)
+    rng = np.random.default_rng(8)
+    for i in range(5000):
+        r = Rect(*rng.uniform(0.0, 1000.0, 2), *rng.uniform(1.0, 300.0, 2))
+        p = rng.uniform(-200.0, 1200.0, 2)
+        if i % 4 == 0:  # on an edge
+            p[0] = r.center_x + r.width / 2
+        margin = (0.0, 1e-3, -2.0, 5.0)[i % 4]
+        gap = np.maximum(0.0, np.maximum(r.lo - p, p - r.hi))
+        assert r.distance(p) == float(np.hypot(gap[0], gap[1]))
+        inside = bool(np.all(p >= r.lo - margin) and np.all(p <= r.hi + margin))
+        assert r.contains(p, margin) == inside

@@ -308,3 +308,15 @@ def test_du_bad_input_raises() -> None:
     # no prev_control: u₋₁ = 0
     np.testing.assert_array_equal(track(x0, ref, k_du, DYN)[1],
                                   track(x0, ref, k_du, DYN, prev_control=np.zeros(2))[1])
+
+
+def test_gains_are_solved_once_and_handed_out_as_copies() -> None:
+    """The DARE is solved once per (dynamics, weights); each caller gets its own arrays."""
+    k1, p1 = lqr_gain(DYN)
+    k1[0, 0] = 99.0
+    p1[:] = 0.0
+    k2, p2 = lqr_gain(DYN)
+    assert k2[0, 0] != 99.0 and np.any(p2 != 0.0)
+    kz, _ = lqr_du_gain(DYN)
+    kz[:] = 0.0
+    assert np.any(lqr_du_gain(DYN)[0] != 0.0)

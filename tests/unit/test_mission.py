@@ -134,6 +134,29 @@ def test_flight_outcome_rules_and_planning_order():
     assert planning_order(Controller.CC, 1, MissionParams(fallback=False)) == [1]
 
 
+def test_segment_within_culls_by_box_and_agrees_with_the_exact_distance():
+    """The box gap is a lower bound: culling by it never changes the contact verdict."""
+    from dualpilot.mission.step import segment_region_distance, segment_within
+    from dualpilot.model.geometry import Rect
+
+    fire = (Rect(100.0, 0.0, 20.0, 20.0),)  # x in [90, 110], y in [-10, 10]
+    # 15 m above the top edge: within 20 m; the box gap is 15 m
+    assert segment_within(np.array([80.0, 25.0]), np.array([120.0, 25.0]), fire, 20.0)
+    assert not segment_within(np.array([80.0, 25.0]), np.array([120.0, 25.0]), fire, 15.0)
+    # past the corner (110, 10) diagonally: box gap (10, 10) but the true distance 10·√2
+    p0, p1 = np.array([120.0, 20.0]), np.array([130.0, 30.0])
+    assert segment_region_distance(p0, p1, fire) == pytest.approx(10.0 * np.sqrt(2.0))
+    assert segment_within(p0, p1, fire, 14.5) and not segment_within(p0, p1, fire, 14.0)
+    rng = np.random.default_rng(5)
+    for _ in range(3000):
+        regions = tuple(Rect(*rng.uniform(0.0, 1000.0, 2), *rng.uniform(100.0, 250.0, 2))
+                        for _ in range(rng.integers(0, 4)))
+        p0 = rng.uniform(0.0, 1000.0, 2)
+        p1 = p0 + rng.normal(scale=15.0, size=2)
+        assert segment_within(p0, p1, regions, 20.0) == (
+            segment_region_distance(p0, p1, regions) < 20.0)
+
+
 def test_rect_distance_matches_the_polytope_distance():
     from dualpilot.model.geometry import Rect
 

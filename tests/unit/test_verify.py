@@ -102,3 +102,21 @@ def test_system1_check_follows_d_safe(spec: MissionSpec, ok: bool) -> None:
         assert out is not None and 20.0 <= out[3] <= 30.0 + 1e-6
     else:
         assert attempts and all("< 31.0 m" in a for a in attempts)
+
+
+def test_rolled_out_skips_only_the_dynamics_check() -> None:
+    """States made by rollout verify alike either way; ``rolled_out`` only trusts Eq. (1),
+    so states that break it pass that one check and nothing else."""
+    states, controls = _plan()
+    rolled = rollout(states[0], controls, PAPER.dynamics)
+    args = (HULLS, PAPER.dynamics, PAPER.clearance_m, PAPER.d_safe_m, PAPER.area_size_m)
+    assert verify_p2_plan(rolled, controls, *args) == verify_p2_plan(rolled, controls, *args,
+                                                                     rolled_out=True)
+    bent = rolled.copy()
+    bent[3:, 0] += 2.0  # 2 m off Eq. (1) from the third step on
+    assert "Eq. (1)" in verify_p2_plan(bent, controls, *args).reason
+    assert verify_p2_plan(bent, controls, *args, rolled_out=True).ok
+    fast = rolled.copy()
+    fast[1:, 2] = 40.0  # 40 m/s: the limits are still checked
+    assert not verify_trajectory(fast, controls, HULLS, PAPER.dynamics, PAPER.d_safe_m,
+                                 rolled_out=True).ok
