@@ -49,7 +49,9 @@ class Rect:
 
     def corners(self) -> Array:
         """The four corners, counter-clockwise from the lower left, shape (4, 2)."""
-        (x0, y0), (x1, y1) = self.lo, self.hi
+        hw, hh = self.width / 2, self.height / 2
+        x0, y0 = self.center_x - hw, self.center_y - hh  # lo
+        x1, y1 = self.center_x + hw, self.center_y + hh  # hi
         return np.array([[x0, y0], [x1, y0], [x1, y1], [x0, y1]])
 
     def contains(self, p: ArrayLike, margin: float = 0.0) -> bool:
