@@ -304,13 +304,16 @@ def execute(tasks: Sequence[Any], jobs: int = 1, scheduler: str | None = None,
     try:
         futures = client.map(fn, list(tasks), pure=False)
         owner = {f.key: t for f, t in zip(futures, tasks, strict=True)}
-        for fut in as_completed(futures):
-            try:
-                row = fut.result()
-            except Exception as err:  # noqa: BLE001 - a worker died: the row says so
-                row = _error_row(owner[fut.key], err)
-            fut.release()
-            yield row
+        # results fetched by the client's event loop as tasks finish, taken here a batch at
+        # a time (a blocking result() per future costs this process a few ms each)
+        done = as_completed(futures, with_results=True, raise_errors=False)
+        for batch in done.batches():
+            for fut, result in batch:
+                if fut.status == "error":  # a worker died: the row says so
+                    yield _error_row(owner[fut.key], fut.exception())
+                else:
+                    yield result
+                fut.release()
     finally:
         client.close()
         if cluster is not None:

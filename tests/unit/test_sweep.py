@@ -105,3 +105,23 @@ def test_a_killed_sweep_resumes_without_duplicates_or_gaps(tmp_path: Path) -> No
     keys = [(r["label"], r["mission"], r["controller"]) for r in final]
     assert len(keys) == len(set(keys)) == 6 * 2 * 3
     assert final[: len(first)] == first, "recorded rows are kept, not redone"
+
+
+def _square_or_fail(x: int) -> dict[str, object]:
+    if x == 7:
+        raise RuntimeError("worker gone")
+    return {"x": x, "square": x * x}
+
+
+def test_results_arrive_in_batches_and_a_failed_task_becomes_an_error_row() -> None:
+    """Every finished task yields its row once; a task whose future fails (a dead worker)
+    yields an error row naming it, and the others still arrive."""
+    from dualpilot.sweep import execute
+
+    out = list(execute(list(range(40)), jobs=2, processes=False, fn=_square_or_fail))
+    assert len(out) == 40
+    good = sorted(int(str(r["x"])) for r in out if "x" in r)
+    assert good == [x for x in range(40) if x != 7]
+    assert all(r["square"] == int(str(r["x"])) ** 2 for r in out if "x" in r)
+    (bad,) = [r for r in out if "x" not in r]
+    assert bad["task"] == "7" and "worker lost: RuntimeError: worker gone" in str(bad["error"])
