@@ -277,3 +277,31 @@ def test_p2qp_of_one_shape_share_their_matrices_not_their_state():
     second = fresh.solve(x0, u0, goal, kappa, *none, confirm=True)
     assert first.ok and np.array_equal(first.positions, second.positions)
     assert first.objective == second.objective
+
+
+def test_planners_of_one_shape_plan_alike_from_two_threads(monkeypatch: pytest.MonkeyPatch):
+    """A fleet's planners share the QP structures from their own threads: with a cache of
+    two (evictions all the time) each thread's plans equal those planned alone."""
+    import threading
+
+    import dualpilot.system2.fast.qp as qp_module
+
+    monkeypatch.setattr(qp_module, "STRUCTURES_KEPT", 2)
+    instances = [make_instance(i, 11, 1 + i % 4) for i in range(8)]
+
+    def plan_all() -> list[np.ndarray]:
+        planner = FastSystem2(SPEC)
+        return [planner.plan(inst.state, inst.hulls, inst.objective, inst.prev_control).states
+                for inst in instances for _ in range(2)]
+
+    alone = plan_all()
+    results: dict[int, list[np.ndarray]] = {}
+    threads = [threading.Thread(target=lambda k=k: results.__setitem__(k, plan_all()))
+               for k in range(2)]
+    for th in threads:
+        th.start()
+    for th in threads:
+        th.join()
+    for k in range(2):
+        assert len(results[k]) == len(alone)
+        assert all(np.array_equal(a, b) for a, b in zip(results[k], alone, strict=True))

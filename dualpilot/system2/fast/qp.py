@@ -22,6 +22,7 @@ that touch the four coordinates of p_τ and p_{τ+1}.
 
 from __future__ import annotations
 
+import threading
 import time
 from collections import OrderedDict
 from dataclasses import dataclass
@@ -62,7 +63,8 @@ def _structure(T: int, dynamics: DynamicsParams, area_size_m: float | None, v_ma
                ) -> dict[str, Any]:
     """The attributes of every :class:`P2Qp` of one shape: the sparse maps of Eq. (1), the
     banded solver's fixed rows, and the memo tables (Hessians, bands, interior-point
-    structures) they share. Built once a process; nothing in it is written after."""
+    structures, the last under a lock) they share. Built once a process; only the memo
+    tables change after."""
     n = 2 * T
     dt, a, mass = dynamics.dt_s, 1.0 - dynamics.zeta, dynamics.mass_kg
     eye2 = sp.identity(2, format="csr")
@@ -82,7 +84,8 @@ def _structure(T: int, dynamics: DynamicsParams, area_size_m: float | None, v_ma
         _area_margin=area_margin, _V=V, _dv=d_v.tocsr(), _shift=shift, _U=U, _diff=diff,
         _dU=dU, _dUT=dU.T.tocsr(), _sel=sel, _selT=sel.T.tocsr(), _H_pos=(sel.T @ sel).tocsc(),
         _H_du=(dU.T @ dU).tocsc(), _norm=dynamics.speed_limit == "norm",
-        _H_cache={}, _band_cache={}, _struct_cache=OrderedDict())
+        _H_cache={}, _band_cache={}, _struct_cache=OrderedDict(),
+        _struct_lock=threading.Lock())
     if out["_norm"]:  # n_k·v_τ ≤ v_max cos(π/K): one row per (τ, k), τ-major
         normals, cos_k = speed_polygon(speed_sides)
         N = sp.kron(sp.identity(T, format="csr"), sp.csr_matrix(normals)).tocsr()
@@ -198,6 +201,7 @@ class P2Qp:
     _H_cache: dict[tuple[float, float], sp.csc_matrix]
     _band_cache: dict[tuple[float, float], AnyArray]
     _struct_cache: OrderedDict[tuple[float, float, bytes, bytes], BandedQp]
+    _struct_lock: threading.Lock
 
     def __init__(self, horizon: int, dynamics: DynamicsParams, area_size_m: float | None,
                  *, v_margin: float = 1e-4, u_margin: float = 1e-5, area_margin: float = 1e-3,
@@ -315,16 +319,19 @@ class P2Qp:
         skey = (float(kappa[0]), float(kappa[1]), np.isfinite(lo_a).tobytes(),
                 np.isfinite(hi_a).tobytes())
         cache = self._struct_cache
-        base = cache.get(skey)
+        with self._struct_lock:  # planners of a fleet share it from their own threads
+            base = cache.get(skey)
+            if base is not None:
+                cache.move_to_end(skey)
         if base is None:
             fixed = Rows(self._fixed.cols, self._fixed.vals, lo_a, hi_a)
             base = BandedQp(self.hessian_band(kappa), q, fixed, self._fixed_pairs)
-            if len(cache) >= STRUCTURES_KEPT:
-                cache.popitem(last=False)  # the least recently used
-            cache[skey] = base
+            with self._struct_lock:
+                if len(cache) >= STRUCTURES_KEPT:
+                    cache.popitem(last=False)  # the least recently used
+                cache[skey] = base
             self._ctx = base
         else:
-            cache.move_to_end(skey)
             self._ctx = base.rebound_unchecked(q, lo_a, hi_a)  # skey holds the pattern
         self._ctx_key = key
         return self._ctx
