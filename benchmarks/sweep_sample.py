@@ -20,11 +20,15 @@ import json
 import time
 from pathlib import Path
 
-from dualpilot.sweep import CONTROLLERS, Task, grid_points, load_grid, run_task
+from dualpilot.sweep import (
+    CONTROLLERS,
+    MEASURED_COLUMNS,
+    Task,
+    grid_points,
+    load_grid,
+    run_task,
+)
 from dualpilot.warmup import warm_up
-
-#: what differs between two runs of the same missions
-MEASURED = {"wall_s", "planning_time_s_median", "planning_time_s_p95", "planning_time_s_total"}
 
 
 def main() -> int:
@@ -47,7 +51,7 @@ def main() -> int:
     t0 = time.perf_counter()
     rows = [run_task(t) for t in tasks]
     wall = time.perf_counter() - t0
-    kept = [{k: str(v) for k, v in r.items() if k not in MEASURED} for r in rows]
+    kept = [{k: str(v) for k, v in r.items() if k not in MEASURED_COLUMNS} for r in rows]
     print(f"{len(tasks)} missions in {wall:.2f} s ({1000 * wall / len(tasks):.1f} ms a mission)")
     if args.rows:
         args.rows.parent.mkdir(parents=True, exist_ok=True)

@@ -43,6 +43,9 @@ COLUMNS = [
     "start_y", "goal_x", "goal_y",
     "wall_s", "error",
 ]
+#: the columns that are measured, not computed: they differ between any two runs
+MEASURED_COLUMNS = frozenset({"wall_s", "planning_time_s_median", "planning_time_s_p95",
+                              "planning_time_s_total"})
 #: the sweep's tidy table: the grid point and every parameter value, then COLUMNS
 SWEEP_COLUMNS = ["point", "label", "profile", *settable(), *COLUMNS]
 

@@ -66,9 +66,9 @@ def segment_within(p0: Array, p1: Array, regions: tuple[Rect, ...], d_m: float) 
     loy, hiy = min(y0, y1), max(y0, y1)
     near = []
     for r in regions:
-        hw, hh = r.width / 2, r.height / 2
-        gx = max(0.0, (r.center_x - hw) - hix, lox - (r.center_x + hw))
-        gy = max(0.0, (r.center_y - hh) - hiy, loy - (r.center_y + hh))
+        bx0, by0, bx1, by1 = r.bounds
+        gx = max(0.0, bx0 - hix, lox - bx1)
+        gy = max(0.0, by0 - hiy, loy - by1)
         if gx * gx + gy * gy < d_m * d_m:
             near.append(r)
     return segment_region_distance(p0, p1, tuple(near)) < d_m

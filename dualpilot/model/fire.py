@@ -132,18 +132,16 @@ class FireFront:
         cx = self.region.center_x + dist * cos(direction)
         cy = self.region.center_y + dist * sin(direction)
         clear = True
-        if not redraw:
-            region = Rect(cx, cy, self.region.width, self.region.height)
-        elif keep_out is None:
+        region: Rect | None = None
+        if redraw and keep_out is None:
             region = _draw_rect(cx, cy, rng, params)
-        else:
+        elif redraw and keep_out is not None:
             smallest = Rect(cx, cy, params.side_min_m, params.side_min_m)
-            drawn = None
             if _clear_of(smallest, keep_out):  # else every draw contains a violating one
-                drawn = _draw_clear(lambda: _draw_rect(cx, cy, rng, params), keep_out)
-            clear = drawn is not None
-            region = drawn if drawn is not None else Rect(cx, cy, self.region.width,
-                                                           self.region.height)
+                region = _draw_clear(lambda: _draw_rect(cx, cy, rng, params), keep_out)
+            clear = region is not None
+        if region is None:  # the sides kept, the centre moved
+            region = Rect(cx, cy, self.region.width, self.region.height)
         hull = Polytope.from_vertices(np.vstack([self.hull.vertices, region.corners()]))
         moved = FireFront(self.front_id, self.born_step, speed, direction, region, hull)
         return moved, clear

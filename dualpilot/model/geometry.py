@@ -40,33 +40,35 @@ class Rect:
         return np.array([self.center_x, self.center_y])
 
     @property
+    def bounds(self) -> tuple[float, float, float, float]:
+        """(x_lo, y_lo, x_hi, y_hi) (m)."""
+        hw, hh = self.width / 2, self.height / 2
+        return (self.center_x - hw, self.center_y - hh, self.center_x + hw, self.center_y + hh)
+
+    @property
     def lo(self) -> Array:
-        return np.array([self.center_x - self.width / 2, self.center_y - self.height / 2])
+        return np.array(self.bounds[:2])
 
     @property
     def hi(self) -> Array:
-        return np.array([self.center_x + self.width / 2, self.center_y + self.height / 2])
+        return np.array(self.bounds[2:])
 
     def corners(self) -> Array:
         """The four corners, counter-clockwise from the lower left, shape (4, 2)."""
-        hw, hh = self.width / 2, self.height / 2
-        x0, y0 = self.center_x - hw, self.center_y - hh  # lo
-        x1, y1 = self.center_x + hw, self.center_y + hh  # hi
+        x0, y0, x1, y1 = self.bounds
         return np.array([[x0, y0], [x1, y0], [x1, y1], [x0, y1]])
 
     def contains(self, p: ArrayLike, margin: float = 0.0) -> bool:
         x, y = _xy(p)
-        hw, hh = self.width / 2, self.height / 2
-        return bool((x >= (self.center_x - hw) - margin and y >= (self.center_y - hh) - margin)
-                    and (x <= (self.center_x + hw) + margin
-                         and y <= (self.center_y + hh) + margin))
+        x0, y0, x1, y1 = self.bounds
+        return x0 - margin <= x <= x1 + margin and y0 - margin <= y <= y1 + margin
 
     def distance(self, p: ArrayLike) -> float:
         """Euclidean distance from p to the rectangle (0 inside)."""
         x, y = _xy(p)
-        hw, hh = self.width / 2, self.height / 2
-        gx = max(0.0, max((self.center_x - hw) - x, x - (self.center_x + hw)))
-        gy = max(0.0, max((self.center_y - hh) - y, y - (self.center_y + hh)))
+        x0, y0, x1, y1 = self.bounds
+        gx = max(0.0, max(x0 - x, x - x1))
+        gy = max(0.0, max(y0 - y, y - y1))
         return float(np.hypot(gx, gy))
 
     def inside(self, outer: Rect) -> bool:
@@ -75,14 +77,14 @@ class Rect:
 
     def polytope(self) -> Polytope:
         """The rectangle as a :class:`Polytope` (made on the first call, then kept)."""
-        poly = self.__dict__.get("_polytope")
-        if poly is None:
-            # the corners are already the hull, counter-clockwise from the lowest (x, y)
-            corners = self.corners()
-            normals, b = _faces(corners)
-            poly = Polytope(vertices=corners, A=normals, b=b)
-            object.__setattr__(self, "_polytope", poly)  # a cache, not a field
-        return poly
+        return self._polytope
+
+    @cached_property
+    def _polytope(self) -> Polytope:
+        # the corners are already the hull, counter-clockwise from the lowest (x, y)
+        corners = self.corners()
+        normals, b = _faces(corners)
+        return Polytope(vertices=corners, A=normals, b=b)
 
 
 def _xy(p: ArrayLike) -> tuple[float, float]:
@@ -190,14 +192,17 @@ class Polytope:
 
     def _edge_d2(self, p: Array) -> Array:
         """Squared distances (m²) from point p to each edge."""
-        a = self.vertices
-        e = self.__dict__.get("_edges")
-        if e is None:  # the edge vectors a_{l+1} − a_l, kept (a cache, not a field)
-            e = np.empty_like(a)
-            e[:-1] = a[1:] - a[:-1]
-            e[-1] = a[0] - a[-1]
-            object.__setattr__(self, "_edges", e)
+        a, e = self.vertices, self._edges
         return point_segment_d2(p[0], p[1], a[:, 0], a[:, 1], e[:, 0], e[:, 1])
+
+    @cached_property
+    def _edges(self) -> Array:
+        """The edge vectors a_{l+1} − a_l (m), made on first use and kept."""
+        a = self.vertices
+        e = np.empty_like(a)
+        e[:-1] = a[1:] - a[:-1]
+        e[-1] = a[0] - a[-1]
+        return e
 
     def distances(self, points: Array) -> Array:
         """Distance from each row of ``points`` (shape (n, 2)) to the polygon."""

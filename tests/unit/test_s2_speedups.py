@@ -265,8 +265,8 @@ def test_p2qp_of_one_shape_share_their_matrices_not_their_state():
     a = P2Qp(20, DYN, 1000.0)
     b = P2Qp(20, DYN, 1000.0, backend="clarabel")
     c = P2Qp(20, DynamicsParams(speed_limit="norm"), 1000.0)
-    assert a._U is b._U and a._struct_cache is b._struct_cache
-    assert c._U is not a._U and c._norm and not a._norm
+    assert a.shape is b.shape and a.shape.U is b.shape.U
+    assert c.shape is not a.shape and c.shape.norm and not a.shape.norm
     assert a.backend == "ipm" and b.backend == "clarabel"
     x0, u0 = np.array([100.0, 120.0, 3.0, -2.0]), np.array([0.5, -0.25])
     goal, kappa = np.array([900.0, 850.0]), (1.0, 0.1)

@@ -27,7 +27,6 @@ import time
 from collections import OrderedDict
 from dataclasses import dataclass
 from functools import lru_cache
-from typing import Any
 
 import clarabel
 import numpy as np
@@ -57,59 +56,75 @@ class QpResult:
 STRUCTURES_KEPT = 128
 
 
+class _Shape:
+    """What every :class:`P2Qp` of one shape (T, dynamics, area, margins, scale, K) shares:
+    the sparse maps of Eq. (1), the banded solver's fixed rows, and the memo tables
+    (Hessians, bands, interior-point structures, the last under a lock). Built once a
+    process by :func:`_shape`; only the memo tables change after."""
+
+    def __init__(self, T: int, dynamics: DynamicsParams, area_size_m: float | None,
+                 v_margin: float, u_margin: float, area_margin: float, s: float,
+                 speed_sides: int) -> None:
+        self.T, self.dyn, self.area, self.scale, self.n = T, dynamics, area_size_m, s, 2 * T
+        n = self.n
+        self.bw = 6
+        self.vmax = dynamics.v_max_mps - v_margin
+        self.umax = dynamics.u_max_n - u_margin
+        self.area_margin = area_margin
+        dt, a, mass = dynamics.dt_s, 1.0 - dynamics.zeta, dynamics.mass_kg
+        eye2 = sp.identity(2, format="csr")
+        # P = [p_1; p_2..p_{T+1}] = M z + e, e = [p_1; 0]
+        m_pos = sp.vstack([sp.csr_matrix((2, n)), s * sp.identity(n, format="csr")]).tocsr()
+        d_v = sp.kron(sp.diags([-np.ones(T), np.ones(T)], [0, 1], shape=(T, T + 1)), eye2) / dt
+        self.V = (d_v @ m_pos).tocsr()  # v_1..v_T (without the p_1 offset)
+        self.dv = d_v.tocsr()
+        self.shift = sp.kron(sp.diags([np.ones(T - 1)], [-1], shape=(T, T)), eye2).tocsr()
+        self.U = ((mass / dt) * (self.V - a * (self.shift @ self.V))).tocsr()
+        self.diff = sp.kron(sp.diags([np.ones(T), -np.ones(T - 1)], [0, -1], shape=(T, T)),
+                            eye2).tocsr()
+        self.dU = (self.diff @ self.U).tocsr()
+        self.dUT = self.dU.T.tocsr()
+        # costed positions p_1..p_T: p_1 constant, p_2..p_T = s z[:2(T-1)]
+        sel = sp.hstack([s * sp.identity(2 * (T - 1)), sp.csr_matrix((2 * (T - 1), 2))]).tocsr()
+        self.selT = sel.T.tocsr()
+        self.H_pos = (sel.T @ sel).tocsc()
+        self.H_du = (self.dU.T @ self.dU).tocsc()
+        self.norm = dynamics.speed_limit == "norm"
+        if self.norm:  # n_k·v_τ ≤ v_max cos(π/K): one row per (τ, k), τ-major
+            normals, cos_k = speed_polygon(speed_sides)
+            self.vpoly = dynamics.v_max_mps * cos_k - v_margin
+            self.N = sp.kron(sp.identity(T, format="csr"), sp.csr_matrix(normals)).tocsr()
+            self.P = (self.N @ self.V).tocsr()
+            self.box = sp.vstack([self.U, -self.U, self.P]).tocsr()
+        else:
+            self.box = sp.vstack([self.U, -self.U, self.V, -self.V]).tocsr()
+        # padded rows of the banded interior-point solver: U, V (two-sided) and the area
+        # (the speed polygon's rows have four entries: then every fixed row has four)
+        width = 4 if self.norm else 3
+        fixed_rows = [_padded(self.U, width), _padded(self.P if self.norm else self.V, width)]
+        if area_size_m is not None:
+            j = np.arange(2 * (T - 1))
+            cols = np.column_stack([j] * width)
+            vals = np.column_stack([np.full(len(j), s)] + [np.zeros(len(j))] * (width - 1))
+            fixed_rows.append((cols, vals))
+        self.fixed_norm = [np.linalg.norm(v, axis=1) for _, v in fixed_rows]
+        self.fixed = Rows(np.vstack([c for c, _ in fixed_rows]),
+                          np.vstack([v / nr[:, None] for (_, v), nr in
+                                     zip(fixed_rows, self.fixed_norm, strict=True)]),
+                          np.zeros(0), np.zeros(0))
+        self.fixed_pairs = band_pairs(self.fixed, n)
+        self.H_cache: dict[tuple[float, float], sp.csc_matrix] = {}
+        self.band_cache: dict[tuple[float, float], AnyArray] = {}
+        self.struct_cache: OrderedDict[tuple[float, float, bytes, bytes], BandedQp] = (
+            OrderedDict())
+        self.struct_lock = threading.Lock()  # a fleet's planners share it from their threads
+
+
 @lru_cache(maxsize=8)
-def _structure(T: int, dynamics: DynamicsParams, area_size_m: float | None, v_margin: float,
-               u_margin: float, area_margin: float, s: float, speed_sides: int
-               ) -> dict[str, Any]:
-    """The attributes of every :class:`P2Qp` of one shape: the sparse maps of Eq. (1), the
-    banded solver's fixed rows, and the memo tables (Hessians, bands, interior-point
-    structures, the last under a lock) they share. Built once a process; only the memo
-    tables change after."""
-    n = 2 * T
-    dt, a, mass = dynamics.dt_s, 1.0 - dynamics.zeta, dynamics.mass_kg
-    eye2 = sp.identity(2, format="csr")
-    # P = [p_1; p_2..p_{T+1}] = M z + e, e = [p_1; 0]
-    m_pos = sp.vstack([sp.csr_matrix((2, n)), s * sp.identity(n, format="csr")]).tocsr()
-    d_v = sp.kron(sp.diags([-np.ones(T), np.ones(T)], [0, 1], shape=(T, T + 1)), eye2) / dt
-    V = (d_v @ m_pos).tocsr()  # v_1..v_T (without the p_1 offset)
-    shift = sp.kron(sp.diags([np.ones(T - 1)], [-1], shape=(T, T)), eye2).tocsr()
-    U = ((mass / dt) * (V - a * (shift @ V))).tocsr()
-    diff = sp.kron(sp.diags([np.ones(T), -np.ones(T - 1)], [0, -1], shape=(T, T)), eye2).tocsr()
-    dU = (diff @ U).tocsr()
-    # costed positions p_1..p_T: p_1 constant, p_2..p_T = s z[:2(T-1)]
-    sel = sp.hstack([s * sp.identity(2 * (T - 1)), sp.csr_matrix((2 * (T - 1), 2))]).tocsr()
-    out: dict[str, Any] = dict(
-        T=T, dyn=dynamics, area=area_size_m, scale=s, n=n, bw=6,
-        _vmax=dynamics.v_max_mps - v_margin, _umax=dynamics.u_max_n - u_margin,
-        _area_margin=area_margin, _V=V, _dv=d_v.tocsr(), _shift=shift, _U=U, _diff=diff,
-        _dU=dU, _dUT=dU.T.tocsr(), _sel=sel, _selT=sel.T.tocsr(), _H_pos=(sel.T @ sel).tocsc(),
-        _H_du=(dU.T @ dU).tocsc(), _norm=dynamics.speed_limit == "norm",
-        _H_cache={}, _band_cache={}, _struct_cache=OrderedDict(),
-        _struct_lock=threading.Lock())
-    if out["_norm"]:  # n_k·v_τ ≤ v_max cos(π/K): one row per (τ, k), τ-major
-        normals, cos_k = speed_polygon(speed_sides)
-        N = sp.kron(sp.identity(T, format="csr"), sp.csr_matrix(normals)).tocsr()
-        out.update(_vpoly=dynamics.v_max_mps * cos_k - v_margin, _N=N, _P=(N @ V).tocsr())
-        out["_box"] = sp.vstack([U, -U, out["_P"]]).tocsr()
-    else:
-        out["_box"] = sp.vstack([U, -U, V, -V]).tocsr()
-    # padded rows of the banded interior-point solver: U, V (two-sided) and the area
-    # (the speed polygon's rows have four entries: then every fixed row has four)
-    width = 4 if out["_norm"] else 3
-    fixed_rows = [_padded(U, width), _padded(out["_P"] if out["_norm"] else V, width)]
-    if area_size_m is not None:
-        j = np.arange(2 * (T - 1))
-        cols = np.column_stack([j] * width)
-        vals = np.column_stack([np.full(len(j), s)] + [np.zeros(len(j))] * (width - 1))
-        fixed_rows.append((cols, vals))
-    fixed_norm = [np.linalg.norm(v, axis=1) for _, v in fixed_rows]
-    fixed = Rows(np.vstack([c for c, _ in fixed_rows]),
-                 np.vstack([v / nr[:, None] for (_, v), nr in
-                            zip(fixed_rows, fixed_norm, strict=True)]),
-                 np.zeros(0), np.zeros(0))
-    out.update(_fixed_rows=fixed_rows, _fixed_norm=fixed_norm, _fixed=fixed,
-               _fixed_pairs=band_pairs(fixed, n))
-    return out
+def _shape(T: int, dynamics: DynamicsParams, area_size_m: float | None, v_margin: float,
+           u_margin: float, area_margin: float, s: float, speed_sides: int) -> _Shape:
+    """The one :class:`_Shape` of these arguments in this process."""
+    return _Shape(T, dynamics, area_size_m, v_margin, u_margin, area_margin, s, speed_sides)
 
 
 def _control_steps(u_prev: AnyArray, controls: AnyArray) -> AnyArray:
@@ -168,41 +183,6 @@ class P2Qp:
         K of the speed polygon under ``speed_limit = "norm"`` (unused per axis).
     """
 
-    # shared by every P2Qp of one shape (:func:`_structure`)
-    T: int
-    dyn: DynamicsParams
-    area: float | None
-    scale: float
-    n: int
-    bw: int
-    _vmax: float
-    _umax: float
-    _area_margin: float
-    _V: sp.csr_matrix
-    _dv: sp.csr_matrix
-    _shift: sp.csr_matrix
-    _U: sp.csr_matrix
-    _diff: sp.csr_matrix
-    _dU: sp.csr_matrix
-    _dUT: sp.csr_matrix
-    _sel: sp.csr_matrix
-    _selT: sp.csr_matrix
-    _H_pos: sp.csc_matrix
-    _H_du: sp.csc_matrix
-    _norm: bool
-    _vpoly: AnyArray
-    _N: sp.csr_matrix
-    _P: sp.csr_matrix
-    _box: sp.csr_matrix
-    _fixed_rows: list[tuple[AnyArray, AnyArray]]
-    _fixed_norm: list[AnyArray]
-    _fixed: Rows
-    _fixed_pairs: tuple[AnyArray, AnyArray, AnyArray]
-    _H_cache: dict[tuple[float, float], sp.csc_matrix]
-    _band_cache: dict[tuple[float, float], AnyArray]
-    _struct_cache: OrderedDict[tuple[float, float, bytes, bytes], BandedQp]
-    _struct_lock: threading.Lock
-
     def __init__(self, horizon: int, dynamics: DynamicsParams, area_size_m: float | None,
                  *, v_margin: float = 1e-4, u_margin: float = 1e-5, area_margin: float = 1e-3,
                  scale: float = 100.0, tol: float = 1e-8, backend: str = "ipm",
@@ -213,10 +193,9 @@ class P2Qp:
             raise ValueError(f"the P2 QP is planar, got dim={dynamics.dim}")
         if horizon < 2:
             raise ValueError(f"horizon must be >= 2, got {horizon}")
-        # the matrices and the memo tables of this shape, built once a process (read-only)
-        vars(self).update(_structure(int(horizon), dynamics, area_size_m, float(v_margin),
-                                     float(u_margin), float(area_margin), float(scale),
-                                     int(speed_sides)))
+        # the matrices and the memo tables of this shape, built once a process
+        self.shape = _shape(int(horizon), dynamics, area_size_m, float(v_margin),
+                            float(u_margin), float(area_margin), float(scale), int(speed_sides))
         self._settings = clarabel.DefaultSettings()
         self._settings.verbose = False
         self._settings.tol_gap_abs = tol
@@ -242,21 +221,22 @@ class P2Qp:
         The last result is cached (every QP of one plan shares x_t and u_{t|t});
         the arrays are read-only.
         """
+        sh = self.shape
         x0 = np.asarray(x0, dtype=float)
         u_prev = np.asarray(u_prev, dtype=float)
         key = (x0.tobytes(), u_prev.tobytes())
         if self._off_key == key and self._off is not None:
             return self._off
-        T = self.T
-        dt, a, mass = self.dyn.dt_s, 1.0 - self.dyn.zeta, self.dyn.mass_kg
+        T = sh.T
+        dt, a, mass = sh.dyn.dt_s, 1.0 - sh.dyn.zeta, sh.dyn.mass_kg
         p1 = x0[:2] + dt * x0[2:]
         e = np.zeros(2 * (T + 1))
         e[:2] = p1
-        vc = _mv(self._dv, e)
-        vprev = _mv(self._shift, vc)
+        vc = _mv(sh.dv, e)
+        vprev = _mv(sh.shift, vc)
         vprev[:2] += x0[2:]
         uc = (mass / dt) * (vc - a * vprev)
-        duc = _mv(self._diff, uc)
+        duc = _mv(sh.diff, uc)
         duc[:2] -= u_prev
         out = (vc, uc, duc, p1)
         for arr in out:
@@ -265,68 +245,71 @@ class P2Qp:
         return out
 
     def hessian(self, kappa: tuple[float, float]) -> sp.csc_matrix:
+        sh = self.shape
         key = (float(kappa[0]), float(kappa[1]))
-        h = self._H_cache.get(key)
+        h = sh.H_cache.get(key)
         if h is None:
-            h = sp.triu(2.0 * key[0] * self._H_pos + 2.0 * key[1] * self._H_du).tocsc()
-            self._H_cache[key] = h
+            h = sp.triu(2.0 * key[0] * sh.H_pos + 2.0 * key[1] * sh.H_du).tocsc()
+            sh.H_cache[key] = h
         return h
 
     def hessian_band(self, kappa: tuple[float, float]) -> AnyArray:
         """H of the QP in lower band form (bw+1, n)."""
+        sh = self.shape
         key = (float(kappa[0]), float(kappa[1]))
-        band = self._band_cache.get(key)
+        band = sh.band_cache.get(key)
         if band is None:
-            h = (2.0 * key[0] * self._H_pos + 2.0 * key[1] * self._H_du).tocsr()
-            n, bw = self.n, self.bw
+            h = (2.0 * key[0] * sh.H_pos + 2.0 * key[1] * sh.H_du).tocsr()
+            n, bw = sh.n, sh.bw
             band = np.zeros((bw + 1, n))
             for d in range(bw + 1):
                 band[d, : n - d] = h.diagonal(-d)
             coo = h.tocoo()
             if np.any(np.abs(coo.row - coo.col) > bw):
                 raise AssertionError("QP Hessian is not within the band")  # pragma: no cover
-            self._band_cache[key] = band
+            sh.band_cache[key] = band
         return band
 
     def _context(self, x0: AnyArray, u_prev: AnyArray, q: AnyArray,
                  kappa: tuple[float, float]) -> BandedQp:
         """The fixed part of the interior-point QP for one (state, u_{t|t}, κ), cached."""
+        sh = self.shape
         key = (x0.tobytes(), u_prev.tobytes(), float(kappa[0]), float(kappa[1]))
         if self._ctx_key == key and self._ctx is not None:
             return self._ctx
-        T = self.T
+        T = sh.T
         vc, uc, _, _ = self.offsets(x0, u_prev)
-        nu, nv = self._fixed_norm[0], self._fixed_norm[1]
-        if self._norm:  # one-sided: n_k·v_τ ≤ v_max cos(π/K)
-            lo = [(-self._umax - uc) / nu, np.full(len(nv), -np.inf)]
-            hi = [(self._umax - uc) / nu, (self._vpoly - _mv(self._N, vc)) / nv]
+        nu, nv = sh.fixed_norm[0], sh.fixed_norm[1]
+        if sh.norm:  # one-sided: n_k·v_τ ≤ v_max cos(π/K)
+            lo = [(-sh.umax - uc) / nu, np.full(len(nv), -np.inf)]
+            hi = [(sh.umax - uc) / nu, (sh.vpoly - _mv(sh.N, vc)) / nv]
         else:
-            lo = [(-self._umax - uc) / nu, (-self._vmax - vc) / nv]
-            hi = [(self._umax - uc) / nu, (self._vmax - vc) / nv]
-        if self.area is not None:
+            lo = [(-sh.umax - uc) / nu, (-sh.vmax - vc) / nv]
+            hi = [(sh.umax - uc) / nu, (sh.vmax - vc) / nv]
+        if sh.area is not None:
             # a side of the area that p_τ cannot reach (per-axis reach at the limits) is
             # left out: its bound is infinite, so it adds no inequality
-            r_lo, r_hi = reach_boxes(x0, T, self.dyn)
-            na = self._fixed_norm[2]
-            a_lo = np.where(r_lo[1:].ravel() < self._area_margin + 1.0, self._area_margin,
+            r_lo, r_hi = reach_boxes(x0, T, sh.dyn)
+            na = sh.fixed_norm[2]
+            a_lo = np.where(r_lo[1:].ravel() < sh.area_margin + 1.0, sh.area_margin,
                             -np.inf)
-            a_hi = np.where(r_hi[1:].ravel() > self.area - self._area_margin - 1.0,
-                            self.area - self._area_margin, np.inf)
+            a_hi = np.where(r_hi[1:].ravel() > sh.area - sh.area_margin - 1.0,
+                            sh.area - sh.area_margin, np.inf)
             lo.append(a_lo / na)
             hi.append(a_hi / na)
         lo_a, hi_a = np.concatenate(lo), np.concatenate(hi)
         # the factor-independent structure depends only on κ and which bounds are finite
         skey = (float(kappa[0]), float(kappa[1]), np.isfinite(lo_a).tobytes(),
                 np.isfinite(hi_a).tobytes())
-        cache = self._struct_cache
-        with self._struct_lock:  # planners of a fleet share it from their own threads
+        cache = sh.struct_cache
+        with sh.struct_lock:  # planners of a fleet share it from their own threads
             base = cache.get(skey)
             if base is not None:
                 cache.move_to_end(skey)
         if base is None:
-            fixed = Rows(self._fixed.cols, self._fixed.vals, lo_a, hi_a)
-            base = BandedQp(self.hessian_band(kappa), q, fixed, self._fixed_pairs)
-            with self._struct_lock:
+            fixed = Rows(sh.fixed.cols, sh.fixed.vals, lo_a, hi_a)
+            base = BandedQp(self.hessian_band(kappa), q, fixed, sh.fixed_pairs)
+            with sh.struct_lock:
                 if len(cache) >= STRUCTURES_KEPT:
                     cache.popitem(last=False)  # the least recently used
                 cache[skey] = base
@@ -348,37 +331,39 @@ class P2Qp:
             scale_n = np.linalg.norm(nrm, axis=1)
             cols = np.column_stack([j, j + 1, j])
             vals = np.column_stack([nrm[:, 0], nrm[:, 1], np.zeros(m)]) / scale_n[:, None]
-            extra = Rows(cols, vals, np.asarray(rhs, dtype=float) / (self.scale * scale_n),
-                         np.full(m, np.inf))
+            rhs_n = np.asarray(rhs, dtype=float) / (self.shape.scale * scale_n)
+            extra = Rows(cols, vals, rhs_n, np.full(m, np.inf))
         res = ctx.solve(extra, z0=z0, detect_infeasible=detect_infeasible)
         return res.ok, f"ipm {res.status}", res.z, res.iterations
 
     def positions(self, z: AnyArray, x0: AnyArray) -> AnyArray:
         """p_1..p_{T+1} (m) from the scaled variables."""
-        p1 = x0[:2] + self.dyn.dt_s * x0[2:]
-        return np.vstack([p1, self.scale * z.reshape(-1, 2)])
+        p1 = x0[:2] + self.shape.dyn.dt_s * x0[2:]
+        return np.vstack([p1, self.shape.scale * z.reshape(-1, 2)])
 
     def controls(self, z: AnyArray, x0: AnyArray, u_prev: AnyArray) -> AnyArray:
         _, uc, _, _ = self.offsets(x0, u_prev)
-        return np.asarray(_mv(self._U, z) + uc).reshape(-1, 2)
+        return np.asarray(_mv(self.shape.U, z) + uc).reshape(-1, 2)
 
     def cost(self, positions: AnyArray, controls: AnyArray, goal: AnyArray,
              kappa: tuple[float, float], u_prev: AnyArray) -> float:
         """Eq. (S2) for p_1..p_T (rows 0..T-1 of ``positions``) and u_1..u_T."""
-        pos = positions[: self.T]
+        pos = positions[: self.shape.T]
         du = _control_steps(u_prev, controls)
         return float(kappa[0] * np.sum((pos - goal) ** 2) + kappa[1] * np.sum(du**2))
 
-    def _linear_term(self, goal: AnyArray, kappa: tuple[float, float], duc: AnyArray
-                     ) -> AnyArray:
-        """q of the QP (the cost's linear term) for the last offsets; every QP of one plan
-        shares it, so the last one is kept."""
+    def _linear_term(self, x0: AnyArray, u_prev: AnyArray, goal: AnyArray,
+                     kappa: tuple[float, float]) -> AnyArray:
+        """q of the QP (the cost's linear term); every QP of one plan shares it, so the
+        last one is kept, like :meth:`offsets`."""
+        sh = self.shape
+        _, _, duc, _ = self.offsets(x0, u_prev)
         key = (self._off_key, np.asarray(goal, dtype=float).tobytes(), float(kappa[0]),
                float(kappa[1]))
         if self._q_key == key and self._q is not None:
             return self._q
-        goal_vec = np.tile(goal, self.T - 1)
-        q = -2.0 * kappa[0] * _mv(self._selT, goal_vec) + 2.0 * kappa[1] * _mv(self._dUT, duc)
+        goal_vec = np.tile(goal, sh.T - 1)
+        q = -2.0 * kappa[0] * _mv(sh.selT, goal_vec) + 2.0 * kappa[1] * _mv(sh.dUT, duc)
         q.setflags(write=False)
         self._q, self._q_key = q, key
         return q
@@ -397,12 +382,13 @@ class P2Qp:
         fails, Clarabel decides only when ``confirm`` (else the result is not ok);
         ``confirm`` is for QPs known to be feasible (no early infeasibility guess).
         """
-        T, s = self.T, self.scale
+        sh = self.shape
+        T, s = sh.T, sh.scale
         m = len(tau)
         n_sl = m if elastic is not None else 0
-        n = self.n + n_sl
-        vc, uc, duc, _ = self.offsets(x0, u_prev)
-        q = self._linear_term(goal, kappa, duc)
+        n = sh.n + n_sl
+        vc, uc, _, _ = self.offsets(x0, u_prev)
+        q = self._linear_term(x0, u_prev, goal, kappa)
         if self.backend == "ipm" and not n_sl:
             t_start = time.perf_counter()
             zs = None if z0 is None else np.asarray(z0, dtype=float).ravel() / s
@@ -414,21 +400,21 @@ class P2Qp:
                                 time.perf_counter() - t_start)
             if ok:
                 pos = self.positions(z, x0)
-                ctrl = np.asarray(_mv(self._U, z) + uc).reshape(-1, 2)
+                ctrl = np.asarray(_mv(sh.U, z) + uc).reshape(-1, 2)
                 cost = self.cost(pos, ctrl, goal, kappa, u_prev)
                 return QpResult(True, status, pos, ctrl, cost, iters,
                                 time.perf_counter() - t_start)
             area_rows = None  # Clarabel decides, with every area row
         h = self.hessian(kappa)
-        box = self._box
+        box = sh.box
         if n_sl:
             h = sp.block_diag([h, sp.csc_matrix((n_sl, n_sl))], format="csc")
             q = np.concatenate([q, np.full(n_sl, float(elastic or 0.0))])
             box = sp.hstack([box, sp.csr_matrix((box.shape[0], n_sl))], format="csr")
         blocks: list[sp.spmatrix] = [box]
-        bs = [self._umax - uc, self._umax + uc]
-        bs += ([self._vpoly - self._N @ vc] if self._norm
-               else [self._vmax - vc, self._vmax + vc])
+        bs = [sh.umax - uc, sh.umax + uc]
+        bs += ([sh.vpoly - sh.N @ vc] if sh.norm
+               else [sh.vmax - vc, sh.vmax + vc])
         if m:
             tau = np.asarray(tau, dtype=int)
             if np.any(tau < 2) or np.any(tau > T):
@@ -437,25 +423,25 @@ class P2Qp:
             rows = np.repeat(np.arange(m), 2)
             vals = (-s * np.asarray(normals, dtype=float)).ravel()
             if n_sl:
-                cols = np.concatenate([cols, self.n + np.arange(m)])
+                cols = np.concatenate([cols, sh.n + np.arange(m)])
                 rows = np.concatenate([rows, np.arange(m)])
                 vals = np.concatenate([vals, -np.ones(m)])
                 blocks.append(sp.csr_matrix((vals, (rows, cols)), shape=(m, n)))
-                blocks.append(sp.csr_matrix((-np.ones(m), (np.arange(m), self.n + np.arange(m))),
+                blocks.append(sp.csr_matrix((-np.ones(m), (np.arange(m), sh.n + np.arange(m))),
                                             shape=(m, n)))
                 bs.extend([-np.asarray(rhs, dtype=float), np.zeros(m)])
             else:
                 blocks.append(sp.csr_matrix((vals, (rows, cols)), shape=(m, n)))
                 bs.append(-np.asarray(rhs, dtype=float))
-        if self.area is not None:
+        if sh.area is not None:
             ar = self._area_rows(area_rows)
             if len(ar):
                 col = 2 * (ar[:, 0] - 2) + ar[:, 1]
                 sign = np.where(ar[:, 2] == 0, -1.0, 1.0)
                 blocks.append(sp.csr_matrix((sign * s, (np.arange(len(ar)), col)),
                                             shape=(len(ar), n)))
-                bs.append(np.where(ar[:, 2] == 0, -self._area_margin,
-                                   self.area - self._area_margin))
+                bs.append(np.where(ar[:, 2] == 0, -sh.area_margin,
+                                   sh.area - sh.area_margin))
         A = sp.vstack(blocks, format="csc")
         b = np.concatenate(bs)
         solver = clarabel.DefaultSolver(h, q, A, b, [clarabel.NonnegativeConeT(A.shape[0])],
@@ -463,22 +449,22 @@ class P2Qp:
         sol = solver.solve()
         status = str(sol.status)
         ok = status in ("Solved", "AlmostSolved")
-        z = np.asarray(sol.x, dtype=float)[: self.n]
+        z = np.asarray(sol.x, dtype=float)[: sh.n]
         if not ok or not np.all(np.isfinite(z)):
             empty = np.empty((0, 2))
             return QpResult(False, status, empty, empty, float("inf"), int(sol.iterations),
                             float(sol.solve_time))
         pos = self.positions(z, x0)
-        ctrl = np.asarray(_mv(self._U, z) + uc).reshape(-1, 2)
+        ctrl = np.asarray(_mv(sh.U, z) + uc).reshape(-1, 2)
         cost = self.cost(pos, ctrl, goal, kappa, u_prev)
         if n_sl:
-            slack = float(np.max(np.asarray(sol.x)[self.n:], initial=0.0))
+            slack = float(np.max(np.asarray(sol.x)[sh.n:], initial=0.0))
             status += f" (elastic, slack {slack:.3g} m)"
         return QpResult(True, status, pos, ctrl, cost, int(sol.iterations), float(sol.solve_time))
 
     def _area_rows(self, area_rows: AnyArray | None) -> AnyArray:
         if area_rows is None:
-            tau = np.arange(2, self.T + 1)
+            tau = np.arange(2, self.shape.T + 1)
             grid = np.array(np.meshgrid(tau, [0, 1], [0, 1], indexing="ij")).reshape(3, -1).T
             return grid.astype(int)
         return np.asarray(area_rows, dtype=int).reshape(-1, 3)
