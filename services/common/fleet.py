@@ -1,36 +1,65 @@
-"""One service process for several vehicles: the shared EWS and planner services of a fleet.
+"""One service process for several vehicles: the shared services and vehicle hosts of a fleet.
 
 Keys are namespaced by vehicle id (services/common/keys.py), so serving a
 fleet is serving each id's keys: ``--uav-ids uav1,uav2,…`` (``UAV_IDS``) runs
 the service's body once per id, each in a thread of its own over the one
-Zenoh session, with its own state (one fire field, one planner cache per
-vehicle) and its own liveliness token. Without the flag the service serves
-``--uav-id`` alone, exactly as before. The status queryable stays the one of
-``--uav-id``; it counts the rejections of every id's keys.
+Zenoh session, with its own state (one fire field, one planner cache, one
+simulated vehicle or one mission per vehicle) and its own liveliness token.
+Without the flag the service serves ``--uav-id`` alone, exactly as before.
+The status queryable stays the one of ``--uav-id``; it counts the rejections
+of every id's keys. A vehicle's own MAVLink link is instance k of the fleet
+(:func:`instance_url`: the port + k, as PX4 SITL numbers its instances), and
+its files are named with ``{uav}`` (:func:`per_vehicle`).
 """
 
 from __future__ import annotations
 
 import argparse
 import logging
+import re
 import threading
 from collections.abc import Callable
 from dataclasses import replace
 
 from . import bus, keys
 from .cli import env
-from .log import fields
+from .log import fields, tag_vehicle
 
 log = logging.getLogger(__name__)
 
 MAX_VEHICLES = 64
 
 
-def add_argument(p: argparse.ArgumentParser) -> None:
+def add_argument(p: argparse.ArgumentParser,
+                 what: str = "a fleet sharing this service") -> None:
     """The ``--uav-ids`` flag (default ``UAV_IDS``; empty: ``--uav-id`` alone)."""
     p.add_argument("--uav-ids", default=env("UAV_IDS", ""),
-                   help="serve these comma-separated vehicle ids (a fleet sharing this "
-                        "service); empty: --uav-id alone [UAV_IDS]")
+                   help=f"serve these comma-separated vehicle ids ({what}); empty: --uav-id "
+                        "alone [UAV_IDS]")
+
+
+_PORT = re.compile(r"^(udpin|udpout|udp|tcpin|tcp):([^:]*):(\d{1,5})$")
+
+
+def instance_url(url: str, k: int) -> str:
+    """Vehicle instance ``k``'s MAVLink URL: ``url`` with its port + k (k = 0: ``url`` itself).
+
+    Raises ValueError for a URL without a port, or a port beyond 65535.
+    """
+    if k == 0:
+        return url
+    found = _PORT.match(url)
+    if found is None:
+        raise ValueError(f"{url!r} has no port to number vehicle instances from")
+    port = int(found.group(3)) + k
+    if port > 65535:
+        raise ValueError(f"{url!r} + {k} vehicles passes port 65535")
+    return f"{found.group(1)}:{found.group(2)}:{port}"
+
+
+def per_vehicle(path: str, uav: str) -> str:
+    """``path`` with ``{uav}`` replaced by the vehicle id ("" stays "")."""
+    return path.replace("{uav}", uav)
 
 
 def uav_ids(text: str, default: str) -> tuple[str, ...]:
@@ -57,6 +86,7 @@ def for_each(ctx: bus.Context, ids: tuple[str, ...], body: Callable[[bus.Context
     errors: list[BaseException] = []
 
     def run(sub: bus.Context) -> None:
+        tag_vehicle(sub.settings.uav_id)  # this thread's log lines name its vehicle
         try:
             body(sub)
         except BaseException as err:  # re-raised by the caller's thread

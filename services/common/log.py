@@ -13,10 +13,21 @@ import logging
 import math
 import os
 import sys
+import threading
 import time
 from typing import Any
 
 _FIELDS = "fields"
+_THREAD = threading.local()
+
+
+def tag_vehicle(uav: str) -> None:
+    """Log lines of the calling thread name vehicle ``uav`` (a fleet process's vehicle thread)."""
+    _THREAD.uav = uav
+
+
+def _uav(default: str) -> str:
+    return str(getattr(_THREAD, "uav", default))
 
 
 def fields(**kv: Any) -> dict[str, dict[str, Any]]:
@@ -44,7 +55,7 @@ class JsonFormatter(logging.Formatter):
             + f".{int(record.msecs):03d}Z",
             "level": record.levelname.lower(),
             "service": self.service,
-            "uav": self.uav,
+            "uav": _uav(self.uav),
             "logger": record.name,
             "msg": record.getMessage(),
         }
@@ -58,12 +69,13 @@ class JsonFormatter(logging.Formatter):
 class TextFormatter(logging.Formatter):
     def __init__(self, service: str, uav: str):
         super().__init__()
-        self.prefix = f"{service}[{uav}]"
+        self.service, self.uav = service, uav
 
     def format(self, record: logging.LogRecord) -> str:
         ts = time.strftime("%H:%M:%S", time.localtime(record.created)) + f".{int(record.msecs):03d}"
         kv = " ".join(f"{k}={_plain(v)}" for k, v in getattr(record, _FIELDS, {}).items())
-        line = f"{ts} {record.levelname:<7} {self.prefix} {record.name}: {record.getMessage()}"
+        prefix = f"{self.service}[{_uav(self.uav)}]"
+        line = f"{ts} {record.levelname:<7} {prefix} {record.name}: {record.getMessage()}"
         line = f"{line} {kv}" if kv else line
         if record.exc_info:
             line += "\n" + self.formatException(record.exc_info)

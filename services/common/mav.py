@@ -99,11 +99,12 @@ def resolve_key(passphrase: str = "", key_file: str = "") -> bytes | None:
 
 
 def connect(url: str, source_system: int, source_component: int,
-            passphrase: str = "", key: bytes | None = None) -> Any:
+            passphrase: str = "", key: bytes | None = None, link_id: int | None = None) -> Any:
     """Open a pymavlink connection; with a key (or passphrase), sign outgoing and reject unsigned.
 
     A keyed connection accepts only frames signed with the same key; the others
     arrive as BAD_DATA and are counted in ``conn.mav.signing`` (badsig/unsigned/reject).
+    ``link_id`` is the signing link id (default: pymavlink numbers links 0, 1, … a process).
     """
     if not url:
         raise ValueError("empty MAVLink URL")
@@ -116,7 +117,7 @@ def connect(url: str, source_system: int, source_component: int,
             raise ValueError(f"a MAVLink signing key has {SIGNING_KEY_LEN} bytes, got {len(key)}")
         # a callback that refuses everything makes pymavlink count the refusals (reject_count)
         conn.setup_signing(key, sign_outgoing=True,
-                           allow_unsigned_callback=lambda _mav, _msg_id: False)
+                           allow_unsigned_callback=lambda _mav, _msg_id: False, link_id=link_id)
     return conn
 
 

@@ -18,7 +18,14 @@ from services.launch.compose import (
                                      published_ports,
 )
 from services.launch.fleet import SHARED_SERVICES, VEHICLE_SERVICES, Fleet, Vehicle
-from services.launch.processes import STOP_GRACE_S, Proc, ProcessGroup, free_port, port_is_free
+from services.launch.processes import (
+                                     STOP_GRACE_S,
+                                     Proc,
+                                     ProcessGroup,
+                                     free_port,
+                                     free_port_run,
+                                     port_is_free,
+)
 from services.launch.stack import (
                                      Outcome,
                                      Stack,
@@ -34,6 +41,7 @@ __all__ = [
     "COMPOSE", "ENDPOINT_KEYS", "REPO", "ROUTER_IMAGE", "SHARED_SERVICES", "STOP_GRACE_S",
     "VEHICLE_SERVICES", "Fleet", "Outcome", "PortMap", "Proc", "ProcessGroup", "Stack",
     "StackConfig", "Vehicle", "check_compose", "client_session", "follow", "free_port",
+    "free_port_run",
     "load_compose", "next_event", "port_is_free", "published_ports", "run_mission",
     "wait_router",
 ]

@@ -26,6 +26,15 @@ def free_port(proto: str = "tcp") -> int:
         return int(s.getsockname()[1])
 
 
+def free_port_run(n: int, proto: str = "udp", tries: int = 200) -> int:
+    """The first of ``n`` consecutive free loopback ports (a fleet's instances: port + k)."""
+    for _ in range(tries):
+        base = free_port(proto)
+        if base + n - 1 <= 65535 and all(port_is_free(base + k, proto) for k in range(1, n)):
+            return base
+    raise OSError(f"no run of {n} free {proto} ports")
+
+
 def port_is_free(port: int, proto: str) -> bool:
     kind = socket.SOCK_STREAM if proto == "tcp" else socket.SOCK_DGRAM
     with socket.socket(socket.AF_INET, kind) as s:

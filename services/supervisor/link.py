@@ -2,13 +2,20 @@
 
 Threads: a reader keeps the newest LOCAL_POSITION_NED (with its
 ``time_boot_ms``, the vehicle's simulated clock), the vehicle's mode and
-arming from its HEARTBEAT, COMMAND_ACKs, the geodetic origin
-(GPS_GLOBAL_ORIGIN) and the mission id (parameter ``MIS_ID``); a streamer
-re-sends the current SET_POSITION_TARGET_LOCAL_NED at ``rate_hz`` (≥ 10 Hz;
-PX4 needs ≥ 2 Hz) and a HEARTBEAT at 1 Hz (5 Hz until the vehicle answers: a
-``udpout`` end must speak first); a mission watcher downloads the vehicle's
-mission (MISSION_REQUEST_LIST → MISSION_COUNT → MISSION_REQUEST_INT for
-each item → MISSION_ACK, with retries) whenever ``MIS_ID`` changes.
+arming from its HEARTBEAT (each time it leaves offboard mode is counted, with
+the reason of its last STATUSTEXT: services/supervisor/faults.py), COMMAND_ACKs,
+the geodetic origin (GPS_GLOBAL_ORIGIN) and the mission id (parameter
+``MIS_ID``); a poller asks for ``MIS_ID`` and the origin at 1 Hz; a mission
+watcher downloads the vehicle's mission (MISSION_REQUEST_LIST →
+MISSION_COUNT → MISSION_REQUEST_INT for each item → MISSION_ACK, with
+retries) whenever ``MIS_ID`` changes.
+
+The stream — the current SET_POSITION_TARGET_LOCAL_NED at ``rate_hz`` (≥ 10
+Hz; PX4 needs ≥ 2 Hz) and a HEARTBEAT at 1 Hz (5 Hz until the vehicle
+answers: a ``udpout`` end must speak first) — is sent by the supervisor's
+stream process (services/supervisor/stream/) on this link's own UDP socket,
+signed on link id 1 (the link's own frames use link id 0). Only a link that
+is not UDP (tcp, serial) streams from a thread of this process instead.
 
 :meth:`VehicleLink.start_offboard` is the MAVSDK/PX4 start: wait for a
 heartbeat and a valid position, stream setpoints that hold the current state,
@@ -25,6 +32,7 @@ import logging
 import math
 import queue
 import select
+import socket
 import threading
 import time
 from typing import Any
@@ -34,6 +42,7 @@ import numpy as np
 from dualpilot.model.dynamics import Array
 from services.common import codec, mav
 from services.common.log import fields
+from services.supervisor.stream.client import StreamLink, stream_process
 
 log = logging.getLogger(__name__)
 m = mav.mavlink
@@ -43,6 +52,17 @@ MISSION = m.MAV_MISSION_TYPE_MISSION
 
 class OffboardError(RuntimeError):
     """The vehicle could not be put under offboard control."""
+
+
+def _destinations(conn: Any) -> list[tuple[str, int]]:
+    """Where a UDP link sends: its fixed destination (udpout), else the peers heard (udpin)."""
+    if not getattr(conn, "udp_server", True):
+        host, port = conn.destination_addr
+        try:
+            return [(socket.gethostbyname(host), int(port))]
+        except OSError:  # not resolvable yet (a container still starting): asked again
+            return []
+    return sorted((str(a), int(p)) for a, p in getattr(conn, "clients", ()))
 
 
 def result_name(result: int) -> str:
@@ -62,8 +82,18 @@ class VehicleLink:
         if rate_hz < 10:
             raise ValueError(f"setpoints are streamed at >= 10 Hz, got {rate_hz}")
         self.conn = mav.connect(url, target_system, mav.MAV_COMP_ID_ONBOARD_COMPUTER, passphrase,
-                                key=key)
+                                key=key, link_id=0)
         self.send = mav.Sender(self.conn)
+        if key is None and passphrase:
+            key = mav.signing_key(passphrase)
+        self.stream: StreamLink | None = None
+        if isinstance(getattr(self.conn, "port", None), socket.socket):  # UDP: the process
+            self.stream = stream_process().add(
+                self.conn.port, [], target_system, mav.MAV_COMP_ID_ONBOARD_COMPUTER,
+                (target_system, mav.MAV_COMP_ID_AUTOPILOT1), mav.MAV_FRAME_LOCAL_NED, rate_hz,
+                key, link_id=1)
+        self._dests: list[tuple[str, int]] = []
+        self._hb_period = 0.0
         self.target_system = target_system
         self.target = (target_system, mav.MAV_COMP_ID_AUTOPILOT1)
         self.altitude_m = altitude_m
@@ -81,8 +111,14 @@ class VehicleLink:
         self.armed = False
         self.origin: tuple[float, float] | None = None
         self.setpoint: tuple[Array, int] | None = None
-        self.sent = 0
+        self._sent = 0  # setpoints sent by this process (a link that is not UDP)
         self.acks: dict[int, int] = {}
+        #: times the vehicle left offboard mode while armed, and the last STATUSTEXT before it
+        self.holds = 0
+        self.hold_reasons: list[str] = []
+        self.last_text = ""
+        #: LOCAL_POSITION_NED that changed the state without a new time_boot_ms (no step)
+        self.moved_without_step = 0
         self.mission_id_seen: float | None = None
         self.mission_id_loaded: float | None = None
         self.mission_items: list[mav.MissionItem] | None = None
@@ -91,21 +127,41 @@ class VehicleLink:
         self._stop = threading.Event()
         self._threads = [
             threading.Thread(target=self._read, name="mav-reader", daemon=True),
-            threading.Thread(target=self._stream, name="mav-streamer", daemon=True),
+            threading.Thread(target=self._poll, name="mav-poller", daemon=True),
             threading.Thread(target=self._watch_mission, name="mav-mission", daemon=True),
         ]
 
     def start(self) -> None:
-        self._heartbeat()  # speak first so a udpin vehicle learns our address
+        self._update_stream()  # speak first so a udpin vehicle learns our address
+        if self.stream is None:
+            self._heartbeat()
         for th in self._threads:
             th.start()
 
-    def close(self) -> None:
+    def close(self) -> dict[str, object]:
+        """Stop the stream and the threads, close the link; the stream's statistics."""
+        stats: dict[str, object] = {}
+        if self.stream is not None:
+            stats = dict(self.stream.close())
+            log.info("setpoint stream closed", extra=fields(**stats))
         self._stop.set()
         for th in self._threads:
             if th.is_alive():
                 th.join(1.0)
         self.conn.close()
+        return stats
+
+    @property
+    def sent(self) -> int:
+        """Setpoint frames sent on this link (stream repeats included)."""
+        return self.stream.frames if self.stream is not None else self._sent
+
+    def stream_stats(self) -> dict[str, object]:
+        """What the stream process kept: frames, the longest gap between them, its scheduling."""
+        if self.stream is None:
+            return {"process": False, "frames": self._sent}
+        return {"process": True, "scheduling": self.stream.owner.priority,
+                "restarts": self.stream.owner.restarts, **self.stream.stats()}
 
     # -- vehicle status -------------------------------------------------------------------------
     def alive(self) -> bool:
@@ -127,12 +183,17 @@ class VehicleLink:
         self.send("heartbeat", m.MAV_TYPE_ONBOARD_CONTROLLER, m.MAV_AUTOPILOT_INVALID, 0, 0,
                   m.MAV_STATE_ACTIVE)
 
-    def _send_target(self, target: Array, due_ms: int) -> None:
+    def _send_target(self, target: Array, due_ms: int, wait: bool = True) -> float:
+        """Send a setpoint now (through the stream process, which then repeats it)."""
         n, e, d, vn, ve, vd = codec.state_to_ned(target, self.altitude_m)
+        if self.stream is not None:
+            return self.stream.setpoint(int(due_ms), (n, e, d, vn, ve, vd),
+                                        mav.TYPE_MASK_POS_VEL, wait)
         self.send("set_position_target_local_ned", int(due_ms), *self.target,
                   mav.MAV_FRAME_LOCAL_NED, mav.TYPE_MASK_POS_VEL,
                   n, e, d, vn, ve, vd, 0.0, 0.0, 0.0, 0.0, 0.0)
-        self.sent += 1
+        self._sent += 1
+        return time.perf_counter()
 
     def send_setpoint(self, target: Array, due_ms: int) -> float:
         """Make ``target`` [p, v] (due at ``due_ms``) the current setpoint and send it now.
@@ -142,20 +203,39 @@ class VehicleLink:
         target = np.asarray(target, dtype=float).copy()
         with self.cond:
             self.setpoint = (target, int(due_ms))
-        self._send_target(target, due_ms)
-        return time.perf_counter()
+        return self._send_target(target, due_ms)
 
     def hold(self) -> None:
         """Stream the vehicle's current state, due now: keeps the stream alive, moves nothing."""
         with self.cond:
-            if self.state is not None and self.setpoint is None:
-                self.setpoint = (self.state.copy(), self.state_time_ms)
+            if self.state is None or self.setpoint is not None:
+                return
+            self.setpoint = (self.state.copy(), self.state_time_ms)
+            sp = self.setpoint
+        self._send_target(*sp, wait=False)
 
-    def _stream(self) -> None:
+    def _update_stream(self) -> None:
+        """Tell the stream process where the vehicle is and how often to heartbeat."""
+        if self.stream is None:
+            return
+        period = 1.0 if self.alive() else 0.2
+        if period != self._hb_period:
+            self._hb_period = period
+            self.stream.heartbeat(period, m.MAV_TYPE_ONBOARD_CONTROLLER, m.MAV_AUTOPILOT_INVALID,
+                                  m.MAV_STATE_ACTIVE)
+        dests = _destinations(self.conn)
+        if dests != self._dests:
+            self._dests = dests
+            self.stream.dests(dests)
+
+    def _poll(self) -> None:
+        """Parameter and origin polls at 1 Hz; the stream's destination and heartbeat period
+        (or, on a link that is not UDP, the stream itself)."""
         next_hb = next_poll = 0.0
         while not self._stop.is_set():
             now = time.monotonic()
-            if now >= next_hb:
+            self._update_stream()
+            if self.stream is None and now >= next_hb:
                 self._heartbeat()
                 next_hb = now + (1.0 if self.alive() else 0.2)
             if now >= next_poll and self.seen.is_set():
@@ -164,11 +244,12 @@ class VehicleLink:
                     self.send("command_long", *self.target, m.MAV_CMD_REQUEST_MESSAGE, 0,
                               m.MAVLINK_MSG_ID_GPS_GLOBAL_ORIGIN, 0, 0, 0, 0, 0, 0)
                 next_poll = now + 1.0
-            with self.cond:
-                sp = self.setpoint
-            if sp is not None:
-                self._send_target(*sp)
-            self._stop.wait(self.period_s)
+            if self.stream is None:
+                with self.cond:
+                    sp = self.setpoint
+                if sp is not None:
+                    self._send_target(*sp)
+            self._stop.wait(self.period_s if self.stream is None else 0.1)
 
     def command(self, cmd: int, *params: float, stop: threading.Event | None = None) -> int:
         """COMMAND_LONG, re-sent (``confirmation`` + 1) until a COMMAND_ACK arrives; the result,
@@ -262,6 +343,9 @@ class VehicleLink:
                 if (mode, armed) != (self.mode, self.armed) and self.seen.is_set():
                     log.info("vehicle mode", extra=fields(
                         mode=mav.MODE_NAMES.get(mode, mode), armed=armed))
+                    if self.mode == mav.MODE_GUIDED and self.armed and mode != mav.MODE_GUIDED:
+                        self.holds += 1  # it left offboard control: a fault of the mission
+                        self.hold_reasons.append(self.last_text)
                 self.mode, self.armed = mode, armed
                 self.seen.set()
                 self.cond.notify_all()
@@ -273,6 +357,9 @@ class VehicleLink:
                 return
             with self.cond:
                 if msg.time_boot_ms >= self.state_time_ms:
+                    if (msg.time_boot_ms == self.state_time_ms and self.state is not None
+                            and not np.array_equal(x, self.state)):
+                        self.moved_without_step += 1  # lockstep: only a step moves it
                     self.state, self.state_time_ms = x, int(msg.time_boot_ms)
                     self.cond.notify_all()
         elif kind == "GLOBAL_POSITION_INT":
@@ -285,6 +372,8 @@ class VehicleLink:
             with self.cond:
                 self.acks[int(msg.command)] = int(msg.result)
                 self.cond.notify_all()
+        elif kind == "STATUSTEXT":
+            self.last_text = str(msg.text)[:50]
         elif kind == "PARAM_VALUE" and msg.param_id == "MIS_ID":
             self.mission_id_seen = float(msg.param_value)
         elif kind in ("MISSION_COUNT", "MISSION_ITEM_INT", "MISSION_ACK"):

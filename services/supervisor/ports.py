@@ -281,6 +281,7 @@ class StackPlanners:
         self.request_wall = self.service_time = self.compute = 0.0
         self.requests = 0
         self.misses = {1: 0, 2: 0}  # deadlines missed in a row
+        self.deadline_misses = 0  # all of them (the named fault plan_deadline)
         self._pool: ThreadPoolExecutor | None = None  # background requests (launch/collect)
         self.demoted: dict[int, float] = {}  # system → monotonic time of its last health query
 
@@ -318,6 +319,7 @@ class StackPlanners:
             self.misses[system] = 0
             return
         self.misses[system] += 1
+        self.deadline_misses += 1
         if self.misses[system] >= self.b.stack.deadline_misses and system not in self.demoted:
             self.demoted[system] = time.monotonic()
             log.warning("planner unavailable: missed its deadline", extra=fields(
@@ -372,6 +374,8 @@ class StackPlanners:
         """The launched request's plan (a failed plan when it was late or not this step's)."""
         assert isinstance(ticket, Future)
         plan: Plan = ticket.result()
+        if plan.status is PlanStatus.TIMEOUT:
+            self.deadline_misses += 1
         return plan
 
     def close(self) -> None:

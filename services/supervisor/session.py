@@ -58,6 +58,8 @@ from services.common.clock import SimClock
 from services.common.log import fields
 from services.msgs import common_pb2, supervisor_pb2, vehicle_pb2
 
+from . import faults as fault_names
+from .faults import FaultLog
 from .link import OffboardError, VehicleLink
 from .ports import Aborted, Bus, StackFires, StackParams, StackPlanners, StackVehicle
 from .runlog import Latency, OperatorRecord, write_operator_columns
@@ -137,6 +139,8 @@ class StackSession:
         self._decision: tuple[Decision, int] | None = None
         self.lock_fh: object | None = None  # the run directory's lock (held while flying)
         self.monitor_rejected = 0  # plans the run-time monitor refused (dualpilot/mission/monitor)
+        self.faults = FaultLog()  # wall-clock events that touched the mission (faults.py)
+        self._holds_seen = 0
         self.storage_errors = 0
         self.storage_fault = ""
 
@@ -203,6 +207,8 @@ class StackSession:
             return
         t0 = time.monotonic()
         lost = not self.link.alive()
+        if lost:
+            self.faults.note(fault_names.VEHICLE_LOST)
         reason = ("vehicle lost: no heartbeat for 3 s" if lost
                   else f"vehicle not flying offboard ({self.link.status()})")
         log.warning("mission paused", extra=fields(reason=reason))
@@ -222,6 +228,8 @@ class StackSession:
             if time.monotonic() - t0 > self.stack.pause_limit_s:
                 raise Aborted(f"paused for more than {self.stack.pause_limit_s:g} s: {reason}")
             if not self.link.alive():
+                if not lost:
+                    self.faults.note(fault_names.VEHICLE_LOST)
                 lost = True
             elif lost:  # back after a loss: take it again (the steps it still needs)
                 lost = False
@@ -500,6 +508,21 @@ class StackSession:
         alive = any(self.b.alive(f"system{k}") for k in systems_of(self.controller))
         return "no OK plan" if alive else "no planner alive"
 
+    def _step_faults(self) -> list[str]:
+        """The named faults since the last step record (services/supervisor/faults.py)."""
+        link = self.link
+        for reason in link.hold_reasons[self._holds_seen:link.holds]:
+            self.faults.note(fault_names.VEHICLE_HOLD, reason)
+        self._holds_seen = link.holds
+        misses = self.planners.deadline_misses if self.planners is not None else 0
+        self.faults.counters(vehicle_moved=link.moved_without_step, plan_deadline=misses)
+        if self._step_why.get("fire_stale"):
+            self.faults.note(fault_names.FIRE_STALE)
+        found = self.faults.take()
+        if found:
+            log.warning("step touched by a fault", extra=fields(faults="; ".join(found)))
+        return found
+
     def recorded(self, record: StepRecord, flown: bool) -> None:
         rejected = record.plan_status.count(f"[{monitor.TAG}:")
         if rejected:
@@ -507,6 +530,7 @@ class StackSession:
             log.warning("plan refused by the run-time monitor", extra=fields(
                 step=record.t, plan_status=record.plan_status, total=self.monitor_rejected))
         why = dict(self._step_why)
+        why["faults"] = self._step_faults()
         if record.system == 0:
             why["hold_reason"] = self._hold_reason()
         if not flown:
@@ -609,7 +633,8 @@ class StackSession:
             "setpoint_overhead": self.latency.overhead_ms(),
             "setpoints_sent": self.link.sent, "rejected_messages": dict(codec.REJECTED.by_label),
             "monitor_rejected": self.monitor_rejected, "untrusted": _untrusted_counts(),
-            "storage_errors": self.storage_errors,
+            "storage_errors": self.storage_errors, "faults": dict(self.faults.totals),
+            "stream": self.link.stream_stats(),
             **extra,
         }
         atomic_write(out / "summary.json", json.dumps(summary, indent=2, default=str) + "\n")

@@ -28,11 +28,12 @@ import socket
 import sys
 import threading
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
 from dualpilot.readings import PROFILES, get_profile
-from services.common import bus, codec, mav
+from services.common import bus, codec, fleet, mav
 from services.common import cli as common_cli
 from services.common.log import fields
 
@@ -44,6 +45,7 @@ from .intervals import Schedule
 from .mission import MissionServer
 from .setpoint import normalised
 from .storage import open_tlog
+from .stream_stats import StreamStats
 from .vehicle import Vehicle
 
 log = logging.getLogger("services.uavsim")
@@ -55,6 +57,8 @@ MAX_CLIENTS = 8
 #: datagrams read from one link before the loop sends telemetry again (a flood cannot starve it)
 MAX_DATAGRAMS_PER_POLL = 200
 CLIENT_TIMEOUT_S = 10.0
+#: wall s between writes of --stream-stats
+STATS_EVERY_S = 5.0
 #: Messages a ground station sends that the vehicle ignores without counting them as bad
 #: input (housekeeping of MAVProxy and QGroundControl).
 GCS_CHATTER = frozenset({
@@ -101,6 +105,8 @@ PARAMS: dict[str, tuple[float, float | None, float | None, str]] = {
                                        "clock is refused (one step: 5 dT planning + dT, +0.5)"),
     "CTL_REFUSED": (0.0, None, None, "control messages refused: not from the link and peer "
                                      "in control"),
+    "SIM_FAILSAFES": (0.0, None, None, "offboard-loss failsafes so far (services/uavsim/"
+                                       "failsafe.py)"),
 }
 #: Messages a keyed ground-station link refuses unsigned (control, mission upload, parameters).
 SIGNED_ONLY = frozenset({"SET_POSITION_TARGET_LOCAL_NED", "COMMAND_LONG", "COMMAND_INT",
@@ -138,8 +144,10 @@ class Endpoint:
         self.armed = False
         self.airborne = False
         self.failsafe = False
+        self.failsafe_since = 0.0
         self.last_setpoint = 0.0
         self.stream_since = 0.0
+        self.stream_stats = StreamStats()  # the setpoint stream as this vehicle saw it
         self.ignored_setpoints = 0
         self.rejected_seen = 0
         self.last_reject_note = 0.0
@@ -556,6 +564,7 @@ class Endpoint:
             return False
         if now - self.last_setpoint > self.p("COM_OF_LOSS_T"):
             self.stream_since = now  # a new stream starts
+        self.stream_stats.setpoint(now, self.mode == fl.OFFBOARD or self.failsafe)
         self.last_setpoint = now
         if not (self.mode == fl.OFFBOARD and self.armed and self.airborne):
             self.ignored_setpoints += 1
@@ -598,8 +607,16 @@ class Endpoint:
     def stream_live(self, now: float) -> bool:
         return bool(self.last_setpoint) and now - self.last_setpoint <= self.p("COM_OF_LOSS_T")
 
+    def end_failsafe(self, now: float) -> None:
+        """The offboard-loss failsafe is over (the stream is back, or a mode was commanded)."""
+        if self.failsafe:
+            self.failsafe = False
+            self.stream_stats.failsafe_s += now - self.failsafe_since
+
     # -- loop -----------------------------------------------------------------------------------
-    def run(self, stop: threading.Event) -> None:
+    def run(self, stop: threading.Event,
+            on_tick: Callable[[float], None] | None = None) -> None:
+        """Serve the links until ``stop``; ``on_tick(now)`` after every pass of the loop."""
         self.statustext("dualpilot uavsim ready")
         fds = {conn.fd: name for name, conn in self.links.items()}
         while not stop.is_set():
@@ -608,7 +625,6 @@ class Endpoint:
                 self.fly_realtime(now)
             for msg_id in self.schedule.due(now):
                 self.stream(msg_id)
-            check_offboard(self, now)
             self.mission.poll(now)
             if self.fault:
                 self.statustext(self.fault[:50], m.MAV_SEVERITY_ERROR)
@@ -619,6 +635,38 @@ class Endpoint:
             ready, _, _ = select.select(list(fds), [], [], max(0.0, timeout))
             for fd in ready:
                 self.receive(fds[fd])
+            # after the reads: a vehicle kept off the CPU finds its queued setpoints first
+            check_offboard(self, time.monotonic())
+            if on_tick is not None:
+                on_tick(time.monotonic())
+
+
+class StatsFile:
+    """Writes the endpoint's stream statistics (services/uavsim/stream_stats.py) to a file every
+    :data:`STATS_EVERY_S` and at exit; a write error is logged once, never fatal."""
+
+    def __init__(self, path: str, endpoint: Endpoint):
+        self.path = path
+        self.endpoint = endpoint
+        self.next_s = 0.0
+        self.failed = False
+
+    def tick(self, now: float) -> None:
+        if now >= self.next_s:
+            self.next_s = now + STATS_EVERY_S
+            self.write()
+
+    def write(self) -> None:
+        ep = self.endpoint
+        try:
+            clock = vclock.REALTIME if ep.realtime else vclock.LOCKSTEP
+            ep.stream_stats.write(self.path, clock=clock, sysid=ep.sysid,
+                                  failsafe_now=ep.failsafe)
+        except OSError as err:
+            if not self.failed:
+                self.failed = True
+                codec.rejected("stream-stats", codec.invalid(f"not written: {err}"), log,
+                               key="storage/stream-stats", reason="write_error")
 
 
 def parse_pair(text: str, what: str) -> tuple[float, float]:
@@ -659,7 +707,15 @@ def main(argv: list[str] | None = None) -> int:
                    help="sign the offboard link (sha256 of the passphrase) "
                         "[MAVLINK_SIGNING_PASSPHRASE]")
     p.add_argument("--tlog", default=env("TLOG_PATH", ""),
-                   help="record the vehicle's MAVLink traffic here (.tlog) [TLOG_PATH]")
+                   help="record the vehicle's MAVLink traffic here (.tlog); {uav} is the "
+                        "vehicle id [TLOG_PATH]")
+    p.add_argument("--stream-stats", default=env("STREAM_STATS_PATH", ""),
+                   help="write what the vehicle saw of its setpoint stream here (JSON: gaps, "
+                        "failsafes; every 5 s and at exit); {uav} is the vehicle id "
+                        "[STREAM_STATS_PATH]")
+    fleet.add_argument(p, "several vehicles in this process, instance k (from 0) on the "
+                          "links' ports + k with system id --sysid + k, as PX4 SITL's "
+                          "multi-vehicle instances")
     p.add_argument("--autopilot", choices=sorted(fl.FLAVOURS),
                    default=env("UAV_AUTOPILOT", fl.ARDUPILOT.name),
                    help="the autopilot the vehicle claims to be: HEARTBEAT autopilot and mode "
@@ -697,8 +753,15 @@ def main(argv: list[str] | None = None) -> int:
         key = mav.resolve_key(args.signing_passphrase, args.signing_key_file)
         dynamics = get_profile(args.profile).with_settings(
             {"speed_limit": args.speed_limit} if args.speed_limit else {}).dynamics
-        vehicle = Vehicle.at(*start, dyn=dynamics)
-        vehicle.kp = args.kp
+        uavs = fleet.uav_ids(args.uav_ids, settings.uav_id)
+        if args.sysid + len(uavs) - 1 > 255:
+            raise ValueError(f"--sysid {args.sysid} + {len(uavs)} vehicles passes 255")
+        for flag, path in (("--tlog", args.tlog), ("--stream-stats", args.stream_stats)):
+            if path and len(uavs) > 1 and "{uav}" not in path:
+                raise ValueError(f"{flag} must contain {{uav}} to serve several vehicles")
+        for url in (settings.mavlink_url, args.gcs_url):
+            if url:
+                fleet.instance_url(url, len(uavs) - 1)  # each vehicle's port exists
         speed = settings.speed_factor
         if args.clock == vclock.REALTIME and not speed > 0:
             raise ValueError("--clock realtime needs --speed-factor > 0 (1 is real time)")
@@ -706,40 +769,55 @@ def main(argv: list[str] | None = None) -> int:
         p.error(str(err))
 
     def body(ctx: bus.Context) -> None:
-        tlog = open_tlog(args.tlog) if args.tlog else None
-        links = {"offboard": mav.connect(settings.mavlink_url, args.sysid,
-                                         mav.MAV_COMP_ID_AUTOPILOT1, key=key)}
-        if args.gcs_url:
-            links["gcs"] = mav.connect(args.gcs_url, args.sysid, mav.MAV_COMP_ID_AUTOPILOT1)
+        k = uavs.index(ctx.settings.uav_id)  # this vehicle's instance: ports and sysid + k
+        uav = ctx.settings.uav_id
+        sysid = args.sysid + k
+        tlog_path = fleet.per_vehicle(args.tlog, uav)
+        stats_path = fleet.per_vehicle(args.stream_stats, uav)
+        offboard_url = fleet.instance_url(settings.mavlink_url, k)
+        gcs_url = fleet.instance_url(args.gcs_url, k) if args.gcs_url else ""
+        tlog = open_tlog(tlog_path) if tlog_path else None
+        links = {"offboard": mav.connect(offboard_url, sysid, mav.MAV_COMP_ID_AUTOPILOT1,
+                                         key=key)}
+        if gcs_url:
+            links["gcs"] = mav.connect(gcs_url, sysid, mav.MAV_COMP_ID_AUTOPILOT1)
             if key is not None:  # signed too: unsigned control, uploads and PARAM_SET refused
                 signed_only = {getattr(m, f"MAVLINK_MSG_ID_{k}") for k in SIGNED_ONLY}
                 links["gcs"].setup_signing(
                     key, sign_outgoing=True,
                     allow_unsigned_callback=lambda _mav, msg_id: msg_id not in signed_only)
+        vehicle = Vehicle.at(*start, dyn=dynamics)
+        vehicle.kp = args.kp
         log.info("serving MAVLink", extra=fields(
-            offboard=settings.mavlink_url, gcs=args.gcs_url, signed=key is not None,
+            uav=uav, sysid=sysid, offboard=offboard_url, gcs=gcs_url, signed=key is not None,
             autopilot=args.autopilot, clock=args.clock, speed_factor=speed,
             speed_limit=vehicle.dyn.speed_limit,
-            zenoh=use_zenoh, east_m=start[0], north_m=start[1], tlog=args.tlog))
-        endpoint = Endpoint(vehicle, links, args.sysid, args.altitude_m, home,
+            zenoh=use_zenoh, east_m=start[0], north_m=start[1], tlog=tlog_path))
+        endpoint = Endpoint(vehicle, links, sysid, args.altitude_m, home,
                             args.offboard_loss_s, args.area_size_m, tlog,
                             fl.FLAVOURS[args.autopilot], args.clock, speed)
         if tlog is not None:
             tlog.on_fault = lambda text: setattr(endpoint, "fault", text)
-        elif args.tlog:
+        elif tlog_path:
             endpoint.fault = "tlog not created: flying without it"
+        stats = StatsFile(stats_path, endpoint) if stats_path else None
         if ctx.session is not None:
             ctx.announce()
         try:
-            endpoint.run(ctx.stop)
+            endpoint.run(ctx.stop, on_tick=stats.tick if stats is not None else None)
         finally:
+            if stats is not None:
+                stats.write()
             for conn in links.values():
                 conn.close()
             if tlog is not None:
                 tlog.close()
-                log.info("tlog closed", extra=fields(path=args.tlog, frames=tlog.frames))
+                log.info("tlog closed", extra=fields(path=tlog_path, frames=tlog.frames))
 
-    return bus.run_service(settings, body, zenoh_session=use_zenoh)
+    def serve(ctx: bus.Context) -> None:
+        fleet.for_each(ctx, uavs, body)
+
+    return bus.run_service(settings, serve, zenoh_session=use_zenoh)
 
 
 if __name__ == "__main__":

@@ -108,13 +108,13 @@ class Commands:
                 ep.statustext(f"{ep.mode_name(fl.OFFBOARD)} refused: no setpoint stream",
                               m.MAV_SEVERITY_WARNING)
                 return int(m.MAV_RESULT_DENIED)
-            ep.failsafe = False
+            ep.end_failsafe(time.monotonic())
             if ep.armed:
                 ep.airborne = True
             ep.set_mode(fl.OFFBOARD, "offboard control")
             return int(m.MAV_RESULT_ACCEPTED)
         if mode == fl.HOLD:
-            ep.failsafe = False
+            ep.end_failsafe(time.monotonic())
             if ep.mode != fl.HOLD:
                 ep.vehicle.brake()
             ep.set_mode(fl.HOLD, "hold (commanded)")

@@ -147,13 +147,16 @@ def test_offboard_sequence_then_setpoints_fly_one_step_of_eq1_each(vehicle: Any)
     assert 0 < status.battery_remaining < 100  # Σ‖u‖ΔT ≈ 24 N·s of 1000
     assert status.onboard_control_sensors_health & m.MAV_SYS_STATUS_PREARM_CHECK  # armable
 
-    # the failsafe: no setpoint for COM_OF_LOSS_T = 1 s → LOITER (hold) within 1.5 s
+    # the failsafe: no setpoint for COM_OF_LOSS_T = 1 s → LOITER (hold) within 1.5 s;
+    # lockstep: no simulated time passes without a new stamp, so it holds as it is (x: the
+    # state after the last step, still moving), its clock where it was
     t_quiet = time.monotonic()
     recv(conn, "HEARTBEAT", 3, lambda h: h.get_srcComponent() == 1
          and h.custom_mode == mav.MODE_LOITER)
     assert time.monotonic() - t_quiet < 1.5
-    _, held = position(conn)
-    assert np.allclose(held[2:], 0.0) and np.allclose(held[:2], x[:2])  # braked to a stop
+    t_held, held = position(conn)
+    assert t_held == due and np.allclose(held, x, atol=1e-3) and np.any(np.abs(x[2:]) > 0.1)
+    assert param(conn, "SIM_FAILSAFES") == 1.0
     # one new setpoint does not take control back; a live stream does (COM_OF_RSM_T)
     send_setpoint(conn, step(held, np.array([1.0, 0.0])), due + 1000)
     _, same = position(conn)
@@ -216,8 +219,8 @@ def test_ground_station_link_params_and_commands(vehicle: Any) -> None:
     gcs.close()
 
 
-def param(conn: Any, name: str) -> float:
-    conn.mav.param_request_read_send(1, 1, name.encode(), -1)
+def param(conn: Any, name: str, sysid: int = 1) -> float:
+    conn.mav.param_request_read_send(sysid, 1, name.encode(), -1)
     return float(recv(conn, "PARAM_VALUE", 5, lambda p: p.param_id == name).param_value)
 
 
