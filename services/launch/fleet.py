@@ -96,7 +96,8 @@ class Fleet:
         mid = mission_id or re.sub(r"[^A-Za-z0-9_\-]", "-", f"{uav_id}-{run_dir.name}")[:64]
         common = {"UAV_ID": uav_id, "UAV_IDS": "", "MISSION_SEED": str(seed),
                   "RUN_DIR": str(run_dir), "MISSION_ID": mid,
-                  "TLOG_PATH": str(run_dir / "vehicle.tlog"), **(env or {})}
+                  "TLOG_PATH": str(run_dir / "vehicle.tlog"),
+                  "STREAM_STATS_PATH": str(run_dir / "stream.json"), **(env or {})}
         own = {"uavsim": {"MAVLINK_URL": f"udpin:127.0.0.1:{port}", "GCS_URL": ""},
                "supervisor": {"MAVLINK_URL": f"udpout:127.0.0.1:{port}"}}
         v = Vehicle(uav_id, seed, run_dir, mid, port)

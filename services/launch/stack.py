@@ -110,6 +110,7 @@ class Stack:
             "READINGS_PROFILE": c.profile,  # the readings profile (dualpilot profiles)
             "SUPERVISOR": c.supervisor,
             "TLOG_PATH": str(c.run_dir / "vehicle.tlog"),
+            "STREAM_STATS_PATH": str(c.run_dir / "stream.json"),
             "LOG_LEVEL": c.log_level, "PYTHONUNBUFFERED": "1",
             "ZENOH_TLS_DIR": str(self.tls_dir or ""),
         }

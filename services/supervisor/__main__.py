@@ -119,6 +119,11 @@ def main(argv: list[str] | None = None) -> int:
                    help="'s1,s2' wall seconds a plan request waits [PLAN_DEADLINE_S]")
     s.add_argument("--setpoint-rate-hz", type=float, default=env("SETPOINT_RATE_HZ", "20"),
                    help="setpoint stream rate, >= 10 [SETPOINT_RATE_HZ]")
+    s.add_argument("--setpoint-stream", default=env("SETPOINT_STREAM", "process"),
+                   choices=["process", "thread"],
+                   help="who sends the setpoint stream: a process of its own with raised "
+                        "priority (UDP links), or a thread of the supervisor (the comparison "
+                        "of benchmarks/stream_gaps.py) [SETPOINT_STREAM]")
     s.add_argument("--sysid", type=int, default=env("MAV_SYSID", "1"),
                    help="the vehicle's MAVLink system id [MAV_SYSID]")
     s.add_argument("--altitude-m", type=float, default=env("UAV_ALTITUDE_M", "50"),
@@ -172,7 +177,8 @@ def main(argv: list[str] | None = None) -> int:
             ctx.exit_code = EXIT_ABORTED
             return
         link = VehicleLink(settings.mavlink_url, args.sysid, args.altitude_m,
-                           args.setpoint_rate_hz, key=key, lost_after_s=args.vehicle_lost_s)
+                           args.setpoint_rate_hz, key=key, lost_after_s=args.vehicle_lost_s,
+                           stream=args.setpoint_stream)
         link.start()
         live = bus.Liveliness(ctx.session, settings.uav_id)
         ctx.announce()

@@ -48,6 +48,9 @@ log = logging.getLogger(__name__)
 m = mav.mavlink
 
 MISSION = m.MAV_MISSION_TYPE_MISSION
+#: who sends the stream: the stream process (UDP links), or a thread of this process (a link
+#: that is not UDP, and the comparison of benchmarks/stream_gaps.py)
+STREAMS = ("process", "thread")
 
 
 class OffboardError(RuntimeError):
@@ -78,16 +81,19 @@ class VehicleLink:
     def __init__(self, url: str, target_system: int = 1, altitude_m: float = 50.0,
                  rate_hz: float = 20.0, passphrase: str = "", key: bytes | None = None,
                  lost_after_s: float = 3.0, command_attempts: int = 3,
-                 command_timeout_s: float = 1.0):
+                 command_timeout_s: float = 1.0, stream: str = "process"):
         if rate_hz < 10:
             raise ValueError(f"setpoints are streamed at >= 10 Hz, got {rate_hz}")
+        if stream not in STREAMS:
+            raise ValueError(f"stream must be one of {STREAMS}, got {stream!r}")
         self.conn = mav.connect(url, target_system, mav.MAV_COMP_ID_ONBOARD_COMPUTER, passphrase,
                                 key=key, link_id=0)
         self.send = mav.Sender(self.conn)
         if key is None and passphrase:
             key = mav.signing_key(passphrase)
         self.stream: StreamLink | None = None
-        if isinstance(getattr(self.conn, "port", None), socket.socket):  # UDP: the process
+        udp = isinstance(getattr(self.conn, "port", None), socket.socket)
+        if stream == "process" and udp:  # the stream process
             self.stream = stream_process().add(
                 self.conn.port, [], target_system, mav.MAV_COMP_ID_ONBOARD_COMPUTER,
                 (target_system, mav.MAV_COMP_ID_AUTOPILOT1), mav.MAV_FRAME_LOCAL_NED, rate_hz,

@@ -1,0 +1,121 @@
+"""The setpoint stream under a stalled supervisor, and lockstep's offboard loss (real processes).
+
+Each test flies one cc mission (paper timing) through a shared router, EWS
+and planner pair and stops the supervisor with SIGSTOP at a step:
+
+* the supervisor alone, 1.5 s (longer than COM_OF_LOSS_T = 1 s): its stream
+  process keeps the vehicle's stream beating, so the vehicle sees no gap of a
+  second, no failsafe fires, no fault is named and the mission is the
+  in-process one, step for step;
+* the supervisor and its stream process, 2.5 s: the stream stops, the
+  vehicle's lockstep failsafe holds it as it is (no simulated time passes),
+  the stream comes back, the supervisor names the fault ``vehicle_hold`` in
+  its step record — and still the mission is the in-process one, since a
+  lockstep hold changes nothing the mission can see.
+
+The plan deadlines are raised so that a stop during a plan request is not a
+late plan (that fault, ``plan_deadline``, has its own tests in test_faults.py).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import queue
+import signal
+import time
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from dualpilot.mission.records import read_step_log, result_from_log
+from services import launch
+from services.common import codec, keys
+from services.msgs import supervisor_pb2
+
+from .test_lockstep import assert_same_mission, in_process
+
+pytestmark = [pytest.mark.slow, pytest.mark.timeout(300)]
+
+SEED = 26
+EV = supervisor_pb2
+ENV = {"CONTROLLER": "cc", "TIMING": "paper", "SPEED_FACTOR": "4", "SUPERVISOR": "paper",
+       "IGNITION_CLEARANCE_M": "", "PLAN_DEADLINE_S": "20,20"}
+
+
+@pytest.fixture(scope="module")
+def fleet(tmp_path_factory: pytest.TempPathFactory) -> Any:
+    out = tmp_path_factory.mktemp("stream")
+    cfg = launch.StackConfig(run_dir=out / "shared", speed_factor=4.0, free_ports=True,
+                             log_format="text")
+    with launch.Fleet(cfg, ["st1"]) as f:
+        yield f, out
+
+
+def fly_with_stop(fleet: Any, tag: str, group: bool, stop_s: float
+                  ) -> tuple[Path, dict[str, Any]]:
+    """Fly SEED, SIGSTOP the supervisor (with its stream process if ``group``) for ``stop_s``
+    once step 5 is out; returns the run directory and the vehicle's stream statistics."""
+    f, out = fleet
+    events: queue.Queue[bytes] = queue.Queue()
+    with launch.client_session(f.endpoint) as session:
+        sub = session.declare_subscriber(keys.mission_event("st1"),
+                                         lambda s: events.put(s.payload.to_bytes()))
+        v = f.start_vehicle("st1", SEED, out / tag, env=ENV)
+        sup = next(p for p in v.procs if p.name.startswith("supervisor"))
+        deadline = time.monotonic() + 120
+        while time.monotonic() < deadline:
+            try:
+                ev = codec.parse(events.get(timeout=0.5), EV.MissionEvent)
+            except queue.Empty:
+                continue
+            if ev.kind == EV.MISSION_EVENT_KIND_STEP and ev.step >= 5:
+                break
+        else:
+            pytest.fail("the mission never reached step 5")
+        pid = sup.popen.pid
+        if group:
+            os.killpg(pid, signal.SIGSTOP)
+        else:
+            os.kill(pid, signal.SIGSTOP)
+        time.sleep(stop_s)  # the stall itself: nothing to wait on, the processes are stopped
+        if group:
+            os.killpg(pid, signal.SIGCONT)
+        else:
+            os.kill(pid, signal.SIGCONT)
+        sub.undeclare()
+    outcome = f.wait_end({"st1": v.mission_id}, 180.0)["st1"]
+    codes = f.stop_vehicle("st1")
+    assert outcome.ended, outcome
+    assert all(code == 0 for code in codes.values()), codes
+    return v.run_dir, json.loads((v.run_dir / "stream.json").read_text())
+
+
+def step_faults(run_dir: Path) -> list[str]:
+    return [fault for e in read_step_log(run_dir / "steps.jsonl") if e.get("kind") == "step"
+            for fault in e.get("faults", [])]  # type: ignore[union-attr]
+
+
+def test_a_stopped_supervisor_keeps_its_stream_and_its_mission(fleet: Any) -> None:
+    run_dir, stream = fly_with_stop(fleet, "supervisor-stopped", group=False, stop_s=1.5)
+    assert stream["failsafes"] == 0, stream
+    assert stream["gaps"]["max_ms"] < 1000.0, stream  # under COM_OF_LOSS_T, however loaded
+    assert stream["gaps"]["n"] > 100, stream
+    assert step_faults(run_dir) == []
+    summary = json.loads((run_dir / "summary.json").read_text())["stack"]
+    assert summary["faults"] == {} and summary["stream"]["process"] is True
+    stack = result_from_log(read_step_log(run_dir / "steps.jsonl"))
+    assert_same_mission(stack, in_process(SEED, "cc", "paper", None), "stopped supervisor")
+
+
+def test_lockstep_offboard_loss_holds_as_it_is_and_is_named(fleet: Any) -> None:
+    run_dir, stream = fly_with_stop(fleet, "companion-stopped", group=True, stop_s=2.5)
+    assert stream["failsafes"] == 1 and stream["clock"] == "lockstep", stream
+    faults = step_faults(run_dir)
+    assert len(faults) == 1 and faults[0].startswith("vehicle_hold"), faults
+    assert "offboard lost" in faults[0], faults
+    summary = json.loads((run_dir / "summary.json").read_text())["stack"]
+    assert summary["faults"] == {"vehicle_hold": 1}, summary["faults"]
+    stack = result_from_log(read_step_log(run_dir / "steps.jsonl"))
+    assert_same_mission(stack, in_process(SEED, "cc", "paper", None), "stopped companion")
