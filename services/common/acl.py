@@ -7,7 +7,8 @@ by the common name of the certificate it presented (mutual TLS, the CA of
 
 - **ingress**, by owner: a service may publish, declare a queryable, reply
   and declare liveliness tokens only on its own keys (:data:`OWNED`): the
-  planners ``plan/system1`` and ``plan/system2``, the EWS ``ews/*``, the
+  planners ``plan/system1`` and ``plan/system2`` (and a replica's own
+  ``plan/system<k>/<zid>``), the EWS ``ews/*``, the
   supervisor its decision, state, event, clock and operator waypoints, and
   every service its ``status/<service>`` and ``alive/<service>`` tokens;
   only the supervisor may query (plans, the EWS, statuses).
@@ -36,14 +37,14 @@ _NS = "dualpilot/*"
 #: the keys (under ``dualpilot/<uav>/``) each service publishes on or answers
 OWNED: dict[str, dict[str, tuple[str, ...]]] = {
     "ews": {"put": ("ews/fires", "ews/forecast"), "answer": ("ews/command",)},
-    "system1": {"put": (), "answer": ("plan/system1",)},
-    "system2": {"put": (), "answer": ("plan/system2",)},
+    "system1": {"put": (), "answer": ("plan/system1", "plan/system1/*")},
+    "system2": {"put": (), "answer": ("plan/system2", "plan/system2/*")},
     "supervisor": {"put": ("supervisor/decision", "vehicle/state", "mission/event", "clock",
                            "operator/waypoints"), "answer": ()},
     "uavsim": {"put": (), "answer": ()},
 }
 #: what the supervisor asks
-QUERIES = ("plan/*", "ews/command", "status/*")
+QUERIES = ("plan/*", "plan/*/*", "ews/command", "status/*")
 
 
 def _rule(rid: str, messages: list[str], keys: list[str], flows: list[str]) -> dict[str, Any]:

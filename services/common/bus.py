@@ -270,17 +270,37 @@ def replier(reply: zenoh.Reply) -> str:
     return "" if rid is None else str(rid.zid)
 
 
+Trusted = str | frozenset[str] | None
+"""Whose replies count: one Zenoh id, a set of them (a service's replicas), or None (anyone);
+"" or an empty set trusts nobody."""
+
+
+def _trusts(trusted: Trusted, sender: str) -> bool:
+    if trusted is None:
+        return True
+    if isinstance(trusted, str):
+        return bool(sender) and sender == trusted
+    return sender in trusted
+
+
+def _trusted_text(trusted: Trusted) -> str:
+    if isinstance(trusted, frozenset):
+        return ",".join(sorted(trusted)) or "none"
+    return trusted or "none"
+
+
 def first_reply(session: zenoh.Session, key: str, timeout_s: float,
-                stop: threading.Event | None = None, trusted: str | None = None,
-                **get: Any) -> zenoh.Reply:
+                stop: threading.Event | None = None, trusted: Trusted = None,
+                count_key: str = "", **get: Any) -> zenoh.Reply:
     """Send a query (``get``: payload, encoding, …) and wait for its first reply.
 
     The calling thread waits in Zenoh's own reply channel (no Python callback
     and no hand-off between threads on the way back). A :class:`Stop` ends
     the wait when it is set; with a plain Event the wait ends at the timeout.
-    With ``trusted`` (a Zenoh id; "" trusts nobody) only a reply from that
-    session counts: one from any other session is logged and counted
-    (reason ``untrusted``) and the wait goes on.
+    With ``trusted`` (a Zenoh id or a set of them; "" trusts nobody) only a
+    reply from that session counts: one from any other session is logged and
+    counted under ``count_key`` (default ``key``; reason ``untrusted``) and the
+    wait goes on.
     Raises TimeoutError when nobody (trusted) answers within ``timeout_s`` (or on stop).
     """
     if stop is not None and stop.is_set():
@@ -303,14 +323,14 @@ def first_reply(session: zenoh.Session, key: str, timeout_s: float,
             if trusted is None or _is_local_timeout(reply):
                 break
             sender = replier(reply)
-            if sender and sender == trusted:
+            if _trusts(trusted, sender):
                 # answers from others already here are counted too (not waited for)
                 while (late := _try_recv(replies)) is not None:
-                    if replier(late) != trusted and not _is_local_timeout(late):
-                        _count_untrusted(key, replier(late), trusted)
+                    if not _trusts(trusted, replier(late)) and not _is_local_timeout(late):
+                        _count_untrusted(count_key or key, replier(late), trusted)
                 break
             untrusted += 1
-            _count_untrusted(key, sender, trusted)
+            _count_untrusted(count_key or key, sender, trusted)
     finally:
         if isinstance(stop, Stop):
             stop.forget(token)
@@ -323,10 +343,11 @@ def first_reply(session: zenoh.Session, key: str, timeout_s: float,
 UNTRUSTED = "untrusted"
 
 
-def _count_untrusted(key: str, sender: str, trusted: str) -> None:
+def _count_untrusted(key: str, sender: str, trusted: Trusted) -> None:
     codec.rejected("reply", codec.invalid(
         f"reply on {key} from session {sender or '?'}, not from the holder of the "
-        f"service's liveliness token ({trusted or 'none'})"), log, key=key, reason=UNTRUSTED)
+        f"service's liveliness token ({_trusted_text(trusted)})"), log, key=key,
+        reason=UNTRUSTED)
 
 
 def _try_recv(replies: Any) -> zenoh.Reply | None:
@@ -350,14 +371,14 @@ def _is_local_timeout(reply: zenoh.Reply) -> bool:
 
 
 def request(session: zenoh.Session, key: str, msg: Message, timeout_s: float,
-            stop: threading.Event | None = None,
-            trusted: str | None = None) -> tuple[bytes, str]:
+            stop: threading.Event | None = None, trusted: Trusted = None,
+            count_key: str = "") -> tuple[bytes, str]:
     """Send ``msg`` as a query and return the first (trusted) reply's (payload, encoding).
 
     Waits as :func:`first_reply`; raises TimeoutError when nobody answers
     within ``timeout_s`` (or on stop) and QueryError for an error reply.
     """
-    item = first_reply(session, key, timeout_s, stop, trusted,
+    item = first_reply(session, key, timeout_s, stop, trusted, count_key,
                        payload=msg.SerializeToString(), encoding=encoding(msg),
                        attachment=str(session.info.zid()).encode())
     if item.ok is not None:
@@ -379,7 +400,10 @@ class Liveliness:
     the session named by its ``alive/<service>/<zid>`` token (declared first,
     :meth:`Context.announce`); while several sessions claim one service the
     first seen stays the holder (:meth:`holder`) and every other claim is
-    logged and counted (``alive/<service>``, reason ``untrusted``).
+    logged and counted (``alive/<service>``, reason ``untrusted``). A
+    replicated service (:data:`keys.REPLICATED`, the planners) is alive while
+    any replica holds its token, and every holder is one of its replicas
+    (:meth:`replicas`).
     """
 
     def __init__(self, session: zenoh.Session, uav: str):
@@ -407,7 +431,7 @@ class Liveliness:
                 zids = self.holders.setdefault(name, [])
                 if put and zid not in zids:
                     zids.append(zid)
-                    if len(zids) > 1:
+                    if len(zids) > 1 and name not in keys.REPLICATED:
                         self.claims += 1
                         second = f"{name} claimed by {zid} while {zids[0]} holds it"
                 elif not put and zid in zids:
@@ -422,6 +446,15 @@ class Liveliness:
             zids = self.holders.get(service)
             return zids[0] if zids else ""
 
+    def replicas(self, service: str) -> list[str]:
+        """The Zenoh ids of every session holding ``service``'s token, first seen first."""
+        with self.cond:
+            return list(self.holders.get(service, []))
+
+    def _up(self) -> set[str]:
+        """The services alive now (caller holds the lock)."""
+        return self.alive | {name for name in keys.REPLICATED if self.holders.get(name)}
+
     def others(self, service: str, own: str) -> list[str]:
         """Sessions other than ``own`` that claim ``service``."""
         with self.cond:
@@ -432,7 +465,7 @@ class Liveliness:
         wanted = set(services)
         deadline = time.monotonic() + timeout_s
         with self.cond:
-            while not wanted <= self.alive:
+            while not wanted <= self._up():
                 remaining = deadline - time.monotonic()
                 if remaining <= 0 or (stop is not None and stop.is_set()):
                     return False
@@ -441,7 +474,7 @@ class Liveliness:
 
     def missing(self, services: Iterable[str]) -> set[str]:
         with self.cond:
-            return set(services) - self.alive
+            return set(services) - self._up()
 
     def wait_any(self, services: Iterable[str], timeout_s: float,
                  stop: threading.Event | None = None) -> bool:
@@ -449,7 +482,7 @@ class Liveliness:
         wanted = set(services)
         deadline = time.monotonic() + timeout_s
         with self.cond:
-            while not wanted & self.alive:
+            while not wanted & self._up():
                 remaining = deadline - time.monotonic()
                 if remaining <= 0 or (stop is not None and stop.is_set()):
                     return False
@@ -461,7 +494,7 @@ class Liveliness:
         """Wait until ``service``'s token is gone (True) or the time is up."""
         deadline = time.monotonic() + timeout_s
         with self.cond:
-            while service in self.alive:
+            while service in self._up():
                 remaining = deadline - time.monotonic()
                 if remaining <= 0 or (stop is not None and stop.is_set()):
                     return False
@@ -521,7 +554,7 @@ def serve_status(session: zenoh.Session, settings: Settings, stop: threading.Eve
 
 
 def query_status(session: zenoh.Session, uav: str, service: str,
-                 timeout_s: float = 5.0, trusted: str | None = None,
+                 timeout_s: float = 5.0, trusted: Trusted = None,
                  stop: threading.Event | None = None) -> dict[str, Any]:
     """Ask a service for its status (raises TimeoutError if it (``trusted``) does not answer)."""
     reply = first_reply(session, keys.status(uav, service), timeout_s, stop, trusted)

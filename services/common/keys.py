@@ -10,7 +10,8 @@ key                     kind        payload (dualpilot.v1)
 ews/fires               pub/sub     FireState, every T_f of simulated time
 ews/forecast            pub/sub     FireForecast
 ews/command             queryable   FireCommand → FireUpdate
-plan/system1, …/system2 queryable   PlanRequest → Plan (errors: Error)
+plan/system1, …/system2 queryable   PlanRequest → Plan (errors: Error), any replica
+plan/system<k>/<zid>    queryable   the same, answered by the replica whose session is <zid>
 supervisor/decision     pub/sub     Decision, every step
 vehicle/state           pub/sub     VehicleState read over MAVLink
 mission/event           pub/sub     MissionEvent (started, step, ended)
@@ -27,6 +28,9 @@ import re
 
 ROOT = "dualpilot"
 SERVICES = ("ews", "system1", "system2", "supervisor", "uavsim")
+#: services that may run as several replicas (a planner pool): each holder of the service's
+#: token is a replica, asked on its own key (:func:`plan_replica`); the others have one holder
+REPLICATED = frozenset({"system1", "system2"})
 _ID = re.compile(r"^[A-Za-z0-9_\-]{1,64}$")
 
 
@@ -57,6 +61,13 @@ def plan(uav: str, system: int) -> str:
     if system not in (1, 2):
         raise ValueError(f"system must be 1 or 2, got {system}")
     return f"{ns(uav)}/plan/system{system}"
+
+
+def plan_replica(uav: str, system: int, zid: str) -> str:
+    """The plan queryable of one replica of ``system`` (the session ``zid`` that holds it)."""
+    if not _ID.match(zid):
+        raise ValueError(f"bad session id {zid!r}")
+    return f"{plan(uav, system)}/{zid}"
 
 
 def decision(uav: str) -> str:

@@ -1,5 +1,9 @@
 """The planner services' shared loop: a Zenoh queryable around a core :class:`Planner`.
 
+Several processes of one system are replicas of a pool: each answers on
+its own key ``plan/system<k>/<zid>`` as well as the shared one, and the
+supervisor asks one of them (services/supervisor/ports.py: StackPlanners).
+
 A mission is prepared once: the prepare request carries its frozen spec
 (dualpilot.spec.MissionSpec) and the service builds the mission's planner
 from it (System 1 reuses its RRT path between steps; System 2 builds its
@@ -164,14 +168,17 @@ class PlannerService:
 
 
 def run(ctx: bus.Context, system: int, make: PlannerMaker) -> None:
-    """The body of a planner service: queryable ``<ns>/plan/system<k>`` until stopped."""
+    """The body of a planner service: queryables ``<ns>/plan/system<k>`` (any replica) and
+    ``<ns>/plan/system<k>/<zid>`` (this replica: the supervisor's) until stopped."""
     assert ctx.session is not None
     session: zenoh.Session = ctx.session
     uav = ctx.settings.uav_id
     service = PlannerService(system, make, uav)
-    queries = bus.Inbox()
+    queries = bus.Inbox(keys.plan(uav, system))
     operator = bus.Inbox()
-    queryable = session.declare_queryable(keys.plan(uav, system), queries.on_query)
+    zid = str(session.info.zid())
+    queryables = [session.declare_queryable(key, queries.on_query) for key in (
+        keys.plan(uav, system), keys.plan_replica(uav, system, zid))]
     sub = session.declare_subscriber(keys.waypoints(uav), operator.on_sample)
     ctx.announce()
     while not ctx.stop.is_set():
@@ -191,6 +198,7 @@ def run(ctx: bus.Context, system: int, make: PlannerMaker) -> None:
             bus.reply_error(item.query, out)
         else:
             bus.reply(item.query, out)
-    queryable.undeclare()
+    for queryable in queryables:
+        queryable.undeclare()
     sub.undeclare()
 

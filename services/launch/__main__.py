@@ -13,7 +13,7 @@ import time
 from pathlib import Path
 
 from services.launch.compose import COMPOSE, REPO
-from services.launch.stack import StackConfig, run_mission
+from services.launch.stack import StackConfig, parse_scale, run_mission
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -44,11 +44,18 @@ def main(argv: list[str] | None = None) -> int:
                         "certificates made in <out>/tls unless --tls-dir is given")
     p.add_argument("--tls-dir", type=Path, default=None,
                    help="certificates of python -m services.certs (implies --tls)")
+    p.add_argument("--scale", action="append", default=[], metavar="SERVICE=N",
+                   help="run N replicas of a planner service (a pool: system1, system2), as "
+                        "docker compose up --scale; repeatable")
     p.add_argument("--timeout-s", type=float, default=600.0)
     p.add_argument("--log-format", choices=["json", "text"], default="json")
     p.add_argument("--no-figures", action="store_true")
     p.add_argument("--quiet", action="store_true")
     args = p.parse_args(argv)
+    try:
+        scale = parse_scale(args.scale)
+    except ValueError as err:
+        p.error(str(err))
     run_id = f"{time.strftime('%Y%m%d-%H%M%S')}-{args.controller}-s{args.seed}"
     run_dir = Path(args.out) if args.out else REPO / "runs" / run_id
     cfg = StackConfig(run_dir=run_dir.resolve(), seed=args.seed, speed_factor=args.speed_factor,
@@ -60,7 +67,8 @@ def main(argv: list[str] | None = None) -> int:
                       free_ports=args.free_ports, log_format=args.log_format,
                       tls=args.tls or args.tls_dir is not None,
                       tls_dir=args.tls_dir.resolve() if args.tls_dir else None,
-                      mission_id=re.sub(r"[^A-Za-z0-9_\-]", "-", run_dir.name)[:64])
+                      mission_id=re.sub(r"[^A-Za-z0-9_\-]", "-", run_dir.name)[:64],
+                      scale=scale)
     t0 = time.perf_counter()
     try:
         outcome, codes = run_mission(cfg, args.timeout_s, not args.no_figures, args.quiet,

@@ -77,6 +77,8 @@ class StackConfig:
     # services.certs; with tls and none given, certificates are made in <run_dir>/tls
     tls: bool = False
     tls_dir: Path | None = None
+    #: replicas of a service (a planner pool: ``{"system2": 3}``), as ``docker compose --scale``
+    scale: dict[str, int] = field(default_factory=dict)
 
 
 class Stack:
@@ -146,8 +148,10 @@ class Stack:
         self.group.start("router", [sys.executable, "-m", "services.router", "--zenoh-listen",
                                     self.endpoint], env, self.logs / "router.log")
         for name in self.service_names():
-            self.group.start(name, self.argv(name), self.service_env(name),
-                             self.logs / f"{name}.log")
+            for k in range(self.cfg.scale.get(name, 1)):  # replicas: system2, system2-2, …
+                proc = name if k == 0 else f"{name}-{k + 1}"
+                self.group.start(proc, self.argv(name), self.service_env(name),
+                                 self.logs / f"{proc}.log")
 
     def stop(self) -> dict[str, int]:
         return self.group.stop_all(last="router")
@@ -162,6 +166,22 @@ class Stack:
 
     def __exit__(self, *exc: object) -> None:
         self.stop()
+
+
+#: services that may run as several replicas (services/common/keys.py REPLICATED)
+SCALABLE = ("system1", "system2")
+
+
+def parse_scale(items: list[str]) -> dict[str, int]:
+    """``["system2=3", …]`` → ``{"system2": 3}``; raises ValueError for anything else."""
+    out: dict[str, int] = {}
+    for item in items:
+        name, _, n = item.partition("=")
+        if name not in SCALABLE or not n.isdigit() or not 1 <= int(n) <= 16:
+            raise ValueError(f"--scale takes SERVICE=N with SERVICE one of {SCALABLE} and "
+                             f"1 <= N <= 16, got {item!r}")
+        out[name] = int(n)
+    return out
 
 
 def wait_router(endpoint: str, timeout_s: float = 30.0) -> None:

@@ -9,6 +9,7 @@ advance it.
 
 from __future__ import annotations
 
+import hashlib
 import logging
 import threading
 import time
@@ -261,13 +262,22 @@ def _keep_out_to_msg(keep: KeepOut | None, out: fire_pb2.FireAdvance) -> None:
 
 
 class StackPlanners:
-    """The planner port over ``plan/system<k>`` queries.
+    """The planner port over ``plan/system<k>/<zid>`` queries, one replica of a pool at a time.
 
-    A planner is asked only while its liveliness token is up. A reply is checked
-    before it is used: it must answer this step's request, arrive within the
-    request's deadline and decode as a valid plan; anything else is a failed
-    plan, never flown. A planner that was not prepared for this mission (it was
-    restarted) is prepared again and asked once more.
+    A planner is asked only while its liveliness token is up. Each system may
+    run as several replicas (each holder of its token is one); every replica
+    is prepared for the mission, and each request goes to the mission's
+    replica — the first of them by rendezvous hashing of (mission id, replica
+    id), so the vehicles of a fleet spread over the pool and a mission keeps
+    its replica (and that replica's warm start) while it lives. A request whose
+    replica vanished (its query ends early without a reply: Zenoh finalises
+    the queries of a closed session) is asked again of the next replica within
+    what is left of the same deadline (``failovers``); a replica that let a
+    request time out goes to the end of the order. A reply is checked before it
+    is used: it must come from the replica asked, answer this step's request,
+    arrive within the request's deadline and decode as a valid plan; anything
+    else is a failed plan, never flown. A planner that was not prepared for
+    this mission (it was restarted) is prepared again and asked once more.
     """
 
     def __init__(self, b: Bus, spec: MissionSpec, systems: list[int],
@@ -284,7 +294,20 @@ class StackPlanners:
         self.deadline_misses = 0  # all of them (the named fault plan_deadline)
         self._pool: ThreadPoolExecutor | None = None  # background requests (launch/collect)
         self.demoted: dict[int, float] = {}  # system → monotonic time of its last health query
+        self.failovers = 0  # requests asked again of another replica (theirs vanished)
+        self.suspect: dict[int, set[str]] = {1: set(), 2: set()}  # replicas that timed out
+        self._lock = threading.Lock()  # the background request's thread counts too
 
+    def replicas(self, system: int) -> list[str]:
+        """The replicas of ``system`` in this mission's order ([] without a liveliness tracker:
+        then the shared key is asked, trusting the first holder)."""
+        if self.b.live is None:
+            return []
+        zids = self.b.live.replicas(f"system{system}")
+        order = sorted(zids, key=lambda z: hashlib.blake2b(
+            f"{self.b.mission_id}/{z}".encode(), digest_size=8).digest())
+        suspect = self.suspect[system]
+        return [z for z in order if z not in suspect] + [z for z in order if z in suspect]
     def begin_step(self) -> None:
         self.request_wall = self.service_time = self.compute = 0.0
         self.requests = 0
@@ -304,7 +327,7 @@ class StackPlanners:
         name = f"system{system}"
         try:
             bus.query_status(self.b.session, self.b.uav, name, self.b.stack.health_timeout_s,
-                             trusted=self.b.trusted(name), stop=self.b.stop)
+                             trusted=self._trusted(system), stop=self.b.stop)
         except (TimeoutError, ValueError) as err:
             log.info("planner still unavailable", extra=fields(system=system, error=str(err)))
             return False
@@ -313,6 +336,10 @@ class StackPlanners:
         del self.demoted[system]
         self.misses[system] = 0
         return True
+
+    def _trusted(self, system: int) -> bus.Trusted:
+        """Any replica of ``system`` (None: anyone, without a liveliness tracker)."""
+        return None if self.b.live is None else frozenset(self.replicas(system))
 
     def _count_miss(self, system: int, plan: Plan) -> None:
         if plan.status is not PlanStatus.TIMEOUT:
@@ -340,17 +367,31 @@ class StackPlanners:
         return codec.plan_request_msg(core, self.b.stamper, self.b.clock.now_s)
 
     def prepare(self, systems: list[int]) -> None:
-        """Warm-up: each planner service builds this mission's planner from the spec."""
+        """Warm-up: every replica of each planner builds this mission's planner from the spec.
+
+        Raises Aborted when no replica of a system could (one that could not is logged)."""
         for system in systems:
             msg = self._message(system, None)
-            try:
-                payload, enc = bus.request(
-                    self.b.session, keys.plan(self.b.uav, system), msg,
-                    max(self.b.deadline_s(system), self.b.stack.prepare_timeout_s),
-                    self.b.stop, trusted=self.b.trusted(f"system{system}"))
-                codec.parse(payload, plan_pb2.Plan, enc)
-            except (TimeoutError, bus.QueryError, codec.CodecError) as err:
-                raise Aborted(f"system{system} could not prepare the mission: {err}") from err
+            timeout = max(self.b.deadline_s(system), self.b.stack.prepare_timeout_s)
+            targets = self.replicas(system) or [""]
+            errors = []
+            for zid in targets:
+                key = (keys.plan_replica(self.b.uav, system, zid) if zid
+                       else keys.plan(self.b.uav, system))
+                try:
+                    payload, enc = bus.request(
+                        self.b.session, key, msg, timeout, self.b.stop,
+                        trusted=zid or self.b.trusted(f"system{system}"),
+                        count_key=keys.plan(self.b.uav, system))
+                    codec.parse(payload, plan_pb2.Plan, enc)
+                except (TimeoutError, bus.QueryError, codec.CodecError) as err:
+                    errors.append(f"{zid or 'system'}: {err}")
+            if len(errors) == len(targets):
+                raise Aborted(f"system{system} could not prepare the mission: "
+                              f"{'; '.join(errors)}")
+            for why in errors:
+                log.warning("a planner replica could not prepare the mission",
+                            extra=fields(system=system, error=why))
 
     def set_waypoints(self, points: Array | None, publish: bool) -> None:
         """A new revision of the operator waypoints, published on their key."""
@@ -400,18 +441,56 @@ class StackPlanners:
         return plan
 
     def _ask(self, request: PlanRequest, account: bool = True) -> Plan:
-        """One checked request; ``account``: add it to this step's latency counters (a
-        background request runs on its own thread and is not part of the step's)."""
+        """One checked request, failed over between replicas; ``account``: add it to this
+        step's latency counters (a background request runs on its own thread and is not part
+        of the step's)."""
         system, t = request.system, request.t
         deadline = self.b.deadline_s(system)
         msg = self._message(system, request)
         t0 = time.perf_counter()
-        key = keys.plan(self.b.uav, system)
+        base = keys.plan(self.b.uav, system)
         if account:
             self.requests += 1
+        plan: Plan | None = None
+        for zid in self.replicas(system) or [""]:
+            remaining = deadline - (time.perf_counter() - t0)
+            if remaining <= 0:
+                break
+            plan = self._ask_one(system, t, msg, zid, remaining, t0, account)
+            ended_early = time.perf_counter() - t0 < deadline - 0.01
+            if plan.info.get("no_reply") and zid and ended_early and not self.b.stop.is_set():
+                with self._lock:
+                    self.failovers += 1
+                log.warning("plan request failed over: the replica vanished", extra=fields(
+                    system=system, step=t, replica=zid,
+                    left_s=round(deadline - (time.perf_counter() - t0), 4)))
+                plan = None
+                continue
+            if plan.status is PlanStatus.TIMEOUT and zid:
+                self.suspect[system].add(zid)  # asked last from now on
+            elif zid:
+                self.suspect[system].discard(zid)
+            break
+        if plan is None:
+            plan = Plan.failed(system, PlanStatus.TIMEOUT, time.perf_counter() - t0,
+                               f"no replica of system{system} answered on {base} within "
+                               f"{deadline:g} s")
+        if account:
+            self.request_wall += time.perf_counter() - t0
+        if self.b.stop.is_set():
+            raise Aborted("stopped")
+        return plan
+
+    def _ask_one(self, system: int, t: int, msg: plan_pb2.PlanRequest, zid: str,
+                 timeout_s: float, t0: float, account: bool) -> Plan:
+        """Ask replica ``zid`` ("" the shared key) once; a failed plan says why."""
+        deadline = self.b.deadline_s(system)
+        base = keys.plan(self.b.uav, system)
+        key = keys.plan_replica(self.b.uav, system, zid) if zid else base
+        trusted = zid or self.b.trusted(f"system{system}")
         try:
-            payload, enc = bus.request(self.b.session, key, msg, deadline, self.b.stop,
-                                       trusted=self.b.trusted(f"system{system}"))
+            payload, enc = bus.request(self.b.session, key, msg, timeout_s, self.b.stop,
+                                       trusted=trusted, count_key=base)
             reply = codec.parse(payload, plan_pb2.Plan, enc)
             plan = codec.plan_from_msg(reply, system)
             if account:
@@ -429,6 +508,7 @@ class StackPlanners:
                 plan.info["late_s"] = round(age, 4)
         except TimeoutError as err:
             plan = Plan.failed(system, PlanStatus.TIMEOUT, time.perf_counter() - t0, str(err))
+            plan.info["no_reply"] = True
         except bus.QueryError as err:
             status = (PlanStatus.INVALID_INPUT if err.code == common_pb2.ERROR_CODE_INVALID
                       else PlanStatus.ERROR)
@@ -436,12 +516,8 @@ class StackPlanners:
             if err.code == common_pb2.ERROR_CODE_UNPREPARED:
                 plan.info["unprepared"] = True
         except codec.CodecError as err:
-            codec.rejected("Plan", err, log, key=key)
+            codec.rejected("Plan", err, log, key=base)
             plan = Plan.failed(system, PlanStatus.ERROR, time.perf_counter() - t0, str(err))
-        if account:
-            self.request_wall += time.perf_counter() - t0
-        if self.b.stop.is_set():
-            raise Aborted("stopped")
         return plan
 
 

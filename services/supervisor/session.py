@@ -634,6 +634,7 @@ class StackSession:
             "setpoints_sent": self.link.sent, "rejected_messages": dict(codec.REJECTED.by_label),
             "monitor_rejected": self.monitor_rejected, "untrusted": _untrusted_counts(),
             "storage_errors": self.storage_errors, "faults": dict(self.faults.totals),
+            "planner_failovers": self.planners.failovers if self.planners else 0,
             "stream": self.link.stream_stats(),
             **extra,
         }

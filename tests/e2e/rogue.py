@@ -2,11 +2,13 @@
 
 Modes (``--uav``, ``--connect`` the router endpoint):
 
-* ``plan-byzantine``: declares ``plan/system2`` and holds System 2's liveliness
-  tokens (as the real service would), prepares any mission and answers every
+* ``plan-byzantine``: declares ``plan/system2`` and its own replica key
+  ``plan/system2/<zid>`` and holds System 2's liveliness tokens (as a real
+  replica would), prepares any mission and answers every
   plan request with a well-formed OK plan that is unsafe: it jumps into the
   centre of the nearest obstacle, pushes 9,999 N, or starts 50 km away.
-* ``plan-impostor``: answers ``plan/system2`` at once beside the real System 2,
+* ``plan-impostor``: answers ``plan/system2/**`` (every replica's key) at once
+  beside the real System 2,
   without its token, with a plan that would pass the monitor (it brakes);
   its plans carry ``info.source = "impostor"``.
 * ``ews-impostor``: answers ``ews/command`` at once beside the real EWS,
@@ -88,14 +90,16 @@ def main() -> int:
     count = [0]
     with _open(args.connect) as session:
         inbox = bus.Inbox()
-        if args.mode.startswith("plan"):
-            key = keys.plan(args.uav, 2)
+        zid = str(session.info.zid())
+        if args.mode in ("plan-byzantine", "plan-hung"):  # a replica: the shared and own key
+            names = [keys.plan(args.uav, 2), keys.plan_replica(args.uav, 2, zid)]
+        elif args.mode == "plan-impostor":  # every replica's key, and the shared one
+            names = [keys.plan(args.uav, 2) + "/**"]
         else:
-            key = keys.fire_command(args.uav)
-        q = session.declare_queryable(key, inbox.on_query)
+            names = [keys.fire_command(args.uav)]
+        queryables = [session.declare_queryable(key, inbox.on_query) for key in names]
         tokens = []
         if args.mode in ("plan-byzantine", "plan-hung"):
-            zid = str(session.info.zid())
             names = [keys.alive(args.uav, "system2")]
             if hasattr(keys, "holder"):  # (the stack before issue 15 had no holder tokens)
                 names.insert(0, keys.holder(args.uav, "system2", zid))
@@ -129,7 +133,8 @@ def main() -> int:
             bus.reply(item.query, msg)
         for t in tokens:
             t.undeclare()
-        q.undeclare()
+        for q in queryables:
+            q.undeclare()
     return 0
 
 

@@ -38,6 +38,10 @@ def test_compose_file_is_valid(doc: dict[str, Any]) -> None:
     assert "14550:14550/udp" in services["uavsim"]["ports"]
     assert services["supervisor"]["environment"]["MAVLINK_URL"] == "udpout:uavsim:14540"
     assert services["uavsim"]["environment"]["MAVLINK_URL"] == "udpin:0.0.0.0:14540"
+    # a planner pool scales (docker compose up --scale system2=3): nothing a second container
+    # of the same service would collide on — no fixed name, no published port
+    for name in keys.REPLICATED:
+        assert not {"container_name", "ports", "hostname"} & set(services[name]), name
 
 
 def compose_spec_errors(text: str) -> str:
