@@ -30,7 +30,7 @@ log = logging.getLogger(__name__)
 MAX_VEHICLES = 64
 
 
-def add_argument(p: argparse.ArgumentParser,
+def add_argument(p: argparse._ActionsContainer,
                  what: str = "a fleet sharing this service") -> None:
     """The ``--uav-ids`` flag (default ``UAV_IDS``; empty: ``--uav-id`` alone)."""
     p.add_argument("--uav-ids", default=env("UAV_IDS", ""),

@@ -15,6 +15,7 @@ import os
 import sys
 import threading
 import time
+from collections.abc import Callable
 from typing import Any
 
 _FIELDS = "fields"
@@ -28,6 +29,20 @@ def tag_vehicle(uav: str) -> None:
 
 def _uav(default: str) -> str:
     return str(getattr(_THREAD, "uav", default))
+
+
+def vehicle_thread(target: Callable[..., Any]) -> Callable[..., Any]:
+    """``target`` wrapped to tag its thread with the calling thread's vehicle (if tagged), for
+    the threads a fleet process's vehicle thread starts."""
+    uav = getattr(_THREAD, "uav", None)
+    if uav is None:
+        return target
+
+    def run(*args: Any, **kwargs: Any) -> Any:
+        tag_vehicle(uav)
+        return target(*args, **kwargs)
+
+    return run
 
 
 def fields(**kv: Any) -> dict[str, dict[str, Any]]:

@@ -1,5 +1,10 @@
 """Several vehicles against one EWS and one pair of planner services (benchmarks/load_vehicles.py),
-and mission after mission on the same shared services (benchmarks/soak.py): :class:`Fleet`."""
+and mission after mission on the same shared services (benchmarks/soak.py): :class:`Fleet`.
+
+A vehicle has a uavsim and a supervisor of its own (:meth:`Fleet.start_vehicle`),
+or shares a vehicle host with others (:meth:`Fleet.start_hosted`): one uavsim
+process simulating several vehicles and one supervisor process flying them
+(``UAV_IDS``: MAVLink instance k on the base port + k, system id 1 + k)."""
 
 from __future__ import annotations
 
@@ -11,7 +16,7 @@ from pathlib import Path
 from typing import Any
 
 from services.launch.compose import COMPOSE
-from services.launch.processes import Proc, free_port
+from services.launch.processes import Proc, free_port, free_port_run
 from services.launch.stack import Outcome, Stack, StackConfig, client_session, next_event
 
 # -- several vehicles, repeated missions -----------------------------------------------------------
@@ -110,10 +115,47 @@ class Fleet:
         self.vehicles[uav_id] = v
         return v
 
+    def start_hosted(self, uav_ids: list[str], seeds: list[int], out: Path,
+                     env: Mapping[str, str] | None = None, tag: str = "") -> list[Vehicle]:
+        """Start one uavsim and one supervisor process for all of ``uav_ids`` (vehicle k flies
+        ``seeds[k]`` into ``out/<uav>``); returns the vehicles (their processes are the host's,
+        shared). Stop them with :meth:`stop_vehicle` of any of them."""
+        if len(seeds) != len(uav_ids):
+            raise ValueError("one seed per vehicle")
+        base = free_port_run(len(uav_ids), "udp")
+        tag = tag or out.name
+        common = {"UAV_ID": uav_ids[0], "UAV_IDS": ",".join(uav_ids),
+                  "MISSION_SEEDS": ",".join(str(s) for s in seeds),
+                  "RUN_DIR": str(out / "{uav}"), "MISSION_ID": f"{{uav}}-{tag}"[:64],
+                  "TLOG_PATH": str(out / "{uav}" / "vehicle.tlog"),
+                  "STREAM_STATS_PATH": str(out / "{uav}" / "stream.json"),
+                  "MAV_SYSID": "1", **(env or {})}
+        own = {"uavsim": {"MAVLINK_URL": f"udpin:127.0.0.1:{base}", "GCS_URL": ""},
+               "supervisor": {"MAVLINK_URL": f"udpout:127.0.0.1:{base}"}}
+        host = f"host-{uav_ids[0]}"
+        procs = []
+        for uav in uav_ids:
+            (out / uav).mkdir(parents=True, exist_ok=True)
+        for name in VEHICLE_SERVICES:
+            penv = self.stack.service_env(name)
+            penv.update(common)
+            penv.update(own[name])
+            procs.append(self.stack.group.start(f"{name}-{host}", self.stack.argv(name), penv,
+                                                out / f"{host}-{name}.log"))
+        vehicles = []
+        for k, uav in enumerate(uav_ids):
+            v = Vehicle(uav, seeds[k], out / uav, f"{uav}-{tag}"[:64], base + k, procs)
+            self.vehicles[uav] = v
+            vehicles.append(v)
+        return vehicles
+
     def stop_vehicle(self, uav_id: str) -> dict[str, int]:
-        """Stop a vehicle's processes (SIGINT, then SIGKILL); returns their exit codes."""
+        """Stop a vehicle's processes (SIGINT, then SIGKILL); returns their exit codes. A
+        hosted vehicle's processes are its host's: the host's other vehicles go too."""
         v = self.vehicles.pop(uav_id)
         codes: dict[str, int] = {}
+        for other in [u for u, w in self.vehicles.items() if w.procs is v.procs]:
+            del self.vehicles[other]
         for proc in v.procs:
             codes[proc.name] = self.stack.group.stop(proc)
             self.stack.group.procs.remove(proc)
@@ -127,17 +169,17 @@ class Fleet:
         by_mission = {mid: uav for uav, mid in mission_ids.items()}
         while len(out) < len(mission_ids) and time.monotonic() < deadline:
             for proc in self.stack.group.dead():
-                uav = next((u for u, v in self.vehicles.items() if proc in v.procs), None)
-                if uav in mission_ids and uav not in out:
-                    out[uav] = Outcome(False, message=f"{proc.name} exited "
-                                                      f"{proc.popen.returncode}")
+                for uav in [u for u, v in self.vehicles.items() if proc in v.procs]:
+                    if uav in mission_ids and uav not in out:
+                        out[uav] = Outcome(False, message=f"{proc.name} exited "
+                                                          f"{proc.popen.returncode}")
             ev = next_event(self._events)
             if ev is None:
                 continue
-            uav = by_mission.get(ev.mission_id)
+            ended = by_mission.get(ev.mission_id)
             outcome = Outcome.of(ev)
-            if uav is not None and uav not in out and outcome is not None:
-                out[uav] = outcome
+            if ended is not None and ended not in out and outcome is not None:
+                out[ended] = outcome
         for uav in mission_ids:
             out.setdefault(uav, Outcome(False, message=f"no mission end within {timeout_s:.0f} s"))
         return out

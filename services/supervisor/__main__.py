@@ -8,12 +8,21 @@ writes its records to ``--out`` and announces the end on ``mission/event``.
 It then keeps streaming the last setpoint until stopped, or, with
 ``--exit-after-mission``, exits: 0 when the mission succeeded, 1 when it was
 aborted (or could not start), 3 when it ended in failure.
+
+``--uav-ids`` makes one process the companion of several vehicles
+(services/common/fleet.py): vehicle k (from 0) flies seed ``--seed`` + k (or
+the k-th of ``--seeds``) on MAVLink instance k (the URL's port + k, system id
+``--sysid`` + k), into ``--out`` with ``{uav}`` replaced by its id, each in a
+thread of its own; one stream process keeps every vehicle's setpoints
+beating. With ``--exit-after-mission`` the process exits when every mission
+has ended, with the worst vehicle's code.
 """
 
 from __future__ import annotations
 
 import logging
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import zenoh
@@ -22,7 +31,7 @@ from dualpilot.mission.params import Controller, Timing
 from dualpilot.model.geometry import Rect
 from dualpilot.readings import PROFILES, get_profile
 from dualpilot.spec import MissionSpec
-from services.common import bus, codec, keys, mav
+from services.common import bus, codec, fleet, keys, mav
 from services.common import cli as common_cli
 from services.common.clock import SimClock
 from services.common.log import fields
@@ -69,6 +78,9 @@ def main(argv: list[str] | None = None) -> int:
     g.add_argument("--controller", default=env("CONTROLLER", "cc"),
                    choices=[c.value for c in Controller], help="[CONTROLLER]")
     g.add_argument("--seed", type=int, default=env("MISSION_SEED", "7"), help="[MISSION_SEED]")
+    g.add_argument("--seeds", default=env("MISSION_SEEDS", ""),
+                   help="with --uav-ids: each vehicle's seed, comma-separated (default: --seed "
+                        "+ k) [MISSION_SEEDS]")
     g.add_argument("--timing", default=env("TIMING", "paper"), choices=[t.value for t in Timing],
                    help="planning time T_s: the paper's 155 ms / 5 s or measured [TIMING]")
     g.add_argument("--goal", default=env("GOAL", "900,900,100,100"),
@@ -105,7 +117,10 @@ def main(argv: list[str] | None = None) -> int:
     g.add_argument("--mission-id", default=env("MISSION_ID", ""),
                    help="default: <uav>-<seed>-<unix time> [MISSION_ID]")
     g.add_argument("--out", default=env("RUN_DIR", ""),
-                   help="write summary.json, steps.csv, trace.json, latency.csv here [RUN_DIR]")
+                   help="write summary.json, steps.csv, trace.json, latency.csv here; {uav} is "
+                        "the vehicle id [RUN_DIR]")
+    fleet.add_argument(g, "one companion process for several vehicles: instance k on the "
+                          "MAVLink URL's port + k, system id --sysid + k")
     g.add_argument("--exit-after-mission", action="store_true",
                    default=env("EXIT_AFTER_MISSION", "0") == "1",
                    help=f"exit when the mission ends: {EXIT_SUCCESS} success, {EXIT_ABORTED} "
@@ -163,24 +178,45 @@ def main(argv: list[str] | None = None) -> int:
         key = mav.resolve_key(args.signing_passphrase, args.signing_key_file)
         if not args.vehicle_lost_s > 0:
             raise ValueError("--vehicle-lost-s must be > 0")
+        uavs = fleet.uav_ids(args.uav_ids, settings.uav_id)
+        seeds = ([int(v) for v in args.seeds.split(",")] if args.seeds
+                 else [args.seed + k for k in range(len(uavs))])
+        if len(seeds) != len(uavs):
+            raise ValueError(f"--seeds gives {len(seeds)} seeds for {len(uavs)} vehicles")
+        if len(uavs) > 1:
+            for flag, value in (("--out", args.out), ("--mission-id", args.mission_id)):
+                if value and "{uav}" not in value:
+                    raise ValueError(f"{flag} must contain {{uav}} to fly several vehicles")
+            fleet.instance_url(settings.mavlink_url, len(uavs) - 1)
+            if args.sysid + len(uavs) - 1 > 255:
+                raise ValueError(f"--sysid {args.sysid} + {len(uavs)} vehicles passes 255")
     except (ValueError, OSError) as err:
         p.error(str(err))
-    mission_id = args.mission_id or f"{settings.uav_id}-{args.seed}-{int(time.time())}"
-    keys.check_id(mission_id)
+    started = int(time.time())
+    mission_ids = {uav: fleet.per_vehicle(args.mission_id, uav)
+                   or f"{uav}-{seed}-{started}" for uav, seed in zip(uavs, seeds, strict=True)}
+    for mid in mission_ids.values():
+        keys.check_id(mid)
+    codes: dict[str, int] = {}
 
     def body(ctx: bus.Context) -> None:
         assert ctx.session is not None
-        holders = other_supervisors(ctx.session, settings.uav_id)
+        uav = ctx.settings.uav_id
+        k = uavs.index(uav)
+        seed, mission_id, sysid = seeds[k], mission_ids[uav], args.sysid + k
+        out = Path(fleet.per_vehicle(args.out, uav)) if args.out else None
+        url = fleet.instance_url(settings.mavlink_url, k)
+        holders = other_supervisors(ctx.session, uav)
         if holders:  # one supervisor per vehicle: never touch a vehicle another one flies
             log.error("another supervisor holds this vehicle: not starting", extra=fields(
-                uav=settings.uav_id, holders=",".join(holders)))
-            ctx.exit_code = EXIT_ABORTED
+                uav=uav, holders=",".join(holders)))
+            codes[uav] = EXIT_ABORTED
             return
-        link = VehicleLink(settings.mavlink_url, args.sysid, args.altitude_m,
+        link = VehicleLink(url, sysid, args.altitude_m,
                            args.setpoint_rate_hz, key=key, lost_after_s=args.vehicle_lost_s,
                            stream=args.setpoint_stream)
         link.start()
-        live = bus.Liveliness(ctx.session, settings.uav_id)
+        live = bus.Liveliness(ctx.session, uav)
         ctx.announce()
         try:
             own = str(ctx.session.info.zid())
@@ -188,7 +224,7 @@ def main(argv: list[str] | None = None) -> int:
             if live.holder("supervisor") not in ("", own):  # another started at the same time
                 log.error("another supervisor claimed this vehicle first: not starting",
                           extra=fields(holder=live.holder("supervisor")))
-                ctx.exit_code = EXIT_ABORTED
+                codes[uav] = EXIT_ABORTED
                 return
             needed = needed_services(controller)
             log.info("waiting for services", extra=fields(services=",".join(sorted(needed))))
@@ -196,20 +232,18 @@ def main(argv: list[str] | None = None) -> int:
                 if not ctx.stop.is_set():
                     log.error("services missing", extra=fields(
                         missing=",".join(sorted(live.missing(needed)))))
-                    ctx.exit_code = EXIT_ABORTED
+                    codes[uav] = EXIT_ABORTED
                 return
             if not link.wait_vehicle(args.wait_services_s, ctx.stop):
                 if not ctx.stop.is_set():
-                    log.error("no heartbeat from the vehicle",
-                              extra=fields(url=settings.mavlink_url))
-                    ctx.exit_code = EXIT_ABORTED
+                    log.error("no heartbeat from the vehicle", extra=fields(url=url))
+                    codes[uav] = EXIT_ABORTED
                 return
             mission = StackSession(
-                ctx.session, link, settings.uav_id, mission_id, controller, spec, timing,
-                SimClock(settings.speed_factor), ctx.stop, waypoints=waypoints, params=params,
-                fire_params=reading.fire, supervisor_params=reading.supervisor,
-                supervisor=args.supervisor, stack=stack, live=live,
-                record_dir=Path(args.out) if args.out else None)
+                ctx.session, link, uav, mission_id, controller, replace(spec, seed=seed),
+                timing, SimClock(settings.speed_factor), ctx.stop, waypoints=waypoints,
+                params=params, fire_params=reading.fire, supervisor_params=reading.supervisor,
+                supervisor=args.supervisor, stack=stack, live=live, record_dir=out)
             t0 = time.perf_counter()
             aborted = ""
             try:
@@ -220,11 +254,10 @@ def main(argv: list[str] | None = None) -> int:
                 aborted = str(err)
                 if not ctx.stop.is_set():
                     log.error("mission aborted", extra=fields(reason=aborted))
-                    ctx.exit_code = EXIT_ABORTED
+                    codes[uav] = EXIT_ABORTED
             finally:
                 mission.close_record()
             wall = time.perf_counter() - t0
-            out = Path(args.out) if args.out else None
             if out is not None and mission.result is not None and mission.result.records:
                 try:
                     paths = mission.write(out, {"wall_time_s": round(wall, 3),
@@ -246,11 +279,15 @@ def main(argv: list[str] | None = None) -> int:
             if not args.exit_after_mission:
                 ctx.stop.wait()
             elif r is not None and not aborted and not r.success:
-                ctx.exit_code = EXIT_FAILED
+                codes[uav] = EXIT_FAILED
         finally:
             link.close()
 
-    return bus.run_service(settings, body)
+    def serve(ctx: bus.Context) -> None:
+        fleet.for_each(ctx, uavs, body)
+        ctx.exit_code = max([ctx.exit_code, *codes.values()])
+
+    return bus.run_service(settings, serve)
 
 
 if __name__ == "__main__":

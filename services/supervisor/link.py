@@ -41,7 +41,7 @@ import numpy as np
 
 from dualpilot.model.dynamics import Array
 from services.common import codec, mav
-from services.common.log import fields
+from services.common.log import fields, vehicle_thread
 from services.supervisor.stream.client import StreamLink, stream_process
 
 log = logging.getLogger(__name__)
@@ -132,9 +132,10 @@ class VehicleLink:
         self._mission_q: queue.Queue[Any] = queue.Queue()
         self._stop = threading.Event()
         self._threads = [
-            threading.Thread(target=self._read, name="mav-reader", daemon=True),
-            threading.Thread(target=self._poll, name="mav-poller", daemon=True),
-            threading.Thread(target=self._watch_mission, name="mav-mission", daemon=True),
+            threading.Thread(target=vehicle_thread(self._read), name="mav-reader", daemon=True),
+            threading.Thread(target=vehicle_thread(self._poll), name="mav-poller", daemon=True),
+            threading.Thread(target=vehicle_thread(self._watch_mission), name="mav-mission",
+                             daemon=True),
         ]
 
     def start(self) -> None:

@@ -29,7 +29,7 @@ from dualpilot.plan import Plan, PlanStatus
 from dualpilot.spec import MissionSpec
 from services.common import bus, codec, keys
 from services.common.clock import SimClock
-from services.common.log import fields
+from services.common.log import fields, vehicle_thread
 from services.msgs import common_pb2, fire_pb2, plan_pb2
 
 from .link import VehicleLink
@@ -408,7 +408,8 @@ class StackPlanners:
         """Ask in the background (the concurrent supervisor's System 2): the query leaves now,
         on a thread of its own; :meth:`collect` takes its checked reply."""
         if self._pool is None:
-            self._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="deliberate")
+            self._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="deliberate",
+                                            initializer=vehicle_thread(lambda: None))
         return self._pool.submit(self._ask, request, False)
 
     def collect(self, ticket: object) -> Plan:

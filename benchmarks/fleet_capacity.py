@@ -1,0 +1,242 @@
+"""Fleet capacity at real time: N vehicles sharing one EWS and a planner pool, per N.
+
+For each N of ``--vehicles`` a fresh stack (router, EWS, ``--replicas`` of
+System 1 and System 2 serving every vehicle id) and N vehicles fly cc
+missions (paper timing) at speed factor ``--speed-factor`` (1: real time),
+seeds 0..N-1, each capped at ``--max-steps``. Vehicles are hosted
+(``--layout hosted``, the default: one uavsim process simulating them all and
+``--hosts`` supervisor processes flying them, each with one stream process)
+or get two processes each (``--layout processes``, as before fleets were
+hosted). Measured per N, from the vehicles' records and from /proc:
+
+* plan round trip per request (request → reply: Zenoh, the replica's queue,
+  the plan), p50 and p99 over every step of every vehicle (``latency.csv``);
+* the setpoint stream as each vehicle saw it (``stream.json``): the worst
+  vehicle's p99.9 gap and the longest gap; offboard-loss failsafes; the
+  named faults of the step records;
+* CPU (user + system, % of one core) and memory (PSS, MB) of the vehicles'
+  processes per vehicle, and of the shared services.
+
+The capacity is the largest N with p99 round trip ≤ ``--p99-ms`` and no
+failsafe. Prints a table; ``--out`` keeps every run and ``capacity.json``.
+
+    .venv/bin/python benchmarks/fleet_capacity.py --vehicles 10,25,40
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import os
+import sys
+import tempfile
+import threading
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+REPO = Path(__file__).resolve().parent.parent
+if str(REPO) not in sys.path:
+    sys.path.insert(0, str(REPO))
+
+from services import launch  # noqa: E402
+
+TICK = os.sysconf("SC_CLK_TCK")
+
+
+# -- /proc --------------------------------------------------------------------------------------
+def cpu_s(pid: int) -> float:
+    """User + system CPU seconds of ``pid`` (0 once it is gone)."""
+    try:
+        fields_ = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    except OSError:
+        return 0.0
+    return (int(fields_[11]) + int(fields_[12])) / TICK
+
+
+def pss_mb(pid: int) -> float:
+    """Proportional set size of ``pid`` (MB): shared pages split among their users."""
+    try:
+        for line in Path(f"/proc/{pid}/smaps_rollup").read_text().splitlines():
+            if line.startswith("Pss:"):
+                return int(line.split()[1]) / 1024.0
+    except OSError:
+        pass
+    return 0.0
+
+
+def children(pid: int) -> list[int]:
+    out = []
+    for task in Path(f"/proc/{pid}/task").glob("*"):
+        try:
+            out += [int(c) for c in (task / "children").read_text().split()]
+        except OSError:
+            continue
+    return out
+
+
+@dataclass
+class Sampler:
+    """Samples the PSS of groups of processes every ``every_s``, keeping each one's peak."""
+
+    groups: dict[str, list[int]]
+    every_s: float = 2.0
+    peak: dict[int, float] = field(default_factory=dict)
+    _stop: threading.Event = field(default_factory=threading.Event)
+
+    def adopt_children(self) -> None:
+        """Add each process's children (the supervisors' stream processes) to its group."""
+        for group, pids in self.groups.items():
+            self.groups[group] = sorted({*pids, *(c for pid in pids for c in children(pid))})
+
+    def pids(self) -> list[int]:
+        return [pid for pids in self.groups.values() for pid in pids]
+
+    def sample(self) -> None:
+        for pid in self.pids():
+            self.peak[pid] = max(self.peak.get(pid, 0.0), pss_mb(pid))
+
+    def run(self) -> None:
+        while not self._stop.wait(self.every_s):
+            self.sample()
+
+    def start(self) -> None:
+        self.adopt_children()
+        self.sample()
+        threading.Thread(target=self.run, daemon=True).start()
+
+    def stop(self) -> None:
+        self._stop.set()
+        self.sample()
+
+    def mb(self, group: str) -> float:
+        return sum(self.peak.get(p, 0.0) for p in self.groups[group])
+
+
+# -- one N -------------------------------------------------------------------------------------
+def quantiles(values: list[float]) -> dict[str, float]:
+    a = np.asarray(values) if values else np.zeros(1)
+    return {"p50": round(float(np.percentile(a, 50)), 2),
+            "p99": round(float(np.percentile(a, 99)), 2),
+            "max": round(float(a.max()), 2), "n": len(values)}
+
+
+def fly(n: int, out: Path, args: argparse.Namespace) -> dict[str, Any]:
+    uavs = [f"f{k + 1}" for k in range(n)]
+    scale = {"system1": args.s1_replicas, "system2": args.s2_replicas}
+    cfg = launch.StackConfig(run_dir=out / "shared", speed_factor=args.speed_factor,
+                             free_ports=True, log_format="text", scale=scale,
+                             max_steps=args.max_steps)
+    env = {"CONTROLLER": "cc", "TIMING": "paper", "SUPERVISOR": "paper",
+           "IGNITION_CLEARANCE_M": "", "MAX_STEPS": str(args.max_steps)}
+    seeds = list(range(n))
+    t0 = time.monotonic()
+    with launch.Fleet(cfg, uavs) as fleet:
+        shared = [p.popen.pid for p in fleet.stack.group.procs]
+        if args.layout == "hosted":
+            chunks = np.array_split(np.arange(n), args.hosts)
+            vehicles = []
+            for chunk in chunks:
+                ids = [uavs[k] for k in chunk]
+                vehicles += fleet.start_hosted(ids, [seeds[k] for k in chunk], out, env=env,
+                                               tag=f"n{n}")
+        else:
+            vehicles = [fleet.start_vehicle(uav, seed, out / uav, env=env)
+                        for uav, seed in zip(uavs, seeds, strict=True)]
+        own = sorted({p.popen.pid for v in vehicles for p in v.procs})
+        time.sleep(3.0)  # the supervisors have started their stream processes
+        sampler = Sampler({"shared": shared, "vehicles": own})
+        sampler.start()
+        cpu0 = {p: cpu_s(p) for p in sampler.pids()}
+        t_fly = time.monotonic()
+        outcomes = fleet.wait_end({v.uav_id: v.mission_id for v in vehicles}, args.timeout_s)
+        wall = time.monotonic() - t_fly
+        sampler.stop()
+        cpu = {g: sum(cpu_s(p) - cpu0.get(p, 0.0) for p in pids)
+               for g, pids in sampler.groups.items()}
+        for v in vehicles:
+            if v.uav_id in fleet.vehicles:
+                fleet.stop_vehicle(v.uav_id)
+    per_request: list[float] = []
+    worst_p999, longest, failsafes, steps = 0.0, 0.0, 0, 0
+    faults: dict[str, int] = {}
+    for uav in uavs:
+        run = out / uav
+        if (run / "latency.csv").is_file():
+            with (run / "latency.csv").open() as fh:
+                for row in csv.DictReader(fh):
+                    k = int(row["requests"])
+                    steps += 1
+                    if k:
+                        per_request.append(float(row["request_wall_s"]) * 1e3 / k)
+        if (run / "stream.json").is_file():
+            s = json.loads((run / "stream.json").read_text())
+            worst_p999 = max(worst_p999, s["gaps"]["p999_ms"])
+            longest = max(longest, s["gaps"]["max_ms"])
+            failsafes += int(s["failsafes"])
+        if (run / "summary.json").is_file():
+            for name, count in json.loads((run / "summary.json").read_text())["stack"].get(
+                    "faults", {}).items():
+                faults[name] = faults.get(name, 0) + int(count)
+    return {
+        "vehicles": n, "layout": args.layout, "hosts": args.hosts if args.layout == "hosted"
+        else n, "replicas": scale, "ended": sum(o.ended for o in outcomes.values()),
+        "steps": steps, "wall_s": round(wall, 1), "total_s": round(time.monotonic() - t0, 1),
+        "round_trip_ms": quantiles(per_request),
+        "stream": {"worst_p999_ms": worst_p999, "max_ms": longest, "failsafes": failsafes},
+        "faults": faults,
+        "cpu_pct_per_vehicle": round(100 * cpu["vehicles"] / wall / n, 2),
+        "cpu_pct_shared": round(100 * cpu["shared"] / wall, 1),
+        "pss_mb_per_vehicle": round(sampler.mb("vehicles") / n, 1),
+        "pss_mb_shared": round(sampler.mb("shared"), 1),
+        "vehicle_processes": len(sampler.groups["vehicles"]),
+    }
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--vehicles", default="10,25,40", help="comma-separated fleet sizes")
+    p.add_argument("--layout", choices=["hosted", "processes"], default="hosted")
+    p.add_argument("--hosts", type=int, default=1, help="supervisor processes (hosted)")
+    p.add_argument("--s1-replicas", type=int, default=1)
+    p.add_argument("--s2-replicas", type=int, default=2)
+    p.add_argument("--speed-factor", type=float, default=1.0)
+    p.add_argument("--max-steps", type=int, default=40)
+    p.add_argument("--p99-ms", type=float, default=100.0)
+    p.add_argument("--timeout-s", type=float, default=1200.0)
+    p.add_argument("--out", default="")
+    args = p.parse_args(argv)
+    out = Path(args.out or tempfile.mkdtemp(prefix="fleet-")).resolve()
+    rows = []
+    for n in [int(v) for v in args.vehicles.split(",") if v]:
+        row = fly(n, out / f"n{n}", args)
+        rows.append(row)
+        print(json.dumps(row), flush=True)
+    (out / "capacity.json").write_text(json.dumps(rows, indent=1) + "\n")
+    print(f"\nspeed factor {args.speed_factor:g}, cc paper timing, max {args.max_steps} steps, "
+          f"{args.layout} ({args.hosts} supervisor host(s)), replicas S1 {args.s1_replicas} "
+          f"S2 {args.s2_replicas}, {os.cpu_count()} cores")
+    print("| N | steps | RTT p50 | RTT p99 | stream p99.9 (worst) | longest gap | failsafes | "
+          "faults | CPU/vehicle | CPU shared | PSS/vehicle | PSS shared |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|")
+    for r in rows:
+        rt, st = r["round_trip_ms"], r["stream"]
+        print(f"| {r['vehicles']} | {r['steps']} | {rt['p50']:.1f} ms | {rt['p99']:.1f} ms | "
+              f"{st['worst_p999_ms']:.1f} ms | {st['max_ms']:.1f} ms | {st['failsafes']} | "
+              f"{sum(r['faults'].values())} | {r['cpu_pct_per_vehicle']:.2f} % | "
+              f"{r['cpu_pct_shared']:.0f} % | {r['pss_mb_per_vehicle']:.1f} MB | "
+              f"{r['pss_mb_shared']:.0f} MB |")
+    ok = [r["vehicles"] for r in rows if r["round_trip_ms"]["p99"] <= args.p99_ms
+          and r["stream"]["failsafes"] == 0 and r["ended"] == r["vehicles"]]
+    print(f"largest N with p99 round trip <= {args.p99_ms:g} ms and no failsafe: "
+          f"{max(ok) if ok else 'none'}")
+    print(f"run directory: {out}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
