@@ -37,6 +37,7 @@ from services.common import bus, codec, fleet, mav
 from services.common import cli as common_cli
 from services.common.log import fields
 
+from . import arrivals
 from . import clock as vclock
 from . import flavour as fl
 from .commands import Commands
@@ -128,6 +129,9 @@ class Endpoint:
         self.target: Any = None  # real time: the newest setpoint, flown every ΔT
         self.schedule = Schedule(time.monotonic())
         self.links = links
+        for conn in links.values():
+            if isinstance(getattr(conn, "port", None), socket.socket):
+                arrivals.enable(conn.port)
         self.tlog = tlog
         self.send = {name: mav.Sender(conn, tlog) for name, conn in links.items()}
         self.sysid = sysid
@@ -158,6 +162,7 @@ class Endpoint:
         self.controller: tuple[Any, int, int] | None = None
         self.controller_heard = 0.0
         self.addr: Any = None  # the address of the datagram being handled
+        self.rx_time: float | None = None  # when it arrived (monotonic s), if the kernel said
         self.fault = ""  # a storage fault to report (STATUSTEXT) from the loop
         self.commands = Commands(self)
         self.home_local = (float(vehicle.state[0]), float(vehicle.state[1]))
@@ -325,7 +330,7 @@ class Endpoint:
             return
         for _ in range(MAX_DATAGRAMS_PER_POLL):  # then telemetry and the failsafe get a turn
             try:
-                data, addr = port.recvfrom(65536)
+                data, addr, self.rx_time = arrivals.recv(port)
             except (BlockingIOError, InterruptedError):
                 return
             except OSError as err:  # e.g. ICMP port unreachable reported on the socket
@@ -338,6 +343,8 @@ class Endpoint:
             except Exception:  # a bug must not take the vehicle down: count it, go on
                 log.exception("frame handling failed")
                 self.reject(link, codec.invalid("frame handling failed (internal error)"))
+            finally:
+                self.rx_time = None
 
     def datagram(self, link: str, conn: Any, data: bytes) -> bool:
         """Parse and handle one datagram; True if it held at least one usable frame."""
@@ -421,7 +428,8 @@ class Endpoint:
                 f"{kind} for system {target} component {comp} (this is {self.sysid}:1)",
                 codec.Reason.WRONG_TARGET))
             return False
-        now = time.monotonic()
+        # when the datagram arrived (the kernel's stamp), not when this process got to it
+        now = self.rx_time if self.rx_time is not None else time.monotonic()
         handled = self.mission.handle(link, msg, now)
         if handled is not None:
             return handled
