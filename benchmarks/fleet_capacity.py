@@ -9,6 +9,9 @@ seeds 0..N-1, each capped at ``--max-steps``. Vehicles are hosted
 or get two processes each (``--layout processes``, as before fleets were
 hosted). Measured per N, from the vehicles' records and from /proc:
 
+Vehicle k of a host takes off ``--stagger-s`` × k after the first (a fleet
+launched one vehicle after another, not all in the same millisecond).
+
 * plan round trip per request (request → reply: Zenoh, the replica's queue,
   the plan), p50 and p99 over every step of every vehicle (``latency.csv``);
 * the setpoint stream as each vehicle saw it (``stream.json``): the worst
@@ -132,7 +135,8 @@ def fly(n: int, out: Path, args: argparse.Namespace) -> dict[str, Any]:
                              free_ports=True, log_format="text", scale=scale,
                              max_steps=args.max_steps)
     env = {"CONTROLLER": "cc", "TIMING": "paper", "SUPERVISOR": "paper",
-           "IGNITION_CLEARANCE_M": "", "MAX_STEPS": str(args.max_steps)}
+           "IGNITION_CLEARANCE_M": "", "MAX_STEPS": str(args.max_steps),
+           "START_STAGGER_S": str(args.stagger_s)}
     seeds = list(range(n))
     t0 = time.monotonic()
     with launch.Fleet(cfg, uavs) as fleet:
@@ -206,6 +210,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--s2-replicas", type=int, default=2)
     p.add_argument("--speed-factor", type=float, default=1.0)
     p.add_argument("--max-steps", type=int, default=40)
+    p.add_argument("--stagger-s", type=float, default=0.5,
+                   help="vehicle k of a host takes off k times this many s after the first")
     p.add_argument("--p99-ms", type=float, default=100.0)
     p.add_argument("--timeout-s", type=float, default=1200.0)
     p.add_argument("--out", default="")

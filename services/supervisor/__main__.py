@@ -121,6 +121,10 @@ def main(argv: list[str] | None = None) -> int:
                         "the vehicle id [RUN_DIR]")
     fleet.add_argument(g, "one companion process for several vehicles: instance k on the "
                           "MAVLink URL's port + k, system id --sysid + k")
+    g.add_argument("--start-stagger-s", type=float, default=env("START_STAGGER_S", "0"),
+                   help="with --uav-ids: vehicle k takes off k times this many wall seconds "
+                        "after the first (a fleet launched one vehicle after another) "
+                        "[START_STAGGER_S]")
     g.add_argument("--exit-after-mission", action="store_true",
                    default=env("EXIT_AFTER_MISSION", "0") == "1",
                    help=f"exit when the mission ends: {EXIT_SUCCESS} success, {EXIT_ABORTED} "
@@ -178,6 +182,8 @@ def main(argv: list[str] | None = None) -> int:
         key = mav.resolve_key(args.signing_passphrase, args.signing_key_file)
         if not args.vehicle_lost_s > 0:
             raise ValueError("--vehicle-lost-s must be > 0")
+        if not 0 <= args.start_stagger_s <= 600:
+            raise ValueError("--start-stagger-s must be in [0, 600]")
         uavs = fleet.uav_ids(args.uav_ids, settings.uav_id)
         seeds = ([int(v) for v in args.seeds.split(",")] if args.seeds
                  else [args.seed + k for k in range(len(uavs))])
@@ -233,6 +239,8 @@ def main(argv: list[str] | None = None) -> int:
                     log.error("services missing", extra=fields(
                         missing=",".join(sorted(live.missing(needed)))))
                     codes[uav] = EXIT_ABORTED
+                return
+            if ctx.stop.wait(k * args.start_stagger_s):
                 return
             if not link.wait_vehicle(args.wait_services_s, ctx.stop):
                 if not ctx.stop.is_set():
