@@ -52,6 +52,9 @@ class LoadResult:
     compute_ms: list[float] = field(default_factory=list)        # planners' compute per step
     queue_ms: list[float] = field(default_factory=list)          # round trip − service time
     recorded: dict[str, bool] = field(default_factory=dict)
+    faults: dict[str, dict[str, int]] = field(default_factory=dict)  # summary.json, per vehicle
+    failsafes: dict[str, int] = field(default_factory=dict)           # stream.json, per vehicle
+    stream_max_ms: dict[str, float] = field(default_factory=dict)     # longest setpoint gap
 
     def stats(self) -> dict[str, dict[str, float]]:
         def s(v: list[float]) -> dict[str, float]:
@@ -82,13 +85,16 @@ def read_latency(run_dir: Path, result: LoadResult) -> None:
 
 def run_load(n_vehicles: int, out: Path, speed_factor: float = 200.0,
              seeds: tuple[int, ...] = SUCCESS_SEEDS, timeout_s: float = 600.0,
-             quiet: bool = True) -> LoadResult:
-    """Fly ``n_vehicles`` missions at once through one shared EWS and planner pair."""
+             quiet: bool = True, plan_deadline_s: str = "") -> LoadResult:
+    """Fly ``n_vehicles`` missions at once through one shared EWS and planner pair
+    (``plan_deadline_s``: the supervisors' PLAN_DEADLINE_S, "" their default)."""
     if not 1 <= n_vehicles <= len(seeds):
         raise ValueError(f"1..{len(seeds)} vehicles")
     uavs = [f"uav{k + 1}" for k in range(n_vehicles)]
+    extra = {"supervisor": {"PLAN_DEADLINE_S": plan_deadline_s}} if plan_deadline_s else {}
     cfg = launch.StackConfig(run_dir=out, speed_factor=speed_factor, controller="cc",
-                             timing="paper", free_ports=True, log_format="text")
+                             timing="paper", free_ports=True, log_format="text",
+                             extra_env=extra)
     t0 = time.monotonic()
     with launch.Fleet(cfg, uavs) as fleet:
         mids = {}
@@ -110,6 +116,13 @@ def run_load(n_vehicles: int, out: Path, speed_factor: float = 200.0,
                                    for f in ("summary.json", "steps.csv", "latency.csv"))
         if (run_dir / "latency.csv").is_file():
             read_latency(run_dir, result)
+        if (run_dir / "summary.json").is_file():
+            stack = json.loads((run_dir / "summary.json").read_text()).get("stack", {})
+            result.faults[uav] = dict(stack.get("faults", {}))
+        if (run_dir / "stream.json").is_file():
+            stream = json.loads((run_dir / "stream.json").read_text())
+            result.failsafes[uav] = int(stream["failsafes"])
+            result.stream_max_ms[uav] = float(stream["gaps"]["max_ms"])
     return result
 
 
@@ -146,7 +159,10 @@ def main(argv: list[str] | None = None) -> int:
         print(line)
     bad = {n: c for n, c in result.codes.items() if c != 0}
     print(f"wall {result.wall_s:.1f} s for {result.vehicles} vehicles, {result.steps} steps; "
-          f"non-zero exits: {bad or 'none'}")
+          f"non-zero exits: {bad or 'none'}; faults: "
+          f"{ {u: f for u, f in result.faults.items() if f} or 'none'}; failsafes: "
+          f"{sum(result.failsafes.values())}; longest setpoint gap: "
+          f"{max(result.stream_max_ms.values(), default=0.0):.1f} ms")
     print(json.dumps(result.stats(), indent=1))
     print(f"run directory: {out}")
     return 0 if ok and not bad else 1

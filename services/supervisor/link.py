@@ -51,6 +51,8 @@ MISSION = m.MAV_MISSION_TYPE_MISSION
 #: who sends the stream: the stream process (UDP links), or a thread of this process (a link
 #: that is not UDP, and the comparison of benchmarks/stream_gaps.py)
 STREAMS = ("process", "thread")
+#: the reader wakes at least this often (s)
+READER_PERIOD_S = 0.1
 
 
 class OffboardError(RuntimeError):
@@ -113,6 +115,7 @@ class VehicleLink:
         self.global_ok = False
         self.seen = threading.Event()
         self.last_heartbeat = 0.0
+        self._listened = time.monotonic()  # when the reader last waited for the vehicle
         self.mode = -1
         self.armed = False
         self.origin: tuple[float, float] | None = None
@@ -172,8 +175,14 @@ class VehicleLink:
 
     # -- vehicle status -------------------------------------------------------------------------
     def alive(self) -> bool:
-        """A heartbeat from the vehicle within ``lost_after_s``."""
-        return self.seen.is_set() and time.monotonic() - self.last_heartbeat <= self.lost_after_s
+        """A heartbeat from the vehicle within ``lost_after_s`` — counted from when the reader
+        last listened: a reader kept off the CPU has not heard the vehicle, but has not missed
+        it either (its heartbeats wait in the socket)."""
+        if not self.seen.is_set():
+            return False
+        now = time.monotonic()
+        deaf_s = max(0.0, now - self._listened - READER_PERIOD_S)
+        return now - self.last_heartbeat - deaf_s <= self.lost_after_s
 
     def offboard(self) -> bool:
         """Alive, armed and in offboard mode (GUIDED): the setpoints fly it."""
@@ -327,7 +336,8 @@ class VehicleLink:
     def _read(self) -> None:
         fd = self.conn.fd
         while not self._stop.is_set():
-            ready, _, _ = select.select([fd], [], [], 0.1)
+            self._listened = time.monotonic()
+            ready, _, _ = select.select([fd], [], [], READER_PERIOD_S)
             if not ready:
                 continue
             while (msg := self.conn.recv_msg()) is not None:

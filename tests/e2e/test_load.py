@@ -1,11 +1,17 @@
 """Load: 10 vehicles share one EWS and one pair of planner services (benchmarks/load_vehicles.py).
 
 Each vehicle has its own uavsim and supervisor and flies the cognitive
-controller with the paper's timing on its own seed; the shared EWS keeps one
-fire process per vehicle id, so every mission must end exactly as the
-in-process mission of its seed (success and step count), every record be
-written and every process exit cleanly. The planner latency under that load
-is printed (and measured by the benchmark, not asserted).
+controller with the paper's timing on its own seed, unpaced enough (speed
+factor 200) that every process computes all the time; the shared EWS keeps
+one fire process per vehicle id. Lockstep makes the supervisor the clock, so
+every mission must end exactly as the in-process mission of its seed
+(success and step count) with no named fault in its records
+(services/supervisor/faults.py), every record be written and every process
+exit cleanly, whatever else the machine is doing. The plan deadlines are
+raised: a late plan is a wall-clock fault with tests of its own
+(test_faults.py, test_attacks.py), not what this test is about. The planner
+latency and the stream under that load are printed (and measured by the
+benchmarks, not asserted).
 """
 
 from __future__ import annotations
@@ -39,14 +45,17 @@ def _bench(name: str) -> Any:
 
 def test_ten_vehicles_share_one_ews_and_one_planner_pair(tmp_path: Path) -> None:
     bench = _bench("load_vehicles")
-    result = bench.run_load(VEHICLES, tmp_path, speed_factor=200.0, timeout_s=300.0)
+    result = bench.run_load(VEHICLES, tmp_path, speed_factor=200.0, timeout_s=300.0,
+                            plan_deadline_s="60,60")
     assert set(result.outcomes) == {f"uav{k + 1}" for k in range(VEHICLES)}
     for uav, outcome in result.outcomes.items():
         ref = bench.in_process(result.seeds[uav])
         assert outcome.ended, (uav, outcome)
         assert (outcome.success, outcome.steps) == (ref.success, ref.steps), (uav, outcome)
         assert result.recorded[uav], uav
+        assert result.faults[uav] == {}, (uav, result.faults[uav])
     assert all(code == 0 for code in result.codes.values()), result.codes
     assert result.steps >= VEHICLES * 50
-    print(f"\n{VEHICLES} vehicles, {result.steps} steps in {result.wall_s:.1f} s: "
-          + json.dumps(result.stats()))
+    print(f"\n{VEHICLES} vehicles, {result.steps} steps in {result.wall_s:.1f} s, "
+          f"failsafes {sum(result.failsafes.values())}, longest setpoint gap "
+          f"{max(result.stream_max_ms.values()):.1f} ms: " + json.dumps(result.stats()))
