@@ -100,6 +100,7 @@ class Sampler:
         return [pid for pids in self.groups.values() for pid in pids]
 
     def sample(self) -> None:
+        self.adopt_children()
         for pid in self.pids():
             self.peak[pid] = max(self.peak.get(pid, 0.0), pss_mb(pid))
 

@@ -5,24 +5,32 @@ trackers) compile on their first call, seconds on a fresh checkout and about
 a tenth of a second from the cache. :func:`warm_up` flies one plan of each
 system under both speed limits, so neither a planner service's first answer
 nor a measured planning time includes it. ``python -m dualpilot.warmup``
-fills the cache (``make setup`` runs it).
+fills the cache (``make setup`` runs it). It is thread-safe: a second
+thread waits until the first has finished.
 """
 
 from __future__ import annotations
 
+import threading
 import time
 
 import numpy as np
 
 _done = False
+_lock = threading.RLock()  # re-entered by the planners warm_up builds
 
 
 def warm_up() -> float:
     """Run each kernel once in this process (a no-op after the first call); seconds taken."""
     global _done
-    if _done:
-        return 0.0
-    _done = True  # first: the planners built here call warm_up too
+    with _lock:
+        if _done:
+            return 0.0
+        _done = True  # first: the planners built here call warm_up too
+        return _warm()
+
+
+def _warm() -> float:
     t0 = time.perf_counter()
     from dualpilot.model.dynamics import DynamicsParams, hover_state
     from dualpilot.model.fire import FireField, FireParams

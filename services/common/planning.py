@@ -33,6 +33,7 @@ import zenoh
 
 from dualpilot.plan import Plan, Planner, PlanStatus
 from dualpilot.spec import MissionSpec
+from dualpilot.warmup import warm_up
 from services.msgs import common_pb2, plan_pb2, vehicle_pb2
 
 from . import bus, codec, keys
@@ -171,6 +172,7 @@ def run(ctx: bus.Context, system: int, make: PlannerMaker) -> None:
     """The body of a planner service: queryables ``<ns>/plan/system<k>`` (any replica) and
     ``<ns>/plan/system<k>/<zid>`` (this replica: the supervisor's) until stopped."""
     assert ctx.session is not None
+    warm_up()  # before the token: alive means ready to answer in time (once a process)
     session: zenoh.Session = ctx.session
     uav = ctx.settings.uav_id
     service = PlannerService(system, make, uav)
