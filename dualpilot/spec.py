@@ -34,6 +34,8 @@ class Stream(enum.Enum):
 
 #: Seed-sequence key of System 1's stream, apart from the fire and supervisor streams.
 _SYSTEM1_KEY = 7
+#: Seed-sequence key of the fire forecast's streams (dualpilot/model/forecast.py).
+_FORECAST_KEY = 11
 
 
 def stream_rng(seed: int, stream: Stream) -> np.random.Generator:
@@ -42,6 +44,12 @@ def stream_rng(seed: int, stream: Stream) -> np.random.Generator:
         return np.random.default_rng(np.random.SeedSequence([seed, _SYSTEM1_KEY]))
     fire, supervisor = np.random.SeedSequence(seed).spawn(2)
     return np.random.default_rng(fire if stream is Stream.FIRE else supervisor)
+
+
+def forecast_rng(seed: int, issued_substep: int) -> np.random.Generator:
+    """The stream of the fire forecast made after ``issued_substep`` sub-steps of the mission
+    seeded with ``seed``: entropy of its own, so drawing it moves no mission stream."""
+    return np.random.default_rng(np.random.SeedSequence([seed, _FORECAST_KEY, issued_substep]))
 
 
 @dataclass(frozen=True)
