@@ -4,12 +4,15 @@ from __future__ import annotations
 
 import enum
 from dataclasses import dataclass, field
-from typing import Protocol
+from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 
 from dualpilot.arrays import Array
 from dualpilot.model.geometry import Polytope
+
+if TYPE_CHECKING:
+    from dualpilot.model.risk import ForecastView
 
 
 class PlanStatus(enum.Enum):
@@ -85,3 +88,19 @@ class Planner(Protocol):
     ) -> Plan:
         """Plan from ``state`` avoiding ``hulls``; ``prev_control`` is u_{t|t} (N)."""
         ...
+
+
+class ForecastPlanner(Planner, Protocol):
+    """A risk-aware planner (``uses_forecast`` True, e.g. "rrt+risk", "fast+risk"): ``plan``
+    also takes the fire forecast; without one it plans as its paper method."""
+
+    uses_forecast: bool
+
+    def plan(
+        self,
+        state: Array,
+        hulls: tuple[Polytope, ...],
+        objective: Objective = Objective.MISSION_TIME,
+        prev_control: Array | None = None,
+        forecast: ForecastView | None = None,
+    ) -> Plan: ...

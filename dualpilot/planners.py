@@ -3,6 +3,8 @@
 One registry, like python-control's ``trajectory_method=``: System 1's "rrt"
 (Alg. 1 + LQR) and System 2's "fast" (the default), "exact" (the cvxpy
 MIQP, solved in a killable worker process), "fast+exact" and "thorough".
+The "+risk" methods ("rrt+risk", "rrt+du+risk", "fast+risk") also take the
+fire forecast as a chance constraint (dualpilot/model/risk.py).
 Every planner implements :class:`dualpilot.plan.Planner`.
 """
 
@@ -45,6 +47,12 @@ def _fast(spec: MissionSpec, params: System2Params | None) -> Planner:
     return FastSystem2(spec, params or System2Params())
 
 
+def _fast_risk(spec: MissionSpec, params: System2Params | None) -> Planner:
+    from dualpilot.system2.fast.planner import RiskSystem2
+
+    return RiskSystem2(spec, params or System2Params())
+
+
 def _exact(spec: MissionSpec, params: System2Params | None) -> Planner:
     from dualpilot.system2.exact import ExactSystem2
 
@@ -63,9 +71,25 @@ def _thorough(spec: MissionSpec, params: System2Params | None) -> Planner:
     return ThoroughSystem2(spec, params or System2Params())
 
 
-SYSTEM1: Mapping[str, System1Constructor] = {"rrt": _rrt, "rrt+du": _rrt_du}
+def _rrt_risk(spec: MissionSpec, params: System1Params | None) -> Planner:
+    from dualpilot.system1.planner import RiskSystem1, System1Params
+
+    return RiskSystem1(spec, params or System1Params())
+
+
+def _rrt_du_risk(spec: MissionSpec, params: System1Params | None) -> Planner:
+    from dataclasses import replace
+
+    from dualpilot.system1.planner import RiskSystem1, System1Params
+
+    return RiskSystem1(spec, replace(params or System1Params(), tracker="lqr_du"))
+
+
+SYSTEM1: Mapping[str, System1Constructor] = {"rrt": _rrt, "rrt+du": _rrt_du,
+                                             "rrt+risk": _rrt_risk, "rrt+du+risk": _rrt_du_risk}
 SYSTEM2: Mapping[str, System2Constructor] = {
     "fast": _fast, "exact": _exact, "fast+exact": _anytime, "thorough": _thorough,
+    "fast+risk": _fast_risk,
 }
 #: Method names per system, the default first.
 METHODS: Mapping[int, tuple[str, ...]] = {1: tuple(SYSTEM1), 2: tuple(SYSTEM2)}

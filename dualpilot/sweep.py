@@ -29,7 +29,7 @@ from typing import Any
 
 import numpy as np
 
-from dualpilot.mission.params import Timing, controller_of
+from dualpilot.mission.params import Timing, controller_of, uses_risk
 from dualpilot.readings import Profile, get_profile, parse_value, settable
 from dualpilot.spec import MissionSpec
 
@@ -105,7 +105,7 @@ def run_task(task: Task) -> dict[str, object]:
             controller, reading.spec(config), timing=Timing(task.timing),
             params=reading.mission, fire_params=reading.fire,
             supervisor_params=reading.supervisor, system2_method=task.s2_method,
-            supervisor=supervisor,
+            supervisor=supervisor, risk=uses_risk(task.controller),
         ).run()
         times = result.planning_time_s["s1"] + result.planning_time_s["s2"]
         row.update(

@@ -16,7 +16,9 @@ from dualpilot.mission.params import MissionParams, Timing
 from dualpilot.mission.ports import PlannerPort, PlanRequest
 from dualpilot.model.dynamics import Array, DynamicsParams, step
 from dualpilot.model.fire import FireParams, FireSnapshot, substeps_for
+from dualpilot.model.forecast import OccupancyForecast
 from dualpilot.model.geometry import Polytope
+from dualpilot.model.risk import ForecastView, RiskMap
 from dualpilot.plan import Objective, Plan, PlanStatus
 from dualpilot.spec import MissionSpec
 from dualpilot.supervisor.attention import xi
@@ -27,6 +29,7 @@ from dualpilot.supervisor.concurrent import (
     Flown,
     OnlineQ,
     check_near,
+    forecast_threatened,
     reanchor,
     steps_until,
     threatened,
@@ -67,6 +70,8 @@ class ConcurrentPlanning:
         self.objective = Objective.MISSION_TIME
         self.utilities = np.zeros(2)
         self.p_mean = np.full(3, 1 / 3)
+        #: this step's forecast as its plans see it (None: not used)
+        self.view: ForecastView | None = None
 
     # -- what the record shows as the decision ---------------------------------------------------
     def decide(self, t: int, d_t: float, system_hint: int, objective: Objective) -> Decision:
@@ -91,28 +96,43 @@ class ConcurrentPlanning:
             return self.mission.paper_planning_time_s[system - 1]
         return plan.compute_time_s
 
+    def _step_substeps(self) -> int:
+        """The fire sub-steps of a step that waits only for System 1."""
+        t_s1 = self.mission.paper_planning_time_s[0] if self.timing is Timing.PAPER else 0.0
+        return substeps_for(t_s1, self.fire) + self.mission.fire_substeps_per_motion
+
     def _step_s(self) -> float:
         """The simulated length of a step that waits only for System 1 (s)."""
-        t_s1 = self.mission.paper_planning_time_s[0] if self.timing is Timing.PAPER else 0.0
-        n = substeps_for(t_s1, self.fire) + self.mission.fire_substeps_per_motion
-        return n * self.fire.substep_s + self.spec.dynamics.dt_s
+        return self._step_substeps() * self.fire.substep_s + self.spec.dynamics.dt_s
 
     # -- one step --------------------------------------------------------------------------------
     def choose(self, t: int, sim_s: float, state: Array, prev_control: Array,
                snapshot: FireSnapshot, seen: FireSnapshot, planners: PlannerPort,
-               record_time: Callable[[int, float], None]) -> Choice:
-        """What the UAV flies from ``state`` at step t (``seen``: the fires planners avoid)."""
+               record_time: Callable[[int, float], None],
+               forecast: Callable[[int], OccupancyForecast | None] | None = None) -> Choice:
+        """What the UAV flies from ``state`` at step t (``seen``: the fires planners avoid).
+
+        ``forecast(n)`` gives the fire forecast for steps of n sub-steps, for the forecast
+        threat rule and the risk-aware planners (None: neither is used).
+        """
         p, spec = self.params, self.spec
         pos = state[: spec.dynamics.dim]
         obstacles = seen.obstacles_for(pos, spec.clearance_m)
         choice = Choice(plan=None)
         known_now = frozenset(snapshot.front_ids)
         options: list[Flown] = []
+        n_step = self._step_substeps()
+        fc = forecast(n_step) if forecast is not None else None
+        self.view = None if fc is None else ForecastView(fc, n_step)
+        risk = (RiskMap(self.view, p.risk) if self.view is not None and p.threat == "forecast"
+                else None)
 
         margin = spec.clearance_m if p.threat_margin_m is None else p.threat_margin_m
 
         def safe(f: Flown) -> bool:
-            return not threatened(f.plan, seen, f.known, margin, p.check_steps)
+            if threatened(f.plan, seen, f.known, margin, p.check_steps):
+                return False
+            return risk is None or not forecast_threatened(f.plan, risk, margin, p.check_steps)
 
         due = self._collect(t, sim_s, state, obstacles, planners, choice, record_time)
         if due is not None and safe(due):
@@ -215,7 +235,7 @@ class ConcurrentPlanning:
             return None
         plan = planners.plan(PlanRequest(t=t, system=system, state=state.copy(),
                                          prev_control=prev_control, obstacles=obstacles,
-                                         objective=self.objective))
+                                         objective=self.objective, forecast=self.view))
         record_time(system, plan.compute_time_s)
         wait = self.response_s(system, plan)
         choice.wait_s += wait
@@ -242,9 +262,11 @@ class ConcurrentPlanning:
             obstacles = seen.obstacles_for(x_hat[:dim], self.spec.clearance_m)
         except ValueError:
             return
+        view = None if self.view is None else replace(
+            self.view, offset_substeps=k * self.view.substeps_per_step)
         ticket = planners.launch(PlanRequest(
             t=t + k, system=2, state=x_hat.copy(), prev_control=plan.controls[k - 1].copy(),
-            obstacles=obstacles, objective=self.objective))
+            obstacles=obstacles, objective=self.objective, forecast=view))
         self.pending = Deliberation(ticket=ticket, due_t=t + k, ready_s=sim_s + self.s2_expected_s,
                                     known=known)
         choice.statuses.append("s2:launched")

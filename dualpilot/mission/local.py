@@ -3,17 +3,20 @@
 from __future__ import annotations
 
 import time
+from typing import cast
 
 import numpy as np
 
-from dualpilot.mission.params import Controller, MissionParams, Timing
+from dualpilot.mission.params import RISK_SUFFIX, Controller, MissionParams, Timing
 from dualpilot.mission.ports import KeepOut, PlanRequest
 from dualpilot.mission.step import Mission
 from dualpilot.model.dynamics import Array, DynamicsParams, hover_state, step
 from dualpilot.model.fire import FireField, FireParams, FireSnapshot
+from dualpilot.model.forecast import ForecastParams, OccupancyForecast, forecast
 from dualpilot.model.geometry import Rect
-from dualpilot.plan import Plan, Planner, PlanStatus
-from dualpilot.spec import MissionSpec, Stream
+from dualpilot.plan import ForecastPlanner, Plan, Planner, PlanStatus
+from dualpilot.spec import MissionSpec, Stream, forecast_rng
+from dualpilot.supervisor.concurrent import ConcurrentParams
 from dualpilot.supervisor.decision import SupervisorParams
 
 #: System 1's method under each supervisor: the concurrent supervisor hands over between the
@@ -24,15 +27,37 @@ SUPERVISORS = {"paper": "rrt", "concurrent": "rrt+du"}
 class LocalFires:
     """The fire process of Sec. II-B in this process, on the spec's fire stream."""
 
-    def __init__(self, spec: MissionSpec, params: FireParams = FireParams()):
+    def __init__(self, spec: MissionSpec, params: FireParams = FireParams(),
+                 forecast_params: ForecastParams | None = None):
         self.field = FireField(params=params, area_size_m=spec.area_size_m)
         self.rng = spec.rng(Stream.FIRE)
+        self.seed = spec.seed
+        self.forecast_params = forecast_params or ForecastParams()
+        self._forecasts: dict[tuple[int, int], OccupancyForecast] = {}
 
     def snapshot(self) -> FireSnapshot:
         return self.field.snapshot()
 
     def margin_m(self) -> float:
         return 0.0  # the fire process itself: never stale
+
+    def forecast(self, substeps_per_step: int) -> OccupancyForecast | None:
+        """The forecast from the current state, on its own stream (seed, sub-steps done);
+        kept until the fires advance. None for a fire process other than the paper's
+        rectangles (a physics scenario's field), whose model the forecast is."""
+        f = self.field
+        if getattr(f, "physics", None) is not None:
+            return None
+        n = substeps_per_step if f.params.life_base == "step" else 1
+        key = (f.substeps_done, n)
+        got = self._forecasts.get(key)
+        if got is None:
+            self._forecasts = {k: v for k, v in self._forecasts.items() if k[0] == key[0]}
+            got = forecast(f.fronts, f.params, f.area_size_m,
+                           forecast_rng(self.seed, f.substeps_done), self.forecast_params,
+                           substeps_per_step=n, issued_substep=f.substeps_done)
+            self._forecasts[key] = got
+        return got
 
     def advance(self, t: int, n: int, keep_out: KeepOut | None) -> list[tuple[Rect, ...]]:
         out = []
@@ -51,10 +76,18 @@ class LocalPlanners:
     def available(self, system: int) -> bool:
         return system in self.planners
 
+    def uses_forecast(self, system: int) -> bool:
+        return bool(getattr(self.planners.get(system), "uses_forecast", False))
+
     def plan(self, request: PlanRequest) -> Plan:
         t0 = time.perf_counter()
         try:
-            return self.planners[request.system].plan(
+            planner = self.planners[request.system]
+            if request.forecast is not None and self.uses_forecast(request.system):
+                return cast(ForecastPlanner, planner).plan(
+                    request.state, request.obstacles, request.objective, request.prev_control,
+                    forecast=request.forecast)
+            return planner.plan(
                 request.state, request.obstacles, request.objective, request.prev_control)
         except ValueError as err:  # bad input to the planner: not flyable, not fatal
             return Plan.failed(request.system, PlanStatus.INVALID_INPUT,
@@ -97,15 +130,25 @@ def local_mission(
     supervisor_params: SupervisorParams = SupervisorParams(),
     system2_method: str = "fast",
     supervisor: str = "paper",
+    risk: bool = False,
 ) -> Mission:
-    """The mission of ``spec`` flown in this process (planners built from the spec by default)."""
+    """The mission of ``spec`` flown in this process (planners built from the spec by default).
+
+    ``risk``: with the fire forecast (dualpilot/model/forecast.py): System 1's and
+    System 2's methods with "+risk" and, for the concurrent supervisor, threats judged on
+    the forecast (``ConcurrentParams.threat = "forecast"``).
+    """
     if planners is None:
         from dualpilot.planners import build_planners
 
-        planners = build_planners(spec, system2_method=system2_method,
-                                  system1_method=SUPERVISORS[supervisor])
+        s1, s2 = SUPERVISORS[supervisor], system2_method
+        if risk:
+            s1 += RISK_SUFFIX
+            s2 = s2 if s2.endswith(RISK_SUFFIX) else s2 + RISK_SUFFIX
+        planners = build_planners(spec, system2_method=s2, system1_method=s1)
     state = hover_state(np.array(spec.start), spec.dynamics)
     return Mission(controller, spec, LocalFires(spec, fire_params), LocalPlanners(planners),
                    LocalVehicle(state, spec.dynamics), state, timing=timing, params=params,
                    fire_params=fire_params, supervisor_params=supervisor_params,
-                   supervisor=supervisor)
+                   supervisor=supervisor,
+                   concurrent_params=ConcurrentParams(threat="forecast" if risk else "current"))

@@ -8,12 +8,14 @@ simulated seconds of the mission.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Protocol
+from typing import Protocol, runtime_checkable
 
 from dualpilot.mission.result import StepRecord
 from dualpilot.model.dynamics import Array
 from dualpilot.model.fire import FireSnapshot
+from dualpilot.model.forecast import OccupancyForecast
 from dualpilot.model.geometry import Polytope, Rect
+from dualpilot.model.risk import ForecastView
 from dualpilot.plan import Objective, Plan
 from dualpilot.supervisor.decision import Decision
 
@@ -31,6 +33,8 @@ class PlanRequest:
     prev_control: Array  # u_{t|t}, the control applied at the previous step (N)
     obstacles: tuple[Polytope, ...]  # FireSnapshot.obstacles_for the UAV's position
     objective: Objective
+    #: the fire forecast for a risk-aware planner (None: the paper's planners, or no forecast)
+    forecast: ForecastView | None = None
 
 
 class FirePort(Protocol):
@@ -50,6 +54,17 @@ class FirePort(Protocol):
         ...
 
 
+@runtime_checkable
+class ForecastPort(Protocol):
+    """The fire port's optional forecast (dualpilot/model/forecast.py), asked only by a
+    mission whose planners or supervisor use it."""
+
+    def forecast(self, substeps_per_step: int) -> OccupancyForecast | None:
+        """P(inside a fire region) ahead of :meth:`FirePort.snapshot`'s state, assuming
+        time-steps of ``substeps_per_step`` sub-steps; None when there is none."""
+        ...
+
+
 class PlannerPort(Protocol):
     def available(self, system: int) -> bool:
         """The planner can be asked (its service is alive)."""
@@ -66,6 +81,13 @@ class PlannerPort(Protocol):
     def collect(self, ticket: object) -> Plan:
         """The plan of a launched request (waits for it; TIMEOUT when it never came)."""
         ...
+
+
+@runtime_checkable
+class ForecastPlannerPort(Protocol):
+    """The planner port's optional question: does this system's planner use a forecast?"""
+
+    def uses_forecast(self, system: int) -> bool: ...
 
 
 class VehiclePort(Protocol):

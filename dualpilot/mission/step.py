@@ -23,6 +23,7 @@ The step is written once; :mod:`dualpilot.mission.local` runs it in one process,
 from __future__ import annotations
 
 from dataclasses import replace
+from typing import cast
 
 import numpy as np
 
@@ -31,6 +32,8 @@ from dualpilot.mission.concurrent import ConcurrentPlanning
 from dualpilot.mission.params import Controller, MissionParams, Timing
 from dualpilot.mission.ports import (
     FirePort,
+    ForecastPlannerPort,
+    ForecastPort,
     KeepOut,
     PlannerPort,
     PlanRequest,
@@ -41,9 +44,11 @@ from dualpilot.mission.result import MissionResult, StepRecord
 from dualpilot.model.dynamics import Array, DynamicsParams, step
 from dualpilot.model.fire import FireParams, FireSnapshot, substeps_for
 from dualpilot.model.geometry import Rect
+from dualpilot.model.risk import ForecastView
 from dualpilot.model.stale_fire import grown_snapshot
 from dualpilot.plan import Objective, Plan, PlanStatus
 from dualpilot.spec import MissionSpec, Stream
+from dualpilot.supervisor.concurrent import ConcurrentParams
 from dualpilot.supervisor.decision import Decision, Supervisor, SupervisorParams
 
 
@@ -179,6 +184,7 @@ class Mission:
         supervisor_params: SupervisorParams = SupervisorParams(),
         observer: StepObserver | None = None,
         supervisor: str = "paper",
+        concurrent_params: ConcurrentParams = ConcurrentParams(),
     ):
         self.controller = controller
         self.spec = spec
@@ -197,9 +203,16 @@ class Mission:
             if controller is not Controller.CC:
                 raise ValueError("the concurrent supervisor runs the cognitive controller (cc)")
             self.planning = ConcurrentPlanning(spec, timing, params, fire_params,
-                                               supervisor_params)
+                                               supervisor_params, concurrent_params)
         elif supervisor != "paper":
             raise ValueError(f"supervisor must be 'paper' or 'concurrent', not {supervisor!r}")
+        # the forecast is asked only by risk-aware planners and the forecast threat rule
+        can = isinstance(fires, ForecastPort)
+        self.forecast_systems = frozenset(
+            s for s in (1, 2) if can and isinstance(planners, ForecastPlannerPort)
+            and planners.uses_forecast(s))
+        self.forecast_threats = can and self.planning is not None and (
+            self.planning.params.threat == "forecast")
         self.sim_time_s = 0.0  # simulated time: the fires' sub-steps and the flights
         self.state = np.asarray(state, dtype=float).copy()
         self.prev_control = np.zeros(self.dyn.dim)
@@ -256,6 +269,22 @@ class Mission:
                 caught = self._fire_fails(t, self.fires.snapshot()) or caught
         return caught
 
+    def substeps_per_step(self, system: int) -> int:
+        """The sub-steps a step takes when ``system`` plans it: ⌈T_s / T_f⌉ (the paper's T_s, or
+        its last measured one) plus those while the UAV moves."""
+        times = self.result.planning_time_s[f"s{system}"]
+        t_s = (times[-1] if times and self.timing is Timing.MEASURED
+               else self.params.paper_planning_time_s[system - 1])
+        return substeps_for(t_s, self.fire_params) + self.params.fire_substeps_per_motion
+
+    def _forecast_view(self, system: int) -> ForecastView | None:
+        """The fire port's forecast for a plan of ``system`` (None when it is not used)."""
+        if system not in self.forecast_systems:
+            return None
+        n = self.substeps_per_step(system)
+        fc = cast(ForecastPort, self.fires).forecast(n)
+        return None if fc is None else ForecastView(fc, n)
+
     def _plan(self, t: int, order: list[int], snapshot: FireSnapshot,
               objective: Objective) -> tuple[Plan | None, list[str], float]:
         seen = grown_snapshot(snapshot, self.fires.margin_m())  # stale data: grown
@@ -268,7 +297,8 @@ class Mission:
                 continue
             candidate = self.planners.plan(PlanRequest(
                 t=t, system=system, state=self.state.copy(), prev_control=self.prev_control,
-                obstacles=obstacles, objective=objective))
+                obstacles=obstacles, objective=objective,
+                forecast=self._forecast_view(system)))
             self.result.planning_time_s[f"s{system}"].append(candidate.compute_time_s)
             planning += planning_time(candidate, self.timing, self.params)
             verdict = monitor.check(candidate, self.state, obstacles, self.spec) if (
@@ -293,8 +323,10 @@ class Mission:
         def record_time(system: int, seconds: float) -> None:
             self.result.planning_time_s[f"s{system}"].append(seconds)
 
+        uses = self.forecast_threats or bool(self.forecast_systems)
         choice = self.planning.choose(t, self.sim_time_s, self.state, self.prev_control,
-                                      snapshot, seen, self.planners, record_time)
+                                      snapshot, seen, self.planners, record_time,
+                                      cast(ForecastPort, self.fires).forecast if uses else None)
         if choice.plan is not None:  # the run-time monitor has the last word, as for the paper's
             obstacles = seen.obstacles_for(self.state[:2], self.spec.clearance_m)
             k = self.planning.params.check_steps  # a kept plan is re-checked every step

@@ -24,6 +24,11 @@ supervisor never waits for System 2:
   front ignites within reach of the UAV (:func:`wait_hazard`). System 2 is
   waited for only when no safe plan exists and its wait's hazard is below
   ``max_wait_hazard``; otherwise System 1 answers.
+* **Threats on the forecast** (``threat = "forecast"``). Also a plan whose next
+  ``check_steps`` steps come within the margin of their own risk zones (the
+  cells whose forecast occupancy exceeds α while the UAV is there,
+  :mod:`dualpilot.model.risk`) is threatened: known fronts count too, by
+  where they are going, not only where they have been.
 * **Q online.** The performance matrix Q of Eq. (Psi) is updated after every
   step from measured response time, progress and energy (:class:`OnlineQ`);
   when a kept plan and a due plan are both safe, the system with the larger
@@ -36,12 +41,14 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
 from math import ceil
+from typing import Literal
 
 import numpy as np
 
 from dualpilot.model.dynamics import Array, DynamicsParams, rollout
 from dualpilot.model.fire import FireParams, FireSnapshot
 from dualpilot.model.geometry import Polytope, path_clearance
+from dualpilot.model.risk import RiskMap, RiskParams, path_risk_clearance
 from dualpilot.plan import Plan
 from dualpilot.spec import MissionSpec
 from dualpilot.verify import verify_trajectory
@@ -68,6 +75,10 @@ class ConcurrentParams:
     switch_margin: float = 0.05
     #: energy scale of the energy attribute (N²): score 1 / (1 + ‖Δu‖² / scale)
     energy_scale_n2: float = 4.0
+    #: what threatens a plan: fronts it did not know ("current", the rule above), or also the
+    #: forecast's risk zones along it ("forecast", at ``risk.alpha``)
+    threat: Literal["current", "forecast"] = "current"
+    risk: RiskParams = field(default_factory=RiskParams)
 
     def __post_init__(self) -> None:
         if min(self.threat_margin_m or 0.0, self.reanchor_tol_m, self.reanchor_tol_mps) < 0:
@@ -76,6 +87,8 @@ class ConcurrentParams:
             raise ValueError("check_steps >= 1, 0 < q_rate <= 1 and energy_scale_n2 > 0")
         if not 0 <= self.max_wait_hazard <= 1:
             raise ValueError("max_wait_hazard must be in [0, 1]")
+        if self.threat not in ("current", "forecast"):
+            raise ValueError(f"threat must be 'current' or 'forecast', not {self.threat!r}")
 
 
 def wait_hazard(n_substeps: int, fire: FireParams, area_size_m: float, d_safe_m: float,
@@ -186,6 +199,13 @@ def threatened(plan: Plan, seen: FireSnapshot, known: frozenset[int], margin_m: 
     return bool(unknown) and path_clearance(pts, unknown) < margin_m
 
 
+def forecast_threatened(plan: Plan, risk: RiskMap, margin_m: float, steps: int) -> bool:
+    """A segment p_{τ−1}–p_τ of the next ``steps`` steps of ``plan`` comes within ``margin_m``
+    of step τ's risk zones (row τ of the plan is τ steps from now)."""
+    dim = plan.states.shape[1] // 2
+    return path_risk_clearance(risk, plan.states[: steps + 1, :dim]) < margin_m
+
+
 def check_near(plan: Plan, state: Array, obstacles: tuple[Polytope, ...], spec: MissionSpec,
                steps: int) -> str:
     """"" when ``plan`` starts at ``state`` and its next ``steps`` steps verify; else why not."""
@@ -219,4 +239,4 @@ def steps_until(response_s: float, step_s: float) -> int:
 
 
 __all__ = ["Choice", "ConcurrentParams", "Deliberation", "Flown", "OnlineQ", "check_near",
-           "reanchor", "threatened", "steps_until", "wait_hazard"]
+           "forecast_threatened", "reanchor", "threatened", "steps_until", "wait_hazard"]

@@ -27,7 +27,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Literal
 
 import numpy as np
@@ -35,6 +35,7 @@ import numpy as np
 from dualpilot.arrays import Array
 from dualpilot.model.dynamics import check_state
 from dualpilot.model.geometry import Polytope
+from dualpilot.model.risk import ArcRisk, ForecastView, RiskMap, RiskParams, path_risk_clearance
 from dualpilot.plan import Objective, Plan, PlanStatus
 from dualpilot.spec import MissionSpec, Stream
 from dualpilot.system1.lqr import (
@@ -184,6 +185,8 @@ class System1:
         self._waypoints: Array | None = None
         self._operator: _TrackedPath | None = None
         self._rrt_path: _TrackedPath | None = None
+        #: the forecast's risk along paths (:class:`RiskSystem1`; None: the paper's planner)
+        self._arc: ArcRisk | None = None
 
     # -- operator input -------------------------------------------------------------
     def set_waypoints(self, waypoints: Array | None) -> None:
@@ -307,12 +310,15 @@ class System1:
             return checker.point_distance(ref[0]) >= first_need
         need = np.full(len(ref) - 1, self.clearance_m)
         need[0] = first_need
-        return bool(np.all(checker.distances(ref[:-1], ref[1:]) >= need))
+        if not np.all(checker.distances(ref[:-1], ref[1:]) >= need):
+            return False
+        return self._arc is None or self._arc.path_clear(ref)
 
     def _run_rrt(self, pos: Array, hulls: Sequence[Polytope],
                  checker: SegmentChecker) -> RrtResult:
         return plan_path(pos, self.goal, hulls, self.rng, self.clearance_m, self.area_size_m,
-                         self._rrt_params, start_clearance_m=self.d_safe_m, checker=checker)
+                         self._rrt_params, start_clearance_m=self.d_safe_m, checker=checker,
+                         risk=self._arc)
 
     def _track(self, x: Array, ref: Array, hulls: Sequence[Polytope], attempts: list[str],
                source: str, checker: SegmentChecker,
@@ -352,3 +358,45 @@ class System1:
         plan = Plan.failed(self.system, status, time.perf_counter() - t0, message, self.dyn.dim)
         plan.info.update(info)
         return plan
+
+
+class RiskSystem1(System1):
+    """"rrt+risk" ("rrt+du+risk" with the Δu tracker): System 1 with the fire forecast.
+
+    Operator, reused and RRT paths must also keep ``clearance_m`` from the risk
+    zones of the steps in which each piece is flown (:class:`ArcRisk`, timed at
+    the reference speed: RRT edges by their tree path length). The tracked
+    trajectory is verified against the hulls as by "rrt" (never less); its
+    distance from its steps' zones is recorded (``info["risk_clearance_m"]``).
+    When no path meets the zones, the "rrt" plan is returned (``info["risk"]``
+    says so); without a forecast the method is "rrt".
+    """
+
+    uses_forecast = True
+
+    def __init__(self, spec: MissionSpec, params: System1Params = System1Params(),
+                 rng: np.random.Generator | None = None, risk: RiskParams | None = None):
+        super().__init__(spec, params, rng)
+        self.method = f"{self.method}+risk"
+        self.risk = risk or RiskParams()
+
+    def plan(self, state: Array, hulls: tuple[Polytope, ...],
+             objective: Objective = Objective.MISSION_TIME, prev_control: Array | None = None,
+             forecast: ForecastView | None = None) -> Plan:
+        if forecast is None:
+            return super().plan(state, hulls, objective, prev_control)
+        t0 = time.perf_counter()
+        risk = RiskMap(forecast, self.risk)
+        self._arc = ArcRisk(risk, self.params.ref_speed_mps, self.dyn.dt_s, self.clearance_m)
+        try:
+            plan = super().plan(state, hulls, objective, prev_control)
+        finally:
+            self._arc = None
+        note: dict[str, object] = {"risk": "met"}
+        if not plan.ok:
+            note["risk"] = f"unmet ({plan.status.value})"
+            plan = super().plan(state, hulls, objective, prev_control)
+        if plan.ok:
+            note["risk_clearance_m"] = path_risk_clearance(risk, plan.states[:, :2])
+        return replace(plan, compute_time_s=time.perf_counter() - t0,
+                       info={**plan.info, **note})

@@ -26,6 +26,7 @@ from ompl import util as ou
 
 from dualpilot.arrays import Array
 from dualpilot.model.geometry import Polytope, Rect, SegmentChecker
+from dualpilot.model.risk import ArcRisk
 from dualpilot.system1.reach import BoolArray, coarsen, corridor, start_component
 
 
@@ -87,11 +88,12 @@ class RrtResult:
 
 
 def shortcut(path: Array, checker: SegmentChecker, clearance_m: float,
-             first_clearance_m: float | None = None) -> Array:
+             first_clearance_m: float | None = None, risk: ArcRisk | None = None) -> Array:
     """Greedy shortcut: from each kept vertex jump to the farthest vertex in free line of sight.
 
     Segments leaving ``path[0]`` need only ``first_clearance_m`` (defaults to
-    ``clearance_m``; see :func:`plan_path` on starts near a hull).
+    ``clearance_m``; see :func:`plan_path` on starts near a hull). With ``risk``
+    a jump must also keep clear of the risk zones of the steps it is flown in.
     """
     pts = np.asarray(path, dtype=float).reshape(-1, 2)
     if len(pts) <= 2:
@@ -99,12 +101,24 @@ def shortcut(path: Array, checker: SegmentChecker, clearance_m: float,
     first = clearance_m if first_clearance_m is None else first_clearance_m
     keep = [0]
     i = 0
+    s_i = 0.0  # arc length of the kept path to vertex i
     while i < len(pts) - 1:
         cand = np.arange(i + 1, len(pts))
         need = first if i == 0 else clearance_m
         ok = checker.clear(np.repeat(pts[i][None], len(cand), axis=0), pts[cand], need)
         ok[0] = True  # consecutive tree vertices were checked when the edge was added
-        i = int(cand[np.nonzero(ok)[0][-1]])
+        if risk is None:
+            j = int(cand[np.nonzero(ok)[0][-1]])
+        else:  # the farthest jump that is also clear of the risk zones (the next vertex was)
+            x0, y0 = pts[i].tolist()
+            j = i + 1
+            for c, good in zip(cand[::-1].tolist(), ok[::-1].tolist(), strict=True):
+                if good and (c == i + 1 or risk.segment_clear(
+                        x0, y0, float(pts[c, 0]), float(pts[c, 1]), s_i)):
+                    j = int(c)
+                    break
+            s_i += float(np.hypot(*(pts[j] - pts[i])))
+        i = j
         keep.append(i)
     return pts[keep]
 
@@ -117,18 +131,26 @@ class ExactMotionValidator(ob.MotionValidator):
     """
 
     def __init__(self, si: ob.SpaceInformation, checker: SegmentChecker, clearance_m: float,
-                 root: Array, root_clearance_m: float):
+                 root: Array, root_clearance_m: float, risk: ArcRisk | None = None):
         super().__init__(si)
         self._checker = checker
         self._clearance = clearance_m
         self._root = (float(root[0]), float(root[1]))
         self._root_clearance = root_clearance_m
         self.on_accept: Callable[[float, float], None] | None = None
+        self._risk = risk
+        #: with ``risk``: each tree vertex's path length from the root (its arrival time)
+        self._arc: dict[tuple[float, float], float] = {self._root: 0.0}
 
     def checkMotion(self, s1: ob.State, s2: ob.State) -> bool:  # noqa: N802 (OMPL API)
         a = (s1[0], s1[1])
         need = self._root_clearance if a == self._root else self._clearance
         ok = self._checker.segment_clear(a[0], a[1], s2[0], s2[1], need)
+        if ok and self._risk is not None:  # RRT grows the tree from s1, a tree vertex
+            s0 = self._arc.get(a, float(np.hypot(a[0] - self._root[0], a[1] - self._root[1])))
+            ok = self._risk.segment_clear(a[0], a[1], s2[0], s2[1], s0)
+            if ok:
+                self._arc[(s2[0], s2[1])] = s0 + float(np.hypot(s2[0] - a[0], s2[1] - a[1]))
         if ok and self.on_accept is not None:
             self.on_accept(s2[0], s2[1])  # RRT adds s2 to the tree when its motion is valid
         return ok
@@ -269,6 +291,11 @@ def _cell_index(v: float, cell_m: float, n: int) -> int:
     return min(int(v / cell_m), n - 1)
 
 
+def _length(path: Array) -> float:
+    """Length (m) of the polyline ``path``."""
+    return float(np.linalg.norm(np.diff(path, axis=0), axis=1).sum())
+
+
 def _validate(start: Array, goal: Rect, area_size_m: float) -> Array:
     p = np.asarray(start, dtype=float).reshape(-1)[:2]
     if p.shape != (2,) or not np.all(np.isfinite(p)):
@@ -293,6 +320,7 @@ def plan_path(
     params: RrtParams = RrtParams(),
     start_clearance_m: float | None = None,
     checker: SegmentChecker | None = None,
+    risk: ArcRisk | None = None,
 ) -> RrtResult:
     """Alg. 1: a path (k, 2) from ``start`` into ``goal`` keeping ``clearance_m`` from hulls.
 
@@ -301,7 +329,9 @@ def plan_path(
     clearance the start itself must have. A start between it and
     ``clearance_m`` is an escape: edges leaving the start need only keep the
     start's own clearance (they may not move closer to a hull), every later
-    edge the full ``clearance_m``.
+    edge the full ``clearance_m``. With ``risk`` every edge (and shortcut) also
+    keeps clear of the forecast's risk zones of the steps in which it is flown,
+    timed by its path length from the start (:class:`dualpilot.model.risk.ArcRisk`).
 
     Raises ValueError for a non-finite start or one outside the area, a goal
     outside the area, or a start nearer than ``start_clearance_m`` to a hull.
@@ -325,10 +355,11 @@ def plan_path(
         if params.aim_goal_center and not np.allclose(path[-1], center):
             first = root_clearance if len(path) == 1 else clearance_m
             (x0, y0), (x1, y1) = path[-1].tolist(), center.tolist()
-            if checker.segment_clear(x0, y0, x1, y1, first):
+            if checker.segment_clear(x0, y0, x1, y1, first) and (
+                    risk is None or risk.segment_clear(x0, y0, x1, y1, _length(path))):
                 path = np.vstack([path, center])
         if params.shortcut:
-            path = shortcut(path, checker, clearance_m, root_clearance)
+            path = shortcut(path, checker, clearance_m, root_clearance, risk)
         return RrtResult(path, status, iterations, time.perf_counter() - t0, tree)
 
     if goal.contains(p):
@@ -336,7 +367,8 @@ def plan_path(
     if params.try_direct:
         target = center if params.aim_goal_center else np.clip(p, goal.lo, goal.hi)
         (x0, y0), (x1, y1) = p.tolist(), target.tolist()
-        if checker.segment_clear(x0, y0, x1, y1, root_clearance):
+        if checker.segment_clear(x0, y0, x1, y1, root_clearance) and (
+                risk is None or risk.segment_clear(x0, y0, x1, y1, 0.0)):
             return finish(np.vstack([p, target]), "direct", 0, None)
 
     component = None
@@ -355,7 +387,7 @@ def plan_path(
     space.setBounds(bounds)
     si = ob.SpaceInformation(space)
     si.setStateValidityChecker(lambda s: True)  # states are judged by the exact motion check
-    validator = ExactMotionValidator(si, checker, clearance_m, p, root_clearance)
+    validator = ExactMotionValidator(si, checker, clearance_m, p, root_clearance, risk)
     si.setMotionValidator(validator)
     si.setup()
     start_state = space.allocState()

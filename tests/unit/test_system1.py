@@ -316,7 +316,7 @@ def test_lqr_du_rrt_plans_verify_and_use_prev_control() -> None:
 
 
 def test_the_registry_builds_the_du_tracker() -> None:
-    assert METHODS[1] == ("rrt", "rrt+du")
+    assert METHODS[1] == ("rrt", "rrt+du", "rrt+risk", "rrt+du+risk")
     paper = build_planner(1, SPEC)
     du = build_planner(1, SPEC, "rrt+du", System1Params(r_delta_u=10.0))
     assert isinstance(paper, System1) and isinstance(du, System1)

@@ -150,7 +150,8 @@ def test_transition_matrices_reading():
 
 
 def test_planners_by_name_from_the_registry():
-    assert METHODS == {1: ("rrt", "rrt+du"), 2: ("fast", "exact", "fast+exact", "thorough")}
+    assert METHODS == {1: ("rrt", "rrt+du", "rrt+risk", "rrt+du+risk"),
+                       2: ("fast", "exact", "fast+exact", "thorough", "fast+risk")}
     fast = build_planner(2, SPEC, "fast", SMALL)
     assert isinstance(fast, FastSystem2) and (fast.system, fast.method) == (2, "fast")
     thorough = build_planner(2, SPEC, "thorough")

@@ -28,9 +28,10 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from dualpilot.arrays import Array
+from dualpilot.arrays import AnyArray, Array
 from dualpilot.model.dynamics import DynamicsParams, reach_radius, rollout
 from dualpilot.model.geometry import Polytope, SegmentChecker, hull_boxes
+from dualpilot.model.risk import ForecastView, RiskMap, RiskParams
 from dualpilot.plan import Objective, Plan, PlanStatus
 from dualpilot.spec import MissionSpec
 from dualpilot.system2.fast.geometry import (
@@ -155,7 +156,10 @@ class _Cfs:
 
     def _activate(self, pos: Array) -> None:
         T = self.T
-        self.active[:, 2:T + 1] |= (self.faces.margins(pos[1:T]) < self.o.fast.near_m).T
+        near = (self.faces.margins(pos[1:T]) < self.o.fast.near_m).T
+        if self.o._mask is not None:  # keep-outs of some steps only (the risk zones)
+            near &= self.o._mask[:, 2:T + 1]
+        self.active[:, 2:T + 1] |= near
 
     def _rows(self) -> tuple[Array, Array, Array]:
         """Half-planes (τ, normal, rhs) of the active (τ, i) pairs, hull-major, vectorised."""
@@ -326,6 +330,11 @@ class FastSystem2:
                        speed_sides=params.speed_polygon_sides)
         self._last: Plan | None = None
         self.stats: dict[str, Any] = {}
+        #: keep-outs of some plan steps only, (polytope, mask over τ = 0..T): the risk zones
+        #: of :class:`RiskSystem2` (none for the paper's method)
+        self._zones: list[tuple[Polytope, AnyArray]] = []
+        self._mask: AnyArray | None = None
+        self._zone_rows: list[tuple[Polytope, AnyArray]] = []
 
     # ---------------------------------------------------------------- public
     def reset(self) -> None:
@@ -371,6 +380,11 @@ class FastSystem2:
         # per-plan geometry, shared by every homotopy run: stacked faces, padded hulls
         stacks = (FaceStack.of(polys), HullStack.of(polys))
         info: dict[str, object] = {"n_hulls": len(polys), "n_hulls_input": len(hulls)}
+        static, static_stacks = polys, stacks  # what the homotopies and the target avoid
+        self._mask, self._zone_rows = None, []
+        if self._zones:
+            polys, stacks = self._with_zones(x0, polys, reach)
+            info["n_zones"] = len(self._zone_rows)
         n_qp = 0
 
         def solve(tau: Array, nrm: Array, rhs: Array, z0: Array | None = None,
@@ -392,7 +406,7 @@ class FastSystem2:
             candidates.append(_Candidate("relaxation", free.positions, free.controls,
                                          free.objective, 0))
         else:
-            refs = self._references(x0, free.positions, polys, kappa, stacks)
+            refs = self._references(x0, free.positions, static, kappa, static_stacks)
             info["homotopies"] = [name for name, _, _ in refs]
             runs = [_Cfs(self, name, ref, polys, free.positions, solve, kappa, stacks, retime)
                     for name, ref, retime in refs]
@@ -449,6 +463,14 @@ class FastSystem2:
         if not verdict.ok:
             reasons.append(f"{cand.name}: {verdict.reason}")
             return None
+        if self._zone_rows:  # each zone at its own steps, ε as for the hulls
+            zones = [z for z, _ in self._zone_rows]
+            faces = FaceStack.of(zones).margins(states[:, :2])  # (T+1, zones)
+            steps = np.stack([m for _, m in self._zone_rows], axis=1)
+            worst = float(np.min(np.where(steps, faces, np.inf))) - self.epsilon_m
+            if worst < -1e-6:
+                reasons.append(f"{cand.name}: {-worst:.3g} m inside a risk zone's ε")
+                return None
         margin = disjunction_margin(states[1:, :2], hulls, self.epsilon_m)
         cost = p2_cost(states, controls, self.goal.center, kappa, u_prev)
         out = dict(info)
@@ -461,6 +483,22 @@ class FastSystem2:
         return Plan(system=self.system, status=PlanStatus.OK, states=states, controls=controls,
                     compute_time_s=time.perf_counter() - t0, objective=objective, cost=cost,
                     info=out)
+
+    def _with_zones(self, x0: Array, polys: list[Inflated], reach: float
+                    ) -> tuple[list[Inflated], tuple[FaceStack, HullStack]]:
+        """The hulls and the zones within reach, with the steps each constrains (``_mask``)."""
+        T = self.params.horizon
+        inflated = Inflated.make_many([z for z, _ in self._zones], self.epsilon_m)
+        margins = FaceStack.of(inflated).margins(x0[:2])[0]
+        kept = [(q, z) for q, z, m in zip(inflated, self._zones, margins, strict=True)
+                if m <= reach]
+        self._zone_rows = [z for _, z in kept]
+        if not kept:
+            return polys, (FaceStack.of(polys), HullStack.of(polys))
+        both = polys + [q for q, _ in kept]
+        self._mask = np.vstack([np.ones((len(polys), T + 1), dtype=bool)]
+                               + [z[1][None, : T + 1] for _, z in kept])
+        return both, (FaceStack.of(both), HullStack.of(both))
 
     # ------------------------------------------------------------ homotopies
     def _references(self, x0: Array, free_pos: Array, polys: list[Inflated],
@@ -620,7 +658,10 @@ class FastSystem2:
     def _violations(self, pos: Array, faces: FaceStack) -> NDArray[np.int64]:
         """(τ, i) pairs (τ = 2..T) where the disjunction fails for the hulls of ``faces``."""
         T = self.params.horizon
-        hull, tt = np.nonzero(faces.margins(pos[1:T]).T < 0)  # hull-major
+        bad = faces.margins(pos[1:T]).T < 0
+        if self._mask is not None:
+            bad &= self._mask[:, 2:T + 1]
+        hull, tt = np.nonzero(bad)  # hull-major
         return np.column_stack([tt + 2, hull]).astype(np.int64).reshape(-1, 2)
 
 
@@ -699,6 +740,49 @@ class ThoroughSystem2(FastSystem2):
 
     def __init__(self, spec: MissionSpec, params: System2Params = System2Params()) -> None:
         super().__init__(spec, params, THOROUGH)
+
+
+class RiskSystem2(FastSystem2):
+    """"fast+risk": the fast method with a chance constraint on the fire forecast.
+
+    Each planned position p_τ (τ = 2..T) also keeps ε from the risk zones of its
+    step (:mod:`dualpilot.model.risk`: the cells whose forecast occupancy exceeds
+    α while the UAV is there), as keep-outs of that step only in the same
+    convex restrictions; homotopies and the target still come from the hulls.
+    The plan is verified against the hulls exactly as "fast" (never less), and
+    against each zone at its steps. When no plan meets the chance constraint,
+    the "fast" plan is returned (``info["risk"]`` says so); without a forecast
+    the method is "fast".
+    """
+
+    method = "fast+risk"
+    uses_forecast = True
+
+    def __init__(self, spec: MissionSpec, params: System2Params = System2Params(),
+                 fast: FastParams = FastParams(), risk: RiskParams | None = None) -> None:
+        super().__init__(spec, params, fast)
+        self.risk = risk or RiskParams()
+
+    def plan(self, state: Array, hulls: Sequence[Polytope],
+             objective: Objective = Objective.MISSION_TIME, prev_control: Array | None = None,
+             forecast: ForecastView | None = None) -> Plan:
+        if forecast is None:
+            return super().plan(state, hulls, objective, prev_control)
+        t0 = time.perf_counter()
+        zones = RiskMap(forecast, self.risk).step_masks(self.params.horizon, first=2)
+        self._zones = zones
+        try:
+            plan = super().plan(state, hulls, objective, prev_control)
+        finally:
+            self._zones, self._mask, self._zone_rows = [], None, []
+        note: dict[str, object] = {"risk_zones": len(zones)}
+        if not plan.ok and zones:
+            note["risk"] = f"unmet ({plan.status.value}: {plan.message[:120]})"
+            plan = super().plan(state, hulls, objective, prev_control)
+        else:
+            note["risk"] = "met" if zones else "no zones"
+        return dataclasses.replace(plan, compute_time_s=time.perf_counter() - t0,
+                                   info={**plan.info, **note})
 
 
 class AnytimeSystem2:

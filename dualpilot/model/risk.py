@@ -1,0 +1,243 @@
+"""Forecast risk as planners use it: where P(inside a fire region) exceeds α, step by step.
+
+A plan's step τ (position p_τ) is held while the fires run sub-steps
+offset + [τ n, (τ+1) n] (:class:`ForecastView`: n sub-steps a step, the UAV
+hovering at p_τ while the next plan is computed). Its *risk zones* are the
+convex hulls of the connected groups of cells whose forecast P exceeds α at
+some slice of that window (:meth:`RiskMap.zones`); a hull covers every cell
+square of its group, so keeping a distance from the zones keeps it from every
+risky cell. Past the forecast's horizon a step has no zones. Planners keep
+their clearance from the zones of each step as a chance constraint, on top of
+(never instead of) the current hulls. Lengths in m.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import cast
+
+import numpy as np
+from numba import njit
+
+from dualpilot.arrays import AnyArray, Array
+from dualpilot.model.forecast import LEVELS, OccupancyForecast
+from dualpilot.model.geometry import Polytope, SegmentChecker
+
+
+@dataclass(frozen=True)
+class RiskParams:
+    """The chance constraint: avoid cells whose forecast occupancy exceeds ``alpha``.
+
+    0.1 is a one-in-ten chance, eight times the births' steady background
+    P ≈ p_b E[W]E[H] / (A²(1 − p_s)) = 0.012 of the paper's values (a lower α
+    would make the whole area a zone).
+    """
+
+    alpha: float = 0.1
+
+    def __post_init__(self) -> None:
+        if not 0.0 <= self.alpha < 1.0:
+            raise ValueError(f"alpha must be in [0, 1), got {self.alpha}")
+
+
+@dataclass(frozen=True)
+class ForecastView:
+    """A forecast as a plan sees it: step τ is held during sub-steps
+    ``offset_substeps`` + [τ·n, (τ+1)·n], n = ``substeps_per_step``."""
+
+    forecast: OccupancyForecast
+    substeps_per_step: int
+    offset_substeps: int = 0
+
+    def __post_init__(self) -> None:
+        if self.substeps_per_step < 1 or self.offset_substeps < 0:
+            raise ValueError("substeps_per_step >= 1 and offset_substeps >= 0 are required")
+
+    def window(self, tau: int) -> tuple[int, int]:
+        """The sub-steps (first, last) during which plan step ``tau`` is held."""
+        n = self.substeps_per_step
+        return self.offset_substeps + tau * n, self.offset_substeps + (tau + 1) * n
+
+    @property
+    def last_step(self) -> int:
+        """The last plan step whose window starts within the forecast's horizon."""
+        return max(-1, (self.forecast.max_substeps - self.offset_substeps)
+                   // self.substeps_per_step)
+
+
+@dataclass
+class RiskMap:
+    """The risk zones of a :class:`ForecastView`'s slices and plan steps at one α.
+
+    A slice's zones are kept on its forecast (shared by every planner of the step).
+    """
+
+    view: ForecastView
+    params: RiskParams = field(default_factory=RiskParams)
+    _checkers: dict[tuple[int, int], SegmentChecker] = field(default_factory=dict)
+
+    @property
+    def threshold(self) -> int:
+        """The largest level that is not risky: P > α ⟺ level > ⌊255 α⌋."""
+        return int(np.floor(self.params.alpha * LEVELS + 1e-9))
+
+    def slice_zones(self, i: int) -> tuple[Polytope, ...]:
+        """The zones of slice i: hulls of its groups of cells above the threshold."""
+        fc = self.view.forecast
+        key = ("zones", i, self.threshold)
+        got = fc.memo.get(key)
+        if got is None:
+            got = cell_hulls(fc.levels[i] > self.threshold, fc.resolution_m, fc.origin_m)
+            fc.memo[key] = got
+        return cast(tuple[Polytope, ...], got)
+
+    def slices(self, tau: int) -> range:
+        """The slices that stand for plan step ``tau``'s window."""
+        return self.view.forecast.slices(*self.view.window(tau))
+
+    def zones(self, tau: int) -> tuple[Polytope, ...]:
+        """The risk zones of plan step ``tau`` (none past the horizon)."""
+        return tuple(z for i in self.slices(tau) for z in self.slice_zones(i))
+
+    def checker(self, tau: int) -> SegmentChecker:
+        """A :class:`SegmentChecker` of :meth:`zones` (kept per window)."""
+        key = self.view.window(tau)
+        got = self._checkers.get(key)
+        if got is None:
+            got = SegmentChecker(self.zones(tau))
+            self._checkers[key] = got
+        return got
+
+    def step_masks(self, steps: int, first: int = 1) -> list[tuple[Polytope, AnyArray]]:
+        """Each zone of the slices of steps first..``steps`` with the plan steps it applies to
+        (a bool mask over τ = 0..steps)."""
+        out: dict[tuple[int, int], tuple[Polytope, AnyArray]] = {}
+        for tau in range(first, min(steps, self.view.last_step) + 1):
+            for i in self.slices(tau):
+                for j, z in enumerate(self.slice_zones(i)):
+                    got = out.get((i, j))
+                    if got is None:
+                        got = (z, np.zeros(steps + 1, dtype=bool))
+                        out[(i, j)] = got
+                    got[1][tau] = True
+        return list(out.values())
+
+
+def cell_hulls(risky: np.ndarray, resolution_m: float,
+               origin_m: tuple[float, float] = (0.0, 0.0)) -> tuple[Polytope, ...]:
+    """The convex hull of the cell squares of each 8-connected group of ``risky`` cells."""
+    comp, row, first, last = _groups(np.ascontiguousarray(risky, dtype=np.bool_))
+    out: list[Polytope] = []
+    for k in range(int(comp.max()) + 1 if len(comp) else 0):
+        sel = comp == k
+        r, c0, c1 = row[sel], first[sel], last[sel] + 1
+        y0 = origin_m[1] + r * resolution_m
+        y1 = y0 + resolution_m
+        x0 = origin_m[0] + c0 * resolution_m
+        x1 = origin_m[0] + c1 * resolution_m
+        corners = np.column_stack([np.concatenate([x0, x1, x0, x1]),
+                                   np.concatenate([y0, y0, y1, y1])])
+        out.append(Polytope.from_vertices(corners))
+    return tuple(out)
+
+
+@njit(cache=True)
+def _groups(risky: AnyArray) -> tuple[AnyArray, AnyArray, AnyArray, AnyArray]:
+    """The runs of risky cells of each row (row, first, last column) and the 8-connected
+    group (0, 1, …) each belongs to (runs of adjacent rows touching or diagonal: one group)."""
+    ny, nx = risky.shape
+    rows: list[int] = []
+    firsts: list[int] = []
+    lasts: list[int] = []
+    row_start = np.zeros(ny + 1, dtype=np.int64)
+    for r in range(ny):
+        row_start[r] = len(rows)
+        c = 0
+        while c < nx:
+            if risky[r, c]:
+                c0 = c
+                while c + 1 < nx and risky[r, c + 1]:
+                    c += 1
+                rows.append(r)
+                firsts.append(c0)
+                lasts.append(c)
+            c += 1
+    row_start[ny] = len(rows)
+    n = len(rows)
+    parent = np.arange(n)
+
+    def find(i: int) -> int:
+        while parent[i] != i:
+            parent[i] = parent[parent[i]]
+            i = parent[i]
+        return i
+
+    for r in range(1, ny):
+        for i in range(row_start[r], row_start[r + 1]):
+            for j in range(row_start[r - 1], row_start[r]):
+                if firsts[i] <= lasts[j] + 1 and firsts[j] <= lasts[i] + 1:
+                    a, b = find(i), find(j)
+                    if a != b:
+                        parent[max(a, b)] = min(a, b)
+    comp = np.empty(n, dtype=np.int64)
+    ids = np.full(n, -1, dtype=np.int64)
+    count = 0
+    for i in range(n):
+        root = find(i)
+        if ids[root] < 0:
+            ids[root] = count
+            count += 1
+        comp[i] = ids[root]
+    return (comp, np.array(rows, dtype=np.int64), np.array(firsts, dtype=np.int64),
+            np.array(lasts, dtype=np.int64))
+
+
+def path_risk_clearance(risk: RiskMap, positions: Array, first: int = 1) -> float:
+    """The least distance (m) of the segments p_{τ−1}–p_τ from the zones of step τ (τ ≥ first)."""
+    pts = np.asarray(positions, dtype=float).reshape(-1, 2)
+    worst = float("inf")
+    for tau in range(max(first, 1), min(len(pts) - 1, risk.view.last_step) + 1):
+        checker = risk.checker(tau)
+        if checker.n_hulls:
+            worst = min(worst, checker.path_clearance(pts[tau - 1:tau + 1]))
+    return worst
+
+
+class ArcRisk:
+    """Risk zones along a path flown at ``speed_mps``: the point s metres along it is passed
+    in plan step ⌈s / (v ΔT)⌉ (System 1's reading of arrival time, its reference speed)."""
+
+    def __init__(self, risk: RiskMap, speed_mps: float, dt_s: float, clearance_m: float):
+        if not (speed_mps > 0 and dt_s > 0 and clearance_m >= 0):
+            raise ValueError("speed_mps > 0, dt_s > 0 and clearance_m >= 0 are required")
+        self.risk = risk
+        self.step_m = speed_mps * dt_s
+        self.clearance_m = clearance_m
+        self.last_step = risk.view.last_step
+
+    def segment_clear(self, x0: float, y0: float, x1: float, y1: float, s0: float) -> bool:
+        """Whether the segment, started ``s0`` m along the path, keeps the clearance from the
+        zones of every step it is flown in (pieces split where a step ends)."""
+        length = float(np.hypot(x1 - x0, y1 - y0))
+        tau = max(1, int(np.ceil(s0 / self.step_m - 1e-12)))
+        a = 0.0  # the piece's start, as a fraction of the segment
+        while a < 1.0 and tau <= self.last_step:
+            end_s = tau * self.step_m  # where step tau's part of the path ends
+            b = 1.0 if length <= 0 else min(1.0, max(a, (end_s - s0) / length))
+            checker = self.risk.checker(tau)
+            if checker.n_hulls and not checker.segment_clear(
+                    x0 + a * (x1 - x0), y0 + a * (y1 - y0),
+                    x0 + b * (x1 - x0), y0 + b * (y1 - y0), self.clearance_m):
+                return False
+            a, tau = b, tau + 1
+        return True
+
+    def path_clear(self, points: Array, s0: float = 0.0) -> bool:
+        """:meth:`segment_clear` of every segment of the polyline ``points``, the first at s0."""
+        pts = np.asarray(points, dtype=float).reshape(-1, 2)
+        s = s0
+        for (x0, y0), (x1, y1) in zip(pts[:-1].tolist(), pts[1:].tolist(), strict=True):
+            if not self.segment_clear(x0, y0, x1, y1, s):
+                return False
+            s += float(np.hypot(x1 - x0, y1 - y0))
+        return True

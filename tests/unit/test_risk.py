@@ -1,0 +1,212 @@
+"""Risk zones of the fire forecast (dualpilot/model/risk.py) and the planners and supervisor
+that use them ("rrt+risk", "fast+risk", threat = "forecast"), on hand-built forecasts."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from dualpilot.mission import monitor
+from dualpilot.mission.local import LocalFires, local_mission
+from dualpilot.mission.params import Controller, Timing, controller_of, uses_risk
+from dualpilot.model.dynamics import hover_state
+from dualpilot.model.fire import FireParams
+from dualpilot.model.forecast import LEVELS, OccupancyForecast
+from dualpilot.model.geometry import Polytope, Rect
+from dualpilot.model.risk import ArcRisk, ForecastView, RiskMap, RiskParams, cell_hulls
+from dualpilot.plan import Objective
+from dualpilot.planners import build_planner
+from dualpilot.spec import MissionSpec
+from dualpilot.supervisor.concurrent import forecast_threatened
+from dualpilot.sweep import mission_spec
+
+pytestmark = pytest.mark.timeout(120)
+
+#: start west, goal east: the straight line y = 500 crosses the corridor box
+SPEC = MissionSpec(start=(100.0, 500.0), goal=Rect(900.0, 500.0, 100.0, 100.0), seed=5)
+#: a box of certain fire on the straight line, at every horizon
+BOX = (400.0, 430.0, 600.0, 570.0)
+
+
+def box_forecast(box: tuple[float, float, float, float] = BOX, level: int = LEVELS,
+                 horizons: tuple[int, ...] = tuple(range(0, 81, 2))) -> OccupancyForecast:
+    """A 10 m forecast that is ``level`` on the cells whose centres lie in ``box``, 0 elsewhere."""
+    x0, y0, x1, y1 = box
+    c = (np.arange(100) + 0.5) * 10.0
+    grid = ((c[:, None] >= y0) & (c[:, None] <= y1) & (c[None, :] >= x0) & (c[None, :] <= x1))
+    levels = np.repeat((grid * level).astype(np.uint8)[None], len(horizons), axis=0)
+    return OccupancyForecast(resolution_m=10.0, substep_s=0.5, horizons=horizons, levels=levels)
+
+
+def box_polytope(box: tuple[float, float, float, float] = BOX) -> Polytope:
+    x0, y0, x1, y1 = box
+    return Rect((x0 + x1) / 2, (y0 + y1) / 2, x1 - x0, y1 - y0).polytope()
+
+
+def test_view_windows_by_hand() -> None:
+    view = ForecastView(box_forecast(), substeps_per_step=10, offset_substeps=4)
+    assert view.window(0) == (4, 14) and view.window(3) == (34, 44)
+    assert view.last_step == 7  # step 7 starts at sub-step 74 <= 80, step 8 at 84
+    fc = view.forecast
+    assert fc.slices(3, 3) == range(1, 3)  # between slices 2 and 4: both stand for it
+    assert fc.slices(4, 8) == range(2, 5)
+    assert fc.slices(81, 90) == range(0) and fc.window(81, 90) is None
+
+
+def test_threshold_is_strictly_above_alpha() -> None:
+    risk = RiskMap(ForecastView(box_forecast(), 1), RiskParams(alpha=0.1))
+    assert risk.threshold == 25  # 25/255 = 0.098 is not above 0.1, 26/255 = 0.102 is
+    quiet = RiskMap(ForecastView(box_forecast(level=25), 1))
+    assert quiet.zones(3) == ()
+    loud = RiskMap(ForecastView(box_forecast(level=26), 1))
+    assert len(loud.slice_zones(1)) == 1
+    assert len(loud.zones(3)) == 2  # step 3's window (3, 4) stands on the slices at 2 and 4
+
+
+def test_cell_hulls_by_hand() -> None:
+    """An L of cells has the hull of its squares; a diagonal touch joins two cells into one
+    group; apart, they are two."""
+    grid = np.zeros((10, 10), dtype=bool)
+    grid[2, 2:5] = True  # row 2, columns 2..4
+    grid[3:5, 2] = True  # column 2, rows 3..4
+    (hull,) = cell_hulls(grid, 10.0)
+    expect = {(20.0, 20.0), (50.0, 20.0), (50.0, 30.0), (30.0, 50.0), (20.0, 50.0)}
+    assert {tuple(v) for v in hull.vertices.tolist()} == expect
+    diag = np.zeros((10, 10), dtype=bool)
+    diag[1, 1] = diag[2, 2] = True
+    assert len(cell_hulls(diag, 10.0)) == 1
+    diag[2, 2], diag[3, 3] = False, True
+    assert len(cell_hulls(diag, 10.0)) == 2
+    assert cell_hulls(np.zeros((4, 4), dtype=bool), 10.0) == ()
+
+
+def test_zones_cover_every_risky_cell() -> None:
+    risk = RiskMap(ForecastView(box_forecast(), 1))
+    (zone,) = risk.slice_zones(5)
+    for x in (405.0, 595.0):
+        for y in (435.0, 565.0):
+            assert zone.distance(np.array([x, y])) == 0.0
+    assert zone.distance(np.array([395.0, 500.0])) > 0.0
+
+
+def test_arc_risk_times_a_segment_by_its_path_length() -> None:
+    """A zone on the cells of [450, 550]² only in the slices at sub-steps 10 and 12: at one
+    sub-step a step it stands for steps 8..13 (windows [τ, τ+1] bracketed by the slices every
+    2 sub-steps), flown 84..156 m along a path at 12 m a step."""
+    levels = np.zeros((41, 100, 100), dtype=np.uint8)
+    levels[5:7, 45:55, 45:55] = LEVELS  # slices 5 and 6: sub-steps 10 and 12
+    fc = OccupancyForecast(10.0, 0.5, tuple(range(0, 81, 2)), levels)
+    risk = RiskMap(ForecastView(fc, 1))
+    assert [tau for tau in range(20) if risk.zones(tau)] == list(range(8, 14))
+    arc = ArcRisk(risk, speed_mps=12.0, dt_s=1.0, clearance_m=25.0)
+    # (400, 500)-(600, 500) comes within 25 m of the zone 25..175 m along it
+    assert not arc.segment_clear(400.0, 500.0, 600.0, 500.0, s0=0.0)  # meets steps 8..13
+    assert arc.segment_clear(400.0, 500.0, 600.0, 500.0, s0=240.0)  # steps 23..35: no zone
+    # a 12 m hop over the zone's centre: flown in step 11 (120..132 m), refused; in step 3, clear
+    assert not arc.segment_clear(494.0, 500.0, 506.0, 500.0, s0=120.0)
+    assert arc.segment_clear(494.0, 500.0, 506.0, 500.0, s0=24.0)
+
+
+def _state() -> np.ndarray:
+    return hover_state(np.array(SPEC.start), SPEC.dynamics)
+
+
+@pytest.mark.parametrize("method", ["rrt+risk", "rrt+du+risk"])
+def test_system1_risk_avoids_the_corridor_the_paper_planner_takes(method: str) -> None:
+    box = box_polytope()
+    plain = build_planner(1, SPEC, "rrt").plan(_state(), ())
+    assert plain.ok and plain.path is not None
+    assert box.segment_distance(plain.path[0], plain.path[-1]) == 0.0  # straight on
+    risky = build_planner(1, SPEC, method)
+    plan = risky.plan(_state(), (), forecast=ForecastView(box_forecast(), 1))  # type: ignore[call-arg]
+    assert plan.ok and plan.info["risk"] == "met" and plan.path is not None
+    path_gap = min(box.segment_distance(a, b) for a, b in zip(plan.path[:-1], plan.path[1:],
+                                                             strict=True))
+    assert path_gap >= SPEC.clearance_m - 1e-6
+    assert monitor.check(plan, _state(), (), SPEC).ok
+
+
+def test_system2_risk_avoids_the_corridor_the_paper_planner_takes() -> None:
+    box = box_polytope()
+    plain = build_planner(2, SPEC, "fast").plan(_state(), ())
+    assert plain.ok
+    assert min(box.distance(p) for p in plain.states[1:, :2]) == 0.0  # through the box
+    plan = build_planner(2, SPEC, "fast+risk").plan(  # type: ignore[call-arg]
+        _state(), (), forecast=ForecastView(box_forecast(), 1))
+    assert plan.ok and plan.info["risk"] == "met", plan.message
+    # every planned position of steps 2..79 (the forecast's) keeps ε from the box
+    gaps = [box.distance(p) for p in plan.states[2:80, :2]]
+    assert min(gaps) >= SPEC.clearance_m - 1e-6
+    assert monitor.check(plan, _state(), (), SPEC).ok
+
+
+def test_risk_planners_keep_todays_checks_against_the_hulls() -> None:
+    """A hull beside the corridor: the risk plans avoid both and pass the run-time monitor."""
+    hull = Rect(500.0, 650.0, 120.0, 80.0).polytope()
+    view = ForecastView(box_forecast(), 1)
+    for system, method in ((1, "rrt+risk"), (2, "fast+risk")):
+        plan = build_planner(system, SPEC, method).plan(  # type: ignore[call-arg]
+            _state(), (hull,), forecast=view)
+        assert plan.ok, (method, plan.message)
+        assert monitor.check(plan, _state(), (hull,), SPEC).ok
+        assert min(hull.distance(p) for p in plan.states[:, :2]) >= SPEC.d_safe_m
+
+
+def test_without_a_forecast_the_risk_methods_are_the_paper_methods() -> None:
+    hull = Rect(500.0, 520.0, 120.0, 80.0).polytope()
+    for system, base in ((1, "rrt"), (2, "fast")):
+        a = build_planner(system, SPEC, base).plan(_state(), (hull,), Objective.ENERGY)
+        b = build_planner(system, SPEC, f"{base}+risk").plan(_state(), (hull,), Objective.ENERGY)
+        assert a.ok and np.array_equal(a.states, b.states) and np.array_equal(a.controls,
+                                                                             b.controls)
+
+
+def test_an_unmet_chance_constraint_falls_back_to_the_paper_plan() -> None:
+    """A zone over the UAV itself at every step cannot be left in time: the plan returned is
+    the paper method's, and says so."""
+    box = (0.0, 400.0, 250.0, 600.0)
+    plain = build_planner(2, SPEC, "fast").plan(_state(), ())
+    plan = build_planner(2, SPEC, "fast+risk").plan(  # type: ignore[call-arg]
+        _state(), (), forecast=ForecastView(box_forecast(box), 1))
+    assert plan.ok and str(plan.info["risk"]).startswith("unmet")
+    assert np.array_equal(plan.states, plain.states)
+
+
+def test_the_forecast_threat_rule() -> None:
+    """A plan whose next steps run through the box is threatened on the forecast; one that
+    passes 60 m south of it is not."""
+    risk = RiskMap(ForecastView(box_forecast(), 1))
+    s1 = build_planner(1, SPEC, "rrt")
+    through = s1.plan(_state(), ())
+    x_near = hover_state(np.array([330.0, 500.0]), SPEC.dynamics)
+    near = build_planner(1, SPEC, "rrt").plan(x_near, ())
+    assert not forecast_threatened(through, risk, SPEC.clearance_m, 10)  # 10 steps: not there
+    assert forecast_threatened(near, risk, SPEC.clearance_m, 10)
+    south = hover_state(np.array([330.0, 345.0]), SPEC.dynamics)
+    other = build_planner(1, MissionSpec(start=(330.0, 345.0), goal=Rect(900.0, 345.0, 100.0,
+                                                                          100.0)), "rrt")
+    assert not forecast_threatened(other.plan(south, ()), risk, SPEC.clearance_m, 10)
+
+
+def test_controller_names() -> None:
+    assert controller_of("concurrent+risk") == (Controller.CC, "concurrent")
+    assert controller_of("s2+risk") == (Controller.S2, "paper")
+    assert uses_risk("cc+risk") and not uses_risk("cc")
+
+
+def test_the_forecast_never_moves_the_fire_stream() -> None:
+    """Fronts ignite anywhere (today): the fires of an S2 mission and an S2+risk mission are
+    the same step for step, and a forecast leaves the fire stream where it was."""
+    spec = mission_spec(0, 3)
+    fires = LocalFires(spec, FireParams())
+    for t in range(5):
+        fires.advance(t, 3, None)
+    before = fires.rng.bit_generator.state
+    fires.forecast(10)
+    assert fires.rng.bit_generator.state == before
+    plain = local_mission(Controller.S2, spec, timing=Timing.PAPER).run()
+    risky = local_mission(Controller.S2, spec, timing=Timing.PAPER, risk=True).run()
+    n = min(len(plain.records), len(risky.records))
+    assert n > 3
+    for a, b in zip(plain.records[:n], risky.records[:n], strict=True):
+        assert a.snapshot.regions == b.snapshot.regions
