@@ -26,6 +26,17 @@ RUN mkdir -p dualpilot services \
     && touch dualpilot/__init__.py services/__init__.py \
     && pip install . \
     && pip uninstall -y dualpilot
+# pyretechnics, the physics fire process's library: built from its sdist against the pinned
+# numpy/scipy (scripts/install_pyretechnics.sh), with a C compiler (and the Python headers where
+# the base lacks them) that leave the image again
+COPY scripts/install_pyretechnics.sh scripts/pyretechnics-requirements.txt ./scripts/
+RUN BUILD_DEPS="gcc libc6-dev $(python -c 'import os, sysconfig; \
+print("" if os.path.exists(sysconfig.get_paths()["include"] + "/Python.h") else "python3-dev")')" \
+    && apt-get update \
+    && apt-get install -y --no-install-recommends $BUILD_DEPS \
+    && sh scripts/install_pyretechnics.sh python \
+    && apt-get purge -y --auto-remove $BUILD_DEPS \
+    && rm -rf /var/lib/apt/lists/* /root/.cache/pip
 COPY proto ./proto
 COPY dualpilot ./dualpilot
 COPY services ./services

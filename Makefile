@@ -20,10 +20,12 @@ TLS_FLAGS := $(if $(TLS),$(if $(CERTS),--tls-dir $(CERTS),--tls))
 
 setup: $(STAMP)
 
-$(STAMP): pyproject.toml
+$(STAMP): pyproject.toml scripts/pyretechnics-requirements.txt
 	test -x $(BIN)/python || $(PY) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
 	$(BIN)/python -m pip install --quiet -e '.[dev]'
+	# the physics fire process's library, built against our numpy/scipy pins (~4 min once)
+	sh scripts/install_pyretechnics.sh $(BIN)/python
 	$(BIN)/python -m dualpilot.warmup  # compiles the Numba kernels into their disk cache
 	touch $(STAMP)
 
