@@ -17,6 +17,11 @@ A time-step starts at the first sub-step run with a new mission step number.
 
 Each front remembers the convex hull of every rectangle it has occupied,
 △(C^i_{1:t}), the region planners must avoid (constraint P1_4).
+
+``FireParams.scenario`` other than "paper" names a fire-behaviour scenario
+(dualpilot/model/scenarios.py): the field then runs Rothermel spread on a level
+set instead (dualpilot/model/physics_fire.py), with the same births, keep-out,
+fronts and snapshots.
 """
 
 from __future__ import annotations
@@ -24,12 +29,16 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from math import ceil, cos, sin, sqrt
-from typing import Literal, get_args
+from typing import TYPE_CHECKING, Literal, get_args
 
 import numpy as np
 
 from dualpilot.model.geometry import Polytope, Rect
+from dualpilot.model.scenarios import PAPER, get_scenario, scenario_names
 from dualpilot.spec import MissionSpec
+
+if TYPE_CHECKING:
+    from dualpilot.model.physics_fire import PhysicsFire
 
 #: Time base of birth and survival: every sub-step T_f, or once per time-step ΔT.
 LifeBase = Literal["substep", "step"]
@@ -65,8 +74,15 @@ class FireParams:
     #: Apply a sub-step's keep-out (the ignition clearance) to extent redraws too,
     #: not only to births: a redraw never puts the region within it of the UAV.
     redraw_clearance: bool = False
+    #: The fire process: "paper" (these rectangles) or a named fire-behaviour scenario
+    #: (dualpilot/model/scenarios.py: Rothermel spread; p_b, life_base, T_f and
+    #: keep_extinct_hulls still apply, the front's motion and extent come from the physics).
+    scenario: str = PAPER
 
     def __post_init__(self) -> None:
+        if self.scenario not in scenario_names():
+            raise ValueError(f"scenario must be one of {scenario_names()}, "
+                             f"not {self.scenario!r}")
         if self.life_base not in get_args(LifeBase):
             raise ValueError(f"life_base must be one of {get_args(LifeBase)}, "
                              f"not {self.life_base!r}")
@@ -209,6 +225,22 @@ class FireField:
     births_skipped: int = 0
     #: redraws that could not keep clear (the front itself moved within the keep-out)
     redraws_unclear: int = 0
+    #: the physics process of a named scenario (None: the paper's rectangles)
+    physics: PhysicsFire | None = field(default=None, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        if self.params.scenario != PAPER and self.physics is None:
+            from dualpilot.model.physics_fire import PhysicsFire
+
+            self.physics = PhysicsFire(get_scenario(self.params.scenario).params, self.params,
+                                       self.area_size_m)
+
+    def _take_physics(self) -> None:
+        assert self.physics is not None
+        self.fronts = list(self.physics.fronts)
+        self.extinct_hulls = list(self.physics.extinct_hulls)
+        self.births_skipped = self.physics.births_skipped
+        self.next_id = self.physics.next_id
 
     def _birth_region(self, rng: np.random.Generator, center: tuple[float, float] | None,
                       keep_out: tuple[np.ndarray, float] | None) -> Rect | None:
@@ -236,6 +268,10 @@ class FireField:
         whose region stays ``radius_m`` from ``position`` (redrawn until it
         does, at most :data:`MAX_DRAWS` times: ValueError when none does).
         """
+        if self.physics is not None:
+            front = self.physics.spawn(rng, step, center, keep_out)
+            self._take_physics()
+            return front
         region = self._birth_region(rng, center, keep_out)
         if region is None:
             assert keep_out is not None
@@ -276,6 +312,11 @@ class FireField:
         new_step = step != self.last_step
         self.last_step = step
         life = p.life_base == "substep" or new_step
+        if self.physics is not None:  # a named scenario: Rothermel spread, the same births
+            newborn = self.physics.substep(rng, step, life, keep_out)
+            self._take_physics()
+            self.substeps_done += 1
+            return newborn
         redraw = p.extent == "substep" or (p.extent == "step" and new_step)
         redraw_keep = keep_out if p.redraw_clearance else None
         survivors: list[FireFront] = []
