@@ -7,6 +7,8 @@ and planner pair and stops the supervisor with SIGSTOP at a step:
   process keeps the vehicle's stream beating, so the vehicle sees no gap of a
   second, no failsafe fires, no fault is named and the mission is the
   in-process one, step for step;
+* its stream process, killed: the supervisor starts it again and gives it
+  the link and the setpoint back before the vehicle's failsafe could fire;
 * the supervisor and its stream process, 2.5 s: the stream stops, the
   vehicle's lockstep failsafe holds it as it is (no simulated time passes),
   the stream comes back, the supervisor names the fault ``vehicle_hold`` in
@@ -53,10 +55,16 @@ def fleet(tmp_path_factory: pytest.TempPathFactory) -> Any:
         yield f, out
 
 
-def fly_with_stop(fleet: Any, tag: str, group: bool, stop_s: float
+def children(pid: int) -> list[int]:
+    return [int(c) for task in Path(f"/proc/{pid}/task").glob("*")
+            for c in (task / "children").read_text().split()]
+
+
+def fly_with_stop(fleet: Any, tag: str, group: bool, stop_s: float, kill_stream: bool = False
                   ) -> tuple[Path, dict[str, Any]]:
     """Fly SEED, SIGSTOP the supervisor (with its stream process if ``group``) for ``stop_s``
-    once step 5 is out; returns the run directory and the vehicle's stream statistics."""
+    once step 5 is out — or, with ``kill_stream``, SIGKILL its stream process instead;
+    returns the run directory and the vehicle's stream statistics."""
     f, out = fleet
     events: queue.Queue[bytes] = queue.Queue()
     with launch.client_session(f.endpoint) as session:
@@ -75,12 +83,17 @@ def fly_with_stop(fleet: Any, tag: str, group: bool, stop_s: float
         else:
             pytest.fail("the mission never reached step 5")
         pid = sup.popen.pid
-        if group:
+        if kill_stream:
+            (stream_pid,) = children(pid)
+            os.kill(stream_pid, signal.SIGKILL)
+        elif group:
             os.killpg(pid, signal.SIGSTOP)
         else:
             os.kill(pid, signal.SIGSTOP)
         time.sleep(stop_s)  # the stall itself: nothing to wait on, the processes are stopped
-        if group:
+        if kill_stream:
+            pass
+        elif group:
             os.killpg(pid, signal.SIGCONT)
         else:
             os.kill(pid, signal.SIGCONT)
@@ -119,3 +132,16 @@ def test_lockstep_offboard_loss_holds_as_it_is_and_is_named(fleet: Any) -> None:
     assert summary["faults"] == {"vehicle_hold": 1}, summary["faults"]
     stack = result_from_log(read_step_log(run_dir / "steps.jsonl"))
     assert_same_mission(stack, in_process(SEED, "cc", "paper", None), "stopped companion")
+
+
+def test_a_killed_stream_process_is_started_again_before_the_vehicle_notices(
+        fleet: Any) -> None:
+    run_dir, stream = fly_with_stop(fleet, "stream-killed", group=False, stop_s=0.0,
+                                    kill_stream=True)
+    assert stream["failsafes"] == 0 and stream["gaps"]["max_ms"] < 1000.0, stream
+    summary = json.loads((run_dir / "summary.json").read_text())["stack"]
+    assert summary["stream"]["restarts"] == 1 and summary["faults"] == {}, summary
+    assert "stream process ended: starting it again" in (
+        run_dir / "logs" / "supervisor.log").read_text()
+    stack = result_from_log(read_step_log(run_dir / "steps.jsonl"))
+    assert_same_mission(stack, in_process(SEED, "cc", "paper", None), "stream restarted")
