@@ -9,6 +9,7 @@ import time
 from pathlib import Path
 
 from dualpilot.mission.params import Controller, Timing
+from dualpilot.model.scenarios import scenario_names, scenario_table
 from dualpilot.readings import (
     PROFILES,
     Profile,
@@ -20,9 +21,18 @@ from dualpilot.readings import (
 from dualpilot.spec import MissionSpec
 
 
+def _settings(args: argparse.Namespace) -> dict[str, str]:
+    """``--set`` as settings, with ``--scenario`` (a shorthand for ``--set scenario=NAME``)."""
+    settings = parse_settings(args.set)
+    if args.scenario is not None:
+        settings.setdefault("scenario", args.scenario)
+    return settings
+
+
 def _reading(args: argparse.Namespace) -> Profile:
-    """The profile of ``--profile`` with ``--set`` and ``--ignition-clearance`` applied."""
-    settings: dict[str, object] = dict(parse_settings(args.set))
+    """The profile of ``--profile`` with ``--set``, ``--scenario`` and ``--ignition-clearance``
+    applied."""
+    settings: dict[str, object] = dict(_settings(args))
     if args.ignition_clearance is not None:
         settings["ignition_clearance_m"] = args.ignition_clearance
     return get_profile(args.profile).with_settings(settings)
@@ -36,6 +46,10 @@ def _add_reading_flags(p: argparse.ArgumentParser, grid: bool = False) -> None:
                    help=("a grid axis: parameter NAME takes each value (repeat for more axes)"
                          if grid else "set one parameter of the reading (repeatable)")
                    + f"; names: {', '.join(settable())}")
+    p.add_argument("--scenario", default=None, choices=scenario_names(),
+                   help="the fire process: paper (the rectangles of Sec. II-B, the default) or "
+                        "a fire-behaviour scenario (dualpilot scenarios)"
+                        + ("; a grid axis: --set scenario=A,B" if grid else ""))
 
 
 def _mission(args: argparse.Namespace) -> int:
@@ -117,7 +131,7 @@ def _evaluate(args: argparse.Namespace) -> int:
         s2_method=args.s2_method,
         ignition_clearance_m=args.ignition_clearance,
         profile=args.profile,
-        settings=parse_settings(args.set),
+        settings=_settings(args),
         scheduler=args.scheduler,
     )
     print(json.dumps(summary, indent=2))
@@ -130,6 +144,8 @@ def _sweep(args: argparse.Namespace) -> int:
 
     doc = load_grid(Path(args.grid)) if args.grid else {}
     axes = {**{k: list(v) for k, v in (doc.get("grid") or {}).items()}, **parse_axes(args.set)}
+    if args.scenario is not None:
+        axes.setdefault("scenario", [args.scenario])
     points = grid_points(axes, doc.get("profile", args.profile), doc.get("points") or ())
     controllers = args.controllers or ",".join(doc.get("controllers") or ["cc", "s1", "s2"])
     summary = sweep(
@@ -151,6 +167,11 @@ def _sweep(args: argparse.Namespace) -> int:
 
 def _profiles(args: argparse.Namespace) -> int:
     print(profile_table())
+    return 0
+
+
+def _scenarios(args: argparse.Namespace) -> int:
+    print(scenario_table())
     return 0
 
 
@@ -224,6 +245,10 @@ def build_parser() -> argparse.ArgumentParser:
 
     pr = sub.add_parser("profiles", help="the named readings and their parameter values")
     pr.set_defaults(func=_profiles)
+
+    sc = sub.add_parser("scenarios", help="the fire processes: the paper's and the "
+                        "fire-behaviour scenarios (--scenario NAME)")
+    sc.set_defaults(func=_scenarios)
 
     from dualpilot.viz.showcase import add_showcase_parser  # the Fig. r1 story (issue 13.5)
 

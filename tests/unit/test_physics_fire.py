@@ -248,3 +248,34 @@ def test_a_fire_born_after_an_idle_spell_spreads_from_its_birth():
     (front,) = fire.fronts
     run = front.region.bounds[2] - fire.pad_m - 120.0  # past the ignition cell's east edge
     assert run == pytest.approx(20.0 * fire.head_rate_mps, abs=fire.cell_m + 5.0)
+
+
+def test_the_command_line_selects_a_scenario(tmp_path, capsys):
+    from dualpilot.cli import build_parser, main
+
+    assert main(["scenarios"]) == 0
+    listing = capsys.readouterr().out
+    assert all(name in listing for name in scenario_names())
+    parser = build_parser()
+    for command in ("mission", "evaluate", "sweep"):
+        assert parser.parse_args([command, "--scenario", "shrub"]).scenario == "shrub"
+    with pytest.raises(SystemExit):
+        parser.parse_args(["mission", "--scenario", "tundra"])
+    out = tmp_path / "run"
+    assert main(["mission", "--controller", "s1", "--seed", "7", "--scenario", "grass-15",
+                 "--quiet", "--no-figures", "--out", str(out)]) == 0
+    assert '"controller": "s1"' in capsys.readouterr().out and (out / "summary.json").exists()
+
+
+def test_a_mission_flies_on_the_physics_fires():
+    from dualpilot.mission.local import local_mission
+    from dualpilot.mission.params import Controller
+
+    spec = MissionSpec(seed=7)
+    mission = local_mission(Controller.S1, spec, fire_params=FireParams(scenario="grass-15"))
+    assert mission.fires.field.physics is not None  # type: ignore[attr-defined]
+    result = mission.run()
+    assert result.steps > 10 and max(r.fires_active for r in result.records) >= 2
+    for rec in result.records:
+        for region, hull in zip(rec.snapshot.regions, rec.snapshot.hulls, strict=True):
+            assert all(hull.contains(c, margin=1e-6) for c in region.corners())
