@@ -34,6 +34,7 @@ from google.protobuf.message import DecodeError, Message
 
 from dualpilot.model.dynamics import Array, DynamicsParams, SpeedLimit
 from dualpilot.model.fire import FireFront, FireParams, FireSnapshot
+from dualpilot.model.forecast import OccupancyForecast
 from dualpilot.model.geometry import Polytope, Rect
 from dualpilot.plan import Objective, Plan, PlanStatus
 from dualpilot.spec import MissionSpec
@@ -65,6 +66,8 @@ MAX_HORIZON = 10_000
 MAX_WAYPOINTS = 1000
 MAX_SUBSTEPS = 10_000
 MAX_SUBSTEP_S = 60.0  # T_f (s)
+MAX_FORECAST_CELLS = 1 << 20  # cells of one slice of the occupancy forecast's grid
+MAX_FORECAST_SLICES = 4096
 MAX_TEXT = 65_536
 MIN_SPEED_FACTOR = 1.0e-3  # a paced clock: at least 1 simulated ms per wall s
 MAX_CLOCK_SKEW_S = 86_400.0  # a clock anchor within a day of the receiver's wall clock
@@ -473,6 +476,68 @@ def regions_from_msg(m: fire_pb2.FireState) -> tuple[Rect, ...]:
     """Only the current regions of a FireState (validated)."""
     _count(len(m.fronts), "fronts", MAX_FRONTS)
     return tuple(rect_from_msg(f.region, f"front {i} region") for i, f in enumerate(m.fronts))
+
+
+def occupancy_to_msg(fc: OccupancyForecast, out: fire_pb2.OccupancyGrid) -> fire_pb2.OccupancyGrid:
+    """The core's occupancy forecast as an OccupancyGrid (its levels, byte for byte)."""
+    out.origin.east_m, out.origin.north_m = fc.origin_m
+    out.resolution_m = fc.resolution_m
+    out.rows, out.cols = fc.shape
+    out.horizons.extend(fc.horizons)
+    out.probabilities.extend(np.ascontiguousarray(lv).tobytes() for lv in fc.levels)
+    out.horizon_s = fc.max_substeps * fc.substep_s
+    out.substeps_per_step = fc.substeps_per_step
+    return out
+
+
+def occupancy_from_msg(m: fire_pb2.FireForecast) -> OccupancyForecast | None:
+    """A FireForecast's grid as the core's OccupancyForecast (None when it carries none).
+
+    Rejected: a grid without cells or with more than MAX_FORECAST_CELLS, a slice whose
+    length is not rows × cols, horizons that are not increasing (or past MAX_SUBSTEPS) or not
+    one per slice, a horizon_s that is not horizons[-1]·T_f, a bad origin, resolution or T_f.
+    """
+    check_header(m.header)
+    if not m.HasField("occupancy"):
+        return None
+    g = m.occupancy
+    _check_floats([m.substep_s], "substep_s", MAX_SUBSTEP_S)
+    if m.substep_s <= 0:
+        raise invalid(f"substep_s must be positive, got {m.substep_s}", Reason.OUT_OF_RANGE)
+    origin = _finite((g.origin.east_m, g.origin.north_m), "grid origin", MAX_ABS_M)
+    _check_floats([g.resolution_m], "resolution_m", MAX_ABS_M)
+    if g.resolution_m <= 0:
+        raise invalid(f"resolution_m must be positive, got {g.resolution_m}",
+                      Reason.OUT_OF_RANGE)
+    cells = int(g.rows) * int(g.cols)
+    if not 0 < cells <= MAX_FORECAST_CELLS:
+        raise invalid(f"grid of {g.rows} x {g.cols} cells, allowed 1..{MAX_FORECAST_CELLS}",
+                      Reason.SIZE)
+    _count(len(g.horizons), "forecast horizons", MAX_FORECAST_SLICES, minimum=1)
+    if len(g.probabilities) != len(g.horizons):
+        raise invalid(f"{len(g.probabilities)} probability slices for {len(g.horizons)} "
+                      "horizons", Reason.SIZE)
+    horizons = [int(h) for h in g.horizons]
+    if any(b <= a for a, b in zip(horizons, horizons[1:], strict=False)) or (
+            horizons[-1] > MAX_SUBSTEPS):
+        raise invalid(f"horizons must increase, at most {MAX_SUBSTEPS}: {horizons[:8]}",
+                      Reason.OUT_OF_RANGE)
+    bad = [i for i, b in enumerate(g.probabilities) if len(b) != cells]
+    if bad:
+        raise invalid(f"slice {bad[0]} has {len(g.probabilities[bad[0]])} bytes, the grid "
+                      f"{g.rows} x {g.cols}", Reason.SIZE)
+    _check_floats([g.horizon_s], "horizon_s", MAX_SUBSTEPS * MAX_SUBSTEP_S)
+    if not math.isclose(g.horizon_s, horizons[-1] * m.substep_s, rel_tol=1e-9, abs_tol=1e-9):
+        raise invalid(f"horizon_s {g.horizon_s} is not the last horizon {horizons[-1]} x "
+                      f"T_f {m.substep_s}", Reason.INVALID)
+    levels = np.frombuffer(b"".join(g.probabilities), dtype=np.uint8).reshape(
+        len(horizons), int(g.rows), int(g.cols))
+    return OccupancyForecast(resolution_m=float(g.resolution_m), substep_s=float(m.substep_s),
+                             horizons=tuple(horizons), levels=levels.copy(),
+                             origin_m=(float(origin[0]), float(origin[1])),
+                             issued_substep=int(m.substeps_done),
+                             substeps_per_step=max(1, int(g.substeps_per_step)))
+
 
 
 # -- fire commands --------------------------------------------------------------------------------

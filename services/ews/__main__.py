@@ -11,6 +11,8 @@
   ``τ_t + k·T_f``: the fires propagate while the plan is computed (see
   services/common/clock.py). The reply carries every sub-step's state.
 * ``<ns>/ews/forecast``: after each command's sub-steps and before its reply,
+  the occupancy forecast (P(a point is inside a fire region) on a grid, for the
+  next ``--occupancy-horizon-s``; dualpilot/model/forecast.py) and
   the mean-motion forecast of each front over ``--forecast-horizon-s``
   (services/ews/forecast.py).
 
@@ -35,8 +37,9 @@ import numpy as np
 import zenoh
 
 from dualpilot.model.fire import FireField, FireParams
+from dualpilot.model.forecast import ForecastParams, forecast
 from dualpilot.readings import PROFILES, get_profile
-from dualpilot.spec import Stream, stream_rng
+from dualpilot.spec import Stream, forecast_rng, stream_rng
 from services.common import bus, codec, fleet, keys
 from services.common import cli as common_cli
 from services.common.log import fields
@@ -54,7 +57,8 @@ class Ews:
     """The fire process of one vehicle's mission, driven by FireCommands."""
 
     def __init__(self, session: zenoh.Session, uav: str, params: FireParams,
-                 forecast_horizon_s: float, stop: threading.Event):
+                 forecast_horizon_s: float, stop: threading.Event,
+                 occupancy: ForecastParams | None = None):
         self.session = session
         self.uav = uav
         self.params = params
@@ -68,6 +72,10 @@ class Ews:
         self.mission_id = ""
         self.step = 0
         self.sim_time_s = 0.0
+        #: the occupancy forecast's grid and ensemble (None: not published)
+        self.occupancy = occupancy
+        self.seed = 0
+        self.step_substeps = 0  # sub-steps run so far in the latest time-step
 
     def state_msg(self) -> fire_pb2.FireState:
         assert self.field is not None
@@ -88,6 +96,7 @@ class Ews:
                           if cmd.area_size_m > 0 else FireField(params=params))
             self.rng = stream_rng(cmd.seed, Stream.FIRE)
             self.mission_id, self.step, self.sim_time_s = cmd.mission_id, 0, 0.0
+            self.seed, self.step_substeps = cmd.seed, 0
             state = self.state_msg()
             bus.put(self.fires_pub, "", state)
             update.states.append(state)
@@ -106,6 +115,8 @@ class Ews:
                     raise codec.invalid(f"the clock would pace this advance for {wait:.3g} s "
                                         f"(at most {MAX_PACED_WAIT_S:g})",
                                         codec.Reason.OUT_OF_RANGE)
+            self.step_substeps = cmd.substeps + (self.step_substeps if cmd.step == self.step
+                                                 else 0)
             self.step = cmd.step
             waited = 0.0
             for k in range(1, cmd.substeps + 1):
@@ -132,7 +143,20 @@ class Ews:
             for r in regions:
                 codec.rect_to_msg(r, fm.regions.add())
             codec.polygon_to_msg(envelope(front, regions), fm.envelope)
+        self.add_occupancy(m)
         bus.put(self.forecast_pub, "", m)
+
+    def add_occupancy(self, m: fire_pb2.FireForecast) -> None:
+        """The occupancy forecast into ``m`` (dualpilot/model/forecast.py, its own stream from
+        the mission seed and the sub-steps done), time-steps as long as the latest one. None
+        for a fire process other than the paper's rectangles, whose model it is."""
+        f = self.field
+        if self.occupancy is None or f is None or getattr(f, "physics", None) is not None:
+            return
+        fc = forecast(f.fronts, f.params, f.area_size_m, forecast_rng(self.seed, f.substeps_done),
+                      self.occupancy, substeps_per_step=max(1, self.step_substeps),
+                      issued_substep=f.substeps_done)
+        codec.occupancy_to_msg(fc, m.occupancy)
 
 
 class Binding:
@@ -163,10 +187,11 @@ class Binding:
             self.session, self.mission_id = who, cmd.mission_id
 
 
-def body(ctx: bus.Context, params: FireParams, forecast_horizon_s: float) -> None:
+def body(ctx: bus.Context, params: FireParams, forecast_horizon_s: float,
+         occupancy: ForecastParams | None = None) -> None:
     assert ctx.session is not None
     uav = ctx.settings.uav_id
-    ews = Ews(ctx.session, uav, params, forecast_horizon_s, ctx.stop)
+    ews = Ews(ctx.session, uav, params, forecast_horizon_s, ctx.stop, occupancy)
     key = keys.fire_command(uav)
     inbox = bus.Inbox(key)
     queryable = ctx.session.declare_queryable(key, inbox.on_query)
@@ -212,6 +237,20 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--forecast-horizon-s", type=float,
                    default=common_cli.env("FORECAST_HORIZON_S", "80"),
                    help="forecast horizon in simulated s [FORECAST_HORIZON_S]")
+    grid = ForecastParams()
+    p.add_argument("--occupancy-horizon-s", type=float,
+                   default=common_cli.env("OCCUPANCY_HORIZON_S", str(grid.horizon_s)),
+                   help="occupancy forecast horizon in simulated s; 0: none "
+                        "[OCCUPANCY_HORIZON_S]")
+    p.add_argument("--occupancy-interval-s", type=float,
+                   default=common_cli.env("OCCUPANCY_INTERVAL_S", str(grid.interval_s)),
+                   help="time between its slices (s) [OCCUPANCY_INTERVAL_S]")
+    p.add_argument("--occupancy-resolution-m", type=float,
+                   default=common_cli.env("OCCUPANCY_RESOLUTION_M", str(grid.resolution_m)),
+                   help="side of its cells (m) [OCCUPANCY_RESOLUTION_M]")
+    p.add_argument("--occupancy-members", type=int,
+                   default=common_cli.env("OCCUPANCY_MEMBERS", str(grid.members)),
+                   help="motion paths per front [OCCUPANCY_MEMBERS]")
     fleet.add_argument(p)
     args = p.parse_args(argv)
     try:
@@ -222,10 +261,13 @@ def main(argv: list[str] | None = None) -> int:
             ("redraw_clearance", args.redraw_clearance)) if v}).fire, substep_s=args.substep_s)
         if not (math.isfinite(args.forecast_horizon_s) and args.forecast_horizon_s >= 0):
             raise ValueError("--forecast-horizon-s must be finite and >= 0")
+        occupancy = None if args.occupancy_horizon_s == 0 else ForecastParams(
+            members=args.occupancy_members, resolution_m=args.occupancy_resolution_m,
+            horizon_s=args.occupancy_horizon_s, interval_s=args.occupancy_interval_s)
     except ValueError as err:
         p.error(str(err))
     return bus.run_service(settings, lambda ctx: fleet.for_each(
-        ctx, uavs, lambda sub: body(sub, params, args.forecast_horizon_s)))
+        ctx, uavs, lambda sub: body(sub, params, args.forecast_horizon_s, occupancy)))
 
 
 if __name__ == "__main__":

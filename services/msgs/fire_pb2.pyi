@@ -61,18 +61,40 @@ class FireState(_message.Message):
     def __init__(self, header: _Optional[_Union[_common_pb2.Header, _Mapping]] = ..., step: _Optional[int] = ..., substeps_done: _Optional[int] = ..., substep_s: _Optional[float] = ..., fronts: _Optional[_Iterable[_Union[FireFront, _Mapping]]] = ..., extinct_hulls: _Optional[_Iterable[_Union[_common_pb2.Polygon, _Mapping]]] = ...) -> None: ...
 
 class FireForecast(_message.Message):
-    __slots__ = ("header", "substeps_done", "substep_s", "horizon_s", "fronts")
+    __slots__ = ("header", "substeps_done", "substep_s", "horizon_s", "fronts", "occupancy")
     HEADER_FIELD_NUMBER: _ClassVar[int]
     SUBSTEPS_DONE_FIELD_NUMBER: _ClassVar[int]
     SUBSTEP_S_FIELD_NUMBER: _ClassVar[int]
     HORIZON_S_FIELD_NUMBER: _ClassVar[int]
     FRONTS_FIELD_NUMBER: _ClassVar[int]
+    OCCUPANCY_FIELD_NUMBER: _ClassVar[int]
     header: _common_pb2.Header
     substeps_done: int
     substep_s: float
     horizon_s: float
     fronts: _containers.RepeatedCompositeFieldContainer[FrontForecast]
-    def __init__(self, header: _Optional[_Union[_common_pb2.Header, _Mapping]] = ..., substeps_done: _Optional[int] = ..., substep_s: _Optional[float] = ..., horizon_s: _Optional[float] = ..., fronts: _Optional[_Iterable[_Union[FrontForecast, _Mapping]]] = ...) -> None: ...
+    occupancy: OccupancyGrid
+    def __init__(self, header: _Optional[_Union[_common_pb2.Header, _Mapping]] = ..., substeps_done: _Optional[int] = ..., substep_s: _Optional[float] = ..., horizon_s: _Optional[float] = ..., fronts: _Optional[_Iterable[_Union[FrontForecast, _Mapping]]] = ..., occupancy: _Optional[_Union[OccupancyGrid, _Mapping]] = ...) -> None: ...
+
+class OccupancyGrid(_message.Message):
+    __slots__ = ("origin", "resolution_m", "rows", "cols", "horizons", "probabilities", "horizon_s", "substeps_per_step")
+    ORIGIN_FIELD_NUMBER: _ClassVar[int]
+    RESOLUTION_M_FIELD_NUMBER: _ClassVar[int]
+    ROWS_FIELD_NUMBER: _ClassVar[int]
+    COLS_FIELD_NUMBER: _ClassVar[int]
+    HORIZONS_FIELD_NUMBER: _ClassVar[int]
+    PROBABILITIES_FIELD_NUMBER: _ClassVar[int]
+    HORIZON_S_FIELD_NUMBER: _ClassVar[int]
+    SUBSTEPS_PER_STEP_FIELD_NUMBER: _ClassVar[int]
+    origin: _common_pb2.Vec2
+    resolution_m: float
+    rows: int
+    cols: int
+    horizons: _containers.RepeatedScalarFieldContainer[int]
+    probabilities: _containers.RepeatedScalarFieldContainer[bytes]
+    horizon_s: float
+    substeps_per_step: int
+    def __init__(self, origin: _Optional[_Union[_common_pb2.Vec2, _Mapping]] = ..., resolution_m: _Optional[float] = ..., rows: _Optional[int] = ..., cols: _Optional[int] = ..., horizons: _Optional[_Iterable[int]] = ..., probabilities: _Optional[_Iterable[bytes]] = ..., horizon_s: _Optional[float] = ..., substeps_per_step: _Optional[int] = ...) -> None: ...
 
 class FrontForecast(_message.Message):
     __slots__ = ("front_id", "regions", "envelope")

@@ -280,3 +280,74 @@ def test_parse_waypoints() -> None:
     assert codec.parse_waypoints("  ") is None
     with pytest.raises(ValueError, match="waypoints"):
         codec.parse_waypoints("1,2,3")
+
+
+def _occupancy_msg() -> tuple[Any, Any]:
+    from dualpilot.model.forecast import ForecastParams, forecast
+
+    field = _fires()
+    fc = forecast(field.fronts, field.params, 1000.0, np.random.default_rng(2),
+                  ForecastParams(horizon_s=4.0), substeps_per_step=3, issued_substep=12)
+    msg = fire_pb2.FireForecast(substeps_done=12, substep_s=0.5)
+    codec.Stamper("ews", "uav1").stamp(msg.header, 6.0)
+    codec.occupancy_to_msg(fc, msg.occupancy)
+    return fc, msg
+
+
+def test_occupancy_forecast_round_trip_is_exact() -> None:
+    fc, msg = _occupancy_msg()
+    assert len(msg.occupancy.probabilities) == 5 and msg.occupancy.horizon_s == 4.0
+    back = codec.occupancy_from_msg(codec.parse(msg.SerializeToString(), fire_pb2.FireForecast))
+    assert back is not None
+    assert np.array_equal(back.levels, fc.levels) and back.horizons == fc.horizons
+    assert (back.resolution_m, back.substep_s, back.origin_m) == (10.0, 0.5, (0.0, 0.0))
+    assert (back.issued_substep, back.substeps_per_step) == (12, fc.substeps_per_step)
+    del msg.occupancy.probabilities[:]
+    msg.ClearField("occupancy")
+    assert codec.occupancy_from_msg(msg) is None  # a forecast without a grid
+
+
+def _broken(change: str) -> Any:
+    _, msg = _occupancy_msg()
+    g = msg.occupancy
+    if change == "no cells":
+        g.rows = 0
+    elif change == "short slice":
+        g.probabilities[3] = g.probabilities[3][:-1]
+    elif change == "slices":
+        del g.probabilities[-1]
+    elif change == "order":
+        g.horizons[2] = g.horizons[1]
+    elif change == "horizon_s":
+        g.horizon_s = 5.0
+    elif change == "resolution":
+        g.resolution_m = -10.0
+    elif change == "origin":
+        g.origin.east_m = math.inf
+    elif change == "substep":
+        msg.substep_s = 0.0
+    elif change == "huge":
+        g.rows, g.cols = 2048, 1024
+    return msg
+
+
+@pytest.mark.parametrize("change, match, reason", [
+    ("no cells", "grid of 0 x 100", codec.Reason.SIZE),
+    ("short slice", "slice 3 has 9999 bytes", codec.Reason.SIZE),
+    ("slices", "4 probability slices for 5 horizons", codec.Reason.SIZE),
+    ("order", "horizons must increase", codec.Reason.OUT_OF_RANGE),
+    ("horizon_s", "is not the last horizon", codec.Reason.INVALID),
+    ("resolution", "resolution_m must be positive", codec.Reason.OUT_OF_RANGE),
+    ("origin", "grid origin must be finite", codec.Reason.NOT_FINITE),
+    ("substep", "substep_s must be positive", codec.Reason.OUT_OF_RANGE),
+    ("huge", "allowed 1..", codec.Reason.SIZE),
+])
+def test_malformed_occupancy_grids_are_rejected_and_counted(change: str, match: str,
+                                                            reason: codec.Reason) -> None:
+    with pytest.raises(codec.CodecError, match=match) as info:
+        codec.occupancy_from_msg(codec.parse(_broken(change).SerializeToString(),
+                                             fire_pb2.FireForecast))
+    assert info.value.reason == reason
+    before = codec.REJECTED.by_label["FireForecast-test"]
+    codec.rejected("FireForecast-test", info.value)
+    assert codec.REJECTED.by_label["FireForecast-test"] == before + 1

@@ -9,7 +9,9 @@ from typing import Any
 import numpy as np
 import pytest
 
+from dualpilot.mission.local import LocalFires
 from dualpilot.model.fire import FireField
+from dualpilot.spec import MissionSpec
 from services.common import bus, codec, keys
 from services.common.clock import Anchor
 from services.msgs import common_pb2, fire_pb2
@@ -97,6 +99,14 @@ def test_forecast_is_published(ews: Any, session: Any) -> None:
     assert last is not None and last.horizon_s == 80.0
     for front in last.fronts:
         assert len(front.regions) == 160 and len(front.envelope.vertices_m) >= 8
+    # the occupancy grid is the in-process fire port's forecast, level for level
+    grid = codec.occupancy_from_msg(last)
+    assert grid is not None and grid.shape == (100, 100) and grid.horizons[-1] == 80
+    fires = LocalFires(MissionSpec(seed=26))
+    fires.advance(0, 10, None)
+    assert last.substeps_done == fires.field.substeps_done == grid.issued_substep
+    local = fires.forecast(10)
+    assert local is not None and np.array_equal(grid.levels, local.levels)
 
 
 def test_bad_commands_get_error_replies(ews: Any, session: Any) -> None:
