@@ -36,6 +36,7 @@ from dualpilot.model.dynamics import Array, DynamicsParams, SpeedLimit
 from dualpilot.model.fire import FireFront, FireParams, FireSnapshot
 from dualpilot.model.forecast import OccupancyForecast
 from dualpilot.model.geometry import Polytope, Rect
+from dualpilot.model.scenarios import scenario_names
 from dualpilot.plan import Objective, Plan, PlanStatus
 from dualpilot.spec import MissionSpec
 from dualpilot.supervisor.decision import Decision
@@ -539,7 +540,6 @@ def occupancy_from_msg(m: fire_pb2.FireForecast) -> OccupancyForecast | None:
                              substeps_per_step=max(1, int(g.substeps_per_step)))
 
 
-
 # -- fire commands --------------------------------------------------------------------------------
 def clock_to_msg(anchor: Anchor, out: common_pb2.Clock) -> common_pb2.Clock:
     out.sim_time_s = anchor.sim_time_s
@@ -584,7 +584,17 @@ def fire_readings_to_msg(params: FireParams, out: fire_pb2.FireReset) -> fire_pb
     r.extent = _EXTENTS[params.extent]
     r.redraw_clearance = params.redraw_clearance
     r.keep_extinct_hulls = params.keep_extinct_hulls
+    out.scenario = params.scenario
     return out
+
+
+def fire_scenario_from_msg(m: fire_pb2.FireReset) -> str:
+    """FireReset.scenario checked against the known fire processes ("": the EWS's own)."""
+    name = _text(m.scenario, "scenario", 64)
+    if name and name not in scenario_names():
+        raise invalid(f"unknown fire scenario {name!r} (known: {', '.join(scenario_names())})",
+                      Reason.OUT_OF_RANGE)
+    return name
 
 
 def fire_readings_from_msg(m: fire_pb2.FireReadings) -> dict[str, object]:
@@ -614,6 +624,8 @@ class FireCommand:
     keep_out: tuple[Array, float] | None = None  # advance: (position, ignition clearance m)
     #: reset: FireParams fields to run (None: the EWS's own readings)
     readings: tuple[tuple[str, object], ...] | None = None
+    #: reset: the fire process, FireParams.scenario ("": the EWS's own)
+    scenario: str = ""
 
 
 def fire_command_from_msg(m: fire_pb2.FireCommand) -> FireCommand:
@@ -626,7 +638,7 @@ def fire_command_from_msg(m: fire_pb2.FireCommand) -> FireCommand:
         readings = (tuple(fire_readings_from_msg(m.reset.readings).items())
                     if m.reset.HasField("readings") else None)
         return FireCommand(mission_id, "reset", seed=int(m.reset.seed), area_size_m=area,
-                           readings=readings)
+                           readings=readings, scenario=fire_scenario_from_msg(m.reset))
     if kind == "advance":
         a = m.advance
         _count(a.substeps, "substeps", MAX_SUBSTEPS)

@@ -4,7 +4,9 @@
   a mission's fire process from its seed and area (the spec's fire stream, as
   the in-process mission), with the reset's fire readings (FireParams.life_base,
   extent, redraw_clearance, keep_extinct_hulls; absent: the EWS's own, from
-  ``--profile`` and its flags); ``advance`` propagates n sub-steps for mission
+  ``--profile`` and its flags) and fire process (FireReset.scenario: the paper's
+  rectangles or a named fire-behaviour scenario, dualpilot/model/scenarios.py;
+  empty: ``--fire-scenario``); ``advance`` propagates n sub-steps for mission
   step t, no front igniting within the command's keep-out radius of the UAV.
   Sub-step k is published on
   ``<ns>/ews/fires`` when the stack's clock (carried in the command) reaches
@@ -14,7 +16,8 @@
   the occupancy forecast (P(a point is inside a fire region) on a grid, for the
   next ``--occupancy-horizon-s``; dualpilot/model/forecast.py) and
   the mean-motion forecast of each front over ``--forecast-horizon-s``
-  (services/ews/forecast.py).
+  (services/ews/forecast.py); it is the paper model's, so a scenario's fronts get
+  none (horizon 0).
 
 Bad commands get an error reply (dualpilot.v1.Error), never a crash; each is
 counted per key and reason in the status served on ``<ns>/status/ews``
@@ -92,6 +95,8 @@ class Ews:
                     params = replace(self.params, **dict(cmd.readings))  # type: ignore[arg-type]
                 except (TypeError, ValueError) as err:
                     raise codec.invalid(f"bad fire readings: {err}") from err
+            if cmd.scenario:  # the supervisor's fire process (FireReset.scenario)
+                params = replace(params, scenario=cmd.scenario)
             self.field = (FireField(params=params, area_size_m=cmd.area_size_m)
                           if cmd.area_size_m > 0 else FireField(params=params))
             self.rng = stream_rng(cmd.seed, Stream.FIRE)
@@ -133,11 +138,13 @@ class Ews:
 
     def publish_forecast(self) -> None:
         assert self.field is not None
+        paper = self.field.physics is None  # the mean motion is the paper model's
         m = fire_pb2.FireForecast(substeps_done=self.field.substeps_done,
                                   substep_s=self.params.substep_s,
-                                  horizon_s=self.forecast_substeps * self.params.substep_s)
+                                  horizon_s=self.forecast_substeps * self.params.substep_s
+                                  if paper else 0.0)
         self.stamper.stamp(m.header, self.sim_time_s)
-        for front in self.field.fronts:
+        for front in self.field.fronts if paper else ():
             regions = forecast_regions(front, self.field.params, self.forecast_substeps)
             fm = m.fronts.add(front_id=front.front_id)
             for r in regions:
@@ -234,6 +241,9 @@ def main(argv: list[str] | None = None) -> int:
                    help="override: substep, step or birth [FIRE_EXTENT]")
     p.add_argument("--redraw-clearance", default=common_cli.env("FIRE_REDRAW_CLEARANCE", ""),
                    help="override: true or false [FIRE_REDRAW_CLEARANCE]")
+    p.add_argument("--fire-scenario", default=common_cli.env("FIRE_SCENARIO", ""),
+                   help="the fire process when a reset names none: paper or a named scenario "
+                        "(dualpilot scenarios) [FIRE_SCENARIO]")
     p.add_argument("--forecast-horizon-s", type=float,
                    default=common_cli.env("FORECAST_HORIZON_S", "80"),
                    help="forecast horizon in simulated s [FORECAST_HORIZON_S]")
@@ -258,7 +268,8 @@ def main(argv: list[str] | None = None) -> int:
         uavs = fleet.uav_ids(args.uav_ids, settings.uav_id)
         params = replace(get_profile(args.profile).with_settings({k: v for k, v in (
             ("life_base", args.fire_life_base), ("extent", args.fire_extent),
-            ("redraw_clearance", args.redraw_clearance)) if v}).fire, substep_s=args.substep_s)
+            ("redraw_clearance", args.redraw_clearance), ("scenario", args.fire_scenario))
+            if v}).fire, substep_s=args.substep_s)
         if not (math.isfinite(args.forecast_horizon_s) and args.forecast_horizon_s >= 0):
             raise ValueError("--forecast-horizon-s must be finite and >= 0")
         occupancy = None if args.occupancy_horizon_s == 0 else ForecastParams(

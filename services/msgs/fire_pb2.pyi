@@ -119,14 +119,16 @@ class FireReadings(_message.Message):
     def __init__(self, life_base: _Optional[_Union[FireLifeBase, str]] = ..., extent: _Optional[_Union[FireExtent, str]] = ..., redraw_clearance: _Optional[bool] = ..., keep_extinct_hulls: _Optional[bool] = ...) -> None: ...
 
 class FireReset(_message.Message):
-    __slots__ = ("seed", "area_size_m", "readings")
+    __slots__ = ("seed", "area_size_m", "readings", "scenario")
     SEED_FIELD_NUMBER: _ClassVar[int]
     AREA_SIZE_M_FIELD_NUMBER: _ClassVar[int]
     READINGS_FIELD_NUMBER: _ClassVar[int]
+    SCENARIO_FIELD_NUMBER: _ClassVar[int]
     seed: int
     area_size_m: float
     readings: FireReadings
-    def __init__(self, seed: _Optional[int] = ..., area_size_m: _Optional[float] = ..., readings: _Optional[_Union[FireReadings, _Mapping]] = ...) -> None: ...
+    scenario: str
+    def __init__(self, seed: _Optional[int] = ..., area_size_m: _Optional[float] = ..., readings: _Optional[_Union[FireReadings, _Mapping]] = ..., scenario: _Optional[str] = ...) -> None: ...
 
 class FireAdvance(_message.Message):
     __slots__ = ("step", "substeps", "clock", "keep_out", "keep_out_m")

@@ -1,0 +1,107 @@
+"""A fire-behaviour scenario reaches a real EWS: it runs the in-process physics fires exactly.
+
+The reset names the fire process (FireReset.scenario, sent by
+codec.fire_readings_to_msg from FireParams.scenario); an EWS started with
+``FIRE_SCENARIO`` runs that scenario when a reset names none; an unknown name
+gets an error reply.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+import pytest
+
+from dualpilot.model.fire import FireField, FireParams
+from dualpilot.model.scenarios import SCENARIOS
+from dualpilot.spec import Stream, stream_rng
+from services.common import bus, codec, keys
+from services.msgs import fire_pb2
+
+pytestmark = pytest.mark.timeout(180)
+
+UAV_POS = np.array([500.0, 500.0])
+#: (step, sub-steps) per advance, as a mission of S1 and S2 plans asks them
+ADVANCES = [(0, 10), (1, 1), (2, 10), (3, 1), (4, 10), (5, 10), (6, 1), (7, 10)]
+
+
+@pytest.fixture(scope="module")
+def ews(services: Any, liveliness: bus.Liveliness) -> Any:
+    services.start("ews")
+    assert liveliness.wait_for(["ews"], 60), services.log("ews")[-2000:]
+    return services
+
+
+def _send(session: Any, uav: str, cmd: fire_pb2.FireCommand) -> fire_pb2.FireUpdate:
+    codec.Stamper("test", uav).stamp(cmd.header)
+    payload, enc = bus.request(session, keys.fire_command(uav), cmd, 60.0)
+    return codec.parse(payload, fire_pb2.FireUpdate, enc)
+
+
+def _replay(session: Any, uav: str, mission: str, seed: int, sent: FireParams | None,
+            want: FireParams) -> int:
+    """Reset (naming ``sent``'s process unless None), advance with a keep-out, compare."""
+    cmd = fire_pb2.FireCommand(mission_id=mission)
+    cmd.reset.seed = seed
+    if sent is not None:
+        codec.fire_readings_to_msg(sent, cmd.reset)
+    _send(session, uav, cmd)
+    field = FireField(params=want)
+    rng = stream_rng(seed, Stream.FIRE)
+    keep = (UAV_POS, 20.0)
+    compared = 0
+    for t, n in ADVANCES:
+        cmd = fire_pb2.FireCommand(mission_id=mission)
+        cmd.advance.step, cmd.advance.substeps = t, n
+        cmd.advance.keep_out.east_m, cmd.advance.keep_out.north_m = UAV_POS
+        cmd.advance.keep_out_m = keep[1]
+        update = _send(session, uav, cmd)
+        assert len(update.states) == n
+        for state in update.states:
+            field.substep(rng, t, keep_out=keep)
+            got, exp = codec.snapshot_from_msg(state), field.snapshot()
+            assert got.regions == exp.regions
+            assert got.front_ids == exp.front_ids and got.born_steps == exp.born_steps
+            assert all(np.array_equal(a.vertices, b.vertices)
+                       for a, b in zip(got.hulls, exp.hulls, strict=True))
+            compared += 1
+    assert field.physics is not None and field.next_id > 0, "the seed should give some fires"
+    return compared
+
+
+@pytest.mark.parametrize("name", list(SCENARIOS))
+def test_each_scenario_runs_on_the_ews_sub_step_for_sub_step(ews: Any, session: Any,
+                                                             name: str) -> None:
+    fire = FireParams(scenario=name)
+    assert _replay(session, ews.uav, f"scenario-{name}", 26, fire, fire) == sum(
+        n for _, n in ADVANCES)
+
+
+def test_a_reset_naming_no_scenario_runs_the_ews_own(services: Any, session: Any) -> None:
+    uav = "itestgrass"
+    services.start("ews-grass", module="services.ews", UAV_ID=uav, FIRE_SCENARIO="grass-5")
+    assert bus.Liveliness(session, uav).wait_for(["ews"], 60), services.log("ews-grass")[-2000:]
+    _replay(session, uav, "no-scenario", 26, None, FireParams(scenario="grass-5"))
+
+
+def test_an_unknown_scenario_gets_an_error_reply(ews: Any, session: Any) -> None:
+    cmd = fire_pb2.FireCommand(mission_id="bad-scenario")
+    cmd.reset.seed = 1
+    cmd.reset.scenario = "tundra"
+    with pytest.raises(bus.QueryError, match="unknown fire scenario 'tundra'"):
+        _send(session, ews.uav, cmd)
+
+
+def test_the_reset_carries_the_scenario_and_the_codec_checks_it() -> None:
+    cmd = fire_pb2.FireCommand(mission_id="m")
+    codec.fire_readings_to_msg(FireParams(scenario="shrub"), cmd.reset)
+    assert codec.fire_command_from_msg(cmd).scenario == "shrub"
+    codec.fire_readings_to_msg(FireParams(), cmd.reset)
+    assert codec.fire_command_from_msg(cmd).scenario == "paper"
+    cmd.reset.scenario = ""
+    assert codec.fire_command_from_msg(cmd).scenario == ""  # the EWS's own
+    for bad, match in (("tundra", "unknown fire scenario"), ("x" * 65, "longer than 64")):
+        cmd.reset.scenario = bad
+        with pytest.raises(codec.CodecError, match=match):
+            codec.fire_command_from_msg(cmd)
