@@ -172,6 +172,21 @@ def _profiles(args: argparse.Namespace) -> int:
 
 def _scenarios(args: argparse.Namespace) -> int:
     print(scenario_table())
+    if args.measure:
+        from dualpilot.model.physics_fire import measure
+        from dualpilot.model.scenarios import SCENARIOS
+
+        seeds = range(args.seeds)
+        checkpoints = [int(v) for v in args.substeps.split(",")]
+        print(f"\nseeds 0..{args.seeds - 1}, births anywhere (p_b per sub-step), means:")
+        print(f"{'scenario':18s} {'sub-steps':>9s} {'fronts':>6s} {'burned m2':>10s} "
+              f"{'hulls m2':>10s} {'hulls/burned':>12s} {'vertices':>8s} {'ms/sub-step':>11s}")
+        for name in SCENARIOS:
+            for r in measure(name, seeds, checkpoints):
+                print(f"{name:18s} {r['substeps']:9.0f} {r['fronts']:6.1f} "
+                      f"{r['burned_m2']:10.0f} {r['hull_union_m2']:10.0f} "
+                      f"{r['hull_union_m2'] / max(r['burned_m2'], 1.0):12.2f} "
+                      f"{r['hull_vertices']:8.2f} {r['ms_per_substep']:11.2f}", flush=True)
     return 0
 
 
@@ -248,6 +263,12 @@ def build_parser() -> argparse.ArgumentParser:
 
     sc = sub.add_parser("scenarios", help="the fire processes: the paper's and the "
                         "fire-behaviour scenarios (--scenario NAME)")
+    sc.add_argument("--measure", action="store_true",
+                    help="run each scenario's fires: the area its hulls cover against the area "
+                         "burned, and the cost of a sub-step")
+    sc.add_argument("--seeds", type=int, default=5, help="with --measure: seeds 0..N-1")
+    sc.add_argument("--substeps", default="100,200,400",
+                    help="with --measure: the sub-steps of T_f at which to measure")
     sc.set_defaults(func=_scenarios)
 
     from dualpilot.viz.showcase import add_showcase_parser  # the Fig. r1 story (issue 13.5)

@@ -26,13 +26,20 @@ d_safe. Speeds m/s, lengths m, times s (pyretechnics' own: m/min and min).
 from __future__ import annotations
 
 import math
+import time
+from collections.abc import Sequence
 
 import numpy as np
 from scipy import ndimage
 
 from dualpilot.model.fire import MAX_DRAWS, FireFront, FireParams
 from dualpilot.model.geometry import Polytope, Rect
-from dualpilot.model.scenarios import FuelMoisture, LwRatioModel, PhysicsFireParams
+from dualpilot.model.scenarios import (
+    FuelMoisture,
+    LwRatioModel,
+    PhysicsFireParams,
+    get_scenario,
+)
 
 #: pyretechnics ends a run with less than this much simulated time left (s): the level set
 #: lags the fire clock by at most this much (eulerian_level_set.spread_fire_with_phi_field).
@@ -386,3 +393,50 @@ class PhysicsFire:
         return np.column_stack([np.concatenate([xl, xl, xr, xr]),
                                 np.concatenate([yb, yt, yb, yt])])
 
+
+
+def covered_area_m2(fire: PhysicsFire, resolution_m: float = 2.5) -> tuple[float, float]:
+    """(burned area, area inside the union of the fronts' hulls) in m², the union counted on
+    a lattice of ``resolution_m``: what the planners avoid against what has burned."""
+    a = fire.area_size_m
+    ticks = np.arange(resolution_m / 2, a, resolution_m)
+    xs, ys = np.meshgrid(ticks, ticks)
+    pts = np.column_stack([xs.ravel(), ys.ravel()])
+    inside = np.zeros(len(pts), dtype=bool)
+    for front in fire.fronts:
+        h = front.hull
+        inside |= (pts @ h.A.T <= h.b).all(axis=1)
+    return (float(fire.burned().sum()) * fire.cell_m**2,
+            float(inside.sum()) * resolution_m**2)
+
+
+def measure(name: str, seeds: Sequence[int], checkpoints: Sequence[int],
+            fire: FireParams = FireParams()) -> list[dict[str, float]]:
+    """Each checkpoint (sub-steps) of scenario ``name`` from each seed's fire stream, births
+    anywhere: fronts, burned area and hull union (m²), hull vertices, level-set cost (ms a
+    sub-step), averaged over the seeds."""
+    from dualpilot.spec import Stream, stream_rng
+
+    rows: dict[int, list[dict[str, float]]] = {c: [] for c in checkpoints}
+    warm = PhysicsFire(get_scenario(name).params, fire, 1000.0)  # pyretechnics' first-use cost
+    warm.spawn(np.random.default_rng(0), 0, center=(500.0, 500.0))
+    for _ in range(4):
+        warm.substep(np.random.default_rng(0), 0, False, None)
+    for seed in seeds:
+        proc = PhysicsFire(get_scenario(name).params, fire, 1000.0)
+        rng = stream_rng(seed, Stream.FIRE)
+        spent, done = 0.0, 0
+        for c in sorted(checkpoints):
+            t0 = time.perf_counter()
+            while done < c:
+                proc.substep(rng, done // 10, True, None)
+                done += 1
+            spent += time.perf_counter() - t0
+            burned, hulls = covered_area_m2(proc)
+            vertices = [len(f.hull.vertices) for f in proc.fronts]
+            rows[c].append({"fronts": len(proc.fronts), "burned_m2": burned,
+                            "hull_union_m2": hulls,
+                            "hull_vertices": float(np.mean(vertices)) if vertices else 0.0,
+                            "ms_per_substep": spent / max(done, 1) * 1e3})
+    return [{"substeps": float(c), **{k: float(np.mean([r[k] for r in rows[c]]))
+                                       for k in rows[c][0]}} for c in sorted(checkpoints)]

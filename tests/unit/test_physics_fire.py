@@ -14,6 +14,7 @@ from dualpilot.model.fire import FireField, FireParams
 from dualpilot.model.physics_fire import (
     PhysicsFire,
     clip_to_box,
+    covered_area_m2,
     head_spread_rate_mps,
     midflame_wind_m_min,
     rothermel_spread,
@@ -261,6 +262,9 @@ def test_the_command_line_selects_a_scenario(tmp_path, capsys):
         assert parser.parse_args([command, "--scenario", "shrub"]).scenario == "shrub"
     with pytest.raises(SystemExit):
         parser.parse_args(["mission", "--scenario", "tundra"])
+    assert main(["scenarios", "--measure", "--seeds", "1", "--substeps", "4"]) == 0
+    rows = [line.split() for line in capsys.readouterr().out.splitlines()[-4:]]
+    assert [r[0] for r in rows] == list(SCENARIOS) and all(r[1] == "4" for r in rows)
     out = tmp_path / "run"
     assert main(["mission", "--controller", "s1", "--seed", "7", "--scenario", "grass-15",
                  "--quiet", "--no-figures", "--out", str(out)]) == 0
@@ -279,3 +283,15 @@ def test_a_mission_flies_on_the_physics_fires():
     for rec in result.records:
         for region, hull in zip(rec.snapshot.regions, rec.snapshot.hulls, strict=True):
             assert all(hull.contains(c, margin=1e-6) for c in region.corners())
+
+
+def test_the_hulls_cover_a_burned_cell_grown_by_the_pad():
+    """One ignited cell of 20 m: burned 400 m²; its hull is the cell grown by the pad on
+    every side, pad = 10 m + 0.338 m/s × 1 s (grass-5's head rate), (20 + 2 pad)² m²."""
+    fire = PhysicsFire(get_scenario("grass-5").params, FireParams(p_birth=0.0), 1000.0)
+    fire.spawn(np.random.default_rng(0), 0, center=(510.0, 510.0))
+    assert fire.pad_m == pytest.approx(10.0 + 0.338, abs=1e-3)
+    burned, hulls = covered_area_m2(fire, resolution_m=0.5)
+    assert burned == 400.0
+    side = 20.0 + 2 * fire.pad_m  # counted on a 0.5 m lattice: up to one row more a side
+    assert hulls == pytest.approx(side**2, abs=4 * side * 0.5)
