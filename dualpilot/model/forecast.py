@@ -28,8 +28,10 @@ exact in everything but the fronts' motion:
 The ignition keep-out (``MissionParams.ignition_clearance_m``) and redraw
 clearance are not modelled: the UAV's future positions are not known, so the
 forecast errs high near the UAV. k = 0 is the current occupancy (persistence).
-Probabilities are kept in steps of 1/255 (``levels``, uint8), the resolution
-the EWS publishes, so a forecast received over the bus is the same forecast.
+Probabilities are kept in steps of 1/255 (``levels``, uint8, read-only), the
+resolution the EWS publishes, so a forecast received over the bus is the same
+forecast; a front whose survival to a slice is below half a step is left out
+of it (a level changes by one at most).
 """
 
 from __future__ import annotations
@@ -51,9 +53,9 @@ from dualpilot.model.geometry import Rect
 
 #: Probability quantum: P = level / LEVELS (uint8).
 LEVELS = 255
-#: A front whose chance to survive until a slice is below this is left out of that slice
-#: (it changes P by less than this).
-MIN_SURVIVAL = 1e-6
+#: A front whose chance to survive until a slice is below half a level is left out of that
+#: slice: it changes P by less than that, a level by at most one.
+MIN_SURVIVAL = 0.5 / LEVELS
 
 
 @dataclass(frozen=True)
@@ -485,18 +487,15 @@ def forecast(
     """
     if substeps_per_step < 1:
         raise ValueError(f"substeps_per_step must be >= 1, got {substeps_per_step}")
-    horizons = params.horizons(fire.substep_s)
-    shape = grid_shape(area_size_m, params.resolution_m)
     n = substeps_per_step if fire.life_base == "step" else 1
-    key = (fire, float(area_size_m), params.resolution_m, shape, horizons, n)
-    base = _births(*key)
-    levels = np.array(_birth_levels(*key))
-    k_max = horizons[-1]
-    life = life_events(k_max, fire, n)
-    hz = np.asarray(horizons, dtype=np.int64)
-    survive = fire.p_survive ** life[hz].astype(float)
-    kept = fire.extent == "birth"
-    if fronts:
+    key = (fire, float(area_size_m), params.resolution_m,
+           grid_shape(area_size_m, params.resolution_m), params.horizons(fire.substep_s), n)
+    horizons, hz, survive = _schedule(fire, key[4], n)
+    if not fronts:  # the births alone: kept, read-only
+        levels = _birth_levels(*key)
+    else:
+        levels = np.array(_birth_levels(*key))
+        k_max = horizons[-1]
         z = rng.standard_normal((len(fronts), params.members, k_max, 2))
         xs = np.empty((len(fronts), params.members, k_max + 1))
         ys = np.empty_like(xs)
@@ -505,13 +504,25 @@ def forecast(
                                   f.region.center_y, z[i], fire.gamma, fire.speed_mean_mps,
                                   fire.direction_mean_rad, fire.speed_sigma_mps,
                                   fire.direction_sigma_rad, fire.substep_s)
-        _fronts(levels, base, hz, survive, xs, ys, kept,
+        _fronts(levels, _births(*key), hz, survive, xs, ys, fire.extent == "birth",
                 np.array([f.region.width for f in fronts]),
                 np.array([f.region.height for f in fronts]),
                 fire.side_min_m, fire.side_max_m, params.resolution_m, 0.0, 0.0)
+        levels.flags.writeable = False
     return OccupancyForecast(resolution_m=params.resolution_m, substep_s=fire.substep_s,
                              horizons=horizons, levels=levels, issued_substep=issued_substep,
                              substeps_per_step=n)
+
+
+@lru_cache(maxsize=64)
+def _schedule(fire: FireParams, horizons: tuple[int, ...], n: int
+              ) -> tuple[tuple[int, ...], AnyArray, AnyArray]:
+    """(horizons, as an array, S(k) = p_s^{L_k} at each): the same for every forecast."""
+    hz = np.asarray(horizons, dtype=np.int64)
+    survive = fire.p_survive ** life_events(horizons[-1], fire, n)[hz].astype(float)
+    hz.flags.writeable = False
+    survive.flags.writeable = False
+    return horizons, hz, survive
 
 
 def occupancy(regions: Sequence[Rect], resolution_m: float, shape: tuple[int, int],

@@ -1,0 +1,135 @@
+"""What the occupancy forecast costs a mission step at paper settings.
+
+Each mission (configuration (S, i) of ``--seed`` S, the profile's readings,
+paper timing) is flown twice by each controller: as the paper's step, and with
+the fire port's forecast (dualpilot/model/forecast.py, default parameters) made
+at every step once the supervisor has chosen the system, exactly where a
+risk-aware planner would ask for it. The forecast changes nothing the mission
+does, so both flights are the same steps; the wall time of each ``Mission.step``
+is measured, the two flights of a mission one after the other so that load
+on the machine falls on both alike. Reported per controller: median step time
+without and with the forecast, their ratio, the ratio of total time, and the
+forecast's own median time. With ``--risk`` the "+risk" controllers are timed
+too (their steps differ: they plan on the forecast).
+
+    .venv/bin/python benchmarks/forecast_step_cost.py [--missions 20] [--seed 2000]
+        [--profiles today,fig-r5] [--controllers cc,s1,s2,concurrent] [--risk]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from dualpilot.mission.local import LocalFires, local_mission
+from dualpilot.mission.params import controller_of, uses_risk
+from dualpilot.mission.result import StepRecord
+from dualpilot.readings import get_profile
+from dualpilot.supervisor.decision import Decision
+from dualpilot.sweep import mission_spec
+
+
+class Forecaster:
+    """A step observer that makes the fire port's forecast once the system is chosen."""
+
+    def __init__(self, mission: Any):
+        self.mission = mission
+        self.times: list[float] = []
+
+    def decided(self, t: int, decision: Decision, commanded: int) -> None:
+        fires = self.mission.fires
+        assert isinstance(fires, LocalFires)
+        t0 = time.perf_counter()
+        fires.forecast(self.mission.substeps_per_step(commanded or 1))
+        self.times.append(time.perf_counter() - t0)
+
+    def commanded(self, t: int, flown: int, info: dict[str, object]) -> None: ...
+
+    def recorded(self, record: StepRecord, flown: bool) -> None: ...
+
+    def ended(self, record: StepRecord, success: bool, cause: str) -> None: ...
+
+
+def fly(profile: str, index: int, seed: int, controller: str,
+        forecast: bool) -> tuple[list[float], list[float], int]:
+    """Step times (s), forecast times (s) and the steps' total fire fronts of one mission."""
+    reading = get_profile(profile)
+    ctrl, supervisor = controller_of(controller)
+    mission = local_mission(ctrl, reading.spec(mission_spec(seed, index)),
+                            params=reading.mission, fire_params=reading.fire,
+                            supervisor_params=reading.supervisor, supervisor=supervisor,
+                            risk=uses_risk(controller))
+    obs = Forecaster(mission) if forecast else None
+    mission.observer = obs
+    steps: list[float] = []
+    fronts = 0
+    while True:
+        fronts += len(mission.fires.snapshot().regions)
+        t0 = time.perf_counter()
+        rec = mission.step()
+        if rec is None:
+            break
+        steps.append(time.perf_counter() - t0)
+    return steps, (obs.times if obs is not None else []), fronts
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--missions", type=int, default=20)
+    ap.add_argument("--seed", type=int, default=2000)
+    ap.add_argument("--profiles", default="today,fig-r5")
+    ap.add_argument("--controllers", default="cc,s1,s2,concurrent")
+    ap.add_argument("--risk", action="store_true", help="also time the +risk controllers")
+    ap.add_argument("--json", type=Path, default=Path("runs/forecast_step_cost.json"))
+    args = ap.parse_args()
+    fly("today", 0, args.seed, "cc", True)  # compile and warm every kernel first
+    rows: list[dict[str, Any]] = []
+    print("| profile | controller | steps | fronts/step | step median ms (paper) "
+          "| with forecast | ratio of medians | ratio of totals | forecast median ms |")
+    print("|---|---|---|---|---|---|---|---|---|")
+    for prof in args.profiles.split(","):
+        for c in args.controllers.split(","):
+            plain: list[float] = []
+            withf: list[float] = []
+            ftimes: list[float] = []
+            risky: list[float] = []
+            fronts = 0
+            for i in range(args.missions):
+                a, _, n_f = fly(prof, i, args.seed, c, False)
+                b, f, _ = fly(prof, i, args.seed, c, True)
+                assert len(a) == len(b), "the forecast changed the mission"
+                plain += a
+                withf += b
+                ftimes += f
+                fronts += n_f
+                if args.risk:
+                    risky += fly(prof, i, args.seed, c + "+risk", False)[0]
+            row = {"profile": prof, "controller": c, "steps": len(plain),
+                   "fronts_per_step": fronts / len(plain),
+                   "step_ms_median": 1e3 * float(np.median(plain)),
+                   "step_ms_median_with_forecast": 1e3 * float(np.median(withf)),
+                   "ratio_of_medians": float(np.median(withf) / np.median(plain)),
+                   "ratio_of_totals": float(np.sum(withf) / np.sum(plain)),
+                   "forecast_ms_median": 1e3 * float(np.median(ftimes))}
+            if risky:
+                row["risk_step_ms_median"] = 1e3 * float(np.median(risky))
+                row["risk_ratio_of_totals"] = float(np.sum(risky) / np.sum(plain))
+            rows.append(row)
+            print(f"| {prof} | {c} | {row['steps']} | {row['fronts_per_step']:.2f} | "
+                  f"{row['step_ms_median']:.2f} | {row['step_ms_median_with_forecast']:.2f} | "
+                  f"{row['ratio_of_medians']:.3f} | {row['ratio_of_totals']:.3f} | "
+                  f"{row['forecast_ms_median']:.3f} |"
+                  + (f" +risk: {row['risk_step_ms_median']:.2f} ms, total "
+                     f"{row['risk_ratio_of_totals']:.2f}x" if risky else ""), flush=True)
+    args.json.parent.mkdir(parents=True, exist_ok=True)
+    args.json.write_text(json.dumps({"missions": args.missions, "seed": args.seed,
+                                     "rows": rows}, indent=1) + "\n")
+
+
+if __name__ == "__main__":
+    main()
