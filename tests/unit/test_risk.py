@@ -210,3 +210,27 @@ def test_the_forecast_never_moves_the_fire_stream() -> None:
     assert n > 3
     for a, b in zip(plain.records[:n], risky.records[:n], strict=True):
         assert a.snapshot.regions == b.snapshot.regions
+
+
+def test_the_step_asks_for_the_forecast_only_for_risk_aware_planners() -> None:
+    """Paper timing: a System 1 step is ⌈0.155 / 0.5⌉ = 1 sub-step, a System 2 step 10; the
+    paper's planners are never sent a forecast (none is made)."""
+    spec = mission_spec(0, 1)
+    for risk in (False, True):
+        mission = local_mission(Controller.CC, spec, timing=Timing.PAPER, risk=risk)
+        assert mission.forecast_systems == (frozenset({1, 2}) if risk else frozenset())
+        seen: list[tuple[int, int | None]] = []
+        planners = mission.planners
+        ask = planners.plan
+
+        def spy(request, ask=ask, seen=seen):  # type: ignore[no-untyped-def]
+            view = request.forecast
+            seen.append((request.system, None if view is None else view.substeps_per_step))
+            return ask(request)
+
+        planners.plan = spy  # type: ignore[method-assign]
+        for _ in range(6):
+            mission.step()
+        assert seen
+        want = {1: 1, 2: 10} if risk else {1: None, 2: None}
+        assert all(n == want[s] for s, n in seen), seen
