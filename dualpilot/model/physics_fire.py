@@ -178,6 +178,7 @@ class PhysicsFire:
         self._hulls: dict[int, np.ndarray] = {}  # front id → hull vertices △ so far
         #: front id → (cells, ignitions, front) of the last update, reused while unchanged
         self._cache: dict[int, tuple[int, tuple[int, ...], FireFront]] = {}
+        self._owner: dict[int, int] = {}  # ignition id → the front it burns in
         self._burned_seen = -1
         self.next_id = 0
         self.fronts: list[FireFront] = []
@@ -293,9 +294,10 @@ class PhysicsFire:
         if cell is None:
             raise ValueError("no unburned cell clear of the keep-out to ignite")
         self._ignite(*cell, step)
+        new_id = self.next_id - 1
         self._update_fronts(step)
-        centre = (np.array(cell[::-1], dtype=float) + 0.5) * self.cell_m
-        return next(f for f in self.fronts if f.hull.contains(centre))
+        owner = self._owner[new_id]  # the ignition's own front, or the one it merged into
+        return next(f for f in self.fronts if f.front_id == owner)
 
     # -- one sub-step ---------------------------------------------------------------------------
     def substep(self, rng: np.random.Generator, step: int, life: bool,
@@ -356,6 +358,7 @@ class PhysicsFire:
                 ids = [self.next_id]
                 self.next_id += 1
             fid = ids[0]
+            self._owner.update((i, fid) for i in ids)
             rows, cols = np.nonzero(act)
             region = self._box(sl[0].start + int(rows.min()), sl[0].start + int(rows.max()),
                                sl[1].start + int(cols.min()), sl[1].start + int(cols.max()))

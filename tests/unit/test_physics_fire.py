@@ -295,3 +295,16 @@ def test_the_hulls_cover_a_burned_cell_grown_by_the_pad():
     assert burned == 400.0
     side = 20.0 + 2 * fire.pad_m  # counted on a 0.5 m lattice: up to one row more a side
     assert hulls == pytest.approx(side**2, abs=4 * side * 0.5)
+
+
+def test_fires_that_meet_are_one_front_under_the_older_id():
+    fire = PhysicsFire(get_scenario("grass-15").params, FireParams(p_birth=0.0), 1000.0)
+    rng = np.random.default_rng(0)
+    first = fire.spawn(rng, 0, center=(300.0, 300.0))
+    second = fire.spawn(rng, 1, center=(350.0, 350.0))  # one cell between them
+    assert (first.front_id, second.front_id) == (0, 1) and len(fire.fronts) == 2
+    for k in range(60):
+        fire.substep(rng, 2 + k, life=True, keep_out=None)
+    (merged,) = fire.fronts
+    assert merged.front_id == 0 and merged.born_step == 0
+    assert fire.spawn(rng, 30, center=(10.0, 990.0)).front_id == 2  # ids are never reused
