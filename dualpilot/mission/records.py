@@ -1,9 +1,10 @@
-"""Mission records on disk: summary.json, steps.csv and trace.json, and steps.jsonl.
+"""Mission records on disk: summary.json, steps.csv, trace.json and mission.mcap, and steps.jsonl.
 
 ``steps.csv`` has one row per step (``system`` and ``attention`` 1-based as in
 the paper; ``system`` 0 means no plan was flown and the UAV braked).
 ``trace.json`` keeps what the figures need: per step the planned positions
-and the fire regions and hulls the planners saw. Those three are written when a mission ends;
+and the fire regions and hulls the planners saw; ``mission.mcap`` the live view's Foxglove
+channels (dualpilot/viz/foxglove.py). Those four are written when a mission ends;
 ``steps.jsonl`` (:class:`StepLog`) is written as the mission goes, one JSON
 line per step, flushed at once, so it survives a crash of the writer (at
 most the line being written is lost) and a mission can be rebuilt from it
@@ -149,9 +150,14 @@ def write_trace(result: MissionResult, out: Path) -> Path:
     return atomic_write(out / "trace.json", json.dumps(doc) + "\n")
 
 
-def write_all(result: MissionResult, out: Path) -> list[Path]:
+def write_all(result: MissionResult, out: Path, uav: str = "uav1") -> list[Path]:
+    """summary.json, steps.csv, trace.json and mission.mcap (dualpilot/viz/foxglove.py: the
+    live view's channels for vehicle ``uav``, on the mission's simulated clock)."""
+    from dualpilot.viz.foxglove import write_mcap
+
     out.mkdir(parents=True, exist_ok=True)
-    return [write_summary(result, out), write_steps_csv(result, out), write_trace(result, out)]
+    return [write_summary(result, out), write_steps_csv(result, out), write_trace(result, out),
+            write_mcap(result, out, uav)]
 
 
 def read_steps_csv(path: Path) -> dict[str, np.ndarray]:
@@ -187,7 +193,8 @@ def record_to_json(r: StepRecord) -> dict[str, object]:
     plan and fire geometry to 1e-3 m; inf/nan as text)."""
     d = r.decision
     return {
-        "t": r.t, "state": _floats(r.state), "control": _floats(r.control), "system": r.system,
+        "t": r.t, "time_s": r.time_s, "state": _floats(r.state), "control": _floats(r.control),
+        "system": r.system,
         "plan_status": r.plan_status, "planning_time_s": r.planning_time_s,
         "fire_substeps": r.fire_substeps, "d_t": _num(r.d_t), "fires_active": r.fires_active,
         "decision": {"t": d.t, "d_t": _num(d.d_t), "xi": _floats(d.xi), "p": _floats(d.p),
@@ -219,7 +226,7 @@ def record_from_json(doc: dict[str, Any]) -> StepRecord:
         planning_time_s=float(doc["planning_time_s"]), fire_substeps=int(doc["fire_substeps"]),
         d_t=float(doc["d_t"]), fires_active=int(doc["fires_active"]),
         planned_positions=plan if plan.size else np.empty((0, 2)), snapshot=snapshot,
-        info=dict(doc.get("info", {})))
+        info=dict(doc.get("info", {})), time_s=float(doc.get("time_s", 0.0)))
 
 
 class StepLog:

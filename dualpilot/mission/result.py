@@ -33,6 +33,9 @@ class StepRecord:
     planned_positions: Array
     snapshot: FireSnapshot
     info: dict[str, object] = field(default_factory=dict)
+    #: τ_t, the mission's simulated time (s) when the step began: the sub-steps of T_f and the
+    #: flights of ΔT before it (the log time of mission.mcap)
+    time_s: float = 0.0
 
 
 @dataclass
@@ -50,6 +53,8 @@ class MissionResult:
     switch_energy: float = 0.0  # the part of ``energy`` spent at the switch steps (N²)
     records: list[StepRecord] = field(default_factory=list)
     final_state: Array | None = None
+    #: the mission's simulated time (s) when it ended (0 while it flies)
+    sim_time_s: float = 0.0
 
     @property
     def seed(self) -> int:

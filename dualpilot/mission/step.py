@@ -234,7 +234,11 @@ class Mission:
         for rec in result.records:
             self.supervisor.decide(rec.t, rec.d_t)
         if result.records:
-            self.prev_control = np.asarray(result.records[-1].control, dtype=float)
+            last = result.records[-1]
+            self.prev_control = np.asarray(last.control, dtype=float)
+            # the clock after the last recorded step: its planning, flight and motion sub-steps
+            substeps = last.fire_substeps + self.params.fire_substeps_per_motion
+            self.sim_time_s = last.time_s + substeps * self.fire_params.substep_s + self.dyn.dt_s
         self.result = result
 
     # -- one tick -------------------------------------------------------------------
@@ -348,6 +352,7 @@ class Mission:
         if self.done:
             return None
         t = self.result.steps
+        started_s = self.sim_time_s
         snapshot = self.fires.snapshot()
         if self.result.records and self._within_d_safe(self._counted(t, snapshot)):
             # fire data that caught up (the stack's EWS was back) reached the UAV
@@ -389,7 +394,7 @@ class Mission:
             system=flown, plan_status=";".join(statuses),
             planning_time_s=planning, fire_substeps=n_sub, d_t=d_t,
             fires_active=len(snapshot.regions), planned_positions=planned, snapshot=snapshot,
-            info=info,
+            info=info, time_s=started_s,
         )
         self.result.records.append(record)
         if caught:  # the vehicle's step towards this setpoint does not count
@@ -422,6 +427,7 @@ class Mission:
         self.result.success = success
         self.result.failure_cause = cause
         self.result.final_state = self.state.copy()
+        self.result.sim_time_s = self.sim_time_s
         if self.observer is not None:
             self.observer.ended(record, success, cause)
         return record
