@@ -9,6 +9,8 @@ OUT ?= runs/latest
 SPEED ?= 20
 PROFILE ?= today
 SUPERVISOR ?= paper
+# VIEWER=1: also the live view (services/viewer): Foxglove WebSocket on ws://127.0.0.1:8765
+VIEWER ?=
 # TLS=1: mutual TLS and the router's access control (services/common/acl.py), off by default
 # (every service then a Zenoh client, one hop more per query than the default peers);
 # certificates from CERTS (made there if missing), else made in $(OUT)/tls
@@ -34,7 +36,7 @@ $(STAMP): pyproject.toml scripts/pyretechnics-requirements.txt
 run: setup
 	$(BIN)/python -m services.launch --controller cc --seed $(SEED) --timing paper \
 		--speed-factor $(SPEED) --profile $(PROFILE) --supervisor $(SUPERVISOR) --out $(OUT) \
-		$(TLS_FLAGS)
+		$(TLS_FLAGS) $(if $(VIEWER),--viewer)
 
 # a local CA and a key and certificate per service (ZENOH_TLS_DIR; docker-compose.yml)
 certs: setup

@@ -22,6 +22,7 @@ import collections
 import json
 import logging
 import math
+import re
 import threading
 import time
 from collections.abc import Iterable, Sequence
@@ -32,6 +33,7 @@ from typing import Any, TypeVar, cast
 import numpy as np
 from google.protobuf.message import DecodeError, Message
 
+from dualpilot.mission.result import StepRecord
 from dualpilot.model.dynamics import Array, DynamicsParams, SpeedLimit
 from dualpilot.model.fire import FireFront, FireParams, FireSnapshot
 from dualpilot.model.forecast import OccupancyForecast
@@ -40,6 +42,7 @@ from dualpilot.model.scenarios import scenario_names
 from dualpilot.plan import Objective, Plan, PlanStatus
 from dualpilot.spec import MissionSpec
 from dualpilot.supervisor.decision import Decision
+from dualpilot.viz.scene import PlanView, plan_statuses
 from services.msgs import (
     common_pb2,
     fire_pb2,
@@ -1045,3 +1048,87 @@ def check_finite_fields(msg: Any, names: Iterable[str], what: str) -> None:
         value = getattr(msg, name)
         if not math.isfinite(value):
             raise invalid(f"{what}.{name} is {value}", Reason.NOT_FINITE)
+
+
+# -- the live view's step plans (services/viewer) ------------------------------------------------
+#: one status of a system at a step: a word (a plan status, "unavailable", the concurrent
+#: supervisor's "adopted", ...) and the run-time monitor's optional note
+_PLAN_STATUS = re.compile(r"^[a-z_]{1,32}(\[[^\]]{0,1000}\])?$")
+
+
+@dataclass(frozen=True)
+class StepPlans:
+    """A validated StepPlans message in core types: both systems' plans at a step."""
+
+    mission_id: str
+    step: int
+    time_s: float  # τ_t (s)
+    flown: int  # 0: none
+    plans: tuple[PlanView, ...]  # systems 1 and 2; status "" for a system not asked
+    spec: MissionSpec
+
+
+def step_plans_msg(record: StepRecord, mission_id: str, spec: MissionSpec, stamper: Stamper,
+                   sim_time_s: float) -> supervisor_pb2.StepPlans:
+    """A recorded step's plans: each asked system's status, the flown plan's positions."""
+    m = supervisor_pb2.StepPlans(mission_id=mission_id, step=record.t,
+                                 step_time_s=float(record.time_s), flown_system=record.system)
+    stamper.stamp(m.header, sim_time_s)
+    spec_to_msg(mission_id, spec, m.mission)
+    statuses = plan_statuses(record.plan_status)
+    if record.system and record.system not in statuses:
+        statuses[record.system] = ""  # flown, not asked at this step (a kept plan)
+    for system, status in statuses.items():
+        sp = m.plans.add(system=system, status=status[:MAX_TEXT])
+        if system == record.system:
+            packed_to_msg(np.asarray(record.planned_positions)[:, :2], sp.positions_m)
+    return m
+
+
+def step_plans_from_msg(m: supervisor_pb2.StepPlans) -> StepPlans:
+    """Rejected: a system other than 1 or 2 (or twice), a status that is not one, positions for
+    a plan that was not flown, a flown system without its plan, a bad spec or time."""
+    if not m.HasField("mission"):
+        raise invalid("step plans without the mission spec")
+    mission_id, spec = spec_from_msg(m.mission)
+    _check_floats([m.step_time_s], "step_time_s", 1e12)
+    if m.step_time_s < 0:
+        raise invalid(f"step_time_s must be >= 0, got {m.step_time_s}", Reason.OUT_OF_RANGE)
+    if m.flown_system not in (0, 1, 2):
+        raise invalid(f"flown_system {m.flown_system} out of range", Reason.OUT_OF_RANGE)
+    _count(len(m.plans), "plans", 2)
+    got: dict[int, PlanView] = {}
+    for sp in m.plans:
+        if sp.system not in (1, 2) or sp.system in got:
+            raise invalid(f"plan of system {sp.system} (once each of 1 and 2)",
+                          Reason.OUT_OF_RANGE)
+        status = _text(sp.status, "plan status", MAX_TEXT)
+        parts = status.split(";") if status else []
+        if any(not _PLAN_STATUS.match(p) for p in parts) or (
+                not parts and sp.system != m.flown_system):
+            raise invalid(f"plan status {status[:80]!r} is not a status")
+        pts = packed_from_msg(sp.positions_m, "plan positions", 2, MAX_HORIZON + 1, MAX_ABS_M)
+        if len(pts) and sp.system != m.flown_system:
+            raise invalid(f"positions for system {sp.system}'s plan, which was not flown")
+        got[sp.system] = PlanView(int(sp.system), status, pts, sp.system == m.flown_system)
+    if m.flown_system and (m.flown_system not in got or not len(got[m.flown_system].positions)):
+        raise invalid(f"system {m.flown_system} flew but its plan's positions are missing")
+    empty = np.empty((0, 2))
+    plans = tuple(got.get(k, PlanView(k, "", empty, False)) for k in (1, 2))
+    return StepPlans(mission_id, int(m.step), float(m.step_time_s), int(m.flown_system), plans,
+                     spec)
+
+
+def check_mission_event(m: supervisor_pb2.MissionEvent) -> supervisor_pb2.MissionEvent:
+    """A MissionEvent a viewer may show: a known kind, short texts, a finite position."""
+    if m.kind not in supervisor_pb2.MissionEventKind.values() or (
+            m.kind == supervisor_pb2.MISSION_EVENT_KIND_UNSPECIFIED):
+        raise invalid(f"unknown mission event kind {m.kind}", Reason.OUT_OF_RANGE)
+    for name, limit in (("mission_id", 256), ("controller", 16), ("failure_cause", 256),
+                        ("plan_status", MAX_TEXT), ("message", MAX_TEXT)):
+        _text(getattr(m, name), f"mission event {name}", limit)
+    _check_floats([m.position.east_m, m.position.north_m, m.mission_time_s],
+                  "mission event position/time", MAX_ABS_M)
+    if m.flown_system not in (0, 1, 2):
+        raise invalid(f"flown_system {m.flown_system} out of range", Reason.OUT_OF_RANGE)
+    return m

@@ -13,6 +13,7 @@ ews/command             queryable   FireCommand → FireUpdate
 plan/system1, …/system2 queryable   PlanRequest → Plan (errors: Error), any replica
 plan/system<k>/<zid>    queryable   the same, answered by the replica whose session is <zid>
 supervisor/decision     pub/sub     Decision, every step
+supervisor/plans        pub/sub     StepPlans, every step (the live view, services/viewer)
 vehicle/state           pub/sub     VehicleState read over MAVLink
 mission/event           pub/sub     MissionEvent (started, step, ended)
 operator/waypoints      pub/sub     OperatorWaypoints for System 1
@@ -25,6 +26,7 @@ alive/<service>/<zid>   liveliness  the same, naming the holder's Zenoh session 
 from __future__ import annotations
 
 import re
+from collections.abc import Callable
 
 ROOT = "dualpilot"
 SERVICES = ("ews", "system1", "system2", "supervisor", "uavsim")
@@ -32,6 +34,7 @@ SERVICES = ("ews", "system1", "system2", "supervisor", "uavsim")
 #: token is a replica, asked on its own key (:func:`plan_replica`); the others have one holder
 REPLICATED = frozenset({"system1", "system2"})
 _ID = re.compile(r"^[A-Za-z0-9_\-]{1,64}$")
+_ANY = "any"  # a stand-in id that every_vehicle replaces by "*"
 
 
 def check_id(uav: str) -> str:
@@ -72,6 +75,24 @@ def plan_replica(uav: str, system: int, zid: str) -> str:
 
 def decision(uav: str) -> str:
     return f"{ns(uav)}/supervisor/decision"
+
+
+def step_plans(uav: str) -> str:
+    return f"{ns(uav)}/supervisor/plans"
+
+
+def every_vehicle(key: Callable[[str], str]) -> str:
+    """``key``'s expression for every vehicle: ``every_vehicle(fires)`` is
+    ``dualpilot/*/ews/fires`` (a viewer of a whole fleet)."""
+    return f"{ROOT}/*" + key(_ANY).removeprefix(ns(_ANY))
+
+
+def vehicle_of(key: str) -> str:
+    """The vehicle id of a key under ``dualpilot/<uav>/…``; raises ValueError for another key."""
+    parts = str(key).split("/")
+    if len(parts) < 3 or parts[0] != ROOT:
+        raise ValueError(f"not a vehicle's key: {str(key)[:200]!r}")
+    return check_id(parts[1])
 
 
 def vehicle_state(uav: str) -> str:

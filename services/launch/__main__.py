@@ -47,6 +47,9 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--scale", action="append", default=[], metavar="SERVICE=N",
                    help="run N replicas of a planner service (a pool: system1, system2), as "
                         "docker compose up --scale; repeatable")
+    p.add_argument("--viewer", action="store_true",
+                   help="also run the live view (services/viewer, compose profile 'viewer'): "
+                        "Foxglove WebSocket on ws://127.0.0.1:8765 (or the free port printed)")
     p.add_argument("--timeout-s", type=float, default=600.0)
     p.add_argument("--log-format", choices=["json", "text"], default="json")
     p.add_argument("--no-figures", action="store_true")
@@ -68,7 +71,7 @@ def main(argv: list[str] | None = None) -> int:
                       tls=args.tls or args.tls_dir is not None,
                       tls_dir=args.tls_dir.resolve() if args.tls_dir else None,
                       mission_id=re.sub(r"[^A-Za-z0-9_\-]", "-", run_dir.name)[:64],
-                      scale=scale)
+                      scale=scale, profiles=("viewer",) if args.viewer else ())
     t0 = time.perf_counter()
     try:
         outcome, codes = run_mission(cfg, args.timeout_s, not args.no_figures, args.quiet,

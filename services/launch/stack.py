@@ -79,6 +79,8 @@ class StackConfig:
     tls_dir: Path | None = None
     #: replicas of a service (a planner pool: ``{"system2": 3}``), as ``docker compose --scale``
     scale: dict[str, int] = field(default_factory=dict)
+    #: compose profiles to run besides the default services (``("viewer",)``: the live view)
+    profiles: tuple[str, ...] = ()
 
 
 class Stack:
@@ -133,8 +135,18 @@ class Stack:
         return [sys.executable if cmd[0] == "python" else cmd[0], *cmd[1:]]
 
     def service_names(self) -> list[str]:
-        names = [n for n in self.doc["services"] if n != self.router_name]
+        """The services to run: those without a compose ``profiles`` key, and those of the
+        profiles in :attr:`StackConfig.profiles` (as ``docker compose --profile``)."""
+        names = [n for n, svc in self.doc["services"].items() if n != self.router_name and (
+            not svc.get("profiles") or set(svc["profiles"]) & set(self.cfg.profiles))]
         return [n for n in names if not self.cfg.services or n in self.cfg.services]
+
+    def viewer_url(self) -> str:
+        """The live view's WebSocket URL (services/viewer), "" when it does not run."""
+        if "viewer" not in self.service_names():
+            return ""
+        listen = self.service_env("viewer").get("VIEWER_LISTEN", "")
+        return "ws://" + listen.removeprefix("tcp/") if listen else ""
 
     def start(self) -> None:
         self.logs.mkdir(parents=True, exist_ok=True)
@@ -303,6 +315,9 @@ def run_mission(cfg: StackConfig, timeout_s: float = 600.0, figures: bool = True
                   f"{', '.join(stack.service_names())} (MAVLink ports "
                   f"{dict(stack.ports.ports)}); logs in {stack.logs}/",
                   flush=True)
+            if stack.viewer_url():
+                print(f"live view: {stack.viewer_url()} (Foxglove or Lichtblick: open "
+                      f"connection, Foxglove WebSocket)", flush=True)
         try:
             outcome = follow(stack, timeout_s, quiet)
         except KeyboardInterrupt:

@@ -16,8 +16,9 @@ runs, with the ports of services/supervisor/ports.py. The session
   alive (lockstep: nothing advances while paused);
 * observes each step: the clock and Decision (``supervisor/decision``), the
   vehicle state, MissionEvents, ``steps.jsonl`` (dualpilot.mission.records.StepLog),
-  ``latency.csv`` and the operator columns; at the end ``summary.json``,
-  ``steps.csv`` and ``trace.json``.
+  ``latency.csv`` and the operator columns, each step's plans (``supervisor/plans``, for
+  the live view); at the end ``summary.json``, ``steps.csv``, ``trace.json`` and
+  ``mission.mcap``.
 """
 
 from __future__ import annotations
@@ -123,7 +124,8 @@ class StackSession:
         self.pubs = {
             name: session.declare_publisher(key) for name, key in (
                 ("decision", keys.decision(uav)), ("state", keys.vehicle_state(uav)),
-                ("event", keys.mission_event(uav)), ("clock", keys.clock(uav)))
+                ("event", keys.mission_event(uav)), ("clock", keys.clock(uav)),
+                ("plans", keys.step_plans(uav)))
         }
         self.step_log: StepLog | None = None
         self.mission: Mission | None = None
@@ -524,6 +526,8 @@ class StackSession:
         return found
 
     def recorded(self, record: StepRecord, flown: bool) -> None:
+        bus.put(self.pubs["plans"], "", codec.step_plans_msg(  # the live view (services/viewer)
+            record, self.b.mission_id, self.spec, self.b.stamper, self._now()))
         rejected = record.plan_status.count(f"[{monitor.TAG}:")
         if rejected:
             self.monitor_rejected += rejected
@@ -624,7 +628,7 @@ class StackSession:
     def write(self, out: Path, extra: dict[str, object]) -> list[Path]:
         """summary.json, steps.csv, trace.json (dualpilot.mission.records) and latency.csv."""
         assert self.result is not None
-        paths = write_all(self.result, out)
+        paths = write_all(self.result, out, uav=self.b.uav)
         write_operator_columns(self.operator, out)
         summary = json.loads((out / "summary.json").read_text())
         summary["stack"] = {

@@ -3,9 +3,10 @@
 * :func:`read_mcap`: every message of an MCAP file, decoded with the schema the
   file itself carries (``mcap`` and ``mcap-protobuf-support``; JSON by ``json``).
 * :class:`FoxgloveClient`: a WebSocket client of the Foxglove protocol
-  (subprotocol ``foxglove.websocket.v1``, github.com/foxglove/ws-protocol
-  docs/spec.md): serverInfo, advertise, subscribe, binary messageData
-  (opcode 1: subscription id u32 LE, log time u64 LE ns, payload).
+  (github.com/foxglove/ws-protocol's spec, ``foxglove.websocket.v1``; foxglove-sdk's
+  servers name the same protocol ``foxglove.sdk.v1`` and accept only that name):
+  serverInfo, advertise, subscribe, binary messageData (opcode 1: subscription id
+  u32 LE, log time u64 LE ns, payload).
 * :func:`compare_with_log`: each step of steps.jsonl against the recording.
 """
 
@@ -23,7 +24,9 @@ from typing import Any
 import numpy as np
 from mcap.records import Schema
 
-SUBPROTOCOL = "foxglove.websocket.v1"
+#: offered as the Foxglove app does; foxglove-sdk 0.30 picks the first
+SUBPROTOCOLS = ("foxglove.sdk.v1", "foxglove.websocket.v1")
+SUBPROTOCOL = "foxglove.sdk.v1"
 
 
 def decode(schema_name: str, schema_encoding: str, schema_data: bytes,
@@ -184,7 +187,7 @@ class FoxgloveClient:
         import websockets
         from websockets.typing import Subprotocol
 
-        self.ws = await websockets.connect(self.url, subprotocols=[Subprotocol(SUBPROTOCOL)],
+        self.ws = await websockets.connect(self.url, subprotocols=[Subprotocol(p) for p in SUBPROTOCOLS],
                                            max_size=64 * 1024 * 1024)
         assert self.ws.subprotocol == SUBPROTOCOL
         return self

@@ -34,7 +34,11 @@ def doc() -> dict[str, Any]:
 def test_compose_file_is_valid(doc: dict[str, Any]) -> None:
     services = doc["services"]
     assert services["zenoh"]["image"] == "eclipse/zenoh:1.10.2"
-    assert set(services) == {"zenoh", *keys.SERVICES}
+    assert set(services) == {"zenoh", *keys.SERVICES, "viewer"}
+    # the live view runs only when asked for (docker compose --profile viewer; launch --viewer)
+    assert services["viewer"]["profiles"] == ["viewer"]
+    assert "8765:8765/tcp" in services["viewer"]["ports"]
+    assert services["viewer"]["environment"]["VIEWER_LISTEN"] == "tcp/0.0.0.0:8765"
     assert "14550:14550/udp" in services["uavsim"]["ports"]
     assert services["supervisor"]["environment"]["MAVLINK_URL"] == "udpout:uavsim:14540"
     assert services["uavsim"]["environment"]["MAVLINK_URL"] == "udpin:0.0.0.0:14540"
@@ -116,6 +120,21 @@ def test_launcher_maps_compose_onto_loopback(tmp_path: Path) -> None:
     assert uav["MAVLINK_URL"] == f"udpin:127.0.0.1:{sup_port}"  # the same offboard link
     assert uav["GCS_URL"].startswith("udpin:127.0.0.1:")
     assert stack.argv("ews")[1:] == ["-m", "services.ews"]
+
+
+def test_the_viewer_runs_only_in_its_profile(tmp_path: Path) -> None:
+    plain = launch.Stack(launch.StackConfig(run_dir=tmp_path, free_ports=True))
+    assert "viewer" not in plain.service_names() and plain.viewer_url() == ""
+    stack = launch.Stack(launch.StackConfig(run_dir=tmp_path, free_ports=True,
+                                            profiles=("viewer",)))
+    assert stack.service_names() == ["ews", "system1", "system2", "uavsim", "supervisor",
+                                     "viewer"]
+    env = stack.service_env("viewer")
+    port = int(env["VIEWER_LISTEN"].rsplit(":", 1)[1])
+    assert env["VIEWER_LISTEN"] == f"tcp/127.0.0.1:{port}" and port != 8765  # free port
+    assert stack.viewer_url() == f"ws://127.0.0.1:{port}"
+    assert env["ZENOH_CONNECT"] == stack.endpoint
+    assert stack.argv("viewer")[1:] == ["-m", "services.viewer"]
 
 
 def test_yaml_and_launcher_agree_on_every_variable(doc: dict[str, Any], tmp_path: Path) -> None:

@@ -1,0 +1,1 @@
+"""The live view: the stack's missions over the Foxglove WebSocket protocol."""

@@ -1,0 +1,197 @@
+"""Viewer service: every vehicle's mission, live, over the Foxglove WebSocket protocol.
+
+``python -m services.viewer --listen tcp/127.0.0.1:8765`` and open
+``ws://localhost:8765`` in Foxglove or Lichtblick (docs/live_view.md). It
+subscribes to what the stack publishes for any vehicle (``dualpilot/*/…``:
+the supervisor's decision, plans, vehicle state and mission events, the EWS's
+fires and forecast), validates each message in the codec (a rejection is
+counted and logged, never a crash) and logs it on that vehicle's channels
+(services/viewer/live.py; dualpilot/viz/foxglove.py defines them, as in
+mission.mcap), served by foxglove-sdk's WebSocket server. A vehicle's
+channels are advertised when its first message arrives; the k-th vehicle's
+area is placed k·(A + 100 m) east of the first in the ``world`` frame.
+
+The Zenoh callbacks only enqueue; one loop decodes and logs. Of the fire
+states and forecasts waiting in one pass only each vehicle's newest is drawn,
+so a viewer that falls behind skips frames instead of queueing them.
+"""
+
+from __future__ import annotations
+
+import logging
+import re
+from collections.abc import Callable
+from typing import Any
+
+from dualpilot.spec import MissionSpec
+from services.common import bus, codec, keys
+from services.common import cli as common_cli
+from services.common.log import fields
+from services.msgs import fire_pb2, supervisor_pb2, vehicle_pb2
+
+from .live import LiveVehicle, log_time_ns
+
+log = logging.getLogger("services.viewer")
+
+DEFAULT_LISTEN = "tcp/127.0.0.1:8765"
+#: between two vehicles' areas side by side in ``world`` (m)
+AREA_GAP_M = 100.0
+#: items taken from the inbox in one pass
+BATCH = 500
+_LISTEN = re.compile(r"^tcp/(?P<host>[^:/]+|\[[^\]]+\]):(?P<port>\d{1,5})$")
+#: what is drawn only at its newest within one pass
+LATEST_ONLY = ("ews/fires", "ews/forecast")
+
+
+def parse_listen(text: str) -> tuple[str, int]:
+    """``tcp/HOST:PORT`` → (host, port); raises ValueError."""
+    m = _LISTEN.match(text.strip())
+    if m is None or not 0 <= int(m.group("port")) <= 65535:
+        raise ValueError(f"--listen must look like tcp/127.0.0.1:8765, got {text!r}")
+    return m.group("host").strip("[]"), int(m.group("port"))
+
+
+#: key (below dualpilot/<uav>/) → the key function (for the subscription)
+KINDS: dict[str, Callable[[str], str]] = {
+    "supervisor/decision": keys.decision, "supervisor/plans": keys.step_plans,
+    "vehicle/state": keys.vehicle_state, "mission/event": keys.mission_event,
+    "ews/fires": keys.fires, "ews/forecast": keys.forecast,
+}
+
+
+class Viewer:
+    """Every vehicle seen so far, and the dispatch of one received message to its handler."""
+
+    def __init__(self, context: Any):
+        self.context = context
+        self.vehicles: dict[str, LiveVehicle] = {}
+
+    def vehicle(self, uav: str, area_m: float) -> LiveVehicle:
+        v = self.vehicles.get(uav)
+        if v is None:
+            k = len(self.vehicles)
+            v = LiveVehicle(uav, self.context, (k * (area_m + AREA_GAP_M), 0.0))
+            self.vehicles[uav] = v
+            log.info("vehicle seen", extra=fields(uav=uav, vehicles=len(self.vehicles)))
+        return v
+
+    def handle(self, item: bus.Received) -> None:
+        """Decode ``item`` (counted and logged when rejected) and draw it."""
+        try:
+            uav = keys.vehicle_of(item.key)
+        except ValueError as err:
+            codec.rejected("input", codec.invalid(str(err)), log, key=item.key)
+            return
+        kind = item.key.removeprefix(f"{keys.ns(uav)}/")
+        if kind == "supervisor/decision":
+            got = bus.accept(item, supervisor_pb2.Decision,
+                             lambda m: (codec.decision_from_msg(m), int(m.commanded_system),
+                                        log_time_ns(m.header)), key=item.key, logger=log)
+            if got is not None:
+                self._for(uav).decision(*got)
+        elif kind == "supervisor/plans":
+            sp = bus.accept(item, supervisor_pb2.StepPlans,
+                            lambda m: (codec.step_plans_from_msg(m), log_time_ns(m.header)),
+                            key=item.key, logger=log)
+            if sp is not None:
+                plans, t_ns = sp
+                self.vehicle(uav, plans.spec.area_size_m).step_plans(plans, t_ns)
+        elif kind == "vehicle/state":
+            st = bus.accept(item, vehicle_pb2.VehicleState,
+                            lambda m: (codec.state_from_msg(m), int(m.step),
+                                       log_time_ns(m.header)), key=item.key, logger=log)
+            if st is not None:
+                self._for(uav).state(*st)
+        elif kind == "mission/event":
+            ev = bus.accept(item, supervisor_pb2.MissionEvent, codec.check_mission_event,
+                            key=item.key, logger=log)
+            if ev is not None:
+                self._for(uav).event(ev, log_time_ns(ev.header))
+        elif kind == "ews/fires":
+            fs = bus.accept(item, fire_pb2.FireState,
+                            lambda m: (codec.snapshot_from_msg(m), log_time_ns(m.header)),
+                            key=item.key, logger=log)
+            if fs is not None:
+                self._for(uav).fires(*fs)
+        elif kind == "ews/forecast":
+            fc = bus.accept(item, fire_pb2.FireForecast,
+                            lambda m: (codec.occupancy_from_msg(m), log_time_ns(m.header)),
+                            key=item.key, logger=log)
+            if fc is not None and fc[0] is not None:
+                self._for(uav).forecast(fc[0], fc[1])
+
+    def _for(self, uav: str) -> LiveVehicle:
+        known = self.vehicles.get(uav)
+        return known if known is not None else self.vehicle(uav, MissionSpec().area_size_m)
+
+
+def batch(inbox: bus.Inbox, first: bus.Received) -> list[bus.Received]:
+    """``first`` and what else waits in ``inbox`` (at most :data:`BATCH`), each vehicle's fire
+    states and forecasts cut to the newest."""
+    items = [first]
+    while len(items) < BATCH:
+        nxt = inbox.get(timeout=0)
+        if nxt is None:
+            break
+        items.append(nxt)
+    newest: dict[tuple[str, str], int] = {}
+    for i, it in enumerate(items):
+        kind = next((k for k in LATEST_ONLY if it.key.endswith("/" + k)), None)
+        if kind is not None:
+            newest[(it.key, kind)] = i
+    keep = set(newest.values())
+    return [it for i, it in enumerate(items)
+            if i in keep or not any(it.key.endswith("/" + k) for k in LATEST_ONLY)]
+
+
+def body(ctx: bus.Context, host: str, port: int) -> None:
+    import foxglove
+
+    assert ctx.session is not None
+    context = foxglove.Context()
+    server = foxglove.start_server(name="dualpilot", host=host, port=port, context=context)
+    log.info("serving the live view", extra=fields(url=f"ws://{host}:{server.port}",
+                                                   port=server.port))
+    viewer = Viewer(context)
+    inbox = bus.Inbox()
+    subs = [ctx.session.declare_subscriber(keys.every_vehicle(fn), inbox.on_sample)
+            for fn in KINDS.values()]
+    ctx.announce()
+    try:
+        while not ctx.stop.is_set():
+            first = inbox.get(timeout=0.2)
+            if first is None:
+                continue
+            for item in batch(inbox, first):
+                try:
+                    viewer.handle(item)
+                except Exception:  # a bug in drawing one message must not stop the view
+                    log.exception("could not draw a message", extra=fields(key=item.key))
+    finally:
+        for sub in subs:
+            sub.undeclare()
+        server.stop()
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = common_cli.parser("viewer", "The stack's missions, live, over the Foxglove WebSocket "
+                                    "protocol (foxglove-sdk).")
+    p.add_argument("--listen", default=common_cli.env("VIEWER_LISTEN", DEFAULT_LISTEN),
+                   help="where the WebSocket server listens, tcp/HOST:PORT [VIEWER_LISTEN]")
+    p.add_argument("--port", type=int, default=None,
+                   help="the WebSocket port (overrides --listen's; 0: any free port)")
+    args = p.parse_args(argv)
+    try:
+        settings = common_cli.settings("viewer", args)
+        host, port = parse_listen(args.listen)
+        if args.port is not None:
+            if not 0 <= args.port <= 65535:
+                raise ValueError(f"--port must be in 0..65535, got {args.port}")
+            port = args.port
+    except ValueError as err:
+        p.error(str(err))
+    return bus.run_service(settings, lambda ctx: body(ctx, host, port))
+
+
+if __name__ == "__main__":
+    bus.leave(main())
