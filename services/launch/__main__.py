@@ -1,6 +1,7 @@
 """Run the whole stack locally: a Zenoh router and every service of docker-compose.yml as processes.
 
 ``python -m services.launch --seed 7 --speed-factor 20 --controller cc --timing paper``
+flies one mission; ``--vehicles 10 --scale system2=2`` a fleet of ten on a planner pool.
 """
 
 from __future__ import annotations
@@ -10,9 +11,11 @@ import json
 import re
 import sys
 import time
+from dataclasses import replace
 from pathlib import Path
 
 from services.launch.compose import COMPOSE, REPO
+from services.launch.fleet import Fleet
 from services.launch.stack import StackConfig, parse_scale, run_mission
 
 
@@ -44,6 +47,10 @@ def main(argv: list[str] | None = None) -> int:
                         "certificates made in <out>/tls unless --tls-dir is given")
     p.add_argument("--tls-dir", type=Path, default=None,
                    help="certificates of python -m services.certs (implies --tls)")
+    p.add_argument("--vehicles", type=int, default=1,
+                   help="fly a fleet: N vehicles (seeds --seed .. --seed + N - 1) sharing the "
+                        "EWS and planners, hosted by one uavsim and one supervisor process; "
+                        "each vehicle's records in <out>/uav<k>/")
     p.add_argument("--scale", action="append", default=[], metavar="SERVICE=N",
                    help="run N replicas of a planner service (a pool: system1, system2), as "
                         "docker compose up --scale; repeatable")
@@ -72,6 +79,10 @@ def main(argv: list[str] | None = None) -> int:
                       tls_dir=args.tls_dir.resolve() if args.tls_dir else None,
                       mission_id=re.sub(r"[^A-Za-z0-9_\-]", "-", run_dir.name)[:64],
                       scale=scale, profiles=("viewer",) if args.viewer else ())
+    if not 1 <= args.vehicles <= 64:
+        p.error("--vehicles must be in 1..64")
+    if args.vehicles > 1:
+        return run_fleet(cfg, args.vehicles, args.timeout_s, args.compose)
     t0 = time.perf_counter()
     try:
         outcome, codes = run_mission(cfg, args.timeout_s, not args.no_figures, args.quiet,
@@ -97,6 +108,32 @@ def main(argv: list[str] | None = None) -> int:
         print(f"launch: mission did not end: {outcome.message}", file=sys.stderr)
         return 1
     return 0
+
+
+def run_fleet(cfg: StackConfig, n: int, timeout_s: float, compose: Path) -> int:
+    """``n`` vehicles through the shared services, hosted; prints one line per vehicle."""
+    uavs = [f"uav{k + 1}" for k in range(n)]
+    cfg.run_dir.mkdir(parents=True, exist_ok=True)
+    cfg = replace(cfg, uav_id=uavs[0])
+    env = {"CONTROLLER": cfg.controller, "TIMING": cfg.timing, "SUPERVISOR": cfg.supervisor,
+           "READINGS_PROFILE": cfg.profile, "MAX_STEPS": str(cfg.max_steps),
+           "START_STAGGER_S": "0.5"}
+    t0 = time.perf_counter()
+    with Fleet(replace(cfg, run_dir=cfg.run_dir / "shared"), uavs, compose) as fleet:
+        print(f"fleet: {n} vehicles, router {fleet.endpoint}, replicas "
+              f"{cfg.scale or 'one of each'}; records in {cfg.run_dir}/<uav>/", flush=True)
+        vehicles = fleet.start_hosted(uavs, [cfg.seed + k for k in range(n)], cfg.run_dir,
+                                      env=env, tag=cfg.mission_id or cfg.run_dir.name)
+        outcomes = fleet.wait_end({v.uav_id: v.mission_id for v in vehicles}, timeout_s)
+        codes = fleet.stop_vehicle(uavs[0])
+    for v in vehicles:
+        o = outcomes[v.uav_id]
+        print(f"{v.uav_id} seed {v.seed}: ended={o.ended} success={o.success} steps={o.steps} "
+              f"{o.failure_cause or o.message}")
+    bad = {name: c for name, c in codes.items() if c not in (0, 3)}  # 3: a mission failed
+    print(f"wall time {time.perf_counter() - t0:.1f} s; vehicle hosts "
+          f"{'stopped cleanly' if not bad else f'non-zero exits: {bad}'}")
+    return 0 if all(o.ended for o in outcomes.values()) and not bad else 1
 
 
 if __name__ == "__main__":
