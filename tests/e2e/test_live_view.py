@@ -1,0 +1,139 @@
+"""End to end: the whole stack with the viewer; a real Foxglove WebSocket client follows the
+mission live, and what it received equals the supervisor's records; mission.mcap too."""
+
+from __future__ import annotations
+
+import asyncio
+import threading
+from pathlib import Path
+from typing import Any
+
+import pytest
+from integration.foxglove_check import (
+    SUBPROTOCOL,
+    FoxgloveClient,
+    check_decision,
+    check_plan,
+    check_uav,
+    compare_with_log,
+    meta,
+    read_mcap,
+)
+
+from dualpilot.mission.records import read_step_log
+from services import launch
+
+pytestmark = [pytest.mark.slow, pytest.mark.timeout(300)]
+
+UAV = "e2ev"
+SEED = 26
+TOPICS = ("tf", "area", "fires", "forecast", "plan/system1", "plan/system2", "path", "uav",
+          "decision", "events")
+SCHEMAS = {"tf": "foxglove.FrameTransform", "forecast": "foxglove.Grid",
+           "decision": "dualpilot.Decision", "events": "foxglove.Log"}
+
+
+class LiveClient(threading.Thread):
+    """A Foxglove client in a thread of its own: subscribes to every wanted topic as soon as it
+    is advertised, until ``done`` is set."""
+
+    def __init__(self, url: str, wanted: set[str]):
+        super().__init__(daemon=True)
+        self.url, self.wanted = url, wanted
+        self.done = threading.Event()
+        self.client: FoxgloveClient | None = None
+        self.error: BaseException | None = None
+
+    async def _main(self) -> None:
+        for _ in range(300):  # the viewer starts with the stack
+            try:
+                async with FoxgloveClient(self.url) as c:
+                    self.client = c
+                    while not self.done.is_set():
+                        await c.pump(0.05)
+                        await c.subscribe(sorted(self.wanted))
+                    await c.pump(0.5)
+                    return
+            except OSError:
+                await asyncio.sleep(0.1)
+
+    def run(self) -> None:
+        try:
+            asyncio.run(self._main())
+        except BaseException as err:  # reported by the test
+            self.error = err
+
+
+@pytest.fixture(scope="module")
+def live(tmp_path_factory: pytest.TempPathFactory) -> Any:
+    run_dir = tmp_path_factory.mktemp("live") / f"live-cc-s{SEED}"
+    cfg = launch.StackConfig(run_dir=run_dir, seed=SEED, speed_factor=100.0, controller="cc",
+                             timing="paper", free_ports=True, uav_id=UAV, log_format="text",
+                             profiles=("viewer",))
+    stack = launch.Stack(cfg)
+    url = stack.viewer_url()
+    client = LiveClient(url, {f"/{UAV}/{t}" for t in TOPICS})
+    with stack:
+        client.start()
+        launch.wait_router(stack.endpoint)
+        outcome = launch.follow(stack, timeout_s=180.0, quiet=True)
+        client.done.set()
+        client.join(30)
+    codes = {p.name: int(p.popen.returncode) for p in stack.group.procs}
+    return run_dir, outcome, codes, client, url
+
+
+def test_the_live_view_follows_the_mission(live: Any) -> None:
+    run_dir, outcome, codes, thread, url = live
+    assert outcome.ended, outcome.message
+    assert thread.error is None and thread.client is not None, thread.error
+    c: FoxgloveClient = thread.client
+    assert c.ws.subprotocol == SUBPROTOCOL and url.startswith("ws://127.0.0.1:")
+    channels = c.by_topic()
+    for t in TOPICS:
+        ch = channels[f"/{UAV}/{t}"]
+        assert ch["schemaName"] == SCHEMAS.get(t, "foxglove.SceneUpdate"), t
+    entries = read_step_log(run_dir / "steps.jsonl")
+    head = next(e for e in entries if e["kind"] == "mission")
+    steps = {e["t"]: e for e in entries if e["kind"] == "step"}
+    end = next(e for e in entries if e["kind"] == "end")
+
+    decisions = c.received[f"/{UAV}/decision"]
+    assert len(decisions) >= len(steps) // 2, (len(decisions), len(steps))
+    for _, doc in decisions:
+        check_decision(doc, steps[doc["t"]], head["controller"])
+    for k in (1, 2):
+        got = c.received[f"/{UAV}/plan/system{k}"]
+        assert len(got) >= len(steps) // 2
+        for _, update in got:
+            check_plan(update, steps[int(meta(update.entities[0])["step"])], k)
+    states = c.received[f"/{UAV}/uav"]
+    assert len(states) >= len(steps) // 2
+    for _, update in states:
+        t = int(meta(update.entities[0])["step"])
+        x = steps[t]["state"] if t in steps else end["final_state"]
+        check_uav(update, x, t)
+    fires = [u for _, u in c.received[f"/{UAV}/fires"] if u.entities]
+    assert fires and all(e.id.startswith(("front/", "hull/")) for u in fires for e in u.entities)
+    grid = c.received[f"/{UAV}/forecast"][-1][1]
+    assert grid.column_count > 0 and len(grid.data) == grid.row_stride * (
+        len(grid.data) // grid.row_stride) and grid.fields[0].name == "p_0s"
+    logs = [m.message for _, m in c.received[f"/{UAV}/events"]]
+    assert any(m.startswith("mission ended after") for m in logs), logs[-3:]
+    # every log time is a sender's wall clock, in order per channel
+    for topic, msgs in c.received.items():
+        times = [t for t, _ in msgs]
+        assert all(t > 1_600_000_000 * 10**9 for t in times), topic
+
+    viewer_log = (run_dir / "logs" / "viewer.log").read_text()
+    assert "serving the live view" in viewer_log and "stopped" in viewer_log
+    assert codes.get("viewer") == 0, codes
+
+
+def test_the_supervisors_mission_mcap_equals_its_steps_jsonl(live: Any) -> None:
+    run_dir = Path(live[0])
+    entries = read_step_log(run_dir / "steps.jsonl")
+    rec = read_mcap(run_dir / "mission.mcap")
+    steps = [e for e in entries if e["kind"] == "step"]
+    assert compare_with_log(rec, entries, UAV) == len(steps) > 5
+    assert rec.metadata["mission"]["uav"] == UAV
