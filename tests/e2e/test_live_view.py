@@ -110,9 +110,9 @@ def test_the_live_view_follows_the_mission(live: Any) -> None:
     states = c.received[f"/{UAV}/uav"]
     assert len(states) >= len(steps) // 2
     for _, update in states:
-        t = int(meta(update.entities[0])["step"])
-        x = steps[t]["state"] if t in steps else end["final_state"]
-        check_uav(update, x, t)
+        step = int(meta(update.entities[0])["step"])
+        x = steps[step]["state"] if step in steps else end["final_state"]
+        check_uav(update, x, step)
     fires = [u for _, u in c.received[f"/{UAV}/fires"] if u.entities]
     assert fires and all(e.id.startswith(("front/", "hull/")) for u in fires for e in u.entities)
     grid = c.received[f"/{UAV}/forecast"][-1][1]
