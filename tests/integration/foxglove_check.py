@@ -187,7 +187,8 @@ class FoxgloveClient:
         import websockets
         from websockets.typing import Subprotocol
 
-        self.ws = await websockets.connect(self.url, subprotocols=[Subprotocol(p) for p in SUBPROTOCOLS],
+        offered = [Subprotocol(p) for p in SUBPROTOCOLS]
+        self.ws = await websockets.connect(self.url, subprotocols=offered,
                                            max_size=64 * 1024 * 1024)
         assert self.ws.subprotocol == SUBPROTOCOL
         return self
