@@ -81,7 +81,7 @@ class Recorder:
         fc: OccupancyForecast | None = self.fires.forecast(n)
         assert fc is not None
         d = self.fires.field.substeps_done
-        slices = {k: fc.levels[fc.horizons.index(k)] for k in self.ks}  # uint8: P·255
+        slices = {k: fc.level(fc.horizons.index(k)) for k in self.ks}  # uint8: P·255
         self.issued.append((d, self.truth[d], slices))
 
     def commanded(self, t: int, flown: int, info: dict[str, object]) -> None: ...

@@ -5,12 +5,12 @@ paper timing) is flown twice by each controller: as the paper's step, and with
 the fire port's forecast (dualpilot/model/forecast.py, default parameters) made
 at every step once the supervisor has chosen the system, exactly where a
 risk-aware planner would ask for it. The forecast changes nothing the mission
-does, so both flights are the same steps; the wall time of each ``Mission.step``
-is measured, the two flights of a mission one after the other so that load
-on the machine falls on both alike. Reported per controller: median step time
-without and with the forecast, their ratio, the ratio of total time, and the
-forecast's own median time. With ``--risk`` the "+risk" controllers are timed
-too (their steps differ: they plan on the forecast).
+does, so both flights are the same steps; the CPU time of this process over each
+``Mission.step`` is measured (not wall time: on a shared machine other jobs
+would set it), the two flights of a mission one after the other. Reported per
+controller: median step time without and with the forecast, their ratio, the
+ratio of total time, and the forecast's own median time. With ``--risk`` the
+"+risk" controllers are timed too (their steps differ: they plan on the forecast).
 
     .venv/bin/python benchmarks/forecast_step_cost.py [--missions 20] [--seed 2000]
         [--profiles today,fig-r5] [--controllers cc,s1,s2,concurrent] [--risk]
@@ -44,9 +44,9 @@ class Forecaster:
     def decided(self, t: int, decision: Decision, commanded: int) -> None:
         fires = self.mission.fires
         assert isinstance(fires, LocalFires)
-        t0 = time.perf_counter()
+        t0 = time.process_time()
         fires.forecast(self.mission.substeps_per_step(commanded or 1))
-        self.times.append(time.perf_counter() - t0)
+        self.times.append(time.process_time() - t0)
 
     def commanded(self, t: int, flown: int, info: dict[str, object]) -> None: ...
 
@@ -57,7 +57,7 @@ class Forecaster:
 
 def fly(profile: str, index: int, seed: int, controller: str,
         forecast: bool) -> tuple[list[float], list[float], int]:
-    """Step times (s), forecast times (s) and the steps' total fire fronts of one mission."""
+    """Step CPU times (s), forecast CPU times (s) and the steps' total fronts of one mission."""
     reading = get_profile(profile)
     ctrl, supervisor = controller_of(controller)
     mission = local_mission(ctrl, reading.spec(mission_spec(seed, index)),
@@ -70,11 +70,11 @@ def fly(profile: str, index: int, seed: int, controller: str,
     fronts = 0
     while True:
         fronts += len(mission.fires.snapshot().regions)
-        t0 = time.perf_counter()
+        t0 = time.process_time()
         rec = mission.step()
         if rec is None:
             break
-        steps.append(time.perf_counter() - t0)
+        steps.append(time.process_time() - t0)
     return steps, (obs.times if obs is not None else []), fronts
 
 
@@ -89,8 +89,8 @@ def main() -> None:
     args = ap.parse_args()
     fly("today", 0, args.seed, "cc", True)  # compile and warm every kernel first
     rows: list[dict[str, Any]] = []
-    print("| profile | controller | steps | fronts/step | step median ms (paper) "
-          "| with forecast | ratio of medians | ratio of totals | forecast median ms |")
+    print("| profile | controller | steps | fronts/step | step median CPU ms (paper) "
+          "| with forecast | ratio of medians | ratio of totals | forecast median CPU ms |")
     print("|---|---|---|---|---|---|---|---|---|")
     for prof in args.profiles.split(","):
         for c in args.controllers.split(","):

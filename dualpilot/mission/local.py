@@ -53,8 +53,8 @@ class LocalFires:
         got = self._forecasts.get(key)
         if got is None:
             self._forecasts = {k: v for k, v in self._forecasts.items() if k[0] == key[0]}
-            got = forecast(f.fronts, f.params, f.area_size_m,
-                           forecast_rng(self.seed, f.substeps_done), self.forecast_params,
+            rng = forecast_rng(self.seed, f.substeps_done) if f.fronts else None
+            got = forecast(f.fronts, f.params, f.area_size_m, rng, self.forecast_params,
                            substeps_per_step=n, issued_substep=f.substeps_done)
             self._forecasts[key] = got
         return got

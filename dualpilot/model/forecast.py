@@ -38,10 +38,10 @@ from __future__ import annotations
 
 from bisect import bisect_left, bisect_right
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from functools import lru_cache
 from math import ceil, cos, exp, floor, sin, sqrt
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 from numba import njit
@@ -93,39 +93,81 @@ class ForecastParams:
         return tuple(range(0, last + 1, every))
 
 
-@dataclass(frozen=True, eq=False)
 class OccupancyForecast:
     """P_k on a grid of cell centres origin + (j + ½)·resolution, one slice per horizon.
 
     ``levels[i, row, col]`` is P at ``horizons[i]`` sub-steps ahead, in 1/255,
-    for the cell of row y, column x. ``issued_substep`` is the fire state's
-    sub-step count the forecast starts from; ``substeps_per_step`` the time-step
-    length it assumed (see the module docstring).
+    for the cell of row y, column x; it may be given as one (horizons, rows,
+    cols) array or as one (rows, cols) array a slice (``layers``: slices no front
+    reaches are shared between forecasts), read-only either way. ``issued_substep``
+    is the fire state's sub-step count the forecast starts from;
+    ``substeps_per_step`` the time-step length it assumed (the module docstring).
     """
 
-    resolution_m: float
-    substep_s: float
-    horizons: tuple[int, ...]
-    levels: NDArray[np.uint8]
-    origin_m: tuple[float, float] = (0.0, 0.0)
-    issued_substep: int = 0
-    substeps_per_step: int = 1
-    #: results derived from the levels, kept by their users (windows, risk zones)
-    memo: dict[object, Any] = field(default_factory=dict, repr=False, compare=False)
+    def __init__(self, resolution_m: float, substep_s: float, horizons: tuple[int, ...],
+                 levels: NDArray[np.uint8] | Sequence[NDArray[np.uint8]],
+                 origin_m: tuple[float, float] = (0.0, 0.0), issued_substep: int = 0,
+                 substeps_per_step: int = 1):
+        layers = tuple(levels)
+        shapes = {(lv.dtype, lv.shape) for lv in layers}
+        if len(layers) != len(horizons) or len(shapes) != 1 or any(
+                d != np.uint8 or len(sh) != 2 for d, sh in shapes):
+            raise ValueError(f"levels must be {len(horizons)} uint8 (rows, cols) slices of "
+                             f"one shape, got {sorted(map(str, shapes))}")
+        if list(horizons) != sorted(set(horizons)) or (horizons and horizons[0] < 0):
+            raise ValueError(f"horizons must be increasing sub-step counts >= 0: {horizons}")
+        for lv in layers:
+            lv.flags.writeable = False
+        self._set(resolution_m, substep_s, tuple(horizons), layers, origin_m, issued_substep,
+                  substeps_per_step)
 
-    def __post_init__(self) -> None:
-        lv = self.levels
-        if lv.dtype != np.uint8 or lv.ndim != 3 or lv.shape[0] != len(self.horizons):
-            raise ValueError(f"levels must be uint8 (horizons, rows, cols), got {lv.dtype} "
-                             f"{lv.shape} for {len(self.horizons)} horizons")
-        if list(self.horizons) != sorted(set(self.horizons)) or (
-                self.horizons and self.horizons[0] < 0):
-            raise ValueError(f"horizons must be increasing sub-step counts >= 0: {self.horizons}")
+    @classmethod
+    def _made(cls, resolution_m: float, substep_s: float, horizons: tuple[int, ...],
+              layers: tuple[NDArray[np.uint8], ...], issued_substep: int,
+              substeps_per_step: int) -> OccupancyForecast:
+        """A forecast of :func:`forecast`'s own read-only slices (checked there)."""
+        out = cls.__new__(cls)
+        out._set(resolution_m, substep_s, horizons, layers, (0.0, 0.0), issued_substep,
+                 substeps_per_step)
+        return out
+
+    def _set(self, resolution_m: float, substep_s: float, horizons: tuple[int, ...],
+             layers: tuple[NDArray[np.uint8], ...], origin_m: tuple[float, float],
+             issued_substep: int, substeps_per_step: int) -> None:
+        self.resolution_m = resolution_m
+        self.substep_s = substep_s
+        self.horizons = horizons
+        self.layers: tuple[NDArray[np.uint8], ...] = layers
+        self.origin_m = origin_m
+        self.issued_substep = issued_substep
+        self.substeps_per_step = substeps_per_step
+        #: results derived from the levels, kept by their users (windows, risk zones)
+        self.memo: dict[object, Any] = {}
+
+    def __repr__(self) -> str:
+        return (f"OccupancyForecast(resolution_m={self.resolution_m}, shape={self.shape}, "
+                f"horizons={self.horizons}, substep_s={self.substep_s}, "
+                f"issued_substep={self.issued_substep})")
+
+    @property
+    def levels(self) -> NDArray[np.uint8]:
+        """Every slice as one (horizons, rows, cols) array (made on first use)."""
+        got = self.memo.get("levels")
+        if got is None:
+            got = np.stack(self.layers)
+            got.flags.writeable = False
+            self.memo["levels"] = got
+        return cast(NDArray[np.uint8], got)
+
+    def level(self, i: int) -> NDArray[np.uint8]:
+        """Slice i in 1/255 (rows y, columns x)."""
+        return self.layers[i]
 
     @property
     def shape(self) -> tuple[int, int]:
         """(rows, columns) of the grid."""
-        return int(self.levels.shape[1]), int(self.levels.shape[2])
+        rows, cols = self.layers[0].shape
+        return int(rows), int(cols)
 
     @property
     def horizons_s(self) -> Array:
@@ -138,7 +180,7 @@ class OccupancyForecast:
 
     def probability(self, i: int) -> Array:
         """Slice i as probabilities in [0, 1] (rows y, columns x)."""
-        return np.asarray(self.levels[i], dtype=float) / LEVELS
+        return np.asarray(self.layers[i], dtype=float) / LEVELS
 
     def cells(self, points: Array) -> tuple[AnyArray, AnyArray, AnyArray]:
         """(rows, cols, inside) of the cells holding ``points`` (n, 2) (m); inside: on the grid."""
@@ -167,7 +209,7 @@ class OccupancyForecast:
         key = (idx.start, idx.stop)
         got = self.memo.get(key)
         if got is None:
-            got = self.levels[idx.start:idx.stop].max(axis=0)
+            got = np.maximum.reduce(self.layers[idx.start:idx.stop])
             self.memo[key] = got
         return got
 
@@ -455,9 +497,17 @@ def _births(fire: FireParams, area_m: float, res: float, shape: tuple[int, int],
 
 
 @lru_cache(maxsize=16)
+def _birth_layers(fire: FireParams, area_m: float, res: float, shape: tuple[int, int],
+                  horizons: tuple[int, ...], substeps_per_step: int
+                  ) -> tuple[NDArray[np.uint8], ...]:
+    """:func:`_birth_levels` slice by slice (read-only views)."""
+    return tuple(_birth_levels(fire, area_m, res, shape, horizons, substeps_per_step))
+
+
+@lru_cache(maxsize=16)
 def _birth_levels(fire: FireParams, area_m: float, res: float, shape: tuple[int, int],
                   horizons: tuple[int, ...], substeps_per_step: int) -> NDArray[np.uint8]:
-    """:func:`_births` as levels (the forecast of an area without fronts)."""
+    """:func:`_births` as levels (the forecast of an area without fronts), read-only."""
     free = _births(fire, area_m, res, shape, horizons, substeps_per_step)
     out = _levels_of(free)
     out.flags.writeable = False
@@ -474,7 +524,7 @@ def forecast(
     fronts: Sequence[FireFront],
     fire: FireParams,
     area_size_m: float,
-    rng: np.random.Generator,
+    rng: np.random.Generator | None,
     params: ForecastParams = ForecastParams(),
     substeps_per_step: int = 1,
     issued_substep: int = 0,
@@ -482,7 +532,8 @@ def forecast(
     """P_k on the grid for the slices of ``params`` from ``fronts`` (module docstring).
 
     ``rng`` draws the motion paths only (never pass a mission's own stream:
-    see :func:`dualpilot.spec.forecast_rng`); ``substeps_per_step`` is the
+    see :func:`dualpilot.spec.forecast_rng`; None will do without fronts);
+    ``substeps_per_step`` is the
     time-step length assumed when ``fire.life_base == "step"``.
     """
     if substeps_per_step < 1:
@@ -491,12 +542,18 @@ def forecast(
     key = (fire, float(area_size_m), params.resolution_m,
            grid_shape(area_size_m, params.resolution_m), params.horizons(fire.substep_s), n)
     horizons, hz, survive = _schedule(fire, key[4], n)
-    if not fronts:  # the births alone: kept, read-only
-        levels = _birth_levels(*key)
+    births = _birth_levels(*key)
+    reach = int(np.count_nonzero(survive >= MIN_SURVIVAL))  # the slices a front can change
+    if not fronts or not reach:  # the births alone: their kept, read-only slices
+        layers: tuple[NDArray[np.uint8], ...] = _birth_layers(*key)
     else:
-        levels = np.array(_birth_levels(*key))
-        k_max = horizons[-1]
-        z = rng.standard_normal((len(fronts), params.members, k_max, 2))
+        if rng is None:
+            raise ValueError("a forecast of fronts needs a generator for their motion")
+        work = np.array(births[:reach])  # survival only falls: the first ``reach`` slices
+        k_max = horizons[reach - 1]  # the paths need only reach the last of them
+        # every path's draws for the whole horizon, so a path does not depend on how far
+        # the slices reach
+        z = rng.standard_normal((len(fronts), params.members, horizons[-1], 2))[:, :, :k_max]
         xs = np.empty((len(fronts), params.members, k_max + 1))
         ys = np.empty_like(xs)
         for i, f in enumerate(fronts):
@@ -504,14 +561,14 @@ def forecast(
                                   f.region.center_y, z[i], fire.gamma, fire.speed_mean_mps,
                                   fire.direction_mean_rad, fire.speed_sigma_mps,
                                   fire.direction_sigma_rad, fire.substep_s)
-        _fronts(levels, _births(*key), hz, survive, xs, ys, fire.extent == "birth",
-                np.array([f.region.width for f in fronts]),
+        _fronts(work, _births(*key), hz[:reach], survive[:reach], xs, ys,
+                fire.extent == "birth", np.array([f.region.width for f in fronts]),
                 np.array([f.region.height for f in fronts]),
                 fire.side_min_m, fire.side_max_m, params.resolution_m, 0.0, 0.0)
-        levels.flags.writeable = False
-    return OccupancyForecast(resolution_m=params.resolution_m, substep_s=fire.substep_s,
-                             horizons=horizons, levels=levels, issued_substep=issued_substep,
-                             substeps_per_step=n)
+        work.flags.writeable = False
+        layers = tuple(work) + _birth_layers(*key)[reach:]
+    return OccupancyForecast._made(params.resolution_m, fire.substep_s, horizons, layers,
+                                   issued_substep, n)
 
 
 @lru_cache(maxsize=64)

@@ -87,7 +87,7 @@ class RiskMap:
         key = ("zones", i, self.threshold)
         got = fc.memo.get(key)
         if got is None:
-            got = cell_hulls(fc.levels[i] > self.threshold, fc.resolution_m, fc.origin_m)
+            got = cell_hulls(fc.level(i) > self.threshold, fc.resolution_m, fc.origin_m)
             fc.memo[key] = got
         return cast(tuple[Polytope, ...], got)
 

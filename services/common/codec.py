@@ -488,7 +488,7 @@ def occupancy_to_msg(fc: OccupancyForecast, out: fire_pb2.OccupancyGrid) -> fire
     out.resolution_m = fc.resolution_m
     out.rows, out.cols = fc.shape
     out.horizons.extend(fc.horizons)
-    out.probabilities.extend(np.ascontiguousarray(lv).tobytes() for lv in fc.levels)
+    out.probabilities.extend(np.ascontiguousarray(lv).tobytes() for lv in fc.layers)
     out.horizon_s = fc.max_substeps * fc.substep_s
     out.substeps_per_step = fc.substeps_per_step
     return out
