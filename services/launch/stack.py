@@ -79,6 +79,8 @@ class StackConfig:
     tls_dir: Path | None = None
     #: replicas of a service (a planner pool: ``{"system2": 3}``), as ``docker compose --scale``
     scale: dict[str, int] = field(default_factory=dict)
+    #: services started only by :meth:`Stack.start_deferred` (a test subscribes first)
+    deferred: tuple[str, ...] = ()
     #: compose profiles to run besides the default services (``("viewer",)``: the live view)
     profiles: tuple[str, ...] = ()
 
@@ -160,10 +162,21 @@ class Stack:
         self.group.start("router", [sys.executable, "-m", "services.router", "--zenoh-listen",
                                     self.endpoint], env, self.logs / "router.log")
         for name in self.service_names():
-            for k in range(self.cfg.scale.get(name, 1)):  # replicas: system2, system2-2, …
-                proc = name if k == 0 else f"{name}-{k + 1}"
-                self.group.start(proc, self.argv(name), self.service_env(name),
-                                 self.logs / f"{proc}.log")
+            if name not in self.cfg.deferred:
+                self.start_service(name)
+
+    def start_service(self, name: str) -> None:
+        """Start ``name`` (and its replicas: system2, system2-2, …)."""
+        for k in range(self.cfg.scale.get(name, 1)):
+            proc = name if k == 0 else f"{name}-{k + 1}"
+            self.group.start(proc, self.argv(name), self.service_env(name),
+                             self.logs / f"{proc}.log")
+
+    def start_deferred(self) -> None:
+        """Start the services :attr:`StackConfig.deferred` held back."""
+        for name in self.service_names():
+            if name in self.cfg.deferred:
+                self.start_service(name)
 
     def stop(self) -> dict[str, int]:
         return self.group.stop_all(last="router")

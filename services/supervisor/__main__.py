@@ -38,6 +38,7 @@ from services.common.log import fields
 
 from .link import VehicleLink
 from .session import Aborted, StackParams, StackSession, VehicleGone
+from .stream.client import close_stream_process
 
 log = logging.getLogger("services.supervisor")
 
@@ -292,7 +293,10 @@ def main(argv: list[str] | None = None) -> int:
             link.close()
 
     def serve(ctx: bus.Context) -> None:
-        fleet.for_each(ctx, uavs, body)
+        try:
+            fleet.for_each(ctx, uavs, body)
+        finally:
+            close_stream_process()  # every link is closed: its vehicles' streams end here
         ctx.exit_code = max([ctx.exit_code, *codes.values()])
 
     return bus.run_service(settings, serve)

@@ -101,12 +101,14 @@ def attacked(tmp_path: Path, name: str, controller: str = "cc", speed: float = 5
                              controller=controller, timing="measured", free_ports=True,
                              uav_id=f"a-{name}", log_format="text", mission_id=f"m-{name}",
                              max_steps=max_steps, services=services,
-                             extra_env=extra_env or {})
+                             extra_env=extra_env or {}, deferred=("supervisor",))
     stack = launch.Stack(cfg)
     with stack:
         launch.wait_router(stack.endpoint)
         with launch.client_session(stack.endpoint) as session:
             attack = Attack(stack, session)
+            if "supervisor" in stack.service_names():
+                stack.start_deferred()  # the supervisor flies once the test is listening
             try:
                 yield attack
             finally:

@@ -111,7 +111,7 @@ def running(tmp_path: Path, name: str, controller: str = "cc", speed: float = 50
     cfg = launch.StackConfig(run_dir=tmp_path / name, seed=SEED, speed_factor=speed,
                              controller=controller, timing=TIMING, free_ports=True,
                              uav_id=f"f-{name}", log_format="text", mission_id=f"m-{name}",
-                             extra_env=extra_env or {})
+                             extra_env=extra_env or {}, deferred=("supervisor",))
     stack = launch.Stack(cfg)
     if proxy is not None:  # a service connects through a proxy to the router's port
         for svc, env in cfg.extra_env.items():
@@ -129,6 +129,7 @@ def running(tmp_path: Path, name: str, controller: str = "cc", speed: float = 50
             dsub = session.declare_subscriber(
                 keys.decision(cfg.uav_id),
                 lambda s: run.decisions.append(codec.parse(s.payload.to_bytes(), EV.Decision)))
+            stack.start_deferred()  # the supervisor flies once the test is listening
             try:
                 yield run
             finally:

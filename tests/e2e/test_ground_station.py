@@ -272,7 +272,9 @@ def test_killed_supervisor_the_vehicle_holds_within_1_5_s(run: Run) -> None:
     time.sleep(0.3)  # holding: nothing changes between two reports
     run.observer.drain()
     _, b = run.observer.recv("LOCAL_POSITION_NED", 5)
-    assert (a.x, a.y, a.vx, a.vy) == (b.x, b.y, 0.0, 0.0)
+    # lockstep: the supervisor was the clock, so the vehicle holds as it is — the same
+    # position, velocity and clock (services/uavsim/failsafe.py), nothing braked
+    assert (a.time_boot_ms, a.x, a.y, a.vx, a.vy) == (b.time_boot_ms, b.x, b.y, b.vx, b.vy)
 
 
 def test_the_run_tlog_opens_with_mavlogdump(run: Run) -> None:

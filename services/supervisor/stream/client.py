@@ -12,6 +12,7 @@ current setpoint, and the restart is counted and logged.
 
 from __future__ import annotations
 
+import contextlib
 import itertools
 import logging
 import os
@@ -172,6 +173,8 @@ class StreamProcess:
         """Stop the process (its links go with it)."""
         self.closing = True
         if self.ctl is not None:
+            with contextlib.suppress(OSError):  # wakes the reader blocked on it; the child
+                self.ctl.shutdown(socket.SHUT_RDWR)  # sees end of file at once
             self.ctl.close()
         if self.proc is not None:
             try:
@@ -263,3 +266,13 @@ def stream_process() -> StreamProcess:
         if _PROCESS is None:
             _PROCESS = StreamProcess()
         return _PROCESS
+
+
+def close_stream_process() -> None:
+    """Stop this process's stream process, if it was started, and wait for it to end (so no
+    exited child is left for init to collect)."""
+    global _PROCESS
+    with _PROCESS_LOCK:
+        if _PROCESS is not None:
+            _PROCESS.close()
+            _PROCESS = None
