@@ -36,6 +36,9 @@ def main(argv: list[str] | None = None) -> int:
                    help="the cognitive controller's supervisor (dualpilot mission --supervisor)")
     p.add_argument("--profile", default="today",  # readings profile: supervisor, EWS, uavsim
                    help="named reading of the paper (dualpilot profiles) [READINGS_PROFILE]")
+    p.add_argument("--scenario", default="",
+                   help="the fire process: a fire-behaviour scenario (dualpilot scenarios); "
+                        "default: the paper's")
     p.add_argument("--waypoints", default="", help="System 1 operator waypoints 'e1,n1;e2,n2'")
     p.add_argument("--out", default="",
                    help="run directory (default runs/<time>-<controller>-s<seed>)")
@@ -73,6 +76,7 @@ def main(argv: list[str] | None = None) -> int:
                       max_steps=args.max_steps, waypoints=args.waypoints,
                       ignition_clearance_m=args.ignition_clearance,
                       profile=args.profile,  # readings profile: supervisor, EWS, uavsim
+                      scenario=args.scenario,
                       supervisor=args.supervisor,
                       free_ports=args.free_ports, log_format=args.log_format,
                       tls=args.tls or args.tls_dir is not None,
@@ -116,7 +120,8 @@ def run_fleet(cfg: StackConfig, n: int, timeout_s: float, compose: Path) -> int:
     cfg.run_dir.mkdir(parents=True, exist_ok=True)
     cfg = replace(cfg, uav_id=uavs[0])
     env = {"CONTROLLER": cfg.controller, "TIMING": cfg.timing, "SUPERVISOR": cfg.supervisor,
-           "READINGS_PROFILE": cfg.profile, "MAX_STEPS": str(cfg.max_steps),
+           "READINGS_PROFILE": cfg.profile, "FIRE_SCENARIO": cfg.scenario,
+           "MAX_STEPS": str(cfg.max_steps),
            "START_STAGGER_S": "0.5"}
     t0 = time.perf_counter()
     with Fleet(replace(cfg, run_dir=cfg.run_dir / "shared"), uavs, compose) as fleet:

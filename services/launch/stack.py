@@ -64,6 +64,7 @@ class StackConfig:
     max_steps: int = 150
     ignition_clearance_m: float | None = None  # MissionParams.ignition_clearance_m
     profile: str = "today"  # dualpilot.readings profile of the supervisor, the EWS and uavsim
+    scenario: str = ""  # the fire process: "" (the profile's: the paper's), or a scenario
     supervisor: str = "paper"  # the cognitive controller's: "paper" or "concurrent"
     uav_id: str = "uav1"
     waypoints: str = ""
@@ -114,6 +115,7 @@ class Stack:
             "IGNITION_CLEARANCE_M": ("" if c.ignition_clearance_m is None
                                      else repr(c.ignition_clearance_m)),
             "READINGS_PROFILE": c.profile,  # the readings profile (dualpilot profiles)
+            "FIRE_SCENARIO": c.scenario,  # the fire process (dualpilot scenarios)
             "SUPERVISOR": c.supervisor,
             "TLOG_PATH": str(c.run_dir / "vehicle.tlog"),
             "STREAM_STATS_PATH": str(c.run_dir / "stream.json"),

@@ -110,7 +110,8 @@ def main(argv: list[str] | None = None) -> int:
                             ("--fire-extent", "extent", "FIRE_EXTENT"),
                             ("--redraw-clearance", "redraw_clearance", "FIRE_REDRAW_CLEARANCE"),
                             ("--attention-draw", "attention_draw", "ATTENTION_DRAW"),
-                            ("--speed-limit", "speed_limit", "SPEED_LIMIT")):
+                            ("--speed-limit", "speed_limit", "SPEED_LIMIT"),
+                            ("--fire-scenario", "scenario", "FIRE_SCENARIO")):
         r.add_argument(flag, dest=f"reading_{name}", default=env(var, ""),
                        help=f"{name} [{var}]")
     g.add_argument("--waypoints", default=env("OPERATOR_WAYPOINTS", ""),
