@@ -338,9 +338,30 @@ def _window(lo: float, hi: float, half: float, res: float, origin: float,
 def _covers(g: AnyArray, sums: AnyArray, same: AnyArray, first: int, last: int,
             centres: AnyArray, members: int, half: float, a: float, b: float, kept: bool,
             res: float, origin: float) -> None:
-    """g[c, m]: member m's cover of cell c's coordinate; sums over members; same: all equal."""
+    """g[c, m]: member m's cover of cell c's coordinate; sums over members; same: all equal.
+
+    A cell every member covers wholly, or none at all (the members' centres all
+    within, or all beyond, the flat part of the cover), is set without the members.
+    """
+    lo, hi = centres[0], centres[0]
+    for m in range(1, members):
+        lo, hi = min(lo, centres[m]), max(hi, centres[m])
+    full = half if kept else a / 2  # |x − centre| within this: covered for sure
+    none = half if kept else b / 2  # beyond this (kept: strictly): never covered
     for c in range(first, last + 1):
         x = origin + (c + 0.5) * res
+        if hi - full <= x <= lo + full and (kept or b - a > 1e-12):
+            v = 1.0
+        elif (x < lo - none or x > hi + none) if kept else (x <= lo - none or x >= hi + none):
+            v = 0.0
+        else:
+            v = -1.0
+        if v >= 0.0:
+            for m in range(members):
+                g[c, m] = v
+            sums[c] = v * members
+            same[c] = True
+            continue
         tot = 0.0
         eq = True
         for m in range(members):
@@ -368,7 +389,7 @@ def _fronts(levels: AnyArray, base: AnyArray, horizons: AnyArray, survive: AnyAr
     sx, sy = np.empty(nx), np.empty(ny)
     cx_same, cy_same = np.empty(nx, dtype=np.bool_), np.empty(ny, dtype=np.bool_)
     buf = np.empty((ny, nx))
-    stamp = np.zeros((ny, nx), dtype=np.int64)
+    stamp = np.zeros((ny, nx), dtype=np.int32)
     boxes = np.empty((n_f, 4), dtype=np.int64)
     for i in range(n_h):
         k = horizons[i]
@@ -489,9 +510,10 @@ def _births(fire: FireParams, area_m: float, res: float, shape: tuple[int, int],
     events[1:] = np.diff(life) > 0
     xc = (np.arange(shape[1]) + 0.5) * res
     yc = (np.arange(shape[0]) + 0.5) * res
-    out = _birth_free(np.asarray(horizons, dtype=np.int64), events, life.astype(np.int64),
-                      mean_displacement(k_max, fire), xc, yc, fire.p_birth, fire.p_survive,
-                      fire.side_min_m, fire.side_max_m, area_m)
+    free = _birth_free(np.asarray(horizons, dtype=np.int64), events, life.astype(np.int64),
+                       mean_displacement(k_max, fire), xc, yc, fire.p_birth, fire.p_survive,
+                       fire.side_min_m, fire.side_max_m, area_m)
+    out = free.astype(np.float32)  # half the memory a forecast reads; 1/255 steps need less
     out.flags.writeable = False
     return out
 
@@ -551,9 +573,7 @@ def forecast(
             raise ValueError("a forecast of fronts needs a generator for their motion")
         work = np.array(births[:reach])  # survival only falls: the first ``reach`` slices
         k_max = horizons[reach - 1]  # the paths need only reach the last of them
-        # every path's draws for the whole horizon, so a path does not depend on how far
-        # the slices reach
-        z = rng.standard_normal((len(fronts), params.members, horizons[-1], 2))[:, :, :k_max]
+        z = rng.standard_normal((len(fronts), params.members, k_max, 2))
         xs = np.empty((len(fronts), params.members, k_max + 1))
         ys = np.empty_like(xs)
         for i, f in enumerate(fronts):
