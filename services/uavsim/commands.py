@@ -35,9 +35,10 @@ from services.common import codec, mav
 from services.common.log import fields
 
 from . import flavour as fl
+from . import telemetry
 
 if TYPE_CHECKING:
-    from .__main__ import Endpoint
+    from .endpoint import Endpoint
 
 log = logging.getLogger("services.uavsim")
 m = mav.mavlink
@@ -91,7 +92,7 @@ def command_name(cmd: int) -> str:
 
 
 class Commands:
-    """COMMAND_LONG and SET_MODE for one :class:`~services.uavsim.__main__.Endpoint`."""
+    """COMMAND_LONG and SET_MODE for one :class:`~services.uavsim.endpoint.Endpoint`."""
 
     def __init__(self, ep: Endpoint):
         self.ep = ep
@@ -171,8 +172,8 @@ class Commands:
         ep = self.ep
         senders: dict[int, Callable[[], None]] = {
             m.MAVLINK_MSG_ID_AUTOPILOT_VERSION: lambda: self.autopilot_version(link),
-            m.MAVLINK_MSG_ID_HOME_POSITION: lambda: ep.home_position(link),
-            m.MAVLINK_MSG_ID_GPS_GLOBAL_ORIGIN: lambda: ep.home_position(link),
+            m.MAVLINK_MSG_ID_HOME_POSITION: lambda: telemetry.home_position(ep, link),
+            m.MAVLINK_MSG_ID_GPS_GLOBAL_ORIGIN: lambda: telemetry.home_position(ep, link),
             m.MAVLINK_MSG_ID_HEARTBEAT: ep.heartbeat,
             m.MAVLINK_MSG_ID_MISSION_CURRENT: lambda: ep.mission.send_current(link),
         }
@@ -182,7 +183,7 @@ class Commands:
                                      m.MAVLINK_MSG_ID_ATTITUDE, m.MAVLINK_MSG_ID_SYS_STATUS,
                                      m.MAVLINK_MSG_ID_GPS_RAW_INT,
                                      m.MAVLINK_MSG_ID_EXTENDED_SYS_STATE):
-            fn = lambda: ep.stream(msg_id)  # noqa: E731
+            fn = lambda: telemetry.stream(ep, msg_id)  # noqa: E731
         if fn is None:
             return int(m.MAV_RESULT_UNSUPPORTED)
         self._after_ack = fn

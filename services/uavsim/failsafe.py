@@ -29,7 +29,7 @@ from services.common.log import fields
 from . import flavour as fl
 
 if TYPE_CHECKING:
-    from .__main__ import Endpoint
+    from .endpoint import Endpoint
 
 log = logging.getLogger("services.uavsim")
 
