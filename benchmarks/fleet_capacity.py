@@ -32,6 +32,7 @@ import argparse
 import csv
 import json
 import os
+import signal
 import sys
 import tempfile
 import threading
@@ -203,6 +204,8 @@ def fly(n: int, out: Path, args: argparse.Namespace) -> dict[str, Any]:
 
 
 def main(argv: list[str] | None = None) -> int:
+    # SIGTERM ends the run like Ctrl-C: the stack's processes are stopped on the way out
+    signal.signal(signal.SIGTERM, lambda *_: sys.exit(1))
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--vehicles", default="10,25,40", help="comma-separated fleet sizes")
     p.add_argument("--layout", choices=["hosted", "processes"], default="hosted")

@@ -53,6 +53,8 @@ MISSION = m.MAV_MISSION_TYPE_MISSION
 STREAMS = ("process", "thread")
 #: the reader wakes at least this often (s)
 READER_PERIOD_S = 0.1
+#: the poller's period with a stream process (s): the stream's destination and heartbeat rate
+POLL_PERIOD_S = 0.25
 
 
 class OffboardError(RuntimeError):
@@ -133,6 +135,7 @@ class VehicleLink:
         self.mission_items: list[mav.MissionItem] | None = None
         self.mission_rev = 0
         self._mission_q: queue.Queue[Any] = queue.Queue()
+        self._mission_changed = threading.Event()
         self._stop = threading.Event()
         self._threads = [
             threading.Thread(target=vehicle_thread(self._read), name="mav-reader", daemon=True),
@@ -155,6 +158,7 @@ class VehicleLink:
             stats = dict(self.stream.close())
             log.info("setpoint stream closed", extra=fields(**stats))
         self._stop.set()
+        self._mission_changed.set()
         for th in self._threads:
             if th.is_alive():
                 th.join(1.0)
@@ -239,6 +243,8 @@ class VehicleLink:
             self._hb_period = period
             self.stream.heartbeat(period, m.MAV_TYPE_ONBOARD_CONTROLLER, m.MAV_AUTOPILOT_INVALID,
                                   m.MAV_STATE_ACTIVE)
+        if self._dests and not getattr(self.conn, "udp_server", True):
+            return  # a fixed destination, resolved once
         dests = _destinations(self.conn)
         if dests != self._dests:
             self._dests = dests
@@ -265,7 +271,7 @@ class VehicleLink:
                     sp = self.setpoint
                 if sp is not None:
                     self._send_target(*sp)
-            self._stop.wait(self.period_s if self.stream is None else 0.1)
+            self._stop.wait(self.period_s if self.stream is None else POLL_PERIOD_S)
 
     def command(self, cmd: int, *params: float, stop: threading.Event | None = None) -> int:
         """COMMAND_LONG, re-sent (``confirmation`` + 1) until a COMMAND_ACK arrives; the result,
@@ -393,6 +399,8 @@ class VehicleLink:
             self.last_text = str(msg.text)[:50]
         elif kind == "PARAM_VALUE" and msg.param_id == "MIS_ID":
             self.mission_id_seen = float(msg.param_value)
+            if self.mission_id_seen != self.mission_id_loaded:
+                self._mission_changed.set()
         elif kind in ("MISSION_COUNT", "MISSION_ITEM_INT", "MISSION_ACK"):
             self._mission_q.put(msg)
 
@@ -452,7 +460,9 @@ class VehicleLink:
         return items
 
     def _watch_mission(self) -> None:
-        while not self._stop.wait(0.05):
+        while not self._stop.is_set():
+            self._mission_changed.wait(1.0)  # set by the reader when MIS_ID is heard
+            self._mission_changed.clear()
             seen = self.mission_id_seen
             if seen is None or seen == self.mission_id_loaded:
                 continue
