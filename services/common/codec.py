@@ -413,8 +413,9 @@ def check_state_values(x: Array, what: str = "state") -> Array:
     x = np.asarray(x, dtype=float)
     if x.shape != (4,):
         raise invalid(f"{what} must have 4 entries, got shape {x.shape}", Reason.SIZE)
-    _finite(x[:2], f"{what} position", MAX_ABS_M)
-    _finite(x[2:], f"{what} velocity", MAX_SPEED_MPS)
+    e, n, ve, vn = x.tolist()  # plain floats: checked at 10 Hz per vehicle, both ways
+    _check_floats([e, n], f"{what} position", MAX_ABS_M)
+    _check_floats([ve, vn], f"{what} velocity", MAX_SPEED_MPS)
     return x
 
 

@@ -115,6 +115,9 @@ class Endpoint:
         self.controller_heard = 0.0
         self.addr: Any = None  # the address of the datagram being handled
         self.rx_time: float | None = None  # when it arrived (monotonic s), if the kernel said
+        #: the last setpoint checked and accepted ((link, peer, payload), target): its repeats
+        #: (the ≥ 10 Hz stream) are not decoded and checked again; a parameter change clears it
+        self.repeat: tuple[Any, Any] | None = None
         self.fault = ""  # a storage fault to report (STATUSTEXT) from the loop
         self.commands = Commands(self)
         self.home_local = (float(vehicle.state[0]), float(vehicle.state[1]))
@@ -397,21 +400,17 @@ class Endpoint:
     def on_setpoint(self, link: str, msg: Any, now: float) -> bool:
         """A setpoint that is not finite, far outside the area or due too far ahead is refused:
         the vehicle keeps its last target (or holds) and the stream is not kept alive."""
-        lead = (None if self.realtime is not None  # real time: the client's stamp is not a clock
-                else int(msg.time_boot_ms) - self.vehicle.time_ms)
-        if lead is not None and lead > self.p("COM_SP_LEAD_S") * 1000:  # never moves the clock
-            self.reject(link, codec.invalid(
-                f"setpoint due {lead / 1000:.6g} s after the vehicle's clock (more than one step,"
-                f" COM_SP_LEAD_S = {self.p('COM_SP_LEAD_S'):g} s)", codec.Reason.OUT_OF_RANGE),
-                "setpoint")
-            return False
-        try:
-            target = codec.setpoint_from_mavlink(normalised(msg), self.area_size_m, lead)
-        except codec.CodecError as err:
-            self.reject(link, err, "setpoint")
-            return False
-        if not self.may_control(link, msg, now):  # checked once the setpoint itself is valid
-            return False
+        peer = (self.addr, msg.get_srcSystem(), msg.get_srcComponent())
+        key = (link, peer, bytes(msg.get_payload()))
+        if (self.repeat is not None and self.repeat[0] == key and link == self.control_link
+                and peer == self.controller):
+            target = self.repeat[1]  # the stream's repeat of a setpoint already checked
+            self.controller_heard = now
+        else:
+            target = self.check_setpoint(link, msg, now)
+            if target is None:
+                return False
+            self.repeat = (key, target)
         if now - self.last_setpoint > self.p("COM_OF_LOSS_T"):
             self.stream_since = now  # a new stream starts
         self.stream_stats.setpoint(now, self.mode == fl.OFFBOARD or self.failsafe)
@@ -424,6 +423,26 @@ class Endpoint:
         elif self.vehicle.apply(target, int(msg.time_boot_ms)):
             self.after_step()
         return True
+
+    def check_setpoint(self, link: str, msg: Any, now: float) -> Any:
+        """The setpoint's target, or None after counting why it was refused (too far ahead,
+        not valid, not from the link and peer in control)."""
+        lead = (None if self.realtime is not None  # real time: the client's stamp is not a clock
+                else int(msg.time_boot_ms) - self.vehicle.time_ms)
+        if lead is not None and lead > self.p("COM_SP_LEAD_S") * 1000:  # never moves the clock
+            self.reject(link, codec.invalid(
+                f"setpoint due {lead / 1000:.6g} s after the vehicle's clock (more than one step,"
+                f" COM_SP_LEAD_S = {self.p('COM_SP_LEAD_S'):g} s)", codec.Reason.OUT_OF_RANGE),
+                "setpoint")
+            return None
+        try:
+            target = codec.setpoint_from_mavlink(normalised(msg), self.area_size_m, lead)
+        except codec.CodecError as err:
+            self.reject(link, err, "setpoint")
+            return None
+        if not self.may_control(link, msg, now):  # checked once the setpoint itself is valid
+            return None
+        return target
 
     def fly_realtime(self, now: float) -> None:
         """Real-time clock: one Eq. (1) step per ΔT towards the newest setpoint (offboard)."""

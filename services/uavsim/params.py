@@ -80,6 +80,7 @@ def param_set(ep: Endpoint, link: str, msg: Any) -> bool:
         ep.param_value(link, name)  # the unchanged value tells the GCS it was refused
         return False
     param.value = value
+    ep.repeat = None  # a setpoint accepted under the old value is checked again
     if name == "MPC_XY_VEL_MAX":
         ep.vehicle.set_limits(v_max_mps=value)
     elif name == "SIM_U_MAX_N":
