@@ -31,6 +31,7 @@ from dualpilot.mission.params import Controller, Timing
 from dualpilot.model.geometry import Rect
 from dualpilot.readings import PROFILES, get_profile
 from dualpilot.spec import MissionSpec
+from dualpilot.warmup import warm_up
 from services.common import bus, codec, fleet, keys, mav
 from services.common import cli as common_cli
 from services.common.clock import SimClock
@@ -294,6 +295,9 @@ def main(argv: list[str] | None = None) -> int:
             link.close()
 
     def serve(ctx: bus.Context) -> None:
+        # the compiled kernels the step's checks use (hulls, the monitor), loaded before the
+        # first mission: else the step that meets the first fire waits for them
+        warm_up()
         try:
             fleet.for_each(ctx, uavs, body)
         finally:
