@@ -631,6 +631,8 @@ def run_service(settings: Settings, body: Body, zenoh_session: bool = True) -> i
     finished :data:`STOP_GRACE_S` after a signal the process exits anyway.
     """
     logsetup.configure(settings.service, settings.uav_id, settings.log_level, settings.log_format)
+    if settings.nice:
+        os.nice(settings.nice)  # lowering one's own priority needs no privilege
     # A thread woken by I/O (a Zenoh reply, a MAVLink frame) waits for the GIL up to the
     # switch interval while another thread runs Python: 5 ms by default, the whole latency
     # budget of a tick. Services are I/O-bound around their one compute thread.

@@ -14,6 +14,8 @@ flag               environment         default
 --mavlink-url      MAVLINK_URL         per service (supervisor, uavsim)
 --log-level        LOG_LEVEL           INFO
 --log-format       LOG_FORMAT          json
+--nice             NICE                0 (a simulator beside the system under test:
+                                       10, so it never takes the planners' CPU)
 =================  ==================  =========================================
 """
 
@@ -45,6 +47,7 @@ class Settings:
     log_level: str
     log_format: str
     tls_dir: str = ""  # ZENOH_TLS_DIR: certificates of services.certs; "" is plain TCP
+    nice: int = 0  # added to the process's nice value at start (0..19: lower priority only)
 
 
 def _endpoints(text: str) -> tuple[str, ...]:
@@ -73,6 +76,9 @@ def parser(service: str, description: str, mavlink_default: str = "") -> argpars
     g.add_argument("--log-level", default=env("LOG_LEVEL", "INFO"), help="[LOG_LEVEL]")
     g.add_argument("--log-format", default=env("LOG_FORMAT", "json"), choices=["json", "text"],
                    help="[LOG_FORMAT]")
+    g.add_argument("--nice", type=int, default=env("NICE", "0"),
+                   help="lower this process's priority by this much, 0..19 (a simulated vehicle "
+                        "sharing a machine with the planners it tests) [NICE]")
     return p
 
 
@@ -82,6 +88,8 @@ def settings(service: str, args: argparse.Namespace) -> Settings:
     listen = _endpoints(args.zenoh_listen)
     if args.zenoh_mode == "client" and not connect:
         raise ValueError("a Zenoh client needs --zenoh-connect")
+    if not 0 <= args.nice <= 19:
+        raise ValueError(f"--nice must be in 0..19, got {args.nice}")
     return Settings(
         service=service,
         uav_id=keys.check_id(args.uav_id),
@@ -93,4 +101,5 @@ def settings(service: str, args: argparse.Namespace) -> Settings:
         log_level=args.log_level,
         log_format=args.log_format,
         tls_dir=getattr(args, "zenoh_tls_dir", ""),
+        nice=args.nice,
     )

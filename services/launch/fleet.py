@@ -130,7 +130,9 @@ class Fleet:
                   "TLOG_PATH": str(out / "{uav}" / "vehicle.tlog"),
                   "STREAM_STATS_PATH": str(out / "{uav}" / "stream.json"),
                   "MAV_SYSID": "1", **(env or {})}
-        own = {"uavsim": {"MAVLINK_URL": f"udpin:127.0.0.1:{base}", "GCS_URL": ""},
+        # the simulated vehicles yield the CPU to the system under test (planners, supervisor)
+        own = {"uavsim": {"MAVLINK_URL": f"udpin:127.0.0.1:{base}", "GCS_URL": "",
+                          "NICE": "10"},
                "supervisor": {"MAVLINK_URL": f"udpout:127.0.0.1:{base}"}}
         host = f"host-{uav_ids[0]}"
         procs = []
