@@ -130,9 +130,7 @@ class Fleet:
                   "TLOG_PATH": str(out / "{uav}" / "vehicle.tlog"),
                   "STREAM_STATS_PATH": str(out / "{uav}" / "stream.json"),
                   "MAV_SYSID": "1", **(env or {})}
-        # the simulated vehicles yield the CPU to the system under test (planners, supervisor)
-        own = {"uavsim": {"MAVLINK_URL": f"udpin:127.0.0.1:{base}", "GCS_URL": "",
-                          "NICE": "10"},
+        own = {"uavsim": {"MAVLINK_URL": f"udpin:127.0.0.1:{base}", "GCS_URL": ""},
                "supervisor": {"MAVLINK_URL": f"udpout:127.0.0.1:{base}"}}
         host = f"host-{uav_ids[0]}"
         procs = []
