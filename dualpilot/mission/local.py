@@ -12,10 +12,10 @@ from dualpilot.mission.ports import KeepOut, PlanRequest
 from dualpilot.mission.step import Mission
 from dualpilot.model.dynamics import Array, DynamicsParams, hover_state, step
 from dualpilot.model.fire import FireField, FireParams, FireSnapshot
-from dualpilot.model.forecast import ForecastParams, OccupancyForecast, forecast
+from dualpilot.model.forecast import ForecastParams, OccupancyForecast, field_forecast
 from dualpilot.model.geometry import Rect
 from dualpilot.plan import ForecastPlanner, Plan, Planner, PlanStatus
-from dualpilot.spec import MissionSpec, Stream, forecast_rng
+from dualpilot.spec import MissionSpec, Stream
 from dualpilot.supervisor.concurrent import ConcurrentParams
 from dualpilot.supervisor.decision import SupervisorParams
 
@@ -42,20 +42,16 @@ class LocalFires:
         return 0.0  # the fire process itself: never stale
 
     def forecast(self, substeps_per_step: int) -> OccupancyForecast | None:
-        """The forecast from the current state, on its own stream (seed, sub-steps done);
-        kept until the fires advance. None for a fire process other than the paper's
-        rectangles (a physics scenario's field), whose model the forecast is."""
+        """The forecast from the current state (the paper's fronts: on its own stream, from the
+        seed and the sub-steps done; a physics scenario: its level set run ahead), kept until
+        the fires advance."""
         f = self.field
-        if getattr(f, "physics", None) is not None:
-            return None
         n = substeps_per_step if f.params.life_base == "step" else 1
         key = (f.substeps_done, n)
         got = self._forecasts.get(key)
         if got is None:
             self._forecasts = {k: v for k, v in self._forecasts.items() if k[0] == key[0]}
-            rng = forecast_rng(self.seed, f.substeps_done) if f.fronts else None
-            got = forecast(f.fronts, f.params, f.area_size_m, rng, self.forecast_params,
-                           substeps_per_step=n, issued_substep=f.substeps_done)
+            got = field_forecast(f, self.forecast_params, self.seed, n)
             self._forecasts[key] = got
         return got
 

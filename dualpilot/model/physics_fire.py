@@ -28,6 +28,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Sequence
+from typing import cast
 
 import numpy as np
 from scipy import ndimage
@@ -184,6 +185,9 @@ class PhysicsFire:
         self.fronts: list[FireFront] = []
         self.extinct_hulls: list[Polytope] = []
         self.births_skipped = 0
+        #: the forecast's copy of the level set run ahead, kept between issues
+        #: (dualpilot/model/physics_forecast.py); it never touches this process
+        self.run_ahead: object | None = None
 
     # -- the level set --------------------------------------------------------------------------
     def _new_state(self, start_min: float) -> object:
@@ -206,24 +210,37 @@ class PhysicsFire:
         if lag_min * 60.0 <= RUN_THRESHOLD_S + 1e-9:
             return
         p = self.physics
+        if p.spotting is None:
+            self.run(self.state, lag_min)
+            return
+        s = p.spotting
+        out = self.run(self.state, lag_min, self.spots, {
+            "random_seed": int(rng.integers(2**63)),
+            "firebrands_per_unit_heat": s.firebrands_per_unit_heat,
+            "downwind_distance_mean": s.downwind_distance_mean_m,
+            "fireline_intensity_exponent": s.fireline_intensity_exponent,
+            "wind_speed_exponent": s.wind_speed_exponent,
+            "downwind_variance_mean_ratio": s.downwind_variance_mean_ratio_m,
+            "crosswind_distance_stdev": s.crosswind_distance_stdev_m,
+            "decay_distance": s.decay_distance_m})
+        self.spots = self._retimed(cast(dict[float, set[object]], out["spot_ignitions"]),
+                                   s.build_up_s)
+
+    def run(self, state: object, lag_min: float, spots: dict[float, set[object]] | None = None,
+            spot_config: dict[str, object] | None = None) -> dict[str, object]:
+        """One pyretechnics run of ``state`` for ``lag_min`` minutes from its own time (the
+        firebrands ``spots`` in flight ignite when due; ``spot_config`` casts new ones)."""
+        p = self.physics
         extra: dict[str, object] = {}
-        if p.spotting is not None:
-            s = p.spotting
-            extra = {"spot_ignitions": dict(self.spots), "spot_config": {
-                "random_seed": int(rng.integers(2**63)),
-                "firebrands_per_unit_heat": s.firebrands_per_unit_heat,
-                "downwind_distance_mean": s.downwind_distance_mean_m,
-                "fireline_intensity_exponent": s.fireline_intensity_exponent,
-                "wind_speed_exponent": s.wind_speed_exponent,
-                "downwind_variance_mean_ratio": s.downwind_variance_mean_ratio_m,
-                "crosswind_distance_stdev": s.crosswind_distance_stdev_m,
-                "decay_distance": s.decay_distance_m}}
-        out = self._els.spread_fire_with_phi_field(
-            self._cubes, self.state, self._res, float(self.state.get_simulation_time()),  # type: ignore
+        if spots is not None:
+            extra["spot_ignitions"] = dict(spots)
+        if spot_config is not None:
+            extra["spot_config"] = spot_config
+        out: dict[str, object] = self._els.spread_fire_with_phi_field(
+            self._cubes, state, self._res, float(state.get_simulation_time()),  # type: ignore
             lag_min, max_cells_per_timestep=p.max_cells_per_timestep,
             surface_lw_ratio_model=p.lw_ratio_model, **extra)
-        if p.spotting is not None:
-            self.spots = self._retimed(out["spot_ignitions"], p.spotting.build_up_s)
+        return out
 
     def _retimed(self, pending: dict[float, set[object]],
                  build_up_s: float) -> dict[float, set[object]]:

@@ -16,8 +16,9 @@
   the occupancy forecast (P(a point is inside a fire region) on a grid, for the
   next ``--occupancy-horizon-s``; dualpilot/model/forecast.py) and
   the mean-motion forecast of each front over ``--forecast-horizon-s``
-  (services/ews/forecast.py); it is the paper model's, so a scenario's fronts get
-  none (horizon 0).
+  (services/ews/forecast.py). The mean motion is the paper model's, so a scenario's
+  fronts get none (horizon 0); the occupancy grid is the scenario's level set run
+  ahead (dualpilot/model/physics_forecast.py).
 
 Bad commands get an error reply (dualpilot.v1.Error), never a crash; each is
 counted per key and reason in the status served on ``<ns>/status/ews``
@@ -40,9 +41,9 @@ import numpy as np
 import zenoh
 
 from dualpilot.model.fire import FireField, FireParams
-from dualpilot.model.forecast import ForecastParams, forecast
+from dualpilot.model.forecast import ForecastParams, field_forecast
 from dualpilot.readings import PROFILES, get_profile
-from dualpilot.spec import Stream, forecast_rng, stream_rng
+from dualpilot.spec import Stream, stream_rng
 from services.common import bus, codec, fleet, keys
 from services.common import cli as common_cli
 from services.common.log import fields
@@ -154,15 +155,13 @@ class Ews:
         bus.put(self.forecast_pub, "", m)
 
     def add_occupancy(self, m: fire_pb2.FireForecast) -> None:
-        """The occupancy forecast into ``m`` (dualpilot/model/forecast.py, its own stream from
-        the mission seed and the sub-steps done), time-steps as long as the latest one. None
-        for a fire process other than the paper's rectangles, whose model it is."""
+        """The occupancy forecast into ``m`` (the in-process fire port's: the paper's fronts on
+        their own stream from the mission seed and the sub-steps done, or a scenario's level set
+        run ahead; dualpilot/model/forecast.py), time-steps as long as the latest one."""
         f = self.field
-        if self.occupancy is None or f is None or getattr(f, "physics", None) is not None:
+        if self.occupancy is None or f is None:
             return
-        fc = forecast(f.fronts, f.params, f.area_size_m, forecast_rng(self.seed, f.substeps_done),
-                      self.occupancy, substeps_per_step=max(1, self.step_substeps),
-                      issued_substep=f.substeps_done)
+        fc = field_forecast(f, self.occupancy, self.seed, max(1, self.step_substeps))
         codec.occupancy_to_msg(fc, m.occupancy)
 
 

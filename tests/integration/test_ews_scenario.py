@@ -3,19 +3,23 @@
 The reset names the fire process (FireReset.scenario, sent by
 codec.fire_readings_to_msg from FireParams.scenario); an EWS started with
 ``FIRE_SCENARIO`` runs that scenario when a reset names none; an unknown name
-gets an error reply.
+gets an error reply; the occupancy forecast it publishes is the in-process one.
 """
 
 from __future__ import annotations
 
+import queue
+import time
 from typing import Any
 
 import numpy as np
 import pytest
 
+from dualpilot.mission.local import LocalFires
 from dualpilot.model.fire import FireField, FireParams
+from dualpilot.model.forecast import LEVELS
 from dualpilot.model.scenarios import SCENARIOS
-from dualpilot.spec import Stream, stream_rng
+from dualpilot.spec import MissionSpec, Stream, stream_rng
 from services.common import bus, codec, keys
 from services.msgs import fire_pb2
 
@@ -76,6 +80,46 @@ def test_each_scenario_runs_on_the_ews_sub_step_for_sub_step(ews: Any, session: 
     fire = FireParams(scenario=name)
     assert _replay(session, ews.uav, f"scenario-{name}", 26, fire, fire) == sum(
         n for _, n in ADVANCES)
+
+
+def test_a_scenario_forecast_is_the_in_process_fire_ports_byte_for_byte(
+        ews: Any, session: Any) -> None:
+    """After every command the EWS publishes the scenario's occupancy forecast (its level set
+    run ahead, dualpilot/model/physics_forecast.py): the grid the in-process fire port gives
+    from the same fire state, serialised byte for byte."""
+    got: queue.Queue[fire_pb2.FireForecast] = queue.Queue()
+    sub = session.declare_subscriber(keys.forecast(ews.uav), lambda s: got.put(
+        fire_pb2.FireForecast.FromString(s.payload.to_bytes())))
+    fire = FireParams(scenario="grass-15")
+    seed = 26
+    _replay(session, ews.uav, "scenario-forecast", seed, fire, fire)
+    local = LocalFires(MissionSpec(seed=seed), fire)
+    keep = (UAV_POS, 20.0)
+    want: list[bytes] = [_grid(local, 1)]  # after the reset
+    for t, n in ADVANCES:
+        local.advance(t, n, keep)
+        want.append(_grid(local, n))
+    seen: list[fire_pb2.FireForecast] = []
+    deadline = time.monotonic() + 30
+    while len(seen) < len(want) and time.monotonic() < deadline:
+        try:
+            seen.append(got.get(timeout=0.5))
+        except queue.Empty:
+            continue
+    sub.undeclare()
+    assert [m.substeps_done for m in seen] == [0, *np.cumsum([n for _, n in ADVANCES])]
+    assert [m.occupancy.SerializeToString() for m in seen] == want
+    last = codec.occupancy_from_msg(seen[-1])
+    assert last is not None and last.horizons[-1] == 80 and seen[-1].occupancy.horizon_s == 40.0
+    burning = (last.level(0) == LEVELS).sum()
+    assert 0 < burning < (last.level(len(last.horizons) - 1) == LEVELS).sum(), (
+        "the fires should burn and grow over the horizon")
+
+
+def _grid(local: LocalFires, n: int) -> bytes:
+    fc = local.forecast(n)
+    assert fc is not None
+    return codec.occupancy_to_msg(fc, fire_pb2.OccupancyGrid()).SerializeToString()
 
 
 def test_a_reset_naming_no_scenario_runs_the_ews_own(services: Any, session: Any) -> None:
