@@ -2,9 +2,11 @@
 
 Flies ``--missions`` missions of each ``--runs`` entry PROFILE:CONTROLLER in
 this process (configurations (S, i) of ``--seed`` S, which no test or tuning
-run flew: they used seed 0) at paper timing. At each step, once the supervisor has
+run flew: they used seed 0) at paper timing, on ``--scenario``'s fire process.
+At each step, once the supervisor has
 chosen the system, the fire port's forecast is issued from the step's fire
-state (dualpilot/model/forecast.py, time-steps as the chosen system's); the
+state (dualpilot/model/forecast.py, or a scenario's level set run ahead,
+dualpilot/model/physics_forecast.py; time-steps as the chosen system's); the
 truth is the fire process itself, every sub-step, run on past the mission's end
 until every forecast's horizon has passed. For each horizon h (5, 10, 30 s) and
 every cell centre of the grid:
@@ -15,10 +17,11 @@ every cell centre of the grid:
 * reliability: the observed frequency of o = 1 per bin of p.
 
 Prints a markdown table, writes the numbers as JSON and the reliability diagram
-(default ``docs/figures/forecast_reliability.png``).
+(default ``docs/figures/forecast_reliability.png``; for a scenario
+``docs/figures/forecast_reliability_<scenario>.png``).
 
     .venv/bin/python benchmarks/forecast_skill.py [--missions 50] [--seed 1000]
-        [--runs today:cc,fig-r5:cc,fig-r5:s2]
+        [--runs today:cc,fig-r5:cc,fig-r5:s2] [--scenario paper|grass-15|shrub|...]
 """
 
 from __future__ import annotations
@@ -36,7 +39,8 @@ from dualpilot.mission.params import controller_of
 from dualpilot.mission.result import StepRecord
 from dualpilot.model.forecast import LEVELS, OccupancyForecast, occupancy
 from dualpilot.model.geometry import Rect
-from dualpilot.readings import get_profile
+from dualpilot.model.scenarios import PAPER, scenario_names
+from dualpilot.readings import Profile, get_profile
 from dualpilot.supervisor.decision import Decision
 from dualpilot.sweep import mission_spec
 
@@ -91,9 +95,15 @@ class Recorder:
     def ended(self, record: StepRecord, success: bool, cause: str) -> None: ...
 
 
-def fly(profile: str, index: int, seed: int, controller: str,
-        ks: tuple[int, ...]) -> Recorder:
+def reading_of(profile: str, scenario: str) -> Profile:
+    """The profile's readings with ``scenario``'s fire process."""
     reading = get_profile(profile)
+    return reading if scenario == PAPER else reading.with_settings({"scenario": scenario})
+
+
+def fly(profile: str, index: int, seed: int, controller: str,
+        ks: tuple[int, ...], scenario: str = PAPER) -> Recorder:
+    reading = reading_of(profile, scenario)
     spec = reading.spec(mission_spec(seed, index))
     ctrl, supervisor = controller_of(controller)
     mission = local_mission(ctrl, spec, params=reading.mission, fire_params=reading.fire,
@@ -151,7 +161,8 @@ def score(recs: list[Recorder], ks: tuple[int, ...]) -> dict[str, Any]:
     return out
 
 
-def plot(results: dict[str, dict[str, Any]], substep_s: float, path: Path) -> None:
+def plot(results: dict[str, dict[str, Any]], substep_s: float, path: Path,
+         scenario: str = PAPER) -> None:
     import matplotlib
 
     matplotlib.use("Agg")
@@ -182,8 +193,9 @@ def plot(results: dict[str, dict[str, Any]], substep_s: float, path: Path) -> No
         hist.set(xlim=(0, 1), xlabel="forecast probability", ylabel="cells (log)")
         hist.grid(alpha=0.3)
         hist.legend(fontsize=7.5)
-    fig.suptitle("Occupancy forecast, held-out missions: reliability 5, 10 and 30 s ahead "
-                 "(bins of ≥ 50 cells)", fontsize=10)
+    what = "" if scenario == PAPER else f" on {scenario} (level set run ahead)"
+    fig.suptitle(f"Occupancy forecast{what}, held-out missions: reliability 5, 10 and 30 s "
+                 "ahead (bins of ≥ 50 cells)", fontsize=10)
     fig.tight_layout()
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=120)
@@ -196,9 +208,16 @@ def main() -> None:
     ap.add_argument("--seed", type=int, default=1000, help="configurations (S, i) of this S")
     ap.add_argument("--runs", default="today:cc,fig-r5:cc,fig-r5:s2",
                     help="PROFILE:CONTROLLER,... (controllers cc, s1, s2, concurrent)")
-    ap.add_argument("--figure", type=Path, default=Path("docs/figures/forecast_reliability.png"))
-    ap.add_argument("--json", type=Path, default=Path("runs/forecast_skill.json"))
+    ap.add_argument("--scenario", default=PAPER, choices=scenario_names(),
+                    help="the fire process (default: the paper's rectangles)")
+    ap.add_argument("--figure", type=Path, default=None,
+                    help="default docs/figures/forecast_reliability[_SCENARIO].png")
+    ap.add_argument("--json", type=Path, default=None,
+                    help="default runs/forecast_skill[_SCENARIO].json")
     args = ap.parse_args()
+    tail = "" if args.scenario == PAPER else f"_{args.scenario}"
+    args.figure = args.figure or Path(f"docs/figures/forecast_reliability{tail}.png")
+    args.json = args.json or Path(f"runs/forecast_skill{tail}.json")
     t0 = time.perf_counter()
     results: dict[str, dict[str, Any]] = {}
     substep_s = 0.5
@@ -206,9 +225,11 @@ def main() -> None:
         prof, _, controller = run.partition(":")
         substep_s = get_profile(prof).fire.substep_s
         ks = tuple(round(h / substep_s) for h in HORIZONS_S)
-        recs = [fly(prof, i, args.seed, controller or "cc", ks) for i in range(args.missions)]
+        recs = [fly(prof, i, args.seed, controller or "cc", ks, args.scenario)
+                for i in range(args.missions)]
         results[f"{prof}, {controller or 'cc'}"] = score(recs, ks)
-    print(f"{args.missions} missions a run, seed {args.seed}, paper timing; "
+    print(f"{args.missions} missions a run, seed {args.seed}, scenario {args.scenario}, "
+          f"paper timing; "
           f"{time.perf_counter() - t0:.0f} s\n")
     print("| profile, controller | horizon | forecasts | Brier forecast | Brier persistence | BSS "
           "| BSS median per mission |")
@@ -221,9 +242,9 @@ def main() -> None:
                   f"{'' if med is None else f'{med:.3f}'} |")
     args.json.parent.mkdir(parents=True, exist_ok=True)
     args.json.write_text(json.dumps({"missions": args.missions, "seed": args.seed,
-                                     "results": results},
+                                     "scenario": args.scenario, "results": results},
                                     indent=1) + "\n")
-    plot(results, substep_s, args.figure)
+    plot(results, substep_s, args.figure, args.scenario)
     print(f"\n{args.json}, {args.figure}")
 
 
