@@ -13,7 +13,9 @@ area is placed k·(A + 100 m) east of the first in the ``world`` frame.
 
 The Zenoh callbacks only enqueue; one loop decodes and logs. Of the fire
 states and forecasts waiting in one pass only each vehicle's newest is drawn,
-so a viewer that falls behind skips frames instead of queueing them.
+so a viewer that falls behind skips frames instead of queueing them; a skipped
+frame is still checked (a bad one counted as rejected); the frames skipped are
+logged when the viewer stops.
 """
 
 from __future__ import annotations
@@ -75,8 +77,9 @@ class Viewer:
             log.info("vehicle seen", extra=fields(uav=uav, vehicles=len(self.vehicles)))
         return v
 
-    def handle(self, item: bus.Received) -> None:
-        """Decode ``item`` (counted and logged when rejected) and draw it."""
+    def handle(self, item: bus.Received, draw: bool = True) -> None:
+        """Decode ``item`` (counted and logged when rejected) and draw it (a fire state or
+        forecast only when ``draw``: an older frame of one pass is checked, not drawn)."""
         try:
             uav = keys.vehicle_of(item.key)
         except ValueError as err:
@@ -111,13 +114,13 @@ class Viewer:
             fs = bus.accept(item, fire_pb2.FireState,
                             lambda m: (codec.snapshot_from_msg(m), log_time_ns(m.header)),
                             key=item.key, logger=log)
-            if fs is not None:
+            if fs is not None and draw:
                 self._for(uav).fires(*fs)
         elif kind == "ews/forecast":
             fc = bus.accept(item, fire_pb2.FireForecast,
                             lambda m: (codec.occupancy_from_msg(m), log_time_ns(m.header)),
                             key=item.key, logger=log)
-            if fc is not None and fc[0] is not None:
+            if fc is not None and fc[0] is not None and draw:
                 self._for(uav).forecast(fc[0], fc[1])
 
     def _for(self, uav: str) -> LiveVehicle:
@@ -125,23 +128,21 @@ class Viewer:
         return known if known is not None else self.vehicle(uav, MissionSpec().area_size_m)
 
 
-def batch(inbox: bus.Inbox, first: bus.Received) -> list[bus.Received]:
-    """``first`` and what else waits in ``inbox`` (at most :data:`BATCH`), each vehicle's fire
-    states and forecasts cut to the newest."""
+def batch(inbox: bus.Inbox, first: bus.Received) -> list[tuple[bus.Received, bool]]:
+    """``first`` and what else waits in ``inbox`` (at most :data:`BATCH`), each with whether to
+    draw it: of each vehicle's fire states and forecasts only the newest is drawn."""
     items = [first]
     while len(items) < BATCH:
         nxt = inbox.get(timeout=0)
         if nxt is None:
             break
         items.append(nxt)
-    newest: dict[tuple[str, str], int] = {}
+    newest: dict[str, int] = {}
     for i, it in enumerate(items):
-        kind = next((k for k in LATEST_ONLY if it.key.endswith("/" + k)), None)
-        if kind is not None:
-            newest[(it.key, kind)] = i
+        if any(it.key.endswith("/" + k) for k in LATEST_ONLY):
+            newest[it.key] = i
     keep = set(newest.values())
-    return [it for i, it in enumerate(items)
-            if i in keep or not any(it.key.endswith("/" + k) for k in LATEST_ONLY)]
+    return [(it, i in keep or it.key not in newest) for i, it in enumerate(items)]
 
 
 def body(ctx: bus.Context, host: str, port: int) -> None:
@@ -157,20 +158,23 @@ def body(ctx: bus.Context, host: str, port: int) -> None:
     subs = [ctx.session.declare_subscriber(keys.every_vehicle(fn), inbox.on_sample)
             for fn in KINDS.values()]
     ctx.announce()
+    skipped = 0
     try:
         while not ctx.stop.is_set():
             first = inbox.get(timeout=0.2)
             if first is None:
                 continue
-            for item in batch(inbox, first):
+            for item, draw in batch(inbox, first):
+                skipped += not draw
                 try:
-                    viewer.handle(item)
+                    viewer.handle(item, draw)
                 except Exception:  # a bug in drawing one message must not stop the view
                     log.exception("could not draw a message", extra=fields(key=item.key))
     finally:
         for sub in subs:
             sub.undeclare()
         server.stop()
+        log.info("live view stopped", extra=fields(frames_skipped=skipped))
 
 
 def main(argv: list[str] | None = None) -> int:
