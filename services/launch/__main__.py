@@ -127,6 +127,9 @@ def run_fleet(cfg: StackConfig, n: int, timeout_s: float, compose: Path) -> int:
     with Fleet(replace(cfg, run_dir=cfg.run_dir / "shared"), uavs, compose) as fleet:
         print(f"fleet: {n} vehicles, router {fleet.endpoint}, replicas "
               f"{cfg.scale or 'one of each'}; records in {cfg.run_dir}/<uav>/", flush=True)
+        if fleet.stack.viewer_url():
+            print(f"live view: {fleet.stack.viewer_url()} (every vehicle side by side)",
+                  flush=True)
         vehicles = fleet.start_hosted(uavs, [cfg.seed + k for k in range(n)], cfg.run_dir,
                                       env=env, tag=cfg.mission_id or cfg.run_dir.name)
         outcomes = fleet.wait_end({v.uav_id: v.mission_id for v in vehicles}, timeout_s)

@@ -55,7 +55,8 @@ class Fleet:
         extra = {name: {"UAV_IDS": ids, **cfg.extra_env.get(name, {})}
                  for name in SHARED_SERVICES}
         self.cfg = cfg
-        self.stack = Stack(replace(cfg, services=SHARED_SERVICES, uav_id=uav_ids[0],
+        viewer = ("viewer",) if "viewer" in cfg.profiles else ()  # the live view: every vehicle
+        self.stack = Stack(replace(cfg, services=SHARED_SERVICES + viewer, uav_id=uav_ids[0],
                                    extra_env={**cfg.extra_env, **extra}), compose)
         self.uav_ids = list(uav_ids)
         self.vehicles: dict[str, Vehicle] = {}
