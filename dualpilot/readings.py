@@ -153,7 +153,8 @@ _TODAY = Profile(
         "Sec. IV: 'check whether the distance between the propagated firefronts and the agent's "
         "idle position ... has dropped below d_safe' — read as: any active region.",
         "Sec. III-C: 'the location of the nearest firefront' → d_t to the nearest active "
-        "region (ARCHITECTURE.md §9: a birth-step-only d_t makes ξ₁ a one-step spike).",
+        "region (a birth-step-only d_t makes ξ₁ a one-step spike, against Fig. r1(g), where "
+        "ξ₁ stays high for about 20 steps).",
         "Sec. IV-A: 'The UAV agent can reach a maximum velocity of 15m/s, utilizing an input "
         "control force in the range of [-7.5,7.5]N' — read like the force, per axis: "
         "speed_limit = axis (≈ 21.2 m/s on a diagonal).",
@@ -208,7 +209,7 @@ _FIG_R5 = Profile(
         "ignition_clearance_m = d_safe.",
         "Sec. IV: 'approximately 40% of the missions using System 2 ..., compared to around 95% "
         "with System 1 ... CC ... around 90%' — the target; this profile comes closest on S1 "
-        "and CC, no reading found brings S2 down to 40 % with S1 at 95 % (README, Fig. r5).",
+        "and CC, no reading found brings S2 down to 40 % with S1 at 95 % (docs/results.md).",
     ),
 )
 
