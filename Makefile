@@ -18,7 +18,7 @@ TLS ?=
 CERTS ?=
 TLS_FLAGS := $(if $(TLS),$(if $(CERTS),--tls-dir $(CERTS),--tls))
 
-.PHONY: setup run certs mission proto test test-fast lint bench figures clean compose-check
+.PHONY: setup run certs mission proto test test-fast lint bench docs figures clean compose-check
 
 setup: $(STAMP)
 
@@ -64,10 +64,14 @@ bench: setup
 	$(BIN)/dualpilot bench system1 --out runs/bench
 	$(BIN)/dualpilot bench system2 --instances 20 --reference-timeout 30 --out runs/bench
 
+# the documentation site (mkdocs.yml, docs/) into site/; --strict: a broken link fails it
+docs: setup
+	$(BIN)/mkdocs build --strict --site-dir site
+
 # `docker compose up` for real (root; installs docker.io/docker-compose/debootstrap, starts and
 # stops its own dockerd, builds a debootstrap base, flies one mission): scripts/compose_check.sh
 compose-check:
 	scripts/compose_check.sh
 
 clean:
-	rm -rf $(VENV) runs .pytest_cache .mypy_cache .ruff_cache *.egg-info
+	rm -rf $(VENV) runs site .pytest_cache .mypy_cache .ruff_cache *.egg-info
