@@ -15,7 +15,7 @@ import sys
 
 import numpy as np
 
-from dualpilot.evaluate import mission_spec
+from dualpilot.evaluation.missions import mission_spec
 from dualpilot.mission.local import LocalFires, local_mission
 from dualpilot.mission.params import Controller, Timing
 from dualpilot.mission.ports import KeepOut

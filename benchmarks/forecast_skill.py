@@ -34,6 +34,7 @@ from typing import Any
 
 import numpy as np
 
+from dualpilot.evaluation.missions import mission_spec
 from dualpilot.mission.local import LocalFires, local_mission
 from dualpilot.mission.params import controller_of
 from dualpilot.mission.result import StepRecord
@@ -42,7 +43,6 @@ from dualpilot.model.geometry import Rect
 from dualpilot.model.scenarios import PAPER, scenario_names
 from dualpilot.readings import Profile, get_profile
 from dualpilot.supervisor.decision import Decision
-from dualpilot.sweep import mission_spec
 
 HORIZONS_S = (5.0, 10.0, 30.0)
 #: reliability bins of the forecast probability: finer near 0, where most cells are

@@ -30,6 +30,7 @@ from typing import Any
 
 import numpy as np
 
+from dualpilot.evaluation.missions import mission_spec
 from dualpilot.mission.local import LocalFires, local_mission
 from dualpilot.mission.params import controller_of, uses_risk
 from dualpilot.mission.result import StepRecord
@@ -37,7 +38,6 @@ from dualpilot.model.physics_forecast import RunAhead
 from dualpilot.model.scenarios import PAPER, scenario_names
 from dualpilot.readings import Profile, get_profile
 from dualpilot.supervisor.decision import Decision
-from dualpilot.sweep import mission_spec
 
 
 class Forecaster:

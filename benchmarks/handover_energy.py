@@ -1,6 +1,6 @@
 """Handover smoothness of System 1: the paper's LQR ("rrt") vs the Δu-penalising LQR ("rrt+du").
 
-Each seeded instance of :func:`dualpilot.instances.make_instance` (UAV state,
+Each seeded instance of :func:`dualpilot.evaluation.instances.make_instance` (UAV state,
 hulls) is planned once by each method from the same RRT seed, with u_{t|t}
 drawn uniformly in U (|u| ≤ u_max per axis, seeded; the control a System 2
 plan may have left). Per OK plan: the first jump ‖u_0 − u_{t|t}‖² and the
@@ -17,7 +17,7 @@ import time
 
 import numpy as np
 
-from dualpilot.instances import SPEC, make_instance
+from dualpilot.evaluation.instances import SPEC, make_instance
 from dualpilot.planners import build_planner
 from dualpilot.system1.lqr import R_DELTA_U
 from dualpilot.system1.planner import System1Params

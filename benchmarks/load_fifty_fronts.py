@@ -1,8 +1,8 @@
 """Planners under load: 50 active fire fronts against 1–9, in one run.
 
-For each instance (``dualpilot.instances.make_instance``: the paper's fire
+For each instance (``dualpilot.evaluation.instances.make_instance``: the paper's fire
 process, a free UAV state), the fast System 2 and System 1 plan once; every
-OK plan is checked independently (``dualpilot.instances.check_plan``). Prints the
+OK plan is checked independently (``dualpilot.evaluation.instances.check_plan``). Prints the
 median and p95 wall time per group, the ratio of the medians, and how many
 plans were OK and verified.
 
@@ -16,7 +16,7 @@ import time
 
 import numpy as np
 
-from dualpilot.instances import SPEC, check_plan, make_instance
+from dualpilot.evaluation.instances import SPEC, check_plan, make_instance
 from dualpilot.system1.planner import System1
 from dualpilot.system2.fast.planner import FastSystem2
 from dualpilot.system2.problem import System2Params

@@ -20,14 +20,8 @@ import json
 import time
 from pathlib import Path
 
-from dualpilot.sweep import (
-    CONTROLLERS,
-    MEASURED_COLUMNS,
-    Task,
-    grid_points,
-    load_grid,
-    run_task,
-)
+from dualpilot.evaluation.missions import CONTROLLERS, MEASURED_COLUMNS, Task, run_task
+from dualpilot.evaluation.sweep import grid_points, load_grid
 from dualpilot.warmup import warm_up
 
 

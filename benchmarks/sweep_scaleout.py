@@ -17,7 +17,7 @@ from pathlib import Path
 
 from distributed import Client, LocalCluster
 
-from dualpilot.sweep import grid_points, sweep
+from dualpilot.evaluation.sweep import grid_points, sweep
 from dualpilot.warmup import warm_up
 
 

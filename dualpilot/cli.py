@@ -118,7 +118,7 @@ def _figures(args: argparse.Namespace) -> int:
 
 
 def _evaluate(args: argparse.Namespace) -> int:
-    from dualpilot.evaluate import evaluate
+    from dualpilot.evaluation.evaluate import evaluate
 
     out = Path(args.out)
     summary = evaluate(
@@ -140,7 +140,7 @@ def _evaluate(args: argparse.Namespace) -> int:
 
 
 def _sweep(args: argparse.Namespace) -> int:
-    from dualpilot.sweep import grid_points, load_grid, parse_axes, sweep
+    from dualpilot.evaluation.sweep import grid_points, load_grid, parse_axes, sweep
 
     doc = load_grid(Path(args.grid)) if args.grid else {}
     axes = {**{k: list(v) for k, v in (doc.get("grid") or {}).items()}, **parse_axes(args.set)}
@@ -275,7 +275,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     add_showcase_parser(sub)
 
-    from dualpilot.bench import add_bench_parser
+    from dualpilot.evaluation.bench import add_bench_parser
 
     add_bench_parser(sub)
 

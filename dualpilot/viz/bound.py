@@ -1,6 +1,6 @@
 """Figure and ``dualpilot bound`` command: P(S1 in control | d, t) of the paper's supervisor.
 
-The numbers come from :mod:`dualpilot.supervisor.bound` (an exact Markov chain, no sampling).
+The numbers come from :mod:`dualpilot.evaluation.bound` (an exact Markov chain, no sampling).
 """
 
 from __future__ import annotations
@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-from dualpilot.supervisor.bound import (
+from dualpilot.evaluation.bound import (
     attention_marginal,
     best_cc_success,
     p_s1,

@@ -15,7 +15,7 @@ timing; README, Fig. r1): the longest S1 run in 500 CC missions is 3 steps
 (7 missions, 1.4 %); 16 % reach 2 steps; 26 missions (5.2 %) tell the story
 at all, the best (seed 235) with a 2-step run at t = 37, a front born 26 m
 away. The paper's ~20-step run is out of reach of its own supervisor
-(:mod:`dualpilot.supervisor.bound`: ≤ 1e-7).
+(:mod:`dualpilot.evaluation.bound`: ≤ 1e-7).
 """
 
 from __future__ import annotations
@@ -123,8 +123,8 @@ def showcase(seeds: range, out: Path, profile: str = "literal", timing: str = "p
     """Search ``seeds``, write showcase.csv / showcase.json, draw the best story in out/best."""
     import time
 
+    from dualpilot.evaluation.runner import execute, progress_line
     from dualpilot.mission.records import write_all
-    from dualpilot.sweep import execute, progress_line
     from dualpilot.viz.mission import make_figures
 
     out.mkdir(parents=True, exist_ok=True)

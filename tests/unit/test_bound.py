@@ -6,8 +6,7 @@ import numpy as np
 import pytest
 
 from dualpilot.cli import main
-from dualpilot.supervisor.attention import xi
-from dualpilot.supervisor.bound import (
+from dualpilot.evaluation.bound import (
     BoundParams,
     DiscretisationWarning,
     attention_marginal,
@@ -18,6 +17,7 @@ from dualpilot.supervisor.bound import (
     p_s1_table,
     s1_share_needed,
 )
+from dualpilot.supervisor.attention import xi
 from dualpilot.supervisor.decision import Supervisor, SupervisorParams
 
 Z99 = 2.5758  # two-sided 99 % normal quantile

@@ -5,7 +5,9 @@ import json
 
 import pytest
 
-from dualpilot.evaluate import evaluate, mean_interval, mission_spec, wilson_interval
+from dualpilot.evaluation.evaluate import evaluate
+from dualpilot.evaluation.missions import mission_spec
+from dualpilot.evaluation.stats import mean_interval, wilson_interval
 
 
 def rows(path):
@@ -88,7 +90,7 @@ def test_intervals_by_hand():
 def test_ignition_clearance_reaches_the_mission(tmp_path):
     # Configuration 0 of seed 0 ends at step 1 when a front ignites next to the hovering
     # UAV; with no ignition within 200 m of it the same configuration is flown on.
-    from dualpilot.evaluate import Task, run_task
+    from dualpilot.evaluation.missions import Task, run_task
 
     strict = run_task(Task(0, 0, "s2", "paper", "fast"))
     clear = run_task(Task(0, 0, "s2", "paper", "fast", ignition_clearance_m=200.0))

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from dualpilot.instances import SPEC, make_instance
+from dualpilot.evaluation.instances import SPEC, make_instance
 
 
 def test_instances_are_seeded_and_free() -> None:

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from dualpilot.instances import SPEC, check_plan, make_instance
+from dualpilot.evaluation.instances import SPEC, check_plan, make_instance
 from dualpilot.plan import PlanStatus
 from dualpilot.system1.planner import System1
 from dualpilot.system2.fast.planner import FastSystem2

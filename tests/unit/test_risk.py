@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from dualpilot.evaluation.missions import mission_spec
 from dualpilot.mission import monitor
 from dualpilot.mission.local import LocalFires, local_mission
 from dualpilot.mission.params import Controller, Timing, controller_of, uses_risk
@@ -18,7 +19,6 @@ from dualpilot.plan import Objective
 from dualpilot.planners import build_planner
 from dualpilot.spec import MissionSpec
 from dualpilot.supervisor.concurrent import forecast_threatened
-from dualpilot.sweep import mission_spec
 
 pytestmark = pytest.mark.timeout(120)
 

@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from dualpilot.instances import SPEC, make_instance
+from dualpilot.evaluation.instances import SPEC, make_instance
 from dualpilot.model.dynamics import DynamicsParams, reach_boxes
 from dualpilot.model.geometry import Polytope, Rect
 from dualpilot.plan import PlanStatus

@@ -13,15 +13,9 @@ from pathlib import Path
 
 import pytest
 
-from dualpilot.evaluate import evaluate
-from dualpilot.sweep import (
-    COLUMNS,
-    MEASURED_COLUMNS,
-    SWEEP_COLUMNS,
-    grid_points,
-    parse_axes,
-    sweep,
-)
+from dualpilot.evaluation.evaluate import evaluate
+from dualpilot.evaluation.missions import COLUMNS, MEASURED_COLUMNS
+from dualpilot.evaluation.sweep import SWEEP_COLUMNS, grid_points, parse_axes, sweep
 
 pytestmark = pytest.mark.timeout(120)
 
@@ -122,7 +116,7 @@ def _square_or_fail(x: int) -> dict[str, object]:
 def test_results_arrive_in_batches_and_a_failed_task_becomes_an_error_row() -> None:
     """Every finished task yields its row once; a task whose future fails (a dead worker)
     yields an error row naming it, and the others still arrive."""
-    from dualpilot.sweep import execute
+    from dualpilot.evaluation.runner import execute
 
     out = list(execute(list(range(40)), jobs=2, processes=False, fn=_square_or_fail))
     assert len(out) == 40

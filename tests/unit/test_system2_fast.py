@@ -8,8 +8,8 @@ import time
 import numpy as np
 import pytest
 
-from dualpilot.bench import run_system2
-from dualpilot.instances import GOAL, SPEC, make_instance
+from dualpilot.evaluation.bench import run_system2
+from dualpilot.evaluation.instances import GOAL, SPEC, make_instance
 from dualpilot.model.dynamics import DynamicsParams, rollout, transition_matrices
 from dualpilot.model.geometry import Polytope, Rect
 from dualpilot.plan import Objective, Plan, PlanStatus

@@ -1,6 +1,6 @@
 """Benchmarks of System 2 (fast vs exact) and System 1: ``dualpilot bench system2|system1``.
 
-Instances come from :mod:`dualpilot.instances` (the paper's fire setup,
+Instances come from :mod:`dualpilot.evaluation.instances` (the paper's fire setup,
 1–10 hulls cycled over the instances). Every method is timed from state in
 to verified plan out. The exact MIQP is the reference: it runs in a
 :class:`dualpilot.system2.worker.Worker` killed past its time limit, so a
@@ -21,7 +21,7 @@ from typing import Any
 
 import numpy as np
 
-from dualpilot.instances import SPEC, Instance, check_plan, make_instance
+from dualpilot.evaluation.instances import SPEC, Instance, check_plan, make_instance
 from dualpilot.plan import Plan
 from dualpilot.system2.problem import System2Params
 
@@ -430,7 +430,8 @@ def _cli_system1(args: argparse.Namespace) -> int:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m dualpilot.bench", description=__doc__)
+    parser = argparse.ArgumentParser(prog="python -m dualpilot.evaluation.bench",
+                                     description=__doc__)
     sub = parser.add_subparsers(dest="command", required=True)
     add_bench_parser(sub)
     args = parser.parse_args(["bench", *(argv if argv is not None else sys.argv[1:])])
