@@ -3,6 +3,8 @@
 The rule is in :mod:`dualpilot.supervisor.concurrent`; this is its state over
 a mission: the plan being flown, the System 2 plan being deliberated, the
 online Q. Times are simulated seconds of the mission (the step's clock).
+:class:`ConcurrentPlanning` is the registry's "concurrent" supervisor
+(:mod:`dualpilot.mission.supervisors`); it runs the cognitive controller only.
 """
 
 from __future__ import annotations
@@ -12,13 +14,17 @@ from dataclasses import replace
 
 import numpy as np
 
+from dualpilot.mission import monitor
+from dualpilot.mission.braking import braking_plan
 from dualpilot.mission.params import MissionParams, Timing
-from dualpilot.mission.ports import PlannerPort, PlanRequest
-from dualpilot.model.dynamics import Array, DynamicsParams, step
+from dualpilot.mission.ports import ForecastPort, PlannerPort, PlanRequest
+from dualpilot.mission.supervision import Planned, StepView
+from dualpilot.model.dynamics import Array
 from dualpilot.model.fire import FireParams, FireSnapshot, substeps_for
 from dualpilot.model.forecast import OccupancyForecast
 from dualpilot.model.geometry import Polytope
 from dualpilot.model.risk import ForecastView, RiskMap
+from dualpilot.model.stale_fire import grown_snapshot
 from dualpilot.plan import Objective, Plan, PlanStatus
 from dualpilot.spec import MissionSpec
 from dualpilot.supervisor.attention import xi
@@ -36,18 +42,6 @@ from dualpilot.supervisor.concurrent import (
     wait_hazard,
 )
 from dualpilot.supervisor.decision import Decision, SupervisorParams
-
-
-def braking_plan(state: Array, steps: int, dynamics: DynamicsParams) -> Plan:
-    """The UAV braking for ``steps`` steps (the step's braking force, Eq. 1)."""
-    from dualpilot.mission.step import brake_control
-
-    states, controls = [np.asarray(state, dtype=float)], []
-    for _ in range(steps):
-        u = brake_control(states[-1], dynamics)
-        controls.append(u)
-        states.append(step(states[-1], u, dynamics))
-    return Plan(0, PlanStatus.OK, np.array(states), np.array(controls), 0.0)
 
 
 class ConcurrentPlanning:
@@ -72,6 +66,37 @@ class ConcurrentPlanning:
         self.p_mean = np.full(3, 1 / 3)
         #: this step's forecast as its plans see it (None: not used)
         self.view: ForecastView | None = None
+
+    # -- the step's one planning call ------------------------------------------------------------
+    def plan(self, step: StepView, t: int, d_t: float, snapshot: FireSnapshot) -> Planned:
+        """Step t: the decision (:meth:`decide`), what the UAV flies (:meth:`choose`), checked
+        by the run-time monitor as the paper's plans are; the planning interval is the time
+        the UAV waited for answers this step."""
+        flying = 0 if self.flown is None else self.flown.plan.system
+        paper = step.supervisor.decide(t, d_t)  # the attention stream: S2's objective
+        decision = self.decide(t, d_t, flying, paper.objective)
+        seen = grown_snapshot(snapshot, step.fires.margin_m())  # stale data: grown
+        # the forecast: for the forecast threat rule and the risk-aware planners
+        uses = self.params.threat == "forecast" or bool(step.forecast_systems)
+        fires = step.fires
+        forecast = fires.forecast if uses and isinstance(fires, ForecastPort) else None
+        choice = self.choose(t, step.sim_time_s, step.state, step.prev_control, snapshot, seen,
+                             step.planners, step.record_time, forecast)
+        if choice.plan is not None:  # the run-time monitor has the last word, as for the paper's
+            obstacles = seen.obstacles_for(step.state[:2], step.spec.clearance_m)
+            k = self.params.check_steps  # a kept plan is re-checked every step
+            verdict = monitor.check_plan(choice.plan.states[: k + 1], choice.plan.controls[:k],
+                                         step.state, obstacles, step.spec)
+            if not verdict.ok:
+                choice.statuses.append(f"s{choice.plan.system}:{PlanStatus.UNSAFE.value}"
+                                       f"{monitor.status_note(verdict)}")
+                choice.plan = None
+                self.flown = None
+        if choice.plan is not None:
+            decision = replace(decision, system=choice.plan.system)
+        if step.observer is not None:
+            step.observer.decided(t, decision, decision.system)
+        return Planned(decision, choice.plan, choice.statuses, choice.wait_s, choice.note)
 
     # -- what the record shows as the decision ---------------------------------------------------
     def decide(self, t: int, d_t: float, system_hint: int, objective: Objective) -> Decision:

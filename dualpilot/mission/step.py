@@ -8,7 +8,9 @@ Each step t:
    the system, so all three controllers see the same attention stream;
 3. the chosen system plans from the current state (``cc``: the other one if
    the plan is not OK); while it computes, the UAV hovers and the fires
-   propagate ⌈T_s / T_f⌉ sub-steps (T_s measured, or the paper's 155 ms / 5 s);
+   propagate ⌈T_s / T_f⌉ sub-steps (T_s measured, or the paper's 155 ms / 5 s).
+   Steps 2–3 are the supervisor's one planning call, built by name
+   (:mod:`dualpilot.mission.supervisors`: the paper's, above, or the concurrent one);
 4. the plan's x_{t+1|t} is commanded at once, due after the planning interval
    and ΔT; the fires advance; the mission fails if an active region came
    within d_safe of the idle UAV;
@@ -22,13 +24,11 @@ The step is written once; :mod:`dualpilot.mission.local` runs it in one process,
 
 from __future__ import annotations
 
-from dataclasses import replace
 from typing import cast
 
 import numpy as np
 
-from dualpilot.mission import monitor
-from dualpilot.mission.concurrent import ConcurrentPlanning
+from dualpilot.mission.braking import brake_control
 from dualpilot.mission.params import Controller, MissionParams, Timing
 from dualpilot.mission.ports import (
     FirePort,
@@ -36,20 +36,18 @@ from dualpilot.mission.ports import (
     ForecastPort,
     KeepOut,
     PlannerPort,
-    PlanRequest,
     StepObserver,
     VehiclePort,
 )
 from dualpilot.mission.result import MissionResult, StepRecord
-from dualpilot.model.dynamics import Array, DynamicsParams, step
+from dualpilot.mission.supervisors import SupervisorSetup, build_supervisor
+from dualpilot.model.dynamics import Array, step
 from dualpilot.model.fire import FireParams, FireSnapshot, substeps_for
 from dualpilot.model.geometry import Rect
 from dualpilot.model.risk import ForecastView
-from dualpilot.model.stale_fire import grown_snapshot
-from dualpilot.plan import Objective, Plan, PlanStatus
 from dualpilot.spec import MissionSpec, Stream
 from dualpilot.supervisor.concurrent import ConcurrentParams
-from dualpilot.supervisor.decision import Decision, Supervisor, SupervisorParams
+from dualpilot.supervisor.decision import Supervisor, SupervisorParams
 
 
 def nearest_region_distance(position: Array, regions: tuple[Rect, ...]) -> float:
@@ -123,20 +121,6 @@ def remember_distances(position: Array, snapshot: FireSnapshot,
                     for r, i in zip(snapshot.regions, snapshot.front_ids, strict=True))
 
 
-def planning_time(plan: Plan, timing: Timing, params: MissionParams) -> float:
-    """T_s of a plan (s): measured, or the paper's 155 ms / 5 s for System 1 / 2."""
-    if timing is Timing.PAPER:
-        return params.paper_planning_time_s[plan.system - 1]
-    return plan.compute_time_s
-
-
-def planning_order(controller: Controller, chosen: int, params: MissionParams) -> list[int]:
-    """Systems to ask this step: the one in control, then (CC with fallback) the other."""
-    wanted = {Controller.CC: chosen, Controller.S1: 1, Controller.S2: 2}[controller]
-    fallback = params.fallback and controller is Controller.CC
-    return [wanted, 3 - wanted] if fallback else [wanted]
-
-
 def systems_of(controller: Controller) -> list[int]:
     """The planners a controller may ask."""
     return {Controller.CC: [1, 2], Controller.S1: [1], Controller.S2: [2]}[controller]
@@ -154,13 +138,6 @@ def flight_outcome(
     if steps >= params.max_steps:
         return "step_limit"
     return None
-
-
-def brake_control(state: Array, dyn: DynamicsParams) -> Array:
-    """The force (N) that brings the velocity to zero in one ΔT, clipped to U."""
-    v = state[dyn.dim :]
-    u = -dyn.mass_kg * (1.0 - dyn.zeta) * v / dyn.dt_s
-    return np.asarray(np.clip(u, -dyn.u_max_n, dyn.u_max_n))
 
 
 class Mission:
@@ -196,23 +173,16 @@ class Mission:
         self.params = params
         self.fire_params = fire_params
         self.observer = observer
+        #: the paper's supervisor: the attention stream and Ψ, whichever supervisor plans
         self.supervisor = Supervisor(spec.rng(Stream.SUPERVISOR), supervisor_params)
-        #: the planning phase of the concurrent supervisor (None: the paper's supervisor)
-        self.planning: ConcurrentPlanning | None = None
-        if supervisor == "concurrent":
-            if controller is not Controller.CC:
-                raise ValueError("the concurrent supervisor runs the cognitive controller (cc)")
-            self.planning = ConcurrentPlanning(spec, timing, params, fire_params,
-                                               supervisor_params, concurrent_params)
-        elif supervisor != "paper":
-            raise ValueError(f"supervisor must be 'paper' or 'concurrent', not {supervisor!r}")
+        #: the supervisor's planning phase (by name: dualpilot/mission/supervisors.py)
+        self.planning = build_supervisor(supervisor, SupervisorSetup(
+            controller, spec, timing, params, fire_params, supervisor_params, concurrent_params))
         # the forecast is asked only by risk-aware planners and the forecast threat rule
         can = isinstance(fires, ForecastPort)
         self.forecast_systems = frozenset(
             s for s in (1, 2) if can and isinstance(planners, ForecastPlannerPort)
             and planners.uses_forecast(s))
-        self.forecast_threats = can and self.planning is not None and (
-            self.planning.params.threat == "forecast")
         self.sim_time_s = 0.0  # simulated time: the fires' sub-steps and the flights
         self.state = np.asarray(state, dtype=float).copy()
         self.prev_control = np.zeros(self.dyn.dim)
@@ -281,71 +251,17 @@ class Mission:
                else self.params.paper_planning_time_s[system - 1])
         return substeps_for(t_s, self.fire_params) + self.params.fire_substeps_per_motion
 
-    def _forecast_view(self, system: int) -> ForecastView | None:
+    def record_time(self, system: int, seconds: float) -> None:
+        """One answer's compute time (s) of ``system``'s planner, for the result."""
+        self.result.planning_time_s[f"s{system}"].append(seconds)
+
+    def forecast_view(self, system: int) -> ForecastView | None:
         """The fire port's forecast for a plan of ``system`` (None when it is not used)."""
         if system not in self.forecast_systems:
             return None
         n = self.substeps_per_step(system)
         fc = cast(ForecastPort, self.fires).forecast(n)
         return None if fc is None else ForecastView(fc, n)
-
-    def _plan(self, t: int, order: list[int], snapshot: FireSnapshot,
-              objective: Objective) -> tuple[Plan | None, list[str], float]:
-        seen = grown_snapshot(snapshot, self.fires.margin_m())  # stale data: grown
-        obstacles = seen.obstacles_for(self.state[:2], self.spec.clearance_m)
-        statuses: list[str] = []
-        planning = 0.0
-        for system in order:
-            if not self.planners.available(system):
-                statuses.append(f"s{system}:unavailable")
-                continue
-            candidate = self.planners.plan(PlanRequest(
-                t=t, system=system, state=self.state.copy(), prev_control=self.prev_control,
-                obstacles=obstacles, objective=objective,
-                forecast=self._forecast_view(system)))
-            self.result.planning_time_s[f"s{system}"].append(candidate.compute_time_s)
-            planning += planning_time(candidate, self.timing, self.params)
-            verdict = monitor.check(candidate, self.state, obstacles, self.spec) if (
-                candidate.ok) else None
-            if verdict is not None and not verdict.ok:  # never flown: a failed plan
-                statuses.append(f"s{system}:{PlanStatus.UNSAFE.value}"
-                                f"{monitor.status_note(verdict)}")
-                continue
-            statuses.append(f"s{system}:{candidate.status.value}")
-            if candidate.ok:
-                return candidate, statuses, planning
-        return None, statuses, planning
-
-    def _plan_concurrent(self, t: int, d_t: float, snapshot: FireSnapshot
-                         ) -> tuple[Decision, Plan | None, list[str], float, str]:
-        assert self.planning is not None
-        flying = 0 if self.planning.flown is None else self.planning.flown.plan.system
-        paper = self.supervisor.decide(t, d_t)  # the attention stream: S2's objective
-        decision = self.planning.decide(t, d_t, flying, paper.objective)
-        seen = grown_snapshot(snapshot, self.fires.margin_m())  # stale data: grown
-
-        def record_time(system: int, seconds: float) -> None:
-            self.result.planning_time_s[f"s{system}"].append(seconds)
-
-        uses = self.forecast_threats or bool(self.forecast_systems)
-        choice = self.planning.choose(t, self.sim_time_s, self.state, self.prev_control,
-                                      snapshot, seen, self.planners, record_time,
-                                      cast(ForecastPort, self.fires).forecast if uses else None)
-        if choice.plan is not None:  # the run-time monitor has the last word, as for the paper's
-            obstacles = seen.obstacles_for(self.state[:2], self.spec.clearance_m)
-            k = self.planning.params.check_steps  # a kept plan is re-checked every step
-            verdict = monitor.check_plan(choice.plan.states[: k + 1], choice.plan.controls[:k],
-                                         self.state, obstacles, self.spec)
-            if not verdict.ok:
-                choice.statuses.append(f"s{choice.plan.system}:{PlanStatus.UNSAFE.value}"
-                                       f"{monitor.status_note(verdict)}")
-                choice.plan = None
-                self.planning.flown = None
-        if choice.plan is not None:
-            decision = replace(decision, system=choice.plan.system)
-        if self.observer is not None:
-            self.observer.decided(t, decision, decision.system)
-        return decision, choice.plan, choice.statuses, choice.wait_s, choice.note
 
     def step(self) -> StepRecord | None:
         """Run one step; returns its record, or None when the mission is over."""
@@ -358,29 +274,23 @@ class Mission:
             # fire data that caught up (the stack's EWS was back) reached the UAV
             return self._finish(False, "fire_while_stale", self.result.records[-1])
         d_t = attention_distance(self.state[:2], snapshot, t, self.params)
-        note = ""
-        if self.planning is None:  # the paper's supervisor: wait for the chosen plan
-            decision = self.supervisor.decide(t, d_t)
-            order = planning_order(self.controller, decision.system, self.params)
-            if self.observer is not None:
-                self.observer.decided(t, decision, order[0])
-            plan, statuses, planning = self._plan(t, order, snapshot, decision.objective)
-        else:  # the concurrent supervisor: System 2 deliberates while the UAV flies
-            decision, plan, statuses, planning, note = self._plan_concurrent(t, d_t, snapshot)
+        planned = self.planning.plan(self, t, d_t, snapshot)
+        decision, plan, statuses, planning = (planned.decision, planned.plan, planned.statuses,
+                                              planned.planning_s)
         n_sub = substeps_for(planning, self.fire_params)
 
         if plan is not None:
             control = np.asarray(plan.controls[0], dtype=float)
             target = np.asarray(plan.states[1], dtype=float)
-            planned = np.asarray(plan.states[:, : self.dyn.dim])
+            positions = np.asarray(plan.states[:, : self.dyn.dim])
             info = dict(plan.info)
         else:
             info = {}
             control = brake_control(self.state, self.dyn)
             target = step(self.state, control, self.dyn)
-            planned = np.empty((0, self.dyn.dim))
-        if note:
-            info["supervisor"] = note
+            positions = np.empty((0, self.dyn.dim))
+        if planned.note:
+            info["supervisor"] = planned.note
         # the setpoint leaves as soon as the plan is known, due after the planning
         # interval and one ΔT of flight
         self.vehicle.command(target, control, n_sub * self.fire_params.substep_s + self.dyn.dt_s)
@@ -393,7 +303,7 @@ class Mission:
             t=t, state=self.state.copy(), control=control, decision=decision,
             system=flown, plan_status=";".join(statuses),
             planning_time_s=planning, fire_substeps=n_sub, d_t=d_t,
-            fires_active=len(snapshot.regions), planned_positions=planned, snapshot=snapshot,
+            fires_active=len(snapshot.regions), planned_positions=positions, snapshot=snapshot,
             info=info, time_s=started_s,
         )
         self.result.records.append(record)
@@ -406,9 +316,8 @@ class Mission:
         self.state = np.asarray(self.vehicle.observe(), dtype=float)
         self.result.add_flight(control, self.prev_control, self.dyn.dt_s)
         self.sim_time_s += self.dyn.dt_s
-        if self.planning is not None:
-            self.planning.after_flight(flown, prev_pos, self.state[:2],
-                                       float(np.sum((control - self.prev_control) ** 2)))
+        self.planning.after_flight(flown, prev_pos, self.state[:2],
+                                   float(np.sum((control - self.prev_control) ** 2)))
         self.prev_control = control
         if self.observer is not None:
             self.observer.recorded(record, True)

@@ -11,6 +11,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from dualpilot.mission.concurrent import ConcurrentPlanning
 from dualpilot.mission.local import LocalFires, LocalPlanners, LocalVehicle
 from dualpilot.mission.params import Controller, Timing
 from dualpilot.mission.step import Mission
@@ -55,7 +56,7 @@ def fly(m: Mission, steps: int) -> list:
 
 def front_ahead(m: Mission, steps_ahead: int) -> None:
     """A front centred on the flown plan's position ``steps_ahead`` steps from now."""
-    assert m.planning is not None and m.planning.flown is not None
+    assert isinstance(m.planning, ConcurrentPlanning) and m.planning.flown is not None
     plan = m.planning.flown.plan
     centre = plan.states[m.planning.flown.offset + steps_ahead, :2]
     fires = m.fires
@@ -77,7 +78,7 @@ def test_system2_is_never_waited_for_and_its_plans_are_adopted_when_due() -> Non
 def test_a_front_near_the_uav_makes_system1_fly_from_that_step() -> None:
     m = mission()
     fly(m, 8)
-    assert m.planning is not None and m.planning.flown is not None
+    assert isinstance(m.planning, ConcurrentPlanning) and m.planning.flown is not None
     assert m.planning.flown.plan.system == 2
     front_ahead(m, 6)  # ≈ 90 m ahead on the System 2 plan, unknown to it
     rec = m.step()
@@ -94,7 +95,7 @@ def test_a_front_near_the_uav_makes_system1_fly_from_that_step() -> None:
 def test_a_plan_that_became_unsafe_while_deliberated_is_refused_at_adoption() -> None:
     m = mission()
     fly(m, 8)  # at step 8 the plan launched at step 4 is due
-    assert m.planning is not None and m.planning.pending is not None
+    assert isinstance(m.planning, ConcurrentPlanning) and m.planning.pending is not None
     assert m.planning.pending.due_t == 8
     front_ahead(m, 5)  # ignites on its path while it was being computed
     rec = m.step()
@@ -112,7 +113,7 @@ def test_a_plan_for_a_state_the_uav_did_not_reach_is_reanchored_or_refused(
     recs = fly(m, 9)
     assert expected in recs[8].plan_status, recs[8].plan_status
     if expected == "s2:adopted":  # re-anchored: it starts where the UAV is
-        assert m.planning is not None and m.planning.flown is not None
+        assert isinstance(m.planning, ConcurrentPlanning) and m.planning.flown is not None
         assert np.allclose(recs[8].state[:2], recs[8].planned_positions[0])
         assert recs[8].system == 2
     else:

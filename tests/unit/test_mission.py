@@ -6,10 +6,11 @@ import json
 import numpy as np
 import pytest
 
+from dualpilot.mission.braking import brake_control
 from dualpilot.mission.local import local_mission
 from dualpilot.mission.params import Controller, MissionParams, Timing
 from dualpilot.mission.records import STEP_COLUMNS, write_all
-from dualpilot.mission.step import brake_control, nearest_region_distance
+from dualpilot.mission.step import nearest_region_distance
 from dualpilot.model.dynamics import DynamicsParams
 from dualpilot.model.fire import FireParams
 from dualpilot.planners import build_planner
@@ -111,7 +112,8 @@ def test_single_system_controllers_never_switch():
 
 
 def test_flight_outcome_rules_and_planning_order():
-    from dualpilot.mission.step import flight_outcome, planning_order
+    from dualpilot.mission.paper import planning_order
+    from dualpilot.mission.step import flight_outcome
     from dualpilot.model.geometry import Rect
 
     cfg, params = MissionSpec(), MissionParams(max_steps=10)

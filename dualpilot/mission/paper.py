@@ -1,0 +1,73 @@
+"""The paper's supervisor in the mission step (Sec. III-C, IV): wait for the chosen plan.
+
+Each step the supervisor draws A_t, updates Ψ_t (Eq. Psi) and picks S_t (Eq. maxPsi);
+``s1`` / ``s2`` run the same supervisor but force the system, so all three controllers
+see the same attention stream. The chosen system plans from the current state while
+the UAV hovers (``cc`` with ``fallback``: the other one if the plan is not OK); the
+step's planning interval is the sum of the answers' T_s. Every plan is checked by the
+run-time monitor before it can be flown.
+"""
+
+from __future__ import annotations
+
+from dualpilot.mission import monitor
+from dualpilot.mission.params import Controller, MissionParams, Timing
+from dualpilot.mission.ports import PlanRequest
+from dualpilot.mission.supervision import Planned, StepView
+from dualpilot.model.dynamics import Array
+from dualpilot.model.fire import FireSnapshot
+from dualpilot.model.stale_fire import grown_snapshot
+from dualpilot.plan import Plan, PlanStatus
+
+
+def planning_time(plan: Plan, timing: Timing, params: MissionParams) -> float:
+    """T_s of a plan (s): measured, or the paper's 155 ms / 5 s for System 1 / 2."""
+    if timing is Timing.PAPER:
+        return params.paper_planning_time_s[plan.system - 1]
+    return plan.compute_time_s
+
+
+def planning_order(controller: Controller, chosen: int, params: MissionParams) -> list[int]:
+    """Systems to ask this step: the one in control, then (CC with fallback) the other."""
+    wanted = {Controller.CC: chosen, Controller.S1: 1, Controller.S2: 2}[controller]
+    fallback = params.fallback and controller is Controller.CC
+    return [wanted, 3 - wanted] if fallback else [wanted]
+
+
+class PaperPlanning:
+    """The paper's supervisor: the system in control plans, the UAV waits for it."""
+
+    def plan(self, step: StepView, t: int, d_t: float, snapshot: FireSnapshot) -> Planned:
+        """Decide S_t, then ask the systems in :func:`planning_order` for the first OK,
+        verified plan."""
+        decision = step.supervisor.decide(t, d_t)
+        order = planning_order(step.controller, decision.system, step.params)
+        if step.observer is not None:
+            step.observer.decided(t, decision, order[0])
+        seen = grown_snapshot(snapshot, step.fires.margin_m())  # stale data: grown
+        obstacles = seen.obstacles_for(step.state[:2], step.spec.clearance_m)
+        got = Planned(decision, None)
+        for system in order:
+            if not step.planners.available(system):
+                got.statuses.append(f"s{system}:unavailable")
+                continue
+            candidate = step.planners.plan(PlanRequest(
+                t=t, system=system, state=step.state.copy(), prev_control=step.prev_control,
+                obstacles=obstacles, objective=decision.objective,
+                forecast=step.forecast_view(system)))
+            step.record_time(system, candidate.compute_time_s)
+            got.planning_s += planning_time(candidate, step.timing, step.params)
+            verdict = monitor.check(candidate, step.state, obstacles, step.spec) if (
+                candidate.ok) else None
+            if verdict is not None and not verdict.ok:  # never flown: a failed plan
+                got.statuses.append(f"s{system}:{PlanStatus.UNSAFE.value}"
+                                    f"{monitor.status_note(verdict)}")
+                continue
+            got.statuses.append(f"s{system}:{candidate.status.value}")
+            if candidate.ok:
+                got.plan = candidate
+                return got
+        return got
+
+    def after_flight(self, system: int, p0: Array, p1: Array, du2: float) -> None:
+        """Nothing: the paper's supervisor keeps no state across flights but Ψ."""
