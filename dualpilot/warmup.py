@@ -17,7 +17,7 @@ import time
 import numpy as np
 
 _done = False
-_lock = threading.RLock()  # re-entered by the planners warm_up builds
+_lock = threading.RLock()  # a second thread waits for the first
 
 
 def warm_up() -> float:
@@ -26,18 +26,22 @@ def warm_up() -> float:
     with _lock:
         if _done:
             return 0.0
-        _done = True  # first: the planners built here call warm_up too
+        _done = True
         return _warm()
 
 
 def _warm() -> float:
     t0 = time.perf_counter()
+    from dataclasses import replace
+
     from dualpilot.model.dynamics import DynamicsParams, hover_state
     from dualpilot.model.fire import FireField, FireParams
     from dualpilot.model.geometry import Rect
     from dualpilot.plan import Objective
-    from dualpilot.planners import build_planner
     from dualpilot.spec import MissionSpec
+    from dualpilot.system1.planner import System1, System1Params
+    from dualpilot.system2.fast.planner import FastSystem2
+    from dualpilot.system2.problem import System2Params
 
     fire = FireField(FireParams(p_birth=1.0))
     rng = np.random.default_rng(0)
@@ -48,9 +52,10 @@ def _warm() -> float:
         dyn = DynamicsParams(speed_limit=limit)
         spec = MissionSpec(dynamics=dyn)
         state = hover_state(np.array(spec.start), dyn)
-        for method in ("rrt", "rrt+du"):
-            build_planner(1, spec, method).plan(state, (hull,), Objective.MISSION_TIME)
-        build_planner(2, spec, "fast").plan(state, (hull,), Objective.ENERGY)
+        for tracker in ("lqr", "lqr_du"):  # the registry's "rrt" and "rrt+du"
+            s1 = System1(spec, replace(System1Params(), tracker=tracker))
+            s1.plan(state, (hull,), Objective.MISSION_TIME)
+        FastSystem2(spec, System2Params()).plan(state, (hull,), Objective.ENERGY)  # "fast"
     return time.perf_counter() - t0
 
 
