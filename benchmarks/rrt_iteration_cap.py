@@ -15,7 +15,8 @@ import sys
 import numpy as np
 
 from dualpilot.model.dynamics import hover_state
-from dualpilot.model.fire import FireField, FireParams
+from dualpilot.model.fire import FireParams
+from dualpilot.model.fire_field import FireField
 from dualpilot.spec import MissionSpec
 from dualpilot.system1.planner import System1
 from dualpilot.system1.rrt import RrtParams, SegmentChecker, plan_path

@@ -35,7 +35,8 @@ def _warm() -> float:
     from dataclasses import replace
 
     from dualpilot.model.dynamics import DynamicsParams, hover_state
-    from dualpilot.model.fire import FireField, FireParams
+    from dualpilot.model.fire import FireParams
+    from dualpilot.model.fire_field import FireField
     from dualpilot.model.geometry import Rect
     from dualpilot.plan import Objective
     from dualpilot.spec import MissionSpec

@@ -16,7 +16,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from dualpilot.arrays import Array
-from dualpilot.model.fire import FireField, FireParams
+from dualpilot.model.fire import FireParams
+from dualpilot.model.fire_field import FireField
 from dualpilot.model.geometry import Polytope
 from dualpilot.plan import Objective, Plan
 from dualpilot.spec import MissionSpec

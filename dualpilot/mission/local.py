@@ -11,8 +11,10 @@ from dualpilot.mission.params import RISK_SUFFIX, Controller, MissionParams, Tim
 from dualpilot.mission.ports import KeepOut, PlanRequest
 from dualpilot.mission.step import Mission
 from dualpilot.model.dynamics import Array, DynamicsParams, hover_state, step
-from dualpilot.model.fire import FireField, FireParams, FireSnapshot
-from dualpilot.model.forecast import ForecastParams, OccupancyForecast, field_forecast
+from dualpilot.model.field_forecast import field_forecast
+from dualpilot.model.fire import FireParams, FireSnapshot
+from dualpilot.model.fire_field import FireField
+from dualpilot.model.forecast import ForecastParams, OccupancyForecast
 from dualpilot.model.geometry import Rect
 from dualpilot.plan import ForecastPlanner, Plan, Planner, PlanStatus
 from dualpilot.spec import MissionSpec, Stream

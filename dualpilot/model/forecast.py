@@ -41,7 +41,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from functools import lru_cache
 from math import ceil, cos, exp, floor, sin, sqrt
-from typing import TYPE_CHECKING, Any, cast
+from typing import Any, cast
 
 import numpy as np
 from numba import njit
@@ -50,10 +50,6 @@ from numpy.typing import NDArray
 from dualpilot.arrays import AnyArray, Array
 from dualpilot.model.fire import FireFront, FireParams
 from dualpilot.model.geometry import Rect
-from dualpilot.spec import forecast_rng
-
-if TYPE_CHECKING:
-    from dualpilot.model.fire import FireField
 
 #: Probability quantum: P = level / LEVELS (uint8).
 LEVELS = 255
@@ -620,16 +616,3 @@ def occupancy(regions: Sequence[Rect], resolution_m: float, shape: tuple[int, in
         out |= rows[:, None] & cols[None, :]
     return out
 
-
-def field_forecast(field: FireField, params: ForecastParams, seed: int,
-                   substeps_per_step: int = 1) -> OccupancyForecast:
-    """The forecast of a fire field's current state, whichever process it runs: :func:`forecast`
-    of the paper's fronts (their motion paths on the stream of ``seed`` and the sub-steps
-    done), or the physics process's run-ahead (dualpilot/model/physics_forecast.py)."""
-    if field.physics is not None:
-        from dualpilot.model.physics_forecast import physics_forecast
-
-        return physics_forecast(field.physics, params, substeps_per_step, field.substeps_done)
-    rng = forecast_rng(seed, field.substeps_done) if field.fronts else None
-    return forecast(field.fronts, field.params, field.area_size_m, rng, params,
-                    substeps_per_step=substeps_per_step, issued_substep=field.substeps_done)

@@ -40,8 +40,10 @@ from dataclasses import replace
 import numpy as np
 import zenoh
 
-from dualpilot.model.fire import FireField, FireParams
-from dualpilot.model.forecast import ForecastParams, field_forecast
+from dualpilot.model.field_forecast import field_forecast
+from dualpilot.model.fire import FireParams
+from dualpilot.model.fire_field import FireField
+from dualpilot.model.forecast import ForecastParams
 from dualpilot.readings import PROFILES, get_profile
 from dualpilot.spec import Stream, stream_rng
 from services.common import bus, codec, fleet, keys

@@ -13,7 +13,8 @@ import numpy as np
 import pytest
 
 from dualpilot.model.dynamics import DynamicsParams, step
-from dualpilot.model.fire import FireField, FireParams
+from dualpilot.model.fire import FireParams
+from dualpilot.model.fire_field import FireField
 from dualpilot.model.geometry import Polytope
 from dualpilot.plan import Objective, Plan, PlanStatus
 from dualpilot.spec import MissionSpec

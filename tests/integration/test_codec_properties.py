@@ -31,7 +31,8 @@ from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
 from dualpilot.model.dynamics import DynamicsParams, rollout
-from dualpilot.model.fire import FireField, FireParams
+from dualpilot.model.fire import FireParams
+from dualpilot.model.fire_field import FireField
 from dualpilot.model.geometry import Polytope, Rect
 from dualpilot.plan import Objective, Plan, PlanStatus
 from dualpilot.spec import MissionSpec

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from dualpilot.mission.local import LocalFires
-from dualpilot.model.fire import FireField
+from dualpilot.model.fire_field import FireField
 from dualpilot.spec import MissionSpec
 from services.common import bus, codec, keys
 from services.common.clock import Anchor

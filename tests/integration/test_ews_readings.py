@@ -13,7 +13,8 @@ from typing import Any
 import numpy as np
 import pytest
 
-from dualpilot.model.fire import FireField, FireParams
+from dualpilot.model.fire import FireParams
+from dualpilot.model.fire_field import FireField
 from dualpilot.readings import PROFILES, get_profile
 from dualpilot.spec import Stream, stream_rng
 from services.common import bus, codec, keys

@@ -16,7 +16,8 @@ import numpy as np
 import pytest
 
 from dualpilot.mission.local import LocalFires
-from dualpilot.model.fire import FireField, FireParams
+from dualpilot.model.fire import FireParams
+from dualpilot.model.fire_field import FireField
 from dualpilot.model.forecast import LEVELS
 from dualpilot.model.scenarios import SCENARIOS
 from dualpilot.spec import MissionSpec, Stream, stream_rng

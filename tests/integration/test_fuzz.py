@@ -37,7 +37,8 @@ from google.protobuf.descriptor import FieldDescriptor
 from google.protobuf.message import Message
 
 from dualpilot.model.dynamics import DynamicsParams
-from dualpilot.model.fire import FireField, FireParams
+from dualpilot.model.fire import FireParams
+from dualpilot.model.fire_field import FireField
 from dualpilot.plan import Objective, PlanStatus
 from dualpilot.spec import MissionSpec, Stream, stream_rng
 from dualpilot.verify import verify_trajectory

@@ -10,7 +10,8 @@ import pytest
 import zenoh
 
 from dualpilot.model.dynamics import DynamicsParams
-from dualpilot.model.fire import FireField, FireParams
+from dualpilot.model.fire import FireParams
+from dualpilot.model.fire_field import FireField
 from dualpilot.plan import Objective, PlanStatus
 from dualpilot.spec import MissionSpec
 from dualpilot.verify import verify_trajectory

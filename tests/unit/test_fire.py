@@ -3,7 +3,8 @@
 import numpy as np
 import pytest
 
-from dualpilot.model.fire import FireField, FireParams, substeps_for
+from dualpilot.model.fire import FireParams, substeps_for
+from dualpilot.model.fire_field import FireField
 
 
 def test_substeps_is_ceil_of_planning_over_tf():

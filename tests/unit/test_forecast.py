@@ -8,7 +8,8 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from dualpilot.model.fire import FireField, FireFront, FireParams, LifeBase
+from dualpilot.model.fire import FireFront, FireParams, LifeBase
+from dualpilot.model.fire_field import FireField
 from dualpilot.model.forecast import (
     LEVELS,
     ForecastParams,

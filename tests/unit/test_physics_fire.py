@@ -10,7 +10,8 @@ import pytest
 
 from dualpilot.mission import monitor
 from dualpilot.model.dynamics import hover_state
-from dualpilot.model.fire import FireField, FireParams
+from dualpilot.model.fire import FireParams
+from dualpilot.model.fire_field import FireField
 from dualpilot.model.physics_fire import (
     PhysicsFire,
     clip_to_box,

@@ -8,8 +8,10 @@ import numpy as np
 import pytest
 
 from dualpilot.mission.local import LocalFires
-from dualpilot.model.fire import FireField, FireParams
-from dualpilot.model.forecast import LEVELS, ForecastParams, field_forecast, occupancy
+from dualpilot.model.field_forecast import field_forecast
+from dualpilot.model.fire import FireParams
+from dualpilot.model.fire_field import FireField
+from dualpilot.model.forecast import LEVELS, ForecastParams, occupancy
 from dualpilot.model.physics_forecast import (
     RunAhead,
     albini_t_max_s,

@@ -12,7 +12,8 @@ from dualpilot.mission.local import local_mission
 from dualpilot.mission.params import Controller, MissionParams
 from dualpilot.mission.step import attention_distance, counted_regions
 from dualpilot.model.dynamics import DynamicsParams
-from dualpilot.model.fire import FireField, FireParams, FireSnapshot
+from dualpilot.model.fire import FireParams, FireSnapshot
+from dualpilot.model.fire_field import FireField
 from dualpilot.model.geometry import Rect
 from dualpilot.readings import PROFILES, READINGS, get_profile, parse_settings, parse_value
 from dualpilot.spec import MissionSpec

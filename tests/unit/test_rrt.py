@@ -5,7 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from dualpilot.model.fire import FireField, FireParams
+from dualpilot.model.fire import FireParams
+from dualpilot.model.fire_field import FireField
 from dualpilot.model.geometry import Polytope, Rect, path_clearance
 from dualpilot.spec import MissionSpec
 from dualpilot.system1.rrt import RrtParams, SegmentChecker, plan_path, shortcut

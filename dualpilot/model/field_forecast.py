@@ -1,0 +1,26 @@
+"""The occupancy forecast of a fire field's current state, whichever fire process it runs.
+
+The paper's rectangles (Sec. II-B): :func:`dualpilot.model.forecast.forecast` of the
+fronts, their motion paths on the forecast stream of the mission seed and the sub-steps
+done (:func:`dualpilot.spec.forecast_rng`). A fire-behaviour scenario: its level set run
+ahead (:func:`dualpilot.model.physics_forecast.physics_forecast`). The fire port
+(dualpilot/mission/local.py) and the EWS (services/ews) both ask this one function, so
+the forecast flown in-process is the one the stack publishes.
+"""
+
+from __future__ import annotations
+
+from dualpilot.model.fire_field import FireField
+from dualpilot.model.forecast import ForecastParams, OccupancyForecast, forecast
+from dualpilot.model.physics_forecast import physics_forecast
+from dualpilot.spec import forecast_rng
+
+
+def field_forecast(field: FireField, params: ForecastParams, seed: int,
+                   substeps_per_step: int = 1) -> OccupancyForecast:
+    """The forecast of ``field`` now, for time-steps of ``substeps_per_step`` sub-steps."""
+    if field.physics is not None:
+        return physics_forecast(field.physics, params, substeps_per_step, field.substeps_done)
+    rng = forecast_rng(seed, field.substeps_done) if field.fronts else None
+    return forecast(field.fronts, field.params, field.area_size_m, rng, params,
+                    substeps_per_step=substeps_per_step, issued_substep=field.substeps_done)
