@@ -10,7 +10,7 @@ worker thread (a client blocks in ``zenoh.open`` until the router answers),
 keeps the main thread free for SIGINT/SIGTERM, and exits within 2 s of one.
 
 Bad input: every service counts the inputs it rejects per key and reason
-(:data:`codec.REJECTED`, filled by :func:`codec.rejected` and by a full
+(:data:`rejections.REJECTED`, filled by :func:`rejections.rejected` and by a full
 :class:`Inbox`) and serves them, with no code of its own, on the queryable
 ``<ns>/status/<service>`` (:func:`keys.status`) that :func:`run_service`
 declares: a JSON object (:func:`status`). :func:`alias` maps a service's
@@ -37,7 +37,9 @@ from typing import Any, TypeVar
 import zenoh
 from google.protobuf.message import Message
 
-from . import acl, codec, keys
+from services.msgs import common_pb2
+
+from . import acl, keys, rejections, wire
 from . import log as logsetup
 from .cli import Settings
 
@@ -119,7 +121,7 @@ def tls_config(tls_dir: str, identity: str) -> dict[str, Any]:
 
 
 def encoding(msg: Message | type[Message]) -> zenoh.Encoding:
-    return zenoh.Encoding.APPLICATION_PROTOBUF.with_schema(codec.full_name(msg))
+    return zenoh.Encoding.APPLICATION_PROTOBUF.with_schema(wire.full_name(msg))
 
 
 def put(target: zenoh.Session | zenoh.Publisher, key: str, msg: Message) -> None:
@@ -170,9 +172,9 @@ class Inbox:
                 self._bytes += len(item.payload)
                 self.q.put(item)
         if full:
-            codec.rejected("input", codec.invalid(
+            rejections.rejected("input", rejections.invalid(
                 f"inbox full ({self.q.qsize()} items, {self._bytes} bytes): "
-                f"{len(item.payload)} bytes dropped", codec.Reason.OVERFLOW),
+                f"{len(item.payload)} bytes dropped", rejections.Reason.OVERFLOW),
                 log, key=self.key or item.key)
 
     def on_sample(self, sample: zenoh.Sample) -> None:
@@ -205,9 +207,10 @@ def accept(item: Received, cls: type[M], convert: Callable[[M], T], key: str | N
     """``convert(parse(item))``, or None after counting and logging the rejection under
     ``key`` (default: the item's key)."""
     try:
-        return convert(codec.parse(item.payload, cls, item.encoding))
-    except codec.CodecError as err:
-        codec.rejected(codec.full_name(cls).rsplit(".", 1)[-1], err, logger, key=key or item.key)
+        return convert(wire.parse(item.payload, cls, item.encoding))
+    except rejections.CodecError as err:
+        rejections.rejected(wire.full_name(cls).rsplit(".", 1)[-1], err, logger,
+                            key=key or item.key)
         return None
 
 
@@ -344,7 +347,7 @@ UNTRUSTED = "untrusted"
 
 
 def _count_untrusted(key: str, sender: str, trusted: Trusted) -> None:
-    codec.rejected("reply", codec.invalid(
+    rejections.rejected("reply", rejections.invalid(
         f"reply on {key} from session {sender or '?'}, not from the holder of the "
         f"service's liveliness token ({_trusted_text(trusted)})"), log, key=key,
         reason=UNTRUSTED)
@@ -386,9 +389,9 @@ def request(session: zenoh.Session, key: str, msg: Message, timeout_s: float,
     assert item.err is not None  # a reply is either ok or an error
     err_bytes = item.err.payload.to_bytes()
     try:
-        err = codec.parse(err_bytes, codec.common_pb2.Error)
-    except codec.CodecError as bad:
-        codec.rejected("Error", bad, log, key=key)  # an error reply we cannot read
+        err = wire.parse(err_bytes, common_pb2.Error)
+    except rejections.CodecError as bad:
+        rejections.rejected("Error", bad, log, key=key)  # an error reply we cannot read
         raise QueryError(0, err_bytes[:500].decode("utf-8", "replace")) from None
     raise QueryError(err.code, err.message)
 
@@ -438,7 +441,8 @@ class Liveliness:
                     zids.remove(zid)
             self.cond.notify_all()
         if second:  # only counting and logging here: never Zenoh in a callback
-            codec.rejected("liveliness", codec.invalid(second), log, key=key, reason=UNTRUSTED)
+            rejections.rejected("liveliness", rejections.invalid(second), log, key=key,
+                                reason=UNTRUSTED)
 
     def holder(self, service: str) -> str:
         """The Zenoh id of the session holding ``service``'s token ("" while nobody does)."""
@@ -505,15 +509,15 @@ class Liveliness:
 # -- status -------------------------------------------------------------------------------------
 def status(settings: Settings, started: float) -> dict[str, Any]:
     """The service's status: who it is and what it rejected (per key and reason)."""
-    rejected = codec.REJECTED.snapshot()
+    rejected = rejections.REJECTED.snapshot()
     return {
         "service": settings.service, "uav": settings.uav_id, "pid": os.getpid(),
         "uptime_s": round(time.monotonic() - started, 3),
-        "schema_version": codec.SCHEMA_VERSION,
+        "schema_version": wire.SCHEMA_VERSION,
         "rejected_total": sum(sum(c.values()) for c in rejected.values()),
         "rejected": rejected,
-        "reasons": [r.value for r in codec.Reason],
-        "log_lines_suppressed": codec.REJECTED.suppressed_total,
+        "reasons": [r.value for r in rejections.Reason],
+        "log_lines_suppressed": rejections.REJECTED.suppressed_total,
     }
 
 
@@ -690,7 +694,7 @@ def run_service(settings: Settings, body: Body, zenoh_session: bool = True) -> i
         log.warning("body still busy after the stop grace period; exiting anyway")
     log.info("stopped", extra=logsetup.fields(
         signal=signals[0] if signals else 0, exit_code=code,
-        rejections=codec.REJECTED.total()))
+        rejections=rejections.REJECTED.total()))
     logging.shutdown()
     sys.stdout.flush()
     sys.stderr.flush()

@@ -36,7 +36,7 @@ from dualpilot.spec import MissionSpec
 from dualpilot.warmup import warm_up
 from services.msgs import common_pb2, plan_pb2, vehicle_pb2
 
-from . import bus, codec, keys
+from . import bus, keys, protobuf_codec, rejections, wire
 from .log import fields
 
 log = logging.getLogger(__name__)
@@ -59,11 +59,12 @@ class PlannerService:
     def __init__(self, system: int, make: PlannerMaker, uav: str, keep_missions: int = 2):
         self.system = system
         self.make = make
-        self.stamper = codec.Stamper(f"system{system}", uav)
+        self.stamper = wire.Stamper(f"system{system}", uav)
         self.key = keys.plan(uav, system)  # where its rejections are counted
         self.missions: OrderedDict[str, _Prepared] = OrderedDict()
         self.keep = keep_missions
-        self.waypoints: OrderedDict[str, codec.Waypoints] = OrderedDict()  # newest per mission
+        # newest per mission
+        self.waypoints: OrderedDict[str, protobuf_codec.Waypoints] = OrderedDict()
 
     def prepare(self, mission_id: str, spec: MissionSpec, method: str = "") -> _Prepared:
         """The mission's planner, built from its spec and method (again only if they changed).
@@ -79,7 +80,7 @@ class PlannerService:
         log.info("planner ready", extra=fields(mission=mission_id, seed=spec.seed))
         return held
 
-    def set_operator_waypoints(self, w: codec.Waypoints) -> None:
+    def set_operator_waypoints(self, w: protobuf_codec.Waypoints) -> None:
         """Keep the newest revision of a mission's waypoints (applied at its next plan)."""
         held = self.waypoints.get(w.mission_id)
         if held is None or w.revision > held.revision:
@@ -88,15 +89,15 @@ class PlannerService:
                 self.waypoints.popitem(last=False)
 
     @staticmethod
-    def _unprepared(message: str) -> codec.CodecError:
-        return codec.CodecError(common_pb2.ERROR_CODE_UNPREPARED, message)
+    def _unprepared(message: str) -> rejections.CodecError:
+        return rejections.CodecError(common_pb2.ERROR_CODE_UNPREPARED, message)
 
-    def planner_for(self, req: codec.PlanRequest) -> Planner:
+    def planner_for(self, req: protobuf_codec.PlanRequest) -> Planner:
         """The prepared planner, with the request's waypoint revision applied."""
         held = self.missions.get(req.mission_id)
         if held is None:
             raise self._unprepared(f"mission {req.mission_id!r} is not prepared here")
-        codec.check_in_area(req, held.spec)
+        protobuf_codec.check_in_area(req, held.spec)
         if req.waypoints_revision != held.waypoints_revision:
             w = self.waypoints.get(req.mission_id)
             if w is None or w.revision < req.waypoints_revision:
@@ -104,17 +105,18 @@ class PlannerService:
                 raise self._unprepared(f"operator waypoints revision {req.waypoints_revision} "
                                        f"not received (have {have})")
             if not hasattr(held.planner, "set_waypoints"):
-                raise codec.invalid(f"system {self.system} takes no operator waypoints")
+                raise rejections.invalid(f"system {self.system} takes no operator waypoints")
             try:
                 held.planner.set_waypoints(w.points)
             except ValueError as err:
-                raise codec.invalid(f"operator waypoints: {err}") from err
+                raise rejections.invalid(f"operator waypoints: {err}") from err
             held.waypoints_revision = w.revision
         return held.planner
 
-    def plan(self, req: codec.PlanRequest) -> Plan:
+    def plan(self, req: protobuf_codec.PlanRequest) -> Plan:
         if req.system != self.system:
-            raise codec.invalid(f"request for system {req.system} sent to system {self.system}")
+            raise rejections.invalid(
+                f"request for system {req.system} sent to system {self.system}")
         planner = self.planner_for(req)
         t0 = time.perf_counter()
         try:
@@ -128,17 +130,18 @@ class PlannerService:
         """Decode, plan, encode: a Plan, or an Error for a bad request or a crash."""
         t_in = time.perf_counter()
         try:
-            req = codec.plan_request_from_msg(codec.parse(payload, plan_pb2.PlanRequest, encoding))
-        except codec.CodecError as err:
-            codec.rejected("PlanRequest", err, log, key=self.key)
-            return codec.error_msg(self.stamper, err.code, str(err))
+            req = protobuf_codec.plan_request_from_msg(wire.parse(payload, plan_pb2.PlanRequest,
+                                                                  encoding))
+        except rejections.CodecError as err:
+            rejections.rejected("PlanRequest", err, log, key=self.key)
+            return wire.error_msg(self.stamper, err.code, str(err))
         if req.prepare:
             assert req.spec is not None
             try:
                 self.prepare(req.mission_id, req.spec, req.method)
             except ValueError as err:
-                codec.rejected("PlanRequest", err, log, key=self.key)
-                return codec.error_msg(self.stamper, common_pb2.ERROR_CODE_INVALID, str(err))
+                rejections.rejected("PlanRequest", err, log, key=self.key)
+                return wire.error_msg(self.stamper, common_pb2.ERROR_CODE_INVALID, str(err))
             prepared = plan_pb2.Plan(step=req.step, system=self.system,
                                      status=plan_pb2.PLAN_STATUS_OK, message="prepared",
                                      request_seq=req.seq)
@@ -147,23 +150,23 @@ class PlannerService:
         t0 = time.perf_counter()
         try:
             plan = self.plan(req)
-        except codec.CodecError as err:
+        except rejections.CodecError as err:
             if err.code != common_pb2.ERROR_CODE_UNPREPARED:
-                codec.rejected("PlanRequest", err, log, key=self.key)
+                rejections.rejected("PlanRequest", err, log, key=self.key)
             else:
                 log.info("plan request for what is not here", extra=fields(error=str(err)))
-            return codec.error_msg(self.stamper, err.code, str(err))
+            return wire.error_msg(self.stamper, err.code, str(err))
         except Exception as err:  # a planner bug must not take the service down
             log.exception("planner failed", extra=fields(step=req.step))
-            return codec.error_msg(self.stamper, common_pb2.ERROR_CODE_INTERNAL,
-                                   f"{type(err).__name__}: {err}")
+            return wire.error_msg(self.stamper, common_pb2.ERROR_CODE_INTERNAL,
+                                  f"{type(err).__name__}: {err}")
         wall = time.perf_counter() - t0
         if wall > req.deadline_s:
             log.warning("plan later than the request's deadline", extra=fields(
                 step=req.step, wall_s=round(wall, 4), deadline_s=req.deadline_s))
         log.debug("plan", extra=fields(step=req.step, status=plan.status.value,
                                        compute_s=round(plan.compute_time_s, 4)))
-        msg = codec.plan_to_msg(plan, req.step, req.seq, self.stamper)
+        msg = protobuf_codec.plan_to_msg(plan, req.step, req.seq, self.stamper)
         msg.service_time_s = time.perf_counter() - t_in
         return msg
 
@@ -187,12 +190,12 @@ def run(ctx: bus.Context, system: int, make: PlannerMaker) -> None:
         item = queries.get(timeout=0.2)
         while (wp := operator.get(timeout=0)) is not None:
             try:
-                msg = codec.parse(wp.payload, vehicle_pb2.OperatorWaypoints, wp.encoding)
-                service.set_operator_waypoints(codec.waypoints_from_msg(msg))
+                msg = wire.parse(wp.payload, vehicle_pb2.OperatorWaypoints, wp.encoding)
+                service.set_operator_waypoints(protobuf_codec.waypoints_from_msg(msg))
                 log.info("operator waypoints", extra=fields(
                     mission=msg.mission_id, revision=msg.revision, n=len(msg.waypoints)))
-            except codec.CodecError as err:
-                codec.rejected("OperatorWaypoints", err, log, key=keys.waypoints(uav))
+            except rejections.CodecError as err:
+                rejections.rejected("OperatorWaypoints", err, log, key=keys.waypoints(uav))
         if item is None or item.query is None:
             continue
         out = service.handle(item.payload, item.encoding)

@@ -46,7 +46,7 @@ from dualpilot.model.fire_field import FireField
 from dualpilot.model.forecast import ForecastParams
 from dualpilot.readings import PROFILES, get_profile
 from dualpilot.spec import Stream, stream_rng
-from services.common import bus, codec, fleet, keys
+from services.common import bus, fleet, keys, protobuf_codec, rejections, wire
 from services.common import cli as common_cli
 from services.common.log import fields
 from services.msgs import common_pb2, fire_pb2
@@ -70,7 +70,7 @@ class Ews:
         self.params = params
         self.stop = stop
         self.forecast_substeps = max(0, math.ceil(forecast_horizon_s / params.substep_s))
-        self.stamper = codec.Stamper("ews", uav)
+        self.stamper = wire.Stamper("ews", uav)
         self.fires_pub = session.declare_publisher(keys.fires(uav))
         self.forecast_pub = session.declare_publisher(keys.forecast(uav))
         self.field: FireField | None = None
@@ -86,10 +86,10 @@ class Ews:
     def state_msg(self) -> fire_pb2.FireState:
         assert self.field is not None
         f = self.field
-        return codec.fire_state_msg(f.fronts, f.extinct_hulls, self.step, f.substeps_done,
-                                    self.params.substep_s, self.stamper, self.sim_time_s)
+        return protobuf_codec.fire_state_msg(f.fronts, f.extinct_hulls, self.step, f.substeps_done,
+                                             self.params.substep_s, self.stamper, self.sim_time_s)
 
-    def handle(self, cmd: codec.FireCommand) -> fire_pb2.FireUpdate:
+    def handle(self, cmd: protobuf_codec.FireCommand) -> fire_pb2.FireUpdate:
         update = fire_pb2.FireUpdate()
         if cmd.kind == "reset":
             params = self.params
@@ -97,7 +97,7 @@ class Ews:
                 try:
                     params = replace(self.params, **dict(cmd.readings))  # type: ignore[arg-type]
                 except (TypeError, ValueError) as err:
-                    raise codec.invalid(f"bad fire readings: {err}") from err
+                    raise rejections.invalid(f"bad fire readings: {err}") from err
             if cmd.scenario:  # the supervisor's fire process (FireReset.scenario)
                 params = replace(params, scenario=cmd.scenario)
             self.field = (FireField(params=params, area_size_m=cmd.area_size_m)
@@ -111,18 +111,18 @@ class Ews:
             log.info("fire process reset", extra=fields(mission=cmd.mission_id, seed=cmd.seed))
         else:
             if self.field is None or self.rng is None or cmd.mission_id != self.mission_id:
-                raise codec.invalid(f"no fire process for mission {cmd.mission_id!r} "
-                                    f"(current {self.mission_id!r}): send reset first")
+                raise rejections.invalid(f"no fire process for mission {cmd.mission_id!r} "
+                                         f"(current {self.mission_id!r}): send reset first")
             if cmd.step < self.step:
-                raise codec.invalid(f"step {cmd.step} is before the current step {self.step}")
+                raise rejections.invalid(f"step {cmd.step} is before the current step {self.step}")
             anchor = cmd.anchor
             t0 = anchor.sim_time_s if anchor is not None else self.sim_time_s
             if anchor is not None:
                 wait = anchor.wall_at(t0 + cmd.substeps * self.params.substep_s) - time.time()
                 if wait > MAX_PACED_WAIT_S:
-                    raise codec.invalid(f"the clock would pace this advance for {wait:.3g} s "
-                                        f"(at most {MAX_PACED_WAIT_S:g})",
-                                        codec.Reason.OUT_OF_RANGE)
+                    raise rejections.invalid(f"the clock would pace this advance for {wait:.3g} s "
+                                             f"(at most {MAX_PACED_WAIT_S:g})",
+                                             rejections.Reason.OUT_OF_RANGE)
             self.step_substeps = cmd.substeps + (self.step_substeps if cmd.step == self.step
                                                  else 0)
             self.step = cmd.step
@@ -151,8 +151,8 @@ class Ews:
             regions = forecast_regions(front, self.field.params, self.forecast_substeps)
             fm = m.fronts.add(front_id=front.front_id)
             for r in regions:
-                codec.rect_to_msg(r, fm.regions.add())
-            codec.polygon_to_msg(envelope(front, regions), fm.envelope)
+                protobuf_codec.rect_to_msg(r, fm.regions.add())
+            protobuf_codec.polygon_to_msg(envelope(front, regions), fm.envelope)
         self.add_occupancy(m)
         bus.put(self.forecast_pub, "", m)
 
@@ -164,7 +164,7 @@ class Ews:
         if self.occupancy is None or f is None:
             return
         fc = field_forecast(f, self.occupancy, self.seed, max(1, self.step_substeps))
-        codec.occupancy_to_msg(fc, m.occupancy)
+        protobuf_codec.occupancy_to_msg(fc, m.occupancy)
 
 
 class Binding:
@@ -181,13 +181,13 @@ class Binding:
         self.session = ""
         self.mission_id = ""
 
-    def check(self, cmd: codec.FireCommand, who: str) -> None:
+    def check(self, cmd: protobuf_codec.FireCommand, who: str) -> None:
         """Raise CodecError when ``who`` may not send ``cmd``; a reset binds."""
         bound = self.session
         if bound and who != bound and bound in self.live.holders.get("supervisor", []):
-            raise codec.invalid(f"fire process of mission {self.mission_id!r} is bound to "
-                                f"supervisor session {bound}; {cmd.kind} from {who or '?'} "
-                                f"refused")
+            raise rejections.invalid(f"fire process of mission {self.mission_id!r} is bound to "
+                                     f"supervisor session {bound}; {cmd.kind} from {who or '?'} "
+                                     f"refused")
         if cmd.kind == "reset":
             if bound and who != bound:
                 log.warning("fire process taken over", extra=fields(
@@ -210,20 +210,20 @@ def body(ctx: bus.Context, params: FireParams, forecast_horizon_s: float,
         if item is None or item.query is None:
             continue
         try:
-            cmd = codec.fire_command_from_msg(
-                codec.parse(item.payload, fire_pb2.FireCommand, item.encoding))
+            cmd = protobuf_codec.fire_command_from_msg(
+                wire.parse(item.payload, fire_pb2.FireCommand, item.encoding))
             binding.check(cmd, item.attachment.decode("ascii", "replace"))
             update = ews.handle(cmd)
             # Before the reply: once answered, the supervisor starts its next step at once,
             # and a forecast computed then would take the CPU its plan request needs.
             ews.publish_forecast()
             bus.reply(item.query, update)
-        except codec.CodecError as err:
-            codec.rejected("FireCommand", err, log, key=key)
-            bus.reply_error(item.query, codec.error_msg(ews.stamper, err.code, str(err)))
+        except rejections.CodecError as err:
+            rejections.rejected("FireCommand", err, log, key=key)
+            bus.reply_error(item.query, wire.error_msg(ews.stamper, err.code, str(err)))
         except Exception as err:  # a bug must not take the fire process down with it
             log.exception("fire command failed")
-            bus.reply_error(item.query, codec.error_msg(
+            bus.reply_error(item.query, wire.error_msg(
                 ews.stamper, common_pb2.ERROR_CODE_INTERNAL, f"{type(err).__name__}: {err}"))
     queryable.undeclare()
 

@@ -37,7 +37,7 @@ def next_event(events: Any, timeout_s: float = 0.2) -> Any:
     """The next readable MissionEvent from the queue ``events`` within ``timeout_s``, else None."""
     import queue
 
-    from services.common import codec
+    from services.common import rejections, wire
     from services.msgs import supervisor_pb2
 
     try:
@@ -45,8 +45,8 @@ def next_event(events: Any, timeout_s: float = 0.2) -> Any:
     except queue.Empty:
         return None
     try:
-        return codec.parse(raw, supervisor_pb2.MissionEvent)
-    except codec.CodecError:
+        return wire.parse(raw, supervisor_pb2.MissionEvent)
+    except rejections.CodecError:
         return None
 
 

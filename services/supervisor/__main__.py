@@ -32,7 +32,7 @@ from dualpilot.model.geometry import Rect
 from dualpilot.readings import PROFILES, get_profile
 from dualpilot.spec import MissionSpec
 from dualpilot.warmup import warm_up
-from services.common import bus, codec, fleet, keys, mav
+from services.common import bus, fleet, keys, mav, protobuf_codec, rejections
 from services.common import cli as common_cli
 from services.common.clock import SimClock
 from services.common.log import fields
@@ -163,7 +163,7 @@ def main(argv: list[str] | None = None) -> int:
         settings = common_cli.settings("supervisor", args)
         controller, timing = Controller(args.controller), Timing(args.timing)
         goal = parse_goal(args.goal)
-        waypoints = codec.parse_waypoints(args.waypoints)
+        waypoints = protobuf_codec.parse_waypoints(args.waypoints)
         # default: tied to the control period (StackParams.plan_deadline_periods)
         deadlines = tuple(float(v) for v in args.plan_deadline_s.split(",")) if (
             args.plan_deadline_s) else StackParams().plan_deadline_periods
@@ -276,8 +276,9 @@ def main(argv: list[str] | None = None) -> int:
                     log.info("records written", extra=fields(
                         files=",".join(p.name for p in paths)))
                 except OSError as err:  # a full or read-only disk: logged, the end announced
-                    codec.rejected("records", codec.invalid(f"records not written: {err}"),
-                                   log, key="storage/records", reason="write_error")
+                    rejections.rejected("records",
+                                        rejections.invalid(f"records not written: {err}"),
+                                        log, key="storage/records", reason="write_error")
             mission.announce_end(str(out or ""), aborted)
             r = mission.result
             if r is not None and not aborted:

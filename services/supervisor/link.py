@@ -40,7 +40,7 @@ from typing import Any
 import numpy as np
 
 from dualpilot.model.dynamics import Array
-from services.common import codec, mav
+from services.common import mav, mavlink_codec, rejections
 from services.common.log import fields, vehicle_thread
 from services.supervisor.stream.client import StreamLink, stream_process
 
@@ -205,7 +205,7 @@ class VehicleLink:
 
     def _send_target(self, target: Array, due_ms: int, wait: bool = True) -> float:
         """Send a setpoint now (through the stream process, which then repeats it)."""
-        n, e, d, vn, ve, vd = codec.state_to_ned(target, self.altitude_m)
+        n, e, d, vn, ve, vd = mavlink_codec.state_to_ned(target, self.altitude_m)
         if self.stream is not None:
             return self.stream.setpoint(int(due_ms), (n, e, d, vn, ve, vd),
                                         mav.TYPE_MASK_POS_VEL, wait)
@@ -374,9 +374,9 @@ class VehicleLink:
                 self.cond.notify_all()
         elif kind == "LOCAL_POSITION_NED":
             try:
-                x = codec.state_from_ned(msg.x, msg.y, msg.vx, msg.vy)
-            except codec.CodecError as err:
-                codec.rejected("LOCAL_POSITION_NED", err, log)
+                x = mavlink_codec.state_from_ned(msg.x, msg.y, msg.vx, msg.vy)
+            except rejections.CodecError as err:
+                rejections.rejected("LOCAL_POSITION_NED", err, log)
                 return
             with self.cond:
                 if msg.time_boot_ms >= self.state_time_ms:

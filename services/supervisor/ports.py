@@ -2,7 +2,7 @@
 services (Zenoh queries), the vehicle over MAVLink.
 
 Each adapter turns a port call into messages and back, checking every reply
-before it acts (services/common/codec.py). Time is the lockstep SimClock
+before it acts (services/common/protobuf_codec.py). Time is the lockstep SimClock
 (services/common/clock.py): the fires' sub-steps and the vehicle's ΔT
 advance it.
 """
@@ -25,9 +25,9 @@ from dualpilot.model.dynamics import Array
 from dualpilot.model.fire import FireParams, FireSnapshot
 from dualpilot.model.geometry import Rect
 from dualpilot.model.stale_fire import StaleFireParams, credible_margin_m
-from dualpilot.plan import Plan, PlanStatus
+from dualpilot.plan import Objective, Plan, PlanStatus
 from dualpilot.spec import MissionSpec
-from services.common import bus, codec, keys
+from services.common import bus, keys, protobuf_codec, rejections, wire
 from services.common.clock import SimClock
 from services.common.log import fields, vehicle_thread
 from services.msgs import common_pb2, fire_pb2, plan_pb2
@@ -79,7 +79,7 @@ class Bus:
     session: zenoh.Session
     uav: str
     mission_id: str
-    stamper: codec.Stamper
+    stamper: wire.Stamper
     clock: SimClock
     stop: threading.Event
     stack: StackParams
@@ -140,9 +140,9 @@ class StackFires:
         try:
             payload, enc = bus.request(self.b.session, key, cmd, self.b.stack.fire_timeout_s,
                                        self.b.stop, trusted=self.b.trusted("ews"))
-            update = codec.parse(payload, fire_pb2.FireUpdate, enc)
-        except codec.CodecError as err:
-            codec.rejected("FireUpdate", err, log, key=key)
+            update = wire.parse(payload, fire_pb2.FireUpdate, enc)
+        except rejections.CodecError as err:
+            rejections.rejected("FireUpdate", err, log, key=key)
             raise Aborted(f"EWS: {err}") from err
         except (TimeoutError, bus.QueryError) as err:
             raise Aborted(f"EWS: {err}") from err
@@ -152,9 +152,9 @@ class StackFires:
 
     def _take(self, msg: fire_pb2.FireState) -> FireSnapshot:
         try:
-            snap = codec.snapshot_from_msg(msg)
-        except codec.CodecError as err:
-            codec.rejected("FireState", err, log)
+            snap = protobuf_codec.snapshot_from_msg(msg)
+        except rejections.CodecError as err:
+            rejections.rejected("FireState", err, log)
             raise Aborted(f"EWS sent an invalid fire state: {err}") from err
         self.msg, self.current = msg, snap
         return snap
@@ -163,7 +163,8 @@ class StackFires:
         """Start the mission's fire process; returns its first state. Raises Aborted."""
         cmd = fire_pb2.FireCommand()
         cmd.reset.seed, cmd.reset.area_size_m = self.spec.seed, self.spec.area_size_m
-        codec.fire_readings_to_msg(self.params, cmd.reset)  # the EWS runs the same readings
+        # the EWS runs the same readings
+        protobuf_codec.fire_readings_to_msg(self.params, cmd.reset)
         first = self._command(cmd).states[0]
         self.params = replace(self.params, substep_s=first.substep_s)
         return self._take(first)
@@ -173,7 +174,8 @@ class StackFires:
         mission had, whatever the EWS lost. Raises Aborted when the EWS does not answer."""
         cmd = fire_pb2.FireCommand()
         cmd.reset.seed, cmd.reset.area_size_m = self.spec.seed, self.spec.area_size_m
-        codec.fire_readings_to_msg(self.params, cmd.reset)  # the EWS runs the same readings
+        # the EWS runs the same readings
+        protobuf_codec.fire_readings_to_msg(self.params, cmd.reset)
         last = self._command(cmd).states[-1]
         for t, n, keep in self.history:
             if n:
@@ -227,9 +229,10 @@ class StackFires:
         last = len(update.states) - 1
         for k, msg in enumerate(update.states):
             try:  # the intermediate sub-steps only matter through their regions
-                out.append(self._take(msg).regions if k == last else codec.regions_from_msg(msg))
-            except codec.CodecError as err:
-                codec.rejected("FireState", err, log)
+                out.append(self._take(msg).regions if k == last
+                           else protobuf_codec.regions_from_msg(msg))
+            except rejections.CodecError as err:
+                rejections.rejected("FireState", err, log)
                 raise Aborted(f"EWS sent an invalid fire state: {err}") from err
         return out
 
@@ -286,7 +289,7 @@ class StackPlanners:
         self.spec = spec
         self.systems = systems
         self.methods = methods or {}  # system → planner method named in the prepare request
-        self.waypoints = codec.Waypoints(b.mission_id, 0, None)
+        self.waypoints = protobuf_codec.Waypoints(b.mission_id, 0, None)
         self.last_info: dict[int, dict[str, object]] = {}
         self.request_wall = self.service_time = self.compute = 0.0
         self.requests = 0
@@ -354,7 +357,7 @@ class StackPlanners:
                 deadline_s=self.b.deadline_s(system)))
 
     def _message(self, system: int, req: PlanRequest | None) -> plan_pb2.PlanRequest:
-        core = codec.PlanRequest(
+        core = protobuf_codec.PlanRequest(
             seq=0, mission_id=self.b.mission_id, step=0 if req is None else req.t,
             system=system, objective=req.objective if req is not None else _OBJ,
             state=req.state if req is not None else np.zeros(4),
@@ -364,7 +367,7 @@ class StackPlanners:
             waypoints_revision=self.waypoints.revision, prepare=req is None,
             spec=self.spec if req is None else None,
             method=self.methods.get(system, "") if req is None else "")
-        return codec.plan_request_msg(core, self.b.stamper, self.b.clock.now_s)
+        return protobuf_codec.plan_request_msg(core, self.b.stamper, self.b.clock.now_s)
 
     def prepare(self, systems: list[int]) -> None:
         """Warm-up: every replica of each planner builds this mission's planner from the spec.
@@ -383,8 +386,8 @@ class StackPlanners:
                         self.b.session, key, msg, timeout, self.b.stop,
                         trusted=zid or self.b.trusted(f"system{system}"),
                         count_key=keys.plan(self.b.uav, system))
-                    codec.parse(payload, plan_pb2.Plan, enc)
-                except (TimeoutError, bus.QueryError, codec.CodecError) as err:
+                    wire.parse(payload, plan_pb2.Plan, enc)
+                except (TimeoutError, bus.QueryError, rejections.CodecError) as err:
                     errors.append(f"{zid or 'system'}: {err}")
             if len(errors) == len(targets):
                 raise Aborted(f"system{system} could not prepare the mission: "
@@ -395,13 +398,14 @@ class StackPlanners:
 
     def set_waypoints(self, points: Array | None, publish: bool) -> None:
         """A new revision of the operator waypoints, published on their key."""
-        self.waypoints = codec.Waypoints(self.b.mission_id, self.waypoints.revision + 1, points)
+        self.waypoints = protobuf_codec.Waypoints(self.b.mission_id, self.waypoints.revision + 1,
+                                                  points)
         if publish:
             self.publish_waypoints()
 
     def publish_waypoints(self) -> None:
         pub = self.b.session.declare_publisher(keys.waypoints(self.b.uav))
-        bus.put(pub, "", codec.waypoints_msg(self.waypoints, self.b.stamper))
+        bus.put(pub, "", protobuf_codec.waypoints_msg(self.waypoints, self.b.stamper))
         pub.undeclare()
 
     def launch(self, request: PlanRequest) -> object:
@@ -492,8 +496,8 @@ class StackPlanners:
         try:
             payload, enc = bus.request(self.b.session, key, msg, timeout_s, self.b.stop,
                                        trusted=trusted, count_key=base)
-            reply = codec.parse(payload, plan_pb2.Plan, enc)
-            plan = codec.plan_from_msg(reply, system)
+            reply = wire.parse(payload, plan_pb2.Plan, enc)
+            plan = protobuf_codec.plan_from_msg(reply, system)
             if account:
                 self.service_time += reply.service_time_s
             age = time.perf_counter() - t0
@@ -516,13 +520,13 @@ class StackPlanners:
             plan = Plan.failed(system, status, time.perf_counter() - t0, f"system{system}: {err}")
             if err.code == common_pb2.ERROR_CODE_UNPREPARED:
                 plan.info["unprepared"] = True
-        except codec.CodecError as err:
-            codec.rejected("Plan", err, log, key=base)
+        except rejections.CodecError as err:
+            rejections.rejected("Plan", err, log, key=base)
             plan = Plan.failed(system, PlanStatus.ERROR, time.perf_counter() - t0, str(err))
         return plan
 
 
-_OBJ = codec.Objective.MISSION_TIME
+_OBJ = Objective.MISSION_TIME
 
 
 class StackVehicle:

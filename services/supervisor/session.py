@@ -54,7 +54,7 @@ from dualpilot.model.dynamics import Array
 from dualpilot.model.fire import FireParams
 from dualpilot.spec import MissionSpec
 from dualpilot.supervisor.decision import Decision, SupervisorParams
-from services.common import bus, codec, keys
+from services.common import bus, keys, protobuf_codec, rejections, wire
 from services.common.clock import SimClock
 from services.common.log import fields
 from services.msgs import common_pb2, supervisor_pb2, vehicle_pb2
@@ -119,7 +119,7 @@ class StackSession:
         self.record_dir = record_dir
         self.waypoints = waypoints
         self.mission_rev = 0  # the vehicle's mission download last seen
-        self.b = Bus(session, uav, mission_id, codec.Stamper("supervisor", uav), clock, stop,
+        self.b = Bus(session, uav, mission_id, wire.Stamper("supervisor", uav), clock, stop,
                      stack, live, dt_s=spec.dynamics.dt_s)
         self.pubs = {
             name: session.declare_publisher(key) for name, key in (
@@ -167,8 +167,8 @@ class StackSession:
                 self.storage_errors += 1
                 if not self.storage_fault:
                     self.storage_fault = f"step record not written: {err}"
-                    codec.rejected("record", codec.invalid(self.storage_fault), log,
-                                   key="storage/steps.jsonl", reason="write_error")
+                    rejections.rejected("record", rejections.invalid(self.storage_fault), log,
+                                        key="storage/steps.jsonl", reason="write_error")
 
     def _steps(self) -> int:
         return self.result.steps if self.result is not None else 0
@@ -190,7 +190,7 @@ class StackSession:
     def _publish_state(self, t: int) -> None:
         m = vehicle_pb2.VehicleState()
         self.b.stamper.stamp(m.header, self._now())
-        codec.state_to_msg(self.state, t, m, self.stack.altitude_m)
+        protobuf_codec.state_to_msg(self.state, t, m, self.stack.altitude_m)
         bus.put(self.pubs["state"], "", m)
 
     # -- the vehicle ------------------------------------------------------------------------------
@@ -497,7 +497,7 @@ class StackSession:
         self.b.clock_msg(clock_msg)
         self.b.stamper.stamp(clock_msg.header, self._now())
         bus.put(self.pubs["clock"], "", clock_msg)
-        msg = codec.decision_to_msg(decision, wanted, self.b.stamper, self._now())
+        msg = protobuf_codec.decision_to_msg(decision, wanted, self.b.stamper, self._now())
         msg.plan_source, msg.operator_rejected = op.source, op.rejected
         msg.operator_waypoints, msg.operator_note = op.waypoints, op.note[:500]
         why = self._step_why
@@ -526,7 +526,8 @@ class StackSession:
         return found
 
     def recorded(self, record: StepRecord, flown: bool) -> None:
-        bus.put(self.pubs["plans"], "", codec.step_plans_msg(  # the live view (services/viewer)
+        # the live view (services/viewer)
+        bus.put(self.pubs["plans"], "", protobuf_codec.step_plans_msg(
             record, self.b.mission_id, self.spec, self.b.stamper, self._now()))
         rejected = record.plan_status.count(f"[{monitor.TAG}:")
         if rejected:
@@ -635,7 +636,8 @@ class StackSession:
             "mission_id": self.b.mission_id, "transport": "zenoh + mavlink",
             "speed_factor": self.clock.speed_factor or "unpaced",
             "setpoint_overhead": self.latency.overhead_ms(),
-            "setpoints_sent": self.link.sent, "rejected_messages": dict(codec.REJECTED.by_label),
+            "setpoints_sent": self.link.sent,
+            "rejected_messages": dict(rejections.REJECTED.by_label),
             "monitor_rejected": self.monitor_rejected, "untrusted": _untrusted_counts(),
             "storage_errors": self.storage_errors, "faults": dict(self.faults.totals),
             "planner_failovers": self.planners.failovers if self.planners else 0,
@@ -649,5 +651,5 @@ class StackSession:
 
 def _untrusted_counts() -> dict[str, int]:
     """Replies and liveliness claims refused as not from the token holder, per key."""
-    return {key: reasons[bus.UNTRUSTED] for key, reasons in codec.REJECTED.snapshot().items()
+    return {key: reasons[bus.UNTRUSTED] for key, reasons in rejections.REJECTED.snapshot().items()
             if bus.UNTRUSTED in reasons}

@@ -26,7 +26,7 @@ import os
 import sys
 
 from dualpilot.readings import PROFILES, get_profile
-from services.common import bus, codec, fleet, mav
+from services.common import bus, fleet, mav, rejections
 from services.common import cli as common_cli
 from services.common.log import fields
 
@@ -66,8 +66,8 @@ class StatsFile:
         except OSError as err:
             if not self.failed:
                 self.failed = True
-                codec.rejected("stream-stats", codec.invalid(f"not written: {err}"), log,
-                               key="storage/stream-stats", reason="write_error")
+                rejections.rejected("stream-stats", rejections.invalid(f"not written: {err}"), log,
+                                    key="storage/stream-stats", reason="write_error")
 
 
 def parse_pair(text: str, what: str) -> tuple[float, float]:

@@ -31,7 +31,7 @@ import time
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
-from services.common import codec, mav
+from services.common import mav, rejections
 from services.common.log import fields
 
 from . import flavour as fl
@@ -75,7 +75,8 @@ class CommandParams:
         """Raise CodecError (``not_finite``) for ±inf anywhere or NaN in a required param."""
         for k, v in enumerate(self.values, start=1):
             if math.isinf(v) or (math.isnan(v) and k in REQUIRED.get(command, ())):
-                raise codec.invalid(f"COMMAND_LONG.param{k} is {v}", codec.Reason.NOT_FINITE)
+                raise rejections.invalid(f"COMMAND_LONG.param{k} is {v}",
+                                         rejections.Reason.NOT_FINITE)
 
     def __getitem__(self, k: int) -> float:
         """param ``k`` (1-based), NaN (unset) as 0."""
@@ -208,7 +209,7 @@ class Commands:
             "command_ack", cmd, res, 0, 0, msg.get_srcSystem(), msg.get_srcComponent())
         try:
             p.check(cmd)
-        except codec.CodecError as err:  # ±inf, or NaN where the vehicle needs a number
+        except rejections.CodecError as err:  # ±inf, or NaN where the vehicle needs a number
             ep.reject(link, err, "COMMAND_LONG")
             ack(int(m.MAV_RESULT_DENIED))
             return False

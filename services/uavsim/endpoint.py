@@ -19,7 +19,7 @@ import time
 from collections.abc import Callable
 from typing import Any
 
-from services.common import codec, mav
+from services.common import mav, mavlink_codec, rejections
 from services.common.log import fields
 
 from . import arrivals, params, telemetry
@@ -183,17 +183,17 @@ class Endpoint:
         self.param_value(None, name)
 
     # -- incoming -----------------------------------------------------------------------------
-    def reject(self, link: str, err: codec.CodecError, what: str = "mavlink") -> None:
+    def reject(self, link: str, err: rejections.CodecError, what: str = "mavlink") -> None:
         """Count and log (rate-limited) a rejected MAVLink input under ``mavlink/<link>``."""
-        codec.rejected(what, err, log, key=f"mavlink/{link}")
+        rejections.rejected(what, err, log, key=f"mavlink/{link}")
 
-    def bad_frame(self, link: str, msg: Any) -> codec.CodecError:
+    def bad_frame(self, link: str, msg: Any) -> rejections.CodecError:
         """The rejection for a BAD_DATA frame (an unsigned one is also counted as such)."""
         why = str(getattr(msg, "reason", ""))
-        reason = codec.mavlink_frame_reason(why)
-        if reason is codec.Reason.UNSIGNED:
+        reason = mavlink_codec.mavlink_frame_reason(why)
+        if reason is rejections.Reason.UNSIGNED:
             self.count_unsigned(link)
-        return codec.invalid(f"bad frame on {link}: {why}", reason)
+        return rejections.invalid(f"bad frame on {link}: {why}", reason)
 
     def receive(self, link: str) -> None:
         """Read every waiting datagram of ``link`` and handle its frames (never raises).
@@ -223,26 +223,26 @@ class Endpoint:
                     self.add_client(conn, addr)
             except Exception:  # a bug must not take the vehicle down: count it, go on
                 log.exception("frame handling failed")
-                self.reject(link, codec.invalid("frame handling failed (internal error)"))
+                self.reject(link, rejections.invalid("frame handling failed (internal error)"))
             finally:
                 self.rx_time = None
 
     def datagram(self, link: str, conn: Any, data: bytes) -> bool:
         """Parse and handle one datagram; True if it held at least one usable frame."""
-        if len(data) > codec.MAX_MAVLINK_DATAGRAM:
-            self.reject(link, codec.invalid(
-                f"datagram of {len(data)} bytes (at most {codec.MAX_MAVLINK_DATAGRAM})",
-                codec.Reason.TOO_LARGE))
+        if len(data) > mavlink_codec.MAX_MAVLINK_DATAGRAM:
+            self.reject(link, rejections.invalid(
+                f"datagram of {len(data)} bytes (at most {mavlink_codec.MAX_MAVLINK_DATAGRAM})",
+                rejections.Reason.TOO_LARGE))
             return False
         parser = conn.mav
         parser.buf, parser.buf_index = bytearray(), 0
         parser.expected_length = mav.mavlink.HEADER_LEN_V1 + 2
-        framing: codec.CodecError | None = None
+        framing: rejections.CodecError | None = None
         usable = False
         msgs = parser.parse_buffer(data) or []
         if parser.buf_len() > 0:
-            framing = codec.invalid(f"truncated frame: {parser.buf_len()} bytes left over",
-                                    codec.Reason.MALFORMED)
+            framing = rejections.invalid(f"truncated frame: {parser.buf_len()} bytes left over",
+                                         rejections.Reason.MALFORMED)
             parser.buf, parser.buf_index = bytearray(), 0
         for msg in msgs:
             kind = msg.get_type()
@@ -252,13 +252,13 @@ class Endpoint:
                 continue
             if kind.startswith("UNKNOWN_"):
                 if framing is None:
-                    framing = codec.invalid(f"message id {kind[8:]} is not in the dialect",
-                                            codec.Reason.UNKNOWN_MESSAGE)
+                    framing = rejections.invalid(f"message id {kind[8:]} is not in the dialect",
+                                                 rejections.Reason.UNKNOWN_MESSAGE)
                 continue
             if msg.get_msgbuf()[0] == mav.mavlink.PROTOCOL_MARKER_V1 and kind != "HEARTBEAT":
                 if framing is None:  # a MAVLink 1 HEARTBEAT is how a GCS finds us, then v2
-                    framing = codec.invalid(f"MAVLink 1 {kind}: this vehicle speaks MAVLink 2",
-                                            codec.Reason.MAVLINK1)
+                    framing = rejections.invalid(f"MAVLink 1 {kind}: this vehicle speaks MAVLink 2",
+                                                 rejections.Reason.MAVLINK1)
                 continue
             usable = self.handle(link, msg) or usable
         if framing is not None:
@@ -298,16 +298,16 @@ class Endpoint:
         if kind in GCS_CHATTER:
             return True
         if kind not in HANDLED:
-            self.reject(link, codec.invalid(f"{kind} is not a message the vehicle accepts",
-                                            codec.Reason.WRONG_TYPE))
+            self.reject(link, rejections.invalid(f"{kind} is not a message the vehicle accepts",
+                                                 rejections.Reason.WRONG_TYPE))
             return False
         target = getattr(msg, "target_system", None)
         comp = getattr(msg, "target_component", None)
         if (target not in (None, 0, self.sysid)
                 or comp not in (None, 0, mav.MAV_COMP_ID_AUTOPILOT1)):
-            self.reject(link, codec.invalid(
+            self.reject(link, rejections.invalid(
                 f"{kind} for system {target} component {comp} (this is {self.sysid}:1)",
-                codec.Reason.WRONG_TARGET))
+                rejections.Reason.WRONG_TARGET))
             return False
         # when the datagram arrived (the kernel's stamp), not when this process got to it
         now = self.rx_time if self.rx_time is not None else time.monotonic()
@@ -333,9 +333,9 @@ class Endpoint:
         elif kind == "COMMAND_INT":
             result = m.MAV_RESULT_UNSUPPORTED
             try:
-                codec.check_finite_fields(msg, ("param1", "param2", "param3", "param4", "z"),
-                                          "COMMAND_INT")
-            except codec.CodecError as err:
+                mavlink_codec.check_finite_fields(
+                    msg, ("param1", "param2", "param3", "param4", "z"), "COMMAND_INT")
+            except rejections.CodecError as err:
                 self.reject(link, err)
                 result = m.MAV_RESULT_DENIED
             self.send[link]("command_ack", msg.command, result, 0, 0,
@@ -379,7 +379,7 @@ class Endpoint:
                                  f"{self.controller[1]}:{self.controller[2]} is in control")
 
     def refuse(self, link: str, why: str) -> bool:
-        self.reject(link, codec.invalid(why, codec.Reason.WRONG_TARGET), "control")
+        self.reject(link, rejections.invalid(why, rejections.Reason.WRONG_TARGET), "control")
         self.set_param("CTL_REFUSED", self.p("CTL_REFUSED") + 1)
         return False
 
@@ -430,14 +430,14 @@ class Endpoint:
         lead = (None if self.realtime is not None  # real time: the client's stamp is not a clock
                 else int(msg.time_boot_ms) - self.vehicle.time_ms)
         if lead is not None and lead > self.p("COM_SP_LEAD_S") * 1000:  # never moves the clock
-            self.reject(link, codec.invalid(
+            self.reject(link, rejections.invalid(
                 f"setpoint due {lead / 1000:.6g} s after the vehicle's clock (more than one step,"
-                f" COM_SP_LEAD_S = {self.p('COM_SP_LEAD_S'):g} s)", codec.Reason.OUT_OF_RANGE),
+                f" COM_SP_LEAD_S = {self.p('COM_SP_LEAD_S'):g} s)", rejections.Reason.OUT_OF_RANGE),
                 "setpoint")
             return None
         try:
-            target = codec.setpoint_from_mavlink(normalised(msg), self.area_size_m, lead)
-        except codec.CodecError as err:
+            target = mavlink_codec.setpoint_from_mavlink(normalised(msg), self.area_size_m, lead)
+        except rejections.CodecError as err:
             self.reject(link, err, "setpoint")
             return None
         if not self.may_control(link, msg, now):  # checked once the setpoint itself is valid

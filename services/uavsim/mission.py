@@ -18,7 +18,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
-from services.common import codec, mav
+from services.common import mav, rejections
 from services.common.log import fields
 
 log = logging.getLogger(__name__)
@@ -30,15 +30,15 @@ _PARAM_RESULT = (m.MAV_MISSION_INVALID_PARAM1, m.MAV_MISSION_INVALID_PARAM2,
                  m.MAV_MISSION_INVALID_PARAM3, m.MAV_MISSION_INVALID_PARAM4)
 #: the counter reason of each refusal (MAV_MISSION_* result)
 _REASON = {
-    int(m.MAV_MISSION_UNSUPPORTED): codec.Reason.INVALID,
-    int(m.MAV_MISSION_UNSUPPORTED_FRAME): codec.Reason.INVALID,
-    int(m.MAV_MISSION_INVALID_PARAM1): codec.Reason.NOT_FINITE,
-    int(m.MAV_MISSION_INVALID_PARAM2): codec.Reason.NOT_FINITE,
-    int(m.MAV_MISSION_INVALID_PARAM3): codec.Reason.NOT_FINITE,
-    int(m.MAV_MISSION_INVALID_PARAM4): codec.Reason.NOT_FINITE,
-    int(m.MAV_MISSION_INVALID_PARAM7): codec.Reason.NOT_FINITE,
-    int(m.MAV_MISSION_INVALID_PARAM5_X): codec.Reason.OUT_OF_RANGE,
-    int(m.MAV_MISSION_INVALID_PARAM6_Y): codec.Reason.OUT_OF_RANGE,
+    int(m.MAV_MISSION_UNSUPPORTED): rejections.Reason.INVALID,
+    int(m.MAV_MISSION_UNSUPPORTED_FRAME): rejections.Reason.INVALID,
+    int(m.MAV_MISSION_INVALID_PARAM1): rejections.Reason.NOT_FINITE,
+    int(m.MAV_MISSION_INVALID_PARAM2): rejections.Reason.NOT_FINITE,
+    int(m.MAV_MISSION_INVALID_PARAM3): rejections.Reason.NOT_FINITE,
+    int(m.MAV_MISSION_INVALID_PARAM4): rejections.Reason.NOT_FINITE,
+    int(m.MAV_MISSION_INVALID_PARAM7): rejections.Reason.NOT_FINITE,
+    int(m.MAV_MISSION_INVALID_PARAM5_X): rejections.Reason.OUT_OF_RANGE,
+    int(m.MAV_MISSION_INVALID_PARAM6_Y): rejections.Reason.OUT_OF_RANGE,
 }
 
 
@@ -64,7 +64,7 @@ class MissionServer:
     def __init__(self, senders: dict[str, mav.Sender], origin: tuple[float, float],
                  area_size_m: float, on_change: Callable[[], None] = lambda: None,
                  max_items: int = MAX_ITEMS, item_timeout_s: float = 0.5, retries: int = 5,
-                 on_reject: Callable[[str, codec.CodecError], None] = lambda _l, _e: None,
+                 on_reject: Callable[[str, rejections.CodecError], None] = lambda _l, _e: None,
                  empty_upload_clears: bool = False):
         self.senders = senders
         self.empty_upload_clears = empty_upload_clears
@@ -141,8 +141,9 @@ class MissionServer:
             return True
         self.uploads.pop(link, None)  # a new count restarts the transfer
         if msg.count > self.max_items:
-            self.on_reject(link, codec.invalid(
-                f"MISSION_COUNT {msg.count} (at most {self.max_items} items)", codec.Reason.SIZE))
+            self.on_reject(link, rejections.invalid(
+                f"MISSION_COUNT {msg.count} (at most {self.max_items} items)",
+                rejections.Reason.SIZE))
             self._ack(link, peer, m.MAV_MISSION_NO_SPACE, MISSION)
             return False
         if msg.count == 0:
@@ -166,10 +167,10 @@ class MissionServer:
 
     def _refused(self, link: str, msg: Any, result: int) -> None:
         name = m.enums["MAV_MISSION_RESULT"][result].name
-        reason = _REASON.get(result, codec.Reason.INVALID)
+        reason = _REASON.get(result, rejections.Reason.INVALID)
         if not all(math.isfinite(float(v)) for v in (msg.x, msg.y)):
-            reason = codec.Reason.NOT_FINITE  # MISSION_ITEM's float lat/lon
-        self.on_reject(link, codec.invalid(
+            reason = rejections.Reason.NOT_FINITE  # MISSION_ITEM's float lat/lon
+        self.on_reject(link, rejections.invalid(
             f"{msg.get_type()} seq {int(msg.seq)}: {name} (x={msg.x!r}, y={msg.y!r}, "
             f"z={msg.z!r})", reason))
 

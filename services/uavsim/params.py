@@ -11,7 +11,7 @@ import math
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
-from services.common import codec, mav
+from services.common import mav, rejections
 from services.common.log import fields
 
 if TYPE_CHECKING:
@@ -62,18 +62,18 @@ def param_set(ep: Endpoint, link: str, msg: Any) -> bool:
     name = pid.rstrip("\x00")
     param = ep.params.get(name)
     if param is None:  # unknown: no PARAM_VALUE, as PX4 (the GCS times out)
-        ep.reject(link, codec.invalid(f"PARAM_SET of unknown parameter {name[:16]!r}"),
+        ep.reject(link, rejections.invalid(f"PARAM_SET of unknown parameter {name[:16]!r}"),
                   "PARAM_SET")
         return False
     value = float(msg.param_value)
-    err: codec.CodecError | None = None
+    err: rejections.CodecError | None = None
     if not math.isfinite(value):
-        err = codec.invalid(f"PARAM_SET {name} = {value}", codec.Reason.NOT_FINITE)
+        err = rejections.invalid(f"PARAM_SET {name} = {value}", rejections.Reason.NOT_FINITE)
     elif param.low is None or param.high is None:
-        err = codec.invalid(f"PARAM_SET {name}: read-only")
+        err = rejections.invalid(f"PARAM_SET {name}: read-only")
     elif not param.low <= value <= param.high:
-        err = codec.invalid(f"PARAM_SET {name} = {value:g} outside [{param.low:g}, "
-                            f"{param.high:g}]", codec.Reason.OUT_OF_RANGE)
+        err = rejections.invalid(f"PARAM_SET {name} = {value:g} outside [{param.low:g}, "
+                                 f"{param.high:g}]", rejections.Reason.OUT_OF_RANGE)
     if err is not None:
         ep.reject(link, err, "PARAM_SET")
         ep.statustext(f"{name}: refused {value:g}", m.MAV_SEVERITY_WARNING)

@@ -13,7 +13,7 @@ import logging
 from collections.abc import Callable
 from pathlib import Path
 
-from services.common import codec, mav
+from services.common import mav, rejections
 from services.common.log import fields
 
 log = logging.getLogger("services.uavsim")
@@ -42,7 +42,8 @@ class SafeTlog(mav.Tlog):
     def _fail(self, err: Exception) -> None:
         self.errors += 1
         self.failed = f"tlog write failed: {err}"
-        codec.rejected("tlog", codec.invalid(self.failed), log, key=KEY, reason=WRITE_ERROR)
+        rejections.rejected("tlog", rejections.invalid(self.failed), log, key=KEY,
+                            reason=WRITE_ERROR)
         log.error("tlog stopped, the vehicle flies on", extra=fields(
             path=str(self.path), error=str(err), frames=self.frames))
         try:
@@ -65,8 +66,8 @@ def open_tlog(path: str, on_fault: Callable[[str], None] | None = None) -> SafeT
     try:
         return SafeTlog(path, on_fault)
     except OSError as err:
-        codec.rejected("tlog", codec.invalid(f"tlog not created: {err}"), log, key=KEY,
-                       reason=WRITE_ERROR)
+        rejections.rejected("tlog", rejections.invalid(f"tlog not created: {err}"), log, key=KEY,
+                            reason=WRITE_ERROR)
         log.error("no tlog: the vehicle flies without one", extra=fields(path=path,
                                                                           error=str(err)))
         return None

@@ -11,7 +11,7 @@ from __future__ import annotations
 import math
 from typing import TYPE_CHECKING
 
-from services.common import codec, mav
+from services.common import mav, mavlink_codec
 
 if TYPE_CHECKING:
     from .endpoint import Endpoint
@@ -23,7 +23,7 @@ def telemetry(ep: Endpoint, only: int | None = None) -> None:
     """LOCAL_POSITION_NED, GLOBAL_POSITION_INT and ATTITUDE (or ``only`` that one)."""
     x = ep.vehicle.state
     alt = ep.altitude_m
-    n, e, d, vn, ve, vd = codec.state_to_ned(x, alt)
+    n, e, d, vn, ve, vd = mavlink_codec.state_to_ned(x, alt)
     lat, lon = mav.to_geodetic(float(x[0]), float(x[1]), ep.origin)
     t_ms = ep.vehicle.time_ms
     hdg = int(math.degrees(math.atan2(ve, vn)) % 360 * 100) if (vn or ve) else 65535

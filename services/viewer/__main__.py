@@ -26,7 +26,7 @@ from collections.abc import Callable
 from typing import Any
 
 from dualpilot.spec import MissionSpec
-from services.common import bus, codec, keys
+from services.common import bus, keys, protobuf_codec, rejections
 from services.common import cli as common_cli
 from services.common.log import fields
 from services.msgs import fire_pb2, supervisor_pb2, vehicle_pb2
@@ -83,42 +83,44 @@ class Viewer:
         try:
             uav = keys.vehicle_of(item.key)
         except ValueError as err:
-            codec.rejected("input", codec.invalid(str(err)), log, key=item.key)
+            rejections.rejected("input", rejections.invalid(str(err)), log, key=item.key)
             return
         kind = item.key.removeprefix(f"{keys.ns(uav)}/")
         if kind == "supervisor/decision":
             got = bus.accept(item, supervisor_pb2.Decision,
-                             lambda m: (codec.decision_from_msg(m), int(m.commanded_system),
+                             lambda m: (protobuf_codec.decision_from_msg(m),
+                                        int(m.commanded_system),
                                         log_time_ns(m.header)), key=item.key, logger=log)
             if got is not None:
                 self._for(uav).decision(*got)
         elif kind == "supervisor/plans":
             sp = bus.accept(item, supervisor_pb2.StepPlans,
-                            lambda m: (codec.step_plans_from_msg(m), log_time_ns(m.header)),
+                            lambda m: (protobuf_codec.step_plans_from_msg(m),
+                                       log_time_ns(m.header)),
                             key=item.key, logger=log)
             if sp is not None:
                 plans, t_ns = sp
                 self.vehicle(uav, plans.spec.area_size_m).step_plans(plans, t_ns)
         elif kind == "vehicle/state":
             st = bus.accept(item, vehicle_pb2.VehicleState,
-                            lambda m: (codec.state_from_msg(m), int(m.step),
+                            lambda m: (protobuf_codec.state_from_msg(m), int(m.step),
                                        log_time_ns(m.header)), key=item.key, logger=log)
             if st is not None:
                 self._for(uav).state(*st)
         elif kind == "mission/event":
-            ev = bus.accept(item, supervisor_pb2.MissionEvent, codec.check_mission_event,
+            ev = bus.accept(item, supervisor_pb2.MissionEvent, protobuf_codec.check_mission_event,
                             key=item.key, logger=log)
             if ev is not None:
                 self._for(uav).event(ev, log_time_ns(ev.header))
         elif kind == "ews/fires":
             fs = bus.accept(item, fire_pb2.FireState,
-                            lambda m: (codec.snapshot_from_msg(m), log_time_ns(m.header)),
+                            lambda m: (protobuf_codec.snapshot_from_msg(m), log_time_ns(m.header)),
                             key=item.key, logger=log)
             if fs is not None and draw:
                 self._for(uav).fires(*fs)
         elif kind == "ews/forecast":
             fc = bus.accept(item, fire_pb2.FireForecast,
-                            lambda m: (codec.occupancy_from_msg(m), log_time_ns(m.header)),
+                            lambda m: (protobuf_codec.occupancy_from_msg(m), log_time_ns(m.header)),
                             key=item.key, logger=log)
             if fc is not None and fc[0] is not None and draw:
                 self._for(uav).forecast(fc[0], fc[1])

@@ -20,7 +20,7 @@ import pytest
 
 from dualpilot.mission.result import MissionResult
 from services import launch
-from services.common import codec, keys
+from services.common import keys, wire
 from services.msgs import fire_pb2, supervisor_pb2, vehicle_pb2
 
 #: seeds to try in order (26 and 57 reached the goal with the core of the time of writing)
@@ -68,7 +68,7 @@ def drain_messages(q: queue.Queue[bytes], cls: Any) -> list[Any]:
     out = []
     while True:
         try:
-            out.append(codec.parse(q.get_nowait(), cls))
+            out.append(wire.parse(q.get_nowait(), cls))
         except queue.Empty:
             return out
 

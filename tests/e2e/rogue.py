@@ -32,7 +32,7 @@ import zenoh
 
 from dualpilot.model.dynamics import DynamicsParams, rollout
 from dualpilot.plan import Plan, PlanStatus
-from services.common import bus, codec, keys
+from services.common import bus, keys, protobuf_codec, wire
 from services.msgs import fire_pb2, plan_pb2
 
 DYN = DynamicsParams()
@@ -46,7 +46,7 @@ def _open(endpoint: str) -> zenoh.Session:
     return zenoh.open(conf)
 
 
-def byzantine_plan(req: codec.PlanRequest, k: int) -> Plan:
+def byzantine_plan(req: protobuf_codec.PlanRequest, k: int) -> Plan:
     """A well-formed OK plan that must never be flown (one of three lies, by request count)."""
     x = np.asarray(req.state, dtype=float)
     controls = np.zeros((10, 2))
@@ -67,7 +67,7 @@ def byzantine_plan(req: codec.PlanRequest, k: int) -> Plan:
                 compute_time_s=0.001, info={"source": "byzantine"})
 
 
-def braking_plan(req: codec.PlanRequest) -> Plan:
+def braking_plan(req: protobuf_codec.PlanRequest) -> Plan:
     x = np.asarray(req.state, dtype=float)
     u = np.clip(-DYN.mass_kg * (1 - DYN.zeta) * x[2:] / DYN.dt_s, -DYN.u_max_n, DYN.u_max_n)
     controls = np.zeros((5, 2))
@@ -86,7 +86,7 @@ def main() -> int:
     stop = threading.Event()
     signal.signal(signal.SIGINT, lambda *_: stop.set())
     signal.signal(signal.SIGTERM, lambda *_: stop.set())
-    stamper = codec.Stamper("system2", args.uav)
+    stamper = wire.Stamper("system2", args.uav)
     count = [0]
     with _open(args.connect) as session:
         inbox = bus.Inbox()
@@ -110,15 +110,15 @@ def main() -> int:
             if item is None or item.query is None:
                 continue
             if args.mode == "ews-impostor":
-                cmd = codec.parse(item.payload, fire_pb2.FireCommand, item.encoding)
+                cmd = wire.parse(item.payload, fire_pb2.FireCommand, item.encoding)
                 update = fire_pb2.FireUpdate()
-                state = codec.fire_state_msg([], [], cmd.advance.step, 0, 0.5,
-                                             codec.Stamper("ews", args.uav), 0.0)
+                state = protobuf_codec.fire_state_msg([], [], cmd.advance.step, 0, 0.5,
+                                                      wire.Stamper("ews", args.uav), 0.0)
                 update.states.append(state)
                 bus.reply(item.query, update)
                 continue
-            req = codec.plan_request_from_msg(
-                codec.parse(item.payload, plan_pb2.PlanRequest, item.encoding))
+            req = protobuf_codec.plan_request_from_msg(
+                wire.parse(item.payload, plan_pb2.PlanRequest, item.encoding))
             if args.mode == "plan-hung" and not req.prepare:
                 continue  # prepared, then never answers (as a planner stuck in its solver)
             if req.prepare:
@@ -129,7 +129,7 @@ def main() -> int:
                 plan = (byzantine_plan(req, count[0]) if args.mode == "plan-byzantine"
                         else braking_plan(req))
                 count[0] += 1
-                msg = codec.plan_to_msg(plan, req.step, req.seq, stamper)
+                msg = protobuf_codec.plan_to_msg(plan, req.step, req.seq, stamper)
             bus.reply(item.query, msg)
         for t in tokens:
             t.undeclare()

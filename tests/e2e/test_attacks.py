@@ -25,7 +25,7 @@ import pytest
 
 from dualpilot.mission.records import STEP_LOG, read_step_log
 from services import launch
-from services.common import bus, codec, keys, mav
+from services.common import bus, keys, mav, wire
 from services.msgs import supervisor_pb2
 
 pytestmark = [pytest.mark.slow, pytest.mark.timeout(150)]
@@ -44,7 +44,7 @@ class Attack:
         self.events: queue.Queue[Any] = queue.Queue()
         self.sub = session.declare_subscriber(
             keys.mission_event(stack.cfg.uav_id),
-            lambda s: self.events.put(codec.parse(s.payload.to_bytes(), EV.MissionEvent)))
+            lambda s: self.events.put(wire.parse(s.payload.to_bytes(), EV.MissionEvent)))
 
     @property
     def run_dir(self) -> Path:
@@ -164,12 +164,12 @@ def test_a_peer_without_the_token_cannot_answer_but_a_token_holder_can(tmp_path:
 
         cmd = fire_pb2.FireCommand(mission_id="probe")
         cmd.reset.seed, cmd.reset.area_size_m = 1, 1000.0
-        codec.Stamper("test", run.stack.cfg.uav_id).stamp(cmd.header)
+        wire.Stamper("test", run.stack.cfg.uav_id).stamp(cmd.header)
         holder = run.live.holder("ews")
         assert holder
         payload, enc = bus.request(run.session, keys.fire_command(run.stack.cfg.uav_id), cmd,
                                    10.0, trusted=holder)
-        update = codec.parse(payload, fire_pb2.FireUpdate, enc)
+        update = wire.parse(payload, fire_pb2.FireUpdate, enc)
         assert update.states and update.states[0].substep_s > 0
         with pytest.raises(TimeoutError, match="token holder|no reply"):
             bus.request(run.session, keys.fire_command(run.stack.cfg.uav_id), cmd, 2.0,

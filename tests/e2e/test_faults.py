@@ -31,7 +31,7 @@ from dualpilot.model.fire import FireParams
 from dualpilot.model.geometry import Rect
 from dualpilot.model.stale_fire import credible_margin_m
 from services import launch
-from services.common import bus, codec, keys, mav
+from services.common import bus, keys, mav, wire
 from services.msgs import supervisor_pb2
 
 pytestmark = [pytest.mark.slow, pytest.mark.timeout(240)]
@@ -125,10 +125,10 @@ def running(tmp_path: Path, name: str, controller: str = "cc", speed: float = 50
             run = Run(stack, session, live)
             sub = session.declare_subscriber(
                 keys.mission_event(cfg.uav_id),
-                lambda s: run.events.put(codec.parse(s.payload.to_bytes(), EV.MissionEvent)))
+                lambda s: run.events.put(wire.parse(s.payload.to_bytes(), EV.MissionEvent)))
             dsub = session.declare_subscriber(
                 keys.decision(cfg.uav_id),
-                lambda s: run.decisions.append(codec.parse(s.payload.to_bytes(), EV.Decision)))
+                lambda s: run.decisions.append(wire.parse(s.payload.to_bytes(), EV.Decision)))
             stack.start_deferred()  # the supervisor flies once the test is listening
             try:
                 yield run

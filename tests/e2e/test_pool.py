@@ -25,7 +25,7 @@ import pytest
 
 from dualpilot.mission.records import read_step_log
 from services import launch
-from services.common import bus, codec, keys
+from services.common import bus, keys, wire
 from services.msgs import supervisor_pb2
 
 pytestmark = [pytest.mark.slow, pytest.mark.timeout(300)]
@@ -66,7 +66,7 @@ def test_a_replica_killed_mid_request_loses_no_plan(tmp_path: Path) -> None:
         step5 = False
         while ended is None and time.monotonic() < deadline:
             try:
-                ev = codec.parse(events.get(timeout=0.5), EV.MissionEvent)
+                ev = wire.parse(events.get(timeout=0.5), EV.MissionEvent)
             except queue.Empty:
                 continue
             if ev.kind in (EV.MISSION_EVENT_KIND_ENDED, EV.MISSION_EVENT_KIND_ABORTED):

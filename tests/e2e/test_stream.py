@@ -33,7 +33,7 @@ import pytest
 
 from dualpilot.mission.records import read_step_log, result_from_log
 from services import launch
-from services.common import codec, keys
+from services.common import keys, wire
 from services.msgs import supervisor_pb2
 
 from .test_lockstep import assert_same_mission, in_process
@@ -75,7 +75,7 @@ def fly_with_stop(fleet: Any, tag: str, group: bool, stop_s: float, kill_stream:
         deadline = time.monotonic() + 120
         while time.monotonic() < deadline:
             try:
-                ev = codec.parse(events.get(timeout=0.5), EV.MissionEvent)
+                ev = wire.parse(events.get(timeout=0.5), EV.MissionEvent)
             except queue.Empty:
                 continue
             if ev.kind == EV.MISSION_EVENT_KIND_STEP and ev.step >= 5:

@@ -20,7 +20,7 @@ from dualpilot.plan import Objective, Plan, PlanStatus
 from dualpilot.spec import MissionSpec
 from dualpilot.supervisor.decision import Supervisor
 from services import protogen
-from services.common import codec
+from services.common import limits, mavlink_codec, protobuf_codec, rejections, wire
 from services.msgs import common_pb2, fire_pb2, plan_pb2, supervisor_pb2
 
 pytestmark = pytest.mark.timeout(60)
@@ -66,9 +66,9 @@ def test_fire_state_round_trip_is_exact() -> None:
     field = _fires()
     snap = field.snapshot()
     assert snap.regions, "the seed should leave some fronts alive"
-    msg = codec.fire_state_msg(field.fronts, field.extinct_hulls, 2, field.substeps_done, 0.5,
-                               codec.Stamper("ews", "uav1"), 1.5)
-    back = codec.snapshot_from_msg(codec.parse(msg.SerializeToString(), fire_pb2.FireState))
+    msg = protobuf_codec.fire_state_msg(field.fronts, field.extinct_hulls, 2, field.substeps_done,
+                                        0.5, wire.Stamper("ews", "uav1"), 1.5)
+    back = protobuf_codec.snapshot_from_msg(wire.parse(msg.SerializeToString(), fire_pb2.FireState))
     assert back.regions == snap.regions
     assert back.front_ids == snap.front_ids and back.born_steps == snap.born_steps
     for a, b in zip(back.hulls, snap.hulls, strict=True):
@@ -82,13 +82,13 @@ def test_fast_hull_decoding_equals_from_vertices() -> None:
         pts = rng.normal(size=(int(rng.integers(3, 25)), 2)) * 200 + 500
         poly = Polytope.from_vertices(pts)
         m = common_pb2.Polygon()
-        codec.polygon_to_msg(poly, m)
-        back = codec.polygon_from_msg(m)
+        protobuf_codec.polygon_to_msg(poly, m)
+        back = protobuf_codec.polygon_from_msg(m)
         assert np.array_equal(back.A, poly.A) and np.array_equal(back.b, poly.b)
         # the same vertices in another order still decode to the same polygon (slow path)
         m2 = common_pb2.Polygon()
         m2.vertices_m.extend(np.roll(poly.vertices, 1, axis=0)[::-1].ravel().tolist())
-        assert np.allclose(codec.polygon_from_msg(m2).vertices, poly.vertices)
+        assert np.allclose(protobuf_codec.polygon_from_msg(m2).vertices, poly.vertices)
 
 
 def test_plan_round_trip_keeps_the_trajectory() -> None:
@@ -102,8 +102,8 @@ def test_plan_round_trip_keeps_the_trajectory() -> None:
                 compute_time_s=0.042, objective=Objective.ENERGY, cost=12.5,
                 path=np.array([[50.0, 50.0], [900.0, 900.0]]), message="ok",
                 info={"source": "mpc", "iters": np.int64(3), "arr": np.zeros(2)})
-    msg = codec.plan_to_msg(plan, 7, 99, codec.Stamper("system2", "uav1"))
-    back = codec.plan_from_msg(codec.parse(msg.SerializeToString(), plan_pb2.Plan), 2)
+    msg = protobuf_codec.plan_to_msg(plan, 7, 99, wire.Stamper("system2", "uav1"))
+    back = protobuf_codec.plan_from_msg(wire.parse(msg.SerializeToString(), plan_pb2.Plan), 2)
     assert np.array_equal(back.states, plan.states)
     assert np.array_equal(back.controls, plan.controls)
     assert back.status is PlanStatus.OK and back.objective is Objective.ENERGY
@@ -115,26 +115,28 @@ def test_plan_round_trip_keeps_the_trajectory() -> None:
 def test_decision_round_trip() -> None:
     sup = Supervisor(np.random.default_rng(1))
     d = sup.decide(3, 120.0)
-    msg = codec.decision_to_msg(d, 2, codec.Stamper("supervisor", "uav1"), 4.5)
-    back = codec.decision_from_msg(codec.parse(msg.SerializeToString(), supervisor_pb2.Decision))
+    msg = protobuf_codec.decision_to_msg(d, 2, wire.Stamper("supervisor", "uav1"), 4.5)
+    back = protobuf_codec.decision_from_msg(wire.parse(msg.SerializeToString(),
+                                                       supervisor_pb2.Decision))
     assert back.t == 3 and back.system == d.system and back.attention == d.attention
     assert np.array_equal(back.xi, d.xi) and np.array_equal(back.psi, d.psi)
     assert msg.commanded_system == 2
-    no_fire = codec.decision_to_msg(sup.decide(4, math.inf), 1, codec.Stamper("s", "u"), 0.0)
-    assert codec.decision_from_msg(no_fire).d_t == math.inf
+    no_fire = protobuf_codec.decision_to_msg(sup.decide(4, math.inf), 1, wire.Stamper("s", "u"),
+                                             0.0)
+    assert protobuf_codec.decision_from_msg(no_fire).d_t == math.inf
 
 
 def _request(prepare: bool = True, **changes: Any) -> plan_pb2.PlanRequest:
     """A plan request for step 0 avoiding the hulls of :func:`_fires` (with the spec when
     ``prepare``), with ``changes`` applied (``a__b`` is the field b of a)."""
     field = _fires()
-    stamper = codec.Stamper("supervisor", "uav1")
-    req = codec.PlanRequest(
+    stamper = wire.Stamper("supervisor", "uav1")
+    req = protobuf_codec.PlanRequest(
         seq=0, mission_id="m-1", step=0, system=1, objective=Objective.MISSION_TIME,
         state=np.array([50.0, 50.0, 0.0, 0.0]), prev_control=np.zeros(2),
         obstacles=field.snapshot().hulls, deadline_s=5.0, prepare=prepare,
         spec=MissionSpec(seed=7) if prepare else None)
-    msg = codec.plan_request_msg(req, stamper, 0.0)
+    msg = protobuf_codec.plan_request_msg(req, stamper, 0.0)
     for path, value in changes.items():
         obj: object = msg
         *parents, leaf = path.split("__")
@@ -145,12 +147,12 @@ def _request(prepare: bool = True, **changes: Any) -> plan_pb2.PlanRequest:
 
 
 def test_plan_request_round_trip() -> None:
-    req = codec.plan_request_from_msg(_request())
+    req = protobuf_codec.plan_request_from_msg(_request())
     assert req.system == 1 and req.spec == MissionSpec(seed=7) and req.mission_id == "m-1"
     assert np.array_equal(req.state, [50.0, 50.0, 0.0, 0.0]) and req.deadline_s == 5.0
     assert [h.vertices.tolist() for h in req.obstacles] == [
         h.vertices.tolist() for h in _fires().snapshot().hulls]
-    plain = codec.plan_request_from_msg(_request(prepare=False))
+    plain = protobuf_codec.plan_request_from_msg(_request(prepare=False))
     assert plain.spec is None and plain.mission_id == "m-1" and not plain.prepare
 
 
@@ -173,9 +175,9 @@ def test_plan_request_round_trip() -> None:
     ],
 )
 def test_invalid_plan_requests_are_rejected(changes: dict[str, Any], match: str) -> None:
-    with pytest.raises(codec.CodecError, match=match) as info:
-        codec.plan_request_from_msg(codec.parse(_request(**changes).SerializeToString(),
-                                                plan_pb2.PlanRequest))
+    with pytest.raises(rejections.CodecError, match=match) as info:
+        protobuf_codec.plan_request_from_msg(wire.parse(_request(**changes).SerializeToString(),
+                                                        plan_pb2.PlanRequest))
     assert info.value.code == common_pb2.ERROR_CODE_INVALID
 
 
@@ -183,104 +185,105 @@ def test_invalid_plan_requests_are_rejected(changes: dict[str, Any], match: str)
 def test_the_speed_limit_reading_travels_in_the_spec(speed_limit: str) -> None:
     spec = MissionSpec(seed=7, dynamics=DynamicsParams(speed_limit=speed_limit))  # type: ignore[arg-type]
     msg = plan_pb2.MissionSpec()
-    codec.spec_to_msg("m-1", spec, msg)
+    protobuf_codec.spec_to_msg("m-1", spec, msg)
     assert msg.dynamics.speed_limit == {"axis": plan_pb2.SPEED_LIMIT_AXIS,
                                         "norm": plan_pb2.SPEED_LIMIT_NORM}[speed_limit]
-    back = codec.spec_from_msg(codec.parse(msg.SerializeToString(), plan_pb2.MissionSpec))[1]
+    back = protobuf_codec.spec_from_msg(wire.parse(msg.SerializeToString(),
+                                                   plan_pb2.MissionSpec))[1]
     assert back == spec and back.dynamics.speed_limit == speed_limit
     msg.dynamics.speed_limit = plan_pb2.SPEED_LIMIT_UNSPECIFIED  # a sender without the field
-    assert codec.spec_from_msg(msg)[1].dynamics.speed_limit == "axis"
+    assert protobuf_codec.spec_from_msg(msg)[1].dynamics.speed_limit == "axis"
 
 
 def test_a_plan_request_needs_its_mission() -> None:
-    with pytest.raises(codec.CodecError, match="without a mission_id"):
-        codec.plan_request_from_msg(_request(prepare=False, mission_id=""))
+    with pytest.raises(rejections.CodecError, match="without a mission_id"):
+        protobuf_codec.plan_request_from_msg(_request(prepare=False, mission_id=""))
     msg = _request(prepare=False)
     msg.prepare = True  # a prepare request without the spec
-    with pytest.raises(codec.CodecError, match="must carry the mission spec"):
-        codec.plan_request_from_msg(msg)
+    with pytest.raises(rejections.CodecError, match="must carry the mission spec"):
+        protobuf_codec.plan_request_from_msg(msg)
 
 
 def test_obstacles_and_state_must_lie_near_the_area() -> None:
-    req = codec.plan_request_from_msg(_request(prepare=False))
-    codec.check_in_area(req, MissionSpec())
-    far = codec.plan_request_from_msg(_request(prepare=False, state__east_m=2500.0))
-    with pytest.raises(codec.CodecError, match="the vehicle state"):
-        codec.check_in_area(far, MissionSpec())
+    req = protobuf_codec.plan_request_from_msg(_request(prepare=False))
+    protobuf_codec.check_in_area(req, MissionSpec())
+    far = protobuf_codec.plan_request_from_msg(_request(prepare=False, state__east_m=2500.0))
+    with pytest.raises(rejections.CodecError, match="the vehicle state"):
+        protobuf_codec.check_in_area(far, MissionSpec())
     msg = _request(prepare=False)
     msg.obstacles[0].vertices_m[0] = 5000.0
-    with pytest.raises(codec.CodecError, match="obstacle 0"):
-        codec.check_in_area(codec.plan_request_from_msg(msg), MissionSpec())
+    with pytest.raises(rejections.CodecError, match="obstacle 0"):
+        protobuf_codec.check_in_area(protobuf_codec.plan_request_from_msg(msg), MissionSpec())
 
 
 def test_bad_geometry_and_sizes_are_rejected() -> None:
     msg = _request()
     msg.obstacles[0].vertices_m[:] = [0.0, 0.0, 1.0, 1.0, 2.0, 2.0]  # collinear
-    with pytest.raises(codec.CodecError, match="obstacle"):
-        codec.plan_request_from_msg(msg)
+    with pytest.raises(rejections.CodecError, match="obstacle"):
+        protobuf_codec.plan_request_from_msg(msg)
     msg = _request()
     msg.obstacles[0].vertices_m.append(1.0)  # odd number of coordinates
-    with pytest.raises(codec.CodecError, match="multiple of 2"):
-        codec.plan_request_from_msg(msg)
+    with pytest.raises(rejections.CodecError, match="multiple of 2"):
+        protobuf_codec.plan_request_from_msg(msg)
     msg = _request()
-    for _ in range(2 * codec.MAX_FRONTS + 1):
+    for _ in range(2 * limits.MAX_FRONTS + 1):
         msg.obstacles.add()
-    with pytest.raises(codec.CodecError, match="obstacles"):
-        codec.plan_request_from_msg(msg)
+    with pytest.raises(rejections.CodecError, match="obstacles"):
+        protobuf_codec.plan_request_from_msg(msg)
 
 
 def test_fire_commands_carry_the_area_and_the_ignition_clearance() -> None:
     reset = fire_pb2.FireCommand(mission_id="m-1")
     reset.reset.seed, reset.reset.area_size_m = 3, 800.0
-    cmd = codec.fire_command_from_msg(reset)
+    cmd = protobuf_codec.fire_command_from_msg(reset)
     assert (cmd.kind, cmd.seed, cmd.area_size_m) == ("reset", 3, 800.0)
     adv = fire_pb2.FireCommand(mission_id="m-1")
     adv.advance.step, adv.advance.substeps = 4, 10
-    assert codec.fire_command_from_msg(adv).keep_out is None
+    assert protobuf_codec.fire_command_from_msg(adv).keep_out is None
     adv.advance.keep_out.east_m, adv.advance.keep_out.north_m, adv.advance.keep_out_m = 1, 2, 20
-    keep = codec.fire_command_from_msg(adv).keep_out
+    keep = protobuf_codec.fire_command_from_msg(adv).keep_out
     assert keep is not None and keep[0].tolist() == [1.0, 2.0] and keep[1] == 20.0
     adv.advance.keep_out_m = -1.0
-    with pytest.raises(codec.CodecError, match="keep_out_m"):
-        codec.fire_command_from_msg(adv)
+    with pytest.raises(rejections.CodecError, match="keep_out_m"):
+        protobuf_codec.fire_command_from_msg(adv)
 
 
 def test_garbage_is_malformed_and_counted() -> None:
-    before = codec.REJECTED.by_label["PlanRequest-test"]
-    with pytest.raises(codec.CodecError) as info:
-        codec.parse(b"\xff\xff\xff\x00garbage", plan_pb2.PlanRequest)
+    before = rejections.REJECTED.by_label["PlanRequest-test"]
+    with pytest.raises(rejections.CodecError) as info:
+        wire.parse(b"\xff\xff\xff\x00garbage", plan_pb2.PlanRequest)
     assert info.value.code == common_pb2.ERROR_CODE_MALFORMED
-    codec.rejected("PlanRequest-test", info.value)
-    assert codec.REJECTED.by_label["PlanRequest-test"] == before + 1
-    with pytest.raises(codec.CodecError, match="expected dualpilot.v1.Plan"):
-        codec.parse(b"", plan_pb2.Plan, "application/protobuf;dualpilot.v1.Decision")
+    rejections.rejected("PlanRequest-test", info.value)
+    assert rejections.REJECTED.by_label["PlanRequest-test"] == before + 1
+    with pytest.raises(rejections.CodecError, match="expected dualpilot.v1.Plan"):
+        wire.parse(b"", plan_pb2.Plan, "application/protobuf;dualpilot.v1.Decision")
 
 
 def test_an_ok_plan_must_be_consistent() -> None:
     msg = plan_pb2.Plan(system=1, status=plan_pb2.PLAN_STATUS_OK, compute_time_s=0.1)
     msg.states.extend([0.0] * 8)
     msg.controls.extend([0.0] * 4)  # two controls for two states
-    with pytest.raises(codec.CodecError, match="T\\+1 states"):
-        codec.plan_from_msg(msg)
-    with pytest.raises(codec.CodecError, match="expected 2"):
-        codec.plan_from_msg(plan_pb2.Plan(system=1, status=plan_pb2.PLAN_STATUS_OK), 2)
+    with pytest.raises(rejections.CodecError, match="T\\+1 states"):
+        protobuf_codec.plan_from_msg(msg)
+    with pytest.raises(rejections.CodecError, match="expected 2"):
+        protobuf_codec.plan_from_msg(plan_pb2.Plan(system=1, status=plan_pb2.PLAN_STATUS_OK), 2)
 
 
 def test_ned_mapping_swaps_axes_and_flips_altitude() -> None:
     x = np.array([100.0, 200.0, 3.0, -4.0])  # east, north, v_east, v_north
-    n, e, d, vn, ve, vd = codec.state_to_ned(x, 50.0)
+    n, e, d, vn, ve, vd = mavlink_codec.state_to_ned(x, 50.0)
     assert (n, e, d, vn, ve, vd) == (200.0, 100.0, -50.0, -4.0, 3.0, 0.0)
-    assert np.array_equal(codec.state_from_ned(n, e, vn, ve), x)
-    with pytest.raises(codec.CodecError, match="finite"):
-        codec.state_from_ned(math.nan, 0.0, 0.0, 0.0)
+    assert np.array_equal(mavlink_codec.state_from_ned(n, e, vn, ve), x)
+    with pytest.raises(rejections.CodecError, match="finite"):
+        mavlink_codec.state_from_ned(math.nan, 0.0, 0.0, 0.0)
 
 
 def test_parse_waypoints() -> None:
-    wps = codec.parse_waypoints("100,200; 300,400")
+    wps = protobuf_codec.parse_waypoints("100,200; 300,400")
     assert wps is not None and np.array_equal(wps, [[100, 200], [300, 400]])
-    assert codec.parse_waypoints("  ") is None
+    assert protobuf_codec.parse_waypoints("  ") is None
     with pytest.raises(ValueError, match="waypoints"):
-        codec.parse_waypoints("1,2,3")
+        protobuf_codec.parse_waypoints("1,2,3")
 
 
 def _occupancy_msg() -> tuple[Any, Any]:
@@ -290,22 +293,23 @@ def _occupancy_msg() -> tuple[Any, Any]:
     fc = forecast(field.fronts, field.params, 1000.0, np.random.default_rng(2),
                   ForecastParams(horizon_s=4.0), substeps_per_step=3, issued_substep=12)
     msg = fire_pb2.FireForecast(substeps_done=12, substep_s=0.5)
-    codec.Stamper("ews", "uav1").stamp(msg.header, 6.0)
-    codec.occupancy_to_msg(fc, msg.occupancy)
+    wire.Stamper("ews", "uav1").stamp(msg.header, 6.0)
+    protobuf_codec.occupancy_to_msg(fc, msg.occupancy)
     return fc, msg
 
 
 def test_occupancy_forecast_round_trip_is_exact() -> None:
     fc, msg = _occupancy_msg()
     assert len(msg.occupancy.probabilities) == 5 and msg.occupancy.horizon_s == 4.0
-    back = codec.occupancy_from_msg(codec.parse(msg.SerializeToString(), fire_pb2.FireForecast))
+    back = protobuf_codec.occupancy_from_msg(wire.parse(msg.SerializeToString(),
+                                                        fire_pb2.FireForecast))
     assert back is not None
     assert np.array_equal(back.levels, fc.levels) and back.horizons == fc.horizons
     assert (back.resolution_m, back.substep_s, back.origin_m) == (10.0, 0.5, (0.0, 0.0))
     assert (back.issued_substep, back.substeps_per_step) == (12, fc.substeps_per_step)
     del msg.occupancy.probabilities[:]
     msg.ClearField("occupancy")
-    assert codec.occupancy_from_msg(msg) is None  # a forecast without a grid
+    assert protobuf_codec.occupancy_from_msg(msg) is None  # a forecast without a grid
 
 
 def _broken(change: str) -> Any:
@@ -333,22 +337,22 @@ def _broken(change: str) -> Any:
 
 
 @pytest.mark.parametrize("change, match, reason", [
-    ("no cells", "grid of 0 x 100", codec.Reason.SIZE),
-    ("short slice", "slice 3 has 9999 bytes", codec.Reason.SIZE),
-    ("slices", "4 probability slices for 5 horizons", codec.Reason.SIZE),
-    ("order", "horizons must increase", codec.Reason.OUT_OF_RANGE),
-    ("horizon_s", "is not the last horizon", codec.Reason.INVALID),
-    ("resolution", "resolution_m must be positive", codec.Reason.OUT_OF_RANGE),
-    ("origin", "grid origin must be finite", codec.Reason.NOT_FINITE),
-    ("substep", "substep_s must be positive", codec.Reason.OUT_OF_RANGE),
-    ("huge", "allowed 1..", codec.Reason.SIZE),
+    ("no cells", "grid of 0 x 100", rejections.Reason.SIZE),
+    ("short slice", "slice 3 has 9999 bytes", rejections.Reason.SIZE),
+    ("slices", "4 probability slices for 5 horizons", rejections.Reason.SIZE),
+    ("order", "horizons must increase", rejections.Reason.OUT_OF_RANGE),
+    ("horizon_s", "is not the last horizon", rejections.Reason.INVALID),
+    ("resolution", "resolution_m must be positive", rejections.Reason.OUT_OF_RANGE),
+    ("origin", "grid origin must be finite", rejections.Reason.NOT_FINITE),
+    ("substep", "substep_s must be positive", rejections.Reason.OUT_OF_RANGE),
+    ("huge", "allowed 1..", rejections.Reason.SIZE),
 ])
 def test_malformed_occupancy_grids_are_rejected_and_counted(change: str, match: str,
-                                                            reason: codec.Reason) -> None:
-    with pytest.raises(codec.CodecError, match=match) as info:
-        codec.occupancy_from_msg(codec.parse(_broken(change).SerializeToString(),
-                                             fire_pb2.FireForecast))
+                                                            reason: rejections.Reason) -> None:
+    with pytest.raises(rejections.CodecError, match=match) as info:
+        protobuf_codec.occupancy_from_msg(wire.parse(_broken(change).SerializeToString(),
+                                                     fire_pb2.FireForecast))
     assert info.value.reason == reason
-    before = codec.REJECTED.by_label["FireForecast-test"]
-    codec.rejected("FireForecast-test", info.value)
-    assert codec.REJECTED.by_label["FireForecast-test"] == before + 1
+    before = rejections.REJECTED.by_label["FireForecast-test"]
+    rejections.rejected("FireForecast-test", info.value)
+    assert rejections.REJECTED.by_label["FireForecast-test"] == before + 1

@@ -13,7 +13,7 @@ from dualpilot.model.fire import FireSnapshot
 from dualpilot.plan import Objective
 from dualpilot.spec import MissionSpec
 from dualpilot.supervisor.decision import Decision
-from services.common import codec
+from services.common import protobuf_codec, rejections, wire
 from services.msgs import supervisor_pb2
 
 PLAN = np.array([[50.0, 50.0], [65.0, 64.5], [80.0, 79.0]])
@@ -29,11 +29,11 @@ def record(plan_status: str, system: int, planned: np.ndarray = PLAN) -> StepRec
                       snapshot=FireSnapshot((), ()), time_s=42.5)
 
 
-def roundtrip(rec: StepRecord) -> codec.StepPlans:
-    m = codec.step_plans_msg(rec, "m1", MissionSpec(seed=9), codec.Stamper("supervisor", "u"),
-                             43.0)
-    return codec.step_plans_from_msg(codec.parse(m.SerializeToString(),
-                                                 supervisor_pb2.StepPlans))
+def roundtrip(rec: StepRecord) -> protobuf_codec.StepPlans:
+    m = protobuf_codec.step_plans_msg(rec, "m1", MissionSpec(seed=9),
+                                      wire.Stamper("supervisor", "u"), 43.0)
+    return protobuf_codec.step_plans_from_msg(wire.parse(m.SerializeToString(),
+                                                         supervisor_pb2.StepPlans))
 
 
 def test_step_plans_round_trip() -> None:
@@ -60,8 +60,8 @@ def test_a_kept_plan_flown_without_a_status() -> None:
 
 
 def _msg() -> supervisor_pb2.StepPlans:
-    return codec.step_plans_msg(record("s2:timeout;s1:ok", 1), "m1", MissionSpec(),
-                                codec.Stamper("supervisor", "u"), 1.0)
+    return protobuf_codec.step_plans_msg(record("s2:timeout;s1:ok", 1), "m1", MissionSpec(),
+                                         wire.Stamper("supervisor", "u"), 1.0)
 
 
 @pytest.mark.parametrize(("edit", "match"), [
@@ -81,13 +81,13 @@ def test_bad_step_plans_are_rejected(edit: Callable[[supervisor_pb2.StepPlans], 
                                      match: str) -> None:
     m = _msg()
     edit(m)
-    with pytest.raises(codec.CodecError, match=match):
-        codec.step_plans_from_msg(m)
+    with pytest.raises(rejections.CodecError, match=match):
+        protobuf_codec.step_plans_from_msg(m)
 
 
 def test_mission_events_are_checked() -> None:
     ok = supervisor_pb2.MissionEvent(kind=supervisor_pb2.MISSION_EVENT_KIND_STEP, step=3)
-    assert codec.check_mission_event(ok) is ok
+    assert protobuf_codec.check_mission_event(ok) is ok
     step = supervisor_pb2.MISSION_EVENT_KIND_STEP
     unknown = supervisor_pb2.MissionEvent()
     unknown.ParseFromString(b"\x10\x63")  # kind = 99: a value this build does not know
@@ -95,5 +95,5 @@ def test_mission_events_are_checked() -> None:
                        (unknown, "unknown mission event kind"),
                        (supervisor_pb2.MissionEvent(kind=step, flown_system=5), "flown_system"),
                        (supervisor_pb2.MissionEvent(kind=step, controller="x" * 17), "longer")):
-        with pytest.raises(codec.CodecError, match=match):
-            codec.check_mission_event(bad)
+        with pytest.raises(rejections.CodecError, match=match):
+            protobuf_codec.check_mission_event(bad)

@@ -1,4 +1,5 @@
-"""Property-based tests (hypothesis) of every codec function pair in services/common/codec.py.
+"""Property-based tests (hypothesis) of every codec function pair (services/common/: wire.py,
+protobuf_codec.py, mavlink_codec.py).
 
 Two properties, for every message the services exchange:
 
@@ -7,7 +8,7 @@ Two properties, for every message the services exchange:
   any value of its wire type: NaN, ±inf, huge, negative, unknown enum values,
   other schema versions, wrong lengths, far-outside coordinates), the decoder
   either returns a value that passes an independent validity check, or raises
-  :class:`codec.CodecError` with a reason from the closed set — never another
+  :class:`rejections.CodecError` with a reason from the closed set — never another
   exception, never a silently wrong value.
 
 They live in tests/integration because they import the generated messages
@@ -37,7 +38,7 @@ from dualpilot.model.geometry import Polytope, Rect
 from dualpilot.plan import Objective, Plan, PlanStatus
 from dualpilot.spec import MissionSpec
 from dualpilot.supervisor.decision import Decision, Supervisor
-from services.common import codec, mav
+from services.common import limits, mav, mavlink_codec, protobuf_codec, rejections, wire
 from services.common.clock import Anchor
 from services.msgs import common_pb2, fire_pb2, plan_pb2, supervisor_pb2, vehicle_pb2
 
@@ -46,9 +47,9 @@ pytestmark = pytest.mark.timeout(240)
 PROPS = settings(max_examples=120, deadline=None, derandomize=True,
                  suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
 FUZZ = settings(PROPS, max_examples=250)
-REASONS = {r.value for r in codec.Reason}
+REASONS = {r.value for r in rejections.Reason}
 AREA = 1000.0
-LO, HI = -codec.AREA_MARGIN * AREA, (1 + codec.AREA_MARGIN) * AREA
+LO, HI = -limits.AREA_MARGIN * AREA, (1 + limits.AREA_MARGIN) * AREA
 
 finite = st.floats(-1e5, 1e5, allow_nan=False, allow_infinity=False)
 positive = st.floats(1e-3, 1e5, allow_nan=False, allow_infinity=False)
@@ -71,8 +72,8 @@ def fire_field(seed: int, fronts: int, substeps: int) -> FireField:
 
 def fire_msg(seed: int = 3, fronts: int = 3, substeps: int = 4) -> fire_pb2.FireState:
     f = fire_field(seed, fronts, substeps)
-    return codec.fire_state_msg(f.fronts, f.extinct_hulls, 1, f.substeps_done, 0.5,
-                                codec.Stamper("ews", "uav1"), 0.5)
+    return protobuf_codec.fire_state_msg(f.fronts, f.extinct_hulls, 1, f.substeps_done, 0.5,
+                                         wire.Stamper("ews", "uav1"), 0.5)
 
 
 def plan_request(seed: int = 3, x: tuple[float, ...] = (50.0, 50.0, 0.0, 0.0),
@@ -82,17 +83,17 @@ def plan_request(seed: int = 3, x: tuple[float, ...] = (50.0, 50.0, 0.0, 0.0),
                  prepare: bool = True) -> plan_pb2.PlanRequest:
     """A plan request avoiding the hulls of ``fires`` (with the mission spec when ``prepare``)."""
     fires = fire_msg(seed) if fires is None else fires
-    req = codec.PlanRequest(
+    req = protobuf_codec.PlanRequest(
         seq=0, mission_id="m-1", step=4, system=system, objective=objective, state=np.array(x),
-        prev_control=np.array([1.0, -2.0]), obstacles=codec.snapshot_from_msg(fires).hulls,
+        prev_control=np.array([1.0, -2.0]), obstacles=protobuf_codec.snapshot_from_msg(fires).hulls,
         deadline_s=5.0, waypoints_revision=2, prepare=prepare,
         spec=MissionSpec(goal=goal, area_size_m=AREA, seed=seed) if prepare else None)
-    return codec.plan_request_msg(req, codec.Stamper("supervisor", "uav1"), 2.0)
+    return protobuf_codec.plan_request_msg(req, wire.Stamper("supervisor", "uav1"), 2.0)
 
 
 def stamped_state() -> vehicle_pb2.VehicleState:
     m = vehicle_pb2.VehicleState()
-    codec.Stamper("supervisor", "uav1").stamp(m.header, 1.0)
+    wire.Stamper("supervisor", "uav1").stamp(m.header, 1.0)
     return m
 
 
@@ -107,9 +108,9 @@ def same_polytope(a: Polytope, b: Polytope) -> bool:
                 and np.array_equal(a.b, b.b))
 
 
-def rejects(fn: Callable[[], Any]) -> codec.CodecError:
+def rejects(fn: Callable[[], Any]) -> rejections.CodecError:
     """``fn`` must raise CodecError with a reason of the closed set and a message."""
-    with pytest.raises(codec.CodecError) as info:
+    with pytest.raises(rejections.CodecError) as info:
         fn()
     err = info.value
     assert str(err.reason) in REASONS and str(err)
@@ -124,7 +125,7 @@ def _ok_points(a: np.ndarray, width: int, bound: float) -> None:
 
 
 def _ok_polytope(p: Polytope) -> None:
-    _ok_points(p.vertices, 2, codec.MAX_ABS_M)
+    _ok_points(p.vertices, 2, limits.MAX_ABS_M)
     assert len(p.vertices) >= 3 and p.A.shape == (len(p.vertices), 2) and p.b.shape == (len(p.b),)
     assert np.all(np.isfinite(p.A)) and np.all(np.isfinite(p.b))
     assert np.allclose(np.linalg.norm(p.A, axis=1), 1.0)
@@ -133,13 +134,13 @@ def _ok_polytope(p: Polytope) -> None:
     assert np.all(slack <= 1e-6 * (1.0 + np.abs(p.b)[:, None])), "a non-convex polygon"
 
 
-def _ok_rect(r: Rect, bound: float = codec.MAX_ABS_M) -> None:
+def _ok_rect(r: Rect, bound: float = limits.MAX_ABS_M) -> None:
     vals = [r.center_x, r.center_y, r.width, r.height]
     assert all(math.isfinite(v) and abs(v) <= bound for v in vals) and r.width > 0 < r.height
 
 
 def ok_snapshot(s: Any) -> None:
-    assert len(s.regions) <= codec.MAX_FRONTS and len(s.hulls) <= 2 * codec.MAX_FRONTS
+    assert len(s.regions) <= limits.MAX_FRONTS and len(s.hulls) <= 2 * limits.MAX_FRONTS
     assert len(set(s.front_ids)) == len(s.front_ids) == len(s.regions)
     for r in s.regions:
         _ok_rect(r)
@@ -154,23 +155,24 @@ def ok_regions(rs: tuple[Rect, ...]) -> None:
 
 def ok_state(x: np.ndarray) -> None:
     assert x.shape == (4,) and np.all(np.isfinite(x))
-    assert np.all(np.abs(x[:2]) <= codec.MAX_ABS_M) and np.all(np.abs(x[2:]) <= codec.MAX_SPEED_MPS)
+    assert np.all(np.abs(x[:2]) <= limits.MAX_ABS_M)
+    assert np.all(np.abs(x[2:]) <= limits.MAX_SPEED_MPS)
 
 
-def ok_plan_request(r: codec.PlanRequest) -> None:
+def ok_plan_request(r: protobuf_codec.PlanRequest) -> None:
     assert r.system in (1, 2) and isinstance(r.objective, Objective) and r.mission_id
     ok_state(r.state)
     assert r.prev_control.shape == (2,) and np.all(np.isfinite(r.prev_control))
     assert math.isfinite(r.deadline_s) and 0 < r.deadline_s <= 3600
-    assert len(r.obstacles) <= 2 * codec.MAX_FRONTS
+    assert len(r.obstacles) <= 2 * limits.MAX_FRONTS
     for h in r.obstacles:
         _ok_polytope(h)
     assert not r.prepare or r.spec is not None
     if r.spec is not None:
         area = r.spec.area_size_m
-        assert math.isfinite(area) and 0 < area <= codec.MAX_ABS_M
+        assert math.isfinite(area) and 0 < area <= limits.MAX_ABS_M
         assert r.spec.goal.inside(r.spec.area)
-        lo, hi = -codec.AREA_MARGIN * area, (1 + codec.AREA_MARGIN) * area
+        lo, hi = -limits.AREA_MARGIN * area, (1 + limits.AREA_MARGIN) * area
         assert np.all((r.state[:2] >= lo) & (r.state[:2] <= hi))
         for h in r.obstacles:
             assert np.all((h.vertices >= lo) & (h.vertices <= hi))
@@ -178,8 +180,8 @@ def ok_plan_request(r: codec.PlanRequest) -> None:
 
 def ok_plan(p: Plan) -> None:
     assert p.system in (1, 2) and isinstance(p.status, PlanStatus)
-    _ok_points(p.states.reshape(-1, 4), 4, codec.MAX_ABS_M)
-    _ok_points(p.controls.reshape(-1, 2), 2, codec.MAX_FORCE_N)
+    _ok_points(p.states.reshape(-1, 4), 4, limits.MAX_ABS_M)
+    _ok_points(p.controls.reshape(-1, 2), 2, limits.MAX_FORCE_N)
     if p.status is PlanStatus.OK:
         assert len(p.controls) >= 1 and len(p.states) == len(p.controls) + 1
     assert math.isfinite(p.compute_time_s) and p.compute_time_s >= 0
@@ -195,71 +197,75 @@ def ok_decision(d: Decision) -> None:
     assert not math.isnan(d.d_t) and d.d_t >= 0
 
 
-def ok_fire_command(c: codec.FireCommand) -> None:
-    assert c.kind in ("reset", "advance") and 0 <= c.substeps <= codec.MAX_SUBSTEPS
+def ok_fire_command(c: protobuf_codec.FireCommand) -> None:
+    assert c.kind in ("reset", "advance") and 0 <= c.substeps <= limits.MAX_SUBSTEPS
     if c.anchor is not None:
         ok_anchor(c.anchor)
 
 
 def ok_anchor(a: Anchor) -> None:
     assert math.isfinite(a.sim_time_s) and a.sim_time_s >= 0 and a.wall_ns >= 0
-    assert a.speed_factor == 0 or codec.MIN_SPEED_FACTOR <= a.speed_factor <= 1e9
+    assert a.speed_factor == 0 or limits.MIN_SPEED_FACTOR <= a.speed_factor <= 1e9
     if a.speed_factor:  # a paced clock cannot make the receiver sleep for ages
-        assert abs(a.wall_ns - time.time_ns()) <= codec.MAX_CLOCK_SKEW_S * 1e9 + 60e9
+        assert abs(a.wall_ns - time.time_ns()) <= limits.MAX_CLOCK_SKEW_S * 1e9 + 60e9
 
 
-def ok_waypoints(w: codec.Waypoints) -> None:
+def ok_waypoints(w: protobuf_codec.Waypoints) -> None:
     assert w.revision >= 0 and isinstance(w.mission_id, str)
     if w.points is not None:
-        _ok_points(w.points, 2, codec.MAX_ABS_M)
-        assert 1 <= len(w.points) <= codec.MAX_WAYPOINTS
+        _ok_points(w.points, 2, limits.MAX_ABS_M)
+        assert 1 <= len(w.points) <= limits.MAX_WAYPOINTS
 
 
 #: every decoder of a bus message: (message type, decode, validity check, a valid example)
 DECODERS: dict[str, tuple[type[Message], Callable[[Any], Any], Callable[[Any], None],
                           Callable[[], Message]]] = {
-    "FireState": (fire_pb2.FireState, codec.snapshot_from_msg, ok_snapshot, fire_msg),
-    "FireState.regions": (fire_pb2.FireState, codec.regions_from_msg, ok_regions,
+    "FireState": (fire_pb2.FireState, protobuf_codec.snapshot_from_msg, ok_snapshot, fire_msg),
+    "FireState.regions": (fire_pb2.FireState, protobuf_codec.regions_from_msg, ok_regions,
                           lambda: fire_msg()),
-    "PlanRequest": (plan_pb2.PlanRequest, codec.plan_request_from_msg, ok_plan_request,
+    "PlanRequest": (plan_pb2.PlanRequest, protobuf_codec.plan_request_from_msg, ok_plan_request,
                     lambda: plan_request()),
-    "Plan": (plan_pb2.Plan, codec.plan_from_msg, ok_plan,
-             lambda: codec.plan_to_msg(
+    "Plan": (plan_pb2.Plan, protobuf_codec.plan_from_msg, ok_plan,
+             lambda: protobuf_codec.plan_to_msg(
                  flown_plan(np.array([50.0, 50.0, 1.0, 0.0]), np.array([[1.0, 2.0], [0.5, -1.0]]),
                          cost=3.0, path=np.array([[50.0, 50.0], [900.0, 900.0]]),
                          info={"source": "rrt"}, objective=Objective.ENERGY),
-                 3, 11, codec.Stamper("system2", "uav1"), 1.0)),
-    "Decision": (supervisor_pb2.Decision, codec.decision_from_msg, ok_decision,
-                 lambda: codec.decision_to_msg(Supervisor(np.random.default_rng(1)).decide(2, 80.0),
-                                               1, codec.Stamper("supervisor", "uav1"), 2.0)),
-    "VehicleState": (vehicle_pb2.VehicleState, codec.state_from_msg, ok_state,
-                     lambda: codec.state_to_msg(np.array([50.0, 60.0, 1.0, -2.0]), 3,
-                                                stamped_state(), 50.0)),
-    "OperatorWaypoints": (vehicle_pb2.OperatorWaypoints, codec.waypoints_from_msg, ok_waypoints,
-                          lambda: codec.waypoints_msg(
-                              codec.Waypoints("m-1", 3, np.array([[1.0, 2.0], [3.0, 4.0]])),
-                              codec.Stamper("operator", "uav1"))),
-    "FireCommand": (fire_pb2.FireCommand, codec.fire_command_from_msg, ok_fire_command,
+                 3, 11, wire.Stamper("system2", "uav1"), 1.0)),
+    "Decision": (supervisor_pb2.Decision, protobuf_codec.decision_from_msg, ok_decision,
+                 lambda: protobuf_codec.decision_to_msg(
+                     Supervisor(np.random.default_rng(1)).decide(2, 80.0), 1,
+                     wire.Stamper("supervisor", "uav1"), 2.0)),
+    "VehicleState": (vehicle_pb2.VehicleState, protobuf_codec.state_from_msg, ok_state,
+                     lambda: protobuf_codec.state_to_msg(np.array([50.0, 60.0, 1.0, -2.0]), 3,
+                                                         stamped_state(), 50.0)),
+    "OperatorWaypoints": (vehicle_pb2.OperatorWaypoints, protobuf_codec.waypoints_from_msg,
+                          ok_waypoints,
+                          lambda: protobuf_codec.waypoints_msg(
+                              protobuf_codec.Waypoints("m-1", 3,
+                                                       np.array([[1.0, 2.0], [3.0, 4.0]])),
+                              wire.Stamper("operator", "uav1"))),
+    "FireCommand": (fire_pb2.FireCommand, protobuf_codec.fire_command_from_msg, ok_fire_command,
                     lambda: _advance_cmd()),
-    "Clock": (common_pb2.Clock, codec.clock_from_msg, ok_anchor,
-              lambda: codec.clock_to_msg(Anchor(3.0, time.time_ns(), 20.0), common_pb2.Clock())),
+    "Clock": (common_pb2.Clock, protobuf_codec.clock_from_msg, ok_anchor,
+              lambda: protobuf_codec.clock_to_msg(Anchor(3.0, time.time_ns(), 20.0),
+                                                  common_pb2.Clock())),
     "Error": (common_pb2.Error, lambda m: m, lambda m: None,
-              lambda: codec.error_msg(codec.Stamper("ews", "uav1"),
-                                      common_pb2.ERROR_CODE_INVALID, "bad")),
+              lambda: wire.error_msg(wire.Stamper("ews", "uav1"),
+                                     common_pb2.ERROR_CODE_INVALID, "bad")),
 }
 
 
 def _advance_cmd() -> fire_pb2.FireCommand:
     m = fire_pb2.FireCommand(mission_id="m-1")
-    codec.Stamper("supervisor", "uav1").stamp(m.header, 1.0)
+    wire.Stamper("supervisor", "uav1").stamp(m.header, 1.0)
     m.advance.step, m.advance.substeps = 3, 2
-    codec.clock_to_msg(Anchor(1.5, time.time_ns(), 20.0), m.advance.clock)
+    protobuf_codec.clock_to_msg(Anchor(1.5, time.time_ns(), 20.0), m.advance.clock)
     return m
 
 
 def decode(name: str, payload: bytes, encoding: str | None = None) -> Any:
     cls, fn, ok, _ = DECODERS[name]
-    value = fn(codec.parse(payload, cls, encoding))
+    value = fn(wire.parse(payload, cls, encoding))
     ok(value)  # not rejected: then it must be a valid value
     return value
 
@@ -268,7 +274,7 @@ def decode_or_reject(name: str, payload: bytes, encoding: str | None = None) -> 
     try:
         decode(name, payload, encoding)
         event("accepted")
-    except codec.CodecError as err:
+    except rejections.CodecError as err:
         assert str(err.reason) in REASONS and str(err), err
         event(f"rejected: {err.reason}")
 
@@ -278,21 +284,21 @@ def decode_or_reject(name: str, payload: bytes, encoding: str | None = None) -> 
 @given(finite, finite, positive, positive)
 def test_rect_round_trip(cx: float, cy: float, w: float, h: float) -> None:
     r = Rect(cx, cy, w, h)
-    assert codec.rect_from_msg(codec.rect_to_msg(r, common_pb2.Rect())) == r
+    assert protobuf_codec.rect_from_msg(protobuf_codec.rect_to_msg(r, common_pb2.Rect())) == r
 
 
 @PROPS
 @given(arrays(np.float64, st.tuples(st.integers(0, 40), st.just(2)), elements=finite))
 def test_points_and_packed_round_trip(pts: np.ndarray) -> None:
     m = vehicle_pb2.OperatorWaypoints()
-    codec.points_to_msg(pts, m.waypoints)
-    assert np.array_equal(codec.points_from_msg(m.waypoints, "p", 1000), pts)
+    protobuf_codec.points_to_msg(pts, m.waypoints)
+    assert np.array_equal(protobuf_codec.points_from_msg(m.waypoints, "p", 1000), pts)
     poly = common_pb2.Polygon()
-    codec.packed_to_msg(pts, poly.vertices_m)
-    assert np.array_equal(codec.packed_from_msg(poly.vertices_m, "p", 2, 1000, 1e5), pts)
-    sent = codec.Waypoints("m-1", 4, pts if len(pts) else None)
-    back = codec.waypoints_from_msg(codec.parse(
-        codec.waypoints_msg(sent, codec.Stamper("op", "u")).SerializeToString(),
+    protobuf_codec.packed_to_msg(pts, poly.vertices_m)
+    assert np.array_equal(protobuf_codec.packed_from_msg(poly.vertices_m, "p", 2, 1000, 1e5), pts)
+    sent = protobuf_codec.Waypoints("m-1", 4, pts if len(pts) else None)
+    back = protobuf_codec.waypoints_from_msg(wire.parse(
+        protobuf_codec.waypoints_msg(sent, wire.Stamper("op", "u")).SerializeToString(),
         vehicle_pb2.OperatorWaypoints))
     assert (back.mission_id, back.revision) == ("m-1", 4)
     assert (back.points is None) == (len(pts) == 0)
@@ -307,7 +313,8 @@ def test_polygon_round_trip(pts: np.ndarray) -> None:
     except ValueError:
         assume(False)
         return
-    back = codec.polygon_from_msg(codec.polygon_to_msg(poly, common_pb2.Polygon()))
+    back = protobuf_codec.polygon_from_msg(protobuf_codec.polygon_to_msg(poly,
+                                                                         common_pb2.Polygon()))
     assert same_polytope(back, poly)
 
 
@@ -317,11 +324,12 @@ def test_polygon_round_trip(pts: np.ndarray) -> None:
 def test_state_and_ned_round_trip(e: float, n: float, ve: float, vn: float, step: int,
                                   alt: float) -> None:
     x = np.array([e, n, ve, vn])
-    m = codec.parse(codec.state_to_msg(x, step, stamped_state(), alt).SerializeToString(),
-                    vehicle_pb2.VehicleState)
-    assert np.array_equal(codec.state_from_msg(m), x) and m.step == step and m.altitude_m == alt
-    north, east, down, v_n, v_e, _ = codec.state_to_ned(x, alt)
-    assert np.array_equal(codec.state_from_ned(north, east, v_n, v_e), x) and down == -alt
+    m = wire.parse(protobuf_codec.state_to_msg(x, step, stamped_state(), alt).SerializeToString(),
+                   vehicle_pb2.VehicleState)
+    assert np.array_equal(protobuf_codec.state_from_msg(m),
+                          x) and m.step == step and m.altitude_m == alt
+    north, east, down, v_n, v_e, _ = mavlink_codec.state_to_ned(x, alt)
+    assert np.array_equal(mavlink_codec.state_from_ned(north, east, v_n, v_e), x) and down == -alt
 
 
 @PROPS
@@ -331,12 +339,12 @@ def test_setpoint_from_mavlink_round_trip(e: float, n: float, ve: float, vn: flo
     from pymavlink.dialects.v20 import common as dialect
 
     x = np.array([e, n, ve, vn])
-    north, east, down, v_n, v_e, v_d = codec.state_to_ned(x, 50.0)
+    north, east, down, v_n, v_e, v_d = mavlink_codec.state_to_ned(x, 50.0)
     mask = mav.TYPE_MASK_POS_VEL if with_velocity else mav.TYPE_MASK_POS
     msg = dialect.MAVLink_set_position_target_local_ned_message(
         0, 1, 1, mav.MAV_FRAME_LOCAL_NED, mask, north, east, down, v_n, v_e, v_d,
         0, 0, 0, 0, 0)
-    back = codec.setpoint_from_mavlink(msg)
+    back = mavlink_codec.setpoint_from_mavlink(msg)
     assert np.array_equal(back, x if with_velocity else [e, n, 0.0, 0.0])
 
 
@@ -345,45 +353,46 @@ def test_setpoint_from_mavlink_round_trip(e: float, n: float, ve: float, vn: flo
 def test_fire_state_round_trip(seed: int, fronts: int, substeps: int) -> None:
     field = fire_field(seed, fronts, substeps)
     snap = field.snapshot()
-    msg = codec.fire_state_msg(field.fronts, field.extinct_hulls, 2, field.substeps_done, 0.5,
-                               codec.Stamper("ews", "uav1"), 1.0)
-    back = decode("FireState", msg.SerializeToString(), codec.encoding_name(msg))
+    msg = protobuf_codec.fire_state_msg(field.fronts, field.extinct_hulls, 2, field.substeps_done,
+                                        0.5, wire.Stamper("ews", "uav1"), 1.0)
+    back = decode("FireState", msg.SerializeToString(), wire.encoding_name(msg))
     assert back.regions == snap.regions and back.front_ids == snap.front_ids
     assert back.born_steps == snap.born_steps
     assert all(same_polytope(a, b) for a, b in zip(back.hulls, snap.hulls, strict=True))
-    assert codec.regions_from_msg(msg) == snap.regions
+    assert protobuf_codec.regions_from_msg(msg) == snap.regions
 
 
 @PROPS
 @given(st.floats(0, 1e6), st.integers(-3600 * 10**9, 3600 * 10**9),
-       st.sampled_from([0.0, 1.0, 20.0, 1e3]) | st.floats(codec.MIN_SPEED_FACTOR, 1e9))
+       st.sampled_from([0.0, 1.0, 20.0, 1e3]) | st.floats(limits.MIN_SPEED_FACTOR, 1e9))
 def test_clock_round_trip(sim_s: float, offset_ns: int, factor: float) -> None:
     a = Anchor(sim_s, time.time_ns() + offset_ns, factor)
-    assert codec.clock_from_msg(codec.clock_to_msg(a, common_pb2.Clock())) == a
+    assert protobuf_codec.clock_from_msg(protobuf_codec.clock_to_msg(a, common_pb2.Clock())) == a
 
 
 def test_enum_round_trips() -> None:
     for o in (*Objective, None):
-        assert codec.objective_from_msg(codec.objective_to_msg(o), required=False) is o
+        assert protobuf_codec.objective_from_msg(protobuf_codec.objective_to_msg(o),
+                                                 required=False) is o
     for s in PlanStatus:
-        assert codec.status_from_msg(codec.status_to_msg(s)) is s
+        assert protobuf_codec.status_from_msg(protobuf_codec.status_to_msg(s)) is s
 
 
 @PROPS
 @given(st.sampled_from(["reset", "advance"]), st.integers(0, 2**64 - 1),
-       st.integers(0, 2**32 - 1), st.integers(0, codec.MAX_SUBSTEPS), st.booleans(),
+       st.integers(0, 2**32 - 1), st.integers(0, limits.MAX_SUBSTEPS), st.booleans(),
        st.text(max_size=256))
 def test_fire_command_decodes_what_was_sent(kind: str, seed: int, step: int, substeps: int,
                                             with_clock: bool, mission_id: str) -> None:
     m = fire_pb2.FireCommand(mission_id=mission_id)
-    codec.Stamper("supervisor", "uav1").stamp(m.header)
+    wire.Stamper("supervisor", "uav1").stamp(m.header)
     anchor = Anchor(2.0, time.time_ns(), 10.0) if with_clock else None
     if kind == "reset":
         m.reset.seed = seed
     else:
         m.advance.step, m.advance.substeps = step, substeps
         if anchor is not None:
-            codec.clock_to_msg(anchor, m.advance.clock)
+            protobuf_codec.clock_to_msg(anchor, m.advance.clock)
     cmd = decode("FireCommand", m.SerializeToString())
     assert cmd.kind == kind and cmd.mission_id == mission_id
     if kind == "reset":
@@ -402,7 +411,7 @@ def test_plan_request_round_trip(seed: int, e: float, n: float, ve: float, vn: f
     goal = Rect(gx + 75, gy + 75, 100, 100)
     fires = fire_msg(seed % 1000, 2, seed % 7)
     msg = plan_request(seed, (e, n, ve, vn), goal, system, objective, fires, prepare)
-    req = decode("PlanRequest", msg.SerializeToString(), codec.encoding_name(msg))
+    req = decode("PlanRequest", msg.SerializeToString(), wire.encoding_name(msg))
     assert np.array_equal(req.state, [e, n, ve, vn]) and req.mission_id == "m-1"
     assert (req.system, req.objective, req.step, req.deadline_s) == (system, objective, 4, 5.0)
     assert req.waypoints_revision == 2 and req.prepare == prepare
@@ -410,7 +419,7 @@ def test_plan_request_round_trip(seed: int, e: float, n: float, ve: float, vn: f
         assert req.spec == MissionSpec(goal=goal, area_size_m=AREA, seed=seed)
     else:
         assert req.spec is None
-    hulls = codec.snapshot_from_msg(fires).hulls
+    hulls = protobuf_codec.snapshot_from_msg(fires).hulls
     assert [h.vertices.tolist() for h in req.obstacles] == [h.vertices.tolist() for h in hulls]
     assert np.array_equal(req.prev_control, [1.0, -2.0])
 
@@ -436,7 +445,7 @@ def test_plan_round_trip(controls: np.ndarray, system: int, objective: Objective
     plan = flown_plan(np.array([50.0, 50.0, 0.0, 0.0]), controls, system=system,
                       objective=objective, cost=cost, info=info, message=message,
                       compute_time_s=compute)
-    msg = codec.plan_to_msg(plan, 5, 9, codec.Stamper(f"system{system}", "uav1"))
+    msg = protobuf_codec.plan_to_msg(plan, 5, 9, wire.Stamper(f"system{system}", "uav1"))
     back = decode("Plan", msg.SerializeToString())
     assert np.array_equal(back.states, plan.states) and np.array_equal(back.controls, controls)
     assert (back.system, back.status, back.objective, back.cost, back.message, back.info) == (
@@ -448,15 +457,15 @@ def test_plan_round_trip(controls: np.ndarray, system: int, objective: Objective
 @given(st.sampled_from([s for s in PlanStatus if s is not PlanStatus.OK]))
 def test_failed_plan_round_trip(status: PlanStatus) -> None:
     plan = Plan.failed(1, status, 0.5, "why")
-    back = decode("Plan", codec.plan_to_msg(plan, 0, 1, codec.Stamper("s", "u"))
+    back = decode("Plan", protobuf_codec.plan_to_msg(plan, 0, 1, wire.Stamper("s", "u"))
                   .SerializeToString())
     assert back.status is status and back.message == "why" and len(back.controls) == 0
 
 
 def test_an_oversized_plan_info_is_replaced_not_cut() -> None:
     plan = Plan.failed(1, PlanStatus.NO_PATH, 0.1, "no path")
-    plan.info["log"] = "x" * (codec.MAX_TEXT + 10)
-    back = decode("Plan", codec.plan_to_msg(plan, 0, 1, codec.Stamper("s", "u"))
+    plan.info["log"] = "x" * (limits.MAX_TEXT + 10)
+    back = decode("Plan", protobuf_codec.plan_to_msg(plan, 0, 1, wire.Stamper("s", "u"))
                   .SerializeToString())
     assert back.info == {"info_truncated": True}
 
@@ -465,7 +474,7 @@ def test_an_oversized_plan_info_is_replaced_not_cut() -> None:
 @given(st.integers(0, 10_000), st.floats(0, 1e5) | st.just(math.inf), st.integers(0, 2**16))
 def test_decision_round_trip(t: int, d_t: float, seed: int) -> None:
     d = Supervisor(np.random.default_rng(seed)).decide(t, d_t)
-    back = decode("Decision", codec.decision_to_msg(d, 2, codec.Stamper("s", "u"), 1.0)
+    back = decode("Decision", protobuf_codec.decision_to_msg(d, 2, wire.Stamper("s", "u"), 1.0)
                   .SerializeToString())
     assert (back.t, back.d_t, back.attention, back.system, back.objective) == (
         d.t, d.d_t, d.attention, d.system, d.objective)
@@ -477,15 +486,15 @@ def test_decision_round_trip(t: int, d_t: float, seed: int) -> None:
 @given(arrays(np.float64, st.tuples(st.integers(1, 10), st.just(2)), elements=finite))
 def test_parse_waypoints_round_trip(pts: np.ndarray) -> None:
     text = ";".join(f"{float(e)!r},{float(n)!r}" for e, n in pts)
-    back = codec.parse_waypoints(text)
+    back = protobuf_codec.parse_waypoints(text)
     assert back is not None and np.array_equal(back, pts)
 
 
 @PROPS
 @given(st.sampled_from(list(common_pb2.ErrorCode.values())), st.text(max_size=300))
 def test_error_round_trip(code: Any, text: str) -> None:
-    err = codec.parse(codec.error_msg(codec.Stamper("ews", "u"), code, text).SerializeToString(),
-                      common_pb2.Error)
+    err = wire.parse(wire.error_msg(wire.Stamper("ews", "u"), code, text).SerializeToString(),
+                     common_pb2.Error)
     assert err.code == code and err.message == text
 
 
@@ -567,17 +576,17 @@ def test_any_field_value_decodes_or_is_rejected(name: str, data: Any) -> None:
     for _ in range(data.draw(st.integers(1, 3))):
         path, fd = data.draw(st.sampled_from(fields))
         set_field(msg, path, data.draw(value_for(fd)))
-    decode_or_reject(name, msg.SerializeToString(), codec.encoding_name(msg))
+    decode_or_reject(name, msg.SerializeToString(), wire.encoding_name(msg))
 
 
 @FUZZ
 @given(st.sampled_from(sorted(DECODERS)), st.integers(0, 2**32 - 1))
 def test_unknown_schema_versions_are_rejected(name: str, version: int) -> None:
-    assume(version != codec.SCHEMA_VERSION)
+    assume(version != wire.SCHEMA_VERSION)
     msg = DECODERS[name][3]()
     msg.header.schema_version = version  # type: ignore[attr-defined]
     err = rejects(lambda: decode(name, msg.SerializeToString()))
-    assert err.reason is codec.Reason.SCHEMA_VERSION and "schema_version" in str(err)
+    assert err.reason is rejections.Reason.SCHEMA_VERSION and "schema_version" in str(err)
 
 
 @PROPS
@@ -596,8 +605,8 @@ def test_wrong_message_types_are_rejected(name: str, other: str) -> None:
     cls, other_cls = DECODERS[name][0], DECODERS[other][0]
     assume(cls is not other_cls)
     payload = DECODERS[other][3]().SerializeToString()
-    err = rejects(lambda: decode(name, payload, codec.encoding_name(other_cls)))
-    assert err.reason is codec.Reason.WRONG_TYPE
+    err = rejects(lambda: decode(name, payload, wire.encoding_name(other_cls)))
+    assert err.reason is rejections.Reason.WRONG_TYPE
     decode_or_reject(name, payload)  # without an encoding: parsed, then validated
 
 
@@ -605,14 +614,14 @@ def test_wrong_message_types_are_rejected(name: str, other: str) -> None:
 @given(st.text(max_size=80))
 def test_any_encoding_is_accepted_only_if_neutral_or_exact(enc: str) -> None:
     payload = DECODERS["VehicleState"][3]().SerializeToString()
-    if enc in codec.NEUTRAL_ENCODINGS or enc == codec.encoding_name(vehicle_pb2.VehicleState):
+    if enc in wire.NEUTRAL_ENCODINGS or enc == wire.encoding_name(vehicle_pb2.VehicleState):
         decode("VehicleState", payload, enc)
     else:
         assert rejects(lambda: decode("VehicleState", payload, enc)).reason == "wrong_type"
 
 
 def test_huge_payloads_are_rejected_before_parsing() -> None:
-    big = b"\x00" * (codec.MAX_PAYLOAD_BYTES + 1)
+    big = b"\x00" * (wire.MAX_PAYLOAD_BYTES + 1)
     for name in DECODERS:
         assert rejects(partial(decode, name, big)).reason == "too_large"
 
@@ -631,7 +640,7 @@ def test_non_finite_states_are_rejected(field: str, value: float) -> None:
 
 @PROPS
 @given(st.sampled_from(["state", "obstacle", "goal"]),
-       st.floats(HI + 1e-6, codec.MAX_ABS_M) | st.floats(-codec.MAX_ABS_M, LO - 1e-6))
+       st.floats(HI + 1e-6, limits.MAX_ABS_M) | st.floats(-limits.MAX_ABS_M, LO - 1e-6))
 def test_far_outside_the_area_is_rejected(what: str, far: float) -> None:
     """Within MAX_ABS_M (a plausible number) but not near this mission's area."""
     req = plan_request()
@@ -692,26 +701,26 @@ def test_wrong_lengths_are_rejected(extra: int, what: str) -> None:
 
 def test_deeply_nested_json_info_is_rejected_not_a_crash() -> None:
     msg = DECODERS["Plan"][3]()
-    msg.info_json = "[" * (codec.MAX_TEXT + 1)
+    msg.info_json = "[" * (limits.MAX_TEXT + 1)
     assert rejects(lambda: decode("Plan", msg.SerializeToString())).reason == "size"
     msg.info_json = "[" * 10_000
     assert "info_json" in str(rejects(lambda: decode("Plan", msg.SerializeToString())))
 
 
 @PROPS
-@given(st.floats(1e-300, codec.MIN_SPEED_FACTOR * 0.999) | st.floats(1e9 + 1, 1e300),
+@given(st.floats(1e-300, limits.MIN_SPEED_FACTOR * 0.999) | st.floats(1e9 + 1, 1e300),
        st.integers(0, 2**63 - 1))
 def test_a_clock_cannot_make_the_ews_sleep_for_ages(factor: float, anchor_ns: int) -> None:
     m = common_pb2.Clock(sim_time_s=1.0, speed_factor=factor, anchor_wall_ns=anchor_ns)
-    assert rejects(lambda: codec.clock_from_msg(m)).reason == "out_of_range"
+    assert rejects(lambda: protobuf_codec.clock_from_msg(m)).reason == "out_of_range"
     m.speed_factor = 1.0
-    if abs(m.anchor_wall_ns - time.time_ns()) > codec.MAX_CLOCK_SKEW_S * 1e9:
-        assert rejects(lambda: codec.clock_from_msg(m)).reason == "out_of_range"
+    if abs(m.anchor_wall_ns - time.time_ns()) > limits.MAX_CLOCK_SKEW_S * 1e9:
+        assert rejects(lambda: protobuf_codec.clock_from_msg(m)).reason == "out_of_range"
 
 
 def test_rejections_are_counted_per_key_and_reason_and_logs_are_rate_limited(
         caplog: pytest.LogCaptureFixture) -> None:
-    reg = codec.Rejections(max_keys=2, log_burst=3, log_per_s=0.0)
+    reg = rejections.Rejections(max_keys=2, log_burst=3, log_per_s=0.0)
     lines = [reg.add("k1", "malformed")[2] for _ in range(5)]
     assert lines == [1, 1, 1, 0, 0] and reg.suppressed == 2
     reg.add("k2", "size")
@@ -721,6 +730,7 @@ def test_rejections_are_counted_per_key_and_reason_and_logs_are_rate_limited(
     assert reg.snapshot() == {"k1": {"malformed": 5, "invalid": 1}, "k2": {"size": 1},
                               "(other)": {"size": 1}}
     assert reg.total() == 8
-    before = codec.REJECTED.snapshot().get("test-key", {}).get("size", 0)
-    codec.rejected("Thing", codec.invalid("too many", codec.Reason.SIZE), key="test-key")
-    assert codec.REJECTED.snapshot()["test-key"]["size"] == before + 1
+    before = rejections.REJECTED.snapshot().get("test-key", {}).get("size", 0)
+    rejections.rejected("Thing", rejections.invalid("too many", rejections.Reason.SIZE),
+                        key="test-key")
+    assert rejections.REJECTED.snapshot()["test-key"]["size"] == before + 1

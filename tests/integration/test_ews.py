@@ -12,7 +12,7 @@ import pytest
 from dualpilot.mission.local import LocalFires
 from dualpilot.model.fire_field import FireField
 from dualpilot.spec import MissionSpec
-from services.common import bus, codec, keys
+from services.common import bus, keys, protobuf_codec, wire
 from services.common.clock import Anchor
 from services.msgs import common_pb2, fire_pb2
 
@@ -28,15 +28,15 @@ def ews(services: Any, liveliness: bus.Liveliness) -> Any:
 
 def command(session: Any, uav: str, mission: str, **kind: Any) -> fire_pb2.FireUpdate:
     cmd = fire_pb2.FireCommand(mission_id=mission)
-    codec.Stamper("test", uav).stamp(cmd.header)
+    wire.Stamper("test", uav).stamp(cmd.header)
     if "seed" in kind:
         cmd.reset.seed = kind["seed"]
     else:
         cmd.advance.step, cmd.advance.substeps = kind["step"], kind["substeps"]
         if "anchor" in kind:
-            codec.clock_to_msg(kind["anchor"], cmd.advance.clock)
+            protobuf_codec.clock_to_msg(kind["anchor"], cmd.advance.clock)
     payload, enc = bus.request(session, keys.fire_command(uav), cmd, 30.0)
-    return codec.parse(payload, fire_pb2.FireUpdate, enc)
+    return wire.parse(payload, fire_pb2.FireUpdate, enc)
 
 
 def test_fires_match_the_in_process_fire_stream(ews: Any, session: Any) -> None:
@@ -54,7 +54,7 @@ def test_fires_match_the_in_process_fire_stream(ews: Any, session: Any) -> None:
         assert len(update.states) == n
         for state in update.states:
             field.substep(rng, t)
-            got = codec.snapshot_from_msg(state)
+            got = protobuf_codec.snapshot_from_msg(state)
             want = field.snapshot()
             assert got.regions == want.regions and got.front_ids == want.front_ids
             assert all(np.array_equal(a.vertices, b.vertices)
@@ -100,7 +100,7 @@ def test_forecast_is_published(ews: Any, session: Any) -> None:
     for front in last.fronts:
         assert len(front.regions) == 160 and len(front.envelope.vertices_m) >= 8
     # the occupancy grid is the in-process fire port's forecast, level for level
-    grid = codec.occupancy_from_msg(last)
+    grid = protobuf_codec.occupancy_from_msg(last)
     assert grid is not None and grid.shape == (100, 100) and grid.horizons[-1] == 80
     fires = LocalFires(MissionSpec(seed=26))
     fires.advance(0, 10, None)
@@ -115,6 +115,6 @@ def test_bad_commands_get_error_replies(ews: Any, session: Any) -> None:
     assert info.value.code == common_pb2.ERROR_CODE_INVALID
     with pytest.raises(bus.QueryError, match="neither reset nor advance"):
         cmd = fire_pb2.FireCommand(mission_id="x")
-        codec.Stamper("test", ews.uav).stamp(cmd.header)
+        wire.Stamper("test", ews.uav).stamp(cmd.header)
         bus.request(session, keys.fire_command(ews.uav), cmd, 10.0)
     command(session, ews.uav, "m4", seed=2)  # still serving

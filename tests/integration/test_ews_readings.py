@@ -17,7 +17,7 @@ from dualpilot.model.fire import FireParams
 from dualpilot.model.fire_field import FireField
 from dualpilot.readings import PROFILES, get_profile
 from dualpilot.spec import Stream, stream_rng
-from services.common import bus, codec, keys
+from services.common import bus, keys, protobuf_codec, wire
 from services.msgs import fire_pb2
 
 pytestmark = pytest.mark.timeout(120)
@@ -36,9 +36,9 @@ def ews(services: Any, liveliness: bus.Liveliness) -> Any:
 
 
 def _send(session: Any, uav: str, cmd: fire_pb2.FireCommand) -> fire_pb2.FireUpdate:
-    codec.Stamper("test", uav).stamp(cmd.header)
+    wire.Stamper("test", uav).stamp(cmd.header)
     payload, enc = bus.request(session, keys.fire_command(uav), cmd, 30.0)
-    return codec.parse(payload, fire_pb2.FireUpdate, enc)
+    return wire.parse(payload, fire_pb2.FireUpdate, enc)
 
 
 def _replay(session: Any, uav: str, mission: str, seed: int, fire: FireParams | None,
@@ -47,7 +47,7 @@ def _replay(session: Any, uav: str, mission: str, seed: int, fire: FireParams | 
     cmd = fire_pb2.FireCommand(mission_id=mission)
     cmd.reset.seed = seed
     if fire is not None:
-        codec.fire_readings_to_msg(fire, cmd.reset)
+        protobuf_codec.fire_readings_to_msg(fire, cmd.reset)
     _send(session, uav, cmd)
     field = FireField(params=want)
     rng = stream_rng(seed, Stream.FIRE)
@@ -63,7 +63,7 @@ def _replay(session: Any, uav: str, mission: str, seed: int, fire: FireParams | 
         assert len(update.states) == n
         for state in update.states:
             field.substep(rng, t, keep_out=keep)
-            got, exp = codec.snapshot_from_msg(state), field.snapshot()
+            got, exp = protobuf_codec.snapshot_from_msg(state), field.snapshot()
             assert got.regions == exp.regions
             assert got.front_ids == exp.front_ids and got.born_steps == exp.born_steps
             assert all(np.array_equal(a.vertices, b.vertices)

@@ -1,7 +1,7 @@
 """A fire-behaviour scenario reaches a real EWS: it runs the in-process physics fires exactly.
 
 The reset names the fire process (FireReset.scenario, sent by
-codec.fire_readings_to_msg from FireParams.scenario); an EWS started with
+protobuf_codec.fire_readings_to_msg from FireParams.scenario); an EWS started with
 ``FIRE_SCENARIO`` runs that scenario when a reset names none; an unknown name
 gets an error reply; the occupancy forecast it publishes is the in-process one.
 """
@@ -21,7 +21,7 @@ from dualpilot.model.fire_field import FireField
 from dualpilot.model.forecast import LEVELS
 from dualpilot.model.scenarios import SCENARIOS
 from dualpilot.spec import MissionSpec, Stream, stream_rng
-from services.common import bus, codec, keys
+from services.common import bus, keys, protobuf_codec, rejections, wire
 from services.msgs import fire_pb2
 
 pytestmark = pytest.mark.timeout(180)
@@ -39,9 +39,9 @@ def ews(services: Any, liveliness: bus.Liveliness) -> Any:
 
 
 def _send(session: Any, uav: str, cmd: fire_pb2.FireCommand) -> fire_pb2.FireUpdate:
-    codec.Stamper("test", uav).stamp(cmd.header)
+    wire.Stamper("test", uav).stamp(cmd.header)
     payload, enc = bus.request(session, keys.fire_command(uav), cmd, 60.0)
-    return codec.parse(payload, fire_pb2.FireUpdate, enc)
+    return wire.parse(payload, fire_pb2.FireUpdate, enc)
 
 
 def _replay(session: Any, uav: str, mission: str, seed: int, sent: FireParams | None,
@@ -50,7 +50,7 @@ def _replay(session: Any, uav: str, mission: str, seed: int, sent: FireParams | 
     cmd = fire_pb2.FireCommand(mission_id=mission)
     cmd.reset.seed = seed
     if sent is not None:
-        codec.fire_readings_to_msg(sent, cmd.reset)
+        protobuf_codec.fire_readings_to_msg(sent, cmd.reset)
     _send(session, uav, cmd)
     field = FireField(params=want)
     rng = stream_rng(seed, Stream.FIRE)
@@ -65,7 +65,7 @@ def _replay(session: Any, uav: str, mission: str, seed: int, sent: FireParams | 
         assert len(update.states) == n
         for state in update.states:
             field.substep(rng, t, keep_out=keep)
-            got, exp = codec.snapshot_from_msg(state), field.snapshot()
+            got, exp = protobuf_codec.snapshot_from_msg(state), field.snapshot()
             assert got.regions == exp.regions
             assert got.front_ids == exp.front_ids and got.born_steps == exp.born_steps
             assert all(np.array_equal(a.vertices, b.vertices)
@@ -110,7 +110,7 @@ def test_a_scenario_forecast_is_the_in_process_fire_ports_byte_for_byte(
     sub.undeclare()
     assert [m.substeps_done for m in seen] == [0, *np.cumsum([n for _, n in ADVANCES])]
     assert [m.occupancy.SerializeToString() for m in seen] == want
-    last = codec.occupancy_from_msg(seen[-1])
+    last = protobuf_codec.occupancy_from_msg(seen[-1])
     assert last is not None and last.horizons[-1] == 80 and seen[-1].occupancy.horizon_s == 40.0
     burning = (last.level(0) == LEVELS).sum()
     assert 0 < burning < (last.level(len(last.horizons) - 1) == LEVELS).sum(), (
@@ -120,7 +120,7 @@ def test_a_scenario_forecast_is_the_in_process_fire_ports_byte_for_byte(
 def _grid(local: LocalFires, n: int) -> bytes:
     fc = local.forecast(n)
     assert fc is not None
-    return codec.occupancy_to_msg(fc, fire_pb2.OccupancyGrid()).SerializeToString()
+    return protobuf_codec.occupancy_to_msg(fc, fire_pb2.OccupancyGrid()).SerializeToString()
 
 
 def test_a_reset_naming_no_scenario_runs_the_ews_own(services: Any, session: Any) -> None:
@@ -140,13 +140,13 @@ def test_an_unknown_scenario_gets_an_error_reply(ews: Any, session: Any) -> None
 
 def test_the_reset_carries_the_scenario_and_the_codec_checks_it() -> None:
     cmd = fire_pb2.FireCommand(mission_id="m")
-    codec.fire_readings_to_msg(FireParams(scenario="shrub"), cmd.reset)
-    assert codec.fire_command_from_msg(cmd).scenario == "shrub"
-    codec.fire_readings_to_msg(FireParams(), cmd.reset)
-    assert codec.fire_command_from_msg(cmd).scenario == "paper"
+    protobuf_codec.fire_readings_to_msg(FireParams(scenario="shrub"), cmd.reset)
+    assert protobuf_codec.fire_command_from_msg(cmd).scenario == "shrub"
+    protobuf_codec.fire_readings_to_msg(FireParams(), cmd.reset)
+    assert protobuf_codec.fire_command_from_msg(cmd).scenario == "paper"
     cmd.reset.scenario = ""
-    assert codec.fire_command_from_msg(cmd).scenario == ""  # the EWS's own
+    assert protobuf_codec.fire_command_from_msg(cmd).scenario == ""  # the EWS's own
     for bad, match in (("tundra", "unknown fire scenario"), ("x" * 65, "longer than 64")):
         cmd.reset.scenario = bad
-        with pytest.raises(codec.CodecError, match=match):
-            codec.fire_command_from_msg(cmd)
+        with pytest.raises(rejections.CodecError, match=match):
+            protobuf_codec.fire_command_from_msg(cmd)

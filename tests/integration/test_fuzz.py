@@ -42,7 +42,7 @@ from dualpilot.model.fire_field import FireField
 from dualpilot.plan import Objective, PlanStatus
 from dualpilot.spec import MissionSpec, Stream, stream_rng
 from dualpilot.verify import verify_trajectory
-from services.common import bus, codec, keys
+from services.common import bus, keys, limits, protobuf_codec, rejections, wire
 from services.common.clock import Anchor
 from services.msgs import common_pb2, fire_pb2, plan_pb2, supervisor_pb2, vehicle_pb2
 
@@ -59,8 +59,8 @@ def fire_state(uav: str, seed: int = 5) -> fire_pb2.FireState:
     f.spawn(rng, 0)
     for _ in range(3):
         f.substep(rng, 0)
-    return codec.fire_state_msg(f.fronts, [], 0, f.substeps_done, 0.5,
-                                codec.Stamper("fuzz", uav), 0.0)
+    return protobuf_codec.fire_state_msg(f.fronts, [], 0, f.substeps_done, 0.5,
+                                         wire.Stamper("fuzz", uav), 0.0)
 
 
 def plan_request(uav: str, system: int, mission_id: str = "fuzz-mission",
@@ -72,31 +72,32 @@ def plan_request(uav: str, system: int, mission_id: str = "fuzz-mission",
         rng = np.random.default_rng(5)
         f = FireField(params=FireParams(p_survive=1.0))
         f.spawn(rng, 0, center=(500.0, 500.0))
-        fires = codec.fire_state_msg(f.fronts, [], 0, 1, 0.5, codec.Stamper("fuzz", uav), 0.0)
-    req = codec.PlanRequest(
+        fires = protobuf_codec.fire_state_msg(f.fronts, [], 0, 1, 0.5, wire.Stamper("fuzz", uav),
+                                              0.0)
+    req = protobuf_codec.PlanRequest(
         seq=0, mission_id=mission_id, step=0, system=system, objective=Objective.MISSION_TIME,
         state=np.array([50.0, 50.0, 0.0, 0.0]), prev_control=np.zeros(2),
-        obstacles=codec.snapshot_from_msg(fires).hulls, deadline_s=60.0, prepare=prepare,
+        obstacles=protobuf_codec.snapshot_from_msg(fires).hulls, deadline_s=60.0, prepare=prepare,
         spec=MissionSpec(seed=7) if prepare else None)
-    return codec.plan_request_msg(req, codec.Stamper("fuzz", uav), 0.0)
+    return protobuf_codec.plan_request_msg(req, wire.Stamper("fuzz", uav), 0.0)
 
 
 def fire_command(uav: str, kind: str, mission_id: str = "fuzz-mission", seed: int = 3,
                  step: int = 0, substeps: int = 2) -> fire_pb2.FireCommand:
     m = fire_pb2.FireCommand(mission_id=mission_id)
-    codec.Stamper("fuzz", uav).stamp(m.header)
+    wire.Stamper("fuzz", uav).stamp(m.header)
     if kind == "reset":
         m.reset.seed = seed
     else:
         m.advance.step, m.advance.substeps = step, substeps
-        codec.clock_to_msg(Anchor(0.0, time.time_ns(), 0.0), m.advance.clock)
+        protobuf_codec.clock_to_msg(Anchor(0.0, time.time_ns(), 0.0), m.advance.clock)
     return m
 
 
 def waypoints(uav: str) -> vehicle_pb2.OperatorWaypoints:
-    return codec.waypoints_msg(
-        codec.Waypoints("fuzz-mission", 1, np.array([[100.0, 200.0], [800.0, 900.0]])),
-        codec.Stamper("fuzz", uav))
+    return protobuf_codec.waypoints_msg(
+        protobuf_codec.Waypoints("fuzz-mission", 1, np.array([[100.0, 200.0], [800.0, 900.0]])),
+        wire.Stamper("fuzz", uav))
 
 
 def other_messages(uav: str) -> list[Message]:
@@ -114,7 +115,7 @@ def other_messages(uav: str) -> list[Message]:
     out: list[Message] = [d, ev, state, clock, err, plan, fire_state(uav), waypoints(uav),
                           plan_request(uav, 1), fire_command(uav, "reset")]
     for m in out:
-        codec.Stamper("fuzz", uav).stamp(m.header)  # type: ignore[attr-defined]
+        wire.Stamper("fuzz", uav).stamp(m.header)  # type: ignore[attr-defined]
     return out
 
 
@@ -134,13 +135,15 @@ class Entry:
 def entries(uav: str) -> list[Entry]:
     return [
         Entry("ews/command", keys.fire_command(uav), fire_pb2.FireCommand,
-              codec.fire_command_from_msg, lambda: fire_command(uav, "advance")),
+              protobuf_codec.fire_command_from_msg, lambda: fire_command(uav, "advance")),
         Entry("plan/system1", keys.plan(uav, 1), plan_pb2.PlanRequest,
-              codec.plan_request_from_msg, lambda: plan_request(uav, 1, fires=fire_state(uav))),
+              protobuf_codec.plan_request_from_msg, lambda: plan_request(uav, 1,
+                                                                         fires=fire_state(uav))),
         Entry("plan/system2", keys.plan(uav, 2), plan_pb2.PlanRequest,
-              codec.plan_request_from_msg, lambda: plan_request(uav, 2, fires=fire_state(uav))),
+              protobuf_codec.plan_request_from_msg, lambda: plan_request(uav, 2,
+                                                                         fires=fire_state(uav))),
         Entry("operator/waypoints", keys.waypoints(uav), vehicle_pb2.OperatorWaypoints,
-              codec.waypoints_from_msg, lambda: waypoints(uav), query=False),
+              protobuf_codec.waypoints_from_msg, lambda: waypoints(uav), query=False),
     ]
 
 
@@ -192,8 +195,8 @@ class Corpus:
     def reason(self, payload: bytes, enc: str | None) -> str | None:
         """The reason the service's codec rejects this input, None if it accepts it."""
         try:
-            self.entry.convert(codec.parse(payload, self.entry.cls, enc))
-        except codec.CodecError as err:
+            self.entry.convert(wire.parse(payload, self.entry.cls, enc))
+        except rejections.CodecError as err:
             return str(err.reason)
         return None
 
@@ -219,7 +222,7 @@ class Corpus:
         return seq[int(self.rng.integers(len(seq)))]
 
     def one(self, kind: str) -> tuple[bytes, str | None]:
-        rng, enc = self.rng, codec.encoding_name(self.entry.cls)
+        rng, enc = self.rng, wire.encoding_name(self.entry.cls)
         if kind == "random":
             return rng.bytes(int(rng.integers(0, 2000))), None if rng.random() < 0.5 else enc
         if kind == "truncated":
@@ -231,7 +234,7 @@ class Corpus:
             return bytes(buf), enc
         if kind == "wrong_type":
             other = self._choice(self.others)
-            return other.SerializeToString(), (codec.encoding_name(other) if rng.random() < 0.7
+            return other.SerializeToString(), (wire.encoding_name(other) if rng.random() < 0.7
                                                else self._choice(["text/plain",
                                                                   "application/json", None]))
         m = self._copy()
@@ -289,7 +292,7 @@ class Corpus:
     def _too_many(self) -> bytes:
         m = self._copy()
         if self.entry.cls is vehicle_pb2.OperatorWaypoints:
-            for _ in range(codec.MAX_WAYPOINTS + 1):
+            for _ in range(limits.MAX_WAYPOINTS + 1):
                 m.waypoints.add(east_m=1.0, north_m=1.0)
         else:
             m.mission_id = "x" * 300
@@ -299,7 +302,7 @@ class Corpus:
         """A 10 MB payload: random bytes or a valid message padded with a huge string."""
         if self.rng.random() < 0.5:
             return self.rng.bytes(HUGE_BYTES), None
-        return self.base_bytes + b"\x7a" + b"\xff" * HUGE_BYTES, codec.encoding_name(
+        return self.base_bytes + b"\x7a" + b"\xff" * HUGE_BYTES, wire.encoding_name(
             self.entry.cls)
 
     def take(self, n: int, huge: int = 1) -> Iterator[tuple[bytes, str | None, str]]:
@@ -488,7 +491,7 @@ def check_still_serving(session: Any, uav: str, mission_id: str) -> None:
         bus.request(session, keys.plan(uav, system), plan_request(uav, system, mission_id), 120.0)
         payload, enc = bus.request(session, keys.plan(uav, system),
                                    plan_request(uav, system, mission_id, prepare=False), 120.0)
-        plan = codec.plan_from_msg(codec.parse(payload, plan_pb2.Plan, enc), system)
+        plan = protobuf_codec.plan_from_msg(wire.parse(payload, plan_pb2.Plan, enc), system)
         assert plan.status is PlanStatus.OK, plan.message
         assert np.array_equal(plan.states[0], [50.0, 50.0, 0.0, 0.0])
         rng = np.random.default_rng(5)
@@ -499,10 +502,10 @@ def check_still_serving(session: Any, uav: str, mission_id: str) -> None:
         assert verdict.ok, verdict.reason
     payload, enc = bus.request(session, keys.fire_command(uav),
                                fire_command(uav, "reset", mission_id, seed=11), 30.0)
-    first = codec.parse(payload, fire_pb2.FireUpdate, enc)
+    first = wire.parse(payload, fire_pb2.FireUpdate, enc)
     payload, enc = bus.request(session, keys.fire_command(uav),
                                fire_command(uav, "advance", mission_id, step=0, substeps=3), 30.0)
-    update = codec.parse(payload, fire_pb2.FireUpdate, enc)
+    update = wire.parse(payload, fire_pb2.FireUpdate, enc)
     assert len(first.states) == 1 and first.states[0].substeps_done == 0
     assert [s.substeps_done for s in update.states] == [1, 2, 3]
     # the same seed in-process gives the same fire (the flood changed nothing)
@@ -510,7 +513,7 @@ def check_still_serving(session: Any, uav: str, mission_id: str) -> None:
     ref_rng = stream_rng(11, Stream.FIRE)
     for _ in range(3):
         ref.substep(ref_rng, 0)
-    assert codec.snapshot_from_msg(update.states[-1]).regions == ref.snapshot().regions
+    assert protobuf_codec.snapshot_from_msg(update.states[-1]).regions == ref.snapshot().regions
 
 
 # -- the tests ------------------------------------------------------------------------------------
@@ -533,7 +536,7 @@ def test_every_service_serves_its_status(stack: Any, session: Any) -> None:
     for service in ("ews", "system1", "system2"):
         st = bus.query_status(session, stack.uav, service)
         assert st["service"] == service and st["uav"] == stack.uav and st["uptime_s"] > 0
-        assert set(st["reasons"]) == {r.value for r in codec.Reason}
+        assert set(st["reasons"]) == {r.value for r in rejections.Reason}
         assert isinstance(st["rejected"], dict) and st["rejected_total"] >= 0
 
 

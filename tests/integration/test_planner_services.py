@@ -15,7 +15,7 @@ from dualpilot.model.fire_field import FireField
 from dualpilot.plan import Objective, PlanStatus
 from dualpilot.spec import MissionSpec
 from dualpilot.verify import verify_trajectory
-from services.common import bus, codec, keys
+from services.common import bus, keys, protobuf_codec, wire
 from services.msgs import common_pb2, plan_pb2
 
 pytestmark = pytest.mark.timeout(120)
@@ -43,14 +43,14 @@ def raw_query(session: Any, key: str, payload: bytes, timeout_s: float = 30.0) -
 def request(system: int, mission_id: str = "itest-mission", prepare: bool = False,
             revision: int = 0, **state: float) -> bytes:
     """A plan request from (50, 50) around one fire at (500, 500); the spec if ``prepare``."""
-    stamper = codec.Stamper("test", "itest")
+    stamper = wire.Stamper("test", "itest")
     x = np.array([state.get("east", 50.0), state.get("north", 50.0), 0.0, 0.0])
-    req = codec.PlanRequest(
+    req = protobuf_codec.PlanRequest(
         seq=0, mission_id=mission_id, step=0, system=system, objective=Objective.MISSION_TIME,
         state=x, prev_control=np.zeros(2), obstacles=tuple(f.hull for f in _one_fire()),
         deadline_s=60.0, waypoints_revision=revision, prepare=prepare,
         spec=MissionSpec(seed=7) if prepare else None)
-    return codec.plan_request_msg(req, stamper, 0.0).SerializeToString()
+    return protobuf_codec.plan_request_msg(req, stamper, 0.0).SerializeToString()
 
 
 def prepare(session: Any, uav: str, system: int, mission_id: str = "itest-mission") -> None:
@@ -108,7 +108,8 @@ def test_a_mission_is_prepared_once_then_planned(planners: Any, session: Any,
 def test_valid_request_gets_a_verified_plan(planners: Any, session: Any, system: int) -> None:
     prepare(session, planners.uav, system)
     reply = raw_query(session, keys.plan(planners.uav, system), request(system))
-    plan = codec.plan_from_msg(plan_pb2.Plan.FromString(reply.ok.payload.to_bytes()), system)
+    plan = protobuf_codec.plan_from_msg(plan_pb2.Plan.FromString(reply.ok.payload.to_bytes()),
+                                        system)
     assert plan.status is PlanStatus.OK, plan.message
     assert plan.compute_time_s > 0
     assert np.array_equal(plan.states[0], [50.0, 50.0, 0.0, 0.0])
@@ -122,7 +123,7 @@ def test_a_planner_value_error_is_an_invalid_input_plan(planners: Any, session: 
     """A state inside a fire reaches System 1, which refuses it: INVALID_INPUT, not a crash."""
     prepare(session, planners.uav, 1)
     reply = raw_query(session, keys.plan(planners.uav, 1), request(1, east=500.0, north=500.0))
-    plan = codec.plan_from_msg(plan_pb2.Plan.FromString(reply.ok.payload.to_bytes()), 1)
+    plan = protobuf_codec.plan_from_msg(plan_pb2.Plan.FromString(reply.ok.payload.to_bytes()), 1)
     assert plan.status is PlanStatus.INVALID_INPUT
     assert not plan.ok and len(plan.states) == 0
 
@@ -135,8 +136,8 @@ def test_operator_waypoints_reach_system1(planners: Any, session: Any, wait_unti
     prepare(session, planners.uav, 1, "with-operator")
     err = error_of(raw_query(session, key, request(1, "with-operator", revision=1)))
     assert err.code == common_pb2.ERROR_CODE_UNPREPARED and "revision 1" in err.message
-    msg = codec.waypoints_msg(codec.Waypoints("with-operator", 1, wps),
-                              codec.Stamper("operator", planners.uav))
+    msg = protobuf_codec.waypoints_msg(protobuf_codec.Waypoints("with-operator", 1, wps),
+                                       wire.Stamper("operator", planners.uav))
     replies: list[Any] = []
 
     def published_and_used() -> bool:  # re-publish until a plan uses them (no fixed sleep)
@@ -145,7 +146,8 @@ def test_operator_waypoints_reach_system1(planners: Any, session: Any, wait_unti
         return replies[-1].ok is not None
 
     assert wait_until(published_and_used, 10)
-    plan = codec.plan_from_msg(plan_pb2.Plan.FromString(replies[-1].ok.payload.to_bytes()), 1)
+    plan = protobuf_codec.plan_from_msg(plan_pb2.Plan.FromString(replies[-1].ok.payload.to_bytes()),
+                                        1)
     assert plan.status is PlanStatus.OK and plan.info.get("source") == "operator"
     assert plan.path is not None and np.allclose(plan.path[1:], wps)
 

@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 from dualpilot.model.dynamics import DynamicsParams, hover_state, step
-from services.common import bus, codec, mav
+from services.common import bus, mav, mavlink_codec
 from services.launch import free_port
 
 pytestmark = pytest.mark.timeout(120)
@@ -59,11 +59,11 @@ def recv(conn: Any, kind: str | list[str], timeout_s: float = 5.0,
 
 def position(conn: Any, min_ms: int = 0, timeout_s: float = 5.0) -> tuple[int, np.ndarray]:
     msg = recv(conn, "LOCAL_POSITION_NED", timeout_s, lambda s: s.time_boot_ms >= min_ms)
-    return msg.time_boot_ms, codec.state_from_ned(msg.x, msg.y, msg.vx, msg.vy)
+    return msg.time_boot_ms, mavlink_codec.state_from_ned(msg.x, msg.y, msg.vx, msg.vy)
 
 
 def send_setpoint(conn: Any, target: np.ndarray, due_ms: int, mask: int = 3520) -> None:
-    n, e, d, vn, ve, vd = codec.state_to_ned(target, 50.0)
+    n, e, d, vn, ve, vd = mavlink_codec.state_to_ned(target, 50.0)
     conn.mav.set_position_target_local_ned_send(due_ms, 1, 1, m.MAV_FRAME_LOCAL_NED, mask,
                                                 n, e, d, vn, ve, vd, 0, 0, 0, 0, 0)
 

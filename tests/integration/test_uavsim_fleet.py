@@ -76,9 +76,9 @@ def stream_hold_sys(conn: Any, sysid: int, n: int = 6) -> tuple[int, np.ndarray]
 
 
 def setpoint_sys(conn: Any, sysid: int, target: np.ndarray, due_ms: int) -> None:
-    from services.common import codec
+    from services.common import mavlink_codec
 
-    n, e, d, vn, ve, vd = codec.state_to_ned(target, 50.0)
+    n, e, d, vn, ve, vd = mavlink_codec.state_to_ned(target, 50.0)
     conn.mav.set_position_target_local_ned_send(due_ms, sysid, 1, m.MAV_FRAME_LOCAL_NED, 3520,
                                                 n, e, d, vn, ve, vd, 0, 0, 0, 0, 0)
 

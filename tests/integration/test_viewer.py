@@ -17,7 +17,7 @@ from dualpilot.model.geometry import Polytope, Rect
 from dualpilot.plan import Objective
 from dualpilot.spec import MissionSpec
 from dualpilot.supervisor.decision import Decision
-from services.common import bus, codec, keys
+from services.common import bus, keys, protobuf_codec, wire
 from services.launch import free_port
 from services.msgs import fire_pb2, supervisor_pb2, vehicle_pb2
 
@@ -39,7 +39,7 @@ PLAN = np.array([[100.0, 110.0], [115.0, 125.0], [130.0, 140.0]])
 
 def publish_round(session: Any, uav: str, k: int) -> dict[str, int]:
     """One step of ``uav`` as the supervisor and the EWS publish it; the wall stamps by kind."""
-    st = codec.Stamper("supervisor", uav)
+    st = wire.Stamper("supervisor", uav)
     snap = FireSnapshot(regions=(Rect(400 + k, 600, 40, 30),), hulls=(HULL,), front_ids=(9,),
                         born_steps=(1,))
     record = StepRecord(t=3, state=np.array([100.0, 110.0, 15.0, 15.0]),
@@ -51,22 +51,22 @@ def publish_round(session: Any, uav: str, k: int) -> dict[str, int]:
         "mission/event": supervisor_pb2.MissionEvent(
             kind=supervisor_pb2.MISSION_EVENT_KIND_STARTED, mission_id=f"m-{uav}",
             controller="cc", seed=5, message="timing=paper"),
-        "supervisor/decision": codec.decision_to_msg(DECISION, 2, st, 18.0),
-        "supervisor/plans": codec.step_plans_msg(record, f"m-{uav}", MissionSpec(seed=5), st,
-                                                 18.0),
-        "vehicle/state": codec.state_to_msg(np.array([115.0 + k, 125.0, 15.0, 15.0]), 4,
-                                            vehicle_pb2.VehicleState()),
-        "ews/fires": codec.fire_state_msg(
+        "supervisor/decision": protobuf_codec.decision_to_msg(DECISION, 2, st, 18.0),
+        "supervisor/plans": protobuf_codec.step_plans_msg(record, f"m-{uav}", MissionSpec(seed=5),
+                                                          st, 18.0),
+        "vehicle/state": protobuf_codec.state_to_msg(np.array([115.0 + k, 125.0, 15.0, 15.0]), 4,
+                                                     vehicle_pb2.VehicleState()),
+        "ews/fires": protobuf_codec.fire_state_msg(
             [FireFront(9, 1, 2.0, 0.5, snap.regions[0], HULL)], [], 3, 40, 0.5,
-            codec.Stamper("ews", uav), 20.0),
+            wire.Stamper("ews", uav), 20.0),
     }
     st.stamp(msgs["mission/event"].header, 0.0)
     st.stamp(msgs["vehicle/state"].header, 19.0)
     fc = fire_pb2.FireForecast(substeps_done=40, substep_s=0.5)
-    codec.Stamper("ews", uav).stamp(fc.header, 20.0)
+    wire.Stamper("ews", uav).stamp(fc.header, 20.0)
     levels = np.arange(2 * 2 * 3, dtype=np.uint8).reshape(2, 2, 3)  # horizons 0, 4 on 2 x 3
-    codec.occupancy_to_msg(OccupancyForecast(10.0, 0.5, (0, 4), levels, (0.0, 0.0)),
-                           fc.occupancy)
+    protobuf_codec.occupancy_to_msg(OccupancyForecast(10.0, 0.5, (0, 4), levels, (0.0, 0.0)),
+                                    fc.occupancy)
     msgs["ews/forecast"] = fc
     for kind, m in msgs.items():
         bus.put(session, f"{keys.ns(uav)}/{kind}", m)

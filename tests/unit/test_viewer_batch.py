@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from services.common import bus, codec, keys
+from services.common import bus, keys, rejections
 from services.viewer.__main__ import batch
 
 
@@ -29,7 +29,7 @@ def test_a_skipped_bad_frame_is_still_counted_as_rejected() -> None:
 
     viewer = Viewer(foxglove.Context())
     key = keys.fires("skipped")
-    before = sum(codec.REJECTED.snapshot().get(key, {}).values())
+    before = sum(rejections.REJECTED.snapshot().get(key, {}).values())
     viewer.handle(_item(key, b"\x08\xff\xff garbage"), draw=False)
-    assert sum(codec.REJECTED.snapshot().get(key, {}).values()) == before + 1
+    assert sum(rejections.REJECTED.snapshot().get(key, {}).values()) == before + 1
     assert "skipped" not in viewer.vehicles  # checked, not drawn

@@ -1,0 +1,101 @@
+"""MAVLink messages ↔ core types, validated: the LOCAL_NED frame, setpoints, bad frames.
+
+The core's local frame is (east, north) in metres, state x = [p_east, p_north,
+v_east, v_north] (Sec. IV, 2-D at fixed altitude). MAVLink's LOCAL_NED is (north,
+east, down): :func:`state_to_ned` and :func:`state_from_ned` are the only
+conversions between the two. Its constants are in services/common/mav.py, the
+stdlib framing in services/common/mavframe.py.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable
+from typing import Any
+
+import numpy as np
+
+from dualpilot.model.dynamics import Array
+from services.common import mav
+from services.common.limits import check_state_values, finite
+from services.common.rejections import Reason, invalid
+
+#: A setpoint may lie at most this fraction of the area outside it (a braking target near the
+#: edge can overshoot; planners keep their plans inside).
+SETPOINT_AREA_MARGIN = 0.1
+MAX_SETPOINT_SPEED_MPS = 100.0
+MAX_SETPOINT_ALT_M = 10_000.0
+#: The longest a setpoint may be stamped ahead of the vehicle's clock (s of simulated time):
+#: one step is ΔT plus the planning interval, at most the supervisor's plan deadline.
+MAX_SETPOINT_LEAD_S = 600.0
+#: The largest UDP datagram a vehicle link parses (one MAVLink 2 frame is at most 280 bytes;
+#: a sender may pack a few); larger ones are rejected unread (``too_large``).
+MAX_MAVLINK_DATAGRAM = 4096
+
+
+def state_to_ned(x: Array, altitude_m: float) -> tuple[float, float, float, float, float, float]:
+    """Core state (east, north, v_east, v_north) → NED (x, y, z, vx, vy, vz)."""
+    x = check_state_values(x)
+    return (float(x[1]), float(x[0]), -float(altitude_m), float(x[3]), float(x[2]), 0.0)
+
+
+def state_from_ned(n: float, e: float, vn: float, ve: float) -> Array:
+    """NED north/east position and velocity → core state; raises CodecError if out of range."""
+    return check_state_values(np.array([e, n, ve, vn], dtype=float), "MAVLink state")
+
+
+def setpoint_from_mavlink(msg: Any, area_size_m: float | None = None,
+                          lead_ms: int | None = None) -> Array:
+    """A SET_POSITION_TARGET_LOCAL_NED as the core target state [p_e, p_n, v_e, v_n].
+
+    Accepts LOCAL_NED with type_mask 3520 (position + velocity) or 3576
+    (position only; velocity target 0). With ``area_size_m`` the position must
+    lie in the area [0, A]² grown by :data:`SETPOINT_AREA_MARGIN` × A, the
+    velocity within :data:`MAX_SETPOINT_SPEED_MPS` per axis and the altitude
+    (``-z``) within [0, :data:`MAX_SETPOINT_ALT_M`]; with ``lead_ms`` (the
+    setpoint's ``time_boot_ms`` minus the vehicle's clock) it must be due at
+    most :data:`MAX_SETPOINT_LEAD_S` ahead. Raises CodecError (reasons
+    ``invalid``, ``not_finite``, ``out_of_range``).
+    """
+    if msg.coordinate_frame != mav.MAV_FRAME_LOCAL_NED:
+        raise invalid(f"setpoint frame {msg.coordinate_frame}, only LOCAL_NED "
+                      f"({mav.MAV_FRAME_LOCAL_NED}) is supported")
+    if msg.type_mask == mav.TYPE_MASK_POS_VEL:
+        x = state_from_ned(msg.x, msg.y, msg.vx, msg.vy)
+    elif msg.type_mask == mav.TYPE_MASK_POS:
+        x = state_from_ned(msg.x, msg.y, 0.0, 0.0)
+    else:
+        raise invalid(f"setpoint type_mask {msg.type_mask}: only {mav.TYPE_MASK_POS_VEL} and "
+                      f"{mav.TYPE_MASK_POS} are supported")
+    if area_size_m is not None:
+        finite([msg.z], "setpoint z", MAX_SETPOINT_ALT_M)
+        margin = SETPOINT_AREA_MARGIN * area_size_m
+        if not (np.all(x[:2] >= -margin) and np.all(x[:2] <= area_size_m + margin)):
+            raise invalid(f"setpoint position ({x[0]:.6g}, {x[1]:.6g}) m is outside the area "
+                          f"[0, {area_size_m:g}]² grown by {margin:g} m", Reason.OUT_OF_RANGE)
+        if np.any(np.abs(x[2:]) > MAX_SETPOINT_SPEED_MPS) or not -msg.z >= 0.0:
+            raise invalid(f"setpoint velocity ({x[2]:.6g}, {x[3]:.6g}) m/s or altitude "
+                          f"{-msg.z:.6g} m out of range", Reason.OUT_OF_RANGE)
+    if lead_ms is not None and lead_ms > MAX_SETPOINT_LEAD_S * 1000:
+        raise invalid(f"setpoint due {lead_ms / 1000:.6g} s after the vehicle's clock "
+                      f"(at most {MAX_SETPOINT_LEAD_S:g} s)", Reason.OUT_OF_RANGE)
+    return x
+
+
+
+def mavlink_frame_reason(bad_data_reason: str) -> Reason:
+    """The :class:`Reason` for a frame pymavlink could not decode (its BAD_DATA ``reason``)."""
+    why = bad_data_reason.lower()
+    if "signature" in why or "signed" in why:
+        return Reason.UNSIGNED
+    if "crc" in why:
+        return Reason.BAD_CRC
+    return Reason.MALFORMED
+
+
+def check_finite_fields(msg: Any, names: Iterable[str], what: str) -> None:
+    """Raise CodecError (``not_finite``) if any of the float fields ``names`` is NaN or ±inf."""
+    for name in names:
+        value = getattr(msg, name)
+        if not math.isfinite(value):
+            raise invalid(f"{what}.{name} is {value}", Reason.NOT_FINITE)
