@@ -41,7 +41,7 @@ from dualpilot.mission.result import StepRecord
 from dualpilot.model.forecast import LEVELS, OccupancyForecast, occupancy
 from dualpilot.model.geometry import Rect
 from dualpilot.model.scenarios import PAPER, scenario_names
-from dualpilot.readings import Profile, get_profile
+from dualpilot.readings import get_profile
 from dualpilot.supervisor.decision import Decision
 
 HORIZONS_S = (5.0, 10.0, 30.0)
@@ -95,15 +95,9 @@ class Recorder:
     def ended(self, record: StepRecord, success: bool, cause: str) -> None: ...
 
 
-def reading_of(profile: str, scenario: str) -> Profile:
-    """The profile's readings with ``scenario``'s fire process."""
-    reading = get_profile(profile)
-    return reading if scenario == PAPER else reading.with_settings({"scenario": scenario})
-
-
 def fly(profile: str, index: int, seed: int, controller: str,
         ks: tuple[int, ...], scenario: str = PAPER) -> Recorder:
-    reading = reading_of(profile, scenario)
+    reading = get_profile(profile).with_settings({"scenario": scenario})
     spec = reading.spec(mission_spec(seed, index))
     ctrl, supervisor = controller_of(controller)
     mission = local_mission(ctrl, spec, params=reading.mission, fire_params=reading.fire,

@@ -36,7 +36,7 @@ from dualpilot.mission.params import controller_of, uses_risk
 from dualpilot.mission.result import StepRecord
 from dualpilot.model.physics_forecast import RunAhead
 from dualpilot.model.scenarios import PAPER, scenario_names
-from dualpilot.readings import Profile, get_profile
+from dualpilot.readings import get_profile
 from dualpilot.supervisor.decision import Decision
 
 
@@ -61,17 +61,11 @@ class Forecaster:
     def ended(self, record: StepRecord, success: bool, cause: str) -> None: ...
 
 
-def reading_of(profile: str, scenario: str) -> Profile:
-    """The profile's readings with ``scenario``'s fire process."""
-    reading = get_profile(profile)
-    return reading if scenario == PAPER else reading.with_settings({"scenario": scenario})
-
-
 def fly(profile: str, index: int, seed: int, controller: str, forecast: bool,
         scenario: str = PAPER) -> tuple[list[float], list[float], int, tuple[int, int]]:
     """Step CPU times (s), forecast CPU times (s), the steps' total fronts of one mission and
     (reused, fresh) run-aheads of a scenario's forecast."""
-    reading = reading_of(profile, scenario)
+    reading = get_profile(profile).with_settings({"scenario": scenario})
     ctrl, supervisor = controller_of(controller)
     mission = local_mission(ctrl, reading.spec(mission_spec(seed, index)),
                             params=reading.mission, fire_params=reading.fire,
