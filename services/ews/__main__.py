@@ -12,7 +12,8 @@
   ``<ns>/ews/fires`` when the stack's clock (carried in the command) reaches
   ``τ_t + k·T_f``: the fires propagate while the plan is computed (see
   services/common/clock.py). The reply carries every sub-step's state.
-* ``<ns>/ews/forecast``: after each command's sub-steps and before its reply,
+* ``<ns>/ews/forecast``: while anyone subscribes, after each command's sub-steps and
+  before its reply,
   the occupancy forecast (P(a point is inside a fire region) on a grid, for the
   next ``--occupancy-horizon-s``; dualpilot/model/forecast.py) and
   the mean-motion forecast of each front over ``--forecast-horizon-s``
@@ -36,6 +37,7 @@ import math
 import threading
 import time
 from dataclasses import replace
+from typing import Any
 
 import numpy as np
 import zenoh
@@ -140,7 +142,12 @@ class Ews:
         return update
 
     def publish_forecast(self) -> None:
+        """Both forecasts of the current fire state on ``<ns>/ews/forecast``, made only while a
+        subscriber matches the key (a physics scenario's run-ahead costs several steps' CPU)."""
         assert self.field is not None
+        matching: Any = self.forecast_pub.matching_status  # a MatchingStatus (the stub: bool)
+        if not matching.matching:
+            return
         paper = self.field.physics is None  # the mean motion is the paper model's
         m = fire_pb2.FireForecast(substeps_done=self.field.substeps_done,
                                   substep_s=self.params.substep_s,
