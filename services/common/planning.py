@@ -69,11 +69,17 @@ class PlannerService:
     def prepare(self, mission_id: str, spec: MissionSpec, method: str = "") -> _Prepared:
         """The mission's planner, built from its spec and method (again only if they changed).
 
-        Raises ValueError for an unknown method."""
+        Raises ValueError for an unknown method, and for a risk-aware one: a plan request over
+        the bus carries no fire forecast, so it would fly its paper method unannounced."""
         held = self.missions.get(mission_id)
         if held is not None and held.spec == spec and held.method == method:
             return held
-        held = _Prepared(spec, method, self.make(spec, method))
+        planner = self.make(spec, method)
+        if getattr(planner, "uses_forecast", False):
+            raise ValueError(f"method {method or '(--method)'!r} plans on the fire forecast, "
+                             "which a plan request over the stack does not carry (it flies "
+                             "in-process only)")
+        held = _Prepared(spec, method, planner)
         self.missions[mission_id] = held
         while len(self.missions) > self.keep:
             self.missions.popitem(last=False)
