@@ -18,7 +18,7 @@ TLS ?=
 CERTS ?=
 TLS_FLAGS := $(if $(TLS),$(if $(CERTS),--tls-dir $(CERTS),--tls))
 
-.PHONY: setup run certs mission proto test test-fast lint bench docs figures clean compose-check
+.PHONY: setup run certs mission proto test test-fast flake-hunt lint bench docs figures clean compose-check
 
 setup: $(STAMP)
 
@@ -50,11 +50,20 @@ mission: setup
 proto: setup
 	$(BIN)/python -m services.protogen --clean
 
+# every tier (unit, integration, e2e; tests/conftest.py), the slowest 25 listed at the end
 test: setup
-	$(BIN)/python -m pytest -q
+	$(BIN)/python -m pytest -q --durations=25
 
+# the inner loop: the unit tier without its slow tests (under 2 min)
 test-fast: setup
-	$(BIN)/python -m pytest -q -m "not slow"
+	$(BIN)/python -m pytest -q -m "unit and not slow"
+
+# N runs of a tier beside CPU load, every test that ever failed (scripts/flake_hunt.sh)
+RUNS ?= 10
+LOAD ?= 0
+TIER ?= fast
+flake-hunt: setup
+	scripts/flake_hunt.sh -n $(RUNS) -l $(LOAD) -t $(TIER)
 
 lint: setup
 	$(BIN)/ruff check .

@@ -17,6 +17,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 ROOT = Path(__file__).resolve().parents[2]
 PAGES = sorted((ROOT / "docs").glob("*.md"))
 MANUALS = [ROOT / "README.md", *PAGES]
@@ -39,6 +41,7 @@ def text(path: Path) -> str | None:
         return None
 
 
+@pytest.mark.slow  # a process of its own (make test-fast leaves it out)
 def test_the_site_builds_strictly(tmp_path: Path) -> None:
     env = {**os.environ, "NO_MKDOCS_2_WARNING": "1"}
     run = subprocess.run(

@@ -79,6 +79,7 @@ def test_sweep_and_evaluate_give_identical_rows(tmp_path: Path) -> None:
     assert sorted(map(same, ev)) == sorted(map(same, sw)) and len(ev) == 6
 
 
+@pytest.mark.slow  # a process of its own (make test-fast leaves it out)
 def test_a_killed_sweep_resumes_without_duplicates_or_gaps(tmp_path: Path) -> None:
     out = tmp_path / "run"
     argv = [sys.executable, "-m", "dualpilot.cli", "sweep", "--missions", "6", "--jobs", "1",

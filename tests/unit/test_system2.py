@@ -274,6 +274,7 @@ def test_time_limit_gives_timeout_or_a_verified_incumbent():
     assert math.isfinite(plan.compute_time_s)
 
 
+@pytest.mark.slow  # a process of its own (make test-fast leaves it out)
 def test_isolated_worker_matches_in_process_and_survives_a_kill():
     x0 = hover(100.0, 100.0)
     inproc = ExactSystem2(SPEC, params(horizon=15)).plan(x0, (BLOCK,))

@@ -256,6 +256,7 @@ def test_better_exact_plan_is_taken_and_a_bad_one_is_not():
 
 
 # ------------------------------------------------------------------ bench
+@pytest.mark.slow  # a process of its own (make test-fast leaves it out)
 @pytest.mark.timeout(300)
 def test_bench_system2_writes_the_issue_fields(tmp_path):
     result = run_system2(2, 3, tmp_path, reference_timeout=30.0, methods=["fast", "exact"],

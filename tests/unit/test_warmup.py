@@ -6,6 +6,8 @@ import json
 import subprocess
 import sys
 
+import pytest
+
 _CHECK = r"""
 import json
 from numba.core.registry import CPUDispatcher
@@ -35,6 +37,7 @@ print(json.dumps({"after": after, "new": new, "steps": steps}))
 """
 
 
+@pytest.mark.slow  # a process of its own (make test-fast leaves it out)
 def test_missions_after_the_warm_up_compile_nothing() -> None:
     out = subprocess.run([sys.executable, "-c", _CHECK], capture_output=True, text=True,
                          timeout=300, check=True)

@@ -1,0 +1,35 @@
+"""The test tiers: every test is marked by the folder it lives in.
+
+``unit`` (tests/unit): pure, seeded, no process started, no port opened beyond
+loopback sockets of its own; ``integration`` (tests/integration): real service
+processes on loopback, one concern at a time; ``e2e`` (tests/e2e): whole missions
+through the stack, ground stations and SDKs as real clients. ``slow`` marks the
+long suites of any tier. ``make test-fast`` runs ``unit and not slow``; ``make test``
+runs everything.
+
+Hypothesis runs with no deadline: a property is a statement about values, never
+about how long an example took (a loaded machine must not fail it).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+from hypothesis import settings
+
+TIERS = ("unit", "integration", "e2e")
+
+settings.register_profile("dualpilot", deadline=None)
+settings.load_profile("dualpilot")
+
+
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    root = Path(__file__).parent
+    for item in items:
+        try:
+            tier = Path(item.path).relative_to(root).parts[0]
+        except ValueError:
+            continue
+        if tier in TIERS:
+            item.add_marker(getattr(pytest.mark, tier))
