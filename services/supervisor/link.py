@@ -79,6 +79,15 @@ def result_name(result: int) -> str:
     return entry.name if entry is not None else str(result)
 
 
+def heard_within(now_s: float, heartbeat_s: float, listened_s: float, lost_after_s: float,
+                 reader_period_s: float = READER_PERIOD_S) -> bool:
+    """Whether a vehicle last heard at ``heartbeat_s`` still counts as alive at ``now_s``
+    (monotonic s): within ``lost_after_s``, less the time the reader was kept from listening
+    beyond its period since ``listened_s`` (heartbeats wait in the socket meanwhile)."""
+    deaf_s = max(0.0, now_s - listened_s - reader_period_s)
+    return now_s - heartbeat_s - deaf_s <= lost_after_s
+
+
 class VehicleLink:
     """Offboard link to one vehicle (system ``target_system``, component 1)."""
 
@@ -184,9 +193,8 @@ class VehicleLink:
         it either (its heartbeats wait in the socket)."""
         if not self.seen.is_set():
             return False
-        now = time.monotonic()
-        deaf_s = max(0.0, now - self._listened - READER_PERIOD_S)
-        return now - self.last_heartbeat - deaf_s <= self.lost_after_s
+        return heard_within(time.monotonic(), self.last_heartbeat, self._listened,
+                            self.lost_after_s)
 
     def offboard(self) -> bool:
         """Alive, armed and in offboard mode (GUIDED): the setpoints fly it."""

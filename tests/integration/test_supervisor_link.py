@@ -72,16 +72,25 @@ def test_offboard_start_and_a_vehicle_that_disappears(vehicle: Any, link: Vehicl
     os.kill(pid, signal.SIGSTOP)  # the vehicle disappears
     try:
         t0 = time.monotonic()
-        assert until(lambda: not link.alive(), 6)
-        assert 2.5 < time.monotonic() - t0 < 4.5 and not link.offboard()
+        assert until(lambda: not link.alive(), 30), "the link never counted the vehicle lost"
+        # not before lost_after_s (3 s) less one heartbeat period (1 s) since the last one heard:
+        # a lower bound (the rule itself, on injected times: tests/unit/test_link_liveness.py)
+        assert time.monotonic() - t0 >= 3.0 - 1.0 - 0.05 and not link.offboard()
     finally:
         os.kill(pid, signal.SIGCONT)
     # back (a frozen process finds the queued setpoints first, so its failsafe may not trip)
-    assert until(link.alive, 5)
-    assert until(link.offboard, 5), link.status()
-    start_again = time.monotonic()
-    link.start_offboard(stop, timeout_s=5)  # nothing left to do
-    assert time.monotonic() - start_again < 1.0
+    assert until(link.alive, 30), "the vehicle never came back after SIGCONT"
+    assert until(link.offboard, 30), link.status()
+    sent: list[int] = []
+    command = link.command
+
+    def counted(cmd: int, *params: float, **kw: Any) -> int:
+        sent.append(cmd)
+        return command(cmd, *params, **kw)
+
+    link.command = counted  # type: ignore[method-assign]
+    link.start_offboard(stop, timeout_s=5)  # nothing left to do: no command sent
+    assert sent == [], sent
 
 
 def test_operator_mission_is_downloaded_in_the_local_frame(vehicle: Any,

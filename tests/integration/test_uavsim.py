@@ -50,11 +50,14 @@ def connect(port: int, sysid: int, compid: int, key: bytes | None = None) -> Any
 def recv(conn: Any, kind: str | list[str], timeout_s: float = 5.0,
          cond: Any = lambda msg: True) -> Any:
     deadline = time.monotonic() + timeout_s
+    seen = None
     while time.monotonic() < deadline:
         msg = conn.recv_match(type=kind, blocking=True, timeout=0.2)
         if msg is not None and cond(msg):
             return msg
-    raise TimeoutError(f"no {kind}")
+        seen = msg if msg is not None else seen
+    raise TimeoutError(f"no {kind} that meets the condition within {timeout_s:g} s "
+                       f"(last seen: {seen})")
 
 
 def position(conn: Any, min_ms: int = 0, timeout_s: float = 5.0) -> tuple[int, np.ndarray]:
@@ -147,13 +150,12 @@ def test_offboard_sequence_then_setpoints_fly_one_step_of_eq1_each(vehicle: Any)
     assert 0 < status.battery_remaining < 100  # Σ‖u‖ΔT ≈ 24 N·s of 1000
     assert status.onboard_control_sensors_health & m.MAV_SYS_STATUS_PREARM_CHECK  # armable
 
-    # the failsafe: no setpoint for COM_OF_LOSS_T = 1 s → LOITER (hold) within 1.5 s;
+    # the failsafe: no setpoint for COM_OF_LOSS_T = 1 s → LOITER (hold; its timing is
+    # tests/unit/test_failsafe.py's, on injected arrival times: here a wait, not a bound);
     # lockstep: no simulated time passes without a new stamp, so it holds as it is (x: the
     # state after the last step, still moving), its clock where it was
-    t_quiet = time.monotonic()
-    recv(conn, "HEARTBEAT", 3, lambda h: h.get_srcComponent() == 1
+    recv(conn, "HEARTBEAT", 10, lambda h: h.get_srcComponent() == 1
          and h.custom_mode == mav.MODE_LOITER)
-    assert time.monotonic() - t_quiet < 1.5
     t_held, held = position(conn)
     assert t_held == due and np.allclose(held, x, atol=1e-3) and np.any(np.abs(x[2:]) > 0.1)
     assert param(conn, "SIM_FAILSAFES") == 1.0
@@ -167,7 +169,9 @@ def test_offboard_sequence_then_setpoints_fly_one_step_of_eq1_each(vehicle: Any)
         t, got = position(conn)
         if t == due + 1000:
             break
-    assert t == due + 1000 and time.monotonic() - t_stream >= 0.45
+    # control came back, and not before the stream was live for COM_OF_RSM_T = 0.5 s (a lower
+    # bound: a loaded machine only makes it later)
+    assert t == due + 1000 and time.monotonic() - t_stream >= 0.5 - 0.01
     assert mode(conn)[0] == mav.MODE_GUIDED
     # disarming in the air needs the force flag
     assert command(conn, m.MAV_CMD_COMPONENT_ARM_DISARM, 0) == m.MAV_RESULT_DENIED

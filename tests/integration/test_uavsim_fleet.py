@@ -107,15 +107,16 @@ def test_two_vehicles_in_one_process_fly_apart_and_the_realtime_failsafe_brakes(
     assert xa[0] > x[0] + 5.0 and abs(xa[2]) > 0.5  # flying east, on its own clock
     _, xb = position(b)
     assert np.allclose(xb, xb0) and mode(b) == (5, False)  # b: untouched, disarmed, LOITER
-    # the stream stops: realtime failsafe, LOITER within 1.5 s, braked to a stop
-    t_quiet = time.monotonic()
-    recv(a, "HEARTBEAT", 3, lambda h: h.get_srcComponent() == 1 and h.custom_mode == 5)
-    assert time.monotonic() - t_quiet < 1.5
+    # the stream stops: realtime failsafe, LOITER, braked to a stop (the failsafe's timing is
+    # tests/unit/test_failsafe.py's, on injected arrival times: here a wait, not a bound)
+    recv(a, "HEARTBEAT", 10, lambda h: h.get_srcComponent() == 1 and h.custom_mode == 5)
     t_hold, _ = position(a)
     _, held = position(a, t_hold + 1)
     assert np.allclose(held[2:], 0.0)
     assert param(a, "SIM_FAILSAFES", 7) == 1.0 and param(b, "SIM_FAILSAFES", 8) == 0.0
-    # each vehicle's own statistics: a's ~50 ms gaps (at least 30 of them), b's none
+    # each vehicle's own statistics: a's gaps (at least 30 of them, none shorter than the
+    # sender's 50 ms sleep, as the kernel stamped them; how much longer is the scheduler's),
+    # b's none
     deadline = time.monotonic() + 10  # written every 5 s
     stats_a = run_dir / "a" / "stream.json"
     doc: dict[str, Any] = {}
@@ -123,7 +124,7 @@ def test_two_vehicles_in_one_process_fly_apart_and_the_realtime_failsafe_brakes(
         time.sleep(0.2)
         doc = json.loads(stats_a.read_text()) if stats_a.is_file() else {}
     assert doc["sysid"] == 7 and doc["clock"] == "realtime" and doc["failsafes"] == 1
-    assert doc["gaps"]["n"] >= 30 and 40.0 <= doc["gaps"]["p50_ms"] <= 80.0
+    assert doc["gaps"]["n"] >= 30 and doc["gaps"]["p50_ms"] >= 45.0, doc["gaps"]
     doc_b = json.loads((run_dir / "b" / "stream.json").read_text())
     assert doc_b["sysid"] == 8 and doc_b["setpoints"] == 0 and doc_b["failsafes"] == 0
     a.close()
