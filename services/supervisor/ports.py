@@ -493,10 +493,16 @@ class StackPlanners:
         base = keys.plan(self.b.uav, system)
         key = keys.plan_replica(self.b.uav, system, zid) if zid else base
         trusted = zid or self.b.trusted(f"system{system}")
+        log.debug("plan request sent", extra=fields(system=system, step=t, replica=zid or "any",
+                                                    seq=msg.header.seq,
+                                                    stamped_ns=msg.header.wall_time_ns))
         try:
             payload, enc = bus.request(self.b.session, key, msg, timeout_s, self.b.stop,
                                        trusted=trusted, count_key=base)
             reply = wire.parse(payload, plan_pb2.Plan, enc)
+            log.debug("plan reply received", extra=fields(system=system, step=t,
+                                                          replica=zid or "any",
+                                                          seq=reply.request_seq))
             plan = protobuf_codec.plan_from_msg(reply, system)
             if account:
                 self.service_time += reply.service_time_s

@@ -13,6 +13,7 @@ from __future__ import annotations
 import json
 import os
 import queue
+import re
 import signal
 import socket
 import threading
@@ -33,6 +34,10 @@ from dualpilot.model.stale_fire import credible_margin_m
 from services import launch
 from services.common import bus, keys, mav, wire
 from services.msgs import supervisor_pb2
+from services.uavsim.params import PARAMS
+from tests.support.waits import Logs, check, logs_in, wait_for
+
+from .conftest import alive, gone, router_ready
 
 pytestmark = [pytest.mark.slow, pytest.mark.timeout(240)]
 
@@ -60,37 +65,48 @@ class Run:
     def proc(self, name: str) -> launch.Proc:
         return [p for p in self.stack.group.procs if p.name == name][-1]
 
-    def kill(self, name: str) -> float:
+    def kill(self, name: str) -> None:
         p = self.proc(name)
         os.killpg(p.popen.pid, signal.SIGKILL)
         p.popen.wait()
-        return time.monotonic()
 
     def restart(self, name: str) -> None:
         self.restarts += 1
         self.stack.group.start(name, self.stack.argv(name), self.stack.service_env(name),
                                self.stack.logs / f"{name}-{self.restarts}.log")
 
-    def event(self, pred: Callable[[Any], bool], timeout_s: float = 90.0) -> Any:
+    def logs(self) -> Logs:
+        """Every process's log of this run (the restarted ones' too)."""
+        return logs_in(self.stack.logs)
+
+    def event(self, pred: Callable[[Any], bool], timeout_s: float = 90.0,
+              what: str = "a matching mission event") -> Any:
         """The first event (from now on, or already seen and not yet matched) with ``pred``."""
-        deadline = time.monotonic() + timeout_s
-        while time.monotonic() < deadline:
+        def matching() -> Any:
             try:
                 ev = self.events.get(timeout=0.2)
             except queue.Empty:
-                continue
+                return None
             self.seen.append(ev)
             if pred(ev):
                 return ev
-            if ev.kind == EV.MISSION_EVENT_KIND_ABORTED:
-                pytest.fail(f"mission aborted: {ev.message}\n{self.log('supervisor')}")
-        pytest.fail(f"no matching mission event within {timeout_s} s\n{self.log('supervisor')}")
+            check(ev.kind != EV.MISSION_EVENT_KIND_ABORTED, f"{what}, but the mission aborted",
+                  self.logs(), ev)
+            return None
+
+        return wait_for(matching, timeout_s, what, self.logs(), period_s=0,
+                        last=lambda: self.seen[-1] if self.seen else "no mission event")
 
     def step_at_least(self, k: int) -> Any:
-        return self.event(lambda e: e.kind == EV.MISSION_EVENT_KIND_STEP and e.step >= k)
+        return self.event(lambda e: e.kind == EV.MISSION_EVENT_KIND_STEP and e.step >= k,
+                          what=f"a STEP event of step {k} or later")
 
     def ended(self, timeout_s: float = 150.0) -> Any:
-        return self.event(lambda e: e.kind == EV.MISSION_EVENT_KIND_ENDED, timeout_s)
+        return self.event(lambda e: e.kind == EV.MISSION_EVENT_KIND_ENDED, timeout_s,
+                          "the mission's ENDED event")
+
+    def succeeded(self, end: Any) -> None:
+        check(end.success, "the mission to reach the goal", self.logs(), end)
 
     def log(self, name: str) -> str:
         text = "".join(p.read_text(errors="replace") for p in sorted(self.stack.logs.glob(
@@ -119,7 +135,7 @@ def running(tmp_path: Path, name: str, controller: str = "cc", speed: float = 50
                 env["ZENOH_CONNECT"] = f"tcp/127.0.0.1:{proxy(stack.zenoh_port)}"
                 cfg.extra_env[svc] = env
     with stack:
-        launch.wait_router(stack.endpoint)
+        router_ready(stack.endpoint, logs_in(stack.logs))
         with launch.client_session(stack.endpoint) as session:
             live = bus.Liveliness(session, cfg.uav_id)
             run = Run(stack, session, live)
@@ -141,27 +157,34 @@ def flown_after(steps: dict[int, dict[str, Any]], t0: int) -> dict[int, int]:
     return {t: e["system"] for t, e in steps.items() if t > t0}
 
 
+def failsafe_silences(log: str) -> list[float]:
+    """The silences (s) uavsim logged when its offboard-loss failsafe fired."""
+    return [float(x) for x in re.findall(r"offboard setpoints lost.*? silence_s=([0-9.]+)", log)]
+
+
 # -- 1. planners ----------------------------------------------------------------------------------
 def test_planners_killed_the_other_flies_both_gone_holds_and_back_is_used(tmp_path: Path) -> None:
     with running(tmp_path, "planners") as run:
         run.step_at_least(3)
         run.kill("system2")
-        assert run.live.wait_gone("system2", 10)
+        gone(run.live, "system2", 10, run.logs())
         k2 = run.step_at_least(0).step  # the first step that ends after the kill
         run.step_at_least(k2 + 4)
         run.kill("system1")  # both gone: the vehicle brakes, then holds
-        paused = run.event(lambda e: e.kind == EV.MISSION_EVENT_KIND_PAUSED, 30)
+        paused = run.event(lambda e: e.kind == EV.MISSION_EVENT_KIND_PAUSED, 30,
+                           "the mission's PAUSED event")
         assert "no planner alive" in paused.message
         held_at = max(run.steps())
         run.restart("system2")  # System 2 alone (System 1 stays dead)
-        resumed = run.event(lambda e: e.kind == EV.MISSION_EVENT_KIND_RESUMED, 60)
+        resumed = run.event(lambda e: e.kind == EV.MISSION_EVENT_KIND_RESUMED, 60,
+                            "the mission's RESUMED event")
         assert "system2" in resumed.message
         s2_back = run.step_at_least(held_at + 1).step
         run.restart("system1")  # both again: the attention chooses (paper timing: S2 alone
         # waits 5 s a step, so it is not left alone for long)
         end = run.ended()
         steps = run.steps()
-    assert end.success, run.log("supervisor")
+    run.succeeded(end)
     # from the step after System 2 went, until both were gone: System 1 flew (or it braked)
     between = {t: s for t, s in flown_after(steps, k2).items() if t <= held_at}
     assert between and set(between.values()) <= {0, 1}, between
@@ -181,13 +204,14 @@ def test_ews_killed_fire_data_goes_stale_and_planners_avoid_grown_regions(tmp_pa
     with running(tmp_path, "ews", controller="s1", speed=10.0) as run:
         run.step_at_least(4)
         run.kill("ews")
-        assert run.live.wait_gone("ews", 10)
+        gone(run.live, "ews", 10, run.logs())
         first = run.step_at_least(0).step
-        run.event(lambda e: e.kind == EV.MISSION_EVENT_KIND_STEP and "stale" in e.message)
+        run.event(lambda e: e.kind == EV.MISSION_EVENT_KIND_STEP and "stale" in e.message,
+                  what="a STEP event on stale fire data")
         run.step_at_least(first + 4)
         run.restart("ews")
-        assert run.live.wait_for(["ews"], 60)
-        end = run.event(lambda e: e.kind == EV.MISSION_EVENT_KIND_ENDED, 150)
+        alive(run.live, ["ews"], 60, run.logs())
+        end = run.ended(150)
         record = run.record()
         decisions = {d.step: d for d in run.decisions}
     steps = {e["t"]: e for e in record if e["kind"] == "step"}
@@ -228,27 +252,43 @@ def test_supervisor_killed_vehicle_holds_record_survives_and_restart_finishes(
         gcs = mav.connect(f"udpout:127.0.0.1:{gcs_port}", 255, 190)
         try:
             before = run.step_at_least(6)
-            t_kill = run.kill("supervisor")
+            uavsim_log = run.stack.logs / "uavsim.log"
+            failsafes = len(failsafe_silences(uavsim_log.read_text()))
+            run.kill("supervisor")
             published = [e.step for e in run.seen if e.kind == EV.MISSION_EVENT_KIND_STEP]
-            # the vehicle holds (offboard-loss failsafe) within 1.5 s
-            hold = None
-            while time.monotonic() - t_kill < 5 and hold is None:
+            # the vehicle holds (offboard-loss failsafe)
+            last: list[Any] = []
+
+            def holding() -> bool:
                 gcs.mav.heartbeat_send(6, 8, 0, 0, 0)
                 hb = gcs.recv_match(type="HEARTBEAT", blocking=True, timeout=0.1)
-                if hb is not None and hb.custom_mode == mav.MODE_LOITER:
-                    hold = time.monotonic()
-            assert hold is not None and hold - t_kill < 1.5
+                if hb is not None:
+                    last[:] = [hb]
+                return hb is not None and hb.custom_mode == mav.MODE_LOITER
+
+            wait_for(holding, 10, "a HEARTBEAT in LOITER (the offboard-loss hold)", run.logs(),
+                     period_s=0, last=lambda: last[0] if last else "no HEARTBEAT")
         finally:
             gcs.close()
+        # and not early: the failsafe fired on a silence of at least COM_OF_LOSS_T as the
+        # vehicle measured it (services/uavsim/failsafe.py logs it); how soon the hold came
+        # is a reaction time, a figure for the benchmarks, not asserted
+        silences = wait_for(lambda: failsafe_silences(uavsim_log.read_text())[failsafes:], 10,
+                            "uavsim's log line of the offboard-loss failsafe", run.logs())
+        loss_t = float(run.stack.service_env("uavsim").get("COM_OF_LOSS_T",
+                                                            PARAMS["COM_OF_LOSS_T"][0]))
+        check(len(silences) == 1 and silences[0] >= loss_t, f"one failsafe, after a silence of "
+              f"at least COM_OF_LOSS_T = {loss_t:g} s", run.logs(), f"silences (s): {silences}")
         # nothing lost: every step whose STEP event went out is in the record, parseable
         steps = run.steps()
         assert published and set(range(max(published) + 1)) <= set(steps), (published, steps)
         assert before.step in steps
         run.restart("supervisor")
-        resumed = run.event(lambda e: e.kind == EV.MISSION_EVENT_KIND_RESUMED, 60)
+        resumed = run.event(lambda e: e.kind == EV.MISSION_EVENT_KIND_RESUMED, 60,
+                            "the restarted supervisor's RESUMED event")
         assert "restarted" in resumed.message
         end = run.ended()
-    assert end.success, run.log("supervisor")
+    run.succeeded(end)
     steps = run.steps()
     assert sorted(steps) == list(range(len(steps))) and end.step == len(steps)
     summary = json.loads((run.run_dir / "summary.json").read_text())
@@ -267,11 +307,10 @@ def test_router_restarted_every_service_reconnects_and_the_mission_goes_on(
         run.stack.group.start("router", list(router.popen.args),  # type: ignore[arg-type]
                               dict(os.environ, PYTHONPATH=str(launch.REPO)),
                               run.stack.logs / "router-2.log")
-        launch.wait_router(run.stack.endpoint)
-        assert run.live.wait_for(["ews", "system1", "system2", "supervisor", "uavsim"], 60), (
-            run.live.missing(keys.SERVICES))
+        router_ready(run.stack.endpoint, run.logs())
+        alive(run.live, ["ews", "system1", "system2", "supervisor", "uavsim"], 60, run.logs())
         end = run.ended()
-    assert end.success, run.log("supervisor")
+    run.succeeded(end)
     steps = run.steps()
     assert sorted(steps) == list(range(len(steps)))
 

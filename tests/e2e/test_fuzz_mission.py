@@ -19,9 +19,10 @@ import pytest
 from integration.conftest import _wait_until
 from integration.test_fuzz import FloodResult, check_counted, counters, flood
 
-from e2e.conftest import successful_seed
+from e2e.conftest import alive, router_ready, successful_seed
 from services import launch
 from services.common import bus
+from tests.support.waits import check, explain, logs_in, wait_for
 
 pytestmark = [pytest.mark.slow, pytest.mark.timeout(420)]
 
@@ -40,10 +41,11 @@ def test_mission_succeeds_under_a_fuzz_flood(tmp_path: Any) -> None:
     floods: list[FloodResult] = []
     errors: list[BaseException] = []
     with stack:
-        launch.wait_router(stack.endpoint)
+        logs = logs_in(stack.logs)
+        router_ready(stack.endpoint, logs)
         with launch.client_session(stack.endpoint) as session:
             live = bus.Liveliness(session, cfg.uav_id)
-            assert live.wait_for(["ews", "system1", "system2"], 90), live.missing(SERVICES)
+            alive(live, ["ews", "system1", "system2"], 90, logs)
             before = counters(session, cfg.uav_id)
 
             def fuzz() -> None:
@@ -57,16 +59,20 @@ def test_mission_succeeds_under_a_fuzz_flood(tmp_path: Any) -> None:
             fuzzer.start()
             outcome = launch.follow(stack, timeout_s=300.0, quiet=True)
             stop.set()
-            fuzzer.join(180)
+            wait_for(lambda: not fuzzer.is_alive(), 180, "the fuzzer thread to stop", logs)
             assert not errors, errors
-            assert floods, "the fuzzer did not finish"
+            check(floods, "the fuzzer's result", logs)
             result = floods[0]
-            check_counted(session, cfg.uav_id, before, result, _wait_until)
+            try:  # its own waits and asserts name the service and key; the logs are added
+                check_counted(session, cfg.uav_id, before, result, _wait_until)
+            except AssertionError as err:
+                pytest.fail(explain(f"every fuzz input to be counted in the status of the "
+                                    f"service that received it: {err}", logs), pytrace=False)
             statuses = {s: bus.query_status(session, cfg.uav_id, s) for s in SERVICES}
     codes = {p.name: int(p.popen.returncode) for p in stack.group.procs}
-    logs = {n: (run_dir / "logs" / f"{n}.log").read_text() for n in SERVICES}
-    assert outcome.ended and outcome.success, (outcome, {n: t[-2000:] for n, t in logs.items()})
-    assert codes == dict.fromkeys(codes, 0), codes
+    check(outcome.ended and outcome.success, "the mission to reach the goal under the flood",
+          logs, outcome)
+    check(codes == dict.fromkeys(codes, 0), "every process to exit with 0", logs, codes)
     sent = sum(result.sent.values())
     assert min(result.sent.values()) > 100, result.sent
     for name in ("ews", "system1", "system2"):

@@ -7,9 +7,10 @@ and downloads them back unchanged; the supervisor starts, takes the vehicle
 safe, the decisions saying which path it used; the vehicle freezes for 3.5 s
 (the mission pauses and resumes); unsigned setpoints on the signed offboard
 link are refused and counted; the supervisor is killed and the vehicle holds
-within 1.5 s; the run's ``vehicle.tlog`` opens with ``mavlogdump.py``.
-MAVProxy's ``--out`` feeds a pymavlink observer in the test, which timestamps
-what the ground station sees.
+(after a silence of COM_OF_LOSS_T, as it measured it); the run's
+``vehicle.tlog`` opens with ``mavlogdump.py``. MAVProxy's ``--out`` feeds a
+pymavlink observer in the test. Every wait fails with what it waited for and
+the last lines of MAVProxy's output and of the stack's logs.
 """
 
 from __future__ import annotations
@@ -29,10 +30,11 @@ from typing import Any
 import numpy as np
 import pytest
 
-from e2e.conftest import drain_messages
+from e2e.conftest import drain_messages, run_process
 from services import launch
 from services.common import keys, mav
 from services.msgs import supervisor_pb2
+from tests.support.waits import Logs, check, logs_in, wait_for
 
 pytestmark = [pytest.mark.slow, pytest.mark.timeout(300)]
 m = mav.mavlink
@@ -48,19 +50,23 @@ if not MAVPROXY.exists():  # pragma: no cover - MAVProxy is in the dev extra
     pytest.skip("MAVProxy is not installed (pip install -e '.[dev]')", allow_module_level=True)
 
 
-def until(pred: Callable[[], Any], timeout_s: float, period_s: float = 0.05) -> Any:
-    deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline:
-        if got := pred():
-            return got
-        time.sleep(period_s)
-    return pred()
+def until(pred: Callable[[], Any], timeout_s: float, what: str, logs: Logs,
+          last: Callable[[], Any] | None = None) -> Any:
+    """``pred``'s first truthy value; past ``timeout_s`` the test fails saying ``what`` it
+    waited for, ``last()`` and the logs' tails (tests/support/waits.py)."""
+    return wait_for(pred, timeout_s, what, logs, last=last)
+
+
+def gcs_logs(workdir: Path) -> list[Path]:
+    """MAVProxy's output and every log of the stack (its run directory is ``workdir/run``)."""
+    return [workdir / "mavproxy.log", *logs_in(workdir / "run")]
 
 
 class MavProxy:
     """``mavproxy.py`` on the vehicle's GCS port, commands written to its stdin."""
 
     def __init__(self, gcs_port: int, out_port: int, workdir: Path):
+        self.workdir = workdir
         self.log_path = workdir / "mavproxy.log"
         self.fh = self.log_path.open("wb")
         self.proc = subprocess.Popen(
@@ -79,8 +85,8 @@ class MavProxy:
         self.proc.stdin.flush()
 
     def wait_for(self, pattern: str, timeout_s: float = 20.0, after: int = 0) -> re.Match[str]:
-        found = until(lambda: re.search(pattern, self.output()[after:]), timeout_s)
-        assert found, f"MAVProxy never printed {pattern!r}:\n{self.output()[-3000:]}"
+        found = until(lambda: re.search(pattern, self.output()[after:]), timeout_s,
+                      f"MAVProxy to print {pattern!r}", gcs_logs(self.workdir))
         return found  # type: ignore[no-any-return]
 
     def stop(self) -> None:
@@ -95,19 +101,27 @@ class MavProxy:
 
 
 class Observer:
-    """What the ground station receives (MAVProxy's --out), with arrival times."""
+    """What the ground station receives (MAVProxy's --out)."""
 
-    def __init__(self, port: int):
+    def __init__(self, port: int, workdir: Path):
         self.conn = mav.connect(f"udpin:127.0.0.1:{port}", 254, 191)
+        self.workdir = workdir
 
-    def recv(self, kind: str, timeout_s: float, cond: Callable[[Any], bool] = lambda _: True
-             ) -> tuple[float, Any]:
-        deadline = time.monotonic() + timeout_s
-        while time.monotonic() < deadline:
+    def recv(self, kind: str, timeout_s: float, cond: Callable[[Any], bool] = lambda _: True,
+             what: str = "") -> Any:
+        """The next ``kind`` from the vehicle (component 1) with ``cond``."""
+        last: list[Any] = []
+
+        def matching() -> Any:
             msg = self.conn.recv_match(type=kind, blocking=True, timeout=0.1)
-            if msg is not None and msg.get_srcComponent() == 1 and cond(msg):
-                return time.monotonic(), msg
-        raise TimeoutError(f"the ground station saw no matching {kind}")
+            if msg is not None and msg.get_srcComponent() == 1:
+                last[:] = [msg]
+                return msg if cond(msg) else None
+            return None
+
+        return wait_for(matching, timeout_s, f"the ground station to see {what or kind}",
+                        gcs_logs(self.workdir), period_s=0,
+                        last=lambda: last[0] if last else f"no {kind}")
 
     def drain(self) -> None:
         while self.conn.recv_msg() is not None:
@@ -157,7 +171,7 @@ def run(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Run]:
     gcs_port = int(stack.service_env("uavsim")["GCS_URL"].rsplit(":", 1)[1])
     offboard_port = int(stack.service_env("uavsim")["MAVLINK_URL"].rsplit(":", 1)[1])
     out_port = launch.free_port("udp")
-    observer = Observer(out_port)
+    observer = Observer(out_port, work)
     with stack:
         gcs = MavProxy(gcs_port, out_port, work)
         gcs.send(f"signing key {PASSPHRASE}")  # a keyed vehicle refuses unsigned uploads
@@ -178,10 +192,10 @@ def run(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Run]:
 def test_ground_station_sees_the_vehicle_its_position_and_mode(run: Run) -> None:
     run.gcs.wait_for(r"Detected vehicle 1:1", 40)
     run.gcs.wait_for(r"Mode LOITER")
-    _, gpi = run.observer.recv("GLOBAL_POSITION_INT", 10)
+    gpi = run.observer.recv("GLOBAL_POSITION_INT", 10)
     east, north = mav.to_local(gpi.lat / 1e7, gpi.lon / 1e7, HOME)
     assert abs(east - 50.0) < 0.1 and abs(north - 50.0) < 0.1
-    _, hb = run.observer.recv("HEARTBEAT", 5)
+    hb = run.observer.recv("HEARTBEAT", 5)
     assert hb.type == m.MAV_TYPE_QUADROTOR and hb.custom_mode == mav.MODE_LOITER
     run.gcs.wait_for(r"Received \d+ parameters", 20)
 
@@ -193,8 +207,11 @@ def test_waypoints_upload_and_download_unchanged(run: Run, tmp_path: Path) -> No
     run.gcs.wait_for(r"MISSION_ACK: TYPE_MISSION: ACCEPTED", 20, after=mark)
     back = tmp_path / "back.txt"
     run.gcs.send(f"wp save {back}")
-    assert until(back.is_file, 20), run.gcs.output()[-2000:]
-    assert until(lambda: len(read_wp(back)) == len(ROUTE) + 1, 5)
+    logs = gcs_logs(run.run_dir.parent)
+    until(back.is_file, 20, f"MAVProxy to write {back.name}", logs)
+    until(lambda: len(read_wp(back)) == len(ROUTE) + 1, 5,
+          f"{back.name} to hold the home slot and the {len(ROUTE)} waypoints", logs,
+          last=lambda: back.read_text())
     got, sent = np.array(read_wp(back)), np.array(read_wp(src))
     assert got.shape == sent.shape and np.allclose(got, sent, atol=1e-7)
 
@@ -202,13 +219,15 @@ def test_waypoints_upload_and_download_unchanged(run: Run, tmp_path: Path) -> No
 def test_system1_flies_the_operator_waypoints_while_safe(run: Run) -> None:
     run.stack.group.start("supervisor", run.stack.argv("supervisor"),
                           run.stack.service_env("supervisor"), run.stack.logs / "supervisor.log")
-    t, armed = run.observer.recv("HEARTBEAT", 60, lambda h: h.custom_mode == mav.MODE_GUIDED
-                                 and h.base_mode & m.MAV_MODE_FLAG_SAFETY_ARMED)
-    assert armed
+    run.observer.recv("HEARTBEAT", 60, lambda h: h.custom_mode == mav.MODE_GUIDED
+                      and h.base_mode & m.MAV_MODE_FLAG_SAFETY_ARMED, "GUIDED and armed")
     # the first waypoint is reached (MISSION_ITEM_REACHED within MIS_ACC_RAD)
-    run.observer.recv("MISSION_ITEM_REACHED", 60, lambda r: r.seq == 1)
-    decisions = until(lambda: drain_messages(run.decisions, supervisor_pb2.Decision), 5)
-    assert decisions and all(d.operator_waypoints == len(ROUTE) for d in decisions)
+    run.observer.recv("MISSION_ITEM_REACHED", 60, lambda r: r.seq == 1,
+                      "MISSION_ITEM_REACHED of waypoint 1")
+    logs = gcs_logs(run.run_dir.parent)
+    decisions = until(lambda: drain_messages(run.decisions, supervisor_pb2.Decision), 5,
+                      "the supervisor's decisions", logs)
+    assert all(d.operator_waypoints == len(ROUTE) for d in decisions)
     assert decisions[0].plan_source == "operator"
     for d in decisions:
         assert d.plan_source in ("operator", "rrt")
@@ -218,11 +237,13 @@ def test_system1_flies_the_operator_waypoints_while_safe(run: Run) -> None:
 
 def test_a_vehicle_that_disappears_pauses_the_mission(run: Run) -> None:
     uav = next(p for p in run.stack.group.procs if p.name == "uavsim")
+    logs = gcs_logs(run.run_dir.parent)
     os.kill(uav.popen.pid, signal.SIGSTOP)
     try:
-        assert until(lambda: any(
+        until(lambda: any(
             e.kind == supervisor_pb2.MISSION_EVENT_KIND_PAUSED
-            for e in drain_messages(run.events, supervisor_pb2.MissionEvent)), 8)
+            for e in drain_messages(run.events, supervisor_pb2.MissionEvent)), 8,
+            "the mission's PAUSED event (the vehicle frozen)", logs)
     finally:
         os.kill(uav.popen.pid, signal.SIGCONT)
     kinds: list[int] = []
@@ -231,7 +252,8 @@ def test_a_vehicle_that_disappears_pauses_the_mission(run: Run) -> None:
         kinds.extend(e.kind for e in drain_messages(run.events, supervisor_pb2.MissionEvent))
         return supervisor_pb2.MISSION_EVENT_KIND_ENDED in kinds
 
-    assert until(ended, 120), (run.stack.logs / "supervisor.log").read_text()[-3000:]
+    until(ended, 120, "the mission's ENDED event", logs,
+          last=lambda: [supervisor_pb2.MissionEventKind.Name(k) for k in kinds[-5:]])
     assert supervisor_pb2.MISSION_EVENT_KIND_RESUMED in kinds
     assert supervisor_pb2.MISSION_EVENT_KIND_ABORTED not in kinds
     steps = (run.run_dir / "steps.csv").read_text().splitlines()
@@ -243,7 +265,7 @@ def test_a_vehicle_that_disappears_pauses_the_mission(run: Run) -> None:
 
 def test_unsigned_setpoints_are_refused(run: Run) -> None:
     run.observer.drain()
-    _, before = run.observer.recv("LOCAL_POSITION_NED", 5)
+    before = run.observer.recv("LOCAL_POSITION_NED", 5)
     intruder = mav.connect(f"udpout:127.0.0.1:{run.offboard_port}", 1, 191)
     try:
         for _ in range(5):
@@ -256,22 +278,37 @@ def test_unsigned_setpoints_are_refused(run: Run) -> None:
         assert int(found.group(1)) >= 5
     finally:
         intruder.close()
-    _, after = run.observer.recv("LOCAL_POSITION_NED", 5)
+    after = run.observer.recv("LOCAL_POSITION_NED", 5)
     assert after.time_boot_ms == before.time_boot_ms and (after.x, after.y) == (before.x, before.y)
 
 
-def test_killed_supervisor_the_vehicle_holds_within_1_5_s(run: Run) -> None:
+def failsafe_silences(log: str) -> list[float]:
+    """The silences (s) uavsim logged when its offboard-loss failsafe fired."""
+    return [float(x) for x in re.findall(r"offboard setpoints lost.*? silence_s=([0-9.]+)", log)]
+
+
+def test_killed_supervisor_the_vehicle_holds_after_com_of_loss_t(run: Run) -> None:
     sup = next(p for p in run.stack.group.procs if p.name == "supervisor")
-    run.observer.recv("HEARTBEAT", 5, lambda h: h.custom_mode == mav.MODE_GUIDED)
+    run.observer.recv("HEARTBEAT", 5, lambda h: h.custom_mode == mav.MODE_GUIDED, "GUIDED")
+    uavsim_log = run.stack.logs / "uavsim.log"
+    failsafes = len(failsafe_silences(uavsim_log.read_text()))
     os.killpg(sup.popen.pid, signal.SIGKILL)
-    t_kill = time.monotonic()
-    t_hold, _ = run.observer.recv("HEARTBEAT", 5, lambda h: h.custom_mode == mav.MODE_LOITER)
-    assert t_hold - t_kill < 1.5
+    run.observer.recv("HEARTBEAT", 10, lambda h: h.custom_mode == mav.MODE_LOITER,
+                      "LOITER (the offboard-loss hold)")
+    # not early: the failsafe fired on a silence of at least COM_OF_LOSS_T as the vehicle
+    # measured it (services/uavsim/failsafe.py logs it); how soon after the kill the vehicle
+    # held is a reaction time, a figure for the benchmarks, not asserted here
+    logs = gcs_logs(run.run_dir.parent)
+    silences = until(lambda: failsafe_silences(uavsim_log.read_text())[failsafes:], 10,
+                     "uavsim's log line of the offboard-loss failsafe", logs)
+    loss_t = float(run.stack.service_env("uavsim").get("COM_OF_LOSS_T", "1.0"))
+    check(len(silences) == 1 and silences[0] >= loss_t, f"one failsafe, after a silence of at "
+          f"least COM_OF_LOSS_T = {loss_t:g} s", logs, f"silences (s): {silences}")
     run.gcs.wait_for(r"Mode LOITER", 5, after=len(run.gcs.output()) - 2000)
-    _, a = run.observer.recv("LOCAL_POSITION_NED", 5)
+    a = run.observer.recv("LOCAL_POSITION_NED", 5)
     time.sleep(0.3)  # holding: nothing changes between two reports
     run.observer.drain()
-    _, b = run.observer.recv("LOCAL_POSITION_NED", 5)
+    b = run.observer.recv("LOCAL_POSITION_NED", 5)
     # lockstep: the supervisor was the clock, so the vehicle holds as it is — the same
     # position, velocity and clock (services/uavsim/failsafe.py), nothing braked
     assert (a.time_boot_ms, a.x, a.y, a.vx, a.vy) == (b.time_boot_ms, b.x, b.y, b.vx, b.vy)
@@ -280,9 +317,9 @@ def test_killed_supervisor_the_vehicle_holds_within_1_5_s(run: Run) -> None:
 def test_the_run_tlog_opens_with_mavlogdump(run: Run) -> None:
     tlog = run.run_dir / "vehicle.tlog"
     assert tlog.is_file()
-    out = subprocess.run([sys.executable, str(MAVLOGDUMP), "--types",
-                          "HEARTBEAT,MISSION_ITEM_INT,SET_POSITION_TARGET_LOCAL_NED", str(tlog)],
-                         capture_output=True, text=True, timeout=120)
+    out = run_process([sys.executable, str(MAVLOGDUMP), "--types",
+                       "HEARTBEAT,MISSION_ITEM_INT,SET_POSITION_TARGET_LOCAL_NED", str(tlog)],
+                      120, "mavlogdump.py")
     assert out.returncode == 0, out.stderr[-2000:]
     kinds = {line.split(": ", 1)[1].split(" ", 1)[0] for line in out.stdout.splitlines()
              if ": " in line}

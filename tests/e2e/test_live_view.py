@@ -21,7 +21,9 @@ from integration.foxglove_check import (
 )
 
 from dualpilot.mission.records import read_step_log
+from e2e.conftest import router_ready
 from services import launch
+from tests.support.waits import check, logs_in, wait_for
 
 pytestmark = [pytest.mark.slow, pytest.mark.timeout(300)]
 
@@ -48,13 +50,14 @@ class LiveClient(threading.Thread):
         for _ in range(300):  # the viewer starts with the stack
             try:
                 async with FoxgloveClient(self.url) as c:
-                    self.client = c
+                    self.client, self.error = c, None
                     while not self.done.is_set():
                         await c.pump(0.05)
                         await c.subscribe(sorted(self.wanted))
                     await c.pump(0.5)
                     return
-            except OSError:
+            except OSError as err:
+                self.error = err  # the last refusal, if it never connects
                 await asyncio.sleep(0.1)
 
     def run(self) -> None:
@@ -75,18 +78,23 @@ def live(tmp_path_factory: pytest.TempPathFactory) -> Any:
     client = LiveClient(url, {f"/{UAV}/{t}" for t in TOPICS})
     with stack:
         client.start()
-        launch.wait_router(stack.endpoint)
+        router_ready(stack.endpoint, logs_in(stack.logs))
         outcome = launch.follow(stack, timeout_s=180.0, quiet=True)
         client.done.set()
-        client.join(30)
+        wait_for(lambda: not client.is_alive(), 30, "the Foxglove client to finish",
+                 logs_in(stack.logs))
     codes = {p.name: int(p.popen.returncode) for p in stack.group.procs}
     return run_dir, outcome, codes, client, url
 
 
 def test_the_live_view_follows_the_mission(live: Any) -> None:
     run_dir, outcome, codes, thread, url = live
-    assert outcome.ended, outcome.message
-    assert thread.error is None and thread.client is not None, thread.error
+    run_logs = logs_in(run_dir)
+    check(outcome.ended, "the mission to end (launch.follow)", run_logs, outcome)
+    check(thread.client is not None, "the Foxglove client to connect to the live view",
+          run_logs, thread.error)
+    check(thread.error is None, "the Foxglove client to follow the mission without an error",
+          run_logs, repr(thread.error))
     c: FoxgloveClient = thread.client
     assert c.ws.subprotocol == SUBPROTOCOL and url.startswith("ws://127.0.0.1:")
     channels = c.by_topic()
@@ -125,9 +133,11 @@ def test_the_live_view_follows_the_mission(live: Any) -> None:
         times = [t for t, _ in msgs]
         assert all(t > 1_600_000_000 * 10**9 for t in times), topic
 
-    viewer_log = (run_dir / "logs" / "viewer.log").read_text()
-    assert "serving the live view" in viewer_log and "stopped" in viewer_log
-    assert codes.get("viewer") == 0, codes
+    viewer_log = run_dir / "logs" / "viewer.log"
+    text = viewer_log.read_text()
+    check("serving the live view" in text and "stopped" in text, "the viewer to log that it "
+          "served the live view and stopped", [viewer_log])
+    check(codes.get("viewer") == 0, "the viewer to exit with 0", [viewer_log], codes)
 
 
 def test_the_supervisors_mission_mcap_equals_its_steps_jsonl(live: Any) -> None:

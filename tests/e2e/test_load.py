@@ -24,6 +24,8 @@ from typing import Any
 
 import pytest
 
+from tests.support.waits import check, logs_in
+
 pytestmark = [pytest.mark.slow, pytest.mark.timeout(420)]
 
 REPO = Path(__file__).resolve().parents[2]
@@ -48,13 +50,17 @@ def test_ten_vehicles_share_one_ews_and_one_planner_pair(tmp_path: Path) -> None
     result = bench.run_load(VEHICLES, tmp_path, speed_factor=200.0, timeout_s=300.0,
                             plan_deadline_s="60,60")
     assert set(result.outcomes) == {f"uav{k + 1}" for k in range(VEHICLES)}
+    shared = logs_in(tmp_path / "logs")
     for uav, outcome in result.outcomes.items():
         ref = bench.in_process(result.seeds[uav])
-        assert outcome.ended, (uav, outcome)
+        logs = [*logs_in(tmp_path / uav), *shared]
+        check(outcome.ended, f"{uav}'s mission to end", logs, outcome)
         assert (outcome.success, outcome.steps) == (ref.success, ref.steps), (uav, outcome)
         assert result.recorded[uav], uav
-        assert result.faults[uav] == {}, (uav, result.faults[uav])
-    assert all(code == 0 for code in result.codes.values()), result.codes
+        check(result.faults[uav] == {}, f"{uav}'s records to name no fault", logs,
+              result.faults[uav])
+    check(all(code == 0 for code in result.codes.values()), "every process to exit with 0",
+          shared, result.codes)
     assert result.steps >= VEHICLES * 50
     print(f"\n{VEHICLES} vehicles, {result.steps} steps in {result.wall_s:.1f} s, "
           f"failsafes {sum(result.failsafes.values())}, longest setpoint gap "

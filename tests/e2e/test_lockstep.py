@@ -7,11 +7,20 @@ whole mission: the decision (Ξ, P, A, Ψ, S), the system flown, the plan
 statuses, the fire sub-steps, the planned positions, the state and control,
 and the outcome. Numbers that crossed MAVLink (float32 positions and
 setpoints) are compared to 1e-3; everything discrete exactly.
+
+With ``timing="measured"`` a step's fire sub-steps are ⌈T_s / 0.5 s⌉ of the
+planners' measured compute times, which differ between two runs (a loaded
+machine makes one plan take longer on one side only). The in-process reference
+therefore replays the stack's measured compute times (:class:`ReplayedTimes`):
+the k-th answer of each system carries the stack's k-th recorded compute time,
+so both sides fly the same timing and any difference is a defect.
 """
 
 from __future__ import annotations
 
+import json
 from collections.abc import Sequence
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -20,11 +29,15 @@ import pytest
 
 from dualpilot.mission.local import local_mission
 from dualpilot.mission.params import Controller, MissionParams, Timing
+from dualpilot.mission.ports import PlannerPort, PlanRequest
 from dualpilot.mission.records import read_step_log, result_from_log
 from dualpilot.mission.result import MissionResult
+from dualpilot.mission.step import Mission
 from dualpilot.model.dynamics import DynamicsParams
+from dualpilot.plan import Plan
 from dualpilot.spec import MissionSpec
 from services import launch
+from tests.support.waits import check, logs_in
 
 pytestmark = [pytest.mark.slow, pytest.mark.timeout(600)]
 
@@ -59,9 +72,75 @@ def assert_same_mission(stack: MissionResult, local: MissionResult, what: str,
 Run = tuple[int, str, str, float | None]
 
 
+class ReplayedTimes:
+    """A planner port whose answers carry the compute times another run recorded.
+
+    ``times`` is a stack's ``summary.json`` ``planning_time_s``: every answer's
+    compute time, per system in the order the mission core recorded them
+    (dualpilot/mission/step.py ``record_time``, once per answer of :meth:`plan`
+    and once per :meth:`collect` of a launched request). The k-th answer of
+    system s here gets the k-th time of s — at :meth:`collect`, not
+    :meth:`launch`, for a deliberation the concurrent supervisor drops
+    uncollected records no time on either side. Everything else is the wrapped
+    port's.
+    """
+
+    def __init__(self, inner: PlannerPort, times: dict[str, list[float]], what: str):
+        self.inner, self.what = inner, what
+        self.times = {int(k.removeprefix("s")): list(v) for k, v in times.items()}
+        self.used = dict.fromkeys(self.times, 0)
+
+    def _timed(self, plan: Plan) -> Plan:
+        s = plan.system
+        k = self.used.get(s, 0)
+        recorded = self.times.get(s, [])
+        check(k < len(recorded), f"{self.what}: the in-process mission asks System {s} for "
+              f"answer {k + 1} but the stack recorded {len(recorded)}: the missions differ")
+        self.used[s] = k + 1
+        return replace(plan, compute_time_s=recorded[k])
+
+    def available(self, system: int) -> bool:
+        return self.inner.available(system)
+
+    def uses_forecast(self, system: int) -> bool:
+        return bool(getattr(self.inner, "uses_forecast", lambda _s: False)(system))
+
+    def plan(self, request: PlanRequest) -> Plan:
+        return self._timed(self.inner.plan(request))
+
+    def launch(self, request: PlanRequest) -> object:
+        return self.inner.launch(request)
+
+    def collect(self, ticket: object) -> Plan:
+        return self._timed(self.inner.collect(ticket))
+
+    def unused(self) -> dict[int, int]:
+        """Recorded times no in-process answer took, per system (none when the runs agree)."""
+        return {s: len(v) - self.used[s] for s, v in self.times.items() if len(v) > self.used[s]}
+
+
+def recorded_times(run_dir: Path) -> dict[str, list[float]]:
+    """The stack's compute time of every answer, per system (summary.json planning_time_s)."""
+    summary = json.loads((run_dir / "summary.json").read_text())
+    times: dict[str, list[float]] = summary["planning_time_s"]
+    return times
+
+
+def replayed(mission: Mission, run_dir: Path, what: str) -> MissionResult:
+    """Run the in-process ``mission`` with the compute times the stack recorded in ``run_dir``;
+    fails, saying so, when the stack recorded answers the in-process mission never asked."""
+    port = ReplayedTimes(mission.planners, recorded_times(run_dir), what)
+    mission.planners = port
+    result = mission.run()
+    check(not port.unused(), f"{what}: the stack recorded answers the in-process mission did "
+          f"not ask for (per system: how many): the missions differ", None, port.unused())
+    return result
+
+
 def fly(fleet: launch.Fleet, runs: Sequence[Run],
-        out: Path) -> dict[Run, MissionResult]:
-    """Fly ``runs`` (seed, controller, timing, ignition clearance) at once, one vehicle each."""
+        out: Path) -> dict[Run, tuple[Path, MissionResult]]:
+    """Fly ``runs`` (seed, controller, timing, ignition clearance) at once, one vehicle each;
+    per run its run directory and its records as a result."""
     mission_ids = {}
     for k, (seed, controller, timing, clear) in enumerate(runs):
         uav = fleet.uav_ids[k]
@@ -76,17 +155,27 @@ def fly(fleet: launch.Fleet, runs: Sequence[Run],
     for k, run in enumerate(runs):
         uav = fleet.uav_ids[k]
         v = fleet.vehicles[uav]
-        assert outcomes[uav].ended, (run, outcomes[uav], (v.run_dir / "logs").iterdir())
-        assert all(code == 0 for code in fleet.stop_vehicle(uav).values()), run
-        results[run] = result_from_log(read_step_log(v.run_dir / "steps.jsonl"))
+        logs = [*logs_in(v.run_dir), *logs_in(fleet.stack.logs)]
+        check(outcomes[uav].ended, f"the mission {run} to end", logs, outcomes[uav])
+        codes = fleet.stop_vehicle(uav)
+        check(all(code == 0 for code in codes.values()), f"the processes of {run} to exit "
+              f"with 0", logs, codes)
+        results[run] = v.run_dir, result_from_log(read_step_log(v.run_dir / "steps.jsonl"))
     return results
 
 
-def in_process(seed: int, controller: str, timing: str, clear: float | None) -> MissionResult:
+def in_process(seed: int, controller: str, timing: str, clear: float | None,
+               replay: Path | None = None) -> MissionResult:
+    """The in-process mission of a run; with ``replay`` (a stack's run directory) and measured
+    timing, flown with the compute times that run recorded (:class:`ReplayedTimes`)."""
     concurrent = controller == "concurrent"
-    return local_mission(Controller("cc" if concurrent else controller), MissionSpec(seed=seed),
-                         timing=Timing(timing), params=MissionParams(ignition_clearance_m=clear),
-                         supervisor="concurrent" if concurrent else "paper").run()
+    mission = local_mission(Controller("cc" if concurrent else controller),
+                            MissionSpec(seed=seed), timing=Timing(timing),
+                            params=MissionParams(ignition_clearance_m=clear),
+                            supervisor="concurrent" if concurrent else "paper")
+    if replay is not None and Timing(timing) is Timing.MEASURED:
+        return replayed(mission, replay, f"{controller} {timing} seed {seed}")
+    return mission.run()
 
 
 @pytest.fixture(scope="module")
@@ -104,8 +193,8 @@ def test_stack_and_in_process_records_are_identical(fleet: Any, controller: str,
                                                     timing: str) -> None:
     f, out = fleet
     runs = [(seed, controller, timing, None) for seed in SEEDS]
-    for run, result in fly(f, runs, out).items():
-        assert_same_mission(result, in_process(*run), str(run))
+    for run, (run_dir, result) in fly(f, runs, out).items():
+        assert_same_mission(result, in_process(*run, replay=run_dir), str(run))
 
 
 def test_the_ignition_clearance_reaches_the_stack(fleet: Any) -> None:
@@ -113,7 +202,7 @@ def test_the_ignition_clearance_reaches_the_stack(fleet: Any) -> None:
     the missions are those of the in-process loop with the same reading."""
     f, out = fleet
     runs = [(seed, "cc", "paper", 20.0) for seed in SEEDS[:3]]
-    results = fly(f, runs, out)
+    results = {run: result for run, (_, result) in fly(f, runs, out).items()}
     for run, result in results.items():
         assert_same_mission(result, in_process(*run), str(run))
     # the reading matters: without it, some of these missions differ
@@ -138,8 +227,12 @@ def fly_cc_on_stack(fleet: Any, seeds: tuple[int, ...], env: dict[str, str], tag
     for k, seed in enumerate(seeds):
         uav = f.uav_ids[k]
         run_dir = f.vehicles[uav].run_dir
-        assert outcomes[uav].ended, outcomes[uav]
-        assert all(code == 0 for code in f.stop_vehicle(uav).values())
+        logs = [*logs_in(run_dir), *logs_in(f.stack.logs)]
+        check(outcomes[uav].ended, f"the {tag} mission of seed {seed} to end", logs,
+              outcomes[uav])
+        codes = f.stop_vehicle(uav)
+        check(all(code == 0 for code in codes.values()), f"the processes of the {tag} mission "
+              f"of seed {seed} to exit with 0", logs, codes)
         flown.append((seed, run_dir, result_from_log(read_step_log(run_dir / "steps.jsonl"))))
     return flown
 
@@ -170,7 +263,9 @@ def test_the_speed_limit_reaches_system1_system2_and_uavsim(fleet: Any) -> None:
     norm = DynamicsParams(speed_limit="norm")
     env = {"READINGS_PROFILE": "today", "SPEED_LIMIT": "norm"}
     for seed, run_dir, stack in fly_cc_on_stack(fleet, SEEDS[:2], env, "speed-norm"):
-        assert "speed_limit=norm" in (run_dir / "logs" / "uavsim.log").read_text()
+        uavsim_log = run_dir / "logs" / "uavsim.log"
+        check("speed_limit=norm" in uavsim_log.read_text(), "uavsim to log speed_limit=norm",
+              [uavsim_log])
         local = local_mission(Controller.CC, MissionSpec(seed=seed, dynamics=norm),
                               timing=Timing.PAPER).run()
         assert_same_mission(stack, local, f"norm seed {seed}", ATOL)

@@ -15,6 +15,7 @@ from pathlib import Path
 import pytest
 
 from e2e.test_load import _bench
+from tests.support.waits import check, logs_in
 
 pytestmark = [pytest.mark.slow, pytest.mark.timeout(420)]
 
@@ -27,8 +28,13 @@ def test_twenty_consecutive_missions(tmp_path: Path) -> None:
     result = soak.run_soak(MISSIONS, tmp_path, speed_factor=1000.0, timeout_s=120.0)
     rep = result.report(WARMUP)
     assert result.missions == MISSIONS
-    assert not result.not_ended and not result.not_recorded, rep
-    assert not result.leaked and not result.bad_exits, rep
+    # the missions that did not end (or were not recorded), their logs and the shared ones
+    failed = [tmp_path / f"m{k:04d}" for k in result.not_recorded]
+    logs = [*(log for d in failed for log in logs_in(d)), *logs_in(tmp_path / "logs")]
+    check(not result.not_ended and not result.not_recorded, "every mission to end and be "
+          "recorded", logs, rep)
+    check(not result.leaked and not result.bad_exits, "no process left behind, every exit "
+          "clean", logs_in(tmp_path / "logs"), rep)
     growth = rep["rss_growth_after_warmup"]
     assert growth and max(growth.values()) <= 0.25, rep
     for name in soak.LONG_LIVED:

@@ -35,6 +35,7 @@ from dualpilot.mission.records import read_step_log, result_from_log
 from services import launch
 from services.common import keys, wire
 from services.msgs import supervisor_pb2
+from tests.support.waits import check, logs_in, wait_for
 
 from .test_lockstep import assert_same_mission, in_process
 
@@ -71,17 +72,19 @@ def fly_with_stop(fleet: Any, tag: str, group: bool, stop_s: float, kill_stream:
         sub = session.declare_subscriber(keys.mission_event("st1"),
                                          lambda s: events.put(s.payload.to_bytes()))
         v = f.start_vehicle("st1", SEED, out / tag, env=ENV)
+        logs = [*logs_in(v.run_dir), *logs_in(f.stack.logs)]
         sup = next(p for p in v.procs if p.name.startswith("supervisor"))
-        deadline = time.monotonic() + 120
-        while time.monotonic() < deadline:
+        seen: list[Any] = []
+
+        def step5() -> bool:
             try:
-                ev = wire.parse(events.get(timeout=0.5), EV.MissionEvent)
+                seen.append(wire.parse(events.get(timeout=0.5), EV.MissionEvent))
             except queue.Empty:
-                continue
-            if ev.kind == EV.MISSION_EVENT_KIND_STEP and ev.step >= 5:
-                break
-        else:
-            pytest.fail("the mission never reached step 5")
+                return False
+            return seen[-1].kind == EV.MISSION_EVENT_KIND_STEP and seen[-1].step >= 5
+
+        wait_for(step5, 120, "the mission's STEP event of step 5", logs, period_s=0,
+                 last=lambda: seen[-1] if seen else "no mission event")
         pid = sup.popen.pid
         if kill_stream:
             (stream_pid,) = children(pid)
@@ -100,9 +103,27 @@ def fly_with_stop(fleet: Any, tag: str, group: bool, stop_s: float, kill_stream:
         sub.undeclare()
     outcome = f.wait_end({"st1": v.mission_id}, 180.0)["st1"]
     codes = f.stop_vehicle("st1")
-    assert outcome.ended, outcome
-    assert all(code == 0 for code in codes.values()), codes
+    check(outcome.ended, f"the {tag} mission to end", logs, outcome)
+    check(all(code == 0 for code in codes.values()), "the vehicle's processes to exit with 0",
+          logs, codes)
     return v.run_dir, json.loads((v.run_dir / "stream.json").read_text())
+
+
+def check_stream(run_dir: Path, stream: dict[str, Any], failsafes: int) -> None:
+    """The vehicle's own record of the stream (stream.json): ``failsafes`` offboard-loss
+    failsafes, and without one no gap in the stream of a second (COM_OF_LOSS_T) or more.
+
+    The gap bound is the real-time guarantee the stack keeps on purpose — the
+    supervisor's stream process runs at SCHED_RR (services/supervisor/stream/)
+    so that the vehicle keeps hearing it however loaded the machine is — not a
+    figure of the test's own timing."""
+    logs = logs_in(run_dir)
+    check(stream["failsafes"] == failsafes, f"the vehicle to count {failsafes} offboard-loss "
+          f"failsafe(s) (stream.json)", logs, stream)
+    if failsafes == 0:
+        check(stream["gaps"]["max_ms"] < 1000.0, "every setpoint gap the vehicle saw to stay "
+              "under COM_OF_LOSS_T = 1000 ms (the stream process at SCHED_RR keeps the stream "
+              "beating however loaded the machine is)", logs, stream)
 
 
 def step_faults(run_dir: Path) -> list[str]:
@@ -112,8 +133,7 @@ def step_faults(run_dir: Path) -> list[str]:
 
 def test_a_stopped_supervisor_keeps_its_stream_and_its_mission(fleet: Any) -> None:
     run_dir, stream = fly_with_stop(fleet, "supervisor-stopped", group=False, stop_s=1.5)
-    assert stream["failsafes"] == 0, stream
-    assert stream["gaps"]["max_ms"] < 1000.0, stream  # under COM_OF_LOSS_T, however loaded
+    check_stream(run_dir, stream, failsafes=0)
     assert stream["gaps"]["n"] > 100, stream
     assert step_faults(run_dir) == []
     summary = json.loads((run_dir / "summary.json").read_text())["stack"]
@@ -124,7 +144,8 @@ def test_a_stopped_supervisor_keeps_its_stream_and_its_mission(fleet: Any) -> No
 
 def test_lockstep_offboard_loss_holds_as_it_is_and_is_named(fleet: Any) -> None:
     run_dir, stream = fly_with_stop(fleet, "companion-stopped", group=True, stop_s=2.5)
-    assert stream["failsafes"] == 1 and stream["clock"] == "lockstep", stream
+    check_stream(run_dir, stream, failsafes=1)
+    assert stream["clock"] == "lockstep", stream
     faults = step_faults(run_dir)
     assert len(faults) == 1 and faults[0].startswith("vehicle_hold"), faults
     assert "offboard lost" in faults[0], faults
@@ -138,10 +159,11 @@ def test_a_killed_stream_process_is_started_again_before_the_vehicle_notices(
         fleet: Any) -> None:
     run_dir, stream = fly_with_stop(fleet, "stream-killed", group=False, stop_s=0.0,
                                     kill_stream=True)
-    assert stream["failsafes"] == 0 and stream["gaps"]["max_ms"] < 1000.0, stream
+    check_stream(run_dir, stream, failsafes=0)
     summary = json.loads((run_dir / "summary.json").read_text())["stack"]
     assert summary["stream"]["restarts"] == 1 and summary["faults"] == {}, summary
-    assert "stream process ended: starting it again" in (
-        run_dir / "logs" / "supervisor.log").read_text()
+    sup_log = run_dir / "logs" / "supervisor.log"
+    check("stream process ended: starting it again" in sup_log.read_text(),
+          "the supervisor to log that it started its stream process again", [sup_log])
     stack = result_from_log(read_step_log(run_dir / "steps.jsonl"))
     assert_same_mission(stack, in_process(SEED, "cc", "paper", None), "stream restarted")

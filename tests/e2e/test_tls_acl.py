@@ -13,9 +13,8 @@ from __future__ import annotations
 
 import json
 import queue
-import subprocess
 import sys
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
@@ -24,6 +23,9 @@ import zenoh
 
 from services import certs, launch
 from services.common import bus, keys
+from tests.support.waits import Logs, check, logs_in, wait_for
+
+from .conftest import alive, router_ready, run_process
 
 pytestmark = [pytest.mark.slow, pytest.mark.timeout(180)]
 
@@ -38,7 +40,7 @@ def stack(tmp_path_factory: pytest.TempPathFactory) -> Iterator[launch.Stack]:
     cfg = launch.StackConfig(run_dir=run_dir, free_ports=True, uav_id=UAV, log_format="text",
                              services=("ews", "system1", "system2", "uavsim"), tls=True)
     with launch.Stack(cfg) as st:
-        launch.wait_router(st.endpoint)
+        router_ready(st.endpoint, logs_in(st.logs))
         yield st
 
 
@@ -47,11 +49,26 @@ def session(st: launch.Stack, identity: str) -> Any:
     return launch.client_session(st.endpoint, st.tls_dir, identity)
 
 
-def holder(live: bus.Liveliness, service: str, timeout_s: float = 60.0) -> str:
-    assert live.wait_for([service], timeout_s), f"no {service} token: {live.missing([service])}"
-    with live.cond:
-        assert live.cond.wait_for(lambda: live.holders.get(service), timeout_s)
-    return live.holder(service)
+def holder(live: bus.Liveliness, service: str, logs: Logs, timeout_s: float = 60.0) -> str:
+    alive(live, [service], timeout_s, logs)
+    return wait_for(lambda: live.holder(service), timeout_s,
+                    f"the session holding {service}'s token", logs)
+
+
+def taken(q: queue.Queue[Any], pred: Callable[[Any], bool], timeout_s: float, what: str,
+          logs: Logs) -> Any:
+    """The first item of ``q`` with ``pred`` (the items before it are dropped)."""
+    last: list[Any] = []
+
+    def matching() -> Any:
+        try:
+            last[:] = [q.get(timeout=0.2)]
+        except queue.Empty:
+            return None
+        return last[0] if pred(last[0]) else None
+
+    return wait_for(matching, timeout_s, what, logs, period_s=0,
+                    last=lambda: last[0] if last else "nothing")
 
 
 def replies(sess: Any, key: str, timeout_s: float = 20.0) -> list[tuple[str, bytes, bool]]:
@@ -81,7 +98,7 @@ def test_certs_name_each_service(tmp_path: Path) -> None:
 def test_supervisor_credentials_get_the_real_planner(stack: launch.Stack) -> None:
     with session(stack, "supervisor") as sup:
         live = bus.Liveliness(sup, UAV)
-        real = holder(live, "system2")
+        real = holder(live, "system2", logs_in(stack.logs))
         got = replies(sup, PLAN2)
     assert got and {zid for zid, _, _ in got} == {real}, got
 
@@ -112,8 +129,8 @@ class Marker:
     the supervisor: the router handles one link's messages in order, so once a marker arrives
     everything the rogue sent before it has been admitted or dropped."""
 
-    def __init__(self, sup: Any, rogue: Any):
-        self.rogue, self.zid, self.n = rogue, str(rogue.info.zid()), 0
+    def __init__(self, sup: Any, rogue: Any, logs: Logs):
+        self.rogue, self.zid, self.n, self.logs = rogue, str(rogue.info.zid()), 0, logs
         self.seen: queue.Queue[str] = queue.Queue()
         self.sub = sup.liveliness().declare_subscriber(
             keys.alive(UAV, "uavsim") + "/**", lambda s: self.seen.put(str(s.key_expr)))
@@ -123,8 +140,8 @@ class Marker:
         self.n += 1
         key = keys.holder(UAV, "uavsim", f"{self.zid}-{self.n}")
         self.tokens.append(self.rogue.liveliness().declare_token(key))
-        while self.seen.get(timeout=20) != key:
-            pass
+        taken(self.seen, lambda k: k == key, 20, f"the supervisor to see the marker {key}",
+              self.logs)
 
     def close(self) -> None:
         for obj in (*self.tokens, self.sub):
@@ -138,12 +155,13 @@ def test_wrong_service_can_neither_answer_nor_publish(stack: launch.Stack) -> No
     fires = keys.fires(UAV)
     with session(stack, "supervisor") as sup, session(stack, "uavsim") as rogue, \
             session(stack, "ews") as ews:
+        logs = logs_in(stack.logs)
         live = bus.Liveliness(sup, UAV)
-        real = holder(live, "system2")
+        real = holder(live, "system2", logs)
         received: queue.Queue[tuple[str, bytes]] = queue.Queue()
         sub = sup.declare_subscriber(f"{keys.ns(UAV)}/**", lambda s: received.put(
             (str(s.key_expr), s.payload.to_bytes())))
-        marker = Marker(sup, rogue)
+        marker = Marker(sup, rogue, logs)
         impostor = rogue.declare_queryable(PLAN2)  # a channel: what reaches it stays there
         claim = rogue.liveliness().declare_token(
             keys.holder(UAV, "system2", str(rogue.info.zid())))
@@ -159,8 +177,12 @@ def test_wrong_service_can_neither_answer_nor_publish(stack: launch.Stack) -> No
         rogue.put(keys.fire_command(UAV), ROGUE[2])
         marker.sync()
         ews.put(fires, b"real fires")  # the owner's put does arrive
-        while (item := received.get(timeout=20)) != (fires, b"real fires"):
+
+        def real_fires(item: tuple[str, bytes]) -> bool:
             assert item[1] not in ROGUE, item
+            return item == (fires, b"real fires")
+
+        taken(received, real_fires, 20, "the EWS's own put on its fires key", logs)
         while not received.empty():
             assert (item := received.get())[1] not in ROGUE, item
         # and its claim on System 2's token never reached anyone
@@ -172,12 +194,13 @@ def test_wrong_service_can_neither_answer_nor_publish(stack: launch.Stack) -> No
 
 def test_mission_through_launch_tls(tmp_path: Path) -> None:
     out = tmp_path / "run"
-    proc = subprocess.run(
+    proc = run_process(
         [sys.executable, "-m", "services.launch", "--tls", "--max-steps", "5", "--free-ports",
          "--speed-factor", "50", "--no-figures", "--quiet", "--log-format", "text",
-         "--timeout-s", "120", "--out", str(out)],
-        cwd=launch.REPO, capture_output=True, text=True, timeout=170)
-    assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
+         "--timeout-s", "120", "--out", str(out)], 170, "services.launch --tls",
+        lambda: logs_in(out), cwd=launch.REPO)
+    check(proc.returncode == 0, "services.launch --tls to exit with 0", logs_in(out),
+          proc.stdout[-3000:] + proc.stderr[-3000:])
     summary = json.loads((out / "summary.json").read_text())
     assert summary["steps"] == 5 and summary["failure_cause"] == "step_limit", summary
     assert certs.is_complete(out / "tls")
