@@ -8,7 +8,8 @@ import sys
 import time
 from pathlib import Path
 
-from dualpilot.mission.params import Controller, Timing
+from dualpilot.mission.config_args import add_config_arguments
+from dualpilot.mission.params import Timing
 from dualpilot.model.scenarios import scenario_names, scenario_table
 from dualpilot.readings import (
     PROFILES,
@@ -18,7 +19,6 @@ from dualpilot.readings import (
     profile_table,
     settable,
 )
-from dualpilot.spec import MissionSpec
 
 
 def _settings(args: argparse.Namespace) -> dict[str, str]:
@@ -53,20 +53,11 @@ def _add_reading_flags(p: argparse.ArgumentParser, grid: bool = False) -> None:
 
 
 def _mission(args: argparse.Namespace) -> int:
+    from dualpilot.mission.config_args import config_from_args
     from dualpilot.mission.local import local_mission
     from dualpilot.mission.records import write_all
 
-    reading = _reading(args)
-    mission = local_mission(
-        Controller(args.controller),
-        reading.spec(MissionSpec(seed=args.seed)),
-        supervisor=args.supervisor,
-        timing=Timing(args.timing),
-        params=reading.mission,
-        fire_params=reading.fire,
-        supervisor_params=reading.supervisor,
-        system2_method=args.s2_method,
-    )
+    mission = local_mission(config_from_args(args))
     t0 = time.perf_counter()
     for record in iter(mission.step, None):
         if not args.quiet:
@@ -195,24 +186,10 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", required=True)
 
     m = sub.add_parser("mission", help="fly one mission in-process")
-    m.add_argument("--controller", choices=[c.value for c in Controller], default="cc")
-    m.add_argument("--supervisor", choices=["paper", "concurrent"], default="paper",
-                   help="the cognitive controller's supervisor: the paper's (Sec. III-C) or the "
-                        "concurrent one (System 2 deliberates while the UAV flies)")
-    m.add_argument("--seed", type=int, default=7)
-    m.add_argument("--timing", choices=[t.value for t in Timing], default="paper")
-    m.add_argument("--s2-method", default="fast", help="System 2 solver: fast or exact")
+    add_config_arguments(m, seed=7)
     m.add_argument("--out", default="runs/latest")
     m.add_argument("--no-figures", action="store_true")
-    m.add_argument(
-        "--ignition-clearance",
-        type=float,
-        default=None,
-        metavar="M",
-        help="no front ignites within M m of the UAV (default: anywhere)",
-    )
     m.add_argument("--quiet", action="store_true")
-    _add_reading_flags(m)
     m.set_defaults(func=_mission)
 
     f = sub.add_parser("figures", help="draw the paper's figures for a recorded run")

@@ -3,8 +3,9 @@
 One registry, like python-control's ``trajectory_method=``: System 1's "rrt"
 (Alg. 1 + LQR) and System 2's "fast" (the default), "exact" (the cvxpy
 MIQP, solved in a killable worker process), "fast+exact" and "thorough".
-The "+risk" methods ("rrt+risk", "rrt+du+risk", "fast+risk") also take the
-fire forecast as a chance constraint (dualpilot/model/risk.py).
+With ``risk`` a method's risk-aware variant (:data:`RISK_AWARE`: System 1's
+"rrt" and "rrt+du", System 2's "fast") also takes the fire forecast as a
+chance constraint (dualpilot/model/risk.py).
 Every planner implements :class:`dualpilot.plan.Planner`.
 """
 
@@ -85,23 +86,29 @@ def _rrt_du_risk(spec: MissionSpec, params: System1Params | None) -> Planner:
     return RiskSystem1(spec, replace(params or System1Params(), tracker="lqr_du"))
 
 
-SYSTEM1: Mapping[str, System1Constructor] = {"rrt": _rrt, "rrt+du": _rrt_du,
-                                             "rrt+risk": _rrt_risk, "rrt+du+risk": _rrt_du_risk}
+SYSTEM1: Mapping[str, System1Constructor] = {"rrt": _rrt, "rrt+du": _rrt_du}
 SYSTEM2: Mapping[str, System2Constructor] = {
     "fast": _fast, "exact": _exact, "fast+exact": _anytime, "thorough": _thorough,
-    "fast+risk": _fast_risk,
+}
+#: The risk-aware variant of a method (it also takes the fire forecast, dualpilot/model/risk.py);
+#: a method without one cannot fly a risk-aware controller.
+RISK_AWARE: Mapping[int, Mapping[str, System1Constructor | System2Constructor]] = {
+    1: {"rrt": _rrt_risk, "rrt+du": _rrt_du_risk},
+    2: {"fast": _fast_risk},
 }
 #: Method names per system, the default first.
 METHODS: Mapping[int, tuple[str, ...]] = {1: tuple(SYSTEM1), 2: tuple(SYSTEM2)}
 
 
 def build_planner(system: int, spec: MissionSpec, method: str | None = None,
-                  params: System1Params | System2Params | None = None) -> Planner:
-    """The planner of ``system`` (1 or 2) by method name (default: the system's first).
+                  params: System1Params | System2Params | None = None,
+                  risk: bool = False) -> Planner:
+    """The planner of ``system`` (1 or 2) by method name (default: the system's first); with
+    ``risk``, the method's risk-aware variant (:data:`RISK_AWARE`).
 
     ``params`` are that system's parameters (System1Params / System2Params).
-    Raises ValueError for an unknown system or method, TypeError for the
-    other system's parameters.
+    Raises ValueError for an unknown system or method, or a method with no risk-aware
+    variant, TypeError for the other system's parameters.
     """
     if system not in METHODS:
         raise ValueError(f"unknown system {system!r}; choose 1 or 2")
@@ -112,22 +119,27 @@ def build_planner(system: int, spec: MissionSpec, method: str | None = None,
     if method not in METHODS[system]:
         raise ValueError(f"unknown System {system} method {method!r}; "
                          f"choose from {METHODS[system]}")
+    if risk and method not in RISK_AWARE[system]:
+        raise ValueError(f"System {system} method {method!r} has no risk-aware variant; "
+                         f"those that have: {tuple(RISK_AWARE[system])}")
     if system == 1:
         from dualpilot.system1.planner import System1Params
 
         if params is not None and not isinstance(params, System1Params):
             raise TypeError(f"System 1 takes System1Params, got {type(params).__name__}")
-        return SYSTEM1[method](spec, params)
+        make1 = RISK_AWARE[1][method] if risk else SYSTEM1[method]
+        return make1(spec, params)  # type: ignore[arg-type]
     if params is not None and not isinstance(params, System2Params):
         raise TypeError(f"System 2 takes System2Params, got {type(params).__name__}")
-    return SYSTEM2[method](spec, params)
+    make2 = RISK_AWARE[2][method] if risk else SYSTEM2[method]
+    return make2(spec, params)  # type: ignore[arg-type]
 
 
-def build_planners(spec: MissionSpec, system2_method: str = "fast",
-                   system1_params: System1Params | None = None,
-                   system2_params: System2Params | None = None,
-                   system1_method: str = "rrt") -> dict[int, Planner]:
-    """Both planners of a mission: {1: System 1 (``system1_method``), 2: System 2
-    (``system2_method``)}."""
-    return {1: build_planner(1, spec, system1_method, system1_params),
-            2: build_planner(2, spec, system2_method, system2_params)}
+def build_planners(spec: MissionSpec, methods: Mapping[int, str] | None = None,
+                   risk: bool = False, system1_params: System1Params | None = None,
+                   system2_params: System2Params | None = None) -> dict[int, Planner]:
+    """Both planners of a mission: {system: the planner of ``methods[system]`` (default: each
+    system's first method)}, each its risk-aware variant with ``risk``."""
+    methods = methods or {1: METHODS[1][0], 2: METHODS[2][0]}
+    return {1: build_planner(1, spec, methods[1], system1_params, risk),
+            2: build_planner(2, spec, methods[2], system2_params, risk)}

@@ -56,7 +56,7 @@ def evaluate(
     pinned = tuple((k, reading.values()[k]) for k in extra)
     check_config(out, {"seed": seed, "profile": profile, "s2_method": s2_method,
                        "settings": {k: v for k, v in pinned}})
-    tasks = [Task(i, seed, c, timing, s2_method, profile=profile, settings=pinned)
+    tasks = [Task.of(i, seed, c, timing, s2_method, profile=profile, settings=pinned)
              for i in range(missions) for c in controllers]
     wall = run(tasks, path, COLUMNS, ("mission", "controller"),
                jobs or os.cpu_count() or 1, scheduler, progress)

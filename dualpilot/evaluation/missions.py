@@ -11,13 +11,14 @@ from __future__ import annotations
 import sys
 import time
 import traceback
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
 
-from dualpilot.mission.params import Timing, controller_of, uses_risk
-from dualpilot.readings import Profile, get_profile
+from dualpilot.mission.config import MissionConfig
+from dualpilot.mission.params import Timing
+from dualpilot.mission.result import Ending
 from dualpilot.spec import MissionSpec
 
 CONTROLLERS = ("cc", "s1", "s2")
@@ -50,24 +51,36 @@ def mission_spec(seed: int, index: int) -> MissionSpec:
 
 @dataclass(frozen=True)
 class Task:
-    """One mission: configuration ``index`` of ``seed``, one controller, one reading."""
+    """One mission: configuration ``index`` of ``seed`` flown with ``config`` (its controller,
+    timing, reading and methods; the start, goal and seed are configuration ``index``'s)."""
 
     index: int
     seed: int
-    controller: str
-    timing: str
-    s2_method: str
-    ignition_clearance_m: float | None = None  # set (not None): overrides the profile's
-    profile: str = "today"
-    settings: Settings = ()
+    config: MissionConfig
     point: int = 0
     label: str = ""
 
-    def reading(self) -> Profile:
-        extra = dict(self.settings)
-        if self.ignition_clearance_m is not None:
-            extra["ignition_clearance_m"] = self.ignition_clearance_m
-        return get_profile(self.profile).with_settings(extra)
+    @staticmethod
+    def of(index: int, seed: int, controller: str, timing: str, s2_method: str,
+           profile: str = "today", settings: Settings = (), point: int = 0,
+           label: str = "") -> Task:
+        """The task of an evaluation's controller name, timing, System 2 method and reading."""
+        config = MissionConfig.named(controller, timing=Timing(timing), system2_method=s2_method,
+                                     profile=profile, settings=settings)
+        return Task(index, seed, config, point, label)
+
+    def mission(self) -> MissionConfig:
+        """The configuration flown: the task's, at configuration ``index``'s start and goal."""
+        spec = mission_spec(self.seed, self.index)
+        return replace(self.config, seed=spec.seed, start=spec.start, goal=spec.goal,
+                       area_size_m=spec.area_size_m)
+
+    def identity(self) -> dict[str, object]:
+        """The columns that say which mission this is (its row, or its error row)."""
+        c = self.config
+        return {"point": self.point, "label": self.label, "profile": c.profile,
+                "mission": self.index, "seed": mission_seed(self.seed, self.index),
+                "controller": c.controller_name, "timing": c.timing.value}
 
 
 def run_task(task: Task) -> dict[str, object]:
@@ -76,22 +89,14 @@ def run_task(task: Task) -> dict[str, object]:
 
     config = mission_spec(task.seed, task.index)
     row: dict[str, object] = {
-        "point": task.point, "label": task.label, "profile": task.profile,
-        "mission": task.index, "seed": config.seed, "controller": task.controller,
-        "timing": task.timing, "start_x": config.start[0], "start_y": config.start[1],
+        **task.identity(), "start_x": config.start[0], "start_y": config.start[1],
         "goal_x": config.goal.center_x, "goal_y": config.goal.center_y, "error": "",
     }
     t0 = time.perf_counter()
     try:
-        reading = task.reading()
+        reading = task.config.reading()
         row.update(reading.values())
-        controller, supervisor = controller_of(task.controller)
-        result = local_mission(
-            controller, reading.spec(config), timing=Timing(task.timing),
-            params=reading.mission, fire_params=reading.fire,
-            supervisor_params=reading.supervisor, system2_method=task.s2_method,
-            supervisor=supervisor, risk=uses_risk(task.controller),
-        ).run()
+        result = local_mission(task.mission()).run()
         times = result.planning_time_s["s1"] + result.planning_time_s["s2"]
         row.update(
             success=int(result.success), failure_cause=result.failure_cause,
@@ -107,7 +112,8 @@ def run_task(task: Task) -> dict[str, object]:
             planning_time_s_total=float(np.sum(times)),
         )
     except Exception as err:  # noqa: BLE001 - recorded, the run goes on
-        row.update(success=0, failure_cause="error", error=f"{type(err).__name__}: {err}")
+        row.update(success=0, failure_cause=Ending.ERROR.value,
+                   error=f"{type(err).__name__}: {err}")
         traceback.print_exc(file=sys.stderr)
     row["wall_s"] = round(time.perf_counter() - t0, 3)
     return row

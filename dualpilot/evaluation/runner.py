@@ -17,8 +17,9 @@ from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
-from dualpilot.evaluation.missions import Task, mission_seed, run_task
+from dualpilot.evaluation.missions import Task, run_task
 from dualpilot.evaluation.results import ResultsFile, read_results
+from dualpilot.mission.result import Ending
 
 
 def progress_line(done: int, total: int, t0: float, skipped: int) -> None:
@@ -36,10 +37,8 @@ def progress_line(done: int, total: int, t0: float, skipped: int) -> None:
 def _error_row(task: Any, err: BaseException) -> dict[str, object]:
     if not isinstance(task, Task):
         return {"task": repr(task), "error": f"worker lost: {type(err).__name__}: {err}"}
-    return {"point": task.point, "label": task.label, "profile": task.profile,
-            "mission": task.index, "seed": mission_seed(task.seed, task.index),
-            "controller": task.controller, "timing": task.timing, "success": 0,
-            "failure_cause": "error", "error": f"worker lost: {type(err).__name__}: {err}"}
+    return {**task.identity(), "success": 0, "failure_cause": Ending.ERROR.value,
+            "error": f"worker lost: {type(err).__name__}: {err}"}
 
 
 def execute(tasks: Sequence[Any], jobs: int = 1, scheduler: str | None = None,
@@ -91,7 +90,7 @@ def run(tasks: list[Task], path: Path, columns: Sequence[str], key: Sequence[str
     Returns the wall time (s). Rows are appended and fsynced as they finish.
     """
     def task_key(t: Task) -> tuple[str, ...]:
-        row = {"point": t.point, "label": t.label, "mission": t.index, "controller": t.controller}
+        row = t.identity()
         return tuple(str(row[k]) for k in key)
 
     done_keys = {tuple(r[k] for k in key) for r in read_results(path)}

@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 
-from dualpilot.mission.params import CONTROLLER_NAMES
+from dualpilot.mission.config import CONTROLLER_NAMES
 
 
 def wilson_interval(successes: int, n: int, z: float = 1.96) -> tuple[float, float]:

@@ -109,7 +109,7 @@ def sweep(points: Sequence[Point], missions: int, out: Path, seed: int = 0,
     config = {"seed": seed, "timing": timing, "s2_method": s2_method,
               "points": [p.label for p in points]}
     check_config(out, {k: v for k, v in config.items() if k != "points"})
-    tasks = [Task(i, seed, c, timing, s2_method, profile=p.profile, settings=p.settings,
+    tasks = [Task.of(i, seed, c, timing, s2_method, profile=p.profile, settings=p.settings,
                   point=p.index, label=p.label)
              for i in range(missions) for p in points for c in controllers]
     path = out / "results.csv"

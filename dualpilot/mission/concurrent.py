@@ -15,6 +15,8 @@ from dataclasses import replace
 import numpy as np
 
 from dualpilot.mission import monitor
+from dualpilot.mission.answers import Answer
+from dualpilot.mission.answers import SystemStatus as S
 from dualpilot.mission.braking import braking_plan
 from dualpilot.mission.params import MissionParams, Timing
 from dualpilot.mission.ports import ForecastPort, PlannerPort, PlanRequest
@@ -25,7 +27,7 @@ from dualpilot.model.forecast import OccupancyForecast
 from dualpilot.model.geometry import Polytope
 from dualpilot.model.risk import ForecastView, RiskMap
 from dualpilot.model.stale_fire import grown_snapshot
-from dualpilot.plan import Objective, Plan, PlanStatus
+from dualpilot.plan import Objective, Plan
 from dualpilot.spec import MissionSpec
 from dualpilot.supervisor.attention import xi
 from dualpilot.supervisor.concurrent import (
@@ -88,15 +90,14 @@ class ConcurrentPlanning:
             verdict = monitor.check_plan(choice.plan.states[: k + 1], choice.plan.controls[:k],
                                          step.state, obstacles, step.spec)
             if not verdict.ok:
-                choice.statuses.append(f"s{choice.plan.system}:{PlanStatus.UNSAFE.value}"
-                                       f"{monitor.status_note(verdict)}")
+                choice.answers.append(monitor.refusal(choice.plan.system, verdict))
                 choice.plan = None
                 self.flown = None
         if choice.plan is not None:
             decision = replace(decision, system=choice.plan.system)
         if step.observer is not None:
             step.observer.decided(t, decision, decision.system)
-        return Planned(decision, choice.plan, choice.statuses, choice.wait_s, choice.note)
+        return Planned(decision, choice.plan, choice.answers, choice.wait_s, choice.note)
 
     # -- what the record shows as the decision ---------------------------------------------------
     def decide(self, t: int, d_t: float, system_hint: int, objective: Objective) -> Decision:
@@ -141,17 +142,14 @@ class ConcurrentPlanning:
         threat rule and the risk-aware planners (None: neither is used).
         """
         p, spec = self.params, self.spec
-        pos = state[: spec.dynamics.dim]
-        obstacles = seen.obstacles_for(pos, spec.clearance_m)
+        obstacles = seen.obstacles_for(state[: spec.dynamics.dim], spec.clearance_m)
         choice = Choice(plan=None)
         known_now = frozenset(snapshot.front_ids)
-        options: list[Flown] = []
         n_step = self._step_substeps()
         fc = forecast(n_step) if forecast is not None else None
         self.view = None if fc is None else ForecastView(fc, n_step)
         risk = (RiskMap(self.view, p.risk) if self.view is not None and p.threat == "forecast"
                 else None)
-
         margin = spec.clearance_m if p.threat_margin_m is None else p.threat_margin_m
 
         def safe(f: Flown) -> bool:
@@ -160,43 +158,53 @@ class ConcurrentPlanning:
             return risk is None or not forecast_threatened(f.plan, risk, margin, p.check_steps)
 
         due = self._collect(t, sim_s, state, obstacles, planners, choice, record_time)
-        if due is not None and safe(due):
-            options.append(due)
         kept = self._kept(state, obstacles, choice)
-        if kept is not None and safe(kept):
-            options.append(kept)
+        options = [f for f in (due, kept) if f is not None and safe(f)]
         if not options:
-            fresh = self._ask(1, t, state, prev_control, obstacles, planners, choice,
-                              record_time)
-            if fresh is not None:
-                options.append(Flown(fresh, 0, known_now))
-            elif kept is not None:  # System 1 has nothing: the known plan, if still safe
-                options.append(kept)
-        if not options and self.pending is None:
-            n = substeps_for(self.s2_expected_s, self.fire)
-            hazard = wait_hazard(n, self.fire, spec.area_size_m, spec.d_safe_m)
-            if hazard <= p.max_wait_hazard:  # the wait for System 2 is worth its risk
-                slow = self._ask(2, t, state, prev_control, obstacles, planners, choice,
-                                 record_time)
-                if slow is not None:
-                    options.append(Flown(slow, 0, known_now))
-        if options:
-            chosen = self._best(options)
-            if due is not None and any(o is due for o in options):  # identity: plans hold arrays
-                choice.statuses.append("s2:adopted" if chosen is due else "s2:declined")
-            if self.flown is not None and chosen.plan.system != self.flown.plan.system:
-                choice.note = f"switch s{self.flown.plan.system}->s{chosen.plan.system}"
-            self.flown = chosen
-            choice.plan = chosen.plan
-        else:
-            self.flown = None
+            options = self._ask_now(t, state, prev_control, obstacles, planners, choice,
+                                    record_time, known_now, kept)
+        self._fly(options, due, choice)
         if self.pending is not None and self.flown is not None and threatened(
                 self.flown.plan, seen, self.pending.known, margin, p.check_steps):
             self.pending = None  # deliberating on a picture without a front that matters
-            choice.statuses.append("s2:restarted")
+            choice.answers.append(Answer(2, S.RESTARTED))
         if self.pending is None:
             self._launch(t, sim_s, state, seen, known_now, planners, choice)
         return choice
+
+    def _ask_now(self, t: int, state: Array, prev_control: Array,
+                 obstacles: tuple[Polytope, ...], planners: PlannerPort, choice: Choice,
+                 record_time: Callable[[int, float], None], known: frozenset[int],
+                 kept: Flown | None) -> list[Flown]:
+        """Nothing safe to fly: System 1 now; else the kept plan if it still verifies; else,
+        with no deliberation pending, System 2 now when its wait's hazard is worth it."""
+        fresh = self._ask(1, t, state, prev_control, obstacles, planners, choice, record_time)
+        if fresh is not None:
+            return [Flown(fresh, 0, known)]
+        if kept is not None:  # System 1 has nothing: the known plan, if still safe
+            return [kept]
+        if self.pending is not None:
+            return []
+        spec = self.spec
+        n = substeps_for(self.s2_expected_s, self.fire)
+        if wait_hazard(n, self.fire, spec.area_size_m, spec.d_safe_m) > self.params.max_wait_hazard:
+            return []
+        slow = self._ask(2, t, state, prev_control, obstacles, planners, choice, record_time)
+        return [] if slow is None else [Flown(slow, 0, known)]
+
+    def _fly(self, options: list[Flown], due: Flown | None, choice: Choice) -> None:
+        """Fly the best of ``options`` (nothing when there is none); say whether the due
+        System 2 plan was adopted and whether the system in control changed."""
+        if not options:
+            self.flown = None
+            return
+        chosen = self._best(options)
+        if due is not None and any(o is due for o in options):  # identity: plans hold arrays
+            choice.answers.append(Answer(2, S.ADOPTED if chosen is due else S.DECLINED))
+        if self.flown is not None and chosen.plan.system != self.flown.plan.system:
+            choice.note = f"switch s{self.flown.plan.system}->s{chosen.plan.system}"
+        self.flown = chosen
+        choice.plan = chosen.plan
 
     def _best(self, options: list[Flown]) -> Flown:
         """The option of the system with the larger Σ p̄ Q; the system flying keeps a margin."""
@@ -222,18 +230,18 @@ class ConcurrentPlanning:
             self.s2_expected_s = 0.7 * self.s2_expected_s + 0.3 * got.compute_time_s
         self.q.response(2, self.response_s(2, got))
         if not got.ok:
-            choice.statuses.append(f"s2:{got.status.value}")
+            choice.answers.append(Answer(2, S.of(got.status)))
             return None
         late = t - d.due_t
         plan = got if not late else replace(got, states=got.states[late:],
                                             controls=got.controls[late:])
         anchored = reanchor(plan, state, self.params, self.spec.dynamics)
         if anchored is None:
-            choice.statuses.append("s2:stale_start")
+            choice.answers.append(Answer(2, S.STALE_START))
             return None
         why = check_near(anchored, state, obstacles, self.spec, self.params.check_steps)
         if why:
-            choice.statuses.append("s2:unsafe_at_adoption")
+            choice.answers.append(Answer(2, S.UNSAFE_AT_ADOPTION))
             choice.note = f"s2 plan refused: {why}"
             return None
         return Flown(anchored, 0, d.known)
@@ -256,7 +264,7 @@ class ConcurrentPlanning:
              record_time: Callable[[int, float], None]) -> Plan | None:
         """A plan now (the UAV waits its response time); None unless it is OK and verifies."""
         if not planners.available(system):
-            choice.statuses.append(f"s{system}:unavailable")
+            choice.answers.append(Answer(system, S.UNAVAILABLE))
             return None
         plan = planners.plan(PlanRequest(t=t, system=system, state=state.copy(),
                                          prev_control=prev_control, obstacles=obstacles,
@@ -265,7 +273,7 @@ class ConcurrentPlanning:
         wait = self.response_s(system, plan)
         choice.wait_s += wait
         self.q.response(system, wait)
-        choice.statuses.append(f"s{system}:{plan.status.value}")
+        choice.answers.append(Answer(system, S.of(plan.status)))
         if not plan.ok or check_near(plan, state, obstacles, self.spec, self.params.check_steps):
             return None
         return plan
@@ -294,7 +302,7 @@ class ConcurrentPlanning:
             obstacles=obstacles, objective=self.objective, forecast=view))
         self.pending = Deliberation(ticket=ticket, due_t=t + k, ready_s=sim_s + self.s2_expected_s,
                                     known=known)
-        choice.statuses.append("s2:launched")
+        choice.answers.append(Answer(2, S.LAUNCHED))
 
     def after_flight(self, system: int, p0: Array, p1: Array, du2: float) -> None:
         """One step flown by ``system`` from p0 to p1 with ‖u_t − u_{t−1}‖² = du2."""

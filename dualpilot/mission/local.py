@@ -7,9 +7,9 @@ from typing import cast
 
 import numpy as np
 
-from dualpilot.mission.params import RISK_SUFFIX, Controller, MissionParams, Timing
+from dualpilot.mission.config import MissionConfig
 from dualpilot.mission.ports import KeepOut, PlanRequest
-from dualpilot.mission.step import Mission
+from dualpilot.mission.step import Mission, MissionPorts
 from dualpilot.model.dynamics import Array, DynamicsParams, hover_state, step
 from dualpilot.model.field_forecast import field_forecast
 from dualpilot.model.fire import FireParams, FireSnapshot
@@ -18,12 +18,6 @@ from dualpilot.model.forecast import ForecastParams, OccupancyForecast
 from dualpilot.model.geometry import Rect
 from dualpilot.plan import ForecastPlanner, Plan, Planner, PlanStatus
 from dualpilot.spec import MissionSpec, Stream
-from dualpilot.supervisor.concurrent import ConcurrentParams
-from dualpilot.supervisor.decision import SupervisorParams
-
-#: System 1's method under each supervisor: the concurrent supervisor hands over between the
-#: systems every few steps, so its System 1 tracks with the Δu penalty (dualpilot/system1/lqr.py)
-SUPERVISORS = {"paper": "rrt", "concurrent": "rrt+du"}
 
 
 class LocalFires:
@@ -118,35 +112,15 @@ class LocalVehicle:
         return self.state.copy()
 
 
-def local_mission(
-    controller: Controller,
-    spec: MissionSpec,
-    planners: dict[int, Planner] | None = None,
-    timing: Timing = Timing.PAPER,
-    params: MissionParams = MissionParams(),
-    fire_params: FireParams = FireParams(),
-    supervisor_params: SupervisorParams = SupervisorParams(),
-    system2_method: str = "fast",
-    supervisor: str = "paper",
-    risk: bool = False,
-) -> Mission:
-    """The mission of ``spec`` flown in this process (planners built from the spec by default).
-
-    ``risk``: with the fire forecast (dualpilot/model/forecast.py): System 1's and
-    System 2's methods with "+risk" and, for the concurrent supervisor, threats judged on
-    the forecast (``ConcurrentParams.threat = "forecast"``).
-    """
+def local_mission(config: MissionConfig, planners: dict[int, Planner] | None = None) -> Mission:
+    """The mission of ``config`` flown in this process (its planners built from the spec by
+    default: the config's methods, risk-aware with ``config.risk``)."""
+    spec = config.spec()
     if planners is None:
         from dualpilot.planners import build_planners
 
-        s1, s2 = SUPERVISORS[supervisor], system2_method
-        if risk:
-            s1 += RISK_SUFFIX
-            s2 = s2 if s2.endswith(RISK_SUFFIX) else s2 + RISK_SUFFIX
-        planners = build_planners(spec, system2_method=s2, system1_method=s1)
+        planners = build_planners(spec, config.methods(), risk=config.risk)
     state = hover_state(np.array(spec.start), spec.dynamics)
-    return Mission(controller, spec, LocalFires(spec, fire_params), LocalPlanners(planners),
-                   LocalVehicle(state, spec.dynamics), state, timing=timing, params=params,
-                   fire_params=fire_params, supervisor_params=supervisor_params,
-                   supervisor=supervisor,
-                   concurrent_params=ConcurrentParams(threat="forecast" if risk else "current"))
+    ports = MissionPorts(LocalFires(spec, config.reading().fire), LocalPlanners(planners),
+                         LocalVehicle(state, spec.dynamics))
+    return Mission(config, spec, ports, state)

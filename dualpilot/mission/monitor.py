@@ -31,13 +31,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from dualpilot.mission.answers import MONITOR_TAG, Answer, SystemStatus
 from dualpilot.model.dynamics import Array, DynamicsParams, transition_matrices
 from dualpilot.model.geometry import Polytope, path_clearance
 from dualpilot.plan import Plan
 from dualpilot.spec import MissionSpec
 
 #: prefix of every plan status and message the monitor writes ("s2:unsafe[monitor: …]")
-TAG = "monitor"
+TAG = MONITOR_TAG
 
 
 @dataclass(frozen=True)
@@ -121,3 +122,8 @@ def check(plan: Plan, measured: Array, obstacles: Sequence[Polytope], spec: Miss
 def status_note(verdict: MonitorVerdict) -> str:
     """The rejection as it goes into a plan status (no ';', the status separator)."""
     return f"[{TAG}: {verdict.reason.replace(';', ',')}]"
+
+
+def refusal(system: int, verdict: MonitorVerdict) -> Answer:
+    """System ``system``'s plan as the monitor refused it: UNSAFE, with the reason."""
+    return Answer(system, SystemStatus.UNSAFE, status_note(verdict))

@@ -11,13 +11,14 @@ run-time monitor before it can be flown.
 from __future__ import annotations
 
 from dualpilot.mission import monitor
+from dualpilot.mission.answers import Answer, SystemStatus
 from dualpilot.mission.params import Controller, MissionParams, Timing
 from dualpilot.mission.ports import PlanRequest
 from dualpilot.mission.supervision import Planned, StepView
 from dualpilot.model.dynamics import Array
 from dualpilot.model.fire import FireSnapshot
 from dualpilot.model.stale_fire import grown_snapshot
-from dualpilot.plan import Plan, PlanStatus
+from dualpilot.plan import Plan
 
 
 def planning_time(plan: Plan, timing: Timing, params: MissionParams) -> float:
@@ -49,7 +50,7 @@ class PaperPlanning:
         got = Planned(decision, None)
         for system in order:
             if not step.planners.available(system):
-                got.statuses.append(f"s{system}:unavailable")
+                got.answers.append(Answer(system, SystemStatus.UNAVAILABLE))
                 continue
             candidate = step.planners.plan(PlanRequest(
                 t=t, system=system, state=step.state.copy(), prev_control=step.prev_control,
@@ -60,10 +61,9 @@ class PaperPlanning:
             verdict = monitor.check(candidate, step.state, obstacles, step.spec) if (
                 candidate.ok) else None
             if verdict is not None and not verdict.ok:  # never flown: a failed plan
-                got.statuses.append(f"s{system}:{PlanStatus.UNSAFE.value}"
-                                    f"{monitor.status_note(verdict)}")
+                got.answers.append(monitor.refusal(system, verdict))
                 continue
-            got.statuses.append(f"s{system}:{candidate.status.value}")
+            got.answers.append(Answer(system, SystemStatus.of(candidate.status)))
             if candidate.ok:
                 got.plan = candidate
                 return got

@@ -18,29 +18,6 @@ class Controller(enum.Enum):
     S2 = "s2"
 
 
-#: Suffix of a controller flown with the fire forecast: risk-aware planners ("rrt+risk",
-#: "fast+risk") and, for the concurrent supervisor, threats judged on the forecast.
-RISK_SUFFIX = "+risk"
-#: The controllers an evaluation compares: the paper's three, the cognitive controller
-#: with the concurrent supervisor (dualpilot/supervisor/concurrent.py), and each with the
-#: forecast (:data:`RISK_SUFFIX`).
-CONTROLLER_NAMES = ("cc", "s1", "s2", "concurrent", "cc+risk", "s1+risk", "s2+risk",
-                    "concurrent+risk")
-
-
-def controller_of(name: str) -> tuple[Controller, str]:
-    """(controller, supervisor) of an evaluation's controller name."""
-    base = name.removesuffix(RISK_SUFFIX)
-    if base == "concurrent":
-        return Controller.CC, "concurrent"
-    return Controller(base), "paper"
-
-
-def uses_risk(name: str) -> bool:
-    """Whether an evaluation's controller name is a risk-aware variant."""
-    return name.endswith(RISK_SUFFIX)
-
-
 class Timing(enum.Enum):
     MEASURED = "measured"
     PAPER = "paper"

@@ -10,7 +10,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Protocol, runtime_checkable
 
-from dualpilot.mission.result import StepRecord
+from dualpilot.mission.result import Ending, StepRecord
 from dualpilot.model.dynamics import Array
 from dualpilot.model.fire import FireSnapshot
 from dualpilot.model.forecast import OccupancyForecast
@@ -109,4 +109,4 @@ class StepObserver(Protocol):
 
     def recorded(self, record: StepRecord, flown: bool) -> None: ...
 
-    def ended(self, record: StepRecord, success: bool, cause: str) -> None: ...
+    def ended(self, record: StepRecord, ending: Ending) -> None: ...

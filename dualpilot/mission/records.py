@@ -25,7 +25,8 @@ from typing import Any
 
 import numpy as np
 
-from dualpilot.mission.result import MissionResult, StepRecord
+from dualpilot.mission.answers import parse_answers
+from dualpilot.mission.result import Ending, MissionResult, StepRecord
 from dualpilot.model.dynamics import Array
 from dualpilot.model.fire import FireSnapshot
 from dualpilot.model.geometry import Polytope, Rect
@@ -222,7 +223,8 @@ def record_from_json(doc: dict[str, Any]) -> StepRecord:
         born_steps=tuple(int(v) for v in doc.get("born_steps", [])))
     return StepRecord(
         t=int(doc["t"]), state=_back(doc["state"]), control=_back(doc["control"]),
-        decision=decision, system=int(doc["system"]), plan_status=str(doc["plan_status"]),
+        decision=decision, system=int(doc["system"]),
+        answers=parse_answers(str(doc["plan_status"])),
         planning_time_s=float(doc["planning_time_s"]), fire_substeps=int(doc["fire_substeps"]),
         d_t=float(doc["d_t"]), fires_active=int(doc["fires_active"]),
         planned_positions=plan if plan.size else np.empty((0, 2)), snapshot=snapshot,
@@ -349,7 +351,7 @@ def result_from_log(entries: list[dict[str, Any]], dt_s: float = 1.0) -> Mission
                            spec=spec)
     steps = [e for e in entries if e.get("kind") == "step"]
     end = next((e for e in reversed(entries) if e.get("kind") == "end"), None)
-    caught = end is not None and end.get("failure_cause") == "fire_while_planning"
+    caught = end is not None and end.get("failure_cause") == Ending.FIRE_WHILE_PLANNING.value
     prev = np.zeros(2)
     for i, e in enumerate(steps):
         rec = record_from_json(e)
@@ -358,8 +360,7 @@ def result_from_log(entries: list[dict[str, Any]], dt_s: float = 1.0) -> Mission
             result.add_flight(rec.control, prev, dt_s)
             prev = rec.control
     if end is not None:
-        result.success = bool(end["success"])
-        result.failure_cause = str(end["failure_cause"])
+        result.ending = Ending.of_record(bool(end["success"]), str(end["failure_cause"]))
         if end.get("final_state") is not None:
             result.final_state = _back(end["final_state"])
     return result

@@ -1,15 +1,52 @@
-"""What a mission produced: one :class:`StepRecord` per step and the :class:`MissionResult`."""
+"""What a mission produced: one :class:`StepRecord` per step, the :class:`MissionResult` and
+how the mission ended (:class:`Ending`)."""
 
 from __future__ import annotations
 
+import enum
 from dataclasses import dataclass, field
 
 import numpy as np
 
+from dualpilot.mission.answers import Answer, format_answers
 from dualpilot.model.dynamics import Array
 from dualpilot.model.fire import FireSnapshot
 from dualpilot.spec import MissionSpec
 from dualpilot.supervisor.decision import Decision
+
+
+class Ending(enum.Enum):
+    """How a mission ended: at the goal, or the failure that ended it (Sec. IV's rules)."""
+
+    GOAL = "goal"
+    #: the flown segment passed within d_safe of an active region
+    FIRE_CONTACT = "fire_contact"
+    #: the idle UAV came within d_safe of a region while the fires advanced (planning)
+    FIRE_WHILE_PLANNING = "fire_while_planning"
+    #: within d_safe while the fires advanced in flight (``fire_substeps_per_motion``)
+    FIRE_IN_FLIGHT = "fire_in_flight"
+    #: fire data that caught up after the stack's EWS was back put a region within d_safe
+    FIRE_WHILE_STALE = "fire_while_stale"
+    #: the step limit (``max_steps``) came first
+    STEP_LIMIT = "step_limit"
+    #: the stack lost the vehicle for good
+    VEHICLE_LOST = "vehicle_lost"
+    #: the mission could not be flown (an evaluation's error row)
+    ERROR = "error"
+
+    @property
+    def success(self) -> bool:
+        return self is Ending.GOAL
+
+    @property
+    def failure_cause(self) -> str:
+        """The records' ``failure_cause`` column: the failure's name, "" at the goal."""
+        return "" if self.success else self.value
+
+    @classmethod
+    def of_record(cls, success: bool, failure_cause: str) -> Ending:
+        """The ending a record's (success, failure_cause) columns say."""
+        return cls.GOAL if success else cls(failure_cause)
 
 
 @dataclass(frozen=True)
@@ -25,7 +62,7 @@ class StepRecord:
     control: Array
     decision: Decision
     system: int  # the system whose plan was flown (0: none, braked)
-    plan_status: str
+    answers: tuple[Answer, ...]  # each system's turn at this step, in order
     planning_time_s: float
     fire_substeps: int
     d_t: float
@@ -37,14 +74,19 @@ class StepRecord:
     #: flights of ΔT before it (the log time of mission.mcap)
     time_s: float = 0.0
 
+    @property
+    def plan_status(self) -> str:
+        """The answers as the records write them (``"s2:timeout;s1:ok"``)."""
+        return format_answers(self.answers)
+
 
 @dataclass
 class MissionResult:
     controller: str
     timing: str
     spec: MissionSpec
-    success: bool = False
-    failure_cause: str = ""
+    #: how the mission ended (None while it flies)
+    ending: Ending | None = None
     steps: int = 0
     mission_time_s: float = 0.0
     energy: float = 0.0
@@ -59,6 +101,15 @@ class MissionResult:
     @property
     def seed(self) -> int:
         return self.spec.seed
+
+    @property
+    def success(self) -> bool:
+        return self.ending is Ending.GOAL
+
+    @property
+    def failure_cause(self) -> str:
+        """The records' column: "" at the goal or while flying, else the failure's name."""
+        return "" if self.ending is None else self.ending.failure_cause
 
     def add_flight(self, control: Array, prev_control: Array, dt_s: float) -> None:
         """Account one flown step (its record already appended): energy, switches, time.

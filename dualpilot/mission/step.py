@@ -24,12 +24,14 @@ The step is written once; :mod:`dualpilot.mission.local` runs it in one process,
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import cast
 
 import numpy as np
 
 from dualpilot.mission.braking import brake_control
-from dualpilot.mission.params import Controller, MissionParams, Timing
+from dualpilot.mission.config import MissionConfig
+from dualpilot.mission.params import MissionParams, Timing
 from dualpilot.mission.ports import (
     FirePort,
     ForecastPlannerPort,
@@ -39,15 +41,15 @@ from dualpilot.mission.ports import (
     StepObserver,
     VehiclePort,
 )
-from dualpilot.mission.result import MissionResult, StepRecord
-from dualpilot.mission.supervisors import SupervisorSetup, build_supervisor
+from dualpilot.mission.result import Ending, MissionResult, StepRecord
+from dualpilot.mission.supervision import Planned
+from dualpilot.mission.supervisors import build_supervisor
 from dualpilot.model.dynamics import Array, step
-from dualpilot.model.fire import FireParams, FireSnapshot, substeps_for
+from dualpilot.model.fire import FireSnapshot, substeps_for
 from dualpilot.model.geometry import Rect
 from dualpilot.model.risk import ForecastView
 from dualpilot.spec import MissionSpec, Stream
-from dualpilot.supervisor.concurrent import ConcurrentParams
-from dualpilot.supervisor.decision import Supervisor, SupervisorParams
+from dualpilot.supervisor.decision import Supervisor
 
 
 def nearest_region_distance(position: Array, regions: tuple[Rect, ...]) -> float:
@@ -121,76 +123,70 @@ def remember_distances(position: Array, snapshot: FireSnapshot,
                     for r, i in zip(snapshot.regions, snapshot.front_ids, strict=True))
 
 
-def systems_of(controller: Controller) -> list[int]:
-    """The planners a controller may ask."""
-    return {Controller.CC: [1, 2], Controller.S1: [1], Controller.S2: [2]}[controller]
-
-
 def flight_outcome(
     p0: Array, p1: Array, regions: tuple[Rect, ...], steps: int, spec: MissionSpec,
     params: MissionParams,
-) -> str | None:
-    """After flying p0 → p1: a failure cause, "" for success (in G), None to go on."""
+) -> Ending | None:
+    """After flying p0 → p1: how the mission ended (in G, fire contact, the step limit), or
+    None to go on."""
     if segment_within(p0, p1, regions, spec.d_safe_m):
-        return "fire_contact"
+        return Ending.FIRE_CONTACT
     if spec.goal.contains(p1):
-        return ""
+        return Ending.GOAL
     if steps >= params.max_steps:
-        return "step_limit"
+        return Ending.STEP_LIMIT
     return None
 
 
-class Mission:
-    """One mission with one controller over three ports; ``run()`` flies it, ``step()`` one tick.
+@dataclass(frozen=True)
+class MissionPorts:
+    """The three ports the step talks to (in-process: dualpilot/mission/local.py; the stack's:
+    services/supervisor/ports.py)."""
 
-    ``state`` is the vehicle's state at the start of the mission (at rest at the
+    fires: FirePort
+    planners: PlannerPort
+    vehicle: VehiclePort
+
+
+class Mission:
+    """One mission of a :class:`MissionConfig` over three ports; ``run()`` flies it, ``step()``
+    one tick.
+
+    ``spec`` is the frozen spec the mission flies (the config's, with the vehicle's position
+    as the start in the stack); ``state`` is the vehicle's state at the start (at rest at the
     spec's start in-process; as the vehicle reports it in the stack).
     """
 
-    def __init__(
-        self,
-        controller: Controller,
-        spec: MissionSpec,
-        fires: FirePort,
-        planners: PlannerPort,
-        vehicle: VehiclePort,
-        state: Array,
-        timing: Timing = Timing.PAPER,
-        params: MissionParams = MissionParams(),
-        fire_params: FireParams = FireParams(),
-        supervisor_params: SupervisorParams = SupervisorParams(),
-        observer: StepObserver | None = None,
-        supervisor: str = "paper",
-        concurrent_params: ConcurrentParams = ConcurrentParams(),
-    ):
-        self.controller = controller
+    def __init__(self, config: MissionConfig, spec: MissionSpec, ports: MissionPorts,
+                 state: Array, observer: StepObserver | None = None):
+        reading = config.reading()
+        self.config = config
+        self.controller = config.controller
         self.spec = spec
         self.dyn = spec.dynamics
-        self.fires = fires
-        self.planners = planners
-        self.vehicle = vehicle
-        self.timing = timing
-        self.params = params
-        self.fire_params = fire_params
+        self.fires, self.planners, self.vehicle = ports.fires, ports.planners, ports.vehicle
+        self.timing = config.timing
+        self.params = reading.mission
+        self.fire_params = reading.fire
         self.observer = observer
         #: the paper's supervisor: the attention stream and Ψ, whichever supervisor plans
-        self.supervisor = Supervisor(spec.rng(Stream.SUPERVISOR), supervisor_params)
-        #: the supervisor's planning phase (by name: dualpilot/mission/supervisors.py)
-        self.planning = build_supervisor(supervisor, SupervisorSetup(
-            controller, spec, timing, params, fire_params, supervisor_params, concurrent_params))
+        self.supervisor = Supervisor(spec.rng(Stream.SUPERVISOR), reading.supervisor)
+        #: the supervisor's planning phase (by kind: dualpilot/mission/supervisors.py)
+        self.planning = build_supervisor(config, spec)
         # the forecast is asked only by risk-aware planners and the forecast threat rule
-        can = isinstance(fires, ForecastPort)
+        can = isinstance(self.fires, ForecastPort)
         self.forecast_systems = frozenset(
-            s for s in (1, 2) if can and isinstance(planners, ForecastPlannerPort)
-            and planners.uses_forecast(s))
+            s for s in (1, 2) if can and isinstance(self.planners, ForecastPlannerPort)
+            and self.planners.uses_forecast(s))
         self.sim_time_s = 0.0  # simulated time: the fires' sub-steps and the flights
         self.state = np.asarray(state, dtype=float).copy()
         self.prev_control = np.zeros(self.dyn.dim)
-        self.result = MissionResult(controller=controller.value, timing=timing.value, spec=spec)
+        self.result = MissionResult(controller=config.controller.value,
+                                    timing=config.timing.value, spec=spec)
         self.done = False
         #: front id → distance (m) at the last fire check (the "become" failure rule)
         self.front_distances: dict[int, float] = {}
-        first = fires.snapshot()
+        first = self.fires.snapshot()
         if self._within_d_safe(first.regions):
             raise ValueError("the start lies within d_safe of a fire")
         remember_distances(self.state[:2], first, self.front_distances)
@@ -272,37 +268,23 @@ class Mission:
         snapshot = self.fires.snapshot()
         if self.result.records and self._within_d_safe(self._counted(t, snapshot)):
             # fire data that caught up (the stack's EWS was back) reached the UAV
-            return self._finish(False, "fire_while_stale", self.result.records[-1])
+            return self._finish(Ending.FIRE_WHILE_STALE, self.result.records[-1])
         d_t = attention_distance(self.state[:2], snapshot, t, self.params)
         planned = self.planning.plan(self, t, d_t, snapshot)
-        decision, plan, statuses, planning = (planned.decision, planned.plan, planned.statuses,
-                                              planned.planning_s)
-        n_sub = substeps_for(planning, self.fire_params)
-
-        if plan is not None:
-            control = np.asarray(plan.controls[0], dtype=float)
-            target = np.asarray(plan.states[1], dtype=float)
-            positions = np.asarray(plan.states[:, : self.dyn.dim])
-            info = dict(plan.info)
-        else:
-            info = {}
-            control = brake_control(self.state, self.dyn)
-            target = step(self.state, control, self.dyn)
-            positions = np.empty((0, self.dyn.dim))
-        if planned.note:
-            info["supervisor"] = planned.note
+        n_sub = substeps_for(planned.planning_s, self.fire_params)
+        control, target, positions, info = self._command(planned)
         # the setpoint leaves as soon as the plan is known, due after the planning
         # interval and one ΔT of flight
         self.vehicle.command(target, control, n_sub * self.fire_params.substep_s + self.dyn.dt_s)
-        flown = plan.system if plan is not None else 0
+        flown = planned.plan.system if planned.plan is not None else 0
         if self.observer is not None:
             self.observer.commanded(t, flown, info)
         caught = self._caught(t, n_sub)
         self.sim_time_s += n_sub * self.fire_params.substep_s
         record = StepRecord(
-            t=t, state=self.state.copy(), control=control, decision=decision,
-            system=flown, plan_status=";".join(statuses),
-            planning_time_s=planning, fire_substeps=n_sub, d_t=d_t,
+            t=t, state=self.state.copy(), control=control, decision=planned.decision,
+            system=flown, answers=tuple(planned.answers),
+            planning_time_s=planned.planning_s, fire_substeps=n_sub, d_t=d_t,
             fires_active=len(snapshot.regions), planned_positions=positions, snapshot=snapshot,
             info=info, time_s=started_s,
         )
@@ -310,8 +292,29 @@ class Mission:
         if caught:  # the vehicle's step towards this setpoint does not count
             if self.observer is not None:
                 self.observer.recorded(record, False)
-            return self._finish(False, "fire_while_planning", record)
+            return self._finish(Ending.FIRE_WHILE_PLANNING, record)
+        return self._fly(t, control, flown, record)
 
+    def _command(self, planned: Planned) -> tuple[Array, Array, Array, dict[str, object]]:
+        """(control, target x_{t+1}, planned positions, info) of the plan to fly; braking
+        (Eq. 1's braking force, no positions) when there is none."""
+        plan = planned.plan
+        if plan is not None:
+            info = dict(plan.info)
+            control = np.asarray(plan.controls[0], dtype=float)
+            target = np.asarray(plan.states[1], dtype=float)
+            positions = np.asarray(plan.states[:, : self.dyn.dim])
+        else:
+            info = {}
+            control = brake_control(self.state, self.dyn)
+            target = step(self.state, control, self.dyn)
+            positions = np.empty((0, self.dyn.dim))
+        if planned.note:
+            info["supervisor"] = planned.note
+        return control, target, positions, info
+
+    def _fly(self, t: int, control: Array, flown: int, record: StepRecord) -> StepRecord:
+        """The vehicle's step of Eq. (1) towards the setpoint, then the flight's outcome."""
         prev_pos = self.state[:2].copy()
         self.state = np.asarray(self.vehicle.observe(), dtype=float)
         self.result.add_flight(control, self.prev_control, self.dyn.dt_s)
@@ -324,21 +327,20 @@ class Mission:
         motion = self.params.fire_substeps_per_motion
         self.sim_time_s += motion * self.fire_params.substep_s
         if motion and self._caught(t, motion):
-            return self._finish(False, "fire_in_flight", record)
+            return self._finish(Ending.FIRE_IN_FLIGHT, record)
         after = self.fires.snapshot()
         outcome = flight_outcome(prev_pos, self.state[:2], self._counted(t, after),
                                  self.result.steps, self.spec, self.params)
         remember_distances(self.state[:2], after, self.front_distances)
-        return record if outcome is None else self._finish(outcome == "", outcome, record)
+        return record if outcome is None else self._finish(outcome, record)
 
-    def _finish(self, success: bool, cause: str, record: StepRecord) -> StepRecord:
+    def _finish(self, ending: Ending, record: StepRecord) -> StepRecord:
         self.done = True
-        self.result.success = success
-        self.result.failure_cause = cause
+        self.result.ending = ending
         self.result.final_state = self.state.copy()
         self.result.sim_time_s = self.sim_time_s
         if self.observer is not None:
-            self.observer.ended(record, success, cause)
+            self.observer.ended(record, ending)
         return record
 
     def run(self) -> MissionResult:

@@ -12,6 +12,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Protocol
 
+from dualpilot.mission.answers import Answer
 from dualpilot.mission.params import Controller, MissionParams, Timing
 from dualpilot.mission.ports import FirePort, PlannerPort, StepObserver
 from dualpilot.model.dynamics import Array
@@ -24,13 +25,13 @@ from dualpilot.supervisor.decision import Decision, Supervisor
 
 @dataclass
 class Planned:
-    """A step's planning: the decision recorded, the plan to fly (None: brake), the planners'
-    statuses ("s1:ok", …), the planning interval T_s the fires advance through (s) and a
-    note for the record ("" when there is none)."""
+    """A step's planning: the decision recorded, the plan to fly (None: brake), each system's
+    answers in order (dualpilot/mission/answers.py), the planning interval T_s the fires
+    advance through (s) and a note for the record ("" when there is none)."""
 
     decision: Decision
     plan: Plan | None
-    statuses: list[str] = field(default_factory=list)
+    answers: list[Answer] = field(default_factory=list)
     planning_s: float = 0.0
     note: str = ""
 

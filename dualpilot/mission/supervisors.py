@@ -1,63 +1,70 @@
-"""The supervisors of the cognitive controller, built by name, like the planners' registry.
+"""The supervisors of the cognitive controller, built by kind: the one registry.
 
 "paper" (:class:`dualpilot.mission.paper.PaperPlanning`): Sec. III-C's supervisor, the
 UAV waits for the chosen system's plan; it runs every controller (cc, s1, s2).
 "concurrent" (:class:`dualpilot.mission.concurrent.ConcurrentPlanning`): System 2
 deliberates while the UAV flies System 1's plans (dualpilot/supervisor/concurrent.py);
-the cognitive controller only. Each implements
-:class:`dualpilot.mission.supervision.SupervisorPlanning`.
+the cognitive controller only, with System 1 tracking under the Δu penalty. Each
+implements :class:`dualpilot.mission.supervision.SupervisorPlanning`.
 """
 
 from __future__ import annotations
 
+import enum
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 from dualpilot.mission.concurrent import ConcurrentPlanning
 from dualpilot.mission.paper import PaperPlanning
-from dualpilot.mission.params import Controller, MissionParams, Timing
+from dualpilot.mission.params import Controller
 from dualpilot.mission.supervision import SupervisorPlanning
-from dualpilot.model.fire import FireParams
 from dualpilot.spec import MissionSpec
-from dualpilot.supervisor.concurrent import ConcurrentParams
-from dualpilot.supervisor.decision import SupervisorParams
 
-__all__ = ["SUPERVISORS", "SupervisorSetup", "build_supervisor"]
+if TYPE_CHECKING:
+    from dualpilot.mission.config import MissionConfig
+
+__all__ = ["SUPERVISORS", "Supervision", "SupervisorKind", "build_supervisor"]
+
+
+class SupervisorKind(enum.Enum):
+    """Who decides what flies: the paper's supervisor (Sec. III-C: the UAV waits for the
+    chosen system's plan) or the concurrent one (System 2 deliberates while System 1's plans
+    fly)."""
+
+    PAPER = "paper"
+    CONCURRENT = "concurrent"
 
 
 @dataclass(frozen=True)
-class SupervisorSetup:
-    """What a supervisor is built from: the mission's controller, spec, timing and parameters."""
+class Supervision:
+    """One supervisor of the registry: how it is built, the controllers it runs and the System 1
+    method it flies by default (dualpilot.planners)."""
 
-    controller: Controller
-    spec: MissionSpec
-    timing: Timing
-    params: MissionParams
-    fire: FireParams
-    supervisor: SupervisorParams
-    concurrent: ConcurrentParams
+    build: Callable[[MissionConfig, MissionSpec], SupervisorPlanning]
+    controllers: frozenset[Controller]
+    system1_method: str
 
 
-def _paper(setup: SupervisorSetup) -> SupervisorPlanning:
+def _paper(config: MissionConfig, spec: MissionSpec) -> SupervisorPlanning:
     return PaperPlanning()
 
 
-def _concurrent(setup: SupervisorSetup) -> SupervisorPlanning:
-    if setup.controller is not Controller.CC:
-        raise ValueError("the concurrent supervisor runs the cognitive controller (cc)")
-    return ConcurrentPlanning(setup.spec, setup.timing, setup.params, setup.fire,
-                              setup.supervisor, setup.concurrent)
+def _concurrent(config: MissionConfig, spec: MissionSpec) -> SupervisorPlanning:
+    reading = config.reading()
+    return ConcurrentPlanning(spec, config.timing, reading.mission, reading.fire,
+                              reading.supervisor, config.concurrent)
 
 
-#: Supervisor name → constructor; the default first.
-SUPERVISORS: Mapping[str, Callable[[SupervisorSetup], SupervisorPlanning]] = {
-    "paper": _paper, "concurrent": _concurrent,
+#: Supervisor kind → its entry; the default first. The concurrent supervisor hands over
+#: between the systems every few steps, so its System 1 tracks with the Δu penalty
+#: (dualpilot/system1/lqr.py: "rrt+du").
+SUPERVISORS: Mapping[SupervisorKind, Supervision] = {
+    SupervisorKind.PAPER: Supervision(_paper, frozenset(Controller), "rrt"),
+    SupervisorKind.CONCURRENT: Supervision(_concurrent, frozenset({Controller.CC}), "rrt+du"),
 }
 
 
-def build_supervisor(name: str, setup: SupervisorSetup) -> SupervisorPlanning:
-    """The supervisor ``name`` (a key of :data:`SUPERVISORS`); ValueError for another name."""
-    if name not in SUPERVISORS:
-        choices = " or ".join(repr(k) for k in SUPERVISORS)
-        raise ValueError(f"supervisor must be {choices}, not {name!r}")
-    return SUPERVISORS[name](setup)
+def build_supervisor(config: MissionConfig, spec: MissionSpec) -> SupervisorPlanning:
+    """The planning phase of ``config``'s supervisor for the mission of ``spec``."""
+    return SUPERVISORS[config.supervisor].build(config, spec)

@@ -45,6 +45,7 @@ from typing import Literal
 
 import numpy as np
 
+from dualpilot.mission.answers import Answer
 from dualpilot.model.dynamics import Array, DynamicsParams, rollout
 from dualpilot.model.fire import FireParams, FireSnapshot
 from dualpilot.model.geometry import Polytope, path_clearance
@@ -179,7 +180,7 @@ class Choice:
     """What the concurrent supervisor decided at one step."""
 
     plan: Plan | None
-    statuses: list[str] = field(default_factory=list)
+    answers: list[Answer] = field(default_factory=list)
     wait_s: float = 0.0  # the time the UAV waited for a planner this step
     note: str = ""
 

@@ -310,7 +310,7 @@ def log_mission(ch: VehicleChannels, result: Any) -> None:
         ch.path(np.array(path), t_ns)
         ch.decision(decision_doc(r.decision, commanded_system(result.controller, r.decision),
                                  r.system, r.time_s), t_ns)
-        ch.plans(plan_views(r.plan_status, r.system, r.planned_positions), r.t, t_ns)
+        ch.plans(plan_views(r.answers, r.system, r.planned_positions), r.t, t_ns)
         ch.event(step_text(r.t, r.system, r.plan_status), t_ns,
                  "info" if r.system else "warning")
     if result.final_state is not None and result.records:

@@ -17,6 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from dualpilot.mission.answers import Answer, PlanView, statuses_by_system
 from dualpilot.model.dynamics import Array
 from dualpilot.model.fire import FireSnapshot
 from dualpilot.model.forecast import OccupancyForecast
@@ -75,36 +76,10 @@ def fire_view(s: FireSnapshot) -> FireView:
         hulls=tuple(np.asarray(h.vertices, dtype=float) for h in s.hulls))
 
 
-@dataclass(frozen=True)
-class PlanView:
-    """One system's plan at a step: its status and, for the flown plan, its positions (m).
-
-    ``status`` is the step's text for the system ("ok", "timeout", "unavailable",
-    "unsafe[monitor: …]"; the concurrent supervisor's several, e.g. "launched;adopted"),
-    "" when the system was not asked at that step (a flown plan kept from an earlier one).
-    """
-
-    system: int
-    status: str
-    positions: Array  # (k, 2); (0, 2) for a plan that was not flown
-    flown: bool
-
-
-def plan_statuses(plan_status: str) -> dict[int, str]:
-    """``"s2:timeout;s1:ok"`` (StepRecord.plan_status) → {2: "timeout", 1: "ok"}, in the order
-    asked; a system's several statuses joined by ";" (``"s2:launched;s1:ok;s2:adopted"`` →
-    {2: "launched;adopted", 1: "ok"})."""
-    out: dict[int, list[str]] = {}
-    for part in filter(None, plan_status.split(";")):
-        name, _, status = part.partition(":")
-        if name in ("s1", "s2"):
-            out.setdefault(int(name[1]), []).append(status)
-    return {k: ";".join(v) for k, v in out.items()}
-
-
-def plan_views(plan_status: str, flown: int, positions: Array) -> tuple[PlanView, ...]:
+def plan_views(answers: tuple[Answer, ...], flown: int, positions: Array
+               ) -> tuple[PlanView, ...]:
     """Both systems' :class:`PlanView` at a step (``flown``: the system flown, 0 none)."""
-    statuses = plan_statuses(plan_status)
+    statuses = statuses_by_system(answers)
     pts = np.asarray(positions, dtype=float).reshape(-1, 2)
     empty = np.empty((0, 2))
     return tuple(PlanView(k, statuses.get(k, ""), pts if k == flown else empty, k == flown)

@@ -29,11 +29,11 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from dualpilot.mission.config import MissionConfig
 from dualpilot.mission.params import Controller, Timing
 from dualpilot.mission.result import MissionResult
 from dualpilot.plan import Objective
-from dualpilot.readings import PROFILES, get_profile
-from dualpilot.spec import MissionSpec
+from dualpilot.readings import PROFILES
 
 #: a front this close (m) at the first step of an S1 run makes it "near"
 NEAR_M = 150.0
@@ -54,11 +54,8 @@ class Search:
 def fly(job: Search) -> MissionResult:
     from dualpilot.mission.local import local_mission
 
-    reading = get_profile(job.profile)
-    return local_mission(Controller.CC, reading.spec(MissionSpec(seed=job.seed)),
-                         timing=Timing(job.timing),
-                         params=reading.mission, fire_params=reading.fire,
-                         supervisor_params=reading.supervisor).run()
+    return local_mission(MissionConfig(controller=Controller.CC, timing=Timing(job.timing),
+                                       profile=job.profile, seed=job.seed)).run()
 
 
 def s1_runs(result: MissionResult, near_m: float = NEAR_M) -> list[dict[str, Any]]:

@@ -1,0 +1,163 @@
+"""The one mission configuration: every setting of a mission, built once and passed whole.
+
+A :class:`MissionConfig` is what a user chooses for one mission: which
+controller flies (the paper's three, the concurrent supervisor, each with or
+without the fire forecast), the reading of the paper (a profile and its
+overrides, the fire scenario among them), the planners' methods, the timing,
+the seed and the ids. It is built once (``dualpilot mission``, the stack's
+supervisor from its flags or environment, an evaluation's tasks), and the
+in-process mission, the stack's supervisor, the planner services and the EWS
+all read their settings from it: none re-lists them. Its wire form is written
+once, in ``services/common/convert/config.py``.
+
+The controller names of ``dualpilot evaluate`` (:data:`CONTROLLER_NAMES`:
+``cc``, ``s1``, ``s2``, ``concurrent`` and each with ``+risk``) are spellings of
+three typed fields (:func:`parse_controller`): the controller, the supervisor
+and ``risk``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+from typing import Any, Literal
+
+from dualpilot.mission.params import Controller, Timing
+from dualpilot.mission.supervisors import SUPERVISORS, SupervisorKind
+from dualpilot.model.geometry import Rect
+from dualpilot.readings import Profile, get_profile, parse_value, part_of
+from dualpilot.spec import MissionSpec
+from dualpilot.supervisor.concurrent import ConcurrentParams
+
+__all__ = ["CONTROLLER_NAMES", "MissionConfig", "SupervisorKind", "controller_name",
+           "parse_controller"]
+
+
+#: The spelling of ``risk`` in a controller name.
+RISK_SPELLING = "+risk"
+#: The controllers an evaluation compares, by name: the paper's three, the cognitive
+#: controller with the concurrent supervisor, and each flown with the fire forecast.
+CONTROLLER_NAMES = ("cc", "s1", "s2", "concurrent", "cc+risk", "s1+risk", "s2+risk",
+                    "concurrent+risk")
+
+#: one reading override: (field name of the profile's parameters, its value)
+Setting = tuple[str, Any]
+
+
+def parse_controller(name: str) -> tuple[Controller, SupervisorKind, bool]:
+    """(controller, supervisor, risk) of a controller name of :data:`CONTROLLER_NAMES`."""
+    if name not in CONTROLLER_NAMES:
+        raise ValueError(f"unknown controller {name!r}; choose from {', '.join(CONTROLLER_NAMES)}")
+    base = name.removesuffix(RISK_SPELLING)
+    risk = base != name
+    if base == "concurrent":
+        return Controller.CC, SupervisorKind.CONCURRENT, risk
+    return Controller(base), SupervisorKind.PAPER, risk
+
+
+def controller_name(controller: Controller, supervisor: SupervisorKind, risk: bool) -> str:
+    """The name of :data:`CONTROLLER_NAMES` that spells the three fields."""
+    base = "concurrent" if supervisor is SupervisorKind.CONCURRENT else controller.value
+    return base + (RISK_SPELLING if risk else "")
+
+
+def _canonical_settings(settings: Any) -> tuple[Setting, ...]:
+    """Settings as a tuple sorted by name, each value typed (text is parsed by its field)."""
+    items = settings.items() if hasattr(settings, "items") else settings
+    out: dict[str, Any] = {}
+    for name, value in items:
+        part_of(name)  # ValueError for a name no parameter class has
+        out[name] = parse_value(name, value) if isinstance(value, str) else value
+    return tuple(sorted(out.items()))
+
+
+@dataclass(frozen=True)
+class MissionConfig:
+    """Everything chosen for one mission (lengths m, times s).
+
+    ``profile`` and ``settings`` are the reading of the paper
+    (:mod:`dualpilot.readings`; the fire scenario is the setting ``scenario``,
+    the step limit ``max_steps``, the ignition clearance ``ignition_clearance_m``);
+    :meth:`reading` resolves them. ``system1_method`` defaults to the
+    supervisor's (:data:`dualpilot.mission.supervisors.SUPERVISORS`). With ``risk``
+    both planners take the fire forecast (their risk-aware variants) and the
+    concurrent supervisor judges threats on it (``concurrent.threat`` is then "forecast").
+    ``start`` is where an in-process mission starts (None: the spec's default);
+    in the stack the mission starts where the vehicle is.
+    """
+
+    controller: Controller = Controller.CC
+    supervisor: SupervisorKind = SupervisorKind.PAPER
+    risk: bool = False
+    timing: Timing = Timing.PAPER
+    seed: int = 0
+    profile: str = "today"
+    settings: tuple[Setting, ...] = ()
+    system1_method: str = ""
+    system2_method: str = "fast"
+    concurrent: ConcurrentParams = field(default_factory=ConcurrentParams)
+    goal: Rect = MissionSpec().goal
+    area_size_m: float = MissionSpec().area_size_m
+    start: tuple[float, float] | None = None
+    mission_id: str = ""
+    uav_id: str = ""
+
+    def __post_init__(self) -> None:
+        entry = SUPERVISORS[self.supervisor]
+        if self.controller not in entry.controllers:
+            raise ValueError(f"the {self.supervisor.value} supervisor does not run "
+                             f"{self.controller.value} (it runs "
+                             f"{', '.join(sorted(c.value for c in entry.controllers))})")
+        if not 0 <= self.seed < 2**64:
+            raise ValueError(f"seed must be in [0, 2^64), got {self.seed}")
+        object.__setattr__(self, "settings", _canonical_settings(self.settings))
+        if not self.system1_method:
+            object.__setattr__(self, "system1_method", entry.system1_method)
+        threat: Literal["current", "forecast"] = "forecast" if self.risk else "current"
+        if self.concurrent.threat == "forecast" and not self.risk:
+            raise ValueError("forecast threats are the risk-aware controller's: set risk")
+        if self.concurrent.threat != threat:
+            object.__setattr__(self, "concurrent", replace(self.concurrent, threat=threat))
+        if self.start is not None:
+            object.__setattr__(self, "start", (float(self.start[0]), float(self.start[1])))
+        self.reading()  # the profile exists and the settings apply
+        self.spec()  # the geometry is consistent
+
+    # -- the controller by name --------------------------------------------------------------
+    @classmethod
+    def named(cls, name: str, **fields: Any) -> MissionConfig:
+        """The configuration of controller ``name`` (:data:`CONTROLLER_NAMES`) with ``fields``."""
+        controller, supervisor, risk = parse_controller(name)
+        return cls(controller=controller, supervisor=supervisor, risk=risk, **fields)
+
+    @property
+    def controller_name(self) -> str:
+        """This configuration's controller as a name of :data:`CONTROLLER_NAMES`."""
+        return controller_name(self.controller, self.supervisor, self.risk)
+
+    # -- what the parts read -----------------------------------------------------------------
+    def reading(self) -> Profile:
+        """The reading of the paper: the profile with the settings applied."""
+        return get_profile(self.profile).with_settings(dict(self.settings))
+
+    def spec(self, start: tuple[float, float] | None = None) -> MissionSpec:
+        """The frozen spec: the geometry, the seed and the reading's dynamics (Eq. 1); the
+        start is ``start`` (the vehicle's position), else :attr:`start`, else the default."""
+        at = start if start is not None else self.start
+        base = MissionSpec(goal=self.goal, area_size_m=self.area_size_m, seed=self.seed)
+        if at is not None:
+            base = replace(base, start=(float(at[0]), float(at[1])))
+        return self.reading().spec(base)
+
+    def methods(self) -> dict[int, str]:
+        """The planners' registry names by system (:mod:`dualpilot.planners`)."""
+        return {1: self.system1_method, 2: self.system2_method}
+
+    def systems(self) -> list[int]:
+        """The planners this controller may ask."""
+        return {Controller.CC: [1, 2], Controller.S1: [1], Controller.S2: [2]}[self.controller]
+
+    def with_settings(self, settings: Any) -> MissionConfig:
+        """This configuration with more reading overrides (name → value or its text)."""
+        merged = dict(self.settings)
+        merged.update(_canonical_settings(settings))
+        return replace(self, settings=tuple(merged.items()))
