@@ -31,24 +31,28 @@ from dataclasses import dataclass
 
 import zenoh
 
+from dualpilot.mission.config import MissionConfig
 from dualpilot.plan import Plan, Planner, PlanStatus
 from dualpilot.spec import MissionSpec
 from dualpilot.warmup import warm_up
 from services.msgs import common_pb2, plan_pb2, vehicle_pb2
 
-from . import bus, keys, protobuf_codec, rejections, wire
+from . import bus, keys, rejections, wire
+from .convert import common as common_convert
+from .convert import plan as plan_convert
+from .convert import vehicle as vehicle_convert
 from .log import fields
 
 log = logging.getLogger(__name__)
 
-#: (spec, method; "" for the service's default) -> the mission's planner
-PlannerMaker = Callable[[MissionSpec, str], Planner]
+#: (spec, configuration) -> the mission's planner of this service's system
+PlannerMaker = Callable[[MissionSpec, MissionConfig], Planner]
 
 
 @dataclass
 class _Prepared:
     spec: MissionSpec
-    method: str
+    config: MissionConfig
     planner: Planner
     waypoints_revision: int = 0  # the revision applied to the planner
 
@@ -64,29 +68,30 @@ class PlannerService:
         self.missions: OrderedDict[str, _Prepared] = OrderedDict()
         self.keep = keep_missions
         # newest per mission
-        self.waypoints: OrderedDict[str, protobuf_codec.Waypoints] = OrderedDict()
+        self.waypoints: OrderedDict[str, vehicle_convert.Waypoints] = OrderedDict()
 
-    def prepare(self, mission_id: str, spec: MissionSpec, method: str = "") -> _Prepared:
-        """The mission's planner, built from its spec and method (again only if they changed).
+    def prepare(self, mission_id: str, spec: MissionSpec, config: MissionConfig) -> _Prepared:
+        """The mission's planner, built from its spec and configuration (again only if they
+        changed).
 
         Raises ValueError for an unknown method, and for a risk-aware one: a plan request over
         the bus carries no fire forecast, so it would fly its paper method unannounced."""
         held = self.missions.get(mission_id)
-        if held is not None and held.spec == spec and held.method == method:
+        if held is not None and held.spec == spec and held.config == config:
             return held
-        planner = self.make(spec, method)
+        planner = self.make(spec, config)
         if getattr(planner, "uses_forecast", False):
-            raise ValueError(f"method {method or '(--method)'!r} plans on the fire forecast, "
-                             "which a plan request over the stack does not carry (it flies "
-                             "in-process only)")
-        held = _Prepared(spec, method, planner)
+            raise ValueError(f"method {config.methods()[self.system]!r} with risk plans on the "
+                             "fire forecast, which a plan request over the stack does not carry "
+                             "(it flies in-process only)")
+        held = _Prepared(spec, config, planner)
         self.missions[mission_id] = held
         while len(self.missions) > self.keep:
             self.missions.popitem(last=False)
         log.info("planner ready", extra=fields(mission=mission_id, seed=spec.seed))
         return held
 
-    def set_operator_waypoints(self, w: protobuf_codec.Waypoints) -> None:
+    def set_operator_waypoints(self, w: vehicle_convert.Waypoints) -> None:
         """Keep the newest revision of a mission's waypoints (applied at its next plan)."""
         held = self.waypoints.get(w.mission_id)
         if held is None or w.revision > held.revision:
@@ -98,12 +103,12 @@ class PlannerService:
     def _unprepared(message: str) -> rejections.CodecError:
         return rejections.CodecError(common_pb2.ERROR_CODE_UNPREPARED, message)
 
-    def planner_for(self, req: protobuf_codec.PlanRequest) -> Planner:
+    def planner_for(self, req: plan_convert.PlanQuery) -> Planner:
         """The prepared planner, with the request's waypoint revision applied."""
         held = self.missions.get(req.mission_id)
         if held is None:
             raise self._unprepared(f"mission {req.mission_id!r} is not prepared here")
-        protobuf_codec.check_in_area(req, held.spec)
+        plan_convert.check_in_area(req.request, held.spec)
         if req.waypoints_revision != held.waypoints_revision:
             w = self.waypoints.get(req.mission_id)
             if w is None or w.revision < req.waypoints_revision:
@@ -119,11 +124,12 @@ class PlannerService:
             held.waypoints_revision = w.revision
         return held.planner
 
-    def plan(self, req: protobuf_codec.PlanRequest) -> Plan:
+    def plan(self, query: plan_convert.PlanQuery) -> Plan:
+        req = query.request
         if req.system != self.system:
             raise rejections.invalid(
                 f"request for system {req.system} sent to system {self.system}")
-        planner = self.planner_for(req)
+        planner = self.planner_for(query)
         t0 = time.perf_counter()
         try:
             plan = planner.plan(req.state, req.obstacles, req.objective, req.prev_control)
@@ -136,24 +142,13 @@ class PlannerService:
         """Decode, plan, encode: a Plan, or an Error for a bad request or a crash."""
         t_in = time.perf_counter()
         try:
-            req = protobuf_codec.plan_request_from_msg(wire.parse(payload, plan_pb2.PlanRequest,
-                                                                  encoding))
+            req = plan_convert.plan_request_from_msg(wire.parse(payload, plan_pb2.PlanRequest,
+                                                                encoding))
         except rejections.CodecError as err:
             rejections.rejected("PlanRequest", err, log, key=self.key)
-            return wire.error_msg(self.stamper, err.code, str(err))
-        if req.prepare:
-            assert req.spec is not None
-            try:
-                self.prepare(req.mission_id, req.spec, req.method)
-            except ValueError as err:
-                rejections.rejected("PlanRequest", err, log, key=self.key)
-                return wire.error_msg(self.stamper, common_pb2.ERROR_CODE_INVALID, str(err))
-            prepared = plan_pb2.Plan(step=req.step, system=self.system,
-                                     status=plan_pb2.PLAN_STATUS_OK, message="prepared",
-                                     request_seq=req.seq)
-            self.stamper.stamp(prepared.header)
-            return prepared
-        t0 = time.perf_counter()
+            return common_convert.error_msg(self.stamper, err.code, str(err))
+        if isinstance(req, plan_convert.Prepare):
+            return self._prepared(req)
         try:
             plan = self.plan(req)
         except rejections.CodecError as err:
@@ -161,20 +156,37 @@ class PlannerService:
                 rejections.rejected("PlanRequest", err, log, key=self.key)
             else:
                 log.info("plan request for what is not here", extra=fields(error=str(err)))
-            return wire.error_msg(self.stamper, err.code, str(err))
+            return common_convert.error_msg(self.stamper, err.code, str(err))
         except Exception as err:  # a planner bug must not take the service down
-            log.exception("planner failed", extra=fields(step=req.step))
-            return wire.error_msg(self.stamper, common_pb2.ERROR_CODE_INTERNAL,
-                                  f"{type(err).__name__}: {err}")
-        wall = time.perf_counter() - t0
+            log.exception("planner failed", extra=fields(step=req.request.t))
+            return common_convert.error_msg(self.stamper, common_pb2.ERROR_CODE_INTERNAL,
+                                            f"{type(err).__name__}: {err}")
+        wall = time.perf_counter() - t_in
         if wall > req.deadline_s:
             log.warning("plan later than the request's deadline", extra=fields(
-                step=req.step, wall_s=round(wall, 4), deadline_s=req.deadline_s))
-        log.debug("plan", extra=fields(step=req.step, status=plan.status.value,
+                step=req.request.t, wall_s=round(wall, 4), deadline_s=req.deadline_s))
+        log.debug("plan", extra=fields(step=req.request.t, status=plan.status.value,
                                        compute_s=round(plan.compute_time_s, 4)))
-        msg = protobuf_codec.plan_to_msg(plan, req.step, req.seq, self.stamper)
+        msg = plan_convert.plan_to_msg(plan, req.request.t, req.seq, self.stamper)
         msg.service_time_s = time.perf_counter() - t_in
         return msg
+
+    def _prepared(self, req: plan_convert.Prepare) -> plan_pb2.Plan | common_pb2.Error:
+        """Build the mission's planner; the reply says it is ready (or why it is not)."""
+        if req.system != self.system:
+            err = rejections.invalid(f"prepare for system {req.system} sent to system "
+                                     f"{self.system}")
+            rejections.rejected("PlanRequest", err, log, key=self.key)
+            return common_convert.error_msg(self.stamper, err.code, str(err))
+        try:
+            self.prepare(req.mission_id, req.spec, req.config)
+        except ValueError as err:
+            rejections.rejected("PlanRequest", err, log, key=self.key)
+            return common_convert.error_msg(self.stamper, common_pb2.ERROR_CODE_INVALID, str(err))
+        prepared = plan_pb2.Plan(step=0, system=self.system, status=plan_pb2.PLAN_STATUS_OK,
+                                 message="prepared", request_seq=req.seq)
+        self.stamper.stamp(prepared.header)
+        return prepared
 
 
 def run(ctx: bus.Context, system: int, make: PlannerMaker) -> None:
@@ -197,7 +209,7 @@ def run(ctx: bus.Context, system: int, make: PlannerMaker) -> None:
         while (wp := operator.get(timeout=0)) is not None:
             try:
                 msg = wire.parse(wp.payload, vehicle_pb2.OperatorWaypoints, wp.encoding)
-                service.set_operator_waypoints(protobuf_codec.waypoints_from_msg(msg))
+                service.set_operator_waypoints(vehicle_convert.waypoints_from_msg(msg))
                 log.info("operator waypoints", extra=fields(
                     mission=msg.mission_id, revision=msg.revision, n=len(msg.waypoints)))
             except rejections.CodecError as err:

@@ -13,7 +13,7 @@ from typing import TypeVar
 
 from google.protobuf.message import DecodeError, Message
 
-from services.common.limits import MAX_TEXT, check_floats, check_text
+from services.common.limits import check_floats, check_text
 from services.common.rejections import CodecError, Reason, invalid
 from services.msgs import common_pb2
 
@@ -89,9 +89,3 @@ class Stamper:
         header.sim_time_s = float(sim_time_s)
         header.wall_time_ns = time.time_ns()
         return self.seq
-
-
-def error_msg(stamper: Stamper, code: common_pb2.ErrorCode, message: str) -> common_pb2.Error:
-    err = common_pb2.Error(code=code, message=message[:MAX_TEXT])
-    stamper.stamp(err.header)
-    return err

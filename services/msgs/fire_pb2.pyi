@@ -1,32 +1,12 @@
 from services.msgs import common_pb2 as _common_pb2
+from services.msgs import config_pb2 as _config_pb2
 from google.protobuf.internal import containers as _containers
-from google.protobuf.internal import enum_type_wrapper as _enum_type_wrapper
 from google.protobuf import descriptor as _descriptor
 from google.protobuf import message as _message
 from collections.abc import Iterable as _Iterable, Mapping as _Mapping
 from typing import ClassVar as _ClassVar, Optional as _Optional, Union as _Union
 
 DESCRIPTOR: _descriptor.FileDescriptor
-
-class FireLifeBase(int, metaclass=_enum_type_wrapper.EnumTypeWrapper):
-    __slots__ = ()
-    FIRE_LIFE_BASE_UNSPECIFIED: _ClassVar[FireLifeBase]
-    FIRE_LIFE_BASE_SUBSTEP: _ClassVar[FireLifeBase]
-    FIRE_LIFE_BASE_STEP: _ClassVar[FireLifeBase]
-
-class FireExtent(int, metaclass=_enum_type_wrapper.EnumTypeWrapper):
-    __slots__ = ()
-    FIRE_EXTENT_UNSPECIFIED: _ClassVar[FireExtent]
-    FIRE_EXTENT_SUBSTEP: _ClassVar[FireExtent]
-    FIRE_EXTENT_STEP: _ClassVar[FireExtent]
-    FIRE_EXTENT_BIRTH: _ClassVar[FireExtent]
-FIRE_LIFE_BASE_UNSPECIFIED: FireLifeBase
-FIRE_LIFE_BASE_SUBSTEP: FireLifeBase
-FIRE_LIFE_BASE_STEP: FireLifeBase
-FIRE_EXTENT_UNSPECIFIED: FireExtent
-FIRE_EXTENT_SUBSTEP: FireExtent
-FIRE_EXTENT_STEP: FireExtent
-FIRE_EXTENT_BIRTH: FireExtent
 
 class FireFront(_message.Message):
     __slots__ = ("front_id", "born_step", "speed_mps", "direction_rad", "region", "hull")
@@ -106,29 +86,15 @@ class FrontForecast(_message.Message):
     envelope: _common_pb2.Polygon
     def __init__(self, front_id: _Optional[int] = ..., regions: _Optional[_Iterable[_Union[_common_pb2.Rect, _Mapping]]] = ..., envelope: _Optional[_Union[_common_pb2.Polygon, _Mapping]] = ...) -> None: ...
 
-class FireReadings(_message.Message):
-    __slots__ = ("life_base", "extent", "redraw_clearance", "keep_extinct_hulls")
-    LIFE_BASE_FIELD_NUMBER: _ClassVar[int]
-    EXTENT_FIELD_NUMBER: _ClassVar[int]
-    REDRAW_CLEARANCE_FIELD_NUMBER: _ClassVar[int]
-    KEEP_EXTINCT_HULLS_FIELD_NUMBER: _ClassVar[int]
-    life_base: FireLifeBase
-    extent: FireExtent
-    redraw_clearance: bool
-    keep_extinct_hulls: bool
-    def __init__(self, life_base: _Optional[_Union[FireLifeBase, str]] = ..., extent: _Optional[_Union[FireExtent, str]] = ..., redraw_clearance: _Optional[bool] = ..., keep_extinct_hulls: _Optional[bool] = ...) -> None: ...
-
 class FireReset(_message.Message):
-    __slots__ = ("seed", "area_size_m", "readings", "scenario")
+    __slots__ = ("seed", "area_size_m", "config")
     SEED_FIELD_NUMBER: _ClassVar[int]
     AREA_SIZE_M_FIELD_NUMBER: _ClassVar[int]
-    READINGS_FIELD_NUMBER: _ClassVar[int]
-    SCENARIO_FIELD_NUMBER: _ClassVar[int]
+    CONFIG_FIELD_NUMBER: _ClassVar[int]
     seed: int
     area_size_m: float
-    readings: FireReadings
-    scenario: str
-    def __init__(self, seed: _Optional[int] = ..., area_size_m: _Optional[float] = ..., readings: _Optional[_Union[FireReadings, _Mapping]] = ..., scenario: _Optional[str] = ...) -> None: ...
+    config: _config_pb2.MissionConfig
+    def __init__(self, seed: _Optional[int] = ..., area_size_m: _Optional[float] = ..., config: _Optional[_Union[_config_pb2.MissionConfig, _Mapping]] = ...) -> None: ...
 
 class FireAdvance(_message.Message):
     __slots__ = ("step", "substeps", "clock", "keep_out", "keep_out_m")

@@ -1,4 +1,5 @@
 from services.msgs import common_pb2 as _common_pb2
+from services.msgs import config_pb2 as _config_pb2
 from services.msgs import vehicle_pb2 as _vehicle_pb2
 from google.protobuf.internal import containers as _containers
 from google.protobuf.internal import enum_type_wrapper as _enum_type_wrapper
@@ -83,7 +84,7 @@ class MissionSpec(_message.Message):
     def __init__(self, mission_id: _Optional[str] = ..., seed: _Optional[int] = ..., goal: _Optional[_Union[_common_pb2.Rect, _Mapping]] = ..., area_size_m: _Optional[float] = ..., start: _Optional[_Union[_common_pb2.Vec2, _Mapping]] = ..., d_safe_m: _Optional[float] = ..., clearance_m: _Optional[float] = ..., dynamics: _Optional[_Union[Dynamics, _Mapping]] = ...) -> None: ...
 
 class PlanRequest(_message.Message):
-    __slots__ = ("header", "mission", "step", "system", "objective", "state", "prev_control", "deadline_s", "prepare", "mission_id", "obstacles", "waypoints_revision", "method")
+    __slots__ = ("header", "mission", "step", "system", "objective", "state", "prev_control", "deadline_s", "prepare", "mission_id", "obstacles", "waypoints_revision", "config")
     HEADER_FIELD_NUMBER: _ClassVar[int]
     MISSION_FIELD_NUMBER: _ClassVar[int]
     STEP_FIELD_NUMBER: _ClassVar[int]
@@ -96,7 +97,7 @@ class PlanRequest(_message.Message):
     MISSION_ID_FIELD_NUMBER: _ClassVar[int]
     OBSTACLES_FIELD_NUMBER: _ClassVar[int]
     WAYPOINTS_REVISION_FIELD_NUMBER: _ClassVar[int]
-    METHOD_FIELD_NUMBER: _ClassVar[int]
+    CONFIG_FIELD_NUMBER: _ClassVar[int]
     header: _common_pb2.Header
     mission: MissionSpec
     step: int
@@ -109,8 +110,8 @@ class PlanRequest(_message.Message):
     mission_id: str
     obstacles: _containers.RepeatedCompositeFieldContainer[_common_pb2.Polygon]
     waypoints_revision: int
-    method: str
-    def __init__(self, header: _Optional[_Union[_common_pb2.Header, _Mapping]] = ..., mission: _Optional[_Union[MissionSpec, _Mapping]] = ..., step: _Optional[int] = ..., system: _Optional[int] = ..., objective: _Optional[_Union[Objective, str]] = ..., state: _Optional[_Union[_vehicle_pb2.VehicleState, _Mapping]] = ..., prev_control: _Optional[_Union[_common_pb2.Force2, _Mapping]] = ..., deadline_s: _Optional[float] = ..., prepare: _Optional[bool] = ..., mission_id: _Optional[str] = ..., obstacles: _Optional[_Iterable[_Union[_common_pb2.Polygon, _Mapping]]] = ..., waypoints_revision: _Optional[int] = ..., method: _Optional[str] = ...) -> None: ...
+    config: _config_pb2.MissionConfig
+    def __init__(self, header: _Optional[_Union[_common_pb2.Header, _Mapping]] = ..., mission: _Optional[_Union[MissionSpec, _Mapping]] = ..., step: _Optional[int] = ..., system: _Optional[int] = ..., objective: _Optional[_Union[Objective, str]] = ..., state: _Optional[_Union[_vehicle_pb2.VehicleState, _Mapping]] = ..., prev_control: _Optional[_Union[_common_pb2.Force2, _Mapping]] = ..., deadline_s: _Optional[float] = ..., prepare: _Optional[bool] = ..., mission_id: _Optional[str] = ..., obstacles: _Optional[_Iterable[_Union[_common_pb2.Polygon, _Mapping]]] = ..., waypoints_revision: _Optional[int] = ..., config: _Optional[_Union[_config_pb2.MissionConfig, _Mapping]] = ...) -> None: ...
 
 class Plan(_message.Message):
     __slots__ = ("header", "step", "system", "status", "states", "controls", "compute_time_s", "objective", "cost", "path_m", "message", "info_json", "request_seq", "service_time_s")

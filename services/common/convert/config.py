@@ -1,0 +1,139 @@
+"""config.proto ↔ :class:`~dualpilot.mission.config.MissionConfig`: the one wire form of it.
+
+The configuration travels whole, with the plan request that prepares a mission
+and with the EWS's reset. Decoding checks every field (known enums, short texts,
+the reading's names and values, the concurrent supervisor's ranges, a goal inside
+the area) and raises :class:`~services.common.rejections.CodecError` for a bad
+one: a configuration that decodes is one the core accepts.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Mapping
+from typing import Any
+
+from dualpilot.mission.config import MissionConfig
+from dualpilot.mission.params import Controller, Timing
+from dualpilot.mission.supervisors import SupervisorKind
+from dualpilot.model.risk import RiskParams
+from dualpilot.readings import parse_value
+from dualpilot.supervisor.concurrent import ConcurrentParams
+from services.common.convert.common import rect_from_msg, rect_to_msg
+from services.common.limits import MAX_ABS_M, check_count, check_floats, check_text, finite
+from services.common.rejections import CodecError, Reason, invalid
+from services.msgs import config_pb2
+
+#: the most reading overrides a configuration carries (every settable field once is fewer)
+MAX_SETTINGS = 64
+
+_CONTROLLERS = {Controller.CC: config_pb2.CONTROLLER_KIND_CC,
+                Controller.S1: config_pb2.CONTROLLER_KIND_S1,
+                Controller.S2: config_pb2.CONTROLLER_KIND_S2}
+_SUPERVISORS = {SupervisorKind.PAPER: config_pb2.SUPERVISOR_KIND_PAPER,
+                SupervisorKind.CONCURRENT: config_pb2.SUPERVISOR_KIND_CONCURRENT}
+_TIMINGS = {Timing.PAPER: config_pb2.TIMING_PAPER, Timing.MEASURED: config_pb2.TIMING_MEASURED}
+#: ConcurrentParams' fields on the wire (its ``threat`` follows ``MissionConfig.risk``)
+CONCURRENT_WIRE = tuple(f.name for f in dataclasses.fields(ConcurrentParams)
+                        if f.name not in ("threat", "risk"))
+#: those that are always numbers (``threat_margin_m`` may be absent: the spec's clearance)
+_NUMBERS = tuple(n for n in CONCURRENT_WIRE if n != "threat_margin_m")
+
+
+def _setting_text(value: Any) -> str:
+    """A reading value as the text :func:`dualpilot.readings.parse_value` reads back."""
+    if value is None:
+        return "none"
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    return repr(value) if isinstance(value, float) else str(value)
+
+
+def config_to_msg(config: MissionConfig, out: config_pb2.MissionConfig
+                  ) -> config_pb2.MissionConfig:
+    """``config`` into ``out``, every field."""
+    c = config
+    out.mission_id, out.uav_id, out.seed = c.mission_id, c.uav_id, c.seed
+    out.controller = _CONTROLLERS[c.controller]
+    out.supervisor = _SUPERVISORS[c.supervisor]
+    out.timing = _TIMINGS[c.timing]
+    out.risk, out.profile = c.risk, c.profile
+    for name, value in c.settings:
+        out.settings.add(name=name, value=_setting_text(value))
+    out.system1_method, out.system2_method = c.system1_method, c.system2_method
+    p = c.concurrent
+    if p.threat_margin_m is not None:
+        out.concurrent.threat_margin_m = p.threat_margin_m
+    for name in _NUMBERS:
+        setattr(out.concurrent, name, getattr(p, name))
+    out.concurrent.risk.alpha = p.risk.alpha
+    rect_to_msg(c.goal, out.goal)
+    out.area_size_m = c.area_size_m
+    if c.start is not None:
+        out.start.east_m, out.start.north_m = c.start
+    return out
+
+
+def _enum(value: int, table: Mapping[Any, Any], what: str) -> Any:
+    back = {v: k for k, v in table.items()}
+    if value not in back:
+        raise invalid(f"{what} {value} is not one of {sorted(back)}", Reason.OUT_OF_RANGE)
+    return back[value]
+
+
+def _concurrent_from_msg(m: config_pb2.ConcurrentParams, risk: bool) -> ConcurrentParams:
+    names = _NUMBERS
+    values = check_floats([getattr(m, n) for n in names] + [m.risk.alpha],
+                          "concurrent parameters", MAX_ABS_M)
+    margin = (check_floats([m.threat_margin_m], "threat_margin_m", MAX_ABS_M)[0]
+              if m.HasField("threat_margin_m") else None)
+    typed: dict[str, Any] = {n: (int(v) if n == "check_steps" else float(v))
+             for n, v in zip(names, values, strict=False)}
+    try:
+        return ConcurrentParams(threat_margin_m=margin, **typed,
+                                threat="forecast" if risk else "current",
+                                risk=RiskParams(alpha=float(values[-1])))
+    except ValueError as err:
+        raise invalid(f"concurrent parameters: {err}", Reason.OUT_OF_RANGE) from err
+
+
+def _settings_from_msg(m: config_pb2.MissionConfig) -> tuple[tuple[str, Any], ...]:
+    check_count(len(m.settings), "settings", MAX_SETTINGS)
+    out = []
+    for s in m.settings:
+        name = check_text(s.name, "setting name", 64)
+        text = check_text(s.value, f"setting {name}", 256)
+        try:
+            out.append((name, parse_value(name, text)))
+        except ValueError as err:
+            raise invalid(f"setting {name}={text!r}: {err}", Reason.OUT_OF_RANGE) from err
+    if len({n for n, _ in out}) != len(out):
+        raise invalid("a setting is named twice")
+    return tuple(out)
+
+
+def config_from_msg(m: config_pb2.MissionConfig) -> MissionConfig:
+    """The configuration of ``m``; every field checked (CodecError for a bad one)."""
+    start = None
+    if m.HasField("start"):
+        e, n = finite((m.start.east_m, m.start.north_m), "start", MAX_ABS_M)
+        start = (float(e), float(n))
+    if not m.HasField("goal"):
+        raise invalid("mission config without a goal")
+    area = check_floats([m.area_size_m], "area_size_m", MAX_ABS_M)[0]
+    try:
+        return MissionConfig(
+            controller=_enum(m.controller, _CONTROLLERS, "controller"),
+            supervisor=_enum(m.supervisor, _SUPERVISORS, "supervisor"),
+            risk=bool(m.risk), timing=_enum(m.timing, _TIMINGS, "timing"), seed=int(m.seed),
+            profile=check_text(m.profile, "profile", 64), settings=_settings_from_msg(m),
+            system1_method=check_text(m.system1_method, "system1_method", 64),
+            system2_method=check_text(m.system2_method, "system2_method", 64),
+            concurrent=_concurrent_from_msg(m.concurrent, bool(m.risk)),
+            goal=rect_from_msg(m.goal, "goal"), area_size_m=float(area), start=start,
+            mission_id=check_text(m.mission_id, "mission_id", 256),
+            uav_id=check_text(m.uav_id, "uav_id", 64))
+    except CodecError:
+        raise
+    except ValueError as err:  # the core's own checks: profile, settings, geometry, pairing
+        raise invalid(f"mission config: {err}", Reason.OUT_OF_RANGE) from err

@@ -1,0 +1,315 @@
+"""plan.proto ↔ core types: the mission spec, plan requests (and prepares), plans.
+
+A plan request decodes to the core's :class:`~dualpilot.mission.ports.PlanRequest`
+inside a :class:`PlanQuery` (its mission, sequence number, deadline and waypoint
+revision), or to a :class:`Prepare` (the mission's spec and configuration). Every
+decoder checks counts, finiteness and ranges (services/common/limits.py) and raises
+:class:`~services.common.rejections.CodecError` for a bad message.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass
+from typing import Any, cast
+
+import numpy as np
+
+from dualpilot.mission.config import MissionConfig
+from dualpilot.mission.ports import PlanRequest
+from dualpilot.model.dynamics import DynamicsParams, SpeedLimit
+from dualpilot.plan import Objective, Plan, PlanStatus
+from dualpilot.spec import MissionSpec
+from services.common.convert.common import (
+    force_from_msg,
+    packed_from_msg,
+    packed_to_msg,
+    polygon_from_msg,
+    polygon_to_msg,
+    rect_from_msg,
+    rect_to_msg,
+)
+from services.common.convert.config import config_from_msg, config_to_msg
+from services.common.convert.vehicle import state_from_msg, state_to_msg
+from services.common.limits import (
+    AREA_MARGIN,
+    MAX_ABS_M,
+    MAX_FORCE_N,
+    MAX_FRONTS,
+    MAX_HORIZON,
+    MAX_TEXT,
+    check_count,
+    check_floats,
+    check_in_box,
+    check_text,
+    finite,
+)
+from services.common.rejections import Reason, invalid
+from services.common.wire import Stamper, check_header
+from services.msgs import plan_pb2
+
+_OBJECTIVES = {
+    Objective.MISSION_TIME: plan_pb2.OBJECTIVE_MISSION_TIME,
+    Objective.ENERGY: plan_pb2.OBJECTIVE_ENERGY,
+}
+
+
+_OBJECTIVES_BACK = {v: k for k, v in _OBJECTIVES.items()}
+
+
+def objective_to_msg(o: Objective | None) -> plan_pb2.Objective:
+    return plan_pb2.OBJECTIVE_UNSPECIFIED if o is None else _OBJECTIVES[o]
+
+
+def objective_from_msg(v: plan_pb2.Objective, required: bool = True) -> Objective | None:
+    if v in _OBJECTIVES_BACK:
+        return _OBJECTIVES_BACK[v]
+    if v == plan_pb2.OBJECTIVE_UNSPECIFIED and not required:
+        return None
+    raise invalid(f"unknown objective {v}")
+
+
+def status_to_msg(s: PlanStatus) -> plan_pb2.PlanStatus:
+    return cast(plan_pb2.PlanStatus, plan_pb2.PlanStatus.Value("PLAN_STATUS_" + s.name))
+
+
+def status_from_msg(v: plan_pb2.PlanStatus) -> PlanStatus:
+    try:
+        name = plan_pb2.PlanStatus.Name(v)
+    except ValueError as err:
+        raise invalid(f"unknown plan status {v}") from err
+    if name == "PLAN_STATUS_UNSPECIFIED":
+        raise invalid("plan status is unspecified")
+    return PlanStatus[name.removeprefix("PLAN_STATUS_")]
+
+
+_SPEED_LIMITS: dict[SpeedLimit, plan_pb2.SpeedLimit] = {
+    "axis": plan_pb2.SPEED_LIMIT_AXIS, "norm": plan_pb2.SPEED_LIMIT_NORM}
+
+
+def speed_limit_from_msg(value: int) -> SpeedLimit:
+    """DynamicsParams.speed_limit of a SpeedLimit value (unspecified: "axis")."""
+    if value == plan_pb2.SPEED_LIMIT_UNSPECIFIED:
+        return "axis"
+    for name, number in _SPEED_LIMITS.items():
+        if value == number:
+            return name
+    raise invalid(f"unknown speed_limit {value}", Reason.OUT_OF_RANGE)
+
+
+def spec_to_msg(mission_id: str, spec: MissionSpec, out: plan_pb2.MissionSpec) -> None:
+    """The core's frozen mission spec as a message (sent once, when a mission is prepared)."""
+    out.mission_id, out.seed, out.area_size_m = mission_id, spec.seed, spec.area_size_m
+    rect_to_msg(spec.goal, out.goal)
+    out.start.east_m, out.start.north_m = spec.start
+    out.d_safe_m, out.clearance_m = spec.d_safe_m, spec.clearance_m
+    d = spec.dynamics
+    out.dynamics.dt_s, out.dynamics.zeta, out.dynamics.mass_kg = d.dt_s, d.zeta, d.mass_kg
+    out.dynamics.u_max_n, out.dynamics.v_max_mps = d.u_max_n, d.v_max_mps
+    out.dynamics.speed_limit = _SPEED_LIMITS[d.speed_limit]
+
+
+def spec_from_msg(m: plan_pb2.MissionSpec) -> tuple[str, MissionSpec]:
+    """(mission id, spec) of a MissionSpec message; every field checked."""
+    mission_id = check_text(m.mission_id, "mission_id", 256)
+    if not mission_id:
+        raise invalid("mission spec without a mission_id")
+    for sub in ("goal", "start", "dynamics"):
+        if not m.HasField(sub):
+            raise invalid(f"mission spec without {sub}")
+    area, d_safe, clear = check_floats([m.area_size_m, m.d_safe_m, m.clearance_m],
+                                        "area/d_safe/clearance", MAX_ABS_M)
+    d = m.dynamics
+    dyn = check_floats([d.dt_s, d.zeta, d.mass_kg, d.u_max_n, d.v_max_mps], "dynamics",
+                        MAX_FORCE_N)
+    speed_limit = speed_limit_from_msg(d.speed_limit)
+    start = finite((m.start.east_m, m.start.north_m), "start", MAX_ABS_M)
+    try:
+        spec = MissionSpec(start=(float(start[0]), float(start[1])),
+                           goal=rect_from_msg(m.goal, "goal"), area_size_m=area, d_safe_m=d_safe,
+                           clearance_m=clear, seed=int(m.seed),
+                           dynamics=DynamicsParams(dt_s=dyn[0], zeta=dyn[1], mass_kg=dyn[2],
+                                                   u_max_n=dyn[3], v_max_mps=dyn[4],
+                                                   speed_limit=speed_limit))
+    except ValueError as err:
+        raise invalid(f"mission spec: {err}", Reason.OUT_OF_RANGE) from err
+    return mission_id, spec
+
+
+@dataclass(frozen=True)
+class PlanQuery:
+    """A validated plan request: the core's request (step t, system, state, obstacles, …) and
+    what it travels with (the mission it is for, its sequence number, the wall time the
+    requester waits, the operator-waypoint revision it needs)."""
+
+    request: PlanRequest
+    mission_id: str
+    seq: int
+    deadline_s: float
+    waypoints_revision: int = 0
+
+
+@dataclass(frozen=True)
+class Prepare:
+    """A validated prepare request: build this mission's planner of ``system`` from its spec
+    (the vehicle's start) and its configuration (methods, risk, reading)."""
+
+    mission_id: str
+    system: int
+    spec: MissionSpec
+    config: MissionConfig
+    seq: int = 0
+    deadline_s: float = 60.0
+
+
+def _envelope(m: plan_pb2.PlanRequest, system: int, mission_id: str, deadline_s: float,
+              stamper: Stamper, sim_time_s: float) -> None:
+    m.system, m.mission_id, m.deadline_s = system, mission_id, deadline_s
+    stamper.stamp(m.header, sim_time_s)
+
+
+def plan_query_msg(query: PlanQuery, stamper: Stamper, sim_time_s: float) -> plan_pb2.PlanRequest:
+    """A plan request on the wire: the core request, its mission, deadline and revision."""
+    req = query.request
+    m = plan_pb2.PlanRequest(step=req.t, objective=objective_to_msg(req.objective),
+                             waypoints_revision=query.waypoints_revision)
+    _envelope(m, req.system, query.mission_id, query.deadline_s, stamper, sim_time_s)
+    stamper.stamp(m.state.header, sim_time_s)
+    state_to_msg(req.state, req.t, m.state)
+    m.prev_control.east_n, m.prev_control.north_n = (float(v) for v in req.prev_control)
+    for poly in req.obstacles:
+        polygon_to_msg(poly, m.obstacles.add())
+    return m
+
+
+def prepare_msg(prep: Prepare, stamper: Stamper, sim_time_s: float) -> plan_pb2.PlanRequest:
+    """A prepare request on the wire: the mission's spec and configuration."""
+    m = plan_pb2.PlanRequest(prepare=True)
+    _envelope(m, prep.system, prep.mission_id, prep.deadline_s, stamper, sim_time_s)
+    spec_to_msg(prep.mission_id, prep.spec, m.mission)
+    config_to_msg(prep.config, m.config)
+    return m
+
+
+def _deadline(m: plan_pb2.PlanRequest) -> float:
+    check_floats([m.deadline_s], "deadline_s", 3600)
+    if m.deadline_s <= 0:
+        raise invalid(f"deadline_s must be in (0, 3600], got {m.deadline_s}", Reason.OUT_OF_RANGE)
+    return float(m.deadline_s)
+
+
+def _prepare_from_msg(m: plan_pb2.PlanRequest) -> Prepare:
+    if not m.HasField("mission") or not m.HasField("config"):
+        raise invalid("a prepare request must carry the mission spec and its configuration")
+    mission_id, spec = spec_from_msg(m.mission)
+    if m.mission_id and m.mission_id != mission_id:
+        raise invalid(f"mission_id {m.mission_id!r} differs from the spec's {mission_id!r}")
+    config = config_from_msg(m.config)
+    if (config.seed, config.goal, config.area_size_m) != (spec.seed, spec.goal,
+                                                          spec.area_size_m):
+        raise invalid("the mission spec's seed, goal or area differs from its configuration's")
+    return Prepare(mission_id, int(m.system), spec, config, int(m.header.seq), _deadline(m))
+
+
+def plan_request_from_msg(m: plan_pb2.PlanRequest) -> PlanQuery | Prepare:
+    """A plan request in core types (a :class:`Prepare` for a prepare request): field checks;
+    a planner checks a query against the spec it was prepared with (:func:`check_in_area`)."""
+    if m.system not in (1, 2):
+        raise invalid(f"system must be 1 or 2, got {m.system}", Reason.OUT_OF_RANGE)
+    if m.prepare:
+        return _prepare_from_msg(m)
+    if not m.HasField("state"):
+        raise invalid("plan request without state")
+    mission_id = check_text(m.mission_id, "mission_id", 256)
+    if not mission_id:
+        raise invalid("plan request without a mission_id")
+    deadline = _deadline(m)
+    check_header(m.state.header)
+    objective = objective_from_msg(m.objective)
+    assert objective is not None
+    check_count(len(m.obstacles), "obstacles", MAX_FRONTS * 2)
+    obstacles = tuple(polygon_from_msg(p, f"obstacle {i}") for i, p in enumerate(m.obstacles))
+    request = PlanRequest(t=int(m.step), system=int(m.system), state=state_from_msg(m.state),
+                          prev_control=force_from_msg(m.prev_control, "prev_control"),
+                          obstacles=obstacles, objective=objective)
+    return PlanQuery(request, mission_id, int(m.header.seq), deadline,
+                     int(m.waypoints_revision))
+
+
+def check_in_area(req: PlanRequest, spec: MissionSpec) -> None:
+    """Everything in a request lies near the mission's area [0, A]²: the state and the
+    obstacles within ``AREA_MARGIN``·A of it (anything farther is not this mission's)."""
+    area = spec.area_size_m
+    lo, hi = -AREA_MARGIN * area, (1 + AREA_MARGIN) * area
+    check_in_box(req.state[None, :2], lo, hi, "the vehicle state")
+    for i, h in enumerate(req.obstacles):
+        check_in_box(h.vertices, lo, hi, f"obstacle {i}")
+
+
+def _json_default(v: Any) -> Any:
+    if isinstance(v, np.ndarray):
+        return v.tolist()
+    if isinstance(v, (np.floating, np.integer, np.bool_)):
+        return v.item()
+    return str(v)
+
+
+def plan_to_msg(plan: Plan, step: int, request_seq: int, stamper: Stamper,
+                sim_time_s: float = 0.0) -> plan_pb2.Plan:
+    m = plan_pb2.Plan(step=step, system=plan.system, status=status_to_msg(plan.status),
+                      compute_time_s=float(plan.compute_time_s),
+                      objective=objective_to_msg(plan.objective), message=plan.message[:MAX_TEXT],
+                      request_seq=request_seq)
+    stamper.stamp(m.header, sim_time_s)
+    packed_to_msg(plan.states, m.states)
+    packed_to_msg(plan.controls, m.controls)
+    if plan.cost is not None and math.isfinite(plan.cost):
+        m.cost = float(plan.cost)
+    if plan.path is not None:
+        packed_to_msg(plan.path, m.path_m)
+    try:
+        info = json.dumps(plan.info, default=_json_default, allow_nan=True)
+    except (TypeError, ValueError, RecursionError):
+        info = '{"info_unserializable": true}'
+    # cut JSON is no JSON: a too-long info is replaced, never truncated
+    m.info_json = info if len(info) <= MAX_TEXT else '{"info_truncated": true}'
+    return m
+
+
+def plan_from_msg(m: plan_pb2.Plan, expected_system: int | None = None) -> Plan:
+    if m.system not in (1, 2) or (expected_system is not None and m.system != expected_system):
+        raise invalid(f"plan from system {m.system}, expected {expected_system}",
+                      Reason.OUT_OF_RANGE)
+    status = status_from_msg(m.status)
+    states = packed_from_msg(m.states, "plan states", 4, MAX_HORIZON + 1, MAX_ABS_M)
+    controls = packed_from_msg(m.controls, "plan controls", 2, MAX_HORIZON, MAX_FORCE_N)
+    if status is PlanStatus.OK and (len(controls) < 1 or len(states) != len(controls) + 1):
+        raise invalid(f"an OK plan needs T >= 1 controls and T+1 states, got "
+                      f"{len(controls)} / {len(states)}", Reason.SIZE)
+    check_floats([m.compute_time_s], "compute_time_s", 1e6)
+    if m.compute_time_s < 0:
+        raise invalid(f"compute_time_s must be >= 0, got {m.compute_time_s}",
+                      Reason.OUT_OF_RANGE)
+    check_floats([m.service_time_s], "service_time_s", 1e6)
+    if m.service_time_s < 0:
+        raise invalid(f"service_time_s must be >= 0, got {m.service_time_s}",
+                      Reason.OUT_OF_RANGE)
+    if m.HasField("cost"):
+        check_floats([m.cost], "plan cost", math.inf)
+    path = (packed_from_msg(m.path_m, "plan path", 2, MAX_HORIZON * 10, MAX_ABS_M)
+            if len(m.path_m) else None)
+    info_json = check_text(m.info_json, "plan info_json")
+    try:
+        info = json.loads(info_json) if info_json else {}
+    except (ValueError, RecursionError) as err:
+        raise invalid(f"plan info_json is not JSON: {str(err)[:200]}") from err
+    if not isinstance(info, dict):
+        raise invalid(f"plan info_json must be a JSON object, got {type(info).__name__}")
+    return Plan(
+        system=int(m.system), status=status, states=states, controls=controls,
+        compute_time_s=float(m.compute_time_s),
+        objective=objective_from_msg(m.objective, required=False),
+        cost=float(m.cost) if m.HasField("cost") else None, path=path,
+        message=check_text(m.message, "plan message"), info=info,
+    )
