@@ -2,11 +2,10 @@
 
 * ``<ns>/ews/command`` (queryable, FireCommand → FireUpdate): ``reset`` starts
   a mission's fire process from its seed and area (the spec's fire stream, as
-  the in-process mission), with the reset's fire readings (FireParams.life_base,
-  extent, redraw_clearance, keep_extinct_hulls; absent: the EWS's own, from
-  ``--profile`` and its flags) and fire process (FireReset.scenario: the paper's
-  rectangles or a named fire-behaviour scenario, dualpilot/model/scenarios.py;
-  empty: ``--fire-scenario``); ``advance`` propagates n sub-steps for mission
+  the in-process mission), with the fire process of the reset's mission
+  configuration (its reading's FireParams: T_f, life_base, extent, the
+  scenario, …; dualpilot/mission/config.py; a reset without one: the EWS's
+  own, from ``--profile`` and its flags); ``advance`` propagates n sub-steps for mission
   step t, no front igniting within the command's keep-out radius of the UAV.
   Sub-step k is published on
   ``<ns>/ews/fires`` when the stack's clock (carried in the command) reaches
@@ -48,8 +47,10 @@ from dualpilot.model.fire_field import FireField
 from dualpilot.model.forecast import ForecastParams
 from dualpilot.readings import PROFILES, get_profile
 from dualpilot.spec import Stream, stream_rng
-from services.common import bus, fleet, keys, protobuf_codec, rejections, wire
+from services.common import bus, fleet, keys, rejections, wire
 from services.common import cli as common_cli
+from services.common.convert import common as common_convert
+from services.common.convert import fire as fire_convert
 from services.common.log import fields
 from services.msgs import common_pb2, fire_pb2
 
@@ -69,9 +70,10 @@ class Ews:
                  occupancy: ForecastParams | None = None):
         self.session = session
         self.uav = uav
-        self.params = params
+        self.own = params  # for a reset that carries no configuration
+        self.params = params  # the current mission's
         self.stop = stop
-        self.forecast_substeps = max(0, math.ceil(forecast_horizon_s / params.substep_s))
+        self.forecast_horizon_s = forecast_horizon_s
         self.stamper = wire.Stamper("ews", uav)
         self.fires_pub = session.declare_publisher(keys.fires(uav))
         self.forecast_pub = session.declare_publisher(keys.forecast(uav))
@@ -85,23 +87,23 @@ class Ews:
         self.seed = 0
         self.step_substeps = 0  # sub-steps run so far in the latest time-step
 
+    @property
+    def forecast_substeps(self) -> int:
+        """The front forecast's horizon in the current mission's sub-steps."""
+        return max(0, math.ceil(self.forecast_horizon_s / self.params.substep_s))
+
     def state_msg(self) -> fire_pb2.FireState:
         assert self.field is not None
         f = self.field
-        return protobuf_codec.fire_state_msg(f.fronts, f.extinct_hulls, self.step, f.substeps_done,
+        return fire_convert.fire_state_msg(f.fronts, f.extinct_hulls, self.step, f.substeps_done,
                                              self.params.substep_s, self.stamper, self.sim_time_s)
 
-    def handle(self, cmd: protobuf_codec.FireCommand) -> fire_pb2.FireUpdate:
+    def handle(self, cmd: fire_convert.FireCommand) -> fire_pb2.FireUpdate:
         update = fire_pb2.FireUpdate()
         if cmd.kind == "reset":
-            params = self.params
-            if cmd.readings is not None:  # the supervisor's readings (FireReset.readings)
-                try:
-                    params = replace(self.params, **dict(cmd.readings))  # type: ignore[arg-type]
-                except (TypeError, ValueError) as err:
-                    raise rejections.invalid(f"bad fire readings: {err}") from err
-            if cmd.scenario:  # the supervisor's fire process (FireReset.scenario)
-                params = replace(params, scenario=cmd.scenario)
+            # the mission's fire process: its configuration's reading (else the EWS's own)
+            params = self.own if cmd.config is None else cmd.config.reading().fire
+            self.params = params
             self.field = (FireField(params=params, area_size_m=cmd.area_size_m)
                           if cmd.area_size_m > 0 else FireField(params=params))
             self.rng = stream_rng(cmd.seed, Stream.FIRE)
@@ -158,8 +160,8 @@ class Ews:
             regions = forecast_regions(front, self.field.params, self.forecast_substeps)
             fm = m.fronts.add(front_id=front.front_id)
             for r in regions:
-                protobuf_codec.rect_to_msg(r, fm.regions.add())
-            protobuf_codec.polygon_to_msg(envelope(front, regions), fm.envelope)
+                common_convert.rect_to_msg(r, fm.regions.add())
+            common_convert.polygon_to_msg(envelope(front, regions), fm.envelope)
         self.add_occupancy(m)
         bus.put(self.forecast_pub, "", m)
 
@@ -171,7 +173,7 @@ class Ews:
         if self.occupancy is None or f is None:
             return
         fc = field_forecast(f, self.occupancy, self.seed, max(1, self.step_substeps))
-        protobuf_codec.occupancy_to_msg(fc, m.occupancy)
+        fire_convert.occupancy_to_msg(fc, m.occupancy)
 
 
 class Binding:
@@ -188,7 +190,7 @@ class Binding:
         self.session = ""
         self.mission_id = ""
 
-    def check(self, cmd: protobuf_codec.FireCommand, who: str) -> None:
+    def check(self, cmd: fire_convert.FireCommand, who: str) -> None:
         """Raise CodecError when ``who`` may not send ``cmd``; a reset binds."""
         bound = self.session
         if bound and who != bound and bound in self.live.holders.get("supervisor", []):
@@ -217,7 +219,7 @@ def body(ctx: bus.Context, params: FireParams, forecast_horizon_s: float,
         if item is None or item.query is None:
             continue
         try:
-            cmd = protobuf_codec.fire_command_from_msg(
+            cmd = fire_convert.fire_command_from_msg(
                 wire.parse(item.payload, fire_pb2.FireCommand, item.encoding))
             binding.check(cmd, item.attachment.decode("ascii", "replace"))
             update = ews.handle(cmd)
@@ -227,10 +229,10 @@ def body(ctx: bus.Context, params: FireParams, forecast_horizon_s: float,
             bus.reply(item.query, update)
         except rejections.CodecError as err:
             rejections.rejected("FireCommand", err, log, key=key)
-            bus.reply_error(item.query, wire.error_msg(ews.stamper, err.code, str(err)))
+            bus.reply_error(item.query, common_convert.error_msg(ews.stamper, err.code, str(err)))
         except Exception as err:  # a bug must not take the fire process down with it
             log.exception("fire command failed")
-            bus.reply_error(item.query, wire.error_msg(
+            bus.reply_error(item.query, common_convert.error_msg(
                 ews.stamper, common_pb2.ERROR_CODE_INTERNAL, f"{type(err).__name__}: {err}"))
     queryable.undeclare()
 

@@ -2,8 +2,9 @@
 
 Answers PlanRequests on ``<ns>/plan/system1`` (services/common/planning.py)
 with :class:`dualpilot.system1.planner.System1`, one instance per mission,
-built from the mission's spec by :func:`dualpilot.planners.build_planner` as
-in-process (its RNG is the spec's System 1 stream). Operator waypoints come
+built from the mission's spec and configuration (its System 1 method and
+risk) by :func:`dualpilot.planners.build_planner` as in-process (its RNG is
+the spec's System 1 stream). Operator waypoints come
 on ``<ns>/operator/waypoints``. Rejected inputs are counted per key and
 reason in the status served on ``<ns>/status/system1``. ``--uav-ids`` serves
 a fleet (services/common/fleet.py): one planner loop per vehicle id.
@@ -11,8 +12,9 @@ a fleet (services/common/fleet.py): one planner loop per vehicle id.
 
 from __future__ import annotations
 
+from dualpilot.mission.config import MissionConfig
 from dualpilot.plan import Planner
-from dualpilot.planners import METHODS, build_planner
+from dualpilot.planners import build_planner
 from dualpilot.spec import MissionSpec
 from services.common import bus, fleet, planning
 from services.common import cli as common_cli
@@ -20,16 +22,11 @@ from services.common import cli as common_cli
 
 def main(argv: list[str] | None = None) -> int:
     p = common_cli.parser("system1", __doc__.splitlines()[0])
-    p.add_argument("--method", default=common_cli.env("S1_METHOD", "rrt"),
-                   choices=list(METHODS[1]),
-                   help="the default method (a prepare request may name another): rrt, the "
-                        "paper's LQR tracking; rrt+du, the tracker that penalises Δu "
-                        "[S1_METHOD]")
     fleet.add_argument(p)
     args = p.parse_args(argv)
 
-    def make(spec: MissionSpec, method: str) -> Planner:
-        return build_planner(1, spec, method or args.method)
+    def make(spec: MissionSpec, config: MissionConfig) -> Planner:
+        return build_planner(1, spec, config.system1_method, risk=config.risk)
 
     try:
         settings = common_cli.settings("system1", args)

@@ -1,10 +1,11 @@
 """System 2 service: Problem (P2), the mixed-integer MPC, as a Zenoh queryable.
 
 Answers PlanRequests on ``<ns>/plan/system2`` (services/common/planning.py)
-with :func:`dualpilot.planners.build_planner` (``--method`` one of
-``dualpilot.planners.METHODS[2]``), built once per mission from its spec and
-re-solved each request. Rejected inputs are counted per key and reason in
-the status served on ``<ns>/status/system2``. ``--uav-ids`` serves a fleet
+with :func:`dualpilot.planners.build_planner`, built once per mission from its
+spec and configuration (its System 2 method, one of
+``dualpilot.planners.METHODS[2]``, and risk) and re-solved each request.
+Rejected inputs are counted per key and reason in the status served on
+``<ns>/status/system2``. ``--uav-ids`` serves a fleet
 (services/common/fleet.py): one planner loop per vehicle id.
 """
 
@@ -12,8 +13,9 @@ from __future__ import annotations
 
 from dataclasses import replace
 
+from dualpilot.mission.config import MissionConfig
 from dualpilot.plan import Planner
-from dualpilot.planners import METHODS, build_planner
+from dualpilot.planners import build_planner
 from dualpilot.spec import MissionSpec
 from dualpilot.system2.problem import System2Params
 from services.common import bus, fleet, planning
@@ -22,8 +24,6 @@ from services.common import cli as common_cli
 
 def main(argv: list[str] | None = None) -> int:
     p = common_cli.parser("system2", __doc__.splitlines()[0])
-    p.add_argument("--method", default=common_cli.env("S2_METHOD", "fast"),
-                   choices=list(METHODS[2]), help="System 2 solver [S2_METHOD]")
     p.add_argument("--time-limit-s", type=float,
                    default=common_cli.env("S2_TIME_LIMIT_S", str(System2Params().time_limit_s)),
                    help="solver time limit per plan [S2_TIME_LIMIT_S]")
@@ -36,8 +36,8 @@ def main(argv: list[str] | None = None) -> int:
     except ValueError as err:
         p.error(str(err))
 
-    def make(spec: MissionSpec, method: str) -> Planner:
-        return build_planner(2, spec, method or args.method, params)
+    def make(spec: MissionSpec, config: MissionConfig) -> Planner:
+        return build_planner(2, spec, config.system2_method, params, risk=config.risk)
 
     return bus.run_service(settings, lambda ctx: fleet.for_each(
         ctx, uavs, lambda sub: planning.run(sub, 2, make)))

@@ -26,8 +26,11 @@ from collections.abc import Callable
 from typing import Any
 
 from dualpilot.spec import MissionSpec
-from services.common import bus, keys, protobuf_codec, rejections
+from services.common import bus, keys, rejections
 from services.common import cli as common_cli
+from services.common.convert import fire as fire_convert
+from services.common.convert import supervisor as supervisor_convert
+from services.common.convert import vehicle as vehicle_convert
 from services.common.log import fields
 from services.msgs import fire_pb2, supervisor_pb2, vehicle_pb2
 
@@ -88,14 +91,14 @@ class Viewer:
         kind = item.key.removeprefix(f"{keys.ns(uav)}/")
         if kind == "supervisor/decision":
             got = bus.accept(item, supervisor_pb2.Decision,
-                             lambda m: (protobuf_codec.decision_from_msg(m),
+                             lambda m: (supervisor_convert.decision_from_msg(m),
                                         int(m.commanded_system),
                                         log_time_ns(m.header)), key=item.key, logger=log)
             if got is not None:
                 self._for(uav).decision(*got)
         elif kind == "supervisor/plans":
             sp = bus.accept(item, supervisor_pb2.StepPlans,
-                            lambda m: (protobuf_codec.step_plans_from_msg(m),
+                            lambda m: (supervisor_convert.step_plans_from_msg(m),
                                        log_time_ns(m.header)),
                             key=item.key, logger=log)
             if sp is not None:
@@ -103,24 +106,24 @@ class Viewer:
                 self.vehicle(uav, plans.spec.area_size_m).step_plans(plans, t_ns)
         elif kind == "vehicle/state":
             st = bus.accept(item, vehicle_pb2.VehicleState,
-                            lambda m: (protobuf_codec.state_from_msg(m), int(m.step),
+                            lambda m: (vehicle_convert.state_from_msg(m), int(m.step),
                                        log_time_ns(m.header)), key=item.key, logger=log)
             if st is not None:
                 self._for(uav).state(*st)
         elif kind == "mission/event":
-            ev = bus.accept(item, supervisor_pb2.MissionEvent, protobuf_codec.check_mission_event,
-                            key=item.key, logger=log)
+            ev = bus.accept(item, supervisor_pb2.MissionEvent,
+                            supervisor_convert.check_mission_event, key=item.key, logger=log)
             if ev is not None:
                 self._for(uav).event(ev, log_time_ns(ev.header))
         elif kind == "ews/fires":
             fs = bus.accept(item, fire_pb2.FireState,
-                            lambda m: (protobuf_codec.snapshot_from_msg(m), log_time_ns(m.header)),
+                            lambda m: (fire_convert.snapshot_from_msg(m), log_time_ns(m.header)),
                             key=item.key, logger=log)
             if fs is not None and draw:
                 self._for(uav).fires(*fs)
         elif kind == "ews/forecast":
             fc = bus.accept(item, fire_pb2.FireForecast,
-                            lambda m: (protobuf_codec.occupancy_from_msg(m), log_time_ns(m.header)),
+                            lambda m: (fire_convert.occupancy_from_msg(m), log_time_ns(m.header)),
                             key=item.key, logger=log)
             if fc is not None and fc[0] is not None and draw:
                 self._for(uav).forecast(fc[0], fc[1])

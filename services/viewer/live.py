@@ -30,7 +30,7 @@ from dualpilot.viz.scene import (
     start_text,
     step_text,
 )
-from services.common.protobuf_codec import StepPlans
+from services.common.convert.supervisor import StepPlans
 from services.msgs import supervisor_pb2
 
 #: steps kept while a step's Decision waits for its StepPlans (or the other way round)

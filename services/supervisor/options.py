@@ -1,0 +1,179 @@
+"""The supervisor's settings: flags whose defaults come from the environment, read once.
+
+The mission's configuration takes the flags every entry point shares
+(:func:`dualpilot.mission.config_args.add_config_arguments`, each with its
+environment variable: ``CONTROLLER``, ``MISSION_SEED``, ``READINGS_PROFILE``, …);
+the rest say how this process talks to the stack and the vehicles (plan
+deadlines, the setpoint stream, MAVLink signing, the fleet it serves).
+:func:`parse` checks them all and returns :class:`Options`; a bad value is an
+argparse error, before anything is started.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+from dualpilot.mission.config import MissionConfig
+from dualpilot.mission.config_args import add_config_arguments, config_from_args
+from dualpilot.model.dynamics import Array
+from services.common import cli as common_cli
+from services.common import fleet, keys, mav
+from services.common.clock import SimClock
+from services.common.convert.vehicle import parse_waypoints
+
+from .ports import StackParams
+
+#: exit codes with ``--exit-after-mission`` (``docker compose up --exit-code-from supervisor``)
+EXIT_SUCCESS, EXIT_ABORTED, EXIT_FAILED = 0, 1, 3
+
+
+@dataclass(frozen=True)
+class LinkOptions:
+    """How the supervisor talks MAVLink to its vehicle."""
+
+    rate_hz: float = 20.0
+    stream: str = "process"
+    sysid: int = 1
+    altitude_m: float = 50.0
+    key: bytes | None = None
+    lost_after_s: float = 3.0
+
+
+@dataclass(frozen=True)
+class Options:
+    """Everything the supervisor process was told: per vehicle, :meth:`config` and :meth:`out`."""
+
+    settings: common_cli.Settings
+    mission: MissionConfig  # the fleet's first vehicle's; vehicle k: :meth:`config`
+    stack: StackParams
+    link: LinkOptions
+    uavs: tuple[str, ...]
+    seeds: tuple[int, ...]
+    mission_ids: tuple[str, ...]
+    out: str  # the run directory ({uav}: the vehicle id), "" none
+    waypoints: Array | None
+    stagger_s: float
+    exit_after_mission: bool
+    wait_services_s: float
+
+    def config(self, k: int) -> MissionConfig:
+        """Vehicle k's configuration: its seed, mission id and vehicle id."""
+        return replace(self.mission, seed=self.seeds[k], mission_id=self.mission_ids[k],
+                       uav_id=self.uavs[k])
+
+    def run_dir(self, k: int) -> Path | None:
+        return Path(fleet.per_vehicle(self.out, self.uavs[k])) if self.out else None
+
+    def mavlink_url(self, k: int) -> str:
+        return fleet.instance_url(self.settings.mavlink_url, k)
+
+
+def _add_stack_arguments(p: argparse.ArgumentParser) -> None:
+    env = common_cli.env
+    g = p.add_argument_group("the supervisor process")
+    g.add_argument("--seeds", default=env("MISSION_SEEDS", ""),
+                   help="with --uav-ids: each vehicle's seed, comma-separated (default: --seed "
+                        "+ k) [MISSION_SEEDS]")
+    g.add_argument("--waypoints", default=env("OPERATOR_WAYPOINTS", ""),
+                   help="System 1's operator waypoints 'e1,n1;e2,n2' [OPERATOR_WAYPOINTS]")
+    g.add_argument("--out", default=env("RUN_DIR", ""),
+                   help="write summary.json, steps.csv, trace.json, latency.csv here; {uav} is "
+                        "the vehicle id [RUN_DIR]")
+    fleet.add_argument(g, "one companion process for several vehicles: instance k on the "
+                          "MAVLink URL's port + k, system id --sysid + k")
+    g.add_argument("--start-stagger-s", type=float, default=env("START_STAGGER_S", "0"),
+                   help="with --uav-ids: vehicle k takes off k times this many wall seconds "
+                        "after the first [START_STAGGER_S]")
+    g.add_argument("--exit-after-mission", action="store_true",
+                   default=env("EXIT_AFTER_MISSION", "0") == "1",
+                   help=f"exit when the mission ends: {EXIT_SUCCESS} success, {EXIT_ABORTED} "
+                        f"aborted (or could not start), {EXIT_FAILED} ended in failure "
+                        "[EXIT_AFTER_MISSION=1]")
+    g.add_argument("--wait-services-s", type=float, default=env("WAIT_SERVICES_S", "120"),
+                   help="how long to wait for the other services [WAIT_SERVICES_S]")
+    g.add_argument("--plan-deadline-s", default=env("PLAN_DEADLINE_S", ""),
+                   help="'s1,s2' wall seconds a plan request waits [PLAN_DEADLINE_S]")
+    g.add_argument("--setpoint-rate-hz", type=float, default=env("SETPOINT_RATE_HZ", "20"),
+                   help="setpoint stream rate, >= 10 [SETPOINT_RATE_HZ]")
+    g.add_argument("--setpoint-stream", default=env("SETPOINT_STREAM", "process"),
+                   choices=["process", "thread"],
+                   help="who sends the setpoint stream: a process of its own with raised "
+                        "priority, or a thread of the supervisor [SETPOINT_STREAM]")
+    g.add_argument("--sysid", type=int, default=env("MAV_SYSID", "1"),
+                   help="the vehicle's MAVLink system id [MAV_SYSID]")
+    g.add_argument("--altitude-m", type=float, default=env("UAV_ALTITUDE_M", "50"),
+                   help="[UAV_ALTITUDE_M]")
+    g.add_argument("--signing-passphrase", default=env("MAVLINK_SIGNING_PASSPHRASE", ""),
+                   help="sign the offboard link [MAVLINK_SIGNING_PASSPHRASE]")
+    g.add_argument("--signing-key-file", default=env("MAVLINK_SIGNING_KEY_FILE", ""),
+                   help="sign the offboard link: 32 raw bytes, or a passphrase (sha256, as "
+                        "MAVProxy) [MAVLINK_SIGNING_KEY_FILE]")
+    g.add_argument("--vehicle-lost-s", type=float, default=env("VEHICLE_LOST_S", "3"),
+                   help="pause the mission after this long without a vehicle heartbeat "
+                        "[VEHICLE_LOST_S]")
+
+
+def parser(doc: str) -> argparse.ArgumentParser:
+    p = common_cli.parser("supervisor", doc, mavlink_default="udpout:127.0.0.1:14540")
+    add_config_arguments(p, common_cli.env)
+    _add_stack_arguments(p)
+    return p
+
+
+def _stack_params(args: argparse.Namespace) -> StackParams:
+    if not args.plan_deadline_s:  # default: tied to the control period (plan_deadline_periods)
+        return StackParams(altitude_m=args.altitude_m)
+    deadlines = tuple(float(v) for v in args.plan_deadline_s.split(","))
+    if len(deadlines) != 2 or min(deadlines) <= 0:
+        raise ValueError("--plan-deadline-s must be two positive numbers 's1,s2'")
+    return StackParams(plan_deadline_s=(deadlines[0], deadlines[1]), altitude_m=args.altitude_m)
+
+
+def _fleet(args: argparse.Namespace, settings: common_cli.Settings, seed: int
+           ) -> tuple[tuple[str, ...], tuple[int, ...], tuple[str, ...]]:
+    """(vehicle ids, their seeds, their mission ids)."""
+    uavs = fleet.uav_ids(args.uav_ids, settings.uav_id)
+    seeds = ([int(v) for v in args.seeds.split(",")] if args.seeds
+             else [seed + k for k in range(len(uavs))])
+    if len(seeds) != len(uavs):
+        raise ValueError(f"--seeds gives {len(seeds)} seeds for {len(uavs)} vehicles")
+    if len(uavs) > 1:
+        for flag, value in (("--out", args.out), ("--mission-id", args.mission_id)):
+            if value and "{uav}" not in value:
+                raise ValueError(f"{flag} must contain {{uav}} to fly several vehicles")
+        fleet.instance_url(settings.mavlink_url, len(uavs) - 1)
+        if args.sysid + len(uavs) - 1 > 255:
+            raise ValueError(f"--sysid {args.sysid} + {len(uavs)} vehicles passes 255")
+    started = int(time.time())
+    mids = tuple(fleet.per_vehicle(args.mission_id, uav) or f"{uav}-{s}-{started}"
+                 for uav, s in zip(uavs, seeds, strict=True))
+    for mid in mids:
+        keys.check_id(mid)
+    return uavs, tuple(seeds), mids
+
+
+def parse(argv: list[str] | None, doc: str) -> Options:
+    """The supervisor's options; argparse exits with the reason for a bad one."""
+    p = parser(doc)
+    args = p.parse_args(argv)
+    try:
+        settings = common_cli.settings("supervisor", args)
+        mission = config_from_args(args)
+        SimClock(settings.speed_factor)
+        if not args.vehicle_lost_s > 0:
+            raise ValueError("--vehicle-lost-s must be > 0")
+        if not 0 <= args.start_stagger_s <= 600:
+            raise ValueError("--start-stagger-s must be in [0, 600]")
+        uavs, seeds, mids = _fleet(args, settings, mission.seed)
+        link = LinkOptions(args.setpoint_rate_hz, args.setpoint_stream, args.sysid,
+                           args.altitude_m,
+                           mav.resolve_key(args.signing_passphrase, args.signing_key_file),
+                           args.vehicle_lost_s)
+        return Options(settings, mission, _stack_params(args), link, uavs, seeds, mids,
+                       args.out, parse_waypoints(args.waypoints), args.start_stagger_s,
+                       args.exit_after_mission, args.wait_services_s)
+    except (ValueError, OSError) as err:
+        p.error(str(err))
