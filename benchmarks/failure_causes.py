@@ -15,9 +15,8 @@ import sys
 
 import numpy as np
 
-from dualpilot.evaluation.missions import mission_spec
+from dualpilot.evaluation.missions import Task, mission_spec
 from dualpilot.mission.local import LocalFires, local_mission
-from dualpilot.mission.params import Controller, Timing
 from dualpilot.mission.ports import KeepOut
 from dualpilot.model.geometry import Rect
 from dualpilot.spec import MissionSpec
@@ -48,7 +47,7 @@ def main(controller: str, n: int) -> None:
     distances = []
     for i in range(n):
         spec = mission_spec(0, i)
-        mission = local_mission(Controller(controller), spec, timing=Timing.PAPER)
+        mission = local_mission(Task.of(i, 0, controller, "paper", "fast").mission())
         probe = ProbedFires(spec)
         mission.fires = probe
         while not mission.done:

@@ -29,15 +29,15 @@ from __future__ import annotations
 import argparse
 import json
 import time
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from dualpilot.evaluation.missions import mission_spec
+from dualpilot.evaluation.missions import Task
 from dualpilot.mission.local import LocalFires, local_mission
-from dualpilot.mission.params import controller_of
-from dualpilot.mission.result import StepRecord
+from dualpilot.mission.result import Ending, StepRecord
 from dualpilot.model.forecast import LEVELS, OccupancyForecast, occupancy
 from dualpilot.model.geometry import Rect
 from dualpilot.model.scenarios import PAPER, scenario_names
@@ -92,16 +92,15 @@ class Recorder:
 
     def recorded(self, record: StepRecord, flown: bool) -> None: ...
 
-    def ended(self, record: StepRecord, success: bool, cause: str) -> None: ...
+    def ended(self, record: StepRecord, ending: Ending) -> None: ...
 
 
 def fly(profile: str, index: int, seed: int, controller: str,
         ks: tuple[int, ...], scenario: str = PAPER) -> Recorder:
-    reading = get_profile(profile).with_settings({"scenario": scenario})
-    spec = reading.spec(mission_spec(seed, index))
-    ctrl, supervisor = controller_of(controller)
-    mission = local_mission(ctrl, spec, params=reading.mission, fire_params=reading.fire,
-                            supervisor_params=reading.supervisor, supervisor=supervisor)
+    # the forecast is scored, not flown: the controller's plain variant flies
+    config = replace(Task.of(index, seed, controller, "paper", "fast", profile,
+                             (("scenario", scenario),)).mission(), risk=False)
+    mission = local_mission(config)
     fires = mission.fires
     assert isinstance(fires, LocalFires)
     rec = Recorder(fires, ks)
@@ -111,7 +110,7 @@ def fly(profile: str, index: int, seed: int, controller: str,
     mission.run()
     # the fire process goes on after the mission: until the last forecast's horizon
     t = mission.result.steps
-    clear = reading.mission.ignition_clearance_m
+    clear = config.reading().mission.ignition_clearance_m
     keep = None if clear is None else (mission.state[:2].copy(), clear)
     n = max(1, mission.substeps_per_step(2 if controller == "s2" else 1))
     while fires.field.substeps_done < rec.issued[-1][0] + max(ks):

@@ -30,13 +30,11 @@ from typing import Any
 
 import numpy as np
 
-from dualpilot.evaluation.missions import mission_spec
+from dualpilot.evaluation.missions import Task
 from dualpilot.mission.local import LocalFires, local_mission
-from dualpilot.mission.params import controller_of, uses_risk
-from dualpilot.mission.result import StepRecord
+from dualpilot.mission.result import Ending, StepRecord
 from dualpilot.model.physics_forecast import RunAhead
 from dualpilot.model.scenarios import PAPER, scenario_names
-from dualpilot.readings import get_profile
 from dualpilot.supervisor.decision import Decision
 
 
@@ -58,19 +56,15 @@ class Forecaster:
 
     def recorded(self, record: StepRecord, flown: bool) -> None: ...
 
-    def ended(self, record: StepRecord, success: bool, cause: str) -> None: ...
+    def ended(self, record: StepRecord, ending: Ending) -> None: ...
 
 
 def fly(profile: str, index: int, seed: int, controller: str, forecast: bool,
         scenario: str = PAPER) -> tuple[list[float], list[float], int, tuple[int, int]]:
     """Step CPU times (s), forecast CPU times (s), the steps' total fronts of one mission and
     (reused, fresh) run-aheads of a scenario's forecast."""
-    reading = get_profile(profile).with_settings({"scenario": scenario})
-    ctrl, supervisor = controller_of(controller)
-    mission = local_mission(ctrl, reading.spec(mission_spec(seed, index)),
-                            params=reading.mission, fire_params=reading.fire,
-                            supervisor_params=reading.supervisor, supervisor=supervisor,
-                            risk=uses_risk(controller))
+    mission = local_mission(Task.of(index, seed, controller, "paper", "fast", profile,
+                                    (("scenario", scenario),)).mission())
     obs = Forecaster(mission) if forecast else None
     mission.observer = obs
     steps: list[float] = []

@@ -127,11 +127,10 @@ def run_load(n_vehicles: int, out: Path, speed_factor: float = 200.0,
 
 
 def in_process(seed: int) -> Any:
+    from dualpilot.mission.config import MissionConfig
     from dualpilot.mission.local import local_mission
-    from dualpilot.mission.params import Controller, Timing
-    from dualpilot.spec import MissionSpec
 
-    return local_mission(Controller.CC, MissionSpec(seed=seed), timing=Timing.PAPER).run()
+    return local_mission(MissionConfig(seed=seed)).run()
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -38,8 +38,8 @@ def main() -> int:
     points = grid_points(doc.get("grid") or {}, doc.get("profile", "today"),
                          doc.get("points") or ())
     controllers = doc.get("controllers", CONTROLLERS)
-    tasks = [Task(i, int(doc.get("seed", 0)), c, doc.get("timing", "paper"), "fast",
-                  profile=pt.profile, settings=pt.settings, point=pt.index, label=pt.label)
+    tasks = [Task.of(i, int(doc.get("seed", 0)), c, doc.get("timing", "paper"), "fast",
+                     profile=pt.profile, settings=pt.settings, point=pt.index, label=pt.label)
              for i in range(first, last) for pt in points for c in controllers]
     warm_up()
     t0 = time.perf_counter()

@@ -75,11 +75,10 @@ def run_process(argv: Sequence[str], timeout_s: float, what: str,
 
 
 def in_process(seed: int) -> MissionResult:
+    from dualpilot.mission.config import MissionConfig
     from dualpilot.mission.local import local_mission
-    from dualpilot.mission.params import Controller, Timing
-    from dualpilot.spec import MissionSpec
 
-    return local_mission(Controller.CC, MissionSpec(seed=seed), timing=Timing.PAPER).run()
+    return local_mission(MissionConfig(seed=seed)).run()
 
 
 def successful_seed() -> tuple[int, MissionResult]:

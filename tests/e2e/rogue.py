@@ -30,9 +30,12 @@ import threading
 import numpy as np
 import zenoh
 
+from dualpilot.mission.ports import PlanRequest
 from dualpilot.model.dynamics import DynamicsParams, rollout
 from dualpilot.plan import Plan, PlanStatus
-from services.common import bus, keys, protobuf_codec, wire
+from services.common import bus, keys, wire
+from services.common.convert import fire as fire_convert
+from services.common.convert import plan as plan_convert
 from services.msgs import fire_pb2, plan_pb2
 
 DYN = DynamicsParams()
@@ -46,7 +49,7 @@ def _open(endpoint: str) -> zenoh.Session:
     return zenoh.open(conf)
 
 
-def byzantine_plan(req: protobuf_codec.PlanRequest, k: int) -> Plan:
+def byzantine_plan(req: PlanRequest, k: int) -> Plan:
     """A well-formed OK plan that must never be flown (one of three lies, by request count)."""
     x = np.asarray(req.state, dtype=float)
     controls = np.zeros((10, 2))
@@ -67,7 +70,7 @@ def byzantine_plan(req: protobuf_codec.PlanRequest, k: int) -> Plan:
                 compute_time_s=0.001, info={"source": "byzantine"})
 
 
-def braking_plan(req: protobuf_codec.PlanRequest) -> Plan:
+def braking_plan(req: PlanRequest) -> Plan:
     x = np.asarray(req.state, dtype=float)
     u = np.clip(-DYN.mass_kg * (1 - DYN.zeta) * x[2:] / DYN.dt_s, -DYN.u_max_n, DYN.u_max_n)
     controls = np.zeros((5, 2))
@@ -112,24 +115,25 @@ def main() -> int:
             if args.mode == "ews-impostor":
                 cmd = wire.parse(item.payload, fire_pb2.FireCommand, item.encoding)
                 update = fire_pb2.FireUpdate()
-                state = protobuf_codec.fire_state_msg([], [], cmd.advance.step, 0, 0.5,
+                state = fire_convert.fire_state_msg([], [], cmd.advance.step, 0, 0.5,
                                                       wire.Stamper("ews", args.uav), 0.0)
                 update.states.append(state)
                 bus.reply(item.query, update)
                 continue
-            req = protobuf_codec.plan_request_from_msg(
+            req = plan_convert.plan_request_from_msg(
                 wire.parse(item.payload, plan_pb2.PlanRequest, item.encoding))
-            if args.mode == "plan-hung" and not req.prepare:
+            prepare = isinstance(req, plan_convert.Prepare)
+            if args.mode == "plan-hung" and not prepare:
                 continue  # prepared, then never answers (as a planner stuck in its solver)
-            if req.prepare:
-                msg = plan_pb2.Plan(step=req.step, system=2, status=plan_pb2.PLAN_STATUS_OK,
+            if isinstance(req, plan_convert.Prepare):
+                msg = plan_pb2.Plan(step=0, system=2, status=plan_pb2.PLAN_STATUS_OK,
                                     message="prepared", request_seq=req.seq)
                 stamper.stamp(msg.header)
             else:
-                plan = (byzantine_plan(req, count[0]) if args.mode == "plan-byzantine"
-                        else braking_plan(req))
+                plan = (byzantine_plan(req.request, count[0]) if args.mode == "plan-byzantine"
+                        else braking_plan(req.request))
                 count[0] += 1
-                msg = protobuf_codec.plan_to_msg(plan, req.step, req.seq, stamper)
+                msg = plan_convert.plan_to_msg(plan, req.request.t, req.seq, stamper)
             bus.reply(item.query, msg)
         for t in tokens:
             t.undeclare()

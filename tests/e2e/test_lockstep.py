@@ -27,15 +27,14 @@ from typing import Any
 import numpy as np
 import pytest
 
+from dualpilot.mission.config import MissionConfig
 from dualpilot.mission.local import local_mission
-from dualpilot.mission.params import Controller, MissionParams, Timing
+from dualpilot.mission.params import Timing
 from dualpilot.mission.ports import PlannerPort, PlanRequest
 from dualpilot.mission.records import read_step_log, result_from_log
 from dualpilot.mission.result import MissionResult
 from dualpilot.mission.step import Mission
-from dualpilot.model.dynamics import DynamicsParams
 from dualpilot.plan import Plan
-from dualpilot.spec import MissionSpec
 from services import launch
 from tests.support.waits import check, logs_in
 
@@ -168,11 +167,9 @@ def in_process(seed: int, controller: str, timing: str, clear: float | None,
                replay: Path | None = None) -> MissionResult:
     """The in-process mission of a run; with ``replay`` (a stack's run directory) and measured
     timing, flown with the compute times that run recorded (:class:`ReplayedTimes`)."""
-    concurrent = controller == "concurrent"
-    mission = local_mission(Controller("cc" if concurrent else controller),
-                            MissionSpec(seed=seed), timing=Timing(timing),
-                            params=MissionParams(ignition_clearance_m=clear),
-                            supervisor="concurrent" if concurrent else "paper")
+    settings = {} if clear is None else {"ignition_clearance_m": clear}
+    mission = local_mission(MissionConfig.named(controller, seed=seed, timing=Timing(timing),
+                                                settings=settings))
     if replay is not None and Timing(timing) is Timing.MEASURED:
         return replayed(mission, replay, f"{controller} {timing} seed {seed}")
     return mission.run()
@@ -243,15 +240,9 @@ def test_a_profile_given_to_the_supervisor_alone_reaches_the_ews(fleet: Any,
     """The shared EWS runs its default reading; the supervisor's profile (its
     READINGS_PROFILE) travels in every FireReset, so the missions are the in-process ones
     under that profile."""
-    from dualpilot.readings import get_profile
-
-    reading = get_profile(profile)
     env = {"READINGS_PROFILE": profile}
     for seed, _, stack in fly_cc_on_stack(fleet, SEEDS[:3], env, f"profile-{profile}"):
-        local = local_mission(Controller.CC, reading.spec(MissionSpec(seed=seed)),
-                              timing=Timing.PAPER, params=reading.mission,
-                              fire_params=reading.fire,
-                              supervisor_params=reading.supervisor).run()
+        local = local_mission(MissionConfig(seed=seed, profile=profile)).run()
         assert_same_mission(stack, local, f"{profile} seed {seed}",
                             ATOL)
 
@@ -260,18 +251,16 @@ def test_the_speed_limit_reaches_system1_system2_and_uavsim(fleet: Any) -> None:
     """SPEED_LIMIT=norm (|v| ≤ 15 m/s) on the supervisor and uavsim of today's profile: the
     spec carries it to the planner services, and every step is the in-process loop's under
     the same reading. A place still clipping per axis would fly faster on the diagonal."""
-    norm = DynamicsParams(speed_limit="norm")
     env = {"READINGS_PROFILE": "today", "SPEED_LIMIT": "norm"}
     for seed, run_dir, stack in fly_cc_on_stack(fleet, SEEDS[:2], env, "speed-norm"):
         uavsim_log = run_dir / "logs" / "uavsim.log"
         check("speed_limit=norm" in uavsim_log.read_text(), "uavsim to log speed_limit=norm",
               [uavsim_log])
-        local = local_mission(Controller.CC, MissionSpec(seed=seed, dynamics=norm),
-                              timing=Timing.PAPER).run()
+        local = local_mission(MissionConfig(seed=seed, settings=(("speed_limit", "norm"),))).run()
         assert_same_mission(stack, local, f"norm seed {seed}", ATOL)
         systems = {r.system for r in stack.records}
         assert {1, 2} <= systems, systems  # both planners flew under the reading
         speeds = [float(np.hypot(*r.state[2:])) for r in stack.records]
         assert max(speeds) <= 15.0 + ATOL
-        axis = local_mission(Controller.CC, MissionSpec(seed=seed), timing=Timing.PAPER).run()
+        axis = local_mission(MissionConfig(seed=seed)).run()
         assert max(float(np.hypot(*r.state[2:])) for r in axis.records) > 15.5

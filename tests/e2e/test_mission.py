@@ -11,7 +11,8 @@ import numpy as np
 import pytest
 
 from dualpilot.model.geometry import Rect
-from services.common import protobuf_codec
+from services.common.convert import fire as fire_convert
+from services.common.convert import vehicle as vehicle_convert
 from tests.support.waits import check, logs_in
 
 pytestmark = [pytest.mark.slow, pytest.mark.timeout(300)]
@@ -31,14 +32,14 @@ def test_mission_reaches_the_goal(mission: Any) -> None:
 
 
 def _by_step(mission: Any) -> tuple[dict[int, np.ndarray], dict[int, list[tuple[Rect, ...]]]]:
-    states = {s.step: protobuf_codec.state_from_msg(s) for s in mission.states}
+    states = {s.step: vehicle_convert.state_from_msg(s) for s in mission.states}
     fires: dict[int, list[tuple[Rect, ...]]] = defaultdict(list)
     done = [f.substeps_done for f in mission.fires]
     assert done == list(range(done[0], done[0] + len(done))) and done[0] <= 1, (
         "every fire sub-step was recorded, in order")
     for f in mission.fires:
         if f.substeps_done > 0:
-            fires[f.step].append(protobuf_codec.regions_from_msg(f))
+            fires[f.step].append(fire_convert.regions_from_msg(f))
     return states, fires
 
 

@@ -12,6 +12,7 @@ from typing import Any
 import numpy as np
 import pytest
 
+from dualpilot.mission.ports import PlanRequest
 from dualpilot.model.dynamics import DynamicsParams, step
 from dualpilot.model.fire import FireParams
 from dualpilot.model.fire_field import FireField
@@ -20,8 +21,14 @@ from dualpilot.plan import Objective, Plan, PlanStatus
 from dualpilot.spec import MissionSpec
 from dualpilot.supervisor.decision import Supervisor
 from services import protogen
-from services.common import limits, mavlink_codec, protobuf_codec, rejections, wire
+from services.common import limits, mavlink_codec, rejections, wire
+from services.common.convert import common as common_convert
+from services.common.convert import fire as fire_convert
+from services.common.convert import plan as plan_convert
+from services.common.convert import supervisor as supervisor_convert
+from services.common.convert import vehicle as vehicle_convert
 from services.msgs import common_pb2, fire_pb2, plan_pb2, supervisor_pb2
+from tests.support.missions import config_for
 
 pytestmark = pytest.mark.timeout(60)
 
@@ -66,9 +73,9 @@ def test_fire_state_round_trip_is_exact() -> None:
     field = _fires()
     snap = field.snapshot()
     assert snap.regions, "the seed should leave some fronts alive"
-    msg = protobuf_codec.fire_state_msg(field.fronts, field.extinct_hulls, 2, field.substeps_done,
+    msg = fire_convert.fire_state_msg(field.fronts, field.extinct_hulls, 2, field.substeps_done,
                                         0.5, wire.Stamper("ews", "uav1"), 1.5)
-    back = protobuf_codec.snapshot_from_msg(wire.parse(msg.SerializeToString(), fire_pb2.FireState))
+    back = fire_convert.snapshot_from_msg(wire.parse(msg.SerializeToString(), fire_pb2.FireState))
     assert back.regions == snap.regions
     assert back.front_ids == snap.front_ids and back.born_steps == snap.born_steps
     for a, b in zip(back.hulls, snap.hulls, strict=True):
@@ -82,13 +89,13 @@ def test_fast_hull_decoding_equals_from_vertices() -> None:
         pts = rng.normal(size=(int(rng.integers(3, 25)), 2)) * 200 + 500
         poly = Polytope.from_vertices(pts)
         m = common_pb2.Polygon()
-        protobuf_codec.polygon_to_msg(poly, m)
-        back = protobuf_codec.polygon_from_msg(m)
+        common_convert.polygon_to_msg(poly, m)
+        back = common_convert.polygon_from_msg(m)
         assert np.array_equal(back.A, poly.A) and np.array_equal(back.b, poly.b)
         # the same vertices in another order still decode to the same polygon (slow path)
         m2 = common_pb2.Polygon()
         m2.vertices_m.extend(np.roll(poly.vertices, 1, axis=0)[::-1].ravel().tolist())
-        assert np.allclose(protobuf_codec.polygon_from_msg(m2).vertices, poly.vertices)
+        assert np.allclose(common_convert.polygon_from_msg(m2).vertices, poly.vertices)
 
 
 def test_plan_round_trip_keeps_the_trajectory() -> None:
@@ -102,8 +109,8 @@ def test_plan_round_trip_keeps_the_trajectory() -> None:
                 compute_time_s=0.042, objective=Objective.ENERGY, cost=12.5,
                 path=np.array([[50.0, 50.0], [900.0, 900.0]]), message="ok",
                 info={"source": "mpc", "iters": np.int64(3), "arr": np.zeros(2)})
-    msg = protobuf_codec.plan_to_msg(plan, 7, 99, wire.Stamper("system2", "uav1"))
-    back = protobuf_codec.plan_from_msg(wire.parse(msg.SerializeToString(), plan_pb2.Plan), 2)
+    msg = plan_convert.plan_to_msg(plan, 7, 99, wire.Stamper("system2", "uav1"))
+    back = plan_convert.plan_from_msg(wire.parse(msg.SerializeToString(), plan_pb2.Plan), 2)
     assert np.array_equal(back.states, plan.states)
     assert np.array_equal(back.controls, plan.controls)
     assert back.status is PlanStatus.OK and back.objective is Objective.ENERGY
@@ -115,28 +122,19 @@ def test_plan_round_trip_keeps_the_trajectory() -> None:
 def test_decision_round_trip() -> None:
     sup = Supervisor(np.random.default_rng(1))
     d = sup.decide(3, 120.0)
-    msg = protobuf_codec.decision_to_msg(d, 2, wire.Stamper("supervisor", "uav1"), 4.5)
-    back = protobuf_codec.decision_from_msg(wire.parse(msg.SerializeToString(),
+    msg = supervisor_convert.decision_to_msg(d, 2, wire.Stamper("supervisor", "uav1"), 4.5)
+    back = supervisor_convert.decision_from_msg(wire.parse(msg.SerializeToString(),
                                                        supervisor_pb2.Decision))
     assert back.t == 3 and back.system == d.system and back.attention == d.attention
     assert np.array_equal(back.xi, d.xi) and np.array_equal(back.psi, d.psi)
     assert msg.commanded_system == 2
-    no_fire = protobuf_codec.decision_to_msg(sup.decide(4, math.inf), 1, wire.Stamper("s", "u"),
+    no_fire = supervisor_convert.decision_to_msg(sup.decide(4, math.inf), 1, wire.Stamper("s", "u"),
                                              0.0)
-    assert protobuf_codec.decision_from_msg(no_fire).d_t == math.inf
+    assert supervisor_convert.decision_from_msg(no_fire).d_t == math.inf
 
 
-def _request(prepare: bool = True, **changes: Any) -> plan_pb2.PlanRequest:
-    """A plan request for step 0 avoiding the hulls of :func:`_fires` (with the spec when
-    ``prepare``), with ``changes`` applied (``a__b`` is the field b of a)."""
-    field = _fires()
-    stamper = wire.Stamper("supervisor", "uav1")
-    req = protobuf_codec.PlanRequest(
-        seq=0, mission_id="m-1", step=0, system=1, objective=Objective.MISSION_TIME,
-        state=np.array([50.0, 50.0, 0.0, 0.0]), prev_control=np.zeros(2),
-        obstacles=field.snapshot().hulls, deadline_s=5.0, prepare=prepare,
-        spec=MissionSpec(seed=7) if prepare else None)
-    msg = protobuf_codec.plan_request_msg(req, stamper, 0.0)
+def _changed(msg: plan_pb2.PlanRequest, changes: dict[str, Any]) -> plan_pb2.PlanRequest:
+    """``msg`` with ``changes`` applied (``a__b`` is the field b of a)."""
     for path, value in changes.items():
         obj: object = msg
         *parents, leaf = path.split("__")
@@ -146,14 +144,33 @@ def _request(prepare: bool = True, **changes: Any) -> plan_pb2.PlanRequest:
     return msg
 
 
+def _request(prepare: bool = False, **changes: Any) -> plan_pb2.PlanRequest:
+    """Step 0's plan request avoiding the hulls of :func:`_fires` (``prepare``: the request
+    that prepares the mission, its spec and configuration), with ``changes`` applied."""
+    stamper = wire.Stamper("supervisor", "uav1")
+    if prepare:
+        spec = MissionSpec(seed=7)
+        prep = plan_convert.Prepare("m-1", 1, spec, config_for(spec), deadline_s=5.0)
+        return _changed(plan_convert.prepare_msg(prep, stamper, 0.0), changes)
+    req = PlanRequest(t=0, system=1, state=np.array([50.0, 50.0, 0.0, 0.0]),
+                      prev_control=np.zeros(2), obstacles=_fires().snapshot().hulls,
+                      objective=Objective.MISSION_TIME)
+    query = plan_convert.PlanQuery(req, "m-1", 0, 5.0)
+    return _changed(plan_convert.plan_query_msg(query, stamper, 0.0), changes)
+
+
 def test_plan_request_round_trip() -> None:
-    req = protobuf_codec.plan_request_from_msg(_request())
-    assert req.system == 1 and req.spec == MissionSpec(seed=7) and req.mission_id == "m-1"
-    assert np.array_equal(req.state, [50.0, 50.0, 0.0, 0.0]) and req.deadline_s == 5.0
+    prep = plan_convert.plan_request_from_msg(_request(prepare=True))
+    assert isinstance(prep, plan_convert.Prepare)
+    assert prep.system == 1 and prep.spec == MissionSpec(seed=7) and prep.mission_id == "m-1"
+    assert prep.config == config_for(MissionSpec(seed=7)) and prep.deadline_s == 5.0
+    query = plan_convert.plan_request_from_msg(_request())
+    assert isinstance(query, plan_convert.PlanQuery)
+    req = query.request
+    assert req.system == 1 and query.mission_id == "m-1" and query.deadline_s == 5.0
+    assert np.array_equal(req.state, [50.0, 50.0, 0.0, 0.0]) and req.t == 0
     assert [h.vertices.tolist() for h in req.obstacles] == [
         h.vertices.tolist() for h in _fires().snapshot().hulls]
-    plain = protobuf_codec.plan_request_from_msg(_request(prepare=False))
-    assert plain.spec is None and plain.mission_id == "m-1" and not plain.prepare
 
 
 @pytest.mark.parametrize(
@@ -164,20 +181,36 @@ def test_plan_request_round_trip() -> None:
         ({"state__velocity_north_mps": 1e9}, "within"),
         ({"system": 3}, "system must be 1 or 2"),
         ({"deadline_s": 0.0}, "deadline_s"),
-        ({"mission__goal__width_m": -1.0}, "positive"),
-        ({"mission__d_safe_m": 30.0}, "d_safe_m <= clearance_m"),
-        ({"mission__start__east_m": -5.0}, "start"),
-        ({"mission__dynamics__mass_kg": 0.0}, "dynamics"),
-        ({"mission__dynamics__speed_limit": 7}, "unknown speed_limit 7"),
-        ({"mission_id": "another"}, "differs from the spec"),
         ({"objective": 0}, "objective"),
         ({"prev_control__east_n": math.inf}, "finite"),
     ],
 )
 def test_invalid_plan_requests_are_rejected(changes: dict[str, Any], match: str) -> None:
     with pytest.raises(rejections.CodecError, match=match) as info:
-        protobuf_codec.plan_request_from_msg(wire.parse(_request(**changes).SerializeToString(),
-                                                        plan_pb2.PlanRequest))
+        plan_convert.plan_request_from_msg(wire.parse(_request(**changes).SerializeToString(),
+                                                      plan_pb2.PlanRequest))
+    assert info.value.code == common_pb2.ERROR_CODE_INVALID
+
+
+@pytest.mark.parametrize(
+    ("changes", "match"),
+    [
+        ({"mission__goal__width_m": -1.0}, "positive"),
+        ({"mission__d_safe_m": 30.0}, "d_safe_m <= clearance_m"),
+        ({"mission__start__east_m": -5.0}, "start"),
+        ({"mission__dynamics__mass_kg": 0.0}, "dynamics"),
+        ({"mission__dynamics__speed_limit": 7}, "unknown speed_limit 7"),
+        ({"mission_id": "another"}, "differs from the spec"),
+        ({"config__seed": 8}, "differs from its configuration"),
+        ({"config__controller": 9}, "controller 9 is not one of"),
+        ({"config__profile": "lenient"}, "unknown profile"),
+        ({"deadline_s": math.nan}, "deadline_s"),
+    ],
+)
+def test_invalid_prepares_are_rejected(changes: dict[str, Any], match: str) -> None:
+    with pytest.raises(rejections.CodecError, match=match) as info:
+        plan_convert.plan_request_from_msg(wire.parse(
+            _request(prepare=True, **changes).SerializeToString(), plan_pb2.PlanRequest))
     assert info.value.code == common_pb2.ERROR_CODE_INVALID
 
 
@@ -185,67 +218,72 @@ def test_invalid_plan_requests_are_rejected(changes: dict[str, Any], match: str)
 def test_the_speed_limit_reading_travels_in_the_spec(speed_limit: str) -> None:
     spec = MissionSpec(seed=7, dynamics=DynamicsParams(speed_limit=speed_limit))  # type: ignore[arg-type]
     msg = plan_pb2.MissionSpec()
-    protobuf_codec.spec_to_msg("m-1", spec, msg)
+    plan_convert.spec_to_msg("m-1", spec, msg)
     assert msg.dynamics.speed_limit == {"axis": plan_pb2.SPEED_LIMIT_AXIS,
                                         "norm": plan_pb2.SPEED_LIMIT_NORM}[speed_limit]
-    back = protobuf_codec.spec_from_msg(wire.parse(msg.SerializeToString(),
+    back = plan_convert.spec_from_msg(wire.parse(msg.SerializeToString(),
                                                    plan_pb2.MissionSpec))[1]
     assert back == spec and back.dynamics.speed_limit == speed_limit
     msg.dynamics.speed_limit = plan_pb2.SPEED_LIMIT_UNSPECIFIED  # a sender without the field
-    assert protobuf_codec.spec_from_msg(msg)[1].dynamics.speed_limit == "axis"
+    assert plan_convert.spec_from_msg(msg)[1].dynamics.speed_limit == "axis"
 
 
 def test_a_plan_request_needs_its_mission() -> None:
     with pytest.raises(rejections.CodecError, match="without a mission_id"):
-        protobuf_codec.plan_request_from_msg(_request(prepare=False, mission_id=""))
-    msg = _request(prepare=False)
-    msg.prepare = True  # a prepare request without the spec
+        plan_convert.plan_request_from_msg(_request(mission_id=""))
+    msg = _request()
+    msg.prepare = True  # a prepare request without the spec and configuration
     with pytest.raises(rejections.CodecError, match="must carry the mission spec"):
-        protobuf_codec.plan_request_from_msg(msg)
+        plan_convert.plan_request_from_msg(msg)
+
+
+def _query(msg: plan_pb2.PlanRequest) -> plan_convert.PlanQuery:
+    got = plan_convert.plan_request_from_msg(msg)
+    assert isinstance(got, plan_convert.PlanQuery)
+    return got
 
 
 def test_obstacles_and_state_must_lie_near_the_area() -> None:
-    req = protobuf_codec.plan_request_from_msg(_request(prepare=False))
-    protobuf_codec.check_in_area(req, MissionSpec())
-    far = protobuf_codec.plan_request_from_msg(_request(prepare=False, state__east_m=2500.0))
+    plan_convert.check_in_area(_query(_request()).request, MissionSpec())
+    far = _query(_request(state__east_m=2500.0))
     with pytest.raises(rejections.CodecError, match="the vehicle state"):
-        protobuf_codec.check_in_area(far, MissionSpec())
-    msg = _request(prepare=False)
+        plan_convert.check_in_area(far.request, MissionSpec())
+    msg = _request()
     msg.obstacles[0].vertices_m[0] = 5000.0
     with pytest.raises(rejections.CodecError, match="obstacle 0"):
-        protobuf_codec.check_in_area(protobuf_codec.plan_request_from_msg(msg), MissionSpec())
+        plan_convert.check_in_area(_query(msg).request, MissionSpec())
 
 
 def test_bad_geometry_and_sizes_are_rejected() -> None:
     msg = _request()
     msg.obstacles[0].vertices_m[:] = [0.0, 0.0, 1.0, 1.0, 2.0, 2.0]  # collinear
     with pytest.raises(rejections.CodecError, match="obstacle"):
-        protobuf_codec.plan_request_from_msg(msg)
+        plan_convert.plan_request_from_msg(msg)
     msg = _request()
     msg.obstacles[0].vertices_m.append(1.0)  # odd number of coordinates
     with pytest.raises(rejections.CodecError, match="multiple of 2"):
-        protobuf_codec.plan_request_from_msg(msg)
+        plan_convert.plan_request_from_msg(msg)
     msg = _request()
     for _ in range(2 * limits.MAX_FRONTS + 1):
         msg.obstacles.add()
     with pytest.raises(rejections.CodecError, match="obstacles"):
-        protobuf_codec.plan_request_from_msg(msg)
+        plan_convert.plan_request_from_msg(msg)
 
 
 def test_fire_commands_carry_the_area_and_the_ignition_clearance() -> None:
     reset = fire_pb2.FireCommand(mission_id="m-1")
     reset.reset.seed, reset.reset.area_size_m = 3, 800.0
-    cmd = protobuf_codec.fire_command_from_msg(reset)
+    cmd = fire_convert.fire_command_from_msg(reset)
     assert (cmd.kind, cmd.seed, cmd.area_size_m) == ("reset", 3, 800.0)
     adv = fire_pb2.FireCommand(mission_id="m-1")
     adv.advance.step, adv.advance.substeps = 4, 10
-    assert protobuf_codec.fire_command_from_msg(adv).keep_out is None
+    assert fire_convert.fire_command_from_msg(adv).keep_out is None
     adv.advance.keep_out.east_m, adv.advance.keep_out.north_m, adv.advance.keep_out_m = 1, 2, 20
-    keep = protobuf_codec.fire_command_from_msg(adv).keep_out
+    keep = fire_convert.fire_command_from_msg(adv).keep_out
     assert keep is not None and keep[0].tolist() == [1.0, 2.0] and keep[1] == 20.0
     adv.advance.keep_out_m = -1.0
     with pytest.raises(rejections.CodecError, match="keep_out_m"):
-        protobuf_codec.fire_command_from_msg(adv)
+        fire_convert.fire_command_from_msg(adv)
 
 
 def test_garbage_is_malformed_and_counted() -> None:
@@ -264,9 +302,9 @@ def test_an_ok_plan_must_be_consistent() -> None:
     msg.states.extend([0.0] * 8)
     msg.controls.extend([0.0] * 4)  # two controls for two states
     with pytest.raises(rejections.CodecError, match="T\\+1 states"):
-        protobuf_codec.plan_from_msg(msg)
+        plan_convert.plan_from_msg(msg)
     with pytest.raises(rejections.CodecError, match="expected 2"):
-        protobuf_codec.plan_from_msg(plan_pb2.Plan(system=1, status=plan_pb2.PLAN_STATUS_OK), 2)
+        plan_convert.plan_from_msg(plan_pb2.Plan(system=1, status=plan_pb2.PLAN_STATUS_OK), 2)
 
 
 def test_ned_mapping_swaps_axes_and_flips_altitude() -> None:
@@ -279,11 +317,11 @@ def test_ned_mapping_swaps_axes_and_flips_altitude() -> None:
 
 
 def test_parse_waypoints() -> None:
-    wps = protobuf_codec.parse_waypoints("100,200; 300,400")
+    wps = vehicle_convert.parse_waypoints("100,200; 300,400")
     assert wps is not None and np.array_equal(wps, [[100, 200], [300, 400]])
-    assert protobuf_codec.parse_waypoints("  ") is None
+    assert vehicle_convert.parse_waypoints("  ") is None
     with pytest.raises(ValueError, match="waypoints"):
-        protobuf_codec.parse_waypoints("1,2,3")
+        vehicle_convert.parse_waypoints("1,2,3")
 
 
 def _occupancy_msg() -> tuple[Any, Any]:
@@ -294,14 +332,14 @@ def _occupancy_msg() -> tuple[Any, Any]:
                   ForecastParams(horizon_s=4.0), substeps_per_step=3, issued_substep=12)
     msg = fire_pb2.FireForecast(substeps_done=12, substep_s=0.5)
     wire.Stamper("ews", "uav1").stamp(msg.header, 6.0)
-    protobuf_codec.occupancy_to_msg(fc, msg.occupancy)
+    fire_convert.occupancy_to_msg(fc, msg.occupancy)
     return fc, msg
 
 
 def test_occupancy_forecast_round_trip_is_exact() -> None:
     fc, msg = _occupancy_msg()
     assert len(msg.occupancy.probabilities) == 5 and msg.occupancy.horizon_s == 4.0
-    back = protobuf_codec.occupancy_from_msg(wire.parse(msg.SerializeToString(),
+    back = fire_convert.occupancy_from_msg(wire.parse(msg.SerializeToString(),
                                                         fire_pb2.FireForecast))
     assert back is not None
     assert np.array_equal(back.levels, fc.levels) and back.horizons == fc.horizons
@@ -309,7 +347,7 @@ def test_occupancy_forecast_round_trip_is_exact() -> None:
     assert (back.issued_substep, back.substeps_per_step) == (12, fc.substeps_per_step)
     del msg.occupancy.probabilities[:]
     msg.ClearField("occupancy")
-    assert protobuf_codec.occupancy_from_msg(msg) is None  # a forecast without a grid
+    assert fire_convert.occupancy_from_msg(msg) is None  # a forecast without a grid
 
 
 def _broken(change: str) -> Any:
@@ -350,7 +388,7 @@ def _broken(change: str) -> Any:
 def test_malformed_occupancy_grids_are_rejected_and_counted(change: str, match: str,
                                                             reason: rejections.Reason) -> None:
     with pytest.raises(rejections.CodecError, match=match) as info:
-        protobuf_codec.occupancy_from_msg(wire.parse(_broken(change).SerializeToString(),
+        fire_convert.occupancy_from_msg(wire.parse(_broken(change).SerializeToString(),
                                                      fire_pb2.FireForecast))
     assert info.value.reason == reason
     before = rejections.REJECTED.by_label["FireForecast-test"]

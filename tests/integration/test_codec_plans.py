@@ -8,12 +8,14 @@ from collections.abc import Callable
 import numpy as np
 import pytest
 
+from dualpilot.mission.answers import parse_answers
 from dualpilot.mission.result import StepRecord
 from dualpilot.model.fire import FireSnapshot
 from dualpilot.plan import Objective
 from dualpilot.spec import MissionSpec
 from dualpilot.supervisor.decision import Decision
-from services.common import protobuf_codec, rejections, wire
+from services.common import rejections, wire
+from services.common.convert import supervisor as supervisor_convert
 from services.msgs import supervisor_pb2
 
 PLAN = np.array([[50.0, 50.0], [65.0, 64.5], [80.0, 79.0]])
@@ -23,16 +25,16 @@ def record(plan_status: str, system: int, planned: np.ndarray = PLAN) -> StepRec
     d = Decision(t=7, d_t=math.inf, xi=np.ones(3), p=np.full(3, 1 / 3), attention=1,
                  psi=np.array([0.5, 0.5]), system=1, objective=Objective.MISSION_TIME)
     return StepRecord(t=7, state=np.array([50.0, 50.0, 0.0, 0.0]), control=np.zeros(2),
-                      decision=d, system=system, plan_status=plan_status,
+                      decision=d, system=system, answers=parse_answers(plan_status),
                       planned_positions=planned if system else np.empty((0, 2)),
                       planning_time_s=0.155, fire_substeps=1, d_t=math.inf, fires_active=0,
                       snapshot=FireSnapshot((), ()), time_s=42.5)
 
 
-def roundtrip(rec: StepRecord) -> protobuf_codec.StepPlans:
-    m = protobuf_codec.step_plans_msg(rec, "m1", MissionSpec(seed=9),
+def roundtrip(rec: StepRecord) -> supervisor_convert.StepPlans:
+    m = supervisor_convert.step_plans_msg(rec, "m1", MissionSpec(seed=9),
                                       wire.Stamper("supervisor", "u"), 43.0)
-    return protobuf_codec.step_plans_from_msg(wire.parse(m.SerializeToString(),
+    return supervisor_convert.step_plans_from_msg(wire.parse(m.SerializeToString(),
                                                          supervisor_pb2.StepPlans))
 
 
@@ -60,7 +62,7 @@ def test_a_kept_plan_flown_without_a_status() -> None:
 
 
 def _msg() -> supervisor_pb2.StepPlans:
-    return protobuf_codec.step_plans_msg(record("s2:timeout;s1:ok", 1), "m1", MissionSpec(),
+    return supervisor_convert.step_plans_msg(record("s2:timeout;s1:ok", 1), "m1", MissionSpec(),
                                          wire.Stamper("supervisor", "u"), 1.0)
 
 
@@ -82,12 +84,12 @@ def test_bad_step_plans_are_rejected(edit: Callable[[supervisor_pb2.StepPlans], 
     m = _msg()
     edit(m)
     with pytest.raises(rejections.CodecError, match=match):
-        protobuf_codec.step_plans_from_msg(m)
+        supervisor_convert.step_plans_from_msg(m)
 
 
 def test_mission_events_are_checked() -> None:
     ok = supervisor_pb2.MissionEvent(kind=supervisor_pb2.MISSION_EVENT_KIND_STEP, step=3)
-    assert protobuf_codec.check_mission_event(ok) is ok
+    assert supervisor_convert.check_mission_event(ok) is ok
     step = supervisor_pb2.MISSION_EVENT_KIND_STEP
     unknown = supervisor_pb2.MissionEvent()
     unknown.ParseFromString(b"\x10\x63")  # kind = 99: a value this build does not know
@@ -96,4 +98,4 @@ def test_mission_events_are_checked() -> None:
                        (supervisor_pb2.MissionEvent(kind=step, flown_system=5), "flown_system"),
                        (supervisor_pb2.MissionEvent(kind=step, controller="x" * 17), "longer")):
         with pytest.raises(rejections.CodecError, match=match):
-            protobuf_codec.check_mission_event(bad)
+            supervisor_convert.check_mission_event(bad)

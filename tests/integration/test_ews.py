@@ -12,8 +12,10 @@ import pytest
 from dualpilot.mission.local import LocalFires
 from dualpilot.model.fire_field import FireField
 from dualpilot.spec import MissionSpec
-from services.common import bus, keys, protobuf_codec, wire
+from services.common import bus, keys, wire
 from services.common.clock import Anchor
+from services.common.convert import common as common_convert
+from services.common.convert import fire as fire_convert
 from services.msgs import common_pb2, fire_pb2
 
 pytestmark = pytest.mark.timeout(90)
@@ -34,7 +36,7 @@ def command(session: Any, uav: str, mission: str, **kind: Any) -> fire_pb2.FireU
     else:
         cmd.advance.step, cmd.advance.substeps = kind["step"], kind["substeps"]
         if "anchor" in kind:
-            protobuf_codec.clock_to_msg(kind["anchor"], cmd.advance.clock)
+            common_convert.clock_to_msg(kind["anchor"], cmd.advance.clock)
     payload, enc = bus.request(session, keys.fire_command(uav), cmd, 30.0)
     return wire.parse(payload, fire_pb2.FireUpdate, enc)
 
@@ -54,7 +56,7 @@ def test_fires_match_the_in_process_fire_stream(ews: Any, session: Any) -> None:
         assert len(update.states) == n
         for state in update.states:
             field.substep(rng, t)
-            got = protobuf_codec.snapshot_from_msg(state)
+            got = fire_convert.snapshot_from_msg(state)
             want = field.snapshot()
             assert got.regions == want.regions and got.front_ids == want.front_ids
             assert all(np.array_equal(a.vertices, b.vertices)
@@ -107,7 +109,7 @@ def test_forecast_is_published(ews: Any, session: Any) -> None:
     for front in last.fronts:
         assert len(front.regions) == 160 and len(front.envelope.vertices_m) >= 8
     # the occupancy grid is the in-process fire port's forecast, level for level
-    grid = protobuf_codec.occupancy_from_msg(last)
+    grid = fire_convert.occupancy_from_msg(last)
     assert grid is not None and grid.shape == (100, 100) and grid.horizons[-1] == 80
     fires = LocalFires(MissionSpec(seed=26))
     fires.advance(0, 10, None)

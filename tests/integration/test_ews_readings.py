@@ -1,9 +1,9 @@
 """Each profile's fire readings reach a real EWS: it runs the in-process fire process exactly.
 
-The reset carries the readings (FireReset.readings); the advances carry the
-step number (a new one starts a time-step) and the ignition clearance as a
-keep-out. An EWS started with ``READINGS_PROFILE`` runs that profile's
-readings when a reset carries none.
+The reset carries the mission's configuration (its profile and settings: the
+reading); the advances carry the step number (a new one starts a time-step) and
+the ignition clearance as a keep-out. An EWS started with ``READINGS_PROFILE``
+runs that profile's readings when a reset carries no configuration.
 """
 
 from __future__ import annotations
@@ -13,11 +13,14 @@ from typing import Any
 import numpy as np
 import pytest
 
+from dualpilot.mission.config import MissionConfig
 from dualpilot.model.fire import FireParams
 from dualpilot.model.fire_field import FireField
 from dualpilot.readings import PROFILES, get_profile
 from dualpilot.spec import Stream, stream_rng
-from services.common import bus, keys, protobuf_codec, wire
+from services.common import bus, keys, wire
+from services.common.convert import config as config_convert
+from services.common.convert import fire as fire_convert
 from services.msgs import fire_pb2
 
 pytestmark = pytest.mark.timeout(120)
@@ -41,13 +44,13 @@ def _send(session: Any, uav: str, cmd: fire_pb2.FireCommand) -> fire_pb2.FireUpd
     return wire.parse(payload, fire_pb2.FireUpdate, enc)
 
 
-def _replay(session: Any, uav: str, mission: str, seed: int, fire: FireParams | None,
+def _replay(session: Any, uav: str, mission: str, seed: int, config: MissionConfig | None,
             clearance: float | None, want: FireParams) -> int:
-    """Reset (with ``fire``'s readings unless None), advance, compare every sub-step."""
+    """Reset (with ``config`` unless None), advance, compare every sub-step."""
     cmd = fire_pb2.FireCommand(mission_id=mission)
     cmd.reset.seed = seed
-    if fire is not None:
-        protobuf_codec.fire_readings_to_msg(fire, cmd.reset)
+    if config is not None:
+        config_convert.config_to_msg(config, cmd.reset.config)
     _send(session, uav, cmd)
     field = FireField(params=want)
     rng = stream_rng(seed, Stream.FIRE)
@@ -63,7 +66,7 @@ def _replay(session: Any, uav: str, mission: str, seed: int, fire: FireParams | 
         assert len(update.states) == n
         for state in update.states:
             field.substep(rng, t, keep_out=keep)
-            got, exp = protobuf_codec.snapshot_from_msg(state), field.snapshot()
+            got, exp = fire_convert.snapshot_from_msg(state), field.snapshot()
             assert got.regions == exp.regions
             assert got.front_ids == exp.front_ids and got.born_steps == exp.born_steps
             assert all(np.array_equal(a.vertices, b.vertices)
@@ -77,8 +80,8 @@ def _replay(session: Any, uav: str, mission: str, seed: int, fire: FireParams | 
 def test_each_profile_runs_on_the_ews_sub_step_for_sub_step(ews: Any, session: Any,
                                                             name: str) -> None:
     p = get_profile(name)
-    n = _replay(session, ews.uav, f"profile-{name}", 26, p.fire, p.mission.ignition_clearance_m,
-                p.fire)
+    n = _replay(session, ews.uav, f"profile-{name}", 26, MissionConfig(profile=name, seed=26),
+                p.mission.ignition_clearance_m, p.fire)
     assert n == sum(k for _, k in ADVANCES)
 
 
@@ -104,6 +107,7 @@ def test_a_reset_without_readings_runs_the_ews_profile(services: Any, session: A
 def test_bad_readings_get_an_error_reply(ews: Any, session: Any) -> None:
     cmd = fire_pb2.FireCommand(mission_id="bad")
     cmd.reset.seed = 1
-    cmd.reset.readings.extent = 42  # type: ignore[assignment]
-    with pytest.raises(bus.QueryError, match="extent"):
+    config_convert.config_to_msg(MissionConfig(seed=1), cmd.reset.config)
+    cmd.reset.config.settings.add(name="extent", value="42")
+    with pytest.raises(bus.QueryError, match="extent takes one of"):
         _send(session, ews.uav, cmd)

@@ -1,9 +1,9 @@
 """A fire-behaviour scenario reaches a real EWS: it runs the in-process physics fires exactly.
 
-The reset names the fire process (FireReset.scenario, sent by
-protobuf_codec.fire_readings_to_msg from FireParams.scenario); an EWS started with
-``FIRE_SCENARIO`` runs that scenario when a reset names none; an unknown name
-gets an error reply; the occupancy forecast it publishes is the in-process one.
+The reset carries the mission's configuration, whose reading names the fire
+process (the setting ``scenario``); an EWS started with ``FIRE_SCENARIO`` runs
+that scenario when a reset carries no configuration; an unknown name gets an
+error reply; the occupancy forecast it publishes is the in-process one.
 """
 
 from __future__ import annotations
@@ -15,14 +15,18 @@ from typing import Any
 import numpy as np
 import pytest
 
+from dualpilot.mission.config import MissionConfig
 from dualpilot.mission.local import LocalFires
 from dualpilot.model.fire import FireParams
 from dualpilot.model.fire_field import FireField
 from dualpilot.model.forecast import LEVELS
 from dualpilot.model.scenarios import SCENARIOS
 from dualpilot.spec import MissionSpec, Stream, stream_rng
-from services.common import bus, keys, protobuf_codec, rejections, wire
+from services.common import bus, keys, rejections, wire
+from services.common.convert import config as config_convert
+from services.common.convert import fire as fire_convert
 from services.msgs import fire_pb2
+from tests.support.missions import config_for
 
 pytestmark = pytest.mark.timeout(180)
 
@@ -50,7 +54,8 @@ def _replay(session: Any, uav: str, mission: str, seed: int, sent: FireParams | 
     cmd = fire_pb2.FireCommand(mission_id=mission)
     cmd.reset.seed = seed
     if sent is not None:
-        protobuf_codec.fire_readings_to_msg(sent, cmd.reset)
+        config_convert.config_to_msg(config_for(MissionSpec(seed=seed), fire=sent),
+                                     cmd.reset.config)
     _send(session, uav, cmd)
     field = FireField(params=want)
     rng = stream_rng(seed, Stream.FIRE)
@@ -65,7 +70,7 @@ def _replay(session: Any, uav: str, mission: str, seed: int, sent: FireParams | 
         assert len(update.states) == n
         for state in update.states:
             field.substep(rng, t, keep_out=keep)
-            got, exp = protobuf_codec.snapshot_from_msg(state), field.snapshot()
+            got, exp = fire_convert.snapshot_from_msg(state), field.snapshot()
             assert got.regions == exp.regions
             assert got.front_ids == exp.front_ids and got.born_steps == exp.born_steps
             assert all(np.array_equal(a.vertices, b.vertices)
@@ -110,7 +115,7 @@ def test_a_scenario_forecast_is_the_in_process_fire_ports_byte_for_byte(
     sub.undeclare()
     assert [m.substeps_done for m in seen] == [0, *np.cumsum([n for _, n in ADVANCES])]
     assert [m.occupancy.SerializeToString() for m in seen] == want
-    last = protobuf_codec.occupancy_from_msg(seen[-1])
+    last = fire_convert.occupancy_from_msg(seen[-1])
     assert last is not None and last.horizons[-1] == 80 and seen[-1].occupancy.horizon_s == 40.0
     burning = (last.level(0) == LEVELS).sum()
     assert 0 < burning < (last.level(len(last.horizons) - 1) == LEVELS).sum(), (
@@ -120,7 +125,7 @@ def test_a_scenario_forecast_is_the_in_process_fire_ports_byte_for_byte(
 def _grid(local: LocalFires, n: int) -> bytes:
     fc = local.forecast(n)
     assert fc is not None
-    return protobuf_codec.occupancy_to_msg(fc, fire_pb2.OccupancyGrid()).SerializeToString()
+    return fire_convert.occupancy_to_msg(fc, fire_pb2.OccupancyGrid()).SerializeToString()
 
 
 def test_a_reset_naming_no_scenario_runs_the_ews_own(services: Any, session: Any) -> None:
@@ -130,23 +135,33 @@ def test_a_reset_naming_no_scenario_runs_the_ews_own(services: Any, session: Any
     _replay(session, uav, "no-scenario", 26, None, FireParams(scenario="grass-5"))
 
 
-def test_an_unknown_scenario_gets_an_error_reply(ews: Any, session: Any) -> None:
+def _scenario_reset(name: str) -> fire_pb2.FireCommand:
+    """A reset whose configuration names the fire process ``name`` (any text, on the wire)."""
     cmd = fire_pb2.FireCommand(mission_id="bad-scenario")
     cmd.reset.seed = 1
-    cmd.reset.scenario = "tundra"
-    with pytest.raises(bus.QueryError, match="unknown fire scenario 'tundra'"):
-        _send(session, ews.uav, cmd)
+    config_convert.config_to_msg(MissionConfig(seed=1), cmd.reset.config)
+    cmd.reset.config.settings.add(name="scenario", value=name)
+    return cmd
+
+
+def test_an_unknown_scenario_gets_an_error_reply(ews: Any, session: Any) -> None:
+    with pytest.raises(bus.QueryError, match="scenario must be one of .* not 'tundra'"):
+        _send(session, ews.uav, _scenario_reset("tundra"))
 
 
 def test_the_reset_carries_the_scenario_and_the_codec_checks_it() -> None:
+    def sent(fire: FireParams) -> str:
+        cmd = fire_pb2.FireCommand(mission_id="m")
+        config_convert.config_to_msg(config_for(MissionSpec(), fire=fire), cmd.reset.config)
+        config = fire_convert.fire_command_from_msg(cmd).config
+        assert config is not None
+        return config.reading().fire.scenario
+
+    assert sent(FireParams(scenario="shrub")) == "shrub"
+    assert sent(FireParams()) == "paper"
     cmd = fire_pb2.FireCommand(mission_id="m")
-    protobuf_codec.fire_readings_to_msg(FireParams(scenario="shrub"), cmd.reset)
-    assert protobuf_codec.fire_command_from_msg(cmd).scenario == "shrub"
-    protobuf_codec.fire_readings_to_msg(FireParams(), cmd.reset)
-    assert protobuf_codec.fire_command_from_msg(cmd).scenario == "paper"
-    cmd.reset.scenario = ""
-    assert protobuf_codec.fire_command_from_msg(cmd).scenario == ""  # the EWS's own
-    for bad, match in (("tundra", "unknown fire scenario"), ("x" * 65, "longer than 64")):
-        cmd.reset.scenario = bad
+    cmd.reset.seed = 1
+    assert fire_convert.fire_command_from_msg(cmd).config is None  # the EWS's own
+    for bad, match in (("tundra", "scenario must be one of"), ("x" * 257, "longer than 256")):
         with pytest.raises(rejections.CodecError, match=match):
-            protobuf_codec.fire_command_from_msg(cmd)
+            fire_convert.fire_command_from_msg(_scenario_reset(bad))

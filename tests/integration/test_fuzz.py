@@ -36,15 +36,21 @@ import zenoh
 from google.protobuf.descriptor import FieldDescriptor
 from google.protobuf.message import Message
 
+from dualpilot.mission.ports import PlanRequest
 from dualpilot.model.dynamics import DynamicsParams
 from dualpilot.model.fire import FireParams
 from dualpilot.model.fire_field import FireField
 from dualpilot.plan import Objective, PlanStatus
 from dualpilot.spec import MissionSpec, Stream, stream_rng
 from dualpilot.verify import verify_trajectory
-from services.common import bus, keys, limits, protobuf_codec, rejections, wire
+from services.common import bus, keys, limits, rejections, wire
 from services.common.clock import Anchor
+from services.common.convert import common as common_convert
+from services.common.convert import fire as fire_convert
+from services.common.convert import plan as plan_convert
+from services.common.convert import vehicle as vehicle_convert
 from services.msgs import common_pb2, fire_pb2, plan_pb2, supervisor_pb2, vehicle_pb2
+from tests.support.missions import config_for
 
 HUGE_BYTES = 10 * 1024 * 1024
 QUICK_INPUTS = 300
@@ -59,7 +65,7 @@ def fire_state(uav: str, seed: int = 5) -> fire_pb2.FireState:
     f.spawn(rng, 0)
     for _ in range(3):
         f.substep(rng, 0)
-    return protobuf_codec.fire_state_msg(f.fronts, [], 0, f.substeps_done, 0.5,
+    return fire_convert.fire_state_msg(f.fronts, [], 0, f.substeps_done, 0.5,
                                          wire.Stamper("fuzz", uav), 0.0)
 
 
@@ -72,14 +78,19 @@ def plan_request(uav: str, system: int, mission_id: str = "fuzz-mission",
         rng = np.random.default_rng(5)
         f = FireField(params=FireParams(p_survive=1.0))
         f.spawn(rng, 0, center=(500.0, 500.0))
-        fires = protobuf_codec.fire_state_msg(f.fronts, [], 0, 1, 0.5, wire.Stamper("fuzz", uav),
+        fires = fire_convert.fire_state_msg(f.fronts, [], 0, 1, 0.5, wire.Stamper("fuzz", uav),
                                               0.0)
-    req = protobuf_codec.PlanRequest(
-        seq=0, mission_id=mission_id, step=0, system=system, objective=Objective.MISSION_TIME,
-        state=np.array([50.0, 50.0, 0.0, 0.0]), prev_control=np.zeros(2),
-        obstacles=protobuf_codec.snapshot_from_msg(fires).hulls, deadline_s=60.0, prepare=prepare,
-        spec=MissionSpec(seed=7) if prepare else None)
-    return protobuf_codec.plan_request_msg(req, wire.Stamper("fuzz", uav), 0.0)
+    stamper = wire.Stamper("fuzz", uav)
+    if prepare:
+        spec = MissionSpec(seed=7)
+        prep = plan_convert.Prepare(mission_id, system, spec, config_for(spec), deadline_s=60.0)
+        return plan_convert.prepare_msg(prep, stamper, 0.0)
+    req = PlanRequest(t=0, system=system, state=np.array([50.0, 50.0, 0.0, 0.0]),
+                      prev_control=np.zeros(2),
+                      obstacles=fire_convert.snapshot_from_msg(fires).hulls,
+                      objective=Objective.MISSION_TIME)
+    return plan_convert.plan_query_msg(plan_convert.PlanQuery(req, mission_id, 0, 60.0),
+                                       stamper, 0.0)
 
 
 def fire_command(uav: str, kind: str, mission_id: str = "fuzz-mission", seed: int = 3,
@@ -90,13 +101,13 @@ def fire_command(uav: str, kind: str, mission_id: str = "fuzz-mission", seed: in
         m.reset.seed = seed
     else:
         m.advance.step, m.advance.substeps = step, substeps
-        protobuf_codec.clock_to_msg(Anchor(0.0, time.time_ns(), 0.0), m.advance.clock)
+        common_convert.clock_to_msg(Anchor(0.0, time.time_ns(), 0.0), m.advance.clock)
     return m
 
 
 def waypoints(uav: str) -> vehicle_pb2.OperatorWaypoints:
-    return protobuf_codec.waypoints_msg(
-        protobuf_codec.Waypoints("fuzz-mission", 1, np.array([[100.0, 200.0], [800.0, 900.0]])),
+    return vehicle_convert.waypoints_msg(
+        vehicle_convert.Waypoints("fuzz-mission", 1, np.array([[100.0, 200.0], [800.0, 900.0]])),
         wire.Stamper("fuzz", uav))
 
 
@@ -135,15 +146,15 @@ class Entry:
 def entries(uav: str) -> list[Entry]:
     return [
         Entry("ews/command", keys.fire_command(uav), fire_pb2.FireCommand,
-              protobuf_codec.fire_command_from_msg, lambda: fire_command(uav, "advance")),
+              fire_convert.fire_command_from_msg, lambda: fire_command(uav, "advance")),
         Entry("plan/system1", keys.plan(uav, 1), plan_pb2.PlanRequest,
-              protobuf_codec.plan_request_from_msg, lambda: plan_request(uav, 1,
-                                                                         fires=fire_state(uav))),
+              plan_convert.plan_request_from_msg,
+              lambda: plan_request(uav, 1, fires=fire_state(uav), prepare=False)),
         Entry("plan/system2", keys.plan(uav, 2), plan_pb2.PlanRequest,
-              protobuf_codec.plan_request_from_msg, lambda: plan_request(uav, 2,
-                                                                         fires=fire_state(uav))),
+              plan_convert.plan_request_from_msg,
+              lambda: plan_request(uav, 2, fires=fire_state(uav), prepare=False)),
         Entry("operator/waypoints", keys.waypoints(uav), vehicle_pb2.OperatorWaypoints,
-              protobuf_codec.waypoints_from_msg, lambda: waypoints(uav), query=False),
+              vehicle_convert.waypoints_from_msg, lambda: waypoints(uav), query=False),
     ]
 
 
@@ -491,7 +502,7 @@ def check_still_serving(session: Any, uav: str, mission_id: str) -> None:
         bus.request(session, keys.plan(uav, system), plan_request(uav, system, mission_id), 120.0)
         payload, enc = bus.request(session, keys.plan(uav, system),
                                    plan_request(uav, system, mission_id, prepare=False), 120.0)
-        plan = protobuf_codec.plan_from_msg(wire.parse(payload, plan_pb2.Plan, enc), system)
+        plan = plan_convert.plan_from_msg(wire.parse(payload, plan_pb2.Plan, enc), system)
         assert plan.status is PlanStatus.OK, plan.message
         assert np.array_equal(plan.states[0], [50.0, 50.0, 0.0, 0.0])
         rng = np.random.default_rng(5)
@@ -513,7 +524,7 @@ def check_still_serving(session: Any, uav: str, mission_id: str) -> None:
     ref_rng = stream_rng(11, Stream.FIRE)
     for _ in range(3):
         ref.substep(ref_rng, 0)
-    assert protobuf_codec.snapshot_from_msg(update.states[-1]).regions == ref.snapshot().regions
+    assert fire_convert.snapshot_from_msg(update.states[-1]).regions == ref.snapshot().regions
 
 
 # -- the tests ------------------------------------------------------------------------------------

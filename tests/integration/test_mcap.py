@@ -8,11 +8,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from dualpilot.mission.config import MissionConfig
 from dualpilot.mission.local import local_mission
-from dualpilot.mission.params import Controller, MissionParams, Timing
+from dualpilot.mission.params import Controller
 from dualpilot.mission.records import StepLog, read_step_log, result_from_log, write_all
 from dualpilot.mission.result import MissionResult
-from dualpilot.spec import MissionSpec
 
 from .foxglove_check import compare_with_log, read_mcap
 
@@ -21,8 +21,8 @@ pytestmark = pytest.mark.timeout(240)
 
 def fly(controller: Controller, seed: int, out: Path, max_steps: int = 150) -> MissionResult:
     """Fly in-process; write steps.jsonl as the supervisor does, then the end-of-run records."""
-    mission = local_mission(controller, MissionSpec(seed=seed), timing=Timing.PAPER,
-                            params=MissionParams(max_steps=max_steps))
+    mission = local_mission(MissionConfig(controller=controller, seed=seed,
+                                          settings=(("max_steps", max_steps),)))
     s = mission.spec
     with StepLog(out / "steps.jsonl") as steps:
         steps.write("mission", controller=controller.value, seed=seed, timing="paper",
@@ -75,7 +75,7 @@ def test_a_resumed_record_keeps_the_clock(tmp_path: Path) -> None:
     result = fly(Controller.CC, 26, tmp_path, max_steps=8)
     again = result_from_log(read_step_log(tmp_path / "steps.jsonl"))
     assert [r.time_s for r in again.records] == [r.time_s for r in result.records]
-    mission = local_mission(Controller.CC, MissionSpec(seed=26), timing=Timing.PAPER)
+    mission = local_mission(MissionConfig(seed=26))
     mission.resume(again)
     last = result.records[-1]
     assert mission.sim_time_s == last.time_s + 0.5 * last.fire_substeps + 1.0

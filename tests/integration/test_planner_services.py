@@ -9,14 +9,18 @@ import numpy as np
 import pytest
 import zenoh
 
+from dualpilot.mission.ports import PlanRequest
 from dualpilot.model.dynamics import DynamicsParams
 from dualpilot.model.fire import FireParams
 from dualpilot.model.fire_field import FireField
 from dualpilot.plan import Objective, PlanStatus
 from dualpilot.spec import MissionSpec
 from dualpilot.verify import verify_trajectory
-from services.common import bus, keys, protobuf_codec, wire
+from services.common import bus, keys, wire
+from services.common.convert import plan as plan_convert
+from services.common.convert import vehicle as vehicle_convert
 from services.msgs import common_pb2, plan_pb2
+from tests.support.missions import config_for
 
 pytestmark = pytest.mark.timeout(120)
 
@@ -44,13 +48,16 @@ def request(system: int, mission_id: str = "itest-mission", prepare: bool = Fals
             revision: int = 0, **state: float) -> bytes:
     """A plan request from (50, 50) around one fire at (500, 500); the spec if ``prepare``."""
     stamper = wire.Stamper("test", "itest")
+    if prepare:
+        spec = MissionSpec(seed=7)
+        prep = plan_convert.Prepare(mission_id, system, spec, config_for(spec), deadline_s=60.0)
+        return plan_convert.prepare_msg(prep, stamper, 0.0).SerializeToString()
     x = np.array([state.get("east", 50.0), state.get("north", 50.0), 0.0, 0.0])
-    req = protobuf_codec.PlanRequest(
-        seq=0, mission_id=mission_id, step=0, system=system, objective=Objective.MISSION_TIME,
-        state=x, prev_control=np.zeros(2), obstacles=tuple(f.hull for f in _one_fire()),
-        deadline_s=60.0, waypoints_revision=revision, prepare=prepare,
-        spec=MissionSpec(seed=7) if prepare else None)
-    return protobuf_codec.plan_request_msg(req, stamper, 0.0).SerializeToString()
+    req = PlanRequest(t=0, system=system, state=x, prev_control=np.zeros(2),
+                      obstacles=tuple(f.hull for f in _one_fire()),
+                      objective=Objective.MISSION_TIME)
+    query = plan_convert.PlanQuery(req, mission_id, 0, 60.0, revision)
+    return plan_convert.plan_query_msg(query, stamper, 0.0).SerializeToString()
 
 
 def prepare(session: Any, uav: str, system: int, mission_id: str = "itest-mission") -> None:
@@ -108,7 +115,7 @@ def test_a_mission_is_prepared_once_then_planned(planners: Any, session: Any,
 def test_valid_request_gets_a_verified_plan(planners: Any, session: Any, system: int) -> None:
     prepare(session, planners.uav, system)
     reply = raw_query(session, keys.plan(planners.uav, system), request(system))
-    plan = protobuf_codec.plan_from_msg(plan_pb2.Plan.FromString(reply.ok.payload.to_bytes()),
+    plan = plan_convert.plan_from_msg(plan_pb2.Plan.FromString(reply.ok.payload.to_bytes()),
                                         system)
     assert plan.status is PlanStatus.OK, plan.message
     assert plan.compute_time_s > 0
@@ -123,7 +130,7 @@ def test_a_planner_value_error_is_an_invalid_input_plan(planners: Any, session: 
     """A state inside a fire reaches System 1, which refuses it: INVALID_INPUT, not a crash."""
     prepare(session, planners.uav, 1)
     reply = raw_query(session, keys.plan(planners.uav, 1), request(1, east=500.0, north=500.0))
-    plan = protobuf_codec.plan_from_msg(plan_pb2.Plan.FromString(reply.ok.payload.to_bytes()), 1)
+    plan = plan_convert.plan_from_msg(plan_pb2.Plan.FromString(reply.ok.payload.to_bytes()), 1)
     assert plan.status is PlanStatus.INVALID_INPUT
     assert not plan.ok and len(plan.states) == 0
 
@@ -136,7 +143,7 @@ def test_operator_waypoints_reach_system1(planners: Any, session: Any, wait_unti
     prepare(session, planners.uav, 1, "with-operator")
     err = error_of(raw_query(session, key, request(1, "with-operator", revision=1)))
     assert err.code == common_pb2.ERROR_CODE_UNPREPARED and "revision 1" in err.message
-    msg = protobuf_codec.waypoints_msg(protobuf_codec.Waypoints("with-operator", 1, wps),
+    msg = vehicle_convert.waypoints_msg(vehicle_convert.Waypoints("with-operator", 1, wps),
                                        wire.Stamper("operator", planners.uav))
     replies: list[Any] = []
 
@@ -146,7 +153,7 @@ def test_operator_waypoints_reach_system1(planners: Any, session: Any, wait_unti
         return replies[-1].ok is not None
 
     assert wait_until(published_and_used, 10)
-    plan = protobuf_codec.plan_from_msg(plan_pb2.Plan.FromString(replies[-1].ok.payload.to_bytes()),
+    plan = plan_convert.plan_from_msg(plan_pb2.Plan.FromString(replies[-1].ok.payload.to_bytes()),
                                         1)
     assert plan.status is PlanStatus.OK and plan.info.get("source") == "operator"
     assert plan.path is not None and np.allclose(plan.path[1:], wps)

@@ -10,6 +10,7 @@ from typing import Any
 import numpy as np
 import pytest
 
+from dualpilot.mission.answers import parse_answers
 from dualpilot.mission.result import StepRecord
 from dualpilot.model.fire import FireFront, FireSnapshot
 from dualpilot.model.forecast import OccupancyForecast
@@ -17,7 +18,10 @@ from dualpilot.model.geometry import Polytope, Rect
 from dualpilot.plan import Objective
 from dualpilot.spec import MissionSpec
 from dualpilot.supervisor.decision import Decision
-from services.common import bus, keys, protobuf_codec, wire
+from services.common import bus, keys, wire
+from services.common.convert import fire as fire_convert
+from services.common.convert import supervisor as supervisor_convert
+from services.common.convert import vehicle as vehicle_convert
 from services.launch import free_port
 from services.msgs import fire_pb2, supervisor_pb2, vehicle_pb2
 
@@ -44,19 +48,20 @@ def publish_round(session: Any, uav: str, k: int) -> dict[str, int]:
                         born_steps=(1,))
     record = StepRecord(t=3, state=np.array([100.0, 110.0, 15.0, 15.0]),
                         control=np.zeros(2), decision=DECISION, system=1,
-                        plan_status="s2:timeout;s1:ok", planned_positions=PLAN, planning_time_s=5.0,
+                        answers=parse_answers("s2:timeout;s1:ok"), planned_positions=PLAN,
+                        planning_time_s=5.0,
                         fire_substeps=10, d_t=math.inf, fires_active=1, snapshot=snap,
                         time_s=18.0)
     msgs: dict[str, Any] = {
         "mission/event": supervisor_pb2.MissionEvent(
             kind=supervisor_pb2.MISSION_EVENT_KIND_STARTED, mission_id=f"m-{uav}",
             controller="cc", seed=5, message="timing=paper"),
-        "supervisor/decision": protobuf_codec.decision_to_msg(DECISION, 2, st, 18.0),
-        "supervisor/plans": protobuf_codec.step_plans_msg(record, f"m-{uav}", MissionSpec(seed=5),
-                                                          st, 18.0),
-        "vehicle/state": protobuf_codec.state_to_msg(np.array([115.0 + k, 125.0, 15.0, 15.0]), 4,
+        "supervisor/decision": supervisor_convert.decision_to_msg(DECISION, 2, st, 18.0),
+        "supervisor/plans": supervisor_convert.step_plans_msg(record, f"m-{uav}",
+                                                              MissionSpec(seed=5), st, 18.0),
+        "vehicle/state": vehicle_convert.state_to_msg(np.array([115.0 + k, 125.0, 15.0, 15.0]), 4,
                                                      vehicle_pb2.VehicleState()),
-        "ews/fires": protobuf_codec.fire_state_msg(
+        "ews/fires": fire_convert.fire_state_msg(
             [FireFront(9, 1, 2.0, 0.5, snap.regions[0], HULL)], [], 3, 40, 0.5,
             wire.Stamper("ews", uav), 20.0),
     }
@@ -65,7 +70,7 @@ def publish_round(session: Any, uav: str, k: int) -> dict[str, int]:
     fc = fire_pb2.FireForecast(substeps_done=40, substep_s=0.5)
     wire.Stamper("ews", uav).stamp(fc.header, 20.0)
     levels = np.arange(2 * 2 * 3, dtype=np.uint8).reshape(2, 2, 3)  # horizons 0, 4 on 2 x 3
-    protobuf_codec.occupancy_to_msg(OccupancyForecast(10.0, 0.5, (0, 4), levels, (0.0, 0.0)),
+    fire_convert.occupancy_to_msg(OccupancyForecast(10.0, 0.5, (0, 4), levels, (0.0, 0.0)),
                                     fc.occupancy)
     msgs["ews/forecast"] = fc
     for kind, m in msgs.items():

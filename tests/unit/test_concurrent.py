@@ -13,13 +13,14 @@ import pytest
 
 from dualpilot.mission.concurrent import ConcurrentPlanning
 from dualpilot.mission.local import LocalFires, LocalPlanners, LocalVehicle
-from dualpilot.mission.params import Controller, Timing
-from dualpilot.mission.step import Mission
+from dualpilot.mission.params import Controller
+from dualpilot.mission.step import Mission, MissionPorts
 from dualpilot.model.dynamics import hover_state
 from dualpilot.model.fire import FireParams
 from dualpilot.planners import build_planner, build_planners
 from dualpilot.spec import MissionSpec
 from dualpilot.supervisor.concurrent import ConcurrentParams, steps_until, wait_hazard
+from tests.support.missions import config_for
 
 #: no random births, nothing dies out, placed fronts 60 m square
 QUIET = FireParams(p_birth=0.0, p_survive=1.0, side_min_m=60.0, side_max_m=60.0)
@@ -44,10 +45,11 @@ class NudgedVehicle(LocalVehicle):
 def mission(seed: int = 3, vehicle: LocalVehicle | None = None) -> Mission:
     spec = MissionSpec(seed=seed)
     x0 = hover_state(np.array(spec.start), spec.dynamics)
-    planners = build_planners(spec, system1_method="rrt+du")
-    return Mission(Controller.CC, spec, LocalFires(spec, QUIET), LocalPlanners(planners),
-                   vehicle or LocalVehicle(x0, spec.dynamics), x0, timing=Timing.PAPER,
-                   fire_params=QUIET, supervisor="concurrent")
+    planners = build_planners(spec, {1: "rrt+du", 2: "fast"})
+    config = config_for(spec, "concurrent", fire=QUIET)
+    ports = MissionPorts(LocalFires(spec, QUIET), LocalPlanners(planners),
+                         vehicle or LocalVehicle(x0, spec.dynamics))
+    return Mission(config, spec, ports, x0)
 
 
 def fly(m: Mission, steps: int) -> list:
@@ -150,10 +152,7 @@ def test_the_hazard_of_waiting() -> None:
 
 def test_only_the_cognitive_controller_takes_the_concurrent_supervisor() -> None:
     spec = MissionSpec()
-    x0 = hover_state(np.array(spec.start), spec.dynamics)
-    with pytest.raises(ValueError, match="cognitive controller"):
-        Mission(Controller.S1, spec, LocalFires(spec), LocalPlanners(build_planners(spec)),
-                LocalVehicle(x0, spec.dynamics), x0, supervisor="concurrent")
-    with pytest.raises(ValueError, match="supervisor must be"):
-        Mission(Controller.CC, spec, LocalFires(spec), LocalPlanners(build_planners(spec)),
-                LocalVehicle(x0, spec.dynamics), x0, supervisor="ours")
+    with pytest.raises(ValueError, match="concurrent supervisor does not run s1"):
+        config_for(spec, Controller.S1, supervisor="concurrent")
+    with pytest.raises(ValueError, match="'ours' is not a valid SupervisorKind"):
+        config_for(spec, Controller.CC, supervisor="ours")

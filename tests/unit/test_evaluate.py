@@ -92,7 +92,8 @@ def test_ignition_clearance_reaches_the_mission(tmp_path):
     # UAV; with no ignition within 200 m of it the same configuration is flown on.
     from dualpilot.evaluation.missions import Task, run_task
 
-    strict = run_task(Task(0, 0, "s2", "paper", "fast"))
-    clear = run_task(Task(0, 0, "s2", "paper", "fast", ignition_clearance_m=200.0))
+    strict = run_task(Task.of(0, 0, "s2", "paper", "fast"))
+    clear = run_task(Task.of(0, 0, "s2", "paper", "fast",
+                             settings=(("ignition_clearance_m", 200.0),)))
     assert strict["failure_cause"] == "fire_while_planning" and strict["steps"] == 1
     assert int(str(clear["steps"])) > 1

@@ -10,6 +10,7 @@ from typing import Any
 import numpy as np
 import pytest
 
+from dualpilot.mission.answers import parse_answers
 from dualpilot.model.fire import FireSnapshot
 from dualpilot.model.geometry import Polytope, Rect
 from dualpilot.viz import foxglove as fx
@@ -87,7 +88,8 @@ def test_a_front_is_its_region_filled_and_outlined_then_its_hull() -> None:
 
 
 def test_plans_carry_status_and_the_flown_positions() -> None:
-    views = scene.plan_views("s2:timeout;s1:ok", 1, np.array([[50.0, 50.0], [65.0, 65.0]]))
+    views = scene.plan_views(parse_answers("s2:timeout;s1:ok"), 1,
+                             np.array([[50.0, 50.0], [65.0, 65.0]]))
     got = record(lambda ch: ch.plans(views, 12, 7_000_000_000))
     ((_, schema1, s1),) = got["/uav7/plan/system1"]
     ((_, _, s2),) = got["/uav7/plan/system2"]

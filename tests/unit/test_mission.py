@@ -10,18 +10,21 @@ from dualpilot.mission.braking import brake_control
 from dualpilot.mission.local import local_mission
 from dualpilot.mission.params import Controller, MissionParams, Timing
 from dualpilot.mission.records import STEP_COLUMNS, write_all
+from dualpilot.mission.result import Ending
 from dualpilot.mission.step import nearest_region_distance
 from dualpilot.model.dynamics import DynamicsParams
 from dualpilot.model.fire import FireParams
 from dualpilot.planners import build_planner
 from dualpilot.spec import MissionSpec
+from tests.support.missions import config_for
 
 
-def s1_mission(seed, fire_params=FireParams(), controller=Controller.S1, **kw):
+def s1_mission(seed, fire_params=FireParams(), controller=Controller.S1, params=None, **kw):
     spec = MissionSpec(seed=seed)
     s1 = build_planner(1, spec)
-    return local_mission(controller, spec, planners={1: s1, 2: s1}, timing=Timing.PAPER,
-                         fire_params=fire_params, **kw)
+    config = config_for(spec, controller, fire=fire_params, mission=params, timing=Timing.PAPER,
+                        **kw)
+    return local_mission(config, planners={1: s1, 2: s1})
 
 
 def test_open_sky_mission_reaches_goal_and_energy_is_sum_of_control_changes():
@@ -121,14 +124,13 @@ def test_flight_outcome_rules_and_planning_order():
     # passing 15 m from the fire's edge is contact (< d_safe = 20 m)
     assert (
         flight_outcome(np.array([80.0, 25.0]), np.array([120.0, 25.0]), fire, 1, cfg, params)
-        == "fire_contact"
+        is Ending.FIRE_CONTACT
     )
-    assert (
-        flight_outcome(np.array([880.0, 880.0]), np.array([900.0, 900.0]), (), 1, cfg, params) == ""
-    )
+    goal = flight_outcome(np.array([880.0, 880.0]), np.array([900.0, 900.0]), (), 1, cfg, params)
+    assert goal is Ending.GOAL and goal.success and goal.failure_cause == ""
     assert (
         flight_outcome(np.array([0.0, 0.0]), np.array([1.0, 1.0]), (), 10, cfg, params)
-        == "step_limit"
+        is Ending.STEP_LIMIT
     )
     assert flight_outcome(np.array([0.0, 0.0]), np.array([1.0, 1.0]), (), 9, cfg, params) is None
     assert planning_order(Controller.CC, 2, MissionParams()) == [2, 1]

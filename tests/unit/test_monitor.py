@@ -14,6 +14,7 @@ from dualpilot.model.dynamics import DynamicsParams, hover_state, rollout
 from dualpilot.model.geometry import Rect
 from dualpilot.plan import Plan, PlanStatus
 from dualpilot.spec import MissionSpec
+from tests.support.missions import config_for
 
 SPEC = MissionSpec()
 DYN = DynamicsParams()
@@ -88,8 +89,8 @@ def test_the_step_never_flies_a_rejected_plan_and_records_why() -> None:
 
     spec = MissionSpec(seed=3)
     honest = build_planners(spec)
-    mission = local_mission(Controller.S2, spec, planners={1: honest[1], 2: Byzantine()},
-                            timing=Timing.PAPER)
+    mission = local_mission(config_for(spec, Controller.S2, timing=Timing.PAPER),
+                            planners={1: honest[1], 2: Byzantine()})
     assert isinstance(mission.planners, LocalPlanners)
     for _ in range(3):
         rec = mission.step()

@@ -31,6 +31,7 @@ from dualpilot.model.scenarios import (
 from dualpilot.planners import build_planner
 from dualpilot.readings import get_profile
 from dualpilot.spec import MissionSpec, Stream
+from tests.support.missions import config_for
 
 pytestmark = pytest.mark.timeout(120)
 
@@ -254,15 +255,18 @@ def test_a_fire_born_after_an_idle_spell_spreads_from_its_birth():
 
 def test_the_command_line_selects_a_scenario(tmp_path, capsys):
     from dualpilot.cli import build_parser, main
+    from dualpilot.mission.config_args import config_from_args
 
     assert main(["scenarios"]) == 0
     listing = capsys.readouterr().out
     assert all(name in listing for name in scenario_names())
     parser = build_parser()
-    for command in ("mission", "evaluate", "sweep"):
+    for command in ("evaluate", "sweep"):
         assert parser.parse_args([command, "--scenario", "shrub"]).scenario == "shrub"
-    with pytest.raises(SystemExit):
-        parser.parse_args(["mission", "--scenario", "tundra"])
+    mission = parser.parse_args(["mission", "--scenario", "shrub"])
+    assert config_from_args(mission).reading().fire.scenario == "shrub"
+    with pytest.raises(ValueError, match="scenario must be one of"):
+        config_from_args(parser.parse_args(["mission", "--scenario", "tundra"]))
     assert main(["scenarios", "--measure", "--seeds", "1", "--substeps", "4"]) == 0
     rows = [line.split() for line in capsys.readouterr().out.splitlines()[-4:]]
     assert [r[0] for r in rows] == list(SCENARIOS) and all(r[1] == "4" for r in rows)
@@ -277,7 +281,8 @@ def test_a_mission_flies_on_the_physics_fires():
     from dualpilot.mission.params import Controller
 
     spec = MissionSpec(seed=7)
-    mission = local_mission(Controller.S1, spec, fire_params=FireParams(scenario="grass-15"))
+    mission = local_mission(config_for(spec, Controller.S1,
+                                       fire=FireParams(scenario="grass-15")))
     assert mission.fires.field.physics is not None  # type: ignore[attr-defined]
     result = mission.run()
     assert result.steps > 10 and max(r.fires_active for r in result.records) >= 2

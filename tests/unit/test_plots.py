@@ -9,10 +9,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from dualpilot.mission.answers import Answer, SystemStatus
 from dualpilot.mission.local import local_mission
 from dualpilot.mission.params import Controller, MissionParams
 from dualpilot.mission.records import write_all
-from dualpilot.mission.result import MissionResult, StepRecord
+from dualpilot.mission.result import Ending, MissionResult, StepRecord
 from dualpilot.model.dynamics import DynamicsParams, hover_state, step
 from dualpilot.model.fire import FireParams, FireSnapshot
 from dualpilot.model.geometry import Polytope, Rect
@@ -21,6 +22,7 @@ from dualpilot.spec import MissionSpec
 from dualpilot.supervisor.attention import AttentionParams, Logistic, xi
 from dualpilot.supervisor.decision import Decision
 from dualpilot.viz import mission as plots
+from tests.support.missions import config_for
 
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 ALL_FIGURES = {
@@ -65,8 +67,9 @@ def mission_run(
     out: Path, seed: int = 3, max_steps: int = 40, fire: FireParams = FireParams()
 ) -> Path:
     planners: dict[int, Planner] = {1: SteerPlanner(1, 25), 2: SteerPlanner(2, 60)}
-    mission = local_mission(Controller.CC, MissionSpec(seed=seed), planners=planners,
-                            params=MissionParams(max_steps=max_steps), fire_params=fire)
+    config = config_for(MissionSpec(seed=seed), Controller.CC, fire=fire,
+                        mission=MissionParams(max_steps=max_steps))
+    mission = local_mission(config, planners=planners)
     write_all(mission.run(), out)
     return out
 
@@ -91,12 +94,12 @@ def scripted_run(out: Path, n: int = 12) -> Path:
                        system=int(np.argmax(psi)) + 1, objective=Objective.MISSION_TIME)
         records.append(StepRecord(
             t=t, state=hover_state(pos), control=np.zeros(2), decision=dec, system=system,
-            plan_status="s1:ok", planning_time_s=0.1, fire_substeps=1, d_t=d_t,
+            answers=(Answer(1, SystemStatus.OK),), planning_time_s=0.1, fire_substeps=1, d_t=d_t,
             fires_active=len(snap.regions), planned_positions=planned, snapshot=snap,
         ))
     result = MissionResult(controller="cc", timing="paper", spec=MissionSpec(),
                            steps=n, records=records, final_state=records[-1].state,
-                           failure_cause="step_limit")
+                           ending=Ending.STEP_LIMIT)
     write_all(result, out)
     return out
 

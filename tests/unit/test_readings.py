@@ -18,6 +18,7 @@ from dualpilot.model.geometry import Rect
 from dualpilot.readings import PROFILES, READINGS, get_profile, parse_settings, parse_value
 from dualpilot.spec import MissionSpec
 from dualpilot.supervisor.decision import Supervisor, SupervisorParams
+from tests.support.missions import config_for
 
 QUIET = FireParams(p_birth=0.0, p_survive=1.0)
 
@@ -125,8 +126,9 @@ def test_newborn_d_t_sees_the_fronts_born_during_the_last_wait() -> None:
 
 def test_newborn_d_t_is_finite_in_a_whole_mission() -> None:
     """Seed 26 of the issue: d_t was inf on every step."""
-    mission = local_mission(Controller.S1, MissionSpec(seed=26),
-                            params=MissionParams(d_t_reading="newborn", max_steps=40))
+    mission = local_mission(config_for(MissionSpec(seed=26), Controller.S1,
+                                       mission=MissionParams(d_t_reading="newborn",
+                                                             max_steps=40)))
     d = [r.d_t for r in mission.run().records]
     assert any(np.isfinite(v) for v in d)
 
@@ -156,8 +158,8 @@ def test_become_spares_a_front_born_on_the_uav_until_it_has_been_clear() -> None
     fire = FireParams(p_birth=1.0)
 
     def run(rule: str) -> tuple[bool, str, int]:
-        m = local_mission(Controller.S1, spec, fire_params=fire,
-                          params=MissionParams(failure_rule=rule, max_steps=3))  # type: ignore
+        m = local_mission(config_for(spec, Controller.S1, fire=fire, mission=MissionParams(
+            failure_rule=rule, max_steps=3)))  # type: ignore[arg-type]
         r = m.run()
         return r.success, r.failure_cause, r.steps
 

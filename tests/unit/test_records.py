@@ -20,14 +20,15 @@ from dualpilot.mission.step import Mission
 from dualpilot.model.fire import FireParams
 from dualpilot.planners import build_planner
 from dualpilot.spec import MissionSpec
+from tests.support.missions import config_for
 
 
 def _mission(seed: int = 5, steps: int = 12) -> Mission:
     spec = MissionSpec(seed=seed)
     s1 = build_planner(1, spec)
-    return local_mission(Controller.S1, spec, planners={1: s1, 2: s1}, timing=Timing.PAPER,
-                         params=MissionParams(max_steps=steps),
-                         fire_params=FireParams(p_birth=0.3))
+    config = config_for(spec, Controller.S1, fire=FireParams(p_birth=0.3),
+                        mission=MissionParams(max_steps=steps), timing=Timing.PAPER)
+    return local_mission(config, planners={1: s1, 2: s1})
 
 
 def _head(m: Mission) -> dict[str, object]:

@@ -1,5 +1,6 @@
 """Risk zones of the fire forecast (dualpilot/model/risk.py) and the planners and supervisor
-that use them ("rrt+risk", "fast+risk", threat = "forecast"), on hand-built forecasts."""
+that use them (the risk-aware variants of "rrt" and "fast", threat = "forecast"), on
+hand-built forecasts."""
 
 from __future__ import annotations
 
@@ -8,8 +9,10 @@ import pytest
 
 from dualpilot.evaluation.missions import mission_spec
 from dualpilot.mission import monitor
+from dualpilot.mission.config import MissionConfig, parse_controller
 from dualpilot.mission.local import LocalFires, local_mission
-from dualpilot.mission.params import Controller, Timing, controller_of, uses_risk
+from dualpilot.mission.params import Controller
+from dualpilot.mission.supervisors import SupervisorKind
 from dualpilot.model.dynamics import hover_state
 from dualpilot.model.fire import FireParams
 from dualpilot.model.forecast import LEVELS, OccupancyForecast
@@ -19,6 +22,7 @@ from dualpilot.plan import Objective
 from dualpilot.planners import build_planner
 from dualpilot.spec import MissionSpec
 from dualpilot.supervisor.concurrent import forecast_threatened
+from tests.support.missions import config_for
 
 pytestmark = pytest.mark.timeout(120)
 
@@ -111,13 +115,14 @@ def _state() -> np.ndarray:
     return hover_state(np.array(SPEC.start), SPEC.dynamics)
 
 
-@pytest.mark.parametrize("method", ["rrt+risk", "rrt+du+risk"])
+@pytest.mark.parametrize("method", ["rrt", "rrt+du"])
 def test_system1_risk_avoids_the_corridor_the_paper_planner_takes(method: str) -> None:
     box = box_polytope()
     plain = build_planner(1, SPEC, "rrt").plan(_state(), ())
     assert plain.ok and plain.path is not None
     assert box.segment_distance(plain.path[0], plain.path[-1]) == 0.0  # straight on
-    risky = build_planner(1, SPEC, method)
+    risky = build_planner(1, SPEC, method, risk=True)
+    assert risky.method == f"{method}+risk"
     plan = risky.plan(_state(), (), forecast=ForecastView(box_forecast(), 1))  # type: ignore[call-arg]
     assert plan.ok and plan.info["risk"] == "met" and plan.path is not None
     path_gap = min(box.segment_distance(a, b) for a, b in zip(plan.path[:-1], plan.path[1:],
@@ -131,7 +136,7 @@ def test_system2_risk_avoids_the_corridor_the_paper_planner_takes() -> None:
     plain = build_planner(2, SPEC, "fast").plan(_state(), ())
     assert plain.ok
     assert min(box.distance(p) for p in plain.states[1:, :2]) == 0.0  # through the box
-    plan = build_planner(2, SPEC, "fast+risk").plan(  # type: ignore[call-arg]
+    plan = build_planner(2, SPEC, "fast", risk=True).plan(  # type: ignore[call-arg]
         _state(), (), forecast=ForecastView(box_forecast(), 1))
     assert plan.ok and plan.info["risk"] == "met", plan.message
     # every planned position of steps 2..79 (the forecast's) keeps ε from the box
@@ -144,8 +149,8 @@ def test_risk_planners_keep_todays_checks_against_the_hulls() -> None:
     """A hull beside the corridor: the risk plans avoid both and pass the run-time monitor."""
     hull = Rect(500.0, 650.0, 120.0, 80.0).polytope()
     view = ForecastView(box_forecast(), 1)
-    for system, method in ((1, "rrt+risk"), (2, "fast+risk")):
-        plan = build_planner(system, SPEC, method).plan(  # type: ignore[call-arg]
+    for system, method in ((1, "rrt"), (2, "fast")):
+        plan = build_planner(system, SPEC, method, risk=True).plan(  # type: ignore[call-arg]
             _state(), (hull,), forecast=view)
         assert plan.ok, (method, plan.message)
         assert monitor.check(plan, _state(), (hull,), SPEC).ok
@@ -156,7 +161,8 @@ def test_without_a_forecast_the_risk_methods_are_the_paper_methods() -> None:
     hull = Rect(500.0, 520.0, 120.0, 80.0).polytope()
     for system, base in ((1, "rrt"), (2, "fast")):
         a = build_planner(system, SPEC, base).plan(_state(), (hull,), Objective.ENERGY)
-        b = build_planner(system, SPEC, f"{base}+risk").plan(_state(), (hull,), Objective.ENERGY)
+        b = build_planner(system, SPEC, base, risk=True).plan(_state(), (hull,),
+                                                              Objective.ENERGY)
         assert a.ok and np.array_equal(a.states, b.states) and np.array_equal(a.controls,
                                                                              b.controls)
 
@@ -166,7 +172,7 @@ def test_an_unmet_chance_constraint_falls_back_to_the_paper_plan() -> None:
     the paper method's, and says so."""
     box = (0.0, 400.0, 250.0, 600.0)
     plain = build_planner(2, SPEC, "fast").plan(_state(), ())
-    plan = build_planner(2, SPEC, "fast+risk").plan(  # type: ignore[call-arg]
+    plan = build_planner(2, SPEC, "fast", risk=True).plan(  # type: ignore[call-arg]
         _state(), (), forecast=ForecastView(box_forecast(box), 1))
     assert plan.ok and str(plan.info["risk"]).startswith("unmet")
     assert np.array_equal(plan.states, plain.states)
@@ -189,9 +195,11 @@ def test_the_forecast_threat_rule() -> None:
 
 
 def test_controller_names() -> None:
-    assert controller_of("concurrent+risk") == (Controller.CC, "concurrent")
-    assert controller_of("s2+risk") == (Controller.S2, "paper")
-    assert uses_risk("cc+risk") and not uses_risk("cc")
+    assert parse_controller("concurrent+risk") == (Controller.CC, SupervisorKind.CONCURRENT,
+                                                   True)
+    assert parse_controller("s2+risk") == (Controller.S2, SupervisorKind.PAPER, True)
+    assert parse_controller("cc") == (Controller.CC, SupervisorKind.PAPER, False)
+    assert MissionConfig.named("concurrent+risk").concurrent.threat == "forecast"
 
 
 def test_the_forecast_never_moves_the_fire_stream() -> None:
@@ -204,8 +212,8 @@ def test_the_forecast_never_moves_the_fire_stream() -> None:
     before = fires.rng.bit_generator.state
     fires.forecast(10)
     assert fires.rng.bit_generator.state == before
-    plain = local_mission(Controller.S2, spec, timing=Timing.PAPER).run()
-    risky = local_mission(Controller.S2, spec, timing=Timing.PAPER, risk=True).run()
+    plain = local_mission(config_for(spec, "s2")).run()
+    risky = local_mission(config_for(spec, "s2+risk")).run()
     n = min(len(plain.records), len(risky.records))
     assert n > 3
     for a, b in zip(plain.records[:n], risky.records[:n], strict=True):
@@ -217,7 +225,7 @@ def test_the_step_asks_for_the_forecast_only_for_risk_aware_planners() -> None:
     paper's planners are never sent a forecast (none is made)."""
     spec = mission_spec(0, 1)
     for risk in (False, True):
-        mission = local_mission(Controller.CC, spec, timing=Timing.PAPER, risk=risk)
+        mission = local_mission(config_for(spec, "cc+risk" if risk else "cc"))
         assert mission.forecast_systems == (frozenset({1, 2}) if risk else frozenset())
         seen: list[tuple[int, int | None]] = []
         planners = mission.planners

@@ -8,6 +8,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
+from dualpilot.mission.answers import format_answers, parse_answers, statuses_by_system
 from dualpilot.model.fire import FireSnapshot
 from dualpilot.model.forecast import OccupancyForecast
 from dualpilot.model.geometry import Polytope, Rect
@@ -56,17 +57,19 @@ def test_fire_view_keeps_front_ids_birth_steps_and_every_hull() -> None:
     ("", {}),
 ])
 def test_plan_statuses_split_the_step_text_by_system(text: str, want: dict[int, str]) -> None:
-    got = scene.plan_statuses(text)
+    answers = parse_answers(text)
+    assert format_answers(answers) == text  # the record's text, read back
+    got = statuses_by_system(answers)
     assert got == want and list(got) == list(want)  # in the order asked
 
 
 def test_plan_views_give_the_flown_system_its_positions_and_the_other_none() -> None:
     pts = np.array([[1.0, 2.0], [3.0, 4.0], [5.0, 6.0]])
-    s1, s2 = scene.plan_views("s2:timeout;s1:ok", 1, pts)
+    s1, s2 = scene.plan_views(parse_answers("s2:timeout;s1:ok"), 1, pts)
     assert (s1.system, s1.status, s1.flown, s1.positions.tolist()) == (
         1, "ok", True, pts.tolist())
     assert (s2.system, s2.status, s2.flown, s2.positions.shape) == (2, "timeout", False, (0, 2))
-    braked = scene.plan_views("s1:no_path", 0, np.empty((0, 2)))
+    braked = scene.plan_views(parse_answers("s1:no_path"), 0, np.empty((0, 2)))
     assert [(v.status, v.flown, len(v.positions)) for v in braked] == [
         ("no_path", False, 0), ("", False, 0)]
 

@@ -13,7 +13,7 @@ from dualpilot.evaluation.instances import GOAL, SPEC, make_instance
 from dualpilot.model.dynamics import DynamicsParams, rollout, transition_matrices
 from dualpilot.model.geometry import Polytope, Rect
 from dualpilot.plan import Objective, Plan, PlanStatus
-from dualpilot.planners import METHODS, build_planner, build_planners
+from dualpilot.planners import METHODS, RISK_AWARE, build_planner, build_planners
 from dualpilot.system2.fast.geometry import Inflated, homotopy_paths
 from dualpilot.system2.fast.planner import AnytimeSystem2, FastSystem2
 from dualpilot.system2.fast.qp import P2Qp
@@ -150,8 +150,10 @@ def test_transition_matrices_reading():
 
 
 def test_planners_by_name_from_the_registry():
-    assert METHODS == {1: ("rrt", "rrt+du", "rrt+risk", "rrt+du+risk"),
-                       2: ("fast", "exact", "fast+exact", "thorough", "fast+risk")}
+    assert METHODS == {1: ("rrt", "rrt+du"), 2: ("fast", "exact", "fast+exact", "thorough")}
+    assert {k: tuple(v) for k, v in RISK_AWARE.items()} == {1: ("rrt", "rrt+du"), 2: ("fast",)}
+    with pytest.raises(ValueError, match="'exact' has no risk-aware variant"):
+        build_planner(2, SPEC, "exact", risk=True)
     fast = build_planner(2, SPEC, "fast", SMALL)
     assert isinstance(fast, FastSystem2) and (fast.system, fast.method) == (2, "fast")
     thorough = build_planner(2, SPEC, "thorough")

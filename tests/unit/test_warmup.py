@@ -21,16 +21,13 @@ def counts():
 
 warm_up()
 after = counts()
+from dualpilot.mission.config import MissionConfig
 from dualpilot.mission.local import local_mission
 from dualpilot.mission.params import Controller
-from dualpilot.readings import get_profile
-from dualpilot.spec import MissionSpec
 steps = []
 for name in ("fig-r5", "literal"):  # both speed limits
-    r = get_profile(name)
     for ctl in (Controller.CC, Controller.S1, Controller.S2):
-        res = local_mission(ctl, r.spec(MissionSpec(seed=1)), params=r.mission,
-                            fire_params=r.fire, supervisor_params=r.supervisor).run()
+        res = local_mission(MissionConfig(controller=ctl, profile=name, seed=1)).run()
         steps.append(res.steps)
 new = {k: v - after[k] for k, v in counts().items() if v != after[k]}
 print(json.dumps({"after": after, "new": new, "steps": steps}))

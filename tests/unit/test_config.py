@@ -1,0 +1,107 @@
+"""The one mission configuration: its typed fields, the controller names, the flags and back.
+
+A configuration written as flags (:func:`config_to_argv`) reads back as itself,
+for random configurations (hypothesis); its wire form is
+tests/integration/test_config_wire.py's.
+"""
+
+from __future__ import annotations
+
+import pytest
+from hypothesis import given, settings
+
+from dualpilot.mission.config import CONTROLLER_NAMES, MissionConfig, parse_controller
+from dualpilot.mission.config_args import concurrent_names, config_to_argv, parse_config
+from dualpilot.mission.local import local_mission
+from dualpilot.mission.params import Controller
+from dualpilot.mission.supervisors import SUPERVISORS, SupervisorKind
+from dualpilot.model.geometry import Rect
+from dualpilot.supervisor.concurrent import ConcurrentParams
+from tests.support.configs import configs
+
+
+def test_every_controller_name_is_three_typed_fields_and_back() -> None:
+    seen = set()
+    for name in CONTROLLER_NAMES:
+        controller, supervisor, risk = parse_controller(name)
+        config = MissionConfig(controller=controller, supervisor=supervisor, risk=risk)
+        assert config.controller_name == name and MissionConfig.named(name) == config
+        seen.add((controller, supervisor, risk))
+    assert len(seen) == len(CONTROLLER_NAMES) == 8
+    with pytest.raises(ValueError, match=r"unknown controller 'cc\+fast'"):
+        parse_controller("cc+fast")
+
+
+def test_the_supervisor_gives_system1_its_method_and_risk_the_threat_rule() -> None:
+    assert MissionConfig.named("cc").methods() == {1: "rrt", 2: "fast"}
+    assert MissionConfig.named("concurrent").methods() == {1: "rrt+du", 2: "fast"}
+    assert SUPERVISORS[SupervisorKind.CONCURRENT].system1_method == "rrt+du"
+    assert MissionConfig.named("concurrent").concurrent.threat == "current"
+    assert MissionConfig.named("concurrent+risk").concurrent.threat == "forecast"
+    with pytest.raises(ValueError, match="forecast threats are the risk-aware"):
+        MissionConfig(concurrent=ConcurrentParams(threat="forecast"))
+    with pytest.raises(ValueError, match="concurrent supervisor does not run s2"):
+        MissionConfig(controller=Controller.S2, supervisor=SupervisorKind.CONCURRENT)
+
+
+def test_settings_are_typed_sorted_and_checked_by_the_reading() -> None:
+    c = MissionConfig(settings=(("scenario", "shrub"), ("max_steps", "40")))
+    assert c.settings == (("max_steps", 40), ("scenario", "shrub"))
+    assert c.reading().fire.scenario == "shrub" and c.reading().mission.max_steps == 40
+    with pytest.raises(ValueError, match="unknown parameter 'warp'"):
+        MissionConfig(settings=(("warp", 9),))
+    with pytest.raises(ValueError, match="scenario must be one of"):
+        MissionConfig(settings=(("scenario", "tundra"),))
+    with pytest.raises(ValueError, match="unknown profile"):
+        MissionConfig(profile="lenient")
+
+
+def test_the_spec_is_the_configs_geometry_and_the_readings_dynamics() -> None:
+    c = MissionConfig(seed=5, goal=Rect(600.0, 700.0, 80.0, 80.0), area_size_m=800.0,
+                      profile="literal")
+    spec = c.spec(start=(10.0, 20.0))
+    assert (spec.seed, spec.goal, spec.area_size_m, spec.start) == (
+        5, Rect(600.0, 700.0, 80.0, 80.0), 800.0, (10.0, 20.0))
+    assert spec.dynamics.speed_limit == "norm"  # the literal profile's reading
+    with pytest.raises(ValueError, match="outside"):
+        MissionConfig(goal=Rect(990.0, 990.0, 100.0, 100.0))
+
+
+def test_the_in_process_mission_flies_the_configs_controller_and_planners() -> None:
+    mission = local_mission(MissionConfig.named("concurrent+risk", seed=3,
+                                                settings=(("max_steps", 3),)))
+    assert mission.controller is Controller.CC and mission.forecast_systems == {1, 2}
+    planners = mission.planners.planners
+    assert planners[1].method == "rrt+du+risk" and planners[2].method == "fast+risk"
+    assert mission.run().steps <= 3
+
+
+# -- flags -> config -> flags ---------------------------------------------------------------------
+@settings(max_examples=200, derandomize=True)
+@given(configs())
+def test_a_config_written_as_flags_reads_back_as_itself(config: MissionConfig) -> None:
+    assert parse_config(config_to_argv(config)) == config
+
+
+def test_the_environment_gives_the_defaults_and_a_flag_overrides_it() -> None:
+    env = {"CONTROLLER": "concurrent+risk", "MISSION_SEED": "26", "READINGS_PROFILE": "fig-r5",
+           "FIRE_SCENARIO": "shrub", "MAX_STEPS": "60", "CONCURRENT_PARAMS": "check_steps=5",
+           "S2_METHOD": "thorough"}
+    config = parse_config([], lambda name, default: env.get(name, default))
+    assert config == MissionConfig.named(
+        "concurrent+risk", seed=26, profile="fig-r5", system2_method="thorough",
+        settings=(("max_steps", 60), ("scenario", "shrub")),
+        concurrent=ConcurrentParams(check_steps=5))
+    assert parse_config(["--controller", "s1"], lambda n, d: env.get(n, d)).controller_name == "s1"
+    assert parse_config(["--controller", "cc", "--supervisor", "concurrent"]).controller_name == (
+        "concurrent")
+
+
+def test_bad_flags_are_clear_errors() -> None:
+    with pytest.raises(ValueError, match="max_steps is set twice"):
+        parse_config(["--set", "max_steps=5", "--max-steps", "6"])
+    with pytest.raises(ValueError, match="--concurrent takes NAME=VALUE"):
+        parse_config(["--concurrent", "warp=9"])
+    with pytest.raises(ValueError, match="contradicts"):
+        parse_config(["--controller", "concurrent", "--supervisor", "paper"])
+    assert "risk.alpha" in concurrent_names() and "threat" not in concurrent_names()
