@@ -29,6 +29,8 @@ import numpy as np
 REPO = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(REPO))
 
+from dualpilot.mission.config import MissionConfig  # noqa: E402
+from dualpilot.mission.params import Timing  # noqa: E402
 from services.launch import StackConfig, run_mission  # noqa: E402
 
 #: steps at the start of a mission, reported apart as well: start-up costs that land in the
@@ -75,8 +77,10 @@ def main(argv: list[str] | None = None) -> int:
     for k in range(args.missions):
         seed = args.seed + k
         run_dir = (args.out / f"{args.controller}-s{seed}").resolve()
-        cfg = StackConfig(run_dir=run_dir, seed=seed, speed_factor=args.speed_factor,
-                          controller=args.controller, timing=args.timing, free_ports=True,
+        cfg = StackConfig(run_dir=run_dir, speed_factor=args.speed_factor,
+                          mission=MissionConfig.named(args.controller, seed=seed,
+                                                      timing=Timing(args.timing)),
+                          free_ports=True,
                           uav_id="bench", extra_env=zenoh_env(args.zenoh_mode))
         outcome, codes = run_mission(cfg, timeout_s=600, figures=False, quiet=True)
         if not (run_dir / "latency.csv").is_file():

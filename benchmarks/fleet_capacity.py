@@ -47,6 +47,7 @@ REPO = Path(__file__).resolve().parent.parent
 if str(REPO) not in sys.path:
     sys.path.insert(0, str(REPO))
 
+from dualpilot.mission.config import MissionConfig  # noqa: E402
 from services import launch  # noqa: E402
 
 TICK = os.sysconf("SC_CLK_TCK")
@@ -135,7 +136,7 @@ def fly(n: int, out: Path, args: argparse.Namespace) -> dict[str, Any]:
     scale = {"system1": args.s1_replicas, "system2": args.s2_replicas}
     cfg = launch.StackConfig(run_dir=out / "shared", speed_factor=args.speed_factor,
                              free_ports=True, log_format="text", scale=scale,
-                             max_steps=args.max_steps)
+                             mission=MissionConfig(settings=(("max_steps", args.max_steps),)))
     env = {"CONTROLLER": "cc", "TIMING": "paper", "SUPERVISOR": "paper",
            "IGNITION_CLEARANCE_M": "", "MAX_STEPS": str(args.max_steps),
            "START_STAGGER_S": str(args.stagger_s)}

@@ -92,9 +92,8 @@ def run_load(n_vehicles: int, out: Path, speed_factor: float = 200.0,
         raise ValueError(f"1..{len(seeds)} vehicles")
     uavs = [f"uav{k + 1}" for k in range(n_vehicles)]
     extra = {"supervisor": {"PLAN_DEADLINE_S": plan_deadline_s}} if plan_deadline_s else {}
-    cfg = launch.StackConfig(run_dir=out, speed_factor=speed_factor, controller="cc",
-                             timing="paper", free_ports=True, log_format="text",
-                             extra_env=extra)
+    cfg = launch.StackConfig(run_dir=out, speed_factor=speed_factor, free_ports=True,
+                             log_format="text", extra_env=extra)
     t0 = time.monotonic()
     with launch.Fleet(cfg, uavs) as fleet:
         mids = {}

@@ -158,8 +158,8 @@ def run_soak(n: int, out: Path, speed_factor: float = 1000.0, seed0: int | None 
              quiet: bool = True, stop: threading.Event | None = None) -> SoakResult:
     """Fly up to ``n`` consecutive missions (fewer if ``max_wall_s`` runs out or ``stop`` is set
     between missions); the stack is stopped on the way out either way."""
-    cfg = launch.StackConfig(run_dir=out, speed_factor=speed_factor, controller="cc",
-                             timing="paper", free_ports=True, log_format="text")
+    cfg = launch.StackConfig(run_dir=out, speed_factor=speed_factor, free_ports=True,
+                             log_format="text")
     t0 = time.monotonic()
     result = SoakResult(0, 0.0)
     sessions: set[int] = set()

@@ -228,3 +228,24 @@ def parse_config(argv: Sequence[str], env: Env = _defaults) -> MissionConfig:
     p = argparse.ArgumentParser(add_help=False)
     add_config_arguments(p, env)
     return config_from_args(p.parse_args(list(argv)))
+
+
+def config_env(config: MissionConfig) -> dict[str, str]:
+    """The environment that makes the flags of :func:`add_config_arguments` (defaults read
+    from the environment, as the services do) say ``config``: how a launcher or a compose
+    file hands a process its mission. Every variable is set, the unused ones empty, so none
+    is inherited from the launcher's own environment."""
+    c = config
+    g = c.goal
+    env = {var: "" for _, _, var in READING_FLAGS}
+    env.update({
+        "CONTROLLER": c.controller_name, "SUPERVISOR": "", "TIMING": c.timing.value,
+        "MISSION_SEED": str(c.seed), "READINGS_PROFILE": c.profile,
+        "READINGS": ";".join(f"{n}={_setting_text(v)}" for n, v in c.settings),
+        "S1_METHOD": c.system1_method, "S2_METHOD": c.system2_method,
+        "CONCURRENT_PARAMS": ";".join(_concurrent_items(c.concurrent)),
+        "GOAL": ",".join(repr(v) for v in (g.center_x, g.center_y, g.width, g.height)),
+        "AREA_SIZE_M": repr(c.area_size_m), "MISSION_ID": c.mission_id,
+        "MISSION_START": "" if c.start is None else f"{c.start[0]!r},{c.start[1]!r}",
+    })
+    return env

@@ -1,7 +1,9 @@
 """Run the whole stack locally: a Zenoh router and every service of docker-compose.yml as processes.
 
 ``python -m services.launch --seed 7 --speed-factor 20 --controller cc --timing paper``
-flies one mission; ``--vehicles 10 --scale system2=2`` a fleet of ten on a planner pool.
+flies one mission (every controller of dualpilot evaluate by its name: cc, s1, s2,
+concurrent, each with +risk; the mission's flags are those of ``dualpilot mission``);
+``--vehicles 10 --scale system2=2`` a fleet of ten on a planner pool.
 """
 
 from __future__ import annotations
@@ -14,87 +16,68 @@ import time
 from dataclasses import replace
 from pathlib import Path
 
+from dualpilot.mission.config_args import add_config_arguments, config_from_args
 from services.launch.compose import COMPOSE, REPO
 from services.launch.fleet import Fleet
-from services.launch.stack import StackConfig, parse_scale, run_mission
+from services.launch.stack import Outcome, StackConfig, parse_scale, run_mission
 
 
-def main(argv: list[str] | None = None) -> int:
+def parser() -> argparse.ArgumentParser:
+    """The launcher's flags: the mission's (those of dualpilot mission and the supervisor:
+    dualpilot.mission.config_args) and how to run the stack."""
     p = argparse.ArgumentParser(prog="python -m services.launch",
                                 description=__doc__.splitlines()[0])
-    p.add_argument("--seed", type=int, default=7)
-    p.add_argument("--speed-factor", type=float, default=20.0,
+    add_config_arguments(p, seed=7)
+    g = p.add_argument_group("the stack")
+    g.add_argument("--speed-factor", type=float, default=20.0,
                    help="simulated s per wall s (0 or inf: unpaced)")
-    p.add_argument("--controller", choices=["cc", "s1", "s2"], default="cc")
-    p.add_argument("--timing", choices=["paper", "measured"], default="paper")
-    p.add_argument("--s2-method", default="fast", help="System 2 method (fast, exact, ...)")
-    p.add_argument("--max-steps", type=int, default=150)
-    p.add_argument("--ignition-clearance", type=float, default=None,
-                   help="no front ignites within this distance (m) of the UAV (as dualpilot "
-                        "mission --ignition-clearance)")
-    p.add_argument("--supervisor", choices=["paper", "concurrent"], default="paper",
-                   help="the cognitive controller's supervisor (dualpilot mission --supervisor)")
-    p.add_argument("--profile", default="today",  # readings profile: supervisor, EWS, uavsim
-                   help="named reading of the paper (dualpilot profiles) [READINGS_PROFILE]")
-    p.add_argument("--scenario", default="",
-                   help="the fire process: a fire-behaviour scenario (dualpilot scenarios); "
-                        "default: the paper's")
-    p.add_argument("--waypoints", default="", help="System 1 operator waypoints 'e1,n1;e2,n2'")
-    p.add_argument("--out", default="",
+    g.add_argument("--waypoints", default="", help="System 1 operator waypoints 'e1,n1;e2,n2'")
+    g.add_argument("--out", default="",
                    help="run directory (default runs/<time>-<controller>-s<seed>)")
-    p.add_argument("--compose", type=Path, default=COMPOSE)
-    p.add_argument("--free-ports", action="store_true",
+    g.add_argument("--compose", type=Path, default=COMPOSE)
+    g.add_argument("--free-ports", action="store_true",
                    help="free local ports instead of the published 7447 / 14550")
-    p.add_argument("--tls", action="store_true",
+    g.add_argument("--tls", action="store_true",
                    help="mutual TLS and the router's access control (ZENOH_TLS_DIR); "
                         "certificates made in <out>/tls unless --tls-dir is given")
-    p.add_argument("--tls-dir", type=Path, default=None,
+    g.add_argument("--tls-dir", type=Path, default=None,
                    help="certificates of python -m services.certs (implies --tls)")
-    p.add_argument("--vehicles", type=int, default=1,
+    g.add_argument("--vehicles", type=int, default=1,
                    help="fly a fleet: N vehicles (seeds --seed .. --seed + N - 1) sharing the "
                         "EWS and planners, hosted by one uavsim and one supervisor process; "
                         "each vehicle's records in <out>/uav<k>/")
-    p.add_argument("--scale", action="append", default=[], metavar="SERVICE=N",
+    g.add_argument("--scale", action="append", default=[], metavar="SERVICE=N",
                    help="run N replicas of a planner service (a pool: system1, system2), as "
                         "docker compose up --scale; repeatable")
-    p.add_argument("--viewer", action="store_true",
+    g.add_argument("--viewer", action="store_true",
                    help="also run the live view (services/viewer, compose profile 'viewer'): "
                         "Foxglove WebSocket on ws://127.0.0.1:8765 (or the free port printed)")
-    p.add_argument("--timeout-s", type=float, default=600.0)
-    p.add_argument("--log-format", choices=["json", "text"], default="json")
-    p.add_argument("--no-figures", action="store_true")
-    p.add_argument("--quiet", action="store_true")
-    args = p.parse_args(argv)
-    try:
-        scale = parse_scale(args.scale)
-    except ValueError as err:
-        p.error(str(err))
-    run_id = f"{time.strftime('%Y%m%d-%H%M%S')}-{args.controller}-s{args.seed}"
-    run_dir = Path(args.out) if args.out else REPO / "runs" / run_id
-    cfg = StackConfig(run_dir=run_dir.resolve(), seed=args.seed, speed_factor=args.speed_factor,
-                      controller=args.controller, timing=args.timing, s2_method=args.s2_method,
-                      max_steps=args.max_steps, waypoints=args.waypoints,
-                      ignition_clearance_m=args.ignition_clearance,
-                      profile=args.profile,  # readings profile: supervisor, EWS, uavsim
-                      scenario=args.scenario,
-                      supervisor=args.supervisor,
-                      free_ports=args.free_ports, log_format=args.log_format,
-                      tls=args.tls or args.tls_dir is not None,
-                      tls_dir=args.tls_dir.resolve() if args.tls_dir else None,
-                      mission_id=re.sub(r"[^A-Za-z0-9_\-]", "-", run_dir.name)[:64],
-                      scale=scale, profiles=("viewer",) if args.viewer else ())
+    g.add_argument("--timeout-s", type=float, default=600.0)
+    g.add_argument("--log-format", choices=["json", "text"], default="json")
+    g.add_argument("--no-figures", action="store_true")
+    g.add_argument("--quiet", action="store_true")
+    return p
+
+
+def stack_config(args: argparse.Namespace) -> StackConfig:
+    """The stack to run (ValueError for a bad flag)."""
+    mission = config_from_args(args)
+    scale = parse_scale(args.scale)
     if not 1 <= args.vehicles <= 64:
-        p.error("--vehicles must be in 1..64")
-    if args.vehicles > 1:
-        return run_fleet(cfg, args.vehicles, args.timeout_s, args.compose)
-    t0 = time.perf_counter()
-    try:
-        outcome, codes = run_mission(cfg, args.timeout_s, not args.no_figures, args.quiet,
-                                     args.compose)
-    except ValueError as err:
-        print(f"launch: error: {err}", file=sys.stderr)
-        return 2
-    wall = time.perf_counter() - t0
+        raise ValueError("--vehicles must be in 1..64")
+    run_id = f"{time.strftime('%Y%m%d-%H%M%S')}-{mission.controller_name}-s{mission.seed}"
+    run_dir = (Path(args.out) if args.out else REPO / "runs" / run_id).resolve()
+    mission_id = mission.mission_id or re.sub(r"[^A-Za-z0-9_\-]", "-", run_dir.name)[:64]
+    return StackConfig(run_dir=run_dir, mission=replace(mission, mission_id=mission_id),
+                       speed_factor=args.speed_factor, waypoints=args.waypoints,
+                       free_ports=args.free_ports, log_format=args.log_format,
+                       tls=args.tls or args.tls_dir is not None,
+                       tls_dir=args.tls_dir.resolve() if args.tls_dir else None,
+                       scale=scale, profiles=("viewer",) if args.viewer else ())
+
+
+def report(cfg: StackConfig, outcome: Outcome, codes: dict[str, int], wall: float) -> int:
+    """Print the mission's summary and how the services stopped; the exit code."""
     summary_path = cfg.run_dir / "summary.json"
     if summary_path.is_file():
         s = json.loads(summary_path.read_text())
@@ -114,15 +97,31 @@ def main(argv: list[str] | None = None) -> int:
     return 0
 
 
+def main(argv: list[str] | None = None) -> int:
+    p = parser()
+    args = p.parse_args(argv)
+    try:
+        cfg = stack_config(args)
+    except ValueError as err:
+        p.error(str(err))
+    if args.vehicles > 1:
+        return run_fleet(cfg, args.vehicles, args.timeout_s, args.compose)
+    t0 = time.perf_counter()
+    try:
+        outcome, codes = run_mission(cfg, args.timeout_s, not args.no_figures, args.quiet,
+                                     args.compose)
+    except ValueError as err:
+        print(f"launch: error: {err}", file=sys.stderr)
+        return 2
+    return report(cfg, outcome, codes, time.perf_counter() - t0)
+
+
 def run_fleet(cfg: StackConfig, n: int, timeout_s: float, compose: Path) -> int:
     """``n`` vehicles through the shared services, hosted; prints one line per vehicle."""
     uavs = [f"uav{k + 1}" for k in range(n)]
     cfg.run_dir.mkdir(parents=True, exist_ok=True)
     cfg = replace(cfg, uav_id=uavs[0])
-    env = {"CONTROLLER": cfg.controller, "TIMING": cfg.timing, "SUPERVISOR": cfg.supervisor,
-           "READINGS_PROFILE": cfg.profile, "FIRE_SCENARIO": cfg.scenario,
-           "MAX_STEPS": str(cfg.max_steps),
-           "START_STAGGER_S": "0.5"}
+    env = {"START_STAGGER_S": "0.5"}
     t0 = time.perf_counter()
     with Fleet(replace(cfg, run_dir=cfg.run_dir / "shared"), uavs, compose) as fleet:
         print(f"fleet: {n} vehicles, router {fleet.endpoint}, replicas "
@@ -130,8 +129,9 @@ def run_fleet(cfg: StackConfig, n: int, timeout_s: float, compose: Path) -> int:
         if fleet.stack.viewer_url():
             print(f"live view: {fleet.stack.viewer_url()} (every vehicle side by side)",
                   flush=True)
-        vehicles = fleet.start_hosted(uavs, [cfg.seed + k for k in range(n)], cfg.run_dir,
-                                      env=env, tag=cfg.mission_id or cfg.run_dir.name)
+        seed = cfg.mission.seed
+        vehicles = fleet.start_hosted(uavs, [seed + k for k in range(n)], cfg.run_dir,
+                                      env=env, tag=cfg.mission_id, config=cfg.mission)
         outcomes = fleet.wait_end({v.uav_id: v.mission_id for v in vehicles}, timeout_s)
         codes = fleet.stop_vehicle(uavs[0])
     for v in vehicles:

@@ -15,6 +15,8 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
+from dualpilot.mission.config import MissionConfig
+from dualpilot.mission.config_args import config_env
 from services.launch.compose import COMPOSE
 from services.launch.processes import Proc, free_port, free_port_run
 from services.launch.stack import Outcome, Stack, StackConfig, client_session, next_event
@@ -95,12 +97,16 @@ class Fleet:
             self.stack.stop()
 
     def start_vehicle(self, uav_id: str, seed: int, run_dir: Path, mission_id: str = "",
-                      env: Mapping[str, str] | None = None) -> Vehicle:
-        """Start ``uav_id``'s uavsim and supervisor flying seed ``seed`` into ``run_dir``."""
+                      env: Mapping[str, str] | None = None,
+                      config: MissionConfig | None = None) -> Vehicle:
+        """Start ``uav_id``'s uavsim and supervisor flying seed ``seed`` into ``run_dir``: the
+        fleet's mission, or ``config`` (its seed and mission id this vehicle's)."""
         port = free_port("udp")
         run_dir.mkdir(parents=True, exist_ok=True)
         mid = mission_id or re.sub(r"[^A-Za-z0-9_\-]", "-", f"{uav_id}-{run_dir.name}")[:64]
-        common = {"UAV_ID": uav_id, "UAV_IDS": "", "MISSION_SEED": str(seed),
+        mission = {} if config is None else config_env(replace(config, seed=seed,
+                                                                mission_id=mid))
+        common = {**mission, "UAV_ID": uav_id, "UAV_IDS": "", "MISSION_SEED": str(seed),
                   "RUN_DIR": str(run_dir), "MISSION_ID": mid,
                   "TLOG_PATH": str(run_dir / "vehicle.tlog"),
                   "STREAM_STATS_PATH": str(run_dir / "stream.json"), **(env or {})}
@@ -117,7 +123,8 @@ class Fleet:
         return v
 
     def start_hosted(self, uav_ids: list[str], seeds: list[int], out: Path,
-                     env: Mapping[str, str] | None = None, tag: str = "") -> list[Vehicle]:
+                     env: Mapping[str, str] | None = None, tag: str = "",
+                     config: MissionConfig | None = None) -> list[Vehicle]:
         """Start one uavsim and one supervisor process for all of ``uav_ids`` (vehicle k flies
         ``seeds[k]`` into ``out/<uav>``); returns the vehicles (their processes are the host's,
         shared). Stop them with :meth:`stop_vehicle` of any of them."""
@@ -125,7 +132,8 @@ class Fleet:
             raise ValueError("one seed per vehicle")
         base = free_port_run(len(uav_ids), "udp")
         tag = tag or out.name
-        common = {"UAV_ID": uav_ids[0], "UAV_IDS": ",".join(uav_ids),
+        mission = {} if config is None else config_env(config)
+        common = {**mission, "UAV_ID": uav_ids[0], "UAV_IDS": ",".join(uav_ids),
                   "MISSION_SEEDS": ",".join(str(s) for s in seeds),
                   "RUN_DIR": str(out / "{uav}"), "MISSION_ID": f"{{uav}}-{tag}"[:64],
                   "TLOG_PATH": str(out / "{uav}" / "vehicle.tlog"),

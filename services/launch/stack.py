@@ -17,10 +17,12 @@ import sys
 import time
 from collections.abc import Iterator
 from contextlib import contextmanager
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
+from dualpilot.mission.config import MissionConfig
+from dualpilot.mission.config_args import config_env
 from services.launch.compose import (
     COMPOSE,
     ENDPOINT_KEYS,
@@ -53,25 +55,21 @@ def next_event(events: Any, timeout_s: float = 0.2) -> Any:
 # -- the stack ------------------------------------------------------------------------------------
 @dataclass
 class StackConfig:
-    """What to run and how (flags of the launcher; environment overrides of the services)."""
+    """What to run and how (the launcher's flags): the mission, and the processes' settings.
+
+    ``mission`` is handed to the supervisor whole, as the environment of its flags
+    (dualpilot.mission.config_args.config_env); it reaches the planners and the EWS with the
+    prepare requests and the reset. Its mission id defaults to the run directory's name.
+    """
 
     run_dir: Path
-    seed: int = 7
+    mission: MissionConfig = field(default_factory=lambda: MissionConfig(seed=7))
     speed_factor: float = 20.0
-    controller: str = "cc"
-    timing: str = "paper"
-    s2_method: str = "fast"
-    max_steps: int = 150
-    ignition_clearance_m: float | None = None  # MissionParams.ignition_clearance_m
-    profile: str = "today"  # dualpilot.readings profile of the supervisor, the EWS and uavsim
-    scenario: str = ""  # the fire process: "" (the profile's: the paper's), or a scenario
-    supervisor: str = "paper"  # the cognitive controller's: "paper" or "concurrent"
     uav_id: str = "uav1"
     waypoints: str = ""
     free_ports: bool = False
     log_format: str = "json"
     log_level: str = "INFO"
-    mission_id: str = ""
     services: tuple[str, ...] = ()  # empty: every service of the compose file
     extra_env: dict[str, dict[str, str]] = field(default_factory=dict)  # per service
     # mutual TLS and the router's access control (ZENOH_TLS_DIR): a directory of
@@ -84,6 +82,10 @@ class StackConfig:
     deferred: tuple[str, ...] = ()
     #: compose profiles to run besides the default services (``("viewer",)``: the live view)
     profiles: tuple[str, ...] = ()
+
+    @property
+    def mission_id(self) -> str:
+        return self.mission.mission_id or self.run_dir.name
 
 
 class Stack:
@@ -107,17 +109,10 @@ class Stack:
     def overrides(self) -> dict[str, str]:
         c = self.cfg
         return {
-            "UAV_ID": c.uav_id, "SPEED_FACTOR": str(c.speed_factor), "MISSION_SEED": str(c.seed),
-            "CONTROLLER": c.controller, "TIMING": c.timing, "S2_METHOD": c.s2_method,
-            "MAX_STEPS": str(c.max_steps), "RUN_DIR": str(c.run_dir),
-            "MISSION_ID": c.mission_id or c.run_dir.name, "EXIT_AFTER_MISSION": "0",
-            "OPERATOR_WAYPOINTS": c.waypoints, "LOG_FORMAT": c.log_format,
-            "IGNITION_CLEARANCE_M": ("" if c.ignition_clearance_m is None
-                                     else repr(c.ignition_clearance_m)),
-            "READINGS_PROFILE": c.profile,  # the readings profile (dualpilot profiles)
-            "FIRE_SCENARIO": c.scenario,  # the fire process (dualpilot scenarios)
-            "SUPERVISOR": c.supervisor,
-            "TLOG_PATH": str(c.run_dir / "vehicle.tlog"),
+            **config_env(replace(c.mission, mission_id=c.mission_id)),
+            "UAV_ID": c.uav_id, "SPEED_FACTOR": str(c.speed_factor), "RUN_DIR": str(c.run_dir),
+            "EXIT_AFTER_MISSION": "0", "OPERATOR_WAYPOINTS": c.waypoints,
+            "LOG_FORMAT": c.log_format, "TLOG_PATH": str(c.run_dir / "vehicle.tlog"),
             "STREAM_STATS_PATH": str(c.run_dir / "stream.json"),
             "LOG_LEVEL": c.log_level, "PYTHONUNBUFFERED": "1",
             "ZENOH_TLS_DIR": str(self.tls_dir or ""),

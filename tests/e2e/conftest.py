@@ -19,6 +19,7 @@ from typing import Any
 
 import pytest
 
+from dualpilot.mission.config import MissionConfig
 from dualpilot.mission.result import MissionResult
 from services import launch
 from services.common import bus, keys, wire
@@ -75,7 +76,6 @@ def run_process(argv: Sequence[str], timeout_s: float, what: str,
 
 
 def in_process(seed: int) -> MissionResult:
-    from dualpilot.mission.config import MissionConfig
     from dualpilot.mission.local import local_mission
 
     return local_mission(MissionConfig(seed=seed)).run()
@@ -119,8 +119,8 @@ def drain_messages(q: queue.Queue[bytes], cls: Any) -> list[Any]:
 def mission(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Recorded]:
     seed, reference = successful_seed()
     run_dir = tmp_path_factory.mktemp("run") / f"e2e-cc-s{seed}"
-    cfg = launch.StackConfig(run_dir=run_dir, seed=seed, speed_factor=SPEED_FACTOR,
-                             controller="cc", timing="paper", free_ports=True, uav_id="e2e",
+    cfg = launch.StackConfig(run_dir=run_dir, mission=MissionConfig(seed=seed),
+                             speed_factor=SPEED_FACTOR, free_ports=True, uav_id="e2e",
                              log_format="text")
     stack = launch.Stack(cfg)
     inboxes: dict[str, queue.Queue[bytes]] = {k: queue.Queue() for k in ("f", "s", "d")}

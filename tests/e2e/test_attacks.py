@@ -23,6 +23,8 @@ from typing import Any
 
 import pytest
 
+from dualpilot.mission.config import MissionConfig
+from dualpilot.mission.params import Timing
 from dualpilot.mission.records import STEP_LOG, read_step_log
 from services import launch
 from services.common import bus, keys, mav, wire
@@ -117,10 +119,13 @@ class Attack:
 def attacked(tmp_path: Path, name: str, controller: str = "cc", speed: float = 50.0,
              services: tuple[str, ...] = (), max_steps: int = 25,
              extra_env: dict[str, dict[str, str]] | None = None) -> Iterator[Attack]:
-    cfg = launch.StackConfig(run_dir=tmp_path / name, seed=SEED, speed_factor=speed,
-                             controller=controller, timing="measured", free_ports=True,
-                             uav_id=f"a-{name}", log_format="text", mission_id=f"m-{name}",
-                             max_steps=max_steps, services=services,
+    cfg = launch.StackConfig(run_dir=tmp_path / name, speed_factor=speed,
+                             mission=MissionConfig.named(controller, seed=SEED,
+                                                         timing=Timing.MEASURED,
+                                                         mission_id=f"m-{name}",
+                                                         settings=(("max_steps", max_steps),)),
+                             free_ports=True, uav_id=f"a-{name}", log_format="text",
+                             services=services,
                              extra_env=extra_env or {}, deferred=("supervisor",))
     stack = launch.Stack(cfg)
     with stack:

@@ -27,6 +27,8 @@ from typing import Any
 import numpy as np
 import pytest
 
+from dualpilot.mission.config import MissionConfig
+from dualpilot.mission.params import Timing
 from dualpilot.mission.records import STEP_LOG, read_step_log
 from dualpilot.model.fire import FireParams
 from dualpilot.model.geometry import Rect
@@ -124,9 +126,11 @@ class Run:
 def running(tmp_path: Path, name: str, controller: str = "cc", speed: float = 50.0,
             extra_env: dict[str, dict[str, str]] | None = None,
             proxy: Callable[[int], int] | None = None) -> Iterator[Run]:
-    cfg = launch.StackConfig(run_dir=tmp_path / name, seed=SEED, speed_factor=speed,
-                             controller=controller, timing=TIMING, free_ports=True,
-                             uav_id=f"f-{name}", log_format="text", mission_id=f"m-{name}",
+    cfg = launch.StackConfig(run_dir=tmp_path / name, speed_factor=speed,
+                             mission=MissionConfig.named(controller, seed=SEED,
+                                                         timing=Timing(TIMING),
+                                                         mission_id=f"m-{name}"),
+                             free_ports=True, uav_id=f"f-{name}", log_format="text",
                              extra_env=extra_env or {}, deferred=("supervisor",))
     stack = launch.Stack(cfg)
     if proxy is not None:  # a service connects through a proxy to the router's port

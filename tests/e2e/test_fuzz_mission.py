@@ -19,6 +19,7 @@ import pytest
 from integration.conftest import _wait_until
 from integration.test_fuzz import FloodResult, check_counted, counters, flood
 
+from dualpilot.mission.config import MissionConfig
 from e2e.conftest import alive, router_ready, successful_seed
 from services import launch
 from services.common import bus
@@ -33,8 +34,8 @@ SERVICES = ("ews", "system1", "system2", "supervisor", "uavsim")
 def test_mission_succeeds_under_a_fuzz_flood(tmp_path: Any) -> None:
     seed, _ = successful_seed()
     run_dir = tmp_path / f"fuzz-cc-s{seed}"
-    cfg = launch.StackConfig(run_dir=run_dir, seed=seed, speed_factor=SPEED_FACTOR,
-                             controller="cc", timing="paper", free_ports=True, uav_id="fuzz",
+    cfg = launch.StackConfig(run_dir=run_dir, mission=MissionConfig(seed=seed),
+                             speed_factor=SPEED_FACTOR, free_ports=True, uav_id="fuzz",
                              log_format="text")
     stack = launch.Stack(cfg)
     stop = threading.Event()

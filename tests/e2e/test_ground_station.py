@@ -30,6 +30,7 @@ from typing import Any
 import numpy as np
 import pytest
 
+from dualpilot.mission.config import MissionConfig
 from e2e.conftest import drain_messages, run_process
 from services import launch
 from services.common import keys, mav
@@ -162,7 +163,7 @@ def run(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Run]:
     key_file.write_text(PASSPHRASE + "\n")  # a passphrase file: sha256, as MAVProxy
     signing = {"MAVLINK_SIGNING_KEY_FILE": str(key_file)}
     cfg = launch.StackConfig(
-        run_dir=work / "run", seed=SEED, speed_factor=50.0, controller="s1", timing="paper",
+        run_dir=work / "run", mission=MissionConfig.named("s1", seed=SEED), speed_factor=50.0,
         free_ports=True, uav_id="e2e-gcs", log_format="text",
         services=("ews", "system1", "system2", "uavsim"),
         extra_env={"uavsim": signing, "supervisor": signing})

@@ -20,6 +20,7 @@ from integration.foxglove_check import (
     read_mcap,
 )
 
+from dualpilot.mission.config import MissionConfig
 from dualpilot.mission.records import read_step_log
 from e2e.conftest import router_ready
 from services import launch
@@ -70,8 +71,8 @@ class LiveClient(threading.Thread):
 @pytest.fixture(scope="module")
 def live(tmp_path_factory: pytest.TempPathFactory) -> Any:
     run_dir = tmp_path_factory.mktemp("live") / f"live-cc-s{SEED}"
-    cfg = launch.StackConfig(run_dir=run_dir, seed=SEED, speed_factor=100.0, controller="cc",
-                             timing="paper", free_ports=True, uav_id=UAV, log_format="text",
+    cfg = launch.StackConfig(run_dir=run_dir, mission=MissionConfig(seed=SEED),
+                             speed_factor=100.0, free_ports=True, uav_id=UAV, log_format="text",
                              profiles=("viewer",))
     stack = launch.Stack(cfg)
     url = stack.viewer_url()

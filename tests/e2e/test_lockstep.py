@@ -143,12 +143,10 @@ def fly(fleet: launch.Fleet, runs: Sequence[Run],
     mission_ids = {}
     for k, (seed, controller, timing, clear) in enumerate(runs):
         uav = fleet.uav_ids[k]
-        concurrent = controller == "concurrent"
-        env = {"CONTROLLER": "cc" if concurrent else controller, "TIMING": timing,
-               "SPEED_FACTOR": "0", "IGNITION_CLEARANCE_M": "" if clear is None else repr(clear),
-               "SUPERVISOR": "concurrent" if concurrent else "paper"}
         run_dir = out / f"{controller}-{timing}-s{seed}-ic{clear}"
-        mission_ids[uav] = fleet.start_vehicle(uav, seed, run_dir, env=env).mission_id
+        mission_ids[uav] = fleet.start_vehicle(uav, seed, run_dir, env={"SPEED_FACTOR": "0"},
+                                               config=config_of(seed, controller, timing,
+                                                                clear)).mission_id
     outcomes = fleet.wait_end(mission_ids, 300.0)
     results = {}
     for k, run in enumerate(runs):
@@ -163,13 +161,17 @@ def fly(fleet: launch.Fleet, runs: Sequence[Run],
     return results
 
 
+def config_of(seed: int, controller: str, timing: str, clear: float | None) -> MissionConfig:
+    """The configuration of a run: the same one flies through the stack and in-process."""
+    settings = () if clear is None else (("ignition_clearance_m", clear),)
+    return MissionConfig.named(controller, seed=seed, timing=Timing(timing), settings=settings)
+
+
 def in_process(seed: int, controller: str, timing: str, clear: float | None,
                replay: Path | None = None) -> MissionResult:
     """The in-process mission of a run; with ``replay`` (a stack's run directory) and measured
     timing, flown with the compute times that run recorded (:class:`ReplayedTimes`)."""
-    settings = {} if clear is None else {"ignition_clearance_m": clear}
-    mission = local_mission(MissionConfig.named(controller, seed=seed, timing=Timing(timing),
-                                                settings=settings))
+    mission = local_mission(config_of(seed, controller, timing, clear))
     if replay is not None and Timing(timing) is Timing.MEASURED:
         return replayed(mission, replay, f"{controller} {timing} seed {seed}")
     return mission.run()

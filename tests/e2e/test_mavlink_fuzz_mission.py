@@ -22,6 +22,7 @@ from typing import Any
 import pytest
 from integration.test_mavlink_fuzz import Corpus
 
+from dualpilot.mission.config import MissionConfig
 from e2e.conftest import alive, router_ready, successful_seed
 from services import launch
 from services.common import bus
@@ -52,8 +53,8 @@ def flood(port: int, seed: int, stop: threading.Event, sent: dict[str, int], nam
 def test_mission_succeeds_while_both_mavlink_ports_are_flooded(tmp_path: Any) -> None:
     seed, _ = successful_seed()
     run_dir = tmp_path / f"mavfuzz-cc-s{seed}"
-    cfg = launch.StackConfig(run_dir=run_dir, seed=seed, speed_factor=SPEED_FACTOR,
-                             controller="cc", timing="paper", free_ports=True, uav_id="mavfuzz",
+    cfg = launch.StackConfig(run_dir=run_dir, mission=MissionConfig(seed=seed),
+                             speed_factor=SPEED_FACTOR, free_ports=True, uav_id="mavfuzz",
                              log_format="text")
     stack = launch.Stack(cfg)
     stop = threading.Event()

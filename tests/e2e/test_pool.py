@@ -24,6 +24,7 @@ from typing import Any
 
 import pytest
 
+from dualpilot.mission.config import MissionConfig
 from dualpilot.mission.records import read_step_log
 from services import launch
 from services.common import bus, keys, wire
@@ -75,8 +76,9 @@ def pending_at(log: Path, replica: str, stopped_ns: int, grace_s: float = 2.0) -
 
 
 def test_a_replica_killed_mid_request_loses_no_plan(tmp_path: Path) -> None:
-    cfg = launch.StackConfig(run_dir=tmp_path / "pool", seed=SEED, speed_factor=10.0,
-                             controller="s2", timing="paper", free_ports=True,
+    cfg = launch.StackConfig(run_dir=tmp_path / "pool",
+                             mission=MissionConfig.named("s2", seed=SEED), speed_factor=10.0,
+                             free_ports=True,
                              log_format="text", scale={"system2": 3},
                              extra_env={"supervisor": {"LOG_LEVEL": "DEBUG"}})
     events: queue.Queue[bytes] = queue.Queue()

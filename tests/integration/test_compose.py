@@ -20,6 +20,7 @@ from typing import Any
 import pytest
 import yaml
 
+from dualpilot.mission.config import MissionConfig
 from services import launch
 from services.common import keys
 
@@ -108,8 +109,9 @@ def test_check_compose_rejects_drift(doc: dict[str, Any], edit: Any, match: str)
 
 
 def test_launcher_maps_compose_onto_loopback(tmp_path: Path) -> None:
-    stack = launch.Stack(launch.StackConfig(run_dir=tmp_path, free_ports=True, seed=11,
-                                            speed_factor=0, controller="s1"))
+    stack = launch.Stack(launch.StackConfig(
+        run_dir=tmp_path, free_ports=True, speed_factor=0,
+        mission=MissionConfig.named("s1", seed=11)))
     assert stack.service_names() == ["ews", "system1", "system2", "uavsim", "supervisor"]
     sup, uav = stack.service_env("supervisor"), stack.service_env("uavsim")
     for env in (sup, uav, stack.service_env("ews")):

@@ -11,7 +11,12 @@ import pytest
 from hypothesis import given, settings
 
 from dualpilot.mission.config import CONTROLLER_NAMES, MissionConfig, parse_controller
-from dualpilot.mission.config_args import concurrent_names, config_to_argv, parse_config
+from dualpilot.mission.config_args import (
+    concurrent_names,
+    config_env,
+    config_to_argv,
+    parse_config,
+)
 from dualpilot.mission.local import local_mission
 from dualpilot.mission.params import Controller
 from dualpilot.mission.supervisors import SUPERVISORS, SupervisorKind
@@ -71,7 +76,7 @@ def test_the_in_process_mission_flies_the_configs_controller_and_planners() -> N
     mission = local_mission(MissionConfig.named("concurrent+risk", seed=3,
                                                 settings=(("max_steps", 3),)))
     assert mission.controller is Controller.CC and mission.forecast_systems == {1, 2}
-    planners = mission.planners.planners
+    planners = mission.planners.planners  # type: ignore[attr-defined]
     assert planners[1].method == "rrt+du+risk" and planners[2].method == "fast+risk"
     assert mission.run().steps <= 3
 
@@ -81,6 +86,13 @@ def test_the_in_process_mission_flies_the_configs_controller_and_planners() -> N
 @given(configs())
 def test_a_config_written_as_flags_reads_back_as_itself(config: MissionConfig) -> None:
     assert parse_config(config_to_argv(config)) == config
+
+
+@settings(max_examples=100, derandomize=True)
+@given(configs())
+def test_a_config_handed_over_as_environment_reads_back_as_itself(config: MissionConfig) -> None:
+    env = config_env(config)
+    assert parse_config([], lambda name, default: env.get(name, default)) == config
 
 
 def test_the_environment_gives_the_defaults_and_a_flag_overrides_it() -> None:
