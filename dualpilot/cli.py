@@ -7,7 +7,9 @@ import json
 import sys
 import time
 from pathlib import Path
+from typing import Any
 
+from dualpilot.mission.config import CONTROLLER_NAMES
 from dualpilot.mission.config_args import add_config_arguments
 from dualpilot.mission.params import Timing
 from dualpilot.model.scenarios import scenario_names, scenario_table
@@ -181,44 +183,40 @@ def _scenarios(args: argparse.Namespace) -> int:
     return 0
 
 
-def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="dualpilot", description=__doc__)
-    sub = parser.add_subparsers(dest="command", required=True)
-
+def _add_mission(sub: Any) -> None:
     m = sub.add_parser("mission", help="fly one mission in-process")
     add_config_arguments(m, seed=7)
     m.add_argument("--out", default="runs/latest")
     m.add_argument("--no-figures", action="store_true")
     m.add_argument("--quiet", action="store_true")
     m.set_defaults(func=_mission)
-
     f = sub.add_parser("figures", help="draw the paper's figures for a recorded run")
     f.add_argument("--run", required=True, help="run directory with steps.csv and trace.json")
     f.add_argument("--steps", default="", help="comma-separated steps for the Fig. r1 panels")
     f.set_defaults(func=_figures)
 
+
+def _add_evaluate(sub: Any) -> None:
     e = sub.add_parser("evaluate", help="Monte-Carlo comparison of CC, S1 and S2 (Fig. r5)")
     e.add_argument("--missions", type=int, default=200)
     e.add_argument("--timing", choices=[t.value for t in Timing], default="paper")
     e.add_argument("--jobs", type=int, default=0, help="worker processes (default: all cores)")
     e.add_argument("--seed", type=int, default=0)
     e.add_argument("--controllers", default="cc,s1,s2",
-                   help="any of cc,s1,s2,concurrent (concurrent: cc with the concurrent "
-                        "supervisor)")
+                   help=f"any of {','.join(CONTROLLER_NAMES)} (concurrent: cc with the "
+                        "concurrent supervisor; +risk: with the fire forecast)")
     e.add_argument("--s2-method", default="fast")
-    e.add_argument(
-        "--ignition-clearance",
-        type=float,
-        default=None,
-        metavar="M",
-        help="no front ignites within M m of the UAV (default: anywhere, as the paper states)",
-    )
+    e.add_argument("--ignition-clearance", type=float, default=None, metavar="M",
+                   help="no front ignites within M m of the UAV (default: anywhere, as the "
+                        "paper states)")
     e.add_argument("--out", default="runs/eval")
     e.add_argument("--scheduler", default=None, metavar="tcp://HOST:8786",
                    help="run on this Dask cluster (default: a LocalCluster of --jobs workers)")
     _add_reading_flags(e)
     e.set_defaults(func=_evaluate)
 
+
+def _add_sweep(sub: Any) -> None:
     w = sub.add_parser("sweep", help="a grid of readings × controllers × missions on Dask")
     w.add_argument("--grid", default="", help="YAML: profile, grid (name: [values]), points, "
                    "missions, controllers, seed, timing")
@@ -235,9 +233,10 @@ def build_parser() -> argparse.ArgumentParser:
     _add_reading_flags(w, grid=True)
     w.set_defaults(func=_sweep)
 
+
+def _add_readings(sub: Any) -> None:
     pr = sub.add_parser("profiles", help="the named readings and their parameter values")
     pr.set_defaults(func=_profiles)
-
     sc = sub.add_parser("scenarios", help="the fire processes: the paper's and the "
                         "fire-behaviour scenarios (--scenario NAME)")
     sc.add_argument("--measure", action="store_true",
@@ -248,16 +247,20 @@ def build_parser() -> argparse.ArgumentParser:
                     help="with --measure: the sub-steps of T_f at which to measure")
     sc.set_defaults(func=_scenarios)
 
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="dualpilot", description=__doc__)
+    sub = parser.add_subparsers(dest="command", required=True)
+    _add_mission(sub)
+    _add_evaluate(sub)
+    _add_sweep(sub)
+    _add_readings(sub)
+    from dualpilot.evaluation.bench import add_bench_parser
+    from dualpilot.viz.bound import add_bound_parser  # the supervisor's bound (issue 13.4)
     from dualpilot.viz.showcase import add_showcase_parser  # the Fig. r1 story (issue 13.5)
 
     add_showcase_parser(sub)
-
-    from dualpilot.evaluation.bench import add_bench_parser
-
     add_bench_parser(sub)
-
-    from dualpilot.viz.bound import add_bound_parser  # the supervisor's bound (issue 13.4)
-
     add_bound_parser(sub)
     return parser
 

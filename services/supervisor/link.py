@@ -120,6 +120,17 @@ class VehicleLink:
         self.lost_after_s = lost_after_s
         self.command_attempts = command_attempts
         self.command_timeout_s = command_timeout_s
+        self._init_vehicle_view()
+        self._stop = threading.Event()
+        self._threads = [
+            threading.Thread(target=vehicle_thread(self._read), name="mav-reader", daemon=True),
+            threading.Thread(target=vehicle_thread(self._poll), name="mav-poller", daemon=True),
+            threading.Thread(target=vehicle_thread(self._watch_mission), name="mav-mission",
+                             daemon=True),
+        ]
+
+    def _init_vehicle_view(self) -> None:
+        """What the link knows of the vehicle before it has heard it: nothing yet."""
         self.cond = threading.Condition()
         self.state: Array | None = None
         self.state_time_ms = -1
@@ -145,13 +156,6 @@ class VehicleLink:
         self.mission_rev = 0
         self._mission_q: queue.Queue[Any] = queue.Queue()
         self._mission_changed = threading.Event()
-        self._stop = threading.Event()
-        self._threads = [
-            threading.Thread(target=vehicle_thread(self._read), name="mav-reader", daemon=True),
-            threading.Thread(target=vehicle_thread(self._poll), name="mav-poller", daemon=True),
-            threading.Thread(target=vehicle_thread(self._watch_mission), name="mav-mission",
-                             daemon=True),
-        ]
 
     def start(self) -> None:
         self._update_stream()  # speak first so a udpin vehicle learns our address
