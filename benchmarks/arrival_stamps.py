@@ -17,27 +17,17 @@ figures (docs/testing.md).
 from __future__ import annotations
 
 import argparse
-import json
 import socket
-import subprocess
 import sys
 import time
 from pathlib import Path
 
+import harness  # the repository on the path: before its packages
 import numpy as np
 
-REPO = Path(__file__).resolve().parent.parent
-if str(REPO) not in sys.path:
-    sys.path.insert(0, str(REPO))
-
-from services.uavsim import arrivals  # noqa: E402
+from services.uavsim import arrivals
 
 QUANTILES = (0.5, 0.99, 0.999, 0.9999)
-
-
-def cpu_load(n: int) -> list[subprocess.Popen[bytes]]:
-    """``n`` processes that keep a core busy each until killed."""
-    return [subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(n)]
 
 
 def first_stamp_s(rx: socket.socket, tx: socket.socket, probe_delay_s: float = 0.02,
@@ -90,18 +80,10 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--load", type=int, default=0, help="busy processes beside the measurement")
     p.add_argument("--out", type=Path, default=None, help="also write the figures as JSON here")
     args = p.parse_args(argv)
-    busy = cpu_load(args.load)
-    try:
+    with harness.busy(args.load):
         doc = measure(args.datagrams, args.read_delay_ms / 1e3)
-    finally:
-        for proc in busy:
-            proc.kill()
-            proc.wait()
     doc["load_processes"] = args.load
-    text = json.dumps(doc, indent=2)
-    print(text)
-    if args.out is not None:
-        args.out.write_text(text + "\n")
+    harness.emit(doc, args.out)
     return 0
 
 

@@ -24,14 +24,12 @@ import sys
 import time
 from pathlib import Path
 
+import harness  # the repository on the path: before its packages
 import numpy as np
 
-REPO = Path(__file__).resolve().parent.parent
-sys.path.insert(0, str(REPO))
-
-from dualpilot.mission.config import MissionConfig  # noqa: E402
-from dualpilot.mission.params import Timing  # noqa: E402
-from services.launch import StackConfig, run_mission  # noqa: E402
+from dualpilot.mission.config import MissionConfig
+from dualpilot.mission.params import Timing
+from services.launch import StackConfig, run_mission
 
 #: steps at the start of a mission, reported apart as well: start-up costs that land in the
 #: first plan replies (Zenoh's lazily built shared memory did, README) show up here
@@ -67,7 +65,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--speed-factor", type=float, default=0.0)
     p.add_argument("--zenoh-mode", default="peer", choices=["peer", "client"],
                    help="peer (the stack's default: direct links) or client (all via the router)")
-    p.add_argument("--out", type=Path, default=REPO / "runs" / "bench" / "setpoint_latency")
+    p.add_argument("--out", type=Path, default=harness.REPO / "runs" / "bench" / "setpoint_latency")
     args = p.parse_args(argv)
     overhead: list[float] = []
     compute: list[float] = []
@@ -99,7 +97,7 @@ def main(argv: list[str] | None = None) -> int:
         return 1
     whole = summary_ms(overhead)
     result = {
-        "command": " ".join([os.path.relpath(sys.argv[0], REPO), *sys.argv[1:]]),
+        "command": " ".join([os.path.relpath(sys.argv[0], harness.REPO), *sys.argv[1:]]),
         "controller": args.controller, "timing": args.timing, "speed_factor": args.speed_factor,
         "zenoh_mode": args.zenoh_mode,
         "missions": args.missions, "steps": steps,

@@ -27,19 +27,15 @@ import sys
 import threading
 import time
 from collections.abc import Callable
-from pathlib import Path
 from typing import Any
 
+import harness  # the repository on the path: before its packages
 import numpy as np
 import zenoh
 
-REPO = Path(__file__).resolve().parent.parent
-if str(REPO) not in sys.path:
-    sys.path.insert(0, str(REPO))
-
-from services.common import bus  # noqa: E402
-from services.common.cli import Settings  # noqa: E402
-from services.launch import free_port  # noqa: E402
+from services.common import bus
+from services.common.cli import Settings
+from services.launch import free_port
 
 PAYLOAD = bytes(8192)
 
@@ -118,8 +114,8 @@ def main(argv: list[str] | None = None) -> int:
     procs: list[subprocess.Popen[str]] = []
 
     def start(cmd: list[str]) -> subprocess.Popen[str]:
-        proc = subprocess.Popen(cmd, cwd=REPO, stdin=subprocess.PIPE, stdout=subprocess.PIPE,
-                                text=True)
+        proc = subprocess.Popen(cmd, cwd=harness.REPO, stdin=subprocess.PIPE,
+                                stdout=subprocess.PIPE, text=True)
         procs.append(proc)
         return proc
 

@@ -41,14 +41,11 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+import harness  # the repository on the path: before its packages
 import numpy as np
 
-REPO = Path(__file__).resolve().parent.parent
-if str(REPO) not in sys.path:
-    sys.path.insert(0, str(REPO))
-
-from dualpilot.mission.config import MissionConfig  # noqa: E402
-from services import launch  # noqa: E402
+from dualpilot.mission.config import MissionConfig
+from services import launch
 
 TICK = os.sysconf("SC_CLK_TCK")
 
@@ -124,11 +121,7 @@ class Sampler:
 
 
 # -- one N -------------------------------------------------------------------------------------
-def quantiles(values: list[float]) -> dict[str, float]:
-    a = np.asarray(values) if values else np.zeros(1)
-    return {"p50": round(float(np.percentile(a, 50)), 2),
-            "p99": round(float(np.percentile(a, 99)), 2),
-            "max": round(float(a.max()), 2), "n": len(values)}
+quantiles = harness.quantiles  # p50, p99, max (2 decimals) and n
 
 
 def fly(n: int, out: Path, args: argparse.Namespace) -> dict[str, Any]:

@@ -19,30 +19,20 @@ import argparse
 import json
 import os
 import signal
-import subprocess
 import sys
 import tempfile
 import time
 from pathlib import Path
 from typing import Any
 
+import harness  # the repository on the path: before its packages
 import numpy as np
 
-REPO = Path(__file__).resolve().parent.parent
-if str(REPO) not in sys.path:
-    sys.path.insert(0, str(REPO))
+from services import launch
+from services.uavsim.stream_stats import BIN_MS
 
-from services import launch  # noqa: E402
-from services.uavsim.stream_stats import BIN_MS  # noqa: E402
-
-#: seeds the in-process cognitive controller flies to the goal (benchmarks/load_vehicles.py)
-SEEDS = (26, 57, 125, 214, 271, 302, 329, 336, 358, 360)
+SEEDS = harness.SUCCESS_SEEDS
 MODES = ("process", "thread")
-
-
-def cpu_load(n: int) -> list[subprocess.Popen[bytes]]:
-    """``n`` processes that keep a core busy each until killed."""
-    return [subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(n)]
 
 
 def fly(fleet: launch.Fleet, out: Path, mode: str, seeds: list[int]) -> list[dict[str, Any]]:
@@ -98,7 +88,7 @@ def main(argv: list[str] | None = None) -> int:
     results: dict[str, list[dict[str, Any]]] = {m: [] for m in modes}
     t0 = time.monotonic()
     with launch.Fleet(cfg, uavs) as fleet:
-        hogs = cpu_load(args.load)
+        hogs = harness.cpu_load(args.load)
         try:
             for r in range(args.rounds):
                 for mode in modes:

@@ -37,6 +37,8 @@ def _bench(name: str) -> Any:
     full = f"benchmarks_{name}"
     if full in sys.modules:
         return sys.modules[full]
+    if str(REPO / "benchmarks") not in sys.path:  # the scripts import benchmarks/harness.py
+        sys.path.insert(0, str(REPO / "benchmarks"))
     spec = importlib.util.spec_from_file_location(full, REPO / "benchmarks" / f"{name}.py")
     assert spec is not None and spec.loader is not None
     module = importlib.util.module_from_spec(spec)
