@@ -95,125 +95,182 @@ def run_system2(n_instances: int, seed: int, out_dir: Path, reference_timeout: f
     dual bound also gives a certified gap bound for each method.
     """
     from dualpilot.planners import build_planner
-    from dualpilot.system2.exact import ExactSystem2
-    from dualpilot.system2.fast.planner import AnytimeSystem2
-    from dualpilot.system2.scip import SeededExactSystem2
-    from dualpilot.system2.worker import PlannerFactory, Worker
 
     params = System2Params(horizon=horizon)
-    ref_params = System2Params(horizon=horizon, time_limit_s=reference_timeout)
     insts = _instances(n_instances, seed, max_hulls)
-    cache: dict[str, Any] = {}
-    if reference_cache is not None and reference_cache.exists():
-        cache = json.loads(reference_cache.read_text())
-    workers = {"exact": Worker(PlannerFactory(ExactSystem2, SPEC, ref_params))}
-    if seeded_reference:
-        workers["exact-seeded"] = Worker(PlannerFactory(SeededExactSystem2, SPEC, ref_params))
-    planners: dict[str, Any] = {}
-    for m in methods:
-        if m == "fast+exact":
-            planners[m] = AnytimeSystem2(SPEC, params, exact_budget_s=anytime_budget_s)
-        elif m != "exact":
-            planners[m] = build_planner(2, SPEC, m, params)
+    references = _References(reference_cache, seed, horizon, reference_timeout, seeded_reference)
+    planners = _timed_planners(methods, params, anytime_budget_s)
     fast_seed = planners.get("fast") or build_planner(2, SPEC, "fast", params)
     rows: list[dict[str, Any]] = []
     try:
         for p in planners.values():  # warm-up: imports, caches, worker start
             p.plan(insts[0].state, insts[0].hulls, insts[0].objective, insts[0].prev_control)
         for inst in insts:
-            row: dict[str, Any] = {"index": inst.index, "n_hulls": inst.n_hulls,
-                                   "objective": inst.objective.value,
-                                   "faces": [h.n_faces for h in inst.hulls], "methods": {}}
-            results: dict[str, Any] = {}
-            for name, planner in planners.items():
-                if hasattr(planner, "reset"):
-                    planner.reset()
-                plan, wall, cpu = _timed(planner, inst)
-                ok, why = check_plan(plan, inst)
-                if plan.ok and not ok:
-                    why = "RETURNED OK BUT FAILED VERIFICATION: " + why
-                results[name] = {"time_s": wall, "cpu_s": cpu, "status": plan.status.value,
-                                 "cost": plan.cost if plan.ok else None, "verified": ok,
-                                 "why": why, "info": _small(plan.info), "_plan": plan}
+            results = {name: _run_method(planner, inst) for name, planner in planners.items()}
             seed_plan = results["fast"]["_plan"] if "fast" in results else fast_seed.plan(
                 inst.state, inst.hulls, inst.objective, inst.prev_control)
-            refs: dict[str, Any] = {}
-            for name, worker in workers.items():
-                key = f"{name}/{seed}/{inst.index}/{horizon}/{reference_timeout}"
-                if key in cache:
-                    refs[name] = cache[key]
-                    continue
-                request: tuple[Any, ...] = (inst.state, inst.hulls, inst.objective,
-                                            inst.prev_control)
-                if name == "exact-seeded":
-                    request += (seed_plan.controls if seed_plan.ok else None,)
-                t0 = time.perf_counter()
-                answer, outcome = worker.solve(request, reference_timeout + 60.0)
-                ref = {"outcome": outcome, "time_s": time.perf_counter() - t0, "status": None,
-                       "cost": None, "optimal": False, "verified": False, "dual_bound": None}
-                if isinstance(answer, Plan):
-                    ok, why = check_plan(answer, inst)
-                    ref.update(status=answer.status.value, cost=answer.cost if ok else None,
-                               optimal=bool(answer.info.get("optimal")) and ok, verified=ok,
-                               why=why, time_s=answer.compute_time_s,
-                               simplified=answer.info.get("simplified_hulls", []),
-                               dual_bound=answer.info.get("dual_bound"))
-                refs[name] = cache[key] = ref
-                if reference_cache is not None:
-                    reference_cache.parent.mkdir(parents=True, exist_ok=True)
-                    reference_cache.write_text(json.dumps(cache, default=_json_default))
-            for name, ref in refs.items():
-                if name == "exact" and "exact" not in methods:
-                    continue
-                results[name] = {"time_s": ref["time_s"], "cpu_s": None,
-                                 "status": ref["status"] or ref["outcome"], "cost": ref["cost"],
-                                 "verified": ref["verified"], "optimal": ref["optimal"]}
-            row["references"] = refs
-            costs = {k: v["cost"] for k, v in results.items()
-                     if v["verified"] and v["cost"] is not None}
-            proven = [r["cost"] for r in refs.values() if r["optimal"] and r["cost"] is not None]
-            # a method whose plan is the relaxation's optimum (no hull binds) proves it too
-            proven += [v["cost"] for v in results.values() if v["verified"]
-                       and v.get("info", {}).get("optimal") and v["cost"] is not None]
-            if proven:
-                best, source = min(proven), "proven optimum"
-            elif costs:
-                source = min(costs, key=lambda k: costs[k])
-                best, source = costs[source], f"best found ({source})"
-            else:
-                best, source = None, "none"
-            bounds = [float(r["dual_bound"]) for r in refs.values()
-                      if r.get("dual_bound") is not None and math.isfinite(r["dual_bound"])
-                      and r["dual_bound"] > -1e19]
-            # the no-hull QP (every fast plan reports it) is a relaxation of (P2): a bound too
-            bounds += [float(v["info"]["lower_bound"]) for v in results.values()
-                       if v.get("info", {}).get("lower_bound") is not None]
-            lower = max(bounds, default=None)
-            if proven:
-                lower = max(lower or -math.inf, best)
-            row["reference_cost"], row["reference_source"] = best, source
-            row["reference_optimal"] = bool(proven)
-            row["lower_bound"] = lower
-            for v in results.values():
-                v.pop("_plan", None)
-                v["gap"] = (None if best is None or v["cost"] is None or not v["verified"]
-                            else (v["cost"] - best) / abs(best))
-                v["certified_gap"] = (None if lower is None or v["cost"] is None
-                                      or not v["verified"]
-                                      else max(0.0, (v["cost"] - lower) / abs(v["cost"])))
-            row["methods"] = results
+            refs = references.solve(inst, seed_plan)
+            row = _scored_row(inst, results, refs, methods)
             rows.append(row)
             log(_line(row))
     finally:
-        for w in workers.values():
-            w.stop()
+        references.stop()
         for p in planners.values():
             if hasattr(p, "close"):
                 p.close()
+    result = _system2_result(rows, n_instances, seed, reference_timeout, methods, horizon)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    (out_dir / "system2.json").write_text(json.dumps(result, indent=1, default=_json_default))
+    return result
+
+
+def _timed_planners(methods: Sequence[str], params: System2Params,
+                    anytime_budget_s: float) -> dict[str, Any]:
+    """The in-process planners of ``methods`` ("exact" runs in a worker instead)."""
+    from dualpilot.planners import build_planner
+    from dualpilot.system2.fast.planner import AnytimeSystem2
+
+    planners: dict[str, Any] = {}
+    for m in methods:
+        if m == "fast+exact":
+            planners[m] = AnytimeSystem2(SPEC, params, exact_budget_s=anytime_budget_s)
+        elif m != "exact":
+            planners[m] = build_planner(2, SPEC, m, params)
+    return planners
+
+
+def _run_method(planner: Any, inst: Instance) -> dict[str, Any]:
+    """One method on one instance: its time (s), status, cost and the plan's verification."""
+    if hasattr(planner, "reset"):
+        planner.reset()
+    plan, wall, cpu = _timed(planner, inst)
+    ok, why = check_plan(plan, inst)
+    if plan.ok and not ok:
+        why = "RETURNED OK BUT FAILED VERIFICATION: " + why
+    return {"time_s": wall, "cpu_s": cpu, "status": plan.status.value,
+            "cost": plan.cost if plan.ok else None, "verified": ok,
+            "why": why, "info": _small(plan.info), "_plan": plan}
+
+
+class _References:
+    """The exact solves (plain and seeded SCIP) in worker processes, cached by instance."""
+
+    def __init__(self, cache_path: Path | None, seed: int, horizon: int,
+                 timeout_s: float, seeded: bool) -> None:
+        from dualpilot.system2.exact import ExactSystem2
+        from dualpilot.system2.scip import SeededExactSystem2
+        from dualpilot.system2.worker import PlannerFactory, Worker
+
+        self.cache_path, self.seed, self.horizon, self.timeout_s = (cache_path, seed, horizon,
+                                                                    timeout_s)
+        self.cache: dict[str, Any] = {}
+        if cache_path is not None and cache_path.exists():
+            self.cache = json.loads(cache_path.read_text())
+        params = System2Params(horizon=horizon, time_limit_s=timeout_s)
+        self.workers = {"exact": Worker(PlannerFactory(ExactSystem2, SPEC, params))}
+        if seeded:
+            self.workers["exact-seeded"] = Worker(PlannerFactory(SeededExactSystem2, SPEC,
+                                                                 params))
+
+    def solve(self, inst: Instance, seed_plan: Plan) -> dict[str, Any]:
+        """Each reference's answer on ``inst`` (from the cache where it holds one)."""
+        refs: dict[str, Any] = {}
+        for name, worker in self.workers.items():
+            key = f"{name}/{self.seed}/{inst.index}/{self.horizon}/{self.timeout_s}"
+            if key not in self.cache:
+                self.cache[key] = self._solve(name, worker, inst, seed_plan)
+                self._save()
+            refs[name] = self.cache[key]
+        return refs
+
+    def _solve(self, name: str, worker: Any, inst: Instance, seed_plan: Plan) -> dict[str, Any]:
+        request: tuple[Any, ...] = (inst.state, inst.hulls, inst.objective, inst.prev_control)
+        if name == "exact-seeded":
+            request += (seed_plan.controls if seed_plan.ok else None,)
+        t0 = time.perf_counter()
+        answer, outcome = worker.solve(request, self.timeout_s + 60.0)
+        ref = {"outcome": outcome, "time_s": time.perf_counter() - t0, "status": None,
+               "cost": None, "optimal": False, "verified": False, "dual_bound": None}
+        if isinstance(answer, Plan):
+            ok, why = check_plan(answer, inst)
+            ref.update(status=answer.status.value, cost=answer.cost if ok else None,
+                       optimal=bool(answer.info.get("optimal")) and ok, verified=ok,
+                       why=why, time_s=answer.compute_time_s,
+                       simplified=answer.info.get("simplified_hulls", []),
+                       dual_bound=answer.info.get("dual_bound"))
+        return ref
+
+    def _save(self) -> None:
+        if self.cache_path is not None:
+            self.cache_path.parent.mkdir(parents=True, exist_ok=True)
+            self.cache_path.write_text(json.dumps(self.cache, default=_json_default))
+
+    def stop(self) -> None:
+        for w in self.workers.values():
+            w.stop()
+
+
+def _scored_row(inst: Instance, results: dict[str, Any], refs: dict[str, Any],
+                methods: Sequence[str]) -> dict[str, Any]:
+    """One instance's row: every method's result with its gap to the reference cost."""
+    for name, ref in refs.items():
+        if name == "exact" and "exact" not in methods:
+            continue
+        results[name] = {"time_s": ref["time_s"], "cpu_s": None,
+                         "status": ref["status"] or ref["outcome"], "cost": ref["cost"],
+                         "verified": ref["verified"], "optimal": ref["optimal"]}
+    best, source, proven = _reference_cost(results, refs)
+    lower = _lower_bound(results, refs)
+    if proven:
+        lower = max(lower or -math.inf, best)
+    for v in results.values():
+        v.pop("_plan", None)
+        v["gap"] = (None if best is None or v["cost"] is None or not v["verified"]
+                    else (v["cost"] - best) / abs(best))
+        v["certified_gap"] = (None if lower is None or v["cost"] is None
+                              or not v["verified"]
+                              else max(0.0, (v["cost"] - lower) / abs(v["cost"])))
+    return {"index": inst.index, "n_hulls": inst.n_hulls, "objective": inst.objective.value,
+            "faces": [h.n_faces for h in inst.hulls], "methods": results,
+            "references": refs, "reference_cost": best, "reference_source": source,
+            "reference_optimal": proven, "lower_bound": lower}
+
+
+def _reference_cost(results: dict[str, Any],
+                    refs: dict[str, Any]) -> tuple[Any, str, bool]:
+    """The reference cost, where it comes from, and whether it is a proven optimum."""
+    costs = {k: v["cost"] for k, v in results.items()
+             if v["verified"] and v["cost"] is not None}
+    proven = [r["cost"] for r in refs.values() if r["optimal"] and r["cost"] is not None]
+    # a method whose plan is the relaxation's optimum (no hull binds) proves it too
+    proven += [v["cost"] for v in results.values() if v["verified"]
+               and v.get("info", {}).get("optimal") and v["cost"] is not None]
+    if proven:
+        return min(proven), "proven optimum", True
+    if costs:
+        source = min(costs, key=lambda k: costs[k])
+        return costs[source], f"best found ({source})", False
+    return None, "none", False
+
+
+def _lower_bound(results: dict[str, Any], refs: dict[str, Any]) -> float | None:
+    """The best dual bound: the exact solves' and the no-hull QP's (a relaxation of (P2))."""
+    bounds = [float(r["dual_bound"]) for r in refs.values()
+              if r.get("dual_bound") is not None and math.isfinite(r["dual_bound"])
+              and r["dual_bound"] > -1e19]
+    bounds += [float(v["info"]["lower_bound"]) for v in results.values()
+               if v.get("info", {}).get("lower_bound") is not None]
+    return max(bounds, default=None)
+
+
+def _system2_result(rows: list[dict[str, Any]], n_instances: int, seed: int,
+                    reference_timeout: float, methods: Sequence[str],
+                    horizon: int) -> dict[str, Any]:
+    """system2.json: the command, per-method summaries (also by hull count), every row."""
     names = list(rows[0]["methods"]) if rows else list(methods)
     per_method = {m: [dict(r["methods"][m], n_hulls=r["n_hulls"]) for r in rows
                       if m in r["methods"]] for m in names}
-    result = {
+    return {
         "command": f"dualpilot bench system2 --instances {n_instances} --seed {seed} "
                    f"--reference-timeout {reference_timeout:g} --methods {','.join(methods)}"
                    + (f" --horizon {horizon}" if horizon != 80 else ""),
@@ -228,9 +285,6 @@ def run_system2(n_instances: int, seed: int, out_dir: Path, reference_timeout: f
         "instances": rows,
         "machine": _machine(),
     }
-    out_dir.mkdir(parents=True, exist_ok=True)
-    (out_dir / "system2.json").write_text(json.dumps(result, indent=1, default=_json_default))
-    return result
 
 
 def _issue_fields(s: dict[str, Any]) -> dict[str, Any]:

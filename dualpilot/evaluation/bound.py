@@ -178,27 +178,42 @@ def _forward(bp: BoundParams, probs: Array, hazards: Array | None) -> tuple[Arra
     h, inc, psi0 = bp.matrices()
     steps = probs.shape[0]
     haz = np.zeros((steps, 2)) if hazards is None else hazards
-    p_s1 = np.empty(steps)
     lat = _lattice(h, inc, bp.tol) if bp.method in ("auto", "lattice") else None
     if bp.method == "lattice" and lat is None:
         raise ValueError(
             "the lattice reduction needs (1,-1)H = (1/n)(1,-1) and (1,-1)BQ on a grid u·Z"
         )
+    if lat is not None:
+        return _forward_lattice(bp, lat, psi0, probs, haz)
+    return _forward_states(bp, h, inc, psi0, probs, haz)
+
+
+def _forward_lattice(bp: BoundParams, lat: tuple[int, Array, float], psi0: Array,
+                     probs: Array, haz: Array) -> tuple[Array, float, str]:
+    """The chain on the lattice m = floor((1,-1)Ψ / u / n): exact, one integer per state."""
+    n, k, u = lat
+    steps = probs.shape[0]
+    p_s1 = np.empty(steps)
     # weights: column 0 the probability, column 1 the same joint with survival
     weights = np.ones((1, 2))
-    if lat is not None:
-        n, k, u = lat
-        m = np.array([math.floor(float(_DIFF @ psi0) / u / n + bp.tol)], dtype=np.int64)
-        for t in range(steps):
-            m_all = np.concatenate([(m + k[a]) // n for a in range(3)])
-            w_all = np.concatenate([weights * probs[t, a] for a in range(3)])
-            s1 = m_all >= 0
-            p_s1[t] = w_all[s1, 0].sum()
-            w_all[:, 1] *= np.where(s1, 1.0 - haz[t, 0], 1.0 - haz[t, 1])
-            first, weights = _merge(m_all[:, None], w_all)
-            m = m_all[first]
-        return p_s1, float(weights[:, 1].sum()), "lattice"
+    m = np.array([math.floor(float(_DIFF @ psi0) / u / n + bp.tol)], dtype=np.int64)
+    for t in range(steps):
+        m_all = np.concatenate([(m + k[a]) // n for a in range(3)])
+        w_all = np.concatenate([weights * probs[t, a] for a in range(3)])
+        s1 = m_all >= 0
+        p_s1[t] = w_all[s1, 0].sum()
+        w_all[:, 1] *= np.where(s1, 1.0 - haz[t, 0], 1.0 - haz[t, 1])
+        first, weights = _merge(m_all[:, None], w_all)
+        m = m_all[first]
+    return p_s1, float(weights[:, 1].sum()), "lattice"
 
+
+def _forward_states(bp: BoundParams, h: Array, inc: Array, psi0: Array, probs: Array,
+                    haz: Array) -> tuple[Array, float, str]:
+    """The chain on Ψ itself (or x = (1,-1)Ψ alone), enumerated exactly or on a grid."""
+    steps = probs.shape[0]
+    p_s1 = np.empty(steps)
+    weights = np.ones((1, 2))
     # x alone is a Markov state when (1,-1) is a left eigenvector of H
     lam_row = _DIFF @ h
     scalar = np.allclose(lam_row, lam_row[0] * _DIFF, atol=bp.tol, rtol=0)
@@ -219,20 +234,23 @@ def _forward(bp: BoundParams, probs: Array, hazards: Array | None) -> tuple[Arra
             first, weights = _merge(np.round(pts / bp.tol).astype(np.int64), w_all)
             states = pts[first]
             if states.shape[0] > bp.max_states:
-                if bp.method == "enumerate":
-                    raise ValueError(
-                        f"exact enumeration passed max_states={bp.max_states} at t={t}"
-                    )
-                warnings.warn(
-                    f"exact Ψ state space passed {bp.max_states} states at t={t}: "
-                    f"discretising on a {bp.grid_points}-point grid per axis from here on",
-                    DiscretisationWarning,
-                    stacklevel=3,
-                )
+                _too_many_states(bp, t)
                 method = "grid"
         else:
             states, weights = _to_grid(pts, w_all, bp.grid_points)
     return p_s1, float(weights[:, 1].sum()), method
+
+
+def _too_many_states(bp: BoundParams, t: int) -> None:
+    """Exact enumeration passed ``max_states``: an error if asked for, else a warning."""
+    if bp.method == "enumerate":
+        raise ValueError(f"exact enumeration passed max_states={bp.max_states} at t={t}")
+    warnings.warn(
+        f"exact Ψ state space passed {bp.max_states} states at t={t}: "
+        f"discretising on a {bp.grid_points}-point grid per axis from here on",
+        DiscretisationWarning,
+        stacklevel=5,
+    )
 
 
 def _attention_path(d: Array, sup: SupervisorParams) -> Array:

@@ -47,18 +47,10 @@ def check_compose(doc: Any) -> None:
     ``environment`` mapping that connects to the router by its service name,
     and ``depends_on`` the router; ports are ``"host:container[/proto]"``.
     """
-    problems: list[str] = []
     if not isinstance(doc, dict) or not isinstance(doc.get("services"), dict):
         raise ValueError("compose file needs a 'services' mapping")
     services: dict[str, Any] = doc["services"]
-    routers = [n for n, s in services.items()
-               if isinstance(s, dict) and str(s.get("image", "")).startswith(ROUTER_IMAGE + ":")]
-    if len(routers) != 1:
-        problems.append(f"exactly one {ROUTER_IMAGE}:<tag> router service needed, got {routers}")
-    for name in routers:
-        tag = str(services[name]["image"]).split(":", 1)[1]
-        if not re.fullmatch(r"\d+\.\d+\.\d+", tag):
-            problems.append(f"router image tag must be pinned (x.y.z), got {tag!r}")
+    routers, problems = _routers(services)
     router = routers[0] if len(routers) == 1 else "zenoh"
     images = set()
     for name, svc in services.items():
@@ -67,32 +59,8 @@ def check_compose(doc: Any) -> None:
         if not isinstance(svc, dict):
             problems.append(f"{name}: not a mapping")
             continue
-        for key in ("image", "build", "command", "environment"):
-            if key not in svc:
-                problems.append(f"{name}: missing {key}")
         images.add(svc.get("image"))
-        cmd = svc.get("command")
-        if not (isinstance(cmd, list) and len(cmd) >= 3 and cmd[:2] == ["python", "-m"]
-                and all(isinstance(c, str) for c in cmd)):
-            problems.append(f"{name}: command must be a list ['python', '-m', 'services.<x>', ...]")
-        else:
-            module = cmd[2]
-            mod_path = REPO / Path(*module.split("."))
-            if not module.startswith("services.") or not (
-                    (mod_path / "__main__.py").is_file() or mod_path.with_suffix(".py").is_file()):
-                problems.append(f"{name}: {module} is not a service module")
-        env = svc.get("environment", {})
-        if not isinstance(env, dict) or not all(isinstance(v, str) for v in env.values()):
-            problems.append(f"{name}: environment must map names to strings (quote numbers)")
-        elif not re.fullmatch(rf"tcp/{re.escape(router)}:\d+", env.get("ZENOH_CONNECT", "")):
-            problems.append(f"{name}: ZENOH_CONNECT must be tcp/{router}:<port>")
-        deps = svc.get("depends_on", [])
-        dep_names = list(deps) if isinstance(deps, (list, dict)) else []
-        if router not in dep_names:
-            problems.append(f"{name}: must depend_on {router}")
-        for dep in dep_names:
-            if dep not in services:
-                problems.append(f"{name}: depends_on unknown service {dep}")
+        problems += _service_problems(name, svc, services, router)
     for name, svc in services.items():
         for port in (svc.get("ports", []) if isinstance(svc, dict) else []):
             if not re.fullmatch(r"\d{1,5}:\d{1,5}(/(tcp|udp))?", str(port)):
@@ -101,6 +69,49 @@ def check_compose(doc: Any) -> None:
         problems.append(f"every service should use one image, got {sorted(map(str, images))}")
     if problems:
         raise ValueError("docker-compose.yml: " + "; ".join(problems))
+
+
+def _routers(services: dict[str, Any]) -> tuple[list[str], list[str]]:
+    """The router services (``eclipse/zenoh:<tag>``) and what is wrong with them."""
+    problems: list[str] = []
+    routers = [n for n, s in services.items()
+               if isinstance(s, dict) and str(s.get("image", "")).startswith(ROUTER_IMAGE + ":")]
+    if len(routers) != 1:
+        problems.append(f"exactly one {ROUTER_IMAGE}:<tag> router service needed, got {routers}")
+    for name in routers:
+        tag = str(services[name]["image"]).split(":", 1)[1]
+        if not re.fullmatch(r"\d+\.\d+\.\d+", tag):
+            problems.append(f"router image tag must be pinned (x.y.z), got {tag!r}")
+    return routers, problems
+
+
+def _service_problems(name: str, svc: dict[str, Any], services: dict[str, Any],
+                      router: str) -> list[str]:
+    """What is wrong with one dualpilot service: keys, command, environment, dependencies."""
+    problems = [f"{name}: missing {key}" for key in ("image", "build", "command", "environment")
+                if key not in svc]
+    cmd = svc.get("command")
+    if not (isinstance(cmd, list) and len(cmd) >= 3 and cmd[:2] == ["python", "-m"]
+            and all(isinstance(c, str) for c in cmd)):
+        problems.append(f"{name}: command must be a list ['python', '-m', 'services.<x>', ...]")
+    else:
+        module = cmd[2]
+        mod_path = REPO / Path(*module.split("."))
+        if not module.startswith("services.") or not (
+                (mod_path / "__main__.py").is_file() or mod_path.with_suffix(".py").is_file()):
+            problems.append(f"{name}: {module} is not a service module")
+    env = svc.get("environment", {})
+    if not isinstance(env, dict) or not all(isinstance(v, str) for v in env.values()):
+        problems.append(f"{name}: environment must map names to strings (quote numbers)")
+    elif not re.fullmatch(rf"tcp/{re.escape(router)}:\d+", env.get("ZENOH_CONNECT", "")):
+        problems.append(f"{name}: ZENOH_CONNECT must be tcp/{router}:<port>")
+    deps = svc.get("depends_on", [])
+    dep_names = list(deps) if isinstance(deps, (list, dict)) else []
+    if router not in dep_names:
+        problems.append(f"{name}: must depend_on {router}")
+    problems += [f"{name}: depends_on unknown service {dep}" for dep in dep_names
+                 if dep not in services]
+    return problems
 
 
 def published_ports(doc: Mapping[str, Any]) -> dict[int, str]:

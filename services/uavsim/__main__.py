@@ -20,10 +20,13 @@ rates), setpoint.py (type masks), mission.py, vehicle.py (physics).
 
 from __future__ import annotations
 
+import argparse
 import logging
 import math
 import os
 import sys
+from dataclasses import dataclass
+from typing import Any
 
 from dualpilot.readings import PROFILES, get_profile
 from services.common import bus, fleet, mav, rejections
@@ -81,6 +84,22 @@ def parse_pair(text: str, what: str) -> tuple[float, float]:
 
 
 def main(argv: list[str] | None = None) -> int:
+    p = _parser()
+    raw_argv = sys.argv[1:] if argv is None else argv
+    args = p.parse_args(argv)
+    try:
+        opts = _options(args, raw_argv)
+    except (ValueError, OSError) as err:
+        p.error(str(err))
+
+    def serve(ctx: bus.Context) -> None:
+        fleet.for_each(ctx, opts.uavs, lambda c: _fly(c, opts))
+
+    return bus.run_service(opts.settings, serve, zenoh_session=opts.use_zenoh)
+
+
+def _parser() -> argparse.ArgumentParser:
+    """The vehicle's flags, each with its environment variable."""
     env = common_cli.env
     p = common_cli.parser("uavsim", "Simulated vehicle: MAVLink endpoint flying Eq. (1).",
                           mavlink_default="udpin:0.0.0.0:14540")
@@ -134,91 +153,112 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--zenoh", choices=("auto", "on", "off"), default=env("UAV_ZENOH", "auto"),
                    help="hold a liveliness token on Zenoh; auto: only when ZENOH_CONNECT or "
                         "--zenoh-connect is given (the vehicle needs no router) [UAV_ZENOH]")
-    raw_argv = sys.argv[1:] if argv is None else argv
-    args = p.parse_args(argv)
+    return p
+
+
+@dataclass(frozen=True)
+class VehicleOptions:
+    """The checked flags: what every vehicle of this process flies with."""
+
+    args: argparse.Namespace
+    settings: common_cli.Settings
+    start: tuple[float, float]  #: m east, north
+    home: tuple[float, float]  #: deg lat, lon of the local frame's origin
+    key: bytes | None  #: the offboard link's signing key
+    dynamics: Any  #: Eq. (1) of the profile
+    uavs: tuple[str, ...]
+    speed: float  #: the clock's speed factor
+    use_zenoh: bool
+
+
+def _options(args: argparse.Namespace, raw_argv: list[str]) -> VehicleOptions:
+    """Check the flags together; ValueError names the first that is wrong."""
     use_zenoh = args.zenoh == "on" or (args.zenoh == "auto" and (
         "ZENOH_CONNECT" in os.environ
         or any(a.startswith("--zenoh-connect") for a in raw_argv)))
+    settings = common_cli.settings("uavsim", args)
+    start = parse_pair(args.start, "--start")
+    home = parse_pair(args.home, "--home")
+    if not (abs(home[0]) < 85 and abs(home[1]) <= 180):
+        raise ValueError("--home must be a latitude in (-85, 85) and a longitude")
+    if not 1 <= args.sysid <= 255:
+        raise ValueError("--sysid must be in 1..255")
+    if not (0 <= args.kp <= 1 and 0.1 <= args.offboard_loss_s <= 60):
+        raise ValueError("need 0 <= --kp <= 1 and 0.1 <= --offboard-loss-s <= 60")
+    if not 0 < args.area_size_m <= 1e5:
+        raise ValueError("--area-size-m must be in (0, 1e5]")
+    key = mav.resolve_key(args.signing_passphrase, args.signing_key_file)
+    dynamics = get_profile(args.profile).with_settings(
+        {"speed_limit": args.speed_limit} if args.speed_limit else {}).dynamics
+    uavs = fleet.uav_ids(args.uav_ids, settings.uav_id)
+    if args.sysid + len(uavs) - 1 > 255:
+        raise ValueError(f"--sysid {args.sysid} + {len(uavs)} vehicles passes 255")
+    for flag, path in (("--tlog", args.tlog), ("--stream-stats", args.stream_stats)):
+        if path and len(uavs) > 1 and "{uav}" not in path:
+            raise ValueError(f"{flag} must contain {{uav}} to serve several vehicles")
+    for url in (settings.mavlink_url, args.gcs_url):
+        if url:
+            fleet.instance_url(url, len(uavs) - 1)  # each vehicle's port exists
+    speed = settings.speed_factor
+    if args.clock == vclock.REALTIME and not speed > 0:
+        raise ValueError("--clock realtime needs --speed-factor > 0 (1 is real time)")
+    return VehicleOptions(args, settings, start, home, key, dynamics, uavs, speed, use_zenoh)
+
+
+def _links(opts: VehicleOptions, k: int, sysid: int) -> dict[str, Any]:
+    """Instance k's MAVLink links: offboard (signed with the key) and, if asked, the GCS's."""
+    args, key = opts.args, opts.key
+    links = {"offboard": mav.connect(fleet.instance_url(opts.settings.mavlink_url, k), sysid,
+                                     mav.MAV_COMP_ID_AUTOPILOT1, key=key)}
+    if args.gcs_url:
+        links["gcs"] = mav.connect(fleet.instance_url(args.gcs_url, k), sysid,
+                                   mav.MAV_COMP_ID_AUTOPILOT1)
+        if key is not None:  # signed too: unsigned control, uploads and PARAM_SET refused
+            signed_only = {getattr(m, f"MAVLINK_MSG_ID_{k}") for k in SIGNED_ONLY}
+            links["gcs"].setup_signing(
+                key, sign_outgoing=True,
+                allow_unsigned_callback=lambda _mav, msg_id: msg_id not in signed_only)
+    return links
+
+
+def _fly(ctx: bus.Context, opts: VehicleOptions) -> None:
+    """One vehicle (instance k of the process): its links, endpoint and records, until stop."""
+    args, start = opts.args, opts.start
+    k = opts.uavs.index(ctx.settings.uav_id)  # this vehicle's instance: ports and sysid + k
+    uav = ctx.settings.uav_id
+    sysid = args.sysid + k
+    tlog_path = fleet.per_vehicle(args.tlog, uav)
+    stats_path = fleet.per_vehicle(args.stream_stats, uav)
+    tlog = open_tlog(tlog_path) if tlog_path else None
+    links = _links(opts, k, sysid)
+    vehicle = Vehicle.at(*start, dyn=opts.dynamics)
+    vehicle.kp = args.kp
+    log.info("serving MAVLink", extra=fields(
+        uav=uav, sysid=sysid, offboard=fleet.instance_url(opts.settings.mavlink_url, k),
+        gcs=fleet.instance_url(args.gcs_url, k) if args.gcs_url else "",
+        signed=opts.key is not None, autopilot=args.autopilot, clock=args.clock,
+        speed_factor=opts.speed, speed_limit=vehicle.dyn.speed_limit,
+        zenoh=opts.use_zenoh, east_m=start[0], north_m=start[1], tlog=tlog_path))
+    endpoint = Endpoint(vehicle, links, sysid, args.altitude_m, opts.home,
+                        args.offboard_loss_s, args.area_size_m, tlog,
+                        fl.FLAVOURS[args.autopilot], args.clock, opts.speed)
+    if tlog is not None:
+        tlog.on_fault = lambda text: setattr(endpoint, "fault", text)
+    elif tlog_path:
+        endpoint.fault = "tlog not created: flying without it"
+    stats = StatsFile(stats_path, endpoint) if stats_path else None
+    if ctx.session is not None:
+        ctx.announce()
     try:
-        settings = common_cli.settings("uavsim", args)
-        start = parse_pair(args.start, "--start")
-        home = parse_pair(args.home, "--home")
-        if not (abs(home[0]) < 85 and abs(home[1]) <= 180):
-            raise ValueError("--home must be a latitude in (-85, 85) and a longitude")
-        if not 1 <= args.sysid <= 255:
-            raise ValueError("--sysid must be in 1..255")
-        if not (0 <= args.kp <= 1 and 0.1 <= args.offboard_loss_s <= 60):
-            raise ValueError("need 0 <= --kp <= 1 and 0.1 <= --offboard-loss-s <= 60")
-        if not 0 < args.area_size_m <= 1e5:
-            raise ValueError("--area-size-m must be in (0, 1e5]")
-        key = mav.resolve_key(args.signing_passphrase, args.signing_key_file)
-        dynamics = get_profile(args.profile).with_settings(
-            {"speed_limit": args.speed_limit} if args.speed_limit else {}).dynamics
-        uavs = fleet.uav_ids(args.uav_ids, settings.uav_id)
-        if args.sysid + len(uavs) - 1 > 255:
-            raise ValueError(f"--sysid {args.sysid} + {len(uavs)} vehicles passes 255")
-        for flag, path in (("--tlog", args.tlog), ("--stream-stats", args.stream_stats)):
-            if path and len(uavs) > 1 and "{uav}" not in path:
-                raise ValueError(f"{flag} must contain {{uav}} to serve several vehicles")
-        for url in (settings.mavlink_url, args.gcs_url):
-            if url:
-                fleet.instance_url(url, len(uavs) - 1)  # each vehicle's port exists
-        speed = settings.speed_factor
-        if args.clock == vclock.REALTIME and not speed > 0:
-            raise ValueError("--clock realtime needs --speed-factor > 0 (1 is real time)")
-    except (ValueError, OSError) as err:
-        p.error(str(err))
-
-    def body(ctx: bus.Context) -> None:
-        k = uavs.index(ctx.settings.uav_id)  # this vehicle's instance: ports and sysid + k
-        uav = ctx.settings.uav_id
-        sysid = args.sysid + k
-        tlog_path = fleet.per_vehicle(args.tlog, uav)
-        stats_path = fleet.per_vehicle(args.stream_stats, uav)
-        offboard_url = fleet.instance_url(settings.mavlink_url, k)
-        gcs_url = fleet.instance_url(args.gcs_url, k) if args.gcs_url else ""
-        tlog = open_tlog(tlog_path) if tlog_path else None
-        links = {"offboard": mav.connect(offboard_url, sysid, mav.MAV_COMP_ID_AUTOPILOT1,
-                                         key=key)}
-        if gcs_url:
-            links["gcs"] = mav.connect(gcs_url, sysid, mav.MAV_COMP_ID_AUTOPILOT1)
-            if key is not None:  # signed too: unsigned control, uploads and PARAM_SET refused
-                signed_only = {getattr(m, f"MAVLINK_MSG_ID_{k}") for k in SIGNED_ONLY}
-                links["gcs"].setup_signing(
-                    key, sign_outgoing=True,
-                    allow_unsigned_callback=lambda _mav, msg_id: msg_id not in signed_only)
-        vehicle = Vehicle.at(*start, dyn=dynamics)
-        vehicle.kp = args.kp
-        log.info("serving MAVLink", extra=fields(
-            uav=uav, sysid=sysid, offboard=offboard_url, gcs=gcs_url, signed=key is not None,
-            autopilot=args.autopilot, clock=args.clock, speed_factor=speed,
-            speed_limit=vehicle.dyn.speed_limit,
-            zenoh=use_zenoh, east_m=start[0], north_m=start[1], tlog=tlog_path))
-        endpoint = Endpoint(vehicle, links, sysid, args.altitude_m, home,
-                            args.offboard_loss_s, args.area_size_m, tlog,
-                            fl.FLAVOURS[args.autopilot], args.clock, speed)
+        endpoint.run(ctx.stop, on_tick=stats.tick if stats is not None else None)
+    finally:
+        if stats is not None:
+            stats.write()
+        for conn in links.values():
+            conn.close()
         if tlog is not None:
-            tlog.on_fault = lambda text: setattr(endpoint, "fault", text)
-        elif tlog_path:
-            endpoint.fault = "tlog not created: flying without it"
-        stats = StatsFile(stats_path, endpoint) if stats_path else None
-        if ctx.session is not None:
-            ctx.announce()
-        try:
-            endpoint.run(ctx.stop, on_tick=stats.tick if stats is not None else None)
-        finally:
-            if stats is not None:
-                stats.write()
-            for conn in links.values():
-                conn.close()
-            if tlog is not None:
-                tlog.close()
-                log.info("tlog closed", extra=fields(path=tlog_path, frames=tlog.frames))
-
-    def serve(ctx: bus.Context) -> None:
-        fleet.for_each(ctx, uavs, body)
-
-    return bus.run_service(settings, serve, zenoh_session=use_zenoh)
+            tlog.close()
+            log.info("tlog closed", extra=fields(path=tlog_path, frames=tlog.frames))
 
 
 if __name__ == "__main__":

@@ -286,14 +286,7 @@ class Endpoint:
         if self.tlog is not None:
             self.tlog.message(msg)
         if kind == "HEARTBEAT":
-            peer = (link, msg.get_srcSystem(), msg.get_srcComponent())
-            if peer not in self.peers:
-                if len(self.peers) >= 4 * MAX_CLIENTS:
-                    self.peers.clear()  # bounded: only used to answer a new peer at once
-                self.peers.add(peer)
-                log.info("peer", extra=fields(link=link, sysid=peer[1], compid=peer[2],
-                                              mav_type=msg.type))
-                self.heartbeat()  # answer at once: the peer waits for us before it starts
+            self.on_heartbeat(link, msg)
             return True
         if kind in GCS_CHATTER:
             return True
@@ -314,36 +307,61 @@ class Endpoint:
         handled = self.mission.handle(link, msg, now)
         if handled is not None:
             return handled
+        return self.dispatch(link, msg, now)
+
+    def on_heartbeat(self, link: str, msg: Any) -> None:
+        """A new peer is logged and answered at once: it waits for our heartbeat to start."""
+        peer = (link, msg.get_srcSystem(), msg.get_srcComponent())
+        if peer in self.peers:
+            return
+        if len(self.peers) >= 4 * MAX_CLIENTS:
+            self.peers.clear()  # bounded: only used to answer a new peer at once
+        self.peers.add(peer)
+        log.info("peer", extra=fields(link=link, sysid=peer[1], compid=peer[2],
+                                      mav_type=msg.type))
+        self.heartbeat()
+
+    def dispatch(self, link: str, msg: Any, now: float) -> bool:
+        """A frame addressed to this vehicle and not the mission protocol's, by its type."""
+        kind = msg.get_type()
         if kind == "SET_POSITION_TARGET_LOCAL_NED":
             return self.on_setpoint(link, msg, now)
         elif kind == "PARAM_REQUEST_LIST":
             for name in self.params:
                 self.param_value(link, name)
         elif kind == "PARAM_REQUEST_READ":
-            names = list(self.params)
-            pid = msg.param_id if isinstance(msg.param_id, str) else msg.param_id.decode()
-            name = pid.rstrip("\x00") if msg.param_index < 0 else (
-                names[msg.param_index] if msg.param_index < len(names) else "")
-            if name in self.params:
-                self.param_value(link, name)
+            self.on_param_request_read(link, msg)
         elif kind == "PARAM_SET":
             return params.param_set(self, link, msg)
         elif kind == "COMMAND_LONG":
             return self.commands.on_command(link, msg)
         elif kind == "COMMAND_INT":
-            result = m.MAV_RESULT_UNSUPPORTED
-            try:
-                mavlink_codec.check_finite_fields(
-                    msg, ("param1", "param2", "param3", "param4", "z"), "COMMAND_INT")
-            except rejections.CodecError as err:
-                self.reject(link, err)
-                result = m.MAV_RESULT_DENIED
-            self.send[link]("command_ack", msg.command, result, 0, 0,
-                            msg.get_srcSystem(), msg.get_srcComponent())
-            return result != m.MAV_RESULT_DENIED
+            return self.on_command_int(link, msg)
         elif kind == "SET_MODE":
             self.commands.on_set_mode(link, msg)
         return True
+
+    def on_param_request_read(self, link: str, msg: Any) -> None:
+        """PARAM_VALUE for the parameter named (index < 0) or at the index; unknown: nothing."""
+        names = list(self.params)
+        pid = msg.param_id if isinstance(msg.param_id, str) else msg.param_id.decode()
+        name = pid.rstrip("\x00") if msg.param_index < 0 else (
+            names[msg.param_index] if msg.param_index < len(names) else "")
+        if name in self.params:
+            self.param_value(link, name)
+
+    def on_command_int(self, link: str, msg: Any) -> bool:
+        """COMMAND_INT: checked, then acknowledged UNSUPPORTED (DENIED if a field is bad)."""
+        result = m.MAV_RESULT_UNSUPPORTED
+        try:
+            mavlink_codec.check_finite_fields(
+                msg, ("param1", "param2", "param3", "param4", "z"), "COMMAND_INT")
+        except rejections.CodecError as err:
+            self.reject(link, err)
+            result = m.MAV_RESULT_DENIED
+        self.send[link]("command_ack", msg.command, result, 0, 0,
+                        msg.get_srcSystem(), msg.get_srcComponent())
+        return result != m.MAV_RESULT_DENIED
 
     def may_control(self, link: str, msg: Any, now: float) -> bool:
         """Control only from the link and peer in control; False after counting a refusal.
