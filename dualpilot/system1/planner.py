@@ -230,44 +230,13 @@ class System1:
         no tracked trajectory passes verification.
         """
         t0 = time.perf_counter()
-        p = self.params
         x = check_state(state, self.dyn)
-        u_prev = None
-        if p.tracker == "lqr_du":
-            u_prev = np.zeros(self.dyn.dim) if prev_control is None else np.asarray(
-                prev_control, dtype=float)
-            if u_prev.shape != (self.dyn.dim,) or not np.all(np.isfinite(u_prev)):
-                raise ValueError(f"prev_control must be finite with shape "
-                                 f"({self.dyn.dim},), got {prev_control}")
+        u_prev = self._prev_control(prev_control)
         pos = x[:2].copy()
-        if not self.area.contains(pos):
-            raise ValueError(f"position {pos} lies outside the {self.area_size_m} m area")
         checker = SegmentChecker(hulls)
-        d_start = checker.point_distance(pos)
-        if d_start < self.d_safe_m:
-            raise ValueError(
-                f"position {pos} lies {d_start:.1f} m from a fire hull "
-                f"(System 1 needs {self.d_safe_m} m)"
-            )
-        first_need = min(self.clearance_m, d_start)
+        first_need = self._first_need(pos, checker)
         info: dict[str, object] = {"rrt_iterations": 0, "reused": False}
-
-        candidates: list[tuple[str, Array]] = []
-        if self._waypoints is not None:
-            if self._operator is None:
-                self._operator = _TrackedPath(np.vstack([pos, self._waypoints]))
-            ref, _ = self._operator.remaining(pos)
-            if self._path_free(ref, checker, first_need):
-                candidates.append(("operator", ref))
-            else:
-                info["operator_rejected"] = "a segment comes within clearance_m of a hull"
-        if not candidates and p.reuse_path and self._rrt_path is not None:
-            ref, offset = self._rrt_path.remaining(pos)
-            if offset <= p.reuse_max_offset_m and self._path_free(ref, checker, first_need):
-                candidates.append(("reuse", ref))
-            else:
-                self._rrt_path = None
-
+        candidates = self._stored_candidates(pos, checker, first_need, info)
         attempts: list[str] = []
         fresh_tried = False
         while True:
@@ -286,23 +255,79 @@ class System1:
                 candidates.append(("rrt", result.path))
             source, ref = candidates.pop(0)
             traj = self._track(x, ref, hulls, attempts, source, checker, u_prev)
-            if traj is None:
-                continue
-            states, controls, speed, clearance = traj
-            if source == "rrt":
-                self._rrt_path = _TrackedPath(ref)
-            info.update(source="operator" if source == "operator" else "rrt",
-                        reused=source == "reuse", ref_speed_mps=speed,
-                        clearance_m=clearance, attempts=attempts)
-            return Plan(
-                system=self.system, status=PlanStatus.OK, states=states, controls=controls,
-                compute_time_s=time.perf_counter() - t0, path=ref,
-                message=f"{info['source']} path tracked at {speed:g} m/s", info=info,
-            )
+            if traj is not None:
+                return self._tracked_plan(source, ref, traj, info, attempts, t0)
         self._rrt_path = None
         info["attempts"] = attempts
         return self._failed(PlanStatus.UNSAFE, t0, info,
                             "no tracked trajectory kept d_safe: " + "; ".join(attempts))
+
+    # -- planning stages ------------------------------------------------------------
+    def _prev_control(self, prev_control: Array | None) -> Array | None:
+        """u₋₁ (N) of the Δu tracker (zeros when not given); None for the paper's tracker."""
+        if self.params.tracker != "lqr_du":
+            return None
+        u_prev = np.zeros(self.dyn.dim) if prev_control is None else np.asarray(
+            prev_control, dtype=float)
+        if u_prev.shape != (self.dyn.dim,) or not np.all(np.isfinite(u_prev)):
+            raise ValueError(f"prev_control must be finite with shape "
+                             f"({self.dyn.dim},), got {prev_control}")
+        return u_prev
+
+    def _first_need(self, pos: Array, checker: SegmentChecker) -> float:
+        """The clearance (m) the first reference segment keeps: ``clearance_m`` or the start's.
+
+        Raises ValueError for a position outside the area or nearer than d_safe to a hull.
+        """
+        if not self.area.contains(pos):
+            raise ValueError(f"position {pos} lies outside the {self.area_size_m} m area")
+        d_start = checker.point_distance(pos)
+        if d_start < self.d_safe_m:
+            raise ValueError(
+                f"position {pos} lies {d_start:.1f} m from a fire hull "
+                f"(System 1 needs {self.d_safe_m} m)"
+            )
+        return min(self.clearance_m, d_start)
+
+    def _stored_candidates(self, pos: Array, checker: SegmentChecker, first_need: float,
+                           info: dict[str, object]) -> list[tuple[str, Array]]:
+        """The operator's waypoints, else the previous RRT path, while free (sources 1-2).
+
+        A rejected operator path is noted in ``info``; a reused path that is no
+        longer free or too far (``reuse_max_offset_m``) is dropped.
+        """
+        p = self.params
+        candidates: list[tuple[str, Array]] = []
+        if self._waypoints is not None:
+            if self._operator is None:
+                self._operator = _TrackedPath(np.vstack([pos, self._waypoints]))
+            ref, _ = self._operator.remaining(pos)
+            if self._path_free(ref, checker, first_need):
+                candidates.append(("operator", ref))
+            else:
+                info["operator_rejected"] = "a segment comes within clearance_m of a hull"
+        if not candidates and p.reuse_path and self._rrt_path is not None:
+            ref, offset = self._rrt_path.remaining(pos)
+            if offset <= p.reuse_max_offset_m and self._path_free(ref, checker, first_need):
+                candidates.append(("reuse", ref))
+            else:
+                self._rrt_path = None
+        return candidates
+
+    def _tracked_plan(self, source: str, ref: Array, traj: tuple[Array, Array, float, float],
+                      info: dict[str, object], attempts: list[str], t0: float) -> Plan:
+        """The OK plan of the verified LQR trajectory ``traj`` along ``ref`` from ``source``."""
+        states, controls, speed, clearance = traj
+        if source == "rrt":
+            self._rrt_path = _TrackedPath(ref)
+        info.update(source="operator" if source == "operator" else "rrt",
+                    reused=source == "reuse", ref_speed_mps=speed,
+                    clearance_m=clearance, attempts=attempts)
+        return Plan(
+            system=self.system, status=PlanStatus.OK, states=states, controls=controls,
+            compute_time_s=time.perf_counter() - t0, path=ref,
+            message=f"{info['source']} path tracked at {speed:g} m/s", info=info,
+        )
 
     # -- helpers --------------------------------------------------------------------
     def _path_free(self, ref: Array, checker: SegmentChecker, first_need: float) -> bool:

@@ -310,6 +310,166 @@ def _validate(start: Array, goal: Rect, area_size_m: float) -> Array:
     return p
 
 
+@dataclass(frozen=True)
+class _Query:
+    """One :func:`plan_path` call: the validated start ``p`` and what every stage needs.
+
+    ``root_clearance_m`` is what edges leaving the start keep (m); ``t0`` the
+    call's start (``time.perf_counter``).
+    """
+
+    p: Array
+    goal: Rect
+    hulls: Sequence[Polytope]
+    checker: SegmentChecker
+    clearance_m: float
+    root_clearance_m: float
+    area_size_m: float
+    params: RrtParams
+    risk: ArcRisk | None
+    t0: float
+
+    def result(self, status: str, iterations: int) -> RrtResult:
+        """No path: ``status`` after ``iterations`` samples."""
+        return RrtResult(None, status, iterations, time.perf_counter() - self.t0, None)
+
+
+class _OmplRrt:
+    """OMPL's RRT over the area (Alg. 1) with the exact motion check, sampled from our rng.
+
+    ``sampler`` draws every sample x̃ (:class:`_NumpyDrivenGoal`), ``validator``
+    is PathFree (:class:`ExactMotionValidator`); :meth:`grow` runs the tree on.
+    """
+
+    def __init__(self, q: _Query, rng: np.random.Generator, component: BoolArray | None):
+        params = q.params
+        self._q = q
+        ou.setLogLevel(ou.LOG_WARN)
+        space = ob.RealVectorStateSpace(2)
+        bounds = ob.RealVectorBounds(2)
+        bounds.setLow(0.0)
+        bounds.setHigh(float(q.area_size_m))
+        space.setBounds(bounds)
+        si = ob.SpaceInformation(space)
+        si.setStateValidityChecker(lambda s: True)  # states are judged by the exact motion check
+        validator = ExactMotionValidator(si, q.checker, q.clearance_m, q.p, q.root_clearance_m,
+                                         q.risk)
+        si.setMotionValidator(validator)
+        si.setup()
+        start_state = space.allocState()
+        start_state[0], start_state[1] = float(q.p[0]), float(q.p[1])
+        sampler = _NumpyDrivenGoal(si, q.goal, q.area_size_m, rng, params.goal_bias)
+        if component is not None and params.sample_reachable:
+            sampler.restrict_to(component, params.reach_cell_m)
+        pdef = ob.ProblemDefinition(si)
+        pdef.addStartState(start_state)
+        pdef.setGoal(sampler)
+        rrt = og.RRT(si)
+        rrt.setRange(params.step_size_m)
+        rrt.setGoalBias(1.0)  # every sample goes through sampler.sampleGoal (our rng)
+        rrt.setProblemDefinition(pdef)
+        rrt.setup()
+        self._space, self._si, self._start_state = space, si, start_state
+        self.validator, self.sampler, self.pdef, self.rrt = validator, sampler, pdef, rrt
+
+    def grow(self, samples: int) -> bool:
+        """Run RRT on the same tree until G is reached, ``samples`` samples or the wall cap.
+
+        The wall-clock cap is OMPL's own (no Python call per iteration); the
+        sampler ends the solve itself once it has drawn ``samples`` samples.
+        """
+        left = self._q.params.max_wall_s - (time.perf_counter() - self._q.t0)
+        ptc = ob.timedPlannerTerminationCondition(max(left, 1e-6))
+        self.sampler.stop_after(samples, ptc)
+        status = self.rrt.solve(ptc)
+        return bool(status.getStatus() == ob.PlannerStatus.EXACT_SOLUTION)
+
+    def path(self) -> Array:
+        """The solution path (k, 2) through the tree, starting exactly at the start."""
+        sol = self.pdef.getSolutionPath()
+        tree = np.array([[sol.getState(i)[0], sol.getState(i)[1]]
+                         for i in range(sol.getStateCount())])
+        tree[0] = self._q.p  # exactly the start
+        return tree
+
+
+def _root_clearance(p: Array, checker: SegmentChecker, clearance_m: float,
+                    start_clearance_m: float | None) -> float:
+    """The clearance (m) edges leaving the start keep: ``clearance_m``, or less for an escape.
+
+    Raises ValueError for a negative ``clearance_m`` or a start nearer than
+    ``start_clearance_m`` (default ``clearance_m``) to a hull.
+    """
+    if clearance_m < 0:
+        raise ValueError(f"clearance_m must be >= 0, got {clearance_m}")
+    need_start = clearance_m if start_clearance_m is None else start_clearance_m
+    d_start = checker.point_distance(p)
+    if d_start < need_start:
+        raise ValueError(
+            f"start {p} lies {d_start:.1f} m from a fire hull (needs {need_start:.1f} m)"
+        )
+    return min(clearance_m, d_start)
+
+
+def _finish(q: _Query, path: Array, status: str, iterations: int,
+            tree: Array | None) -> RrtResult:
+    """The result for ``path``: extended to G's centre when free, then shortcut (as set)."""
+    params, checker, risk = q.params, q.checker, q.risk
+    center = q.goal.center
+    if params.aim_goal_center and not np.allclose(path[-1], center):
+        first = q.root_clearance_m if len(path) == 1 else q.clearance_m
+        (x0, y0), (x1, y1) = path[-1].tolist(), center.tolist()
+        if checker.segment_clear(x0, y0, x1, y1, first) and (
+                risk is None or risk.segment_clear(x0, y0, x1, y1, _length(path))):
+            path = np.vstack([path, center])
+    if params.shortcut:
+        path = shortcut(path, checker, q.clearance_m, q.root_clearance_m, risk)
+    return RrtResult(path, status, iterations, time.perf_counter() - q.t0, tree)
+
+
+def _direct(q: _Query) -> RrtResult | None:
+    """A start inside G, or a free straight segment into G (``try_direct``); else None."""
+    p, goal, params = q.p, q.goal, q.params
+    if goal.contains(p):
+        return _finish(q, p[None].copy(), "direct", 0, None)
+    if params.try_direct:
+        target = goal.center if params.aim_goal_center else np.clip(p, goal.lo, goal.hi)
+        (x0, y0), (x1, y1) = p.tolist(), target.tolist()
+        if q.checker.segment_clear(x0, y0, x1, y1, q.root_clearance_m) and (
+                q.risk is None or q.risk.segment_clear(x0, y0, x1, y1, 0.0)):
+            return _finish(q, np.vstack([p, target]), "direct", 0, None)
+    return None
+
+
+def _grow_guided(q: _Query, tree: _OmplRrt, coarse: BoolArray) -> bool | None:
+    """Grow on after ``guide_after`` samples, guided along a corridor of a finer grid.
+
+    The grid has cells of ``reach_cell_m / 2`` within ``coarse``; a share of the
+    samples is drawn ahead of the tree along the corridor to G
+    (:meth:`_NumpyDrivenGoal.guide_along`). Returns whether G was reached, or
+    None when the finer grid proves G unreachable.
+    """
+    params = q.params
+    fine_m = params.reach_cell_m / 2
+    fine, meets_goal = start_component(
+        q.p, q.goal, q.hulls, q.clearance_m, q.area_size_m, fine_m,
+        start_clearance_m=q.root_clearance_m, start_radius_m=params.step_size_m,
+        coarse=coarse)
+    if not meets_goal:
+        return None
+    chain = corridor(coarsen(fine), q.p, q.goal, params.reach_cell_m)
+    if params.sample_reachable:
+        tree.sampler.restrict_to(fine, fine_m)
+    tree.sampler.guide_along(chain, params.reach_cell_m, params.guide_share,
+                             params.guide_window)
+    tree.validator.on_accept = tree.sampler.reached
+    tree.pdef.clearSolutionPaths()  # RRT's approximate answer from the first run
+    try:
+        return tree.grow(params.max_iterations)
+    finally:
+        tree.validator.on_accept = None  # a cycle through OMPL's objects would never be freed
+
+
 def plan_path(
     start: Array,
     goal: Rect,
@@ -340,36 +500,12 @@ def plan_path(
     t0 = time.perf_counter()
     p = _validate(start, goal, area_size_m)
     checker = SegmentChecker(hulls) if checker is None else checker
-    if clearance_m < 0:
-        raise ValueError(f"clearance_m must be >= 0, got {clearance_m}")
-    need_start = clearance_m if start_clearance_m is None else start_clearance_m
-    d_start = checker.point_distance(p)
-    if d_start < need_start:
-        raise ValueError(
-            f"start {p} lies {d_start:.1f} m from a fire hull (needs {need_start:.1f} m)"
-        )
-    root_clearance = min(clearance_m, d_start)
-    center = goal.center
-
-    def finish(path: Array, status: str, iterations: int, tree: Array | None) -> RrtResult:
-        if params.aim_goal_center and not np.allclose(path[-1], center):
-            first = root_clearance if len(path) == 1 else clearance_m
-            (x0, y0), (x1, y1) = path[-1].tolist(), center.tolist()
-            if checker.segment_clear(x0, y0, x1, y1, first) and (
-                    risk is None or risk.segment_clear(x0, y0, x1, y1, _length(path))):
-                path = np.vstack([path, center])
-        if params.shortcut:
-            path = shortcut(path, checker, clearance_m, root_clearance, risk)
-        return RrtResult(path, status, iterations, time.perf_counter() - t0, tree)
-
-    if goal.contains(p):
-        return finish(p[None].copy(), "direct", 0, None)
-    if params.try_direct:
-        target = center if params.aim_goal_center else np.clip(p, goal.lo, goal.hi)
-        (x0, y0), (x1, y1) = p.tolist(), target.tolist()
-        if checker.segment_clear(x0, y0, x1, y1, root_clearance) and (
-                risk is None or risk.segment_clear(x0, y0, x1, y1, 0.0)):
-            return finish(np.vstack([p, target]), "direct", 0, None)
+    root_clearance = _root_clearance(p, checker, clearance_m, start_clearance_m)
+    q = _Query(p, goal, hulls, checker, clearance_m, root_clearance, area_size_m, params,
+               risk, t0)
+    direct = _direct(q)
+    if direct is not None:
+        return direct
 
     component = None
     if params.reach_check and len(hulls):
@@ -377,70 +513,19 @@ def plan_path(
             p, goal, hulls, clearance_m, area_size_m, params.reach_cell_m,
             start_clearance_m=root_clearance, start_radius_m=params.step_size_m)
         if not meets_goal:
-            return RrtResult(None, "unreachable", 0, time.perf_counter() - t0, None)
+            return q.result("unreachable", 0)
 
-    ou.setLogLevel(ou.LOG_WARN)
-    space = ob.RealVectorStateSpace(2)
-    bounds = ob.RealVectorBounds(2)
-    bounds.setLow(0.0)
-    bounds.setHigh(float(area_size_m))
-    space.setBounds(bounds)
-    si = ob.SpaceInformation(space)
-    si.setStateValidityChecker(lambda s: True)  # states are judged by the exact motion check
-    validator = ExactMotionValidator(si, checker, clearance_m, p, root_clearance, risk)
-    si.setMotionValidator(validator)
-    si.setup()
-    start_state = space.allocState()
-    start_state[0], start_state[1] = float(p[0]), float(p[1])
-    goal_obj = _NumpyDrivenGoal(si, goal, area_size_m, rng, params.goal_bias)
-    if component is not None and params.sample_reachable:
-        goal_obj.restrict_to(component, params.reach_cell_m)
-    pdef = ob.ProblemDefinition(si)
-    pdef.addStartState(start_state)
-    pdef.setGoal(goal_obj)
-    rrt = og.RRT(si)
-    rrt.setRange(params.step_size_m)
-    rrt.setGoalBias(1.0)  # every sample goes through goal_obj.sampleGoal (our rng)
-    rrt.setProblemDefinition(pdef)
-    rrt.setup()
+    tree = _OmplRrt(q, rng, component)
     guide = component is not None and params.guide_after < params.max_iterations
-
-    def grow(samples: int) -> bool:
-        """Run RRT on the same tree until G is reached, ``samples`` samples or the wall cap.
-
-        The wall-clock cap is OMPL's own (no Python call per iteration); the
-        sampler ends the solve itself once it has drawn ``samples`` samples.
-        """
-        left = params.max_wall_s - (time.perf_counter() - t0)
-        ptc = ob.timedPlannerTerminationCondition(max(left, 1e-6))
-        goal_obj.stop_after(samples, ptc)
-        status = rrt.solve(ptc)
-        return bool(status.getStatus() == ob.PlannerStatus.EXACT_SOLUTION)
-
-    solved = grow(params.guide_after if guide else params.max_iterations)
-    if not solved and guide and goal_obj.count >= params.guide_after:
-        fine_m = params.reach_cell_m / 2
-        fine, meets_goal = start_component(
-            p, goal, hulls, clearance_m, area_size_m, fine_m,
-            start_clearance_m=root_clearance, start_radius_m=params.step_size_m,
-            coarse=component)
-        if not meets_goal:
-            return RrtResult(None, "unreachable", goal_obj.count, time.perf_counter() - t0, None)
-        chain = corridor(coarsen(fine), p, goal, params.reach_cell_m)
-        if params.sample_reachable:
-            goal_obj.restrict_to(fine, fine_m)
-        goal_obj.guide_along(chain, params.reach_cell_m, params.guide_share, params.guide_window)
-        validator.on_accept = goal_obj.reached
-        pdef.clearSolutionPaths()  # RRT's approximate answer from the first run
-        try:
-            solved = grow(params.max_iterations)
-        finally:
-            validator.on_accept = None  # a cycle through OMPL's objects would never be freed
-    iterations = goal_obj.count
+    solved: bool | None = tree.grow(params.guide_after if guide else params.max_iterations)
+    if (not solved and guide and component is not None
+            and tree.sampler.count >= params.guide_after):
+        solved = _grow_guided(q, tree, component)
+        if solved is None:
+            return q.result("unreachable", tree.sampler.count)
+    iterations = tree.sampler.count
     if not solved:
         cause = "iteration_cap" if iterations >= params.max_iterations else "time_cap"
-        return RrtResult(None, cause, iterations, time.perf_counter() - t0, None)
-    sol = pdef.getSolutionPath()
-    tree = np.array([[sol.getState(i)[0], sol.getState(i)[1]] for i in range(sol.getStateCount())])
-    tree[0] = p  # exactly the start
-    return finish(tree, "exact", iterations, tree)
+        return q.result(cause, iterations)
+    path = tree.path()
+    return _finish(q, path, "exact", iterations, path)

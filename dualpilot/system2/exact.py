@@ -317,62 +317,94 @@ class ExactSystem2:
     ) -> Plan:
         """Solve (P2) from ``state`` avoiding ``hulls``; ``prev_control`` is u_{t|t} (N)."""
         t0 = time.perf_counter()
-
-        def fail(status: PlanStatus, msg: str, **info: object) -> Plan:
-            plan = Plan.failed(self.system, status, time.perf_counter() - t0, msg)
-            return dataclasses.replace(plan, objective=objective, info=dict(info))
-
         checked = check_request(state, hulls, objective, prev_control)
         if isinstance(checked, str):
-            return fail(PlanStatus.INVALID_INPUT, checked)
+            return self._fail(t0, objective, PlanStatus.INVALID_INPUT, checked)
         x0, u_prev, hulls = checked
-
-        # The start is given (not planned): within d_safe no plan can verify.
-        for i, hull in enumerate(hulls):
-            dist = hull.distance(x0[:2])
-            if dist < self.clearance_m:
-                return fail(PlanStatus.INVALID_INPUT,
-                            f"start {x0[:2]} is {dist:.2f} m from hull {i} "
-                            f"(< d_safe {self.clearance_m} m): no safe plan can start here")
+        unsafe_start = self._start_too_close(x0, hulls)
+        if unsafe_start is not None:
+            return self._fail(t0, objective, PlanStatus.INVALID_INPUT, unsafe_start)
 
         selected, simplified = self._select_hulls(x0, hulls)
         info: dict[str, object] = {
             "n_hulls": len(selected), "n_hulls_input": len(hulls),
             "simplified_hulls": simplified,
         }
+        polys, unfit = self._fit_hulls(x0, selected)
+        if unfit is not None:
+            return self._fail(t0, objective, PlanStatus.INVALID_INPUT, unfit, info)
+        fixed = self._first_step_failure(x0, hulls)
+        if fixed is not None:
+            return self._fail(t0, objective, *fixed, info)
+
+        kappa = self._set_values(x0, u_prev, objective, polys)
+        result = self._solve()
+        info.update({k: v for k, v in result.items() if k not in ("U", "X", "value")})
+        status = str(result.get("solver_status"))
+        failure = self._solver_failure(result, status, simplified)
+        if failure is not None:
+            return self._fail(t0, objective, *failure, info)
+        return self._solution_plan(t0, objective, x0, u_prev, kappa, hulls, result, status, info)
+
+    def _fail(self, t0: float, objective: Objective, status: PlanStatus, msg: str,
+              info: Mapping[str, object] | None = None) -> Plan:
+        """A failed plan with ``status``, a copy of ``info`` and the time since ``t0``."""
+        plan = Plan.failed(self.system, status, time.perf_counter() - t0, msg)
+        return dataclasses.replace(plan, objective=objective, info=dict(info or {}))
+
+    def _start_too_close(self, x0: Array, hulls: Sequence[Polytope]) -> str | None:
+        """Why no plan can start at ``x0`` (within d_safe of a hull: it is given, not planned)."""
+        for i, hull in enumerate(hulls):
+            dist = hull.distance(x0[:2])
+            if dist < self.clearance_m:
+                return (f"start {x0[:2]} is {dist:.2f} m from hull {i} "
+                        f"(< d_safe {self.clearance_m} m): no safe plan can start here")
+        return None
+
+    def _fit_hulls(self, x0: Array, selected: Sequence[tuple[int, Polytope]]
+                   ) -> tuple[list[Polytope], str | None]:
+        """The selected polygons, and why they do not fit the compiled problem (slots, M)."""
         if len(selected) > self.params.max_hulls:
-            return fail(PlanStatus.INVALID_INPUT,
-                        f"{len(selected)} hulls are reachable within the horizon but the "
+            return [], (f"{len(selected)} hulls are reachable within the horizon but the "
                         f"compiled problem has max_hulls={self.params.max_hulls}; construct "
-                        "ExactSystem2 with a larger System2Params.max_hulls", **info)
+                        "ExactSystem2 with a larger System2Params.max_hulls")
         polys = [poly for _, poly in selected]
         if not self._big_m_ok(x0, polys):
-            return fail(PlanStatus.INVALID_INPUT,
-                        f"big_m={self.params.big_m} is too small for this geometry", **info)
+            return polys, f"big_m={self.params.big_m} is too small for this geometry"
+        return polys, None
 
-        # x_{t+1|t}'s position is p_t + ΔT v_t whatever the control: check it first.
+    def _first_step_failure(self, x0: Array, hulls: Sequence[Polytope]
+                            ) -> tuple[PlanStatus, str] | None:
+        """x_{t+1|t}'s position is p_t + ΔT v_t whatever the control: check it before solving.
+
+        Within ε of a hull (Eq. (P2_3)) or outside the area: INFEASIBLE; the
+        segment to it within d_safe of a hull: UNSAFE.
+        """
         p1 = x0[:2] + self.dynamics.dt_s * x0[2:]
         eps = self.epsilon_m
         for i, hull in enumerate(hulls):
             margin = float(np.max(hull.A @ p1 - hull.b))
             if margin < eps:
-                return fail(PlanStatus.INFEASIBLE,
-                            f"x_(t+1|t) position {p1} is fixed by the current velocity and "
-                            f"lies within ε={eps} m of hull {i} (max_l α·p−β = {margin:.2f}): "
-                            "(P2) is infeasible", **info)
+                return (PlanStatus.INFEASIBLE,
+                        f"x_(t+1|t) position {p1} is fixed by the current velocity and "
+                        f"lies within ε={eps} m of hull {i} (max_l α·p−β = {margin:.2f}): "
+                        "(P2) is infeasible")
         if self.params.keep_in_area and not (
             np.all(p1 >= 0.0) and np.all(p1 <= self.area_size_m)
         ):
-            return fail(PlanStatus.INFEASIBLE,
-                        f"x_(t+1|t) position {p1} is fixed by the current velocity and "
-                        "lies outside the area: (P2) is infeasible", **info)
+            return (PlanStatus.INFEASIBLE,
+                    f"x_(t+1|t) position {p1} is fixed by the current velocity and "
+                    "lies outside the area: (P2) is infeasible")
         first_gap = min((h.segment_distance(x0[:2], p1) for h in hulls), default=math.inf)
         if first_gap < self.clearance_m:
-            return fail(PlanStatus.UNSAFE,
-                        f"the first segment, fixed by the current velocity, passes "
-                        f"{first_gap:.2f} m from a hull (< {self.clearance_m} m)", **info)
+            return (PlanStatus.UNSAFE,
+                    f"the first segment, fixed by the current velocity, passes "
+                    f"{first_gap:.2f} m from a hull (< {self.clearance_m} m)")
+        return None
 
-        # parameter values
+    def _set_values(self, x0: Array, u_prev: Array, objective: Objective,
+                    polys: Sequence[Polytope]) -> tuple[float, float]:
+        """Set the DPP parameters of (P2) for this tick; returns κ = (κ1, κ2) of Eq. (S2)."""
         k1, k2 = self.params.kappa(objective)
         s = self.objective_scale
         w1, w2 = math.sqrt(k1 / s), math.sqrt(k2 / s)
@@ -382,37 +414,43 @@ class ExactSystem2:
         self._w2.value = w2
         self._w2_uprev.value = w2 * u_prev
         self._set_hull_params(polys)
+        return k1, k2
 
-        result = self._solve()
-        info.update({k: v for k, v in result.items() if k not in ("U", "X", "value")})
-        status = str(result.get("solver_status"))
+    def _solver_failure(self, result: Mapping[str, object], status: str,
+                        simplified: Sequence[int]) -> tuple[PlanStatus, str] | None:
+        """The failed status and message of a solve that gave no usable solution, else None."""
         if "error" in result:
             if result.get("timeout"):
-                return fail(PlanStatus.TIMEOUT,
-                            f"no incumbent within the time limit: {result['error']}", **info)
-            return fail(PlanStatus.ERROR, f"solver failed: {result['error']}", **info)
+                return (PlanStatus.TIMEOUT,
+                        f"no incumbent within the time limit: {result['error']}")
+            return PlanStatus.ERROR, f"solver failed: {result['error']}"
         if status in (cp.INFEASIBLE, cp.INFEASIBLE_INACCURATE):
             if result.get("timeout"):
-                return fail(PlanStatus.TIMEOUT,
-                            f"no incumbent within {self.params.time_limit_s} s", **info)
+                return PlanStatus.TIMEOUT, f"no incumbent within {self.params.time_limit_s} s"
             msg = "(P2) is infeasible: no safe trajectory over the horizon"
             if simplified:
                 msg += f" (hulls {simplified} were enlarged to {self.params.max_faces} faces)"
-            return fail(PlanStatus.INFEASIBLE, msg, **info)
+            return PlanStatus.INFEASIBLE, msg
         u_sol, x_sol = result.get("U"), result.get("X")
         has_solution = status in (cp.OPTIMAL, cp.OPTIMAL_INACCURATE, cp.USER_LIMIT)
         if not has_solution or u_sol is None or x_sol is None:
-            return fail(PlanStatus.ERROR, f"solver returned status {status}", **info)
+            return PlanStatus.ERROR, f"solver returned status {status}"
+        return None
 
-        controls = np.clip(np.asarray(u_sol, dtype=float),
+    def _solution_plan(self, t0: float, objective: Objective, x0: Array, u_prev: Array,
+                       kappa: tuple[float, float], hulls: Sequence[Polytope],
+                       result: Mapping[str, object], status: str,
+                       info: dict[str, object]) -> Plan:
+        """The plan of the solver's controls: Eq. (1) roll-out, Eq. (S2) cost, verified."""
+        controls = np.clip(np.asarray(result.get("U"), dtype=float),
                            -self.dynamics.u_max_n, self.dynamics.u_max_n)
         states = rollout(x0, controls, self.dynamics)
-        info["dyn_residual"] = float(np.max(np.abs(states[1:] - np.asarray(x_sol))))
+        info["dyn_residual"] = float(np.max(np.abs(states[1:] - np.asarray(result.get("X")))))
         info["optimal"] = status == cp.OPTIMAL
-        cost = p2_cost(states, controls, self.goal.center, (k1, k2), u_prev)
+        cost = p2_cost(states, controls, self.goal.center, kappa, u_prev)
         value = result.get("value")
         if isinstance(value, float) and math.isfinite(value):
-            info["solver_objective"] = value * s
+            info["solver_objective"] = value * self.objective_scale
         verdict = verify_trajectory(states, controls, hulls, self.dynamics,
                                     clearance_m=self.clearance_m)
         info["clearance_m"] = verdict.clearance_m

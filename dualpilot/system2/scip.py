@@ -63,16 +63,38 @@ def solve_seeded(x0: AnyArray, hulls: Sequence[Polytope], goal: AnyArray,
 
     ``epsilon_m`` is ε of Eq. (P2_3); ``area_size_m`` None plans without the area bounds.
     """
-    from pyscipopt import Model, quicksum
+    from pyscipopt import Model
 
     t0 = time.perf_counter()
     T = params.horizon
     eps = epsilon_m
-    area = area_size_m
-    phi, gamma = transition_matrices(dyn)
     m = Model("P2")
     m.hideOutput()
     m.setParam("limits/time", max(0.1, float(time_limit_s)))
+    u, x = _add_dynamics(m, x0, T, dyn, area_size_m)
+    if dyn.speed_limit == "norm":
+        _add_speed_polygon(m, x, params.speed_polygon_sides, dyn)
+    binaries = _add_avoidance(m, x, x0, hulls, T, dyn, eps, area_size_m)
+    t = _add_objective(m, x, u, goal, kappa, u_prev)
+    if incumbent is not None:
+        _add_incumbent(m, incumbent, x0, hulls, goal, kappa, u_prev, eps, dyn, u, x, binaries,
+                       t)
+    m.optimize()
+    status = str(m.getStatus())
+    controls, obj, dual = _read_solution(m, u)
+    return ScipResult(controls, status, obj, dual, status == "optimal",
+                      time.perf_counter() - t0, len(binaries))
+
+
+def _add_dynamics(m: Any, x0: AnyArray, T: int, dyn: DynamicsParams,
+                  area: float | None) -> tuple[list[list[Any]], list[list[Any]]]:
+    """Controls u (T, 2) in ±u_max (N), states x (T, 4) and Eq. (P2_1)-(P2_2), x_{k+1} = Φx_k + Γu.
+
+    Positions lie in [0, ``area``] m (unbounded for None), velocities in ±v_max (m/s).
+    """
+    from pyscipopt import quicksum
+
+    phi, gamma = transition_matrices(dyn)
     inf = m.infinity()
     u = [[m.addVar(lb=-dyn.u_max_n, ub=dyn.u_max_n, name=f"u{k}_{a}") for a in range(2)]
          for k in range(T)]
@@ -85,11 +107,27 @@ def solve_seeded(x0: AnyArray, hulls: Sequence[Polytope], goal: AnyArray,
         for r in range(4):
             m.addCons(x[k][r] == quicksum(phi[r, c] * prev[c] for c in range(4) if phi[r, c])
                       + quicksum(gamma[r, c] * u[k][c] for c in range(2) if gamma[r, c]))
-    if dyn.speed_limit == "norm":  # X: n_j·v_τ ≤ v_max cos(π/K), inside the disc
-        normals, cos_k = speed_polygon(params.speed_polygon_sides)
-        for k in range(T):
-            for nx, ny in normals.tolist():
-                m.addCons(nx * x[k][2] + ny * x[k][3] <= dyn.v_max_mps * cos_k)
+    return u, x
+
+
+def _add_speed_polygon(m: Any, x: list[list[Any]], sides: int, dyn: DynamicsParams) -> None:
+    """X under "norm": n_j·v_τ ≤ v_max cos(π/K) for the K = ``sides`` normals, inside the disc."""
+    normals, cos_k = speed_polygon(sides)
+    for xk in x:
+        for nx, ny in normals.tolist():
+            m.addCons(nx * xk[2] + ny * xk[3] <= dyn.v_max_mps * cos_k)
+
+
+def _add_avoidance(m: Any, x: list[list[Any]], x0: AnyArray, hulls: Sequence[Polytope],
+                   T: int, dyn: DynamicsParams, eps: float,
+                   area: float | None) -> list[tuple[int, int, int, Any]]:
+    """Eq. (P2_3)-(P2_4), big-M per face with the tightest M over p_τ's reach box.
+
+    Returns the binaries b as (k, hull, face, variable); (τ, i) pairs whose box
+    keeps some face clear by ε (m) everywhere get none.
+    """
+    from pyscipopt import quicksum
+
     lo, hi = reach_boxes(x0, T, dyn)
     if area is not None:
         lo, hi = np.maximum(lo, 0.0), np.minimum(hi, area)
@@ -109,30 +147,38 @@ def solve_seeded(x0: AnyArray, hulls: Sequence[Polytope], goal: AnyArray,
                 bs.append(b)
                 binaries.append((k, i, l_, b))
             m.addCons(quicksum(bs) <= h.n_faces - 1)
-    t = m.addVar(lb=0.0, ub=inf, name="J")
+    return binaries
+
+
+def _add_objective(m: Any, x: list[list[Any]], u: list[list[Any]], goal: AnyArray,
+                   kappa: tuple[float, float], u_prev: AnyArray) -> Any:
+    """Eq. (S2) as the convex constraint J(X, U) ≤ t; minimises t and returns it."""
+    from pyscipopt import quicksum
+
+    T = len(x)
+    t = m.addVar(lb=0.0, ub=m.infinity(), name="J")
     k1, k2 = kappa
     expr = quicksum(k1 * ((x[k][0] - goal[0]) ** 2 + (x[k][1] - goal[1]) ** 2) for k in range(T))
     expr += quicksum(k2 * ((u[0][a] - float(u_prev[a])) ** 2) for a in range(2))
     expr += quicksum(k2 * ((u[k][a] - u[k - 1][a]) ** 2) for k in range(1, T) for a in range(2))
     m.addCons(expr <= t)
     m.setObjective(t, "minimize")
-    if incumbent is not None:
-        _add_incumbent(m, incumbent, x0, hulls, goal, kappa, u_prev, eps, dyn, u, x, binaries,
-                       t)
-    m.optimize()
-    status = str(m.getStatus())
+    return t
+
+
+def _read_solution(m: Any, u: list[list[Any]]) -> tuple[AnyArray | None, float, float]:
+    """The best controls (T, 2) (None if none), their objective and SCIP's dual bound."""
     controls: AnyArray | None = None
     obj = math.inf
     if m.getNSols() > 0:
         sol = m.getBestSol()
-        controls = np.array([[m.getSolVal(sol, u[k][a]) for a in range(2)] for k in range(T)])
+        controls = np.array([[m.getSolVal(sol, uk[a]) for a in range(2)] for uk in u])
         obj = float(m.getSolObjVal(sol))
     try:
         dual = float(m.getDualbound())
     except Exception:  # noqa: BLE001 - no bound when nothing was solved
         dual = -math.inf
-    return ScipResult(controls, status, obj, dual, status == "optimal",
-                      time.perf_counter() - t0, len(binaries))
+    return controls, obj, dual
 
 
 def _add_incumbent(m: Any, controls: AnyArray, x0: AnyArray, hulls: Sequence[Polytope],
