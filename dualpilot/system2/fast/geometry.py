@@ -336,6 +336,44 @@ def homotopy_paths(
     """
     start = np.asarray(start, dtype=float)
     target = np.asarray(target, dtype=float)
+    nodes, prv, nxt, keep = _graph_nodes(start, target, polys, node_margin, area, stack)
+    iu, ju = _visible_pairs(nodes, keep, prv, nxt, polys)
+    if not len(iu):
+        return []
+    n = len(nodes)
+    lengths = np.linalg.norm(nodes[ju] - nodes[iu], axis=1)
+    # plain shortest path first: bounds the relevant hulls
+    g0 = sp.coo_matrix((lengths, (iu, ju)), shape=(n, n)).tocsr()
+    dist0 = dijkstra(g0, directed=False, indices=0)
+    if not np.isfinite(dist0[1]):
+        # the target is enclosed: aim for the reachable node nearest to it
+        swapped = _swap_target(nodes, target, dist0, iu, ju)
+        if swapped is None:
+            return []
+        iu, ju = swapped
+        target = nodes[1].copy()
+        g0 = sp.coo_matrix((lengths, (iu, ju)), shape=(n, n)).tocsr()
+        dist0 = dijkstra(g0, directed=False, indices=0)
+    l_star = float(dist0[1])
+    # hulls near enough to matter: inside the ellipse |x−start| + |x−target| ≤ (1+slack) L*
+    bound = (1.0 + length_slack) * l_star
+    sig = _signature_hulls(start, target, polys, bound, max_signature_hulls)
+    if not sig:
+        return [_reconstruct(g0, nodes, 0, 1)]
+    return _class_paths(nodes, iu, ju, lengths, [polys[k] for k in sig], start, target, bound,
+                        max_paths)
+
+
+def _graph_nodes(start: AnyArray, target: AnyArray, polys: Sequence[Inflated],
+                 node_margin: float, area: float | None, stack: HullStack | None
+                 ) -> tuple[AnyArray, AnyArray, AnyArray, AnyArray]:
+    """The visibility graph's nodes: start (0), target (1), then each Q's vertices pushed
+    out by ``node_margin`` (m), hull by hull.
+
+    Returns (nodes, prv, nxt, keep): each vertex's ring neighbours (−1 for the
+    start and the target) and False in ``keep`` for a vertex inside some Q or
+    outside [0, area]².
+    """
     nodes = np.vstack([start[None, :], target[None, :]]
                       + [_offset(poly, node_margin) for poly in polys])
     sizes = np.array([len(poly.b) for poly in polys], dtype=np.int64)
@@ -358,7 +396,13 @@ def homotopy_paths(
             keep[2 + kk[inside]] = False
     if area is not None:
         keep[2:] &= np.all((nodes[2:] >= 0.0) & (nodes[2:] <= area), axis=1)
-    n = len(nodes)
+    return nodes, prv, nxt, keep
+
+
+def _visible_pairs(nodes: AnyArray, keep: AnyArray, prv: AnyArray, nxt: AnyArray,
+                   polys: Sequence[Inflated]) -> tuple[AnyArray, AnyArray]:
+    """The graph's edges (iu[k] < ju[k]): pairs of kept nodes that are bitangent at polygon
+    vertices and whose segment meets no Q's interior."""
     # pairs of kept nodes, in the row-major order of np.triu_indices(n, 1)
     kept = np.flatnonzero(keep)
     ku, kv = np.triu_indices(len(kept), k=1)
@@ -374,32 +418,33 @@ def homotopy_paths(
         sel[np.flatnonzero(has)[cp * cn < -1e-9]] = False
     iu, ju = iu[sel], ju[sel]
     vis = ~_segments_blocked(nodes[iu], nodes[ju], polys)
-    iu, ju = iu[vis], ju[vis]
-    if not len(iu):
-        return []
-    lengths = np.linalg.norm(nodes[ju] - nodes[iu], axis=1)
-    # plain shortest path first: bounds the relevant hulls
-    g0 = sp.coo_matrix((lengths, (iu, ju)), shape=(n, n)).tocsr()
-    dist0 = dijkstra(g0, directed=False, indices=0)
-    if not np.isfinite(dist0[1]):
-        # the target is enclosed: aim for the reachable node nearest to it
-        reach = np.flatnonzero(np.isfinite(dist0))
-        reach = reach[reach != 0]
-        if not len(reach):
-            return []
-        j = int(reach[np.argmin(np.linalg.norm(nodes[reach] - target, axis=1))])
-        nodes[[1, j]] = nodes[[j, 1]]
-        target = nodes[1].copy()
-        perm = np.arange(n)
-        perm[1], perm[j] = j, 1
-        iu, ju = perm[iu], perm[ju]
-        g0 = sp.coo_matrix((lengths, (iu, ju)), shape=(n, n)).tocsr()
-        dist0 = dijkstra(g0, directed=False, indices=0)
-    l_star = float(dist0[1])
-    # hulls near enough to matter: inside the ellipse |x−start| + |x−target| ≤ (1+slack) L*
-    bound = (1.0 + length_slack) * l_star
+    return iu[vis], ju[vis]
+
+
+def _swap_target(nodes: AnyArray, target: AnyArray, dist0: AnyArray, iu: AnyArray,
+                 ju: AnyArray) -> tuple[AnyArray, AnyArray] | None:
+    """Make the node reachable from the start (distances ``dist0``) nearest to ``target``
+    node 1: swaps the two rows of ``nodes`` in place and returns the edges renumbered;
+    None if no node is reachable."""
+    reach = np.flatnonzero(np.isfinite(dist0))
+    reach = reach[reach != 0]
+    if not len(reach):
+        return None
+    j = int(reach[np.argmin(np.linalg.norm(nodes[reach] - target, axis=1))])
+    nodes[[1, j]] = nodes[[j, 1]]
+    perm = np.arange(len(nodes))
+    perm[1], perm[j] = j, 1
+    return perm[iu], perm[ju]
+
+
+def _signature_hulls(start: AnyArray, target: AnyArray, polys: Sequence[Inflated],
+                     bound: float, max_signature_hulls: int) -> list[int]:
+    """Indices of the hulls whose rays tell the homotopy classes apart: those with a vertex
+    in the ellipse |x−start| + |x−target| ≤ ``bound`` (m), nearest to the start–target
+    segment first, at most ``max_signature_hulls``."""
     scores = []
     if len(polys):
+        sizes = np.array([len(poly.b) for poly in polys], dtype=np.int64)
         w_all = np.vstack([poly.W for poly in polys])
         w_first = np.concatenate([[0], np.cumsum(sizes)[:-1]])
         d_s = np.minimum.reduceat(np.linalg.norm(w_all - start, axis=1), w_first)
@@ -408,14 +453,20 @@ def homotopy_paths(
             c = polys[k].W.mean(axis=0)
             scores.append((float(point_segment_d2(c[0], c[1], *start, *(target - start))), k))
     scores.sort()
-    sig = [k for _, k in scores[:max_signature_hulls]]
-    r = len(sig)
-    if r == 0:
-        return [_reconstruct(g0, nodes, 0, 1)]
+    return [k for _, k in scores[:max_signature_hulls]]
+
+
+def _class_paths(nodes: AnyArray, iu: AnyArray, ju: AnyArray, lengths: AnyArray,
+                 sig_polys: Sequence[Inflated], start: AnyArray, target: AnyArray,
+                 bound: float, max_paths: int) -> list[AnyArray]:
+    """The shortest path of each class, shortest first (at most ``max_paths``, none longer
+    than ``bound`` m), by one Dijkstra over the graph lifted by the crossing parities of
+    the rays from ``sig_polys`` (normal to the start–target line)."""
+    n, r = len(nodes), len(sig_polys)
     axis = target - start
     nrm = float(np.linalg.norm(axis))
     direction = np.array([-axis[1], axis[0]]) / nrm if nrm > 1e-9 else np.array([0.0, 1.0])
-    origins = np.array([polys[k].hull.vertices.mean(axis=0) for k in sig])
+    origins = np.array([poly.hull.vertices.mean(axis=0) for poly in sig_polys])
     cross = _ray_crossings(nodes[iu], nodes[ju], origins, direction)
     masks = cross @ (1 << np.arange(r))
     layers = 1 << r

@@ -167,6 +167,103 @@ def _direction(rcs: AnyArray, w: AnyArray, r_p: AnyArray, r_d: AnyArray, t_ptr: 
 
 
 @njit(cache=True)
+def _lapack_band(h_band: AnyArray, b_idx: AnyArray) -> tuple[AnyArray, AnyArray]:
+    """H's band and the band map's indices in LAPACK's column-major band storage:
+    entry (d, j) of the (bw+1, n) lower band form at j·(bw+1) + d."""
+    bw1, n = h_band.shape
+    hf = np.empty(bw1 * n)
+    for d in range(bw1):
+        for j in range(n):
+            hf[j * bw1 + d] = h_band[d, j]
+    bf_idx = np.empty_like(b_idx)
+    for k in range(len(b_idx)):
+        d, j = divmod(b_idx[k], n)
+        bf_idx[k] = j * bw1 + d
+    return hf, bf_idx
+
+
+@njit(cache=True)
+def _residuals(h_dense: AnyArray, q: AnyArray, h: AnyArray, z: AnyArray, s: AnyArray,
+               lam: AnyArray, t_ptr: AnyArray, t_row: AnyArray, t_dat: AnyArray,
+               g_ptr: AnyArray, g_idx: AnyArray, g_dat: AnyArray, gtl: AnyArray, gz: AnyArray,
+               r_d: AnyArray, r_p: AnyArray, m1: int) -> tuple[float, float, float]:
+    """Dual residual r_d = Hz + q + Gᵀλ and primal r_p = Gz + s − h (in place);
+    returns (μ = sᵀλ / max(m, 1), max |r_p| (0 without rows), max |r_d|)."""
+    hz = h_dense @ z
+    _tmul(t_ptr, t_row, t_dat, lam, gtl)
+    for i in range(len(r_d)):
+        r_d[i] = hz[i] + q[i] + gtl[i]
+    _gmul(g_ptr, g_idx, g_dat, z, gz)
+    for i in range(len(r_p)):
+        r_p[i] = gz[i] + s[i] - h[i]
+    mu = np.dot(s, lam) / m1
+    res_p = _abs_max(r_p, -np.inf) if len(r_p) else 0.0
+    res_d = _abs_max(r_d, -np.inf)
+    return mu, res_p, res_d
+
+
+@njit(cache=True)
+def _stop(it: int, mu: float, res_p: float, res_d: float, tol: float, b_norm: float,
+          q_norm: float, history: AnyArray, detect_infeasible: bool) -> int:
+    """The status that ends iteration ``it`` (SOLVED, DIVERGED or STALLED), else −1.
+
+    Records ``res_p`` in ``history``; STALLED: after 12 iterations with
+    ``detect_infeasible``, a primal residual that has not halved in 5.
+    """
+    if res_p <= tol * b_norm and res_d <= tol * q_norm and mu <= tol:
+        return SOLVED
+    if not (np.isfinite(mu) and np.isfinite(res_d)) or mu > 1e14:
+        return DIVERGED
+    history[it] = res_p
+    if (detect_infeasible and it >= 12 and res_p > 1e-4 * b_norm
+            and res_p > 0.5 * history[it - 5]):
+        return STALLED
+    return -1
+
+
+@njit(cache=True)
+def _factor(s: AnyArray, lam: AnyArray, w: AnyArray, b_ptr: AnyArray, bf_idx: AnyArray,
+            b_dat: AnyArray, hf: AnyArray, band: AnyArray, uplo: AnyArray,
+            ints: AnyArray) -> int:
+    """W = diag(λ/s) into ``w`` and the Cholesky factor of H + GᵀWG into ``band``
+    (LAPACK's ``dpbtrf``); returns LAPACK's info (0: factorised)."""
+    for i in range(len(w)):
+        w[i] = lam[i] / s[i]
+    _ctmul(b_ptr, bf_idx, b_dat, w, band)
+    for k in range(len(band)):
+        band[k] = hf[k] + band[k]
+    _dpbtrf(uplo.ctypes, ints[0:].ctypes, ints[1:].ctypes, band.ctypes, ints[3:].ctypes,
+            ints[5:].ctypes)
+    return int(ints[5])
+
+
+@njit(cache=True)
+def _centering(s: AnyArray, lam: AnyArray, ds_a: AnyArray, dl_a: AnyArray, s_a: AnyArray,
+               l_a: AnyArray, mu: float, m1: int) -> float:
+    """Mehrotra's σ = (μ_aff / μ)³, μ_aff the gap after the largest affine step
+    (``s_a``, ``l_a`` receive s + αΔs_a, λ + αΔλ_a); 0 when μ ≤ 0."""
+    a_aff = _step(s, lam, ds_a, dl_a)
+    for i in range(len(s)):
+        s_a[i] = s[i] + a_aff * ds_a[i]
+        l_a[i] = lam[i] + a_aff * dl_a[i]
+    mu_aff = np.dot(s_a, l_a) / m1
+    return (mu_aff / mu) ** 3.0 if mu > 0 else 0.0
+
+
+@njit(cache=True)
+def _advance(z: AnyArray, s: AnyArray, lam: AnyArray, dz: AnyArray, ds: AnyArray,
+             dl: AnyArray) -> None:
+    """(z, s, λ) += α (Δz, Δs, Δλ) in place, α = min(1, 0.99 × the largest feasible step)."""
+    step = 0.99 * _step(s, lam, ds, dl)
+    a = step if step < 1.0 else 1.0
+    for i in range(len(dz)):
+        z[i] = z[i] + a * dz[i]
+    for i in range(len(s)):
+        s[i] = s[i] + a * ds[i]
+        lam[i] = lam[i] + a * dl[i]
+
+
+@njit(cache=True)
 def mehrotra(h_dense: AnyArray, h_band: AnyArray, q: AnyArray, h: AnyArray, g_ptr: AnyArray,
              g_idx: AnyArray, g_dat: AnyArray, b_ptr: AnyArray, b_idx: AnyArray,
              b_dat: AnyArray, z0: AnyArray, slack0: float, max_iter: int, tol: float,
@@ -180,19 +277,9 @@ def mehrotra(h_dense: AnyArray, h_band: AnyArray, q: AnyArray, h: AnyArray, g_pt
     bw1, n = h_band.shape
     m = len(h)
     m1 = max(m, 1)
-    # LAPACK's band storage is column-major: entry (d, j) at j·(bw+1) + d
-    hf = np.empty(bw1 * n)
-    for d in range(bw1):
-        for j in range(n):
-            hf[j * bw1 + d] = h_band[d, j]
-    bf_idx = np.empty_like(b_idx)
-    for k in range(len(b_idx)):
-        d, j = divmod(b_idx[k], n)
-        bf_idx[k] = j * bw1 + d
+    hf, bf_idx = _lapack_band(h_band, b_idx)
     uplo = np.array([76], dtype=np.uint8)  # 'L'
     ints = np.array([n, bw1 - 1, 1, bw1, n, 0], dtype=np.int32)  # n kd nrhs ldab ldb info
-    n_p, kd_p, ldab_p, info_p = ints[0:].ctypes, ints[1:].ctypes, ints[3:].ctypes, ints[5:].ctypes
-
     t_ptr, t_row, t_dat = _transpose(g_ptr, g_idx, g_dat, n)  # Gᵀ, gathered
     z = z0.copy()
     gz = np.empty(m)
@@ -211,55 +298,23 @@ def mehrotra(h_dense: AnyArray, h_band: AnyArray, q: AnyArray, h: AnyArray, g_pt
     status = MAX_ITER
     it = 0
     for it in range(1, max_iter + 1):
-        hz = h_dense @ z
-        _tmul(t_ptr, t_row, t_dat, lam, gtl)
-        for i in range(n):
-            r_d[i] = hz[i] + q[i] + gtl[i]
-        _gmul(g_ptr, g_idx, g_dat, z, gz)
-        for i in range(m):
-            r_p[i] = gz[i] + s[i] - h[i]
-        mu = np.dot(s, lam) / m1
-        res_p = _abs_max(r_p, -np.inf) if m else 0.0
-        res_d = _abs_max(r_d, -np.inf)
-        if res_p <= tol * b_norm and res_d <= tol * q_norm and mu <= tol:
-            status = SOLVED
+        mu, res_p, res_d = _residuals(h_dense, q, h, z, s, lam, t_ptr, t_row, t_dat, g_ptr,
+                                      g_idx, g_dat, gtl, gz, r_d, r_p, m1)
+        stop = _stop(it, mu, res_p, res_d, tol, b_norm, q_norm, history, detect_infeasible)
+        if stop >= 0:
+            status = stop
             break
-        if not (np.isfinite(mu) and np.isfinite(res_d)) or mu > 1e14:
-            status = DIVERGED
-            break
-        history[it] = res_p
-        if (detect_infeasible and it >= 12 and res_p > 1e-4 * b_norm
-                and res_p > 0.5 * history[it - 5]):
-            status = STALLED
-            break
-        for i in range(m):
-            w[i] = lam[i] / s[i]
-        _ctmul(b_ptr, bf_idx, b_dat, w, band)
-        for k in range(bw1 * n):
-            band[k] = hf[k] + band[k]
-        _dpbtrf(uplo.ctypes, n_p, kd_p, band.ctypes, ldab_p, info_p)
-        if ints[5] != 0:
+        if _factor(s, lam, w, b_ptr, bf_idx, b_dat, hf, band, uplo, ints) != 0:
             status = FACTORIZATION
             break
         for i in range(m):
             rcs[i] = (s[i] * lam[i]) / s[i]
         _direction(rcs, w, r_p, r_d, t_ptr, t_row, t_dat, g_ptr, g_idx, g_dat, uplo, ints,
                    band, tmp_m, gtl, rhs, gd, ds_a, dl_a)  # the predictor
-        a_aff = _step(s, lam, ds_a, dl_a)
-        for i in range(m):
-            s_a[i] = s[i] + a_aff * ds_a[i]
-            l_a[i] = lam[i] + a_aff * dl_a[i]
-        mu_aff = np.dot(s_a, l_a) / m1
-        sigma = (mu_aff / mu) ** 3.0 if mu > 0 else 0.0
+        sigma = _centering(s, lam, ds_a, dl_a, s_a, l_a, mu, m1)
         for i in range(m):
             rcs[i] = (s[i] * lam[i] + ds_a[i] * dl_a[i] - sigma * mu) / s[i]
         _direction(rcs, w, r_p, r_d, t_ptr, t_row, t_dat, g_ptr, g_idx, g_dat, uplo, ints,
                    band, tmp_m, gtl, rhs, gd, ds, dl)  # the corrector
-        step = 0.99 * _step(s, lam, ds, dl)
-        a = step if step < 1.0 else 1.0
-        for i in range(n):
-            z[i] = z[i] + a * rhs[i]
-        for i in range(m):
-            s[i] = s[i] + a * ds[i]
-            lam[i] = lam[i] + a * dl[i]
+        _advance(z, s, lam, rhs, ds, dl)
     return status, z, it, int(ints[5])

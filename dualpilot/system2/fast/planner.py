@@ -107,6 +107,21 @@ class _Candidate:
     iterations: int
 
 
+class _CountedSolve:
+    """``P2Qp.solve`` of one plan (state, u_{t|t}, goal, κ), counting the QPs in ``n``."""
+
+    def __init__(self, owner: FastSystem2, x0: Array, u_prev: Array, goal: Array,
+                 kappa: tuple[float, float]) -> None:
+        self.owner, self.x0, self.u_prev, self.goal, self.kappa = owner, x0, u_prev, goal, kappa
+        self.n = 0
+
+    def __call__(self, tau: Array, nrm: Array, rhs: Array, z0: Array | None = None,
+                 elastic: float | None = None, confirm: bool = False) -> QpResult:
+        self.n += 1
+        return self.owner.qp.solve(self.x0, self.u_prev, self.goal, self.kappa, tau, nrm, rhs,
+                                   None, elastic, z0=z0, confirm=confirm)
+
+
 class _Cfs:
     """Convex-feasible-set iterations for one homotopy, advanced one QP at a time.
 
@@ -368,13 +383,42 @@ class FastSystem2:
     # --------------------------------------------------------------- method
     def _plan(self, x0: Array, hulls: tuple[Polytope, ...], objective: Objective,
               u_prev: Array, t0: float) -> Plan:
-        p, f = self.params, self.fast
-        kappa = p.kappa(objective)
-        goal = self.goal.center
-        T = p.horizon
-        eps = self.epsilon_m
-        reach = reach_radius(x0[2:], p.horizon, self.dynamics)
-        polys = Inflated.make_many(hulls, eps)
+        kappa = self.params.kappa(objective)
+        polys, stacks, static, static_stacks, info = self._plan_geometry(x0, hulls)
+        solve = _CountedSolve(self, x0, u_prev, self.goal.center, kappa)
+        # 1. the relaxation: no hulls
+        free = solve(np.zeros(0, int), np.zeros((0, 2)), np.zeros(0), confirm=True)
+        if not free.ok:
+            return _failed(PlanStatus.ERROR, f"relaxed QP failed: {free.status}", t0, objective,
+                           info)
+        info["lower_bound"] = free.objective
+        candidates: list[_Candidate] = []
+        if self._violations(free.positions, stacks[0]).size == 0 and self._in_area(free.positions):
+            candidates.append(_Candidate("relaxation", free.positions, free.controls,
+                                         free.objective, 0))
+        else:
+            candidates.extend(self._homotopy_candidates(x0, free, static, static_stacks, polys,
+                                                        stacks, kappa, solve, t0, info))
+        info["n_qp"] = solve.n
+        candidates.sort(key=lambda c: c.cost)
+        reasons: list[str] = []
+        for cand in candidates:
+            plan = self._finish(cand, x0, hulls, objective, kappa, u_prev, t0, info, reasons)
+            if plan is not None:
+                return plan
+        msg = "no verified candidate" + (f": {'; '.join(reasons[:3])}" if reasons else "")
+        return _failed(PlanStatus.UNSAFE, msg, t0, objective, info)
+
+    def _plan_geometry(self, x0: Array, hulls: tuple[Polytope, ...]
+                       ) -> tuple[list[Inflated], tuple[FaceStack, HullStack], list[Inflated],
+                                  tuple[FaceStack, HullStack], dict[str, object]]:
+        """The ε-inflated hulls within reach of this plan, with the risk zones (``_mask``).
+
+        Returns (keep-outs, their stacks, the hulls alone, their stacks, the plan's
+        info): the homotopies and the target avoid the hulls alone.
+        """
+        reach = reach_radius(x0[2:], self.params.horizon, self.dynamics)
+        polys = Inflated.make_many(hulls, self.epsilon_m)
         polys = [q for q, m in zip(polys, FaceStack.of(polys).margins(x0[:2])[0], strict=True)
                  if m <= reach]
         # per-plan geometry, shared by every homotopy run: stacked faces, padded hulls
@@ -385,71 +429,59 @@ class FastSystem2:
         if self._zones:
             polys, stacks = self._with_zones(x0, polys, reach)
             info["n_zones"] = len(self._zone_rows)
-        n_qp = 0
+        return polys, stacks, static, static_stacks, info
 
-        def solve(tau: Array, nrm: Array, rhs: Array, z0: Array | None = None,
-                  elastic: float | None = None, confirm: bool = False) -> QpResult:
-            nonlocal n_qp
-            n_qp += 1
-            return self.qp.solve(x0, u_prev, goal, kappa, tau, nrm, rhs, None, elastic,
-                                 z0=z0, confirm=confirm)
+    def _homotopy_candidates(self, x0: Array, free: QpResult, static: list[Inflated],
+                             static_stacks: tuple[FaceStack, HullStack], polys: list[Inflated],
+                             stacks: tuple[FaceStack, HullStack], kappa: tuple[float, float],
+                             solve: _CountedSolve, t0: float, info: dict[str, object]
+                             ) -> list[_Candidate]:
+        """The best feasible iterate of each homotopy's CFS run (:meth:`_race`), or of
+        braking to a hover when no run found one; ``free`` is the relaxation."""
+        refs = self._references(x0, free.positions, static, kappa, static_stacks)
+        info["homotopies"] = [name for name, _, _ in refs]
+        runs = [_Cfs(self, name, ref, polys, free.positions, solve, kappa, stacks, retime)
+                for name, ref, retime in refs]
+        self._race(runs, free.objective, solve, t0, info)
+        if not any(r.best is not None for r in runs):
+            # fallback seed: braking to a hover is feasible whenever its path is clear
+            brake = _Cfs(self, "brake", _braking(x0, self.params.horizon, self.dynamics), polys,
+                         free.positions, solve, kappa, stacks, max_elastic=2)
+            while not brake.done:
+                brake.step()
+            runs.append(brake)
+        return [r.best for r in runs if r.best is not None]
 
-        # 1. the relaxation: no hulls
-        free = solve(np.zeros(0, int), np.zeros((0, 2)), np.zeros(0), confirm=True)
-        if not free.ok:
-            return _failed(PlanStatus.ERROR, f"relaxed QP failed: {free.status}", t0, objective,
-                           info)
-        lower_bound = free.objective
-        info["lower_bound"] = lower_bound
-        candidates: list[_Candidate] = []
-        if self._violations(free.positions, stacks[0]).size == 0 and self._in_area(free.positions):
-            candidates.append(_Candidate("relaxation", free.positions, free.controls,
-                                         free.objective, 0))
-        else:
-            refs = self._references(x0, free.positions, static, kappa, static_stacks)
-            info["homotopies"] = [name for name, _, _ in refs]
-            runs = [_Cfs(self, name, ref, polys, free.positions, solve, kappa, stacks, retime)
-                    for name, ref, retime in refs]
-            # screening: one QP each; then always the run with the lowest cost (its
-            # feasible cost, or its last QP's while it is not feasible yet) while it
-            # can still win
-            for run in runs:
-                run.step()
+    def _race(self, runs: list[_Cfs], lower_bound: float, solve: _CountedSolve, t0: float,
+              info: dict[str, object]) -> None:
+        """Advance the runs, one QP at a time, until none can still win.
 
-            def key(r: _Cfs) -> float:
-                return r.cost if r.best is not None else r.last_cost
+        Screening: one QP each; then always the run with the lowest cost (its
+        feasible cost, or its last QP's while it is not feasible yet) while it
+        can still win, the relaxation's cost ``lower_bound`` is not reached and
+        the QP and time budgets allow.
+        """
+        f = self.fast
+        for run in runs:
+            run.step()
 
-            while True:
-                best_cost = min(r.cost for r in runs)  # inf while nothing is feasible
-                cands = [r for r in runs if not r.done and (
-                    r.best is not None or r.iterations < f.max_prefeasible)]
-                if not cands or best_cost <= lower_bound * (1.0 + 1e-6) + 1e-9:
-                    break  # done, or as good as the relaxation (optimal)
-                if math.isfinite(best_cost) and (n_qp >= f.max_qp
-                                                 or time.perf_counter() - t0 > f.time_budget_s):
-                    info["budget_hit"] = True
-                    break  # anytime: keep the best verified plan found so far
-                run = min(cands, key=key)
-                if math.isfinite(best_cost) and key(run) > (1.0 + f.screen_slack) * best_cost:
-                    break  # no homotopy left that can still win
-                run.step()
-            if not any(r.best is not None for r in runs):
-                # fallback seed: braking to a hover is feasible whenever its path is clear
-                brake = _Cfs(self, "brake", _braking(x0, T, self.dynamics), polys,
-                             free.positions, solve, kappa, stacks, max_elastic=2)
-                while not brake.done:
-                    brake.step()
-                runs.append(brake)
-            candidates.extend(r.best for r in runs if r.best is not None)
-        info["n_qp"] = n_qp
-        candidates.sort(key=lambda c: c.cost)
-        reasons: list[str] = []
-        for cand in candidates:
-            plan = self._finish(cand, x0, hulls, objective, kappa, u_prev, t0, info, reasons)
-            if plan is not None:
-                return plan
-        msg = "no verified candidate" + (f": {'; '.join(reasons[:3])}" if reasons else "")
-        return _failed(PlanStatus.UNSAFE, msg, t0, objective, info)
+        def key(r: _Cfs) -> float:
+            return r.cost if r.best is not None else r.last_cost
+
+        while True:
+            best_cost = min(r.cost for r in runs)  # inf while nothing is feasible
+            cands = [r for r in runs if not r.done and (
+                r.best is not None or r.iterations < f.max_prefeasible)]
+            if not cands or best_cost <= lower_bound * (1.0 + 1e-6) + 1e-9:
+                break  # done, or as good as the relaxation (optimal)
+            if math.isfinite(best_cost) and (solve.n >= f.max_qp
+                                             or time.perf_counter() - t0 > f.time_budget_s):
+                info["budget_hit"] = True
+                break  # anytime: keep the best verified plan found so far
+            run = min(cands, key=key)
+            if math.isfinite(best_cost) and key(run) > (1.0 + f.screen_slack) * best_cost:
+                break  # no homotopy left that can still win
+            run.step()
 
     def _finish(self, cand: _Candidate, x0: Array, hulls: tuple[Polytope, ...],
                 objective: Objective, kappa: tuple[float, float], u_prev: Array, t0: float,

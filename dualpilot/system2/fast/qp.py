@@ -383,28 +383,69 @@ class P2Qp:
         ``confirm`` is for QPs known to be feasible (no early infeasibility guess).
         """
         sh = self.shape
-        T, s = sh.T, sh.scale
-        m = len(tau)
-        n_sl = m if elastic is not None else 0
-        n = sh.n + n_sl
+        n_sl = len(tau) if elastic is not None else 0
         vc, uc, _, _ = self.offsets(x0, u_prev)
         q = self._linear_term(x0, u_prev, goal, kappa)
         if self.backend == "ipm" and not n_sl:
-            t_start = time.perf_counter()
-            zs = None if z0 is None else np.asarray(z0, dtype=float).ravel() / s
-            ok, status, z, iters = self._solve_ipm(x0, u_prev, q, kappa, tau, normals, rhs, zs,
-                                                   detect_infeasible=not confirm)
-            if not ok and not confirm:
-                empty = np.empty((0, 2))
-                return QpResult(False, status, empty, empty, float("inf"), iters,
-                                time.perf_counter() - t_start)
-            if ok:
-                pos = self.positions(z, x0)
-                ctrl = np.asarray(_mv(sh.U, z) + uc).reshape(-1, 2)
-                cost = self.cost(pos, ctrl, goal, kappa, u_prev)
-                return QpResult(True, status, pos, ctrl, cost, iters,
-                                time.perf_counter() - t_start)
+            banded = self._solve_banded(x0, u_prev, goal, kappa, q, uc, tau, normals, rhs, z0,
+                                        confirm)
+            if banded is not None:
+                return banded
             area_rows = None  # Clarabel decides, with every area row
+        h, q, A, b = self._clarabel_problem(kappa, q, vc, uc, tau, normals, rhs, area_rows,
+                                            elastic)
+        solver = clarabel.DefaultSolver(h, q, A, b, [clarabel.NonnegativeConeT(A.shape[0])],
+                                        self._settings)
+        sol = solver.solve()
+        status = str(sol.status)
+        ok = status in ("Solved", "AlmostSolved")
+        z = np.asarray(sol.x, dtype=float)[: sh.n]
+        if not ok or not np.all(np.isfinite(z)):
+            empty = np.empty((0, 2))
+            return QpResult(False, status, empty, empty, float("inf"), int(sol.iterations),
+                            float(sol.solve_time))
+        pos, ctrl, cost = self._outputs(z, x0, u_prev, uc, goal, kappa)
+        if n_sl:
+            slack = float(np.max(np.asarray(sol.x)[sh.n:], initial=0.0))
+            status += f" (elastic, slack {slack:.3g} m)"
+        return QpResult(True, status, pos, ctrl, cost, int(sol.iterations), float(sol.solve_time))
+
+    def _solve_banded(self, x0: AnyArray, u_prev: AnyArray, goal: AnyArray,
+                      kappa: tuple[float, float], q: AnyArray, uc: AnyArray, tau: AnyArray,
+                      normals: AnyArray, rhs: AnyArray, z0: AnyArray | None,
+                      confirm: bool) -> QpResult | None:
+        """:meth:`solve` by the banded interior-point solver (hard half-planes); None
+        when it failed under ``confirm`` (then Clarabel decides)."""
+        t_start = time.perf_counter()
+        zs = None if z0 is None else np.asarray(z0, dtype=float).ravel() / self.shape.scale
+        ok, status, z, iters = self._solve_ipm(x0, u_prev, q, kappa, tau, normals, rhs, zs,
+                                               detect_infeasible=not confirm)
+        if not ok and not confirm:
+            empty = np.empty((0, 2))
+            return QpResult(False, status, empty, empty, float("inf"), iters,
+                            time.perf_counter() - t_start)
+        if ok:
+            pos, ctrl, cost = self._outputs(z, x0, u_prev, uc, goal, kappa)
+            return QpResult(True, status, pos, ctrl, cost, iters, time.perf_counter() - t_start)
+        return None
+
+    def _outputs(self, z: AnyArray, x0: AnyArray, u_prev: AnyArray, uc: AnyArray,
+                 goal: AnyArray, kappa: tuple[float, float]) -> tuple[AnyArray, AnyArray, float]:
+        """Positions p_1..p_{T+1} (m), controls u_1..u_T (N) and Eq. (S2) of a solution z."""
+        pos = self.positions(z, x0)
+        ctrl = np.asarray(_mv(self.shape.U, z) + uc).reshape(-1, 2)
+        return pos, ctrl, self.cost(pos, ctrl, goal, kappa, u_prev)
+
+    def _clarabel_problem(self, kappa: tuple[float, float], q: AnyArray, vc: AnyArray,
+                          uc: AnyArray, tau: AnyArray, normals: AnyArray, rhs: AnyArray,
+                          area_rows: AnyArray | None, elastic: float | None
+                          ) -> tuple[sp.csc_matrix, AnyArray, sp.csc_matrix, AnyArray]:
+        """Clarabel's (P, q, A, b), A z ≤ b: U, X, the half-planes and the area rows; with
+        ``elastic`` one slack column per half-plane, costing ``elastic`` a metre."""
+        sh = self.shape
+        m = len(tau)
+        n_sl = m if elastic is not None else 0
+        n = sh.n + n_sl
         h = self.hessian(kappa)
         box = sh.box
         if n_sl:
@@ -416,51 +457,43 @@ class P2Qp:
         bs += ([sh.vpoly - sh.N @ vc] if sh.norm
                else [sh.vmax - vc, sh.vmax + vc])
         if m:
-            tau = np.asarray(tau, dtype=int)
-            if np.any(tau < 2) or np.any(tau > T):
-                raise ValueError("half-planes apply to p_2..p_T")
-            cols = np.column_stack([2 * (tau - 2), 2 * (tau - 2) + 1]).ravel()
-            rows = np.repeat(np.arange(m), 2)
-            vals = (-s * np.asarray(normals, dtype=float)).ravel()
-            if n_sl:
-                cols = np.concatenate([cols, sh.n + np.arange(m)])
-                rows = np.concatenate([rows, np.arange(m)])
-                vals = np.concatenate([vals, -np.ones(m)])
-                blocks.append(sp.csr_matrix((vals, (rows, cols)), shape=(m, n)))
-                blocks.append(sp.csr_matrix((-np.ones(m), (np.arange(m), sh.n + np.arange(m))),
-                                            shape=(m, n)))
-                bs.extend([-np.asarray(rhs, dtype=float), np.zeros(m)])
-            else:
-                blocks.append(sp.csr_matrix((vals, (rows, cols)), shape=(m, n)))
-                bs.append(-np.asarray(rhs, dtype=float))
+            hp_blocks, hp_bs = self._half_plane_rows(tau, normals, rhs, n_sl)
+            blocks.extend(hp_blocks)
+            bs.extend(hp_bs)
         if sh.area is not None:
             ar = self._area_rows(area_rows)
             if len(ar):
                 col = 2 * (ar[:, 0] - 2) + ar[:, 1]
                 sign = np.where(ar[:, 2] == 0, -1.0, 1.0)
-                blocks.append(sp.csr_matrix((sign * s, (np.arange(len(ar)), col)),
+                blocks.append(sp.csr_matrix((sign * sh.scale, (np.arange(len(ar)), col)),
                                             shape=(len(ar), n)))
                 bs.append(np.where(ar[:, 2] == 0, -sh.area_margin,
                                    sh.area - sh.area_margin))
         A = sp.vstack(blocks, format="csc")
         b = np.concatenate(bs)
-        solver = clarabel.DefaultSolver(h, q, A, b, [clarabel.NonnegativeConeT(A.shape[0])],
-                                        self._settings)
-        sol = solver.solve()
-        status = str(sol.status)
-        ok = status in ("Solved", "AlmostSolved")
-        z = np.asarray(sol.x, dtype=float)[: sh.n]
-        if not ok or not np.all(np.isfinite(z)):
-            empty = np.empty((0, 2))
-            return QpResult(False, status, empty, empty, float("inf"), int(sol.iterations),
-                            float(sol.solve_time))
-        pos = self.positions(z, x0)
-        ctrl = np.asarray(_mv(sh.U, z) + uc).reshape(-1, 2)
-        cost = self.cost(pos, ctrl, goal, kappa, u_prev)
+        return h, q, A, b
+
+    def _half_plane_rows(self, tau: AnyArray, normals: AnyArray, rhs: AnyArray, n_sl: int
+                         ) -> tuple[list[sp.spmatrix], list[AnyArray]]:
+        """Rows −s·n_k·z ≤ −rhs_k of the half-planes (with ``n_sl`` slacks: −σ_k added, and
+        −σ_k ≤ 0), and their right-hand sides."""
+        sh = self.shape
+        m, n, s = len(tau), sh.n + n_sl, sh.scale
+        tau = np.asarray(tau, dtype=int)
+        if np.any(tau < 2) or np.any(tau > sh.T):
+            raise ValueError("half-planes apply to p_2..p_T")
+        cols = np.column_stack([2 * (tau - 2), 2 * (tau - 2) + 1]).ravel()
+        rows = np.repeat(np.arange(m), 2)
+        vals = (-s * np.asarray(normals, dtype=float)).ravel()
         if n_sl:
-            slack = float(np.max(np.asarray(sol.x)[sh.n:], initial=0.0))
-            status += f" (elastic, slack {slack:.3g} m)"
-        return QpResult(True, status, pos, ctrl, cost, int(sol.iterations), float(sol.solve_time))
+            cols = np.concatenate([cols, sh.n + np.arange(m)])
+            rows = np.concatenate([rows, np.arange(m)])
+            vals = np.concatenate([vals, -np.ones(m)])
+            slack = sp.csr_matrix((-np.ones(m), (np.arange(m), sh.n + np.arange(m))),
+                                  shape=(m, n))
+            return ([sp.csr_matrix((vals, (rows, cols)), shape=(m, n)), slack],
+                    [-np.asarray(rhs, dtype=float), np.zeros(m)])
+        return [sp.csr_matrix((vals, (rows, cols)), shape=(m, n))], [-np.asarray(rhs, dtype=float)]
 
     def _area_rows(self, area_rows: AnyArray | None) -> AnyArray:
         if area_rows is None:
