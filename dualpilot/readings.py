@@ -101,6 +101,15 @@ def _field_type(name: str) -> Any:
     return get_type_hints(cls)[name]
 
 
+def value_text(value: Any) -> str:
+    """A reading's value as the text :func:`parse_value` reads back (floats exactly, by repr)."""
+    if value is None:
+        return "none"
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    return repr(value) if isinstance(value, float) else str(value)
+
+
 def parse_value(name: str, text: str) -> Any:
     """The value of field ``name`` written as ``text`` ("none" for None, "true"/"false")."""
     tp = _field_type(name)

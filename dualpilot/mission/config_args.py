@@ -25,7 +25,7 @@ from dualpilot.mission.params import Timing
 from dualpilot.mission.supervisors import SupervisorKind
 from dualpilot.model.geometry import Rect
 from dualpilot.model.risk import RiskParams
-from dualpilot.readings import PROFILES, parse_settings, settable
+from dualpilot.readings import PROFILES, parse_settings, settable, value_text
 from dualpilot.supervisor.concurrent import ConcurrentParams
 
 __all__ = ["add_config_arguments", "config_from_args", "config_to_argv"]
@@ -197,13 +197,6 @@ def config_from_args(args: argparse.Namespace) -> MissionConfig:
 
 
 # -- config -> flags -----------------------------------------------------------------------------
-def _setting_text(value: Any) -> str:
-    if value is None:
-        return "none"
-    if isinstance(value, bool):
-        return "true" if value else "false"
-    return repr(value) if isinstance(value, float) else str(value)
-
 
 def config_to_argv(config: MissionConfig) -> list[str]:
     """Flags that :func:`config_from_args` reads back as ``config`` (the ``uav_id`` is the
@@ -216,7 +209,7 @@ def config_to_argv(config: MissionConfig) -> list[str]:
              ("s2-method", c.system2_method), ("area-size-m", repr(c.area_size_m)),
              ("goal", ",".join(repr(v) for v in (g.center_x, g.center_y, g.width, g.height))),
              ("mission-id", c.mission_id)]
-    pairs += [("set", f"{name}={_setting_text(value)}") for name, value in c.settings]
+    pairs += [("set", f"{name}={value_text(value)}") for name, value in c.settings]
     pairs += [("concurrent", item) for item in _concurrent_items(c.concurrent)]
     if c.start is not None:
         pairs.append(("start", f"{c.start[0]!r},{c.start[1]!r}"))
@@ -241,7 +234,7 @@ def config_env(config: MissionConfig) -> dict[str, str]:
     env.update({
         "CONTROLLER": c.controller_name, "SUPERVISOR": "", "TIMING": c.timing.value,
         "MISSION_SEED": str(c.seed), "READINGS_PROFILE": c.profile,
-        "READINGS": ";".join(f"{n}={_setting_text(v)}" for n, v in c.settings),
+        "READINGS": ";".join(f"{n}={value_text(v)}" for n, v in c.settings),
         "S1_METHOD": c.system1_method, "S2_METHOD": c.system2_method,
         "CONCURRENT_PARAMS": ";".join(_concurrent_items(c.concurrent)),
         "GOAL": ",".join(repr(v) for v in (g.center_x, g.center_y, g.width, g.height)),

@@ -279,6 +279,20 @@ def test_p2qp_of_one_shape_share_their_matrices_not_their_state():
     assert first.objective == second.objective
 
 
+@pytest.mark.parametrize("backend", ["ipm", "clarabel"])
+@pytest.mark.parametrize("tau", [1, 0, 21])
+def test_p2qp_refuses_a_half_plane_outside_p2_to_pT(backend: str, tau: int):
+    """Half-planes constrain p_2..p_T (p_1 is fixed by x_0): τ outside is a ValueError on
+    either backend, never an out-of-bounds read in the compiled solver."""
+    from dualpilot.system2.fast.qp import P2Qp
+
+    qp = P2Qp(20, DYN, 1000.0, backend=backend)
+    x0, u0 = np.array([100.0, 120.0, 3.0, -2.0]), np.array([0.5, -0.25])
+    with pytest.raises(ValueError, match="half-planes apply to p_2..p_20"):
+        qp.solve(x0, u0, np.array([900.0, 850.0]), (1.0, 0.1), np.array([tau]),
+                 np.array([[1.0, 0.0]]), np.array([50.0]))
+
+
 def test_planners_of_one_shape_plan_alike_from_two_threads(monkeypatch: pytest.MonkeyPatch):
     """A fleet's planners share the QP structures from their own threads: with a cache of
     two (evictions all the time) each thread's plans equal those planned alone."""

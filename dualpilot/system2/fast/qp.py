@@ -383,6 +383,9 @@ class P2Qp:
         ``confirm`` is for QPs known to be feasible (no early infeasibility guess).
         """
         sh = self.shape
+        if len(tau) and (int(np.min(tau)) < 2 or int(np.max(tau)) > sh.T):
+            raise ValueError(f"half-planes apply to p_2..p_{sh.T}, got τ in "
+                             f"{int(np.min(tau))}..{int(np.max(tau))}")
         n_sl = len(tau) if elastic is not None else 0
         vc, uc, _, _ = self.offsets(x0, u_prev)
         q = self._linear_term(x0, u_prev, goal, kappa)

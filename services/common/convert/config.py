@@ -17,7 +17,7 @@ from dualpilot.mission.config import MissionConfig
 from dualpilot.mission.params import Controller, Timing
 from dualpilot.mission.supervisors import SupervisorKind
 from dualpilot.model.risk import RiskParams
-from dualpilot.readings import parse_value
+from dualpilot.readings import parse_value, value_text
 from dualpilot.supervisor.concurrent import ConcurrentParams
 from services.common.convert.common import rect_from_msg, rect_to_msg
 from services.common.limits import MAX_ABS_M, check_count, check_floats, check_text, finite
@@ -40,14 +40,6 @@ CONCURRENT_WIRE = tuple(f.name for f in dataclasses.fields(ConcurrentParams)
 _NUMBERS = tuple(n for n in CONCURRENT_WIRE if n != "threat_margin_m")
 
 
-def _setting_text(value: Any) -> str:
-    """A reading value as the text :func:`dualpilot.readings.parse_value` reads back."""
-    if value is None:
-        return "none"
-    if isinstance(value, bool):
-        return "true" if value else "false"
-    return repr(value) if isinstance(value, float) else str(value)
-
 
 def config_to_msg(config: MissionConfig, out: config_pb2.MissionConfig
                   ) -> config_pb2.MissionConfig:
@@ -59,7 +51,7 @@ def config_to_msg(config: MissionConfig, out: config_pb2.MissionConfig
     out.timing = _TIMINGS[c.timing]
     out.risk, out.profile = c.risk, c.profile
     for name, value in c.settings:
-        out.settings.add(name=name, value=_setting_text(value))
+        out.settings.add(name=name, value=value_text(value))
     out.system1_method, out.system2_method = c.system1_method, c.system2_method
     p = c.concurrent
     if p.threat_margin_m is not None:
