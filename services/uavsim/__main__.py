@@ -35,7 +35,7 @@ from services.common.log import fields
 
 from . import clock as vclock
 from . import flavour as fl
-from .endpoint import SIGNED_ONLY, Endpoint
+from .endpoint import SIGNED_ONLY, Endpoint, VehicleSetup
 from .storage import open_tlog
 from .vehicle import Vehicle
 
@@ -239,9 +239,9 @@ def _fly(ctx: bus.Context, opts: VehicleOptions) -> None:
         signed=opts.key is not None, autopilot=args.autopilot, clock=args.clock,
         speed_factor=opts.speed, speed_limit=vehicle.dyn.speed_limit,
         zenoh=opts.use_zenoh, east_m=start[0], north_m=start[1], tlog=tlog_path))
-    endpoint = Endpoint(vehicle, links, sysid, args.altitude_m, opts.home,
-                        args.offboard_loss_s, args.area_size_m, tlog,
-                        fl.FLAVOURS[args.autopilot], args.clock, opts.speed)
+    setup = VehicleSetup(sysid, args.altitude_m, opts.home, args.offboard_loss_s,
+                         args.area_size_m, fl.FLAVOURS[args.autopilot], args.clock, opts.speed)
+    endpoint = Endpoint(vehicle, links, setup, tlog)
     if tlog is not None:
         tlog.on_fault = lambda text: setattr(endpoint, "fault", text)
     elif tlog_path:

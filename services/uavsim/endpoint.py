@@ -17,6 +17,7 @@ import socket
 import threading
 import time
 from collections.abc import Callable
+from dataclasses import dataclass
 from typing import Any
 
 from services.common import mav, mavlink_codec, rejections
@@ -67,13 +68,30 @@ SIGNED_ONLY = frozenset({"SET_POSITION_TARGET_LOCAL_NED", "COMMAND_LONG", "COMMA
                          "MISSION_ITEM", "MISSION_CLEAR_ALL", "MISSION_SET_CURRENT"})
 
 
+@dataclass(frozen=True)
+class VehicleSetup:
+    """What a vehicle is told at start: its identity, frame, failsafe and clock."""
+
+    sysid: int  #: MAVLink system id (component 1)
+    altitude_m: float  #: the fixed flight altitude (SIM_ALT_M)
+    home: tuple[float, float]  #: deg lat, lon of the local frame's origin
+    offboard_loss_s: float  #: hold after this long without setpoints (COM_OF_LOSS_T)
+    area_size_m: float = 1000.0  #: mission waypoints must lie in [0, area]²
+    flavour: fl.Flavour = fl.ARDUPILOT  #: the autopilot it claims to be
+    clock: str = vclock.LOCKSTEP  #: lockstep or realtime (services/uavsim/clock.py)
+    speed_factor: float = 1.0  #: realtime: simulated s per wall s
+
+
 class Endpoint:
     """The vehicle's MAVLink side: links, message handlers, modes, periodic telemetry."""
 
-    def __init__(self, vehicle: Vehicle, links: dict[str, Any], sysid: int, altitude_m: float,
-                 home: tuple[float, float], offboard_loss_s: float, area_size_m: float = 1000.0,
-                 tlog: mav.Tlog | None = None, flavour: fl.Flavour = fl.ARDUPILOT,
-                 clock: str = vclock.LOCKSTEP, speed_factor: float = 1.0):
+    def __init__(self, vehicle: Vehicle, links: dict[str, Any], setup: VehicleSetup,
+                 tlog: mav.Tlog | None = None):
+        sysid, altitude_m, home = setup.sysid, setup.altitude_m, setup.home
+        offboard_loss_s, area_size_m, flavour = (setup.offboard_loss_s, setup.area_size_m,
+                                                 setup.flavour)
+        clock, speed_factor = setup.clock, setup.speed_factor
+        self.setup = setup
         self.vehicle = vehicle
         self.flavour = flavour
         self.realtime = (vclock.RealtimeClock(speed_factor, int(vehicle.dyn.dt_s * 1000))

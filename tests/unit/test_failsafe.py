@@ -14,7 +14,7 @@ import pytest
 
 from services.common import mav
 from services.uavsim import flavour as fl
-from services.uavsim.endpoint import Endpoint
+from services.uavsim.endpoint import Endpoint, VehicleSetup
 from services.uavsim.failsafe import check_offboard
 from services.uavsim.vehicle import Vehicle
 
@@ -32,8 +32,9 @@ def setpoint(east: float, north: float, due_ms: int) -> Any:
 
 def flying(clock: str = "lockstep") -> Endpoint:
     """A vehicle at (100, 100) flying offboard, armed and airborne, its last setpoint at 10 s."""
-    ep = Endpoint(Vehicle.at(100.0, 100.0), {}, sysid=1, altitude_m=50.0,
-                  home=(35.0, 33.0), offboard_loss_s=LOSS_S, clock=clock, speed_factor=1.0)
+    setup = VehicleSetup(sysid=1, altitude_m=50.0, home=(35.0, 33.0), offboard_loss_s=LOSS_S,
+                         clock=clock, speed_factor=1.0)
+    ep = Endpoint(Vehicle.at(100.0, 100.0), {}, setup)
     ep.mode, ep.armed, ep.airborne = fl.OFFBOARD, True, True
     assert ep.on_setpoint("offboard", setpoint(101.0, 100.0, 1000), now=10.0)
     return ep
