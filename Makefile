@@ -8,7 +8,9 @@ SEED ?= 26
 OUT ?= runs/latest
 SPEED ?= 20
 PROFILE ?= today
-SUPERVISOR ?= paper
+SUPERVISOR ?=
+# who flies: cc, s1, s2, concurrent, each also with +risk (dualpilot evaluate's names)
+CONTROLLER ?= cc
 # VIEWER=1: also the live view (services/viewer): Foxglove WebSocket on ws://127.0.0.1:8765
 VIEWER ?=
 # TLS=1: mutual TLS and the router's access control (services/common/acl.py), off by default
@@ -34,8 +36,8 @@ $(STAMP): pyproject.toml scripts/pyretechnics-requirements.txt
 # the distributed stack: a Zenoh router and the five services as processes on loopback
 # (services/launch/ reads docker-compose.yml, the one description of the services)
 run: setup
-	$(BIN)/python -m services.launch --controller cc --seed $(SEED) --timing paper \
-		--speed-factor $(SPEED) --profile $(PROFILE) --supervisor $(SUPERVISOR) --out $(OUT) \
+	$(BIN)/python -m services.launch --controller $(CONTROLLER) --seed $(SEED) --timing paper \
+		--speed-factor $(SPEED) --profile $(PROFILE) $(if $(SUPERVISOR),--supervisor $(SUPERVISOR)) --out $(OUT) \
 		$(TLS_FLAGS) $(if $(VIEWER),--viewer)
 
 # a local CA and a key and certificate per service (ZENOH_TLS_DIR; docker-compose.yml)
@@ -44,7 +46,7 @@ certs: setup
 
 # the same mission in one process (no Zenoh, no MAVLink)
 mission: setup
-	$(BIN)/dualpilot mission --controller cc --seed $(SEED) --timing paper --out $(OUT)
+	$(BIN)/dualpilot mission --controller $(CONTROLLER) --seed $(SEED) --timing paper --out $(OUT)
 
 # regenerate services/msgs from proto/ (a test fails when they differ)
 proto: setup

@@ -97,7 +97,8 @@ class ConcurrentPlanning:
             decision = replace(decision, system=choice.plan.system)
         if step.observer is not None:
             step.observer.decided(t, decision, decision.system)
-        return Planned(decision, choice.plan, choice.answers, choice.wait_s, choice.note)
+        view = self.flown.view if choice.plan is not None and self.flown is not None else None
+        return Planned(decision, choice.plan, choice.answers, choice.wait_s, choice.note, view)
 
     # -- what the record shows as the decision ---------------------------------------------------
     def decide(self, t: int, d_t: float, system_hint: int, objective: Objective) -> Decision:
@@ -180,7 +181,7 @@ class ConcurrentPlanning:
         with no deliberation pending, System 2 now when its wait's hazard is worth it."""
         fresh = self._ask(1, t, state, prev_control, obstacles, planners, choice, record_time)
         if fresh is not None:
-            return [Flown(fresh, 0, known)]
+            return [Flown(fresh, 0, known, self.view)]
         if kept is not None:  # System 1 has nothing: the known plan, if still safe
             return [kept]
         if self.pending is not None:
@@ -190,7 +191,7 @@ class ConcurrentPlanning:
         if wait_hazard(n, self.fire, spec.area_size_m, spec.d_safe_m) > self.params.max_wait_hazard:
             return []
         slow = self._ask(2, t, state, prev_control, obstacles, planners, choice, record_time)
-        return [] if slow is None else [Flown(slow, 0, known)]
+        return [] if slow is None else [Flown(slow, 0, known, self.view)]
 
     def _fly(self, options: list[Flown], due: Flown | None, choice: Choice) -> None:
         """Fly the best of ``options`` (nothing when there is none); say whether the due
@@ -232,6 +233,8 @@ class ConcurrentPlanning:
         if not got.ok:
             choice.answers.append(Answer(2, S.of(got.status)))
             return None
+        if self._breaks_risk(got, d.view, choice):
+            return None
         late = t - d.due_t
         plan = got if not late else replace(got, states=got.states[late:],
                                             controls=got.controls[late:])
@@ -244,7 +247,7 @@ class ConcurrentPlanning:
             choice.answers.append(Answer(2, S.UNSAFE_AT_ADOPTION))
             choice.note = f"s2 plan refused: {why}"
             return None
-        return Flown(anchored, 0, d.known)
+        return Flown(anchored, 0, d.known, d.view)
 
     def _kept(self, state: Array, obstacles: tuple[Polytope, ...],
               choice: Choice) -> Flown | None:
@@ -257,7 +260,7 @@ class ConcurrentPlanning:
         if anchored is None or check_near(anchored, state, obstacles, self.spec,
                                           self.params.check_steps):
             return None
-        return Flown(anchored, 0, self.flown.known)
+        return Flown(anchored, 0, self.flown.known, self.flown.view)
 
     def _ask(self, system: int, t: int, state: Array, prev_control: Array,
              obstacles: tuple[Polytope, ...], planners: PlannerPort, choice: Choice,
@@ -273,10 +276,21 @@ class ConcurrentPlanning:
         wait = self.response_s(system, plan)
         choice.wait_s += wait
         self.q.response(system, wait)
-        choice.answers.append(Answer(system, S.of(plan.status)))
-        if not plan.ok or check_near(plan, state, obstacles, self.spec, self.params.check_steps):
+        risky = plan.ok and self._breaks_risk(plan, self.view, choice)
+        if not risky:
+            choice.answers.append(Answer(system, S.of(plan.status)))
+        if risky or not plan.ok or check_near(plan, state, obstacles, self.spec,
+                                              self.params.check_steps):
             return None
         return plan
+
+    def _breaks_risk(self, plan: Plan, view: ForecastView | None, choice: Choice) -> bool:
+        """The run-time monitor's check of the forecast zones the plan says it met (a refusal
+        is recorded as the monitor's)."""
+        verdict = monitor.check_risk(plan, view, self.spec)
+        if not verdict.ok:
+            choice.answers.append(monitor.refusal(plan.system, verdict))
+        return not verdict.ok
 
     def _launch(self, t: int, sim_s: float, state: Array, seen: FireSnapshot,
                 known: frozenset[int], planners: PlannerPort, choice: Choice) -> None:
@@ -301,7 +315,7 @@ class ConcurrentPlanning:
             t=t + k, system=2, state=x_hat.copy(), prev_control=plan.controls[k - 1].copy(),
             obstacles=obstacles, objective=self.objective, forecast=view))
         self.pending = Deliberation(ticket=ticket, due_t=t + k, ready_s=sim_s + self.s2_expected_s,
-                                    known=known)
+                                    known=known, view=view)
         choice.answers.append(Answer(2, S.LAUNCHED))
 
     def after_flight(self, system: int, p0: Array, p1: Array, du2: float) -> None:

@@ -23,6 +23,7 @@ from typing import Any, Literal
 
 from dualpilot.mission.params import Controller, Timing
 from dualpilot.mission.supervisors import SUPERVISORS, SupervisorKind
+from dualpilot.model.forecast import ForecastParams
 from dualpilot.model.geometry import Rect
 from dualpilot.readings import Profile, get_profile, parse_value, part_of
 from dualpilot.spec import MissionSpec
@@ -80,8 +81,9 @@ class MissionConfig:
     :meth:`reading` resolves them. ``system1_method`` defaults to the
     supervisor's (:data:`dualpilot.mission.supervisors.SUPERVISORS`). With ``risk``
     both planners take the fire forecast (their risk-aware variants) and the
-    concurrent supervisor judges threats on it (``concurrent.threat`` is then "forecast").
-    ``start`` is where an in-process mission starts (None: the spec's default);
+    concurrent supervisor judges threats on it (``concurrent.threat`` is then "forecast");
+    ``forecast`` is that forecast's grid and ensemble (the in-process fire port's and the
+    EWS's alike). ``start`` is where an in-process mission starts (None: the spec's default);
     in the stack the mission starts where the vehicle is.
     """
 
@@ -95,6 +97,7 @@ class MissionConfig:
     system1_method: str = ""
     system2_method: str = "fast"
     concurrent: ConcurrentParams = field(default_factory=ConcurrentParams)
+    forecast: ForecastParams = field(default_factory=ForecastParams)
     goal: Rect = MissionSpec().goal
     area_size_m: float = MissionSpec().area_size_m
     start: tuple[float, float] | None = None

@@ -10,7 +10,8 @@ the same configuration (a property test checks it).
 
 The reading's named flags (``--d-t-reading``, ``--fire-scenario``, …) are
 shorthands for ``--set NAME=VALUE``; the concurrent supervisor's parameters are
-``--concurrent NAME=VALUE`` (``risk.alpha`` for the forecast's α).
+``--concurrent NAME=VALUE`` (``risk.alpha`` for the forecast's α); the fire forecast's
+grid and ensemble are ``--forecast NAME=VALUE``.
 """
 
 from __future__ import annotations
@@ -23,6 +24,7 @@ from typing import Any
 from dualpilot.mission.config import CONTROLLER_NAMES, MissionConfig, parse_controller
 from dualpilot.mission.params import Timing
 from dualpilot.mission.supervisors import SupervisorKind
+from dualpilot.model.forecast import ForecastParams
 from dualpilot.model.geometry import Rect
 from dualpilot.model.risk import RiskParams
 from dualpilot.readings import PROFILES, parse_settings, settable, value_text
@@ -91,6 +93,10 @@ def add_config_arguments(p: argparse.ArgumentParser, env: Env = _defaults,
                    default=_items(env("CONCURRENT_PARAMS", "")), metavar="NAME=VALUE",
                    help="a parameter of the concurrent supervisor (repeatable; names: "
                         f"{', '.join(concurrent_names())}) [CONCURRENT_PARAMS: 'a=1;b=2']")
+    g.add_argument("--forecast", action="append",
+                   default=_items(env("FORECAST_PARAMS", "")), metavar="NAME=VALUE",
+                   help="the risk-aware controllers' fire forecast (repeatable; names: "
+                        f"{', '.join(FORECAST_NAMES)}) [FORECAST_PARAMS: 'a=1;b=2']")
     g.add_argument("--goal", default=env("GOAL", "900,900,100,100"),
                    help="goal rectangle 'east,north,width,height' in m [GOAL]")
     g.add_argument("--area-size-m", type=float, default=env("AREA_SIZE_M", "1000"),
@@ -146,6 +152,30 @@ def _concurrent_items(params: ConcurrentParams) -> list[str]:
     return out
 
 
+# -- the fire forecast's parameters by name ------------------------------------------------------
+FORECAST_NAMES = tuple(f.name for f in dataclasses.fields(ForecastParams))
+
+
+def forecast_params(items: Iterable[str]) -> ForecastParams:
+    """``["name=value", ...]`` as ForecastParams (ValueError for an unknown name)."""
+    values: dict[str, Any] = {}
+    for item in items:
+        name, sep, value = item.partition("=")
+        name = name.strip()
+        if not sep or name not in FORECAST_NAMES:
+            raise ValueError(f"--forecast takes NAME=VALUE with NAME one of "
+                             f"{', '.join(FORECAST_NAMES)}; got {item!r}")
+        values[name] = _typed(ForecastParams, name, value)
+    return ForecastParams(**values)
+
+
+def _forecast_items(params: ForecastParams) -> list[str]:
+    """The forecast parameters that differ from the defaults, as ``name=value`` (repr)."""
+    base = ForecastParams()
+    return [f"{n}={getattr(params, n)!r}" for n in FORECAST_NAMES
+            if getattr(params, n) != getattr(base, n)]
+
+
 # -- flags -> config -----------------------------------------------------------------------------
 def _pair(text: str, what: str) -> tuple[float, float]:
     try:
@@ -190,7 +220,8 @@ def config_from_args(args: argparse.Namespace) -> MissionConfig:
         controller=controller, supervisor=supervisor, risk=risk, timing=Timing(args.timing),
         seed=int(args.seed), profile=args.profile, settings=tuple(_settings(args).items()),
         system1_method=args.s1_method, system2_method=args.s2_method,
-        concurrent=concurrent_params(args.concurrent), goal=parse_goal(args.goal),
+        concurrent=concurrent_params(args.concurrent), forecast=forecast_params(args.forecast),
+        goal=parse_goal(args.goal),
         area_size_m=float(args.area_size_m),
         start=_pair(args.start, "--start") if args.start else None,
         mission_id=args.mission_id)
@@ -211,6 +242,7 @@ def config_to_argv(config: MissionConfig) -> list[str]:
              ("mission-id", c.mission_id)]
     pairs += [("set", f"{name}={value_text(value)}") for name, value in c.settings]
     pairs += [("concurrent", item) for item in _concurrent_items(c.concurrent)]
+    pairs += [("forecast", item) for item in _forecast_items(c.forecast)]
     if c.start is not None:
         pairs.append(("start", f"{c.start[0]!r},{c.start[1]!r}"))
     return [f"--{flag}={value}" for flag, value in pairs]
@@ -237,6 +269,7 @@ def config_env(config: MissionConfig) -> dict[str, str]:
         "READINGS": ";".join(f"{n}={value_text(v)}" for n, v in c.settings),
         "S1_METHOD": c.system1_method, "S2_METHOD": c.system2_method,
         "CONCURRENT_PARAMS": ";".join(_concurrent_items(c.concurrent)),
+        "FORECAST_PARAMS": ";".join(_forecast_items(c.forecast)),
         "GOAL": ",".join(repr(v) for v in (g.center_x, g.center_y, g.width, g.height)),
         "AREA_SIZE_M": repr(c.area_size_m), "MISSION_ID": c.mission_id,
         "MISSION_START": "" if c.start is None else f"{c.start[0]!r},{c.start[1]!r}",

@@ -11,7 +11,7 @@ from dualpilot.mission.config import MissionConfig
 from dualpilot.mission.ports import KeepOut, PlanRequest
 from dualpilot.mission.step import Mission, MissionPorts
 from dualpilot.model.dynamics import Array, DynamicsParams, hover_state, step
-from dualpilot.model.field_forecast import field_forecast
+from dualpilot.model.field_forecast import field_forecast, forecast_step_substeps
 from dualpilot.model.fire import FireParams, FireSnapshot
 from dualpilot.model.fire_field import FireField
 from dualpilot.model.forecast import ForecastParams, OccupancyForecast
@@ -42,7 +42,7 @@ class LocalFires:
         seed and the sub-steps done; a physics scenario: its level set run ahead), kept until
         the fires advance."""
         f = self.field
-        n = substeps_per_step if f.params.life_base == "step" else 1
+        n = forecast_step_substeps(f.params, substeps_per_step)
         key = (f.substeps_done, n)
         got = self._forecasts.get(key)
         if got is None:
@@ -121,6 +121,7 @@ def local_mission(config: MissionConfig, planners: dict[int, Planner] | None = N
 
         planners = build_planners(spec, config.methods(), risk=config.risk)
     state = hover_state(np.array(spec.start), spec.dynamics)
-    ports = MissionPorts(LocalFires(spec, config.reading().fire), LocalPlanners(planners),
+    fires = LocalFires(spec, config.reading().fire, config.forecast)
+    ports = MissionPorts(fires, LocalPlanners(planners),
                          LocalVehicle(state, spec.dynamics))
     return Mission(config, spec, ports, state)

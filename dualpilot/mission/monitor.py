@@ -16,6 +16,12 @@ setpoint leaves (:func:`check_plan`). A plan is accepted only if
    obstacle the step itself sent (the fire regions and hulls △(C^i_{1:t}) of
    :meth:`dualpilot.model.fire.FireSnapshot.obstacles_for`), checked exactly.
 
+A risk-aware plan that says it met the fire forecast's chance constraint
+(``info["risk"] == "met"``, dualpilot/model/risk.py) is also checked against the
+zones of the forecast the step sent with its request (:func:`check_risk`): System
+2's positions p_τ (τ ≥ 2) keep ε from the zones of their steps, and System 1's
+trajectory keeps from the zones of its steps the distance it reports.
+
 The honest planners verify their own plans with stricter checks (the
 planners' clearance, dualpilot/verify.py), so the monitor rejects none of
 theirs: it is the independent second check against a planner that is wrong,
@@ -34,6 +40,7 @@ import numpy as np
 from dualpilot.mission.answers import MONITOR_TAG, Answer, SystemStatus
 from dualpilot.model.dynamics import Array, DynamicsParams, transition_matrices
 from dualpilot.model.geometry import Polytope, path_clearance
+from dualpilot.model.risk import ForecastView, RiskMap, RiskParams, path_risk_clearance
 from dualpilot.plan import Plan
 from dualpilot.spec import MissionSpec
 
@@ -117,6 +124,45 @@ def check(plan: Plan, measured: Array, obstacles: Sequence[Polytope], spec: Miss
           params: MonitorParams = MonitorParams()) -> MonitorVerdict:
     """:func:`check_plan` of an OK plan's states and controls."""
     return check_plan(plan.states, plan.controls, measured, obstacles, spec, params)
+
+
+#: the risk-aware planners' chance constraint (dualpilot.planners builds them with it)
+PLANNER_RISK = RiskParams()
+
+
+def check_risk(plan: Plan, view: ForecastView | None, spec: MissionSpec,
+               risk: RiskParams = PLANNER_RISK,
+               params: MonitorParams = MonitorParams()) -> MonitorVerdict:
+    """Accept a plan unless it says it met the chance constraint on ``view`` and does not;
+    pure.
+
+    System 2 ("fast+risk") promises that p_τ (τ = 2..T) keeps ε from every zone of step τ:
+    checked exactly. System 1 ("rrt+risk") promises it of its reference path timed at the
+    reference speed, which a plan does not carry (the path is shortcut after the check);
+    what is checked is the distance its trajectory keeps from the zones of its steps, which
+    it reports (``info["risk_clearance_m"]``): a plan that misstates it is refused.
+    """
+    if view is None or plan.info.get("risk") != "met":
+        return MonitorVerdict(True, "ok")
+    zones = RiskMap(view, risk)
+    pos = np.asarray(plan.states, dtype=float)[:, :2]
+    if plan.system == 1:
+        worst = path_risk_clearance(zones, pos)
+        said = plan.info.get("risk_clearance_m")
+        if not isinstance(said, (int, float)) or not (
+                abs(float(said) - worst) <= params.clearance_tol_m or said == worst):
+            return MonitorVerdict(False, f"says its trajectory keeps {said} m from the "
+                                         f"forecast risk zones, it keeps {worst:.3f} m", worst)
+        return MonitorVerdict(True, "ok", worst)
+    eps = spec.clearance_m
+    worst = float("inf")
+    for tau in range(2, min(len(pos) - 1, view.last_step) + 1):
+        for zone in zones.zones(tau):
+            worst = min(worst, zone.distance(pos[tau]))
+    if worst < eps - params.clearance_tol_m:
+        return MonitorVerdict(False, f"p_tau passes {worst:.2f} m from a forecast risk zone "
+                                     f"of its step (alpha {risk.alpha:g}, eps {eps:g} m)", worst)
+    return MonitorVerdict(True, "ok", worst)
 
 
 def status_note(verdict: MonitorVerdict) -> str:

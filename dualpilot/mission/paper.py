@@ -52,20 +52,23 @@ class PaperPlanning:
             if not step.planners.available(system):
                 got.answers.append(Answer(system, SystemStatus.UNAVAILABLE))
                 continue
-            candidate = step.planners.plan(PlanRequest(
+            request = PlanRequest(
                 t=t, system=system, state=step.state.copy(), prev_control=step.prev_control,
                 obstacles=obstacles, objective=decision.objective,
-                forecast=step.forecast_view(system)))
+                forecast=step.forecast_view(system))
+            candidate = step.planners.plan(request)
             step.record_time(system, candidate.compute_time_s)
             got.planning_s += planning_time(candidate, step.timing, step.params)
             verdict = monitor.check(candidate, step.state, obstacles, step.spec) if (
                 candidate.ok) else None
+            if verdict is not None and verdict.ok:  # and the forecast's zones it says it met
+                verdict = monitor.check_risk(candidate, request.forecast, step.spec)
             if verdict is not None and not verdict.ok:  # never flown: a failed plan
                 got.answers.append(monitor.refusal(system, verdict))
                 continue
             got.answers.append(Answer(system, SystemStatus.of(candidate.status)))
             if candidate.ok:
-                got.plan = candidate
+                got.plan, got.forecast = candidate, request.forecast
                 return got
         return got
 

@@ -30,6 +30,7 @@ from dualpilot.mission.result import Ending, MissionResult, StepRecord
 from dualpilot.model.dynamics import Array
 from dualpilot.model.fire import FireSnapshot
 from dualpilot.model.geometry import Polytope, Rect
+from dualpilot.model.risk import RiskNote
 from dualpilot.plan import Objective
 from dualpilot.spec import MissionSpec
 from dualpilot.supervisor.decision import Decision
@@ -206,6 +207,9 @@ def record_to_json(r: StepRecord) -> dict[str, object]:
         "hulls": [np.round(h.vertices, 3).tolist() for h in r.snapshot.hulls],
         "front_ids": list(r.snapshot.front_ids), "born_steps": list(r.snapshot.born_steps),
         "info": json.loads(json.dumps(r.info, default=str)),
+        **({} if r.risk is None else {"risk": {
+            "alpha": r.risk.alpha,
+            "zones": [np.round(z.vertices, 3).tolist() for z in r.risk.zones]}}),
     }
 
 
@@ -228,7 +232,16 @@ def record_from_json(doc: dict[str, Any]) -> StepRecord:
         planning_time_s=float(doc["planning_time_s"]), fire_substeps=int(doc["fire_substeps"]),
         d_t=float(doc["d_t"]), fires_active=int(doc["fires_active"]),
         planned_positions=plan if plan.size else np.empty((0, 2)), snapshot=snapshot,
-        info=dict(doc.get("info", {})), time_s=float(doc.get("time_s", 0.0)))
+        info=dict(doc.get("info", {})), time_s=float(doc.get("time_s", 0.0)),
+        risk=_risk_from_json(doc.get("risk")))
+
+
+def _risk_from_json(doc: dict[str, Any] | None) -> RiskNote | None:
+    """A record's risk zones (the forecast's slice is not recorded in steps.jsonl)."""
+    if doc is None:
+        return None
+    zones = tuple(Polytope.from_vertices(np.asarray(z, dtype=float)) for z in doc["zones"])
+    return RiskNote(None, zones, float(doc["alpha"]))
 
 
 class StepLog:

@@ -11,6 +11,7 @@ import numpy as np
 from dualpilot.mission.answers import Answer, format_answers
 from dualpilot.model.dynamics import Array
 from dualpilot.model.fire import FireSnapshot
+from dualpilot.model.risk import RiskNote
 from dualpilot.spec import MissionSpec
 from dualpilot.supervisor.decision import Decision
 
@@ -73,6 +74,8 @@ class StepRecord:
     #: τ_t, the mission's simulated time (s) when the step began: the sub-steps of T_f and the
     #: flights of ΔT before it (the log time of mission.mcap)
     time_s: float = 0.0
+    #: the forecast the flown plan was made on: its next slice and risk zones (None: none)
+    risk: RiskNote | None = None
 
     @property
     def plan_status(self) -> str:

@@ -31,6 +31,7 @@ import numpy as np
 
 from dualpilot.mission.braking import brake_control
 from dualpilot.mission.config import MissionConfig
+from dualpilot.mission.monitor import PLANNER_RISK
 from dualpilot.mission.params import MissionParams, Timing
 from dualpilot.mission.ports import (
     FirePort,
@@ -47,7 +48,7 @@ from dualpilot.mission.supervisors import build_supervisor
 from dualpilot.model.dynamics import Array, step
 from dualpilot.model.fire import FireSnapshot, substeps_for
 from dualpilot.model.geometry import Rect
-from dualpilot.model.risk import ForecastView
+from dualpilot.model.risk import ForecastView, RiskNote, risk_note
 from dualpilot.spec import MissionSpec, Stream
 from dualpilot.supervisor.decision import Supervisor
 
@@ -286,7 +287,7 @@ class Mission:
             system=flown, answers=tuple(planned.answers),
             planning_time_s=planned.planning_s, fire_substeps=n_sub, d_t=d_t,
             fires_active=len(snapshot.regions), planned_positions=positions, snapshot=snapshot,
-            info=info, time_s=started_s,
+            info=info, time_s=started_s, risk=self._risk_note(planned),
         )
         self.result.records.append(record)
         if caught:  # the vehicle's step towards this setpoint does not count
@@ -294,6 +295,13 @@ class Mission:
                 self.observer.recorded(record, False)
             return self._finish(Ending.FIRE_WHILE_PLANNING, record)
         return self._fly(t, control, flown, record)
+
+    @staticmethod
+    def _risk_note(planned: Planned) -> RiskNote | None:
+        """What the flown plan was made against, for the records (None: no forecast)."""
+        if planned.plan is None or planned.forecast is None:
+            return None
+        return risk_note(planned.forecast, PLANNER_RISK, len(planned.plan.states) - 1)
 
     def _command(self, planned: Planned) -> tuple[Array, Array, Array, dict[str, object]]:
         """(control, target x_{t+1}, planned positions, info) of the plan to fly; braking

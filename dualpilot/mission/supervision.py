@@ -27,13 +27,15 @@ from dualpilot.supervisor.decision import Decision, Supervisor
 class Planned:
     """A step's planning: the decision recorded, the plan to fly (None: brake), each system's
     answers in order (dualpilot/mission/answers.py), the planning interval T_s the fires
-    advance through (s) and a note for the record ("" when there is none)."""
+    advance through (s), a note for the record ("" when there is none) and the forecast the
+    plan was made on (None: none)."""
 
     decision: Decision
     plan: Plan | None
     answers: list[Answer] = field(default_factory=list)
     planning_s: float = 0.0
     note: str = ""
+    forecast: ForecastView | None = None
 
 
 class StepView(Protocol):

@@ -10,10 +10,18 @@ the forecast flown in-process is the one the stack publishes.
 
 from __future__ import annotations
 
+from dualpilot.model.fire import FireParams
 from dualpilot.model.fire_field import FireField
 from dualpilot.model.forecast import ForecastParams, OccupancyForecast, forecast
 from dualpilot.model.physics_forecast import physics_forecast
 from dualpilot.spec import forecast_rng
+
+
+def forecast_step_substeps(params: FireParams, substeps_per_step: int) -> int:
+    """The time-step length (sub-steps) a forecast of ``params``' fires depends on: births and
+    survival draw once a time-step under ``life_base = "step"``, once a sub-step otherwise
+    (then every step length gives the same forecast: 1)."""
+    return max(1, substeps_per_step) if params.life_base == "step" else 1
 
 
 def field_forecast(field: FireField, params: ForecastParams, seed: int,

@@ -241,3 +241,30 @@ class ArcRisk:
                 return False
             s += float(np.hypot(x1 - x0, y1 - y0))
         return True
+
+
+@dataclass(frozen=True)
+class RiskNote:
+    """What a flown plan was made against, as the records keep it (small: one slice and
+    polygons, not the forecast): P at the start of the plan's next step (``heat``, a
+    one-slice forecast; None past the horizon) and the distinct risk zones of its steps
+    1..T at ``alpha``."""
+
+    heat: OccupancyForecast | None
+    zones: tuple[Polytope, ...]
+    alpha: float
+
+
+def risk_note(view: ForecastView, params: RiskParams, steps: int) -> RiskNote:
+    """The :class:`RiskNote` of a plan of ``steps`` steps made on ``view`` (the zones come
+    from the forecast's memo when a planner or the monitor made them already)."""
+    fc = view.forecast
+    near = fc.slices(*view.window(1))
+    heat = None
+    if len(near):
+        i = near[0]
+        layer = np.array(fc.level(i))  # a copy: the note must not keep the forecast alive
+        heat = OccupancyForecast(fc.resolution_m, fc.substep_s, (fc.horizons[i],), [layer],
+                                 fc.origin_m, fc.issued_substep, fc.substeps_per_step)
+    zones = tuple(z for z, _ in RiskMap(view, params).step_masks(steps, first=1))
+    return RiskNote(heat, zones, params.alpha)

@@ -49,7 +49,7 @@ from dualpilot.mission.answers import Answer
 from dualpilot.model.dynamics import Array, DynamicsParams, rollout
 from dualpilot.model.fire import FireParams, FireSnapshot
 from dualpilot.model.geometry import Polytope, path_clearance
-from dualpilot.model.risk import RiskMap, RiskParams, path_risk_clearance
+from dualpilot.model.risk import ForecastView, RiskMap, RiskParams, path_risk_clearance
 from dualpilot.plan import Plan
 from dualpilot.spec import MissionSpec
 from dualpilot.verify import verify_trajectory
@@ -156,6 +156,7 @@ class Flown:
     plan: Plan
     offset: int
     known: frozenset[int]
+    view: ForecastView | None = None  # the forecast it was made on (a risk-aware plan)
 
     def remainder(self, state: Array) -> Plan | None:
         """The rest of the plan from ``state`` (None when it has run out)."""
@@ -173,6 +174,7 @@ class Deliberation:
     due_t: int  # the step its plan is for (its first state is the predicted x̂ of that step)
     ready_s: float  # simulated time it is ready (launch + response time)
     known: frozenset[int]  # the front ids the fires it plans against had
+    view: ForecastView | None = None  # the forecast it plans on (a risk-aware System 2)
 
 
 @dataclass

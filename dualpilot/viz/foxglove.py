@@ -29,13 +29,16 @@ from dualpilot.viz.scene import (
     FireView,
     OccupancyView,
     PlanView,
+    RiskView,
     area_view,
     circle,
     commanded_system,
     decision_doc,
     end_text,
     fire_view,
+    occupancy_view,
     plan_views,
+    risk_view,
     start_text,
     step_text,
 )
@@ -45,6 +48,7 @@ MCAP_FILE = "mission.mcap"
 WORLD_FRAME = "world"
 #: heights (m) of the layers, so that lines drawn over one another stay visible
 Z_AREA, Z_FIRE, Z_HULL, Z_PATH, Z_PLAN, Z_UAV = 0.0, 0.2, 0.4, 0.6, 0.8, 2.0
+Z_RISK = 0.3  # risk zones: above the fires, below the hulls
 LINE_PX = 2.0
 UAV_SIZE_M = 12.0
 
@@ -127,6 +131,7 @@ def _meta(**kv: object) -> list[Any]:
 
 FIRE_FILL = (1.0, 0.25, 0.1, 0.55)
 HULL_LINE = (1.0, 0.6, 0.0, 1.0)
+RISK_LINE = (0.8, 0.3, 1.0, 0.9)  # the forecast's risk zones: violet
 PLAN_COLORS = {1: (0.2, 0.6, 1.0, 1.0), 2: (0.9, 0.2, 0.9, 1.0)}
 
 
@@ -150,6 +155,7 @@ class VehicleChannels:
         self.area_ch = ch.SceneUpdateChannel(f"{p}/area", **kw)
         self.fires_ch = ch.SceneUpdateChannel(f"{p}/fires", **kw)
         self.forecast_ch = ch.GridChannel(f"{p}/forecast", **kw)
+        self.risk_ch = ch.SceneUpdateChannel(f"{p}/risk", **kw)
         self.plan_ch = {k: ch.SceneUpdateChannel(f"{p}/plan/system{k}", **kw) for k in (1, 2)}
         self.path_ch = ch.SceneUpdateChannel(f"{p}/path", **kw)
         self.uav_ch = ch.SceneUpdateChannel(f"{p}/uav", **kw)
@@ -157,7 +163,8 @@ class VehicleChannels:
         self.events_ch = ch.LogChannel(f"{p}/events", **kw)
 
     def _channels(self) -> list[Any]:
-        return [self.tf, self.area_ch, self.fires_ch, self.forecast_ch, *self.plan_ch.values(),
+        return [self.tf, self.area_ch, self.fires_ch, self.forecast_ch, self.risk_ch,
+                *self.plan_ch.values(),
                 self.path_ch, self.uav_ch, self.decision_ch, self.events_ch]
 
     def topics(self) -> list[str]:
@@ -283,6 +290,15 @@ class VehicleChannels:
             row_stride=view.cols * f, cell_stride=f, fields=fields, data=view.data),
             log_time=t_ns)
 
+    def risk(self, view: RiskView, t: int, t_ns: int) -> None:
+        """The risk zones the flown plan was made against (entity ``zone/<k>``, outlined;
+        none: the channel is cleared)."""
+        c = _color(*RISK_LINE)
+        self.risk_ch.log(self._update([self._entity(
+            t_ns, f"zone/{k}", lines=[_line(z, Z_RISK, c, True)],
+            metadata=_meta(step=t, alpha=view.alpha)) for k, z in enumerate(view.zones)]),
+            log_time=t_ns)
+
     def event(self, text: str, t_ns: int, level: str = "info") -> None:
         m = _m()
         lv = {"info": m.LogLevel.Info, "warning": m.LogLevel.Warning,
@@ -300,6 +316,7 @@ def log_mission(ch: VehicleChannels, result: Any) -> None:
     ch.transform(0)
     ch.event(start_text(result.controller, spec.seed, f"timing={result.timing}"), 0)
     last_ns = 0
+    risk_aware = any(r.risk is not None for r in result.records)  # else no /risk messages
     for r in result.records:
         t_ns = ns(r.time_s)
         last_ns = max(last_ns, t_ns)
@@ -311,6 +328,10 @@ def log_mission(ch: VehicleChannels, result: Any) -> None:
         ch.decision(decision_doc(r.decision, commanded_system(result.controller, r.decision),
                                  r.system, r.time_s), t_ns)
         ch.plans(plan_views(r.answers, r.system, r.planned_positions), r.t, t_ns)
+        if r.risk is not None and r.risk.heat is not None:
+            ch.forecast(occupancy_view(r.risk.heat), t_ns)
+        if risk_aware:  # an empty update clears the last step's zones
+            ch.risk(risk_view(r.risk), r.t, t_ns)
         ch.event(step_text(r.t, r.system, r.plan_status), t_ns,
                  "info" if r.system else "warning")
     if result.final_state is not None and result.records:

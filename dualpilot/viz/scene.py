@@ -4,8 +4,9 @@ One step's scene: the area (its boundary, the start, the goal G), the fire
 regions and their hulls △(C^i_{1:t}), both systems' plans (the flown plan's
 positions x^p_{t..t+T|t}, every asked system's status), the UAV with its
 d_safe disc, the flown path, the supervisor's decision (Ξ_t, P_t, A_t, Ψ_t,
-S_t) and the occupancy forecast. Everything is in the mission's frame:
-metres east (x) and north (y) of the area's south-west corner.
+S_t), the occupancy forecast and the risk zones the flown plan was made
+against. Everything is in the mission's frame: metres east (x) and north (y)
+of the area's south-west corner.
 :mod:`dualpilot.viz.foxglove` turns these into Foxglove messages; nothing
 here knows about Foxglove.
 """
@@ -22,6 +23,7 @@ from dualpilot.model.dynamics import Array
 from dualpilot.model.fire import FireSnapshot
 from dualpilot.model.forecast import OccupancyForecast
 from dualpilot.model.geometry import Rect
+from dualpilot.model.risk import RiskNote
 from dualpilot.spec import MissionSpec
 from dualpilot.supervisor.decision import Decision
 
@@ -145,6 +147,21 @@ def occupancy_view(fc: OccupancyForecast, most: int = MAX_FORECAST_SLICES) -> Oc
         resolution_m=float(fc.resolution_m), rows=int(rows), cols=int(cols),
         horizons_s=tuple(float(fc.horizons[i] * fc.substep_s) for i in idx),
         data=cells.tobytes())
+
+
+@dataclass(frozen=True)
+class RiskView:
+    """The risk zones a flown plan was made against (each (k, 2) vertices, m) at α."""
+
+    zones: tuple[Array, ...]
+    alpha: float
+
+
+def risk_view(note: RiskNote | None) -> RiskView:
+    """A record's :class:`~dualpilot.model.risk.RiskNote` as a view (none: no zones)."""
+    if note is None:
+        return RiskView((), 0.0)
+    return RiskView(tuple(np.asarray(z.vertices, dtype=float) for z in note.zones), note.alpha)
 
 
 def start_text(controller: str, seed: int, detail: str = "") -> str:

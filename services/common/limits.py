@@ -24,6 +24,7 @@ AREA_MARGIN = 1.0
 MAX_SPEED_MPS = 1.0e3
 MAX_FORCE_N = 1.0e4
 MAX_FRONTS = 256
+MAX_RISK_ZONES = 4096  # risk zones of one plan (polygons)
 MAX_VERTICES = 1024
 MAX_HORIZON = 10_000
 MAX_WAYPOINTS = 1000
@@ -57,6 +58,14 @@ def check_count(n: int, what: str, limit: int, minimum: int = 0) -> None:
     """``minimum`` ≤ n ≤ ``limit`` items, or CodecError (``size``)."""
     if not minimum <= n <= limit:
         raise invalid(f"{what}: {n} items, allowed {minimum}..{limit}", Reason.SIZE)
+
+
+def check_int(n: int, what: str, lo: int, hi: int) -> int:
+    """``n`` when ``lo`` ≤ n ≤ ``hi`` (a number, not a count of items), or CodecError
+    (``out_of_range``)."""
+    if not lo <= n <= hi:
+        raise invalid(f"{what} must be in {lo}..{hi}, got {n}", Reason.OUT_OF_RANGE)
+    return int(n)
 
 
 def check_text(s: str, what: str, limit: int = MAX_TEXT) -> str:

@@ -9,9 +9,12 @@ A mission is prepared once: the prepare request carries its frozen spec
 from it (System 1 reuses its RRT path between steps; System 2 builds its
 problem once), seeded from the spec as in-process. A plan request then names
 the mission and carries only what changes per step: the vehicle state, the
-obstacles the step chose (one per front), the objective, u_{t|t} and the
-operator-waypoint revision it needs. Operator waypoints travel on their own key
-(``operator/waypoints``) with a revision number.
+obstacles the step chose (one per front), the objective, u_{t|t}, the
+operator-waypoint revision it needs and, for a risk-aware method, the fire
+forecast the step planned on (its grid and windows; checked here against the
+prepared mission: its T_f, and no older fire revision than one already seen).
+Operator waypoints travel on their own key (``operator/waypoints``) with a
+revision number.
 
 Replies: a Plan (any status, with the planner's compute time) for a valid
 request — a planner's ValueError becomes INVALID_INPUT, as in the in-process
@@ -24,15 +27,18 @@ prepares again or re-sends the waypoints.
 from __future__ import annotations
 
 import logging
+import math
 import time
 from collections import OrderedDict
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import cast
 
 import zenoh
 
 from dualpilot.mission.config import MissionConfig
-from dualpilot.plan import Plan, Planner, PlanStatus
+from dualpilot.model.risk import ForecastView
+from dualpilot.plan import ForecastPlanner, Plan, Planner, PlanStatus
 from dualpilot.spec import MissionSpec
 from dualpilot.warmup import warm_up
 from services.msgs import common_pb2, plan_pb2, vehicle_pb2
@@ -55,6 +61,7 @@ class _Prepared:
     config: MissionConfig
     planner: Planner
     waypoints_revision: int = 0  # the revision applied to the planner
+    forecast_revision: int = -1  # the newest fire revision a forecast came from
 
 
 class PlannerService:
@@ -72,18 +79,12 @@ class PlannerService:
 
     def prepare(self, mission_id: str, spec: MissionSpec, config: MissionConfig) -> _Prepared:
         """The mission's planner, built from its spec and configuration (again only if they
-        changed).
-
-        Raises ValueError for an unknown method, and for a risk-aware one: a plan request over
-        the bus carries no fire forecast, so it would fly its paper method unannounced."""
+        changed). Raises ValueError for an unknown method (or one with no risk-aware variant
+        under risk)."""
         held = self.missions.get(mission_id)
         if held is not None and held.spec == spec and held.config == config:
             return held
         planner = self.make(spec, config)
-        if getattr(planner, "uses_forecast", False):
-            raise ValueError(f"method {config.methods()[self.system]!r} with risk plans on the "
-                             "fire forecast, which a plan request over the stack does not carry "
-                             "(it flies in-process only)")
         held = _Prepared(spec, config, planner)
         self.missions[mission_id] = held
         while len(self.missions) > self.keep:
@@ -124,15 +125,43 @@ class PlannerService:
             held.waypoints_revision = w.revision
         return held.planner
 
+    def check_forecast(self, query: plan_convert.PlanQuery) -> ForecastView | None:
+        """The request's forecast, if its planner takes one and it fits the prepared mission
+        (CodecError: a forecast for a planner that takes none, another T_f, an older fire
+        revision than one already planned on)."""
+        view = query.request.forecast
+        held = self.missions[query.mission_id]
+        if view is None:
+            return None  # a risk-aware planner without one plans as its paper method
+        if not getattr(held.planner, "uses_forecast", False):
+            raise rejections.invalid(f"System {self.system}'s method "
+                                     f"{held.config.methods()[self.system]!r} takes no forecast")
+        fc = view.forecast
+        t_f = held.config.reading().fire.substep_s
+        if not math.isclose(fc.substep_s, t_f, rel_tol=1e-12, abs_tol=0.0):
+            raise rejections.invalid(f"the forecast's T_f {fc.substep_s:g} s is not the "
+                                     f"mission's {t_f:g} s", rejections.Reason.OUT_OF_RANGE)
+        if fc.issued_substep < held.forecast_revision:
+            raise rejections.invalid(
+                f"the forecast starts from fire revision {fc.issued_substep}, older than "
+                f"{held.forecast_revision} already planned on", rejections.Reason.STALE)
+        held.forecast_revision = fc.issued_substep
+        return view
+
     def plan(self, query: plan_convert.PlanQuery) -> Plan:
         req = query.request
         if req.system != self.system:
             raise rejections.invalid(
                 f"request for system {req.system} sent to system {self.system}")
         planner = self.planner_for(query)
+        view = self.check_forecast(query)
         t0 = time.perf_counter()
         try:
-            plan = planner.plan(req.state, req.obstacles, req.objective, req.prev_control)
+            if view is not None:
+                plan = cast(ForecastPlanner, planner).plan(
+                    req.state, req.obstacles, req.objective, req.prev_control, forecast=view)
+            else:
+                plan = planner.plan(req.state, req.obstacles, req.objective, req.prev_control)
         except ValueError as err:  # bad input to the planner: not flyable, not fatal
             plan = Plan.failed(self.system, PlanStatus.INVALID_INPUT, time.perf_counter() - t0,
                                str(err))

@@ -6,7 +6,11 @@
   configuration (its reading's FireParams: T_f, life_base, extent, the
   scenario, …; dualpilot/mission/config.py; a reset without one: the EWS's
   own, from ``--profile`` and its flags); ``advance`` propagates n sub-steps for mission
-  step t, no front igniting within the command's keep-out radius of the UAV.
+  step t, no front igniting within the command's keep-out radius of the UAV; ``forecast``
+  answers with the occupancy forecast of the current fire state (the mission
+  configuration's grid and ensemble, time-steps of the query's length), made
+  only when asked and refused when the query names another revision of the fire
+  state (sub-steps done) than the EWS holds.
   Sub-step k is published on
   ``<ns>/ews/fires`` when the stack's clock (carried in the command) reaches
   ``τ_t + k·T_f``: the fires propagate while the plan is computed (see
@@ -41,7 +45,7 @@ from typing import Any
 import numpy as np
 import zenoh
 
-from dualpilot.model.field_forecast import field_forecast
+from dualpilot.model.field_forecast import field_forecast, forecast_step_substeps
 from dualpilot.model.fire import FireParams
 from dualpilot.model.fire_field import FireField
 from dualpilot.model.forecast import ForecastParams
@@ -84,8 +88,11 @@ class Ews:
         self.sim_time_s = 0.0
         #: the occupancy forecast's grid and ensemble (None: not published)
         self.occupancy = occupancy
+        self.own_occupancy = occupancy  # for a reset that carries no configuration
         self.seed = 0
         self.step_substeps = 0  # sub-steps run so far in the latest time-step
+        #: the mission asks for its forecasts (each is published as it is answered)
+        self.asked_forecasts = False
 
     @property
     def forecast_substeps(self) -> int:
@@ -100,15 +107,19 @@ class Ews:
 
     def handle(self, cmd: fire_convert.FireCommand) -> fire_pb2.FireUpdate:
         update = fire_pb2.FireUpdate()
-        if cmd.kind == "reset":
+        if cmd.kind == "forecast":
+            self.answer_forecast(cmd, update.forecast)
+        elif cmd.kind == "reset":
             # the mission's fire process: its configuration's reading (else the EWS's own)
             params = self.own if cmd.config is None else cmd.config.reading().fire
+            self.occupancy = self.own_occupancy if cmd.config is None else cmd.config.forecast
             self.params = params
             self.field = (FireField(params=params, area_size_m=cmd.area_size_m)
                           if cmd.area_size_m > 0 else FireField(params=params))
             self.rng = stream_rng(cmd.seed, Stream.FIRE)
             self.mission_id, self.step, self.sim_time_s = cmd.mission_id, 0, 0.0
             self.seed, self.step_substeps = cmd.seed, 0
+            self.asked_forecasts = False
             state = self.state_msg()
             bus.put(self.fires_pub, "", state)
             update.states.append(state)
@@ -143,27 +154,67 @@ class Ews:
         self.stamper.stamp(update.header, self.sim_time_s)
         return update
 
+    def answer_forecast(self, cmd: fire_convert.FireCommand, out: fire_pb2.FireForecast) -> None:
+        """The occupancy forecast of the fire state ``cmd`` names (its revision: sub-steps
+        done), made now; raises CodecError for another mission or revision, or none to give."""
+        f = self.field
+        if f is None or cmd.mission_id != self.mission_id:
+            raise rejections.invalid(f"no fire process for mission {cmd.mission_id!r} "
+                                     f"(current {self.mission_id!r}): send reset first")
+        if cmd.substeps_done != f.substeps_done:
+            raise rejections.invalid(
+                f"forecast asked from the fire state after {cmd.substeps_done} sub-steps; the "
+                f"EWS holds the one after {f.substeps_done}", rejections.Reason.STALE)
+        if self.occupancy is None:
+            raise rejections.invalid("this EWS makes no occupancy forecast "
+                                     "(--occupancy-horizon-s 0) and the mission set none")
+        t0 = time.perf_counter()
+        fc = field_forecast(f, self.occupancy, self.seed,
+                            forecast_step_substeps(f.params, cmd.substeps))
+        fire_convert.forecast_reply_msg(fc, cmd.step, time.perf_counter() - t0, out)
+        self.stamper.stamp(out.header, self.sim_time_s)
+        self.asked_forecasts = True
+
+    def publish_answer(self, answer: fire_pb2.FireForecast) -> None:
+        """A forecast the supervisor asked for, on ``<ns>/ews/forecast`` too while anyone
+        subscribes (the live view shows what the plans were made on; nothing made twice),
+        with the paper model's front forecast beside it."""
+        matching: Any = self.forecast_pub.matching_status
+        if not matching.matching or self.field is None:
+            return
+        m = fire_pb2.FireForecast()
+        m.CopyFrom(answer)
+        self._add_fronts(m)
+        bus.put(self.forecast_pub, "", m)
+
     def publish_forecast(self) -> None:
         """Both forecasts of the current fire state on ``<ns>/ews/forecast``, made only while a
         subscriber matches the key (a physics scenario's run-ahead costs several steps' CPU)."""
         assert self.field is not None
         matching: Any = self.forecast_pub.matching_status  # a MatchingStatus (the stub: bool)
-        if not matching.matching:
+        if not matching.matching or self.asked_forecasts:  # then published with each answer
             return
-        paper = self.field.physics is None  # the mean motion is the paper model's
         m = fire_pb2.FireForecast(substeps_done=self.field.substeps_done,
-                                  substep_s=self.params.substep_s,
-                                  horizon_s=self.forecast_substeps * self.params.substep_s
-                                  if paper else 0.0)
+                                  substep_s=self.params.substep_s)
         self.stamper.stamp(m.header, self.sim_time_s)
-        for front in self.field.fronts if paper else ():
+        self._add_fronts(m)
+        self.add_occupancy(m)
+        bus.put(self.forecast_pub, "", m)
+
+    def _add_fronts(self, m: fire_pb2.FireForecast) -> None:
+        """The mean-motion forecast of each front into ``m`` (the paper model's; none for a
+        physics scenario)."""
+        assert self.field is not None
+        if self.field.physics is not None:
+            m.horizon_s = 0.0
+            return
+        m.horizon_s = self.forecast_substeps * self.params.substep_s
+        for front in self.field.fronts:
             regions = forecast_regions(front, self.field.params, self.forecast_substeps)
             fm = m.fronts.add(front_id=front.front_id)
             for r in regions:
                 common_convert.rect_to_msg(r, fm.regions.add())
             common_convert.polygon_to_msg(envelope(front, regions), fm.envelope)
-        self.add_occupancy(m)
-        bus.put(self.forecast_pub, "", m)
 
     def add_occupancy(self, m: fire_pb2.FireForecast) -> None:
         """The occupancy forecast into ``m`` (the in-process fire port's: the paper's fronts on
@@ -225,8 +276,11 @@ def body(ctx: bus.Context, params: FireParams, forecast_horizon_s: float,
             update = ews.handle(cmd)
             # Before the reply: once answered, the supervisor starts its next step at once,
             # and a forecast computed then would take the CPU its plan request needs.
-            ews.publish_forecast()
+            if cmd.kind != "forecast":
+                ews.publish_forecast()
             bus.reply(item.query, update)
+            if cmd.kind == "forecast":  # after the reply: the plan request goes first
+                ews.publish_answer(update.forecast)
         except rejections.CodecError as err:
             rejections.rejected("FireCommand", err, log, key=key)
             bus.reply_error(item.query, common_convert.error_msg(ews.stamper, err.code, str(err)))

@@ -27,14 +27,38 @@ ENDPOINT_KEYS = ("ZENOH_CONNECT", "ZENOH_LISTEN", "MAVLINK_URL", "GCS_URL", "VIE
 _ENDPOINT = re.compile(r"^(?P<scheme>[a-z]+[:/])(?P<host>[^:/,]+|\[[^\]]+\]):(?P<port>\d{1,5})$")
 
 
+#: compose's variable forms ``${NAME}`` and ``${NAME:-default}`` (default when unset or empty)
+_VARIABLE = re.compile(r"\$\{(?P<name>[A-Za-z_][A-Za-z0-9_]*)(?::-(?P<default>[^}]*))?\}")
+
+
 # -- the compose file -----------------------------------------------------------------------------
-def load_compose(path: Path = COMPOSE) -> dict[str, Any]:
-    """Parse and structurally check the compose file (see :func:`check_compose`)."""
+def load_compose(path: Path = COMPOSE, env: Mapping[str, str] | None = None) -> dict[str, Any]:
+    """Parse the compose file, fill in its variables from ``env`` (default: this process's
+    environment) as ``docker compose`` does, and check it (see :func:`check_compose`)."""
+    import os
+
     import yaml
 
-    doc = yaml.safe_load(Path(path).read_text())
+    doc = interpolate(yaml.safe_load(Path(path).read_text()), os.environ if env is None else env)
     check_compose(doc)
     return doc  # type: ignore[no-any-return]
+
+
+def interpolate(node: Any, env: Mapping[str, str]) -> Any:
+    """``node`` with each ``${NAME}`` / ``${NAME:-default}`` in its strings replaced from
+    ``env`` (an unset ``${NAME}`` becomes "", as compose does); ``$$`` is a literal ``$``."""
+    if isinstance(node, dict):
+        return {k: interpolate(v, env) for k, v in node.items()}
+    if isinstance(node, list):
+        return [interpolate(v, env) for v in node]
+    if not isinstance(node, str) or "$" not in node:
+        return node
+
+    def value(m: re.Match[str]) -> str:
+        got = env.get(m["name"], "")
+        return got if got or m["default"] is None else m["default"]
+
+    return "$".join(_VARIABLE.sub(value, part) for part in node.split("$$"))
 
 
 def check_compose(doc: Any) -> None:

@@ -73,8 +73,20 @@ class ConcurrentParams(_message.Message):
     risk: RiskParams
     def __init__(self, threat_margin_m: _Optional[float] = ..., check_steps: _Optional[int] = ..., reanchor_tol_m: _Optional[float] = ..., reanchor_tol_mps: _Optional[float] = ..., max_wait_hazard: _Optional[float] = ..., q_rate: _Optional[float] = ..., switch_margin: _Optional[float] = ..., energy_scale_n2: _Optional[float] = ..., risk: _Optional[_Union[RiskParams, _Mapping]] = ...) -> None: ...
 
+class ForecastParams(_message.Message):
+    __slots__ = ("members", "resolution_m", "horizon_s", "interval_s")
+    MEMBERS_FIELD_NUMBER: _ClassVar[int]
+    RESOLUTION_M_FIELD_NUMBER: _ClassVar[int]
+    HORIZON_S_FIELD_NUMBER: _ClassVar[int]
+    INTERVAL_S_FIELD_NUMBER: _ClassVar[int]
+    members: int
+    resolution_m: float
+    horizon_s: float
+    interval_s: float
+    def __init__(self, members: _Optional[int] = ..., resolution_m: _Optional[float] = ..., horizon_s: _Optional[float] = ..., interval_s: _Optional[float] = ...) -> None: ...
+
 class MissionConfig(_message.Message):
-    __slots__ = ("mission_id", "uav_id", "seed", "controller", "supervisor", "risk", "timing", "profile", "settings", "system1_method", "system2_method", "concurrent", "goal", "area_size_m", "start")
+    __slots__ = ("mission_id", "uav_id", "seed", "controller", "supervisor", "risk", "timing", "profile", "settings", "system1_method", "system2_method", "concurrent", "goal", "area_size_m", "start", "forecast")
     MISSION_ID_FIELD_NUMBER: _ClassVar[int]
     UAV_ID_FIELD_NUMBER: _ClassVar[int]
     SEED_FIELD_NUMBER: _ClassVar[int]
@@ -90,6 +102,7 @@ class MissionConfig(_message.Message):
     GOAL_FIELD_NUMBER: _ClassVar[int]
     AREA_SIZE_M_FIELD_NUMBER: _ClassVar[int]
     START_FIELD_NUMBER: _ClassVar[int]
+    FORECAST_FIELD_NUMBER: _ClassVar[int]
     mission_id: str
     uav_id: str
     seed: int
@@ -105,4 +118,5 @@ class MissionConfig(_message.Message):
     goal: _common_pb2.Rect
     area_size_m: float
     start: _common_pb2.Vec2
-    def __init__(self, mission_id: _Optional[str] = ..., uav_id: _Optional[str] = ..., seed: _Optional[int] = ..., controller: _Optional[_Union[ControllerKind, str]] = ..., supervisor: _Optional[_Union[SupervisorKind, str]] = ..., risk: _Optional[bool] = ..., timing: _Optional[_Union[Timing, str]] = ..., profile: _Optional[str] = ..., settings: _Optional[_Iterable[_Union[Setting, _Mapping]]] = ..., system1_method: _Optional[str] = ..., system2_method: _Optional[str] = ..., concurrent: _Optional[_Union[ConcurrentParams, _Mapping]] = ..., goal: _Optional[_Union[_common_pb2.Rect, _Mapping]] = ..., area_size_m: _Optional[float] = ..., start: _Optional[_Union[_common_pb2.Vec2, _Mapping]] = ...) -> None: ...
+    forecast: ForecastParams
+    def __init__(self, mission_id: _Optional[str] = ..., uav_id: _Optional[str] = ..., seed: _Optional[int] = ..., controller: _Optional[_Union[ControllerKind, str]] = ..., supervisor: _Optional[_Union[SupervisorKind, str]] = ..., risk: _Optional[bool] = ..., timing: _Optional[_Union[Timing, str]] = ..., profile: _Optional[str] = ..., settings: _Optional[_Iterable[_Union[Setting, _Mapping]]] = ..., system1_method: _Optional[str] = ..., system2_method: _Optional[str] = ..., concurrent: _Optional[_Union[ConcurrentParams, _Mapping]] = ..., goal: _Optional[_Union[_common_pb2.Rect, _Mapping]] = ..., area_size_m: _Optional[float] = ..., start: _Optional[_Union[_common_pb2.Vec2, _Mapping]] = ..., forecast: _Optional[_Union[ForecastParams, _Mapping]] = ...) -> None: ...

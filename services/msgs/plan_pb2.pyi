@@ -1,5 +1,6 @@
 from services.msgs import common_pb2 as _common_pb2
 from services.msgs import config_pb2 as _config_pb2
+from services.msgs import fire_pb2 as _fire_pb2
 from services.msgs import vehicle_pb2 as _vehicle_pb2
 from google.protobuf.internal import containers as _containers
 from google.protobuf.internal import enum_type_wrapper as _enum_type_wrapper
@@ -83,8 +84,24 @@ class MissionSpec(_message.Message):
     dynamics: Dynamics
     def __init__(self, mission_id: _Optional[str] = ..., seed: _Optional[int] = ..., goal: _Optional[_Union[_common_pb2.Rect, _Mapping]] = ..., area_size_m: _Optional[float] = ..., start: _Optional[_Union[_common_pb2.Vec2, _Mapping]] = ..., d_safe_m: _Optional[float] = ..., clearance_m: _Optional[float] = ..., dynamics: _Optional[_Union[Dynamics, _Mapping]] = ...) -> None: ...
 
+class PlanForecast(_message.Message):
+    __slots__ = ("step", "substeps_done", "substep_s", "substeps_per_step", "offset_substeps", "occupancy")
+    STEP_FIELD_NUMBER: _ClassVar[int]
+    SUBSTEPS_DONE_FIELD_NUMBER: _ClassVar[int]
+    SUBSTEP_S_FIELD_NUMBER: _ClassVar[int]
+    SUBSTEPS_PER_STEP_FIELD_NUMBER: _ClassVar[int]
+    OFFSET_SUBSTEPS_FIELD_NUMBER: _ClassVar[int]
+    OCCUPANCY_FIELD_NUMBER: _ClassVar[int]
+    step: int
+    substeps_done: int
+    substep_s: float
+    substeps_per_step: int
+    offset_substeps: int
+    occupancy: _fire_pb2.OccupancyGrid
+    def __init__(self, step: _Optional[int] = ..., substeps_done: _Optional[int] = ..., substep_s: _Optional[float] = ..., substeps_per_step: _Optional[int] = ..., offset_substeps: _Optional[int] = ..., occupancy: _Optional[_Union[_fire_pb2.OccupancyGrid, _Mapping]] = ...) -> None: ...
+
 class PlanRequest(_message.Message):
-    __slots__ = ("header", "mission", "step", "system", "objective", "state", "prev_control", "deadline_s", "prepare", "mission_id", "obstacles", "waypoints_revision", "config")
+    __slots__ = ("header", "mission", "step", "system", "objective", "state", "prev_control", "deadline_s", "prepare", "mission_id", "obstacles", "waypoints_revision", "config", "forecast")
     HEADER_FIELD_NUMBER: _ClassVar[int]
     MISSION_FIELD_NUMBER: _ClassVar[int]
     STEP_FIELD_NUMBER: _ClassVar[int]
@@ -98,6 +115,7 @@ class PlanRequest(_message.Message):
     OBSTACLES_FIELD_NUMBER: _ClassVar[int]
     WAYPOINTS_REVISION_FIELD_NUMBER: _ClassVar[int]
     CONFIG_FIELD_NUMBER: _ClassVar[int]
+    FORECAST_FIELD_NUMBER: _ClassVar[int]
     header: _common_pb2.Header
     mission: MissionSpec
     step: int
@@ -111,7 +129,8 @@ class PlanRequest(_message.Message):
     obstacles: _containers.RepeatedCompositeFieldContainer[_common_pb2.Polygon]
     waypoints_revision: int
     config: _config_pb2.MissionConfig
-    def __init__(self, header: _Optional[_Union[_common_pb2.Header, _Mapping]] = ..., mission: _Optional[_Union[MissionSpec, _Mapping]] = ..., step: _Optional[int] = ..., system: _Optional[int] = ..., objective: _Optional[_Union[Objective, str]] = ..., state: _Optional[_Union[_vehicle_pb2.VehicleState, _Mapping]] = ..., prev_control: _Optional[_Union[_common_pb2.Force2, _Mapping]] = ..., deadline_s: _Optional[float] = ..., prepare: _Optional[bool] = ..., mission_id: _Optional[str] = ..., obstacles: _Optional[_Iterable[_Union[_common_pb2.Polygon, _Mapping]]] = ..., waypoints_revision: _Optional[int] = ..., config: _Optional[_Union[_config_pb2.MissionConfig, _Mapping]] = ...) -> None: ...
+    forecast: PlanForecast
+    def __init__(self, header: _Optional[_Union[_common_pb2.Header, _Mapping]] = ..., mission: _Optional[_Union[MissionSpec, _Mapping]] = ..., step: _Optional[int] = ..., system: _Optional[int] = ..., objective: _Optional[_Union[Objective, str]] = ..., state: _Optional[_Union[_vehicle_pb2.VehicleState, _Mapping]] = ..., prev_control: _Optional[_Union[_common_pb2.Force2, _Mapping]] = ..., deadline_s: _Optional[float] = ..., prepare: _Optional[bool] = ..., mission_id: _Optional[str] = ..., obstacles: _Optional[_Iterable[_Union[_common_pb2.Polygon, _Mapping]]] = ..., waypoints_revision: _Optional[int] = ..., config: _Optional[_Union[_config_pb2.MissionConfig, _Mapping]] = ..., forecast: _Optional[_Union[PlanForecast, _Mapping]] = ...) -> None: ...
 
 class Plan(_message.Message):
     __slots__ = ("header", "step", "system", "status", "states", "controls", "compute_time_s", "objective", "cost", "path_m", "message", "info_json", "request_seq", "service_time_s")

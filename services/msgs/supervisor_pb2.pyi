@@ -99,7 +99,7 @@ class MissionEvent(_message.Message):
     def __init__(self, header: _Optional[_Union[_common_pb2.Header, _Mapping]] = ..., kind: _Optional[_Union[MissionEventKind, str]] = ..., mission_id: _Optional[str] = ..., controller: _Optional[str] = ..., seed: _Optional[int] = ..., step: _Optional[int] = ..., success: _Optional[bool] = ..., failure_cause: _Optional[str] = ..., mission_time_s: _Optional[float] = ..., flown_system: _Optional[int] = ..., position: _Optional[_Union[_common_pb2.Vec2, _Mapping]] = ..., fires_active: _Optional[int] = ..., plan_status: _Optional[str] = ..., message: _Optional[str] = ...) -> None: ...
 
 class StepPlans(_message.Message):
-    __slots__ = ("header", "mission_id", "step", "step_time_s", "flown_system", "plans", "mission")
+    __slots__ = ("header", "mission_id", "step", "step_time_s", "flown_system", "plans", "mission", "risk_zones", "risk_alpha")
     HEADER_FIELD_NUMBER: _ClassVar[int]
     MISSION_ID_FIELD_NUMBER: _ClassVar[int]
     STEP_FIELD_NUMBER: _ClassVar[int]
@@ -107,6 +107,8 @@ class StepPlans(_message.Message):
     FLOWN_SYSTEM_FIELD_NUMBER: _ClassVar[int]
     PLANS_FIELD_NUMBER: _ClassVar[int]
     MISSION_FIELD_NUMBER: _ClassVar[int]
+    RISK_ZONES_FIELD_NUMBER: _ClassVar[int]
+    RISK_ALPHA_FIELD_NUMBER: _ClassVar[int]
     header: _common_pb2.Header
     mission_id: str
     step: int
@@ -114,7 +116,9 @@ class StepPlans(_message.Message):
     flown_system: int
     plans: _containers.RepeatedCompositeFieldContainer[SystemPlan]
     mission: _plan_pb2.MissionSpec
-    def __init__(self, header: _Optional[_Union[_common_pb2.Header, _Mapping]] = ..., mission_id: _Optional[str] = ..., step: _Optional[int] = ..., step_time_s: _Optional[float] = ..., flown_system: _Optional[int] = ..., plans: _Optional[_Iterable[_Union[SystemPlan, _Mapping]]] = ..., mission: _Optional[_Union[_plan_pb2.MissionSpec, _Mapping]] = ...) -> None: ...
+    risk_zones: _containers.RepeatedCompositeFieldContainer[_common_pb2.Polygon]
+    risk_alpha: float
+    def __init__(self, header: _Optional[_Union[_common_pb2.Header, _Mapping]] = ..., mission_id: _Optional[str] = ..., step: _Optional[int] = ..., step_time_s: _Optional[float] = ..., flown_system: _Optional[int] = ..., plans: _Optional[_Iterable[_Union[SystemPlan, _Mapping]]] = ..., mission: _Optional[_Union[_plan_pb2.MissionSpec, _Mapping]] = ..., risk_zones: _Optional[_Iterable[_Union[_common_pb2.Polygon, _Mapping]]] = ..., risk_alpha: _Optional[float] = ...) -> None: ...
 
 class SystemPlan(_message.Message):
     __slots__ = ("system", "status", "positions_m")

@@ -18,6 +18,10 @@ twin, and one with faults says which:
 ``plan_deadline``    a plan request missed its wall-clock deadline (not flown)
 ``fire_stale``       the EWS did not advance the fires: the planners got the
                      last fire state grown by the credible spread
+``forecast_stale``   a risk-aware step got no forecast of its fire state (the
+                     EWS gone, late, refusing, or answering for another
+                     revision): that step's plans and threat rule went without
+                     it, as the paper's (the detail says why)
 ===================  ===========================================================
 """
 
@@ -31,7 +35,8 @@ VEHICLE_MOVED = "vehicle_moved"
 VEHICLE_LOST = "vehicle_lost"
 PLAN_DEADLINE = "plan_deadline"
 FIRE_STALE = "fire_stale"
-NAMES = (VEHICLE_HOLD, VEHICLE_MOVED, VEHICLE_LOST, PLAN_DEADLINE, FIRE_STALE)
+FORECAST_STALE = "forecast_stale"
+NAMES = (VEHICLE_HOLD, VEHICLE_MOVED, VEHICLE_LOST, PLAN_DEADLINE, FIRE_STALE, FORECAST_STALE)
 
 
 @dataclass

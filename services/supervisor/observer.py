@@ -137,6 +137,9 @@ class StackObserver:
         self.faults.counters(vehicle_moved=link.moved_without_step, plan_deadline=misses)
         if self._why.get("fire_stale"):
             self.faults.note(fault_names.FIRE_STALE)
+        fires = self.mission.fires
+        for why in fires.take_faults() if fires is not None else ():
+            self.faults.note(fault_names.FORECAST_STALE, why)
         found = self.faults.take()
         if found:
             log.warning("step touched by a fault", extra=fields(faults="; ".join(found)))
@@ -151,6 +154,9 @@ class StackObserver:
                 step=record.t, plan_status=record.plan_status, total=self.monitor_rejected))
         why = dict(self._why)
         why["faults"] = self._step_faults()
+        costs = self.mission.fires.take_costs() if self.mission.fires is not None else []
+        if costs:
+            why["forecast"] = costs
         if record.system == 0:
             why["hold_reason"] = self.hold_reason()
         if not flown:

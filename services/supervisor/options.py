@@ -96,6 +96,12 @@ def _add_stack_arguments(p: argparse.ArgumentParser) -> None:
                    help="how long to wait for the other services [WAIT_SERVICES_S]")
     g.add_argument("--plan-deadline-s", default=env("PLAN_DEADLINE_S", ""),
                    help="'s1,s2' wall seconds a plan request waits [PLAN_DEADLINE_S]")
+    g.add_argument("--fire-timeout-s", type=float, default=env("FIRE_TIMEOUT_S", "30"),
+                   help="how long a fire command to the EWS waits (wall s); past it the fire "
+                        "data ages (fire_stale) [FIRE_TIMEOUT_S]")
+    g.add_argument("--forecast-timeout-s", type=float, default=env("FORECAST_TIMEOUT_S", "10"),
+                   help="how long a risk-aware step waits for the EWS's forecast (wall s); "
+                        "past it the step flies without (forecast_stale) [FORECAST_TIMEOUT_S]")
     g.add_argument("--setpoint-rate-hz", type=float, default=env("SETPOINT_RATE_HZ", "20"),
                    help="setpoint stream rate, >= 10 [SETPOINT_RATE_HZ]")
     g.add_argument("--setpoint-stream", default=env("SETPOINT_STREAM", "process"),
@@ -124,12 +130,16 @@ def parser(doc: str) -> argparse.ArgumentParser:
 
 
 def _stack_params(args: argparse.Namespace) -> StackParams:
+    if not (args.forecast_timeout_s > 0 and args.fire_timeout_s > 0):
+        raise ValueError("--fire-timeout-s and --forecast-timeout-s must be positive")
+    base = StackParams(altitude_m=args.altitude_m, fire_timeout_s=args.fire_timeout_s,
+                       forecast_timeout_s=args.forecast_timeout_s)
     if not args.plan_deadline_s:  # default: tied to the control period (plan_deadline_periods)
-        return StackParams(altitude_m=args.altitude_m)
+        return base
     deadlines = tuple(float(v) for v in args.plan_deadline_s.split(","))
     if len(deadlines) != 2 or min(deadlines) <= 0:
         raise ValueError("--plan-deadline-s must be two positive numbers 's1,s2'")
-    return StackParams(plan_deadline_s=(deadlines[0], deadlines[1]), altitude_m=args.altitude_m)
+    return replace(base, plan_deadline_s=(deadlines[0], deadlines[1]))
 
 
 def _fleet(args: argparse.Namespace, settings: common_cli.Settings, seed: int

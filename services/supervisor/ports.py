@@ -23,7 +23,9 @@ from google.protobuf.message import Message
 from dualpilot.mission.config import MissionConfig
 from dualpilot.mission.ports import KeepOut, PlanRequest
 from dualpilot.model.dynamics import Array
+from dualpilot.model.field_forecast import forecast_step_substeps
 from dualpilot.model.fire import FireParams, FireSnapshot
+from dualpilot.model.forecast import OccupancyForecast
 from dualpilot.model.geometry import Rect
 from dualpilot.model.stale_fire import StaleFireParams, credible_margin_m
 from dualpilot.plan import Plan
@@ -75,6 +77,9 @@ class StackParams:
     stale: StaleFireParams = StaleFireParams()
     #: flush the step record (steps.jsonl) at most this long after a line (s); 0: every line
     record_flush_s: float = 0.0
+    #: how long a forecast query to the EWS waits (wall s); past it the step flies without
+    #: the forecast (the forecast_stale fault)
+    forecast_timeout_s: float = 10.0
 
 
 @dataclass
@@ -122,6 +127,14 @@ class StackFires:
     :meth:`margin_m` until an EWS is back, reset and replayed to the same fire
     world (:meth:`snapshot` catches up first). A reset carries the mission's
     configuration: the EWS runs its reading's fire process.
+
+    :meth:`forecast` asks the EWS for the occupancy forecast of exactly the fire
+    state the step plans on (its revision: the sub-steps done), as the
+    in-process port makes it. Without one (fire data owed, the EWS gone, late,
+    refusing or answering with another revision, a reply that does not decode)
+    the step flies without it, the paper's planners and threat rule: each such
+    step is a ``forecast_stale`` fault (:meth:`take_faults`), and every answer's
+    cost is kept for the step record (:meth:`take_costs`).
     """
 
     def __init__(self, b: Bus, spec: MissionSpec, config: MissionConfig,
@@ -136,6 +149,13 @@ class StackFires:
         self.owed = 0
         self.msg: fire_pb2.FireState | None = None
         self.current = FireSnapshot(regions=(), hulls=())
+        self.step = 0  # the mission step under way (begin_step)
+        self._forecasts: dict[tuple[int, int], OccupancyForecast | None] = {}
+        self._faults: list[str] = []
+        self._costs: list[dict[str, object]] = []
+        self._received: list[tuple[float, float, int]] = []  # (compute s, wall s, bytes)
+        self._missing = 0  # steps that flew without the forecast they asked for
+        self._missing_step = -1
 
     # -- messages ---------------------------------------------------------------------------------
     def _command(self, cmd: fire_pb2.FireCommand) -> fire_pb2.FireUpdate:
@@ -196,9 +216,113 @@ class StackFires:
         self.owed = 0
 
     # -- the port ---------------------------------------------------------------------------------
+    def begin_step(self, t: int) -> None:
+        self.step = t
+
     def snapshot(self) -> FireSnapshot:
         self._catch_up()
         return self.current
+
+    def revision(self) -> int:
+        """The fire state's revision: its sub-steps since the mission began."""
+        return int(self.msg.substeps_done) if self.msg is not None else 0
+
+    def forecast(self, substeps_per_step: int) -> OccupancyForecast | None:
+        """The EWS's forecast from :meth:`snapshot`'s state for time-steps of
+        ``substeps_per_step`` sub-steps (kept until the fires advance); None when there is
+        none to be had (a ``forecast_stale`` fault, one a step: fire data owed, the EWS gone, no
+        answer or a refused one; a refused or missing answer is not asked again for the same
+        revision and length)."""
+        n = forecast_step_substeps(self.params, substeps_per_step)
+        if self.owed or not self.b.alive("ews"):  # the state it would start from is gone by
+            why = (f"fire data {self.age_s():g} s old" if self.owed else "the EWS is gone")
+            self._no_forecast(why)
+            return None
+        key = (self.revision(), n)
+        if key not in self._forecasts:
+            self._forecasts = {k: v for k, v in self._forecasts.items() if k[0] == key[0]}
+            self._forecasts[key] = self._ask_forecast(*key)
+        elif self._forecasts[key] is None:
+            self._no_forecast(f"the EWS gave no forecast of revision {key[0]}")
+        return self._forecasts[key]
+
+    def _ask_forecast(self, revision: int, n: int) -> OccupancyForecast | None:
+        cmd = fire_convert.fire_forecast_query_msg(self.b.mission_id, self.step, revision, n,
+                                                   self.b.stamper, self.b.clock.now_s)
+        key = keys.fire_command(self.b.uav)
+        t0 = time.perf_counter()
+        try:
+            payload, enc = self.b.query(key, cmd, self.b.stack.forecast_timeout_s,
+                                        trusted=self.b.trusted("ews"))
+            update = wire.parse(payload, fire_pb2.FireUpdate, enc)
+            fc = self._checked_forecast(update, revision)
+        except rejections.CodecError as err:
+            rejections.rejected("FireForecast", err, log, key=key)
+            self._no_forecast(f"refused: {err}")
+            return None
+        except (TimeoutError, bus.QueryError) as err:
+            if self.b.stop.is_set():
+                raise Aborted("stopped") from err
+            self._no_forecast(str(err))
+            return None
+        fc.memo[fire_convert.WIRE_GRID] = update.forecast.occupancy  # sent on as it came
+        wall = time.perf_counter() - t0
+        compute = update.forecast.compute_s
+        self._received.append((compute, wall, len(payload)))
+        self._costs.append({"revision": revision, "substeps_per_step": n,
+                            "compute_s": round(compute, 6), "wall_s": round(wall, 6),
+                            "bytes": len(payload), "age_s": 0.0})
+        return fc
+
+    def _checked_forecast(self, update: fire_pb2.FireUpdate,
+                          revision: int) -> OccupancyForecast:
+        """The reply's forecast, if it is the one asked for (CodecError otherwise)."""
+        if not update.HasField("forecast"):
+            raise rejections.invalid("the EWS replied without a forecast")
+        got = update.forecast
+        if got.substeps_done != revision or got.step != self.step:
+            raise rejections.invalid(
+                f"a forecast of step {got.step} from fire revision {got.substeps_done}, asked "
+                f"for step {self.step} from {revision}", rejections.Reason.STALE)
+        if not np.isclose(got.substep_s, self.params.substep_s, rtol=1e-12, atol=0.0):
+            raise rejections.invalid(f"a forecast at T_f = {got.substep_s:g} s, the mission "
+                                     f"runs {self.params.substep_s:g} s")
+        fc = fire_convert.occupancy_from_msg(got)
+        if fc is None:
+            raise rejections.invalid("the EWS's forecast carries no occupancy grid")
+        return fc
+
+    def _no_forecast(self, why: str) -> None:
+        """A forecast_stale fault, one a step however often the step asks."""
+        if self._missing_step == self.step:
+            return
+        self._missing_step = self.step
+        log.warning("no fire forecast for this step: flying without it", extra=fields(
+            step=self.step, revision=self.revision(), reason=why))
+        self._faults.append(why)
+        self._missing += 1
+
+    def forecast_summary(self) -> dict[str, object]:
+        """The mission's forecasts: how many came and went missing, the medians of the EWS's
+        compute time, the query's wall time (s) and the reply's size (bytes)."""
+        if not self._received and not self._missing:
+            return {}
+        got = np.array(self._received, dtype=float).reshape(-1, 3)
+        med = np.median(got, axis=0) if len(got) else np.full(3, np.nan)
+        return {"received": len(got), "missing": self._missing,
+                "median_compute_s": round(float(med[0]), 6),
+                "median_wall_s": round(float(med[1]), 6), "median_bytes": float(med[2])}
+
+    def take_faults(self) -> list[str]:
+        """Why each forecast asked since the last call could not be had."""
+        out, self._faults = self._faults, []
+        return out
+
+    def take_costs(self) -> list[dict[str, object]]:
+        """Each forecast received since the last call: its revision, time-step length, the
+        EWS's compute time, the query's wall time, its size (bytes) and age (s)."""
+        out, self._costs = self._costs, []
+        return out
 
     def age_s(self) -> float:
         """Simulated s the fire process should have advanced beyond the last FireState."""
@@ -291,6 +415,10 @@ class StackPlanners:
 
     def available(self, system: int) -> bool:
         return self.b.alive(f"system{system}") and self.pool.available(system)
+
+    def uses_forecast(self, system: int) -> bool:
+        """Under ``risk`` both systems' planners are risk-aware (dualpilot.planners)."""
+        return self.config.risk
 
     # -- messages ---------------------------------------------------------------------------------
     def _query_msg(self, request: PlanRequest) -> plan_pb2.PlanRequest:

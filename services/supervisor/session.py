@@ -328,6 +328,8 @@ class StackSession:
         self.observer.began()
         self.b.clock.start_step()
         self.planners.begin_step()
+        assert self.fires is not None
+        self.fires.begin_step(self.mission.result.steps)
         record = self.mission.step()
         if record is not None and not self.mission.done:
             self.observer.step_event(record, self.observer.step_note(record))
@@ -377,6 +379,7 @@ class StackSession:
             "monitor_rejected": self.observer.monitor_rejected,
             "untrusted": _untrusted_counts(), "faults": dict(self.observer.faults.totals),
             "planner_failovers": pool.failovers if pool is not None else 0,
+            "forecast": self.fires.forecast_summary() if self.fires is not None else {},
             "stream": self.link.stream_stats(), **extra,
         }
 

@@ -22,6 +22,7 @@ from dualpilot.spec import MissionSpec
 from dualpilot.supervisor.decision import Decision
 from dualpilot.viz.foxglove import VehicleChannels
 from dualpilot.viz.scene import (
+    RiskView,
     area_view,
     decision_doc,
     end_text,
@@ -84,7 +85,8 @@ class LiveVehicle:
         self.ch.transform(t_ns)
         self.ch.area(area_view(sp.spec), t_ns)
         self.ch.plans(sp.plans, sp.step, t_ns)
-        self.logged += 4
+        self.ch.risk(RiskView(sp.risk_zones, sp.risk_alpha), sp.step, t_ns)
+        self.logged += 5
         self._join(sp.step, t_ns)
 
     def state(self, x: Array, step: int, t_ns: int) -> None:

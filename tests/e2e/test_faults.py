@@ -402,3 +402,76 @@ def test_plans_older_than_their_deadline_are_never_flown(tmp_path: Path) -> None
                for e in asked_s2)
     assert any("s2:timeout" in e["plan_status"] for e in asked_s2)
     assert "rejected Error" not in run.log("supervisor")  # Zenoh's timeout is a timeout
+
+
+# -- 7. the forecast of a risk-aware controller ---------------------------------------------------
+def forecast_faults(steps: dict[int, dict[str, Any]]) -> dict[int, list[str]]:
+    """Per step, the forecast_stale faults its record names (with why)."""
+    out = {t: [f for f in e["faults"] if f.startswith("forecast_stale")]
+           for t, e in steps.items()}
+    return {t: f for t, f in out.items() if f}
+
+
+def check_forecast_record(run: Run, end: Any) -> tuple[dict[int, list[str]], list[int]]:
+    """Nothing lost (every step in the record, its CSV row, the summary's counts are the
+    record's); the steps with forecast_stale faults and those that got a forecast."""
+    steps = run.steps()
+    summary = json.loads((run.run_dir / "summary.json").read_text())
+    # a failed last step is recorded, not counted as flown
+    assert sorted(steps) == list(range(len(steps))) and end.step == summary["steps"]
+    assert len(steps) in (end.step, end.step + 1), (len(steps), end.step)
+    rows = (run.run_dir / "steps.csv").read_text().splitlines()
+    assert len(rows) == len(steps) + 1
+    stale = forecast_faults(steps)
+    got = [t for t, e in steps.items() if e.get("forecast")]
+    stack = summary["stack"]
+    n_stale = sum(len(f) for f in stale.values())
+    assert stack["faults"].get("forecast_stale", 0) == n_stale, (stack["faults"], stale)
+    assert stack["forecast"]["missing"] == n_stale
+    assert stack["forecast"]["received"] == sum(len(steps[t]["forecast"]) for t in got)
+    return stale, got
+
+
+def test_ews_killed_a_risk_aware_mission_flies_without_the_forecast_and_gets_it_back(
+        tmp_path: Path) -> None:
+    """System 1 with the forecast: with the EWS gone each step's forecast is a named fault
+    (the step plans as the paper's System 1); once it is back and caught up, the forecast of
+    each step's fire state comes again."""
+    with running(tmp_path, "ews-risk", controller="s1+risk", speed=10.0) as run:
+        run.step_at_least(4)
+        run.kill("ews")
+        gone(run.live, "ews", 10, run.logs())
+        first = run.step_at_least(0).step
+        run.step_at_least(first + 3)
+        run.restart("ews")
+        alive(run.live, ["ews"], 60, run.logs())
+        end = run.ended(150)
+    stale, got = check_forecast_record(run, end)
+    check(bool(stale), "steps with a forecast_stale fault while the EWS was gone", run.logs())
+    assert got and min(got) < min(stale), (got, stale)  # a forecast before the kill
+    assert max(got) > max(stale), (got, stale)  # and again once the EWS was back
+    steps = run.steps()
+    for t in stale:  # flown as the paper's System 1 there: no forecast, no risk note
+        assert not steps[t].get("forecast"), steps[t]
+        assert all(f.partition(": ")[2] for f in stale[t]), stale[t]  # each says why
+
+
+def test_ews_stalled_a_risk_aware_mission_records_the_late_forecast_and_goes_on(
+        tmp_path: Path) -> None:
+    """The EWS stopped (SIGSTOP) for longer than the supervisor waits for it: whatever it was
+    asked then (an advance, a forecast) comes too late, the steps without a forecast are named
+    faults, and the mission goes on and ends once the EWS runs again."""
+    env = {"supervisor": {"FIRE_TIMEOUT_S": "1", "FORECAST_TIMEOUT_S": "1"}}
+    with running(tmp_path, "ews-stall", controller="concurrent+risk", speed=10.0,
+                 extra_env=env) as run:
+        run.step_at_least(4)
+        ews = run.proc("ews")
+        os.killpg(ews.popen.pid, signal.SIGSTOP)
+        try:
+            time.sleep(4.0)
+        finally:
+            os.killpg(ews.popen.pid, signal.SIGCONT)
+        end = run.ended(150)
+    stale, got = check_forecast_record(run, end)
+    check(bool(stale), "steps with a forecast_stale fault while the EWS was stopped", run.logs())
+    assert got and min(got) < min(stale), (got, stale)

@@ -64,11 +64,25 @@ def assert_same_mission(stack: MissionResult, local: MissionResult, what: str,
         assert a.planned_positions.shape == b.planned_positions.shape, where
         assert np.allclose(a.planned_positions, b.planned_positions,
                            atol=max(1e-2, atol)), where
-    assert stack.energy == pytest.approx(local.energy, rel=1e-5, abs=1e-3), what
+    bound = energy_bound(stack, local)
+    assert abs(stack.energy - local.energy) <= bound + 1e-9, (what, stack.energy, local.energy,
+                                                             bound)
 
 
-#: seed, controller ("concurrent": cc with the concurrent supervisor), timing, ignition clearance
-Run = tuple[int, str, str, float | None]
+def energy_bound(a: MissionResult, b: MissionResult) -> float:
+    """How far apart the energies Σ‖Δu_t‖² of two runs can be given their controls (N²):
+    |‖x‖² − ‖y‖²| ≤ (‖x‖ + ‖y‖)·‖x − y‖ for each step's Δu (the controls differ by the
+    float32 the state crossed MAVLink in, asserted per step to ATOL)."""
+    ua = np.vstack([np.zeros(2)] + [r.control for r in a.records])
+    ub = np.vstack([np.zeros(2)] + [r.control for r in b.records])
+    da, db = np.diff(ua, axis=0), np.diff(ub, axis=0)
+    return float(np.sum((np.linalg.norm(da, axis=1) + np.linalg.norm(db, axis=1))
+                        * np.linalg.norm(da - db, axis=1)))
+
+
+#: seed, controller ("concurrent": cc with the concurrent supervisor), timing, ignition
+#: clearance, and optionally the fire scenario
+Run = tuple[Any, ...]
 
 
 class ReplayedTimes:
@@ -141,12 +155,13 @@ def fly(fleet: launch.Fleet, runs: Sequence[Run],
     """Fly ``runs`` (seed, controller, timing, ignition clearance) at once, one vehicle each;
     per run its run directory and its records as a result."""
     mission_ids = {}
-    for k, (seed, controller, timing, clear) in enumerate(runs):
+    for k, run in enumerate(runs):
+        seed, controller, timing, clear, *scenario = run
         uav = fleet.uav_ids[k]
-        run_dir = out / f"{controller}-{timing}-s{seed}-ic{clear}"
+        run_dir = out / "-".join(str(v) for v in (controller, timing, f"s{seed}", f"ic{clear}",
+                                                  *scenario))
         mission_ids[uav] = fleet.start_vehicle(uav, seed, run_dir, env={"SPEED_FACTOR": "0"},
-                                               config=config_of(seed, controller, timing,
-                                                                clear)).mission_id
+                                               config=config_of(*run)).mission_id
     outcomes = fleet.wait_end(mission_ids, 300.0)
     results = {}
     for k, run in enumerate(runs):
@@ -161,17 +176,24 @@ def fly(fleet: launch.Fleet, runs: Sequence[Run],
     return results
 
 
-def config_of(seed: int, controller: str, timing: str, clear: float | None) -> MissionConfig:
+def config_of(seed: int, controller: str, timing: str, clear: float | None,
+              scenario: str = "") -> MissionConfig:
     """The configuration of a run: the same one flies through the stack and in-process."""
-    settings = () if clear is None else (("ignition_clearance_m", clear),)
-    return MissionConfig.named(controller, seed=seed, timing=Timing(timing), settings=settings)
+    settings: list[tuple[str, object]] = []
+    if clear is not None:
+        settings.append(("ignition_clearance_m", clear))
+    if scenario:
+        settings.append(("scenario", scenario))
+    return MissionConfig.named(controller, seed=seed, timing=Timing(timing),
+                               settings=tuple(settings))
 
 
-def in_process(seed: int, controller: str, timing: str, clear: float | None,
-               replay: Path | None = None) -> MissionResult:
-    """The in-process mission of a run; with ``replay`` (a stack's run directory) and measured
-    timing, flown with the compute times that run recorded (:class:`ReplayedTimes`)."""
-    mission = local_mission(config_of(seed, controller, timing, clear))
+def in_process(run: Run, replay: Path | None = None) -> MissionResult:
+    """The in-process mission of ``run`` (seed, controller, timing, clearance[, scenario]);
+    with ``replay`` (a stack's run directory) and measured timing, flown with the compute
+    times that run recorded (:class:`ReplayedTimes`)."""
+    seed, controller, timing, clear, *scenario = run
+    mission = local_mission(config_of(seed, controller, timing, clear, *scenario))
     if replay is not None and Timing(timing) is Timing.MEASURED:
         return replayed(mission, replay, f"{controller} {timing} seed {seed}")
     return mission.run()
@@ -193,7 +215,53 @@ def test_stack_and_in_process_records_are_identical(fleet: Any, controller: str,
     f, out = fleet
     runs = [(seed, controller, timing, None) for seed in SEEDS]
     for run, (run_dir, result) in fly(f, runs, out).items():
-        assert_same_mission(result, in_process(*run, replay=run_dir), str(run))
+        assert_same_mission(result, in_process(run, replay=run_dir), str(run))
+
+
+def forecasts_in(run_dir: Path) -> tuple[int, int]:
+    """(forecasts received, forecast_stale faults) of a stack run (summary.json)."""
+    stack = json.loads((run_dir / "summary.json").read_text())["stack"]
+    return int(stack["forecast"].get("received", 0)), int(stack["faults"].get("forecast_stale",
+                                                                              0))
+
+
+#: a known divergence, deterministic: the stack's s2+risk takes another homotopy than the
+#: in-process one (grass-15 seed 0 at step 32, shrub seed 0 at step 29); the plans' lower
+#: bounds already differ in the 7th digit a step before, the cause is not found yet
+S2_RISK_DIVERGES = pytest.mark.xfail(strict=True, reason="s2+risk: stack and in-process take "
+                                     "different homotopies on physics fires (open)")
+
+
+@pytest.mark.parametrize("scenario", ["grass-15", "shrub"])
+@pytest.mark.parametrize("controller", [pytest.param("s2+risk", marks=S2_RISK_DIVERGES),
+                                        "s1+risk", "concurrent+risk"])
+def test_risk_aware_controllers_fly_the_in_process_mission_through_the_stack(
+        fleet: Any, controller: str, scenario: str) -> None:
+    """fast+risk, rrt+risk and the concurrent supervisor with forecast threats on physics
+    fires: the forecast the EWS makes for each step's fire state crosses the wire to the
+    supervisor and in every risk-aware plan request, and each whole mission is the
+    in-process one, step for step."""
+    f, out = fleet
+    runs = [(seed, controller, "paper", None, scenario) for seed in SEEDS[:3]]
+    for run, (run_dir, result) in fly(f, runs, out).items():
+        received, stale = forecasts_in(run_dir)
+        assert received > 0 and stale == 0, (run, received, stale)
+        assert_same_mission(result, in_process(run), str(run))
+
+
+@pytest.mark.xfail(strict=False, reason="with five vehicles at once, concurrent+risk on shrub "
+                   "seed 0 diverged from its in-process twin (alone it does not; open)")
+def test_a_fleet_of_five_with_mixed_controllers_on_shrub(fleet: Any) -> None:
+    """Five vehicles at once on shrub fires, each its own controller (risk-aware or not) and
+    fire process on the shared EWS and planners: each mission is its in-process twin."""
+    f, out = fleet
+    names = ("concurrent+risk", "s1+risk", "cc", "s2+risk", "cc+risk")
+    runs = [(seed, name, "paper", None, "shrub") for seed, name in zip(SEEDS, names,
+                                                                      strict=True)]
+    for run, (run_dir, result) in fly(f, runs, out).items():
+        received, stale = forecasts_in(run_dir)
+        assert stale == 0 and (received > 0) == run[1].endswith("+risk"), (run, received)
+        assert_same_mission(result, in_process(run), str(run))
 
 
 def test_the_ignition_clearance_reaches_the_stack(fleet: Any) -> None:
@@ -203,9 +271,9 @@ def test_the_ignition_clearance_reaches_the_stack(fleet: Any) -> None:
     runs = [(seed, "cc", "paper", 20.0) for seed in SEEDS[:3]]
     results = {run: result for run, (_, result) in fly(f, runs, out).items()}
     for run, result in results.items():
-        assert_same_mission(result, in_process(*run), str(run))
+        assert_same_mission(result, in_process(run), str(run))
     # the reading matters: without it, some of these missions differ
-    plain = [in_process(seed, "cc", "paper", None) for seed, *_ in runs]
+    plain = [in_process((seed, "cc", "paper", None)) for seed, *_ in runs]
     assert [r.steps for r in plain] != [results[run].steps for run in runs]
 
 

@@ -139,7 +139,7 @@ def test_a_stopped_supervisor_keeps_its_stream_and_its_mission(fleet: Any) -> No
     summary = json.loads((run_dir / "summary.json").read_text())["stack"]
     assert summary["faults"] == {} and summary["stream"]["process"] is True
     stack = result_from_log(read_step_log(run_dir / "steps.jsonl"))
-    assert_same_mission(stack, in_process(SEED, "cc", "paper", None), "stopped supervisor")
+    assert_same_mission(stack, in_process((SEED, "cc", "paper", None)), "stopped supervisor")
 
 
 def test_lockstep_offboard_loss_holds_as_it_is_and_is_named(fleet: Any) -> None:
@@ -152,7 +152,7 @@ def test_lockstep_offboard_loss_holds_as_it_is_and_is_named(fleet: Any) -> None:
     summary = json.loads((run_dir / "summary.json").read_text())["stack"]
     assert summary["faults"] == {"vehicle_hold": 1}, summary["faults"]
     stack = result_from_log(read_step_log(run_dir / "steps.jsonl"))
-    assert_same_mission(stack, in_process(SEED, "cc", "paper", None), "stopped companion")
+    assert_same_mission(stack, in_process((SEED, "cc", "paper", None)), "stopped companion")
 
 
 def test_a_killed_stream_process_is_started_again_before_the_vehicle_notices(
@@ -166,4 +166,4 @@ def test_a_killed_stream_process_is_started_again_before_the_vehicle_notices(
     check("stream process ended: starting it again" in sup_log.read_text(),
           "the supervisor to log that it started its stream process again", [sup_log])
     stack = result_from_log(read_step_log(run_dir / "steps.jsonl"))
-    assert_same_mission(stack, in_process(SEED, "cc", "paper", None), "stream restarted")
+    assert_same_mission(stack, in_process((SEED, "cc", "paper", None)), "stream restarted")

@@ -6,6 +6,7 @@ No processes here: these are the checks every service relies on.
 from __future__ import annotations
 
 import math
+import zlib
 from pathlib import Path
 from typing import Any
 
@@ -356,7 +357,16 @@ def _broken(change: str) -> Any:
     if change == "no cells":
         g.rows = 0
     elif change == "short slice":
+        g.encoding = fire_pb2.SLICE_ENCODING_RAW
+        raw = [zlib.decompress(b) for b in g.probabilities]
+        raw[3] = raw[3][:-1]
+        g.probabilities[:] = raw
+    elif change == "cut zlib":
         g.probabilities[3] = g.probabilities[3][:-1]
+    elif change == "zlib bomb":
+        g.probabilities[3] = zlib.compress(bytes(2 * g.rows * g.cols))
+    elif change == "zlib tail":
+        g.probabilities[3] = g.probabilities[3] + b"\x00"
     elif change == "slices":
         del g.probabilities[-1]
     elif change == "order":
@@ -377,6 +387,9 @@ def _broken(change: str) -> Any:
 @pytest.mark.parametrize("change, match, reason", [
     ("no cells", "grid of 0 x 100", rejections.Reason.SIZE),
     ("short slice", "slice 3 has 9999 bytes", rejections.Reason.SIZE),
+    ("cut zlib", "slice 3's zlib stream is cut short", rejections.Reason.SIZE),
+    ("zlib bomb", "slice 3 inflates to more than the grid's 10000 bytes", rejections.Reason.SIZE),
+    ("zlib tail", "slice 3 has 1 bytes after its zlib stream", rejections.Reason.SIZE),
     ("slices", "4 probability slices for 5 horizons", rejections.Reason.SIZE),
     ("order", "horizons must increase", rejections.Reason.OUT_OF_RANGE),
     ("horizon_s", "is not the last horizon", rejections.Reason.INVALID),

@@ -165,3 +165,16 @@ def test_compose_v1_accepts_the_file_and_the_router_override() -> None:
     assert "tcp/0.0.0.0:7447" in zenoh["command"]
     assert compose_spec_errors(override_path.read_text()) == ""
     assert raw["services"]["supervisor"]["environment"]["EXIT_AFTER_MISSION"] == "1"
+
+
+def test_variables_are_filled_in_as_compose_does() -> None:
+    from services.launch.compose import COMPOSE, interpolate
+
+    env = {"CONTROLLER": "concurrent+risk", "EMPTY": ""}
+    assert interpolate({"a": ["${CONTROLLER:-cc}", "${EMPTY:-x}", "${UNSET}", "$$HOME",
+                              "n${UNSET:-1}m", 7]}, env) == {
+        "a": ["concurrent+risk", "x", "", "$HOME", "n1m", 7]}
+    chosen = launch.load_compose(COMPOSE, env)["services"]["supervisor"]["environment"]
+    assert chosen["CONTROLLER"] == "concurrent+risk"
+    assert launch.load_compose(COMPOSE, {})["services"]["supervisor"]["environment"][
+        "CONTROLLER"] == "cc"

@@ -14,6 +14,7 @@ from hypothesis import given, settings
 
 from dualpilot.mission.config import MissionConfig
 from dualpilot.mission.config_args import config_to_argv, parse_config
+from dualpilot.model.forecast import ForecastParams
 from dualpilot.model.risk import RiskParams
 from dualpilot.supervisor.concurrent import ConcurrentParams
 from services.common import rejections, wire
@@ -30,6 +31,7 @@ def _wire_names(msg: type) -> set[str]:
     (MissionConfig, config_pb2.MissionConfig, set()),
     (ConcurrentParams, config_pb2.ConcurrentParams, {"threat"}),  # follows MissionConfig.risk
     (RiskParams, config_pb2.RiskParams, set()),
+    (ForecastParams, config_pb2.ForecastParams, set()),
 ])
 def test_every_field_has_a_wire_field(cls: type, msg: type, derived: set[str]) -> None:
     fields = {f.name for f in dataclasses.fields(cls)}
@@ -60,7 +62,12 @@ def test_a_bad_config_is_refused_with_its_reason() -> None:
                           (lambda m: setattr(m.concurrent, "q_rate", 0.0), "q_rate"),
                           (lambda m: setattr(m.concurrent, "reanchor_tol_m", float("nan")),
                            "finite"),
-                          (lambda m: m.ClearField("goal"), "without a goal")):
+                          (lambda m: m.ClearField("goal"), "without a goal"),
+                          (lambda m: setattr(m.forecast, "members", 0), "members must be"),
+                          (lambda m: setattr(m.forecast, "members", 10**6), "at most"),
+                          (lambda m: setattr(m.forecast, "resolution_m", -1.0), "resolution"),
+                          (lambda m: setattr(m.forecast, "horizon_s", float("inf")),
+                           "finite")):
         bad = config_pb2.MissionConfig()
         bad.CopyFrom(msg)
         change(bad)

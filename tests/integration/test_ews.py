@@ -122,7 +122,7 @@ def test_bad_commands_get_error_replies(ews: Any, session: Any) -> None:
     with pytest.raises(bus.QueryError, match="send reset first") as info:
         command(session, ews.uav, "never-reset", step=0, substeps=1)
     assert info.value.code == common_pb2.ERROR_CODE_INVALID
-    with pytest.raises(bus.QueryError, match="neither reset nor advance"):
+    with pytest.raises(bus.QueryError, match="carries no reset, advance or forecast"):
         cmd = fire_pb2.FireCommand(mission_id="x")
         wire.Stamper("test", ews.uav).stamp(cmd.header)
         bus.request(session, keys.fire_command(ews.uav), cmd, 10.0)

@@ -26,6 +26,7 @@ import collections
 import math
 import threading
 import time
+import zlib
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from typing import Any
@@ -281,6 +282,9 @@ class Corpus:
             return self._choice([0, 1, 2, 3, hi, int(self.rng.integers(0, min(hi, 2**62)))])
         if fd.type == FieldDescriptor.TYPE_BOOL:
             return bool(self.rng.random() < 0.5)
+        if fd.type == FieldDescriptor.TYPE_BYTES:  # forecast slices: empty, noise, a bomb
+            return self._choice([b"", b"\x00", self.rng.bytes(int(self.rng.integers(1, 300))),
+                                 zlib.compress(bytes(1 << 20))])
         return self._choice(["", "x" * 70_000, "ü" * 300, "\x00"])
 
     def _far(self, m: Any) -> None:

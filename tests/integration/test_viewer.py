@@ -15,6 +15,7 @@ from dualpilot.mission.result import StepRecord
 from dualpilot.model.fire import FireFront, FireSnapshot
 from dualpilot.model.forecast import OccupancyForecast
 from dualpilot.model.geometry import Polytope, Rect
+from dualpilot.model.risk import RiskNote
 from dualpilot.plan import Objective
 from dualpilot.spec import MissionSpec
 from dualpilot.supervisor.decision import Decision
@@ -30,8 +31,8 @@ from .foxglove_check import FoxgloveClient, meta, points, rect_corners
 pytestmark = pytest.mark.timeout(120)
 
 VEHICLES = ("alpha", "bravo")
-TOPICS = ("tf", "area", "fires", "forecast", "plan/system1", "plan/system2", "path", "uav",
-          "decision", "events")
+TOPICS = ("tf", "area", "fires", "forecast", "risk", "plan/system1", "plan/system2", "path",
+          "uav", "decision", "events")
 SCHEMAS = {"tf": "foxglove.FrameTransform", "forecast": "foxglove.Grid",
            "decision": "dualpilot.Decision", "events": "foxglove.Log"}
 HULL = Polytope.from_vertices(np.array([[380.0, 580.0], [430.0, 580.0], [420.0, 640.0]]))
@@ -39,6 +40,8 @@ DECISION = Decision(t=3, d_t=math.inf, xi=np.array([1.25, 2.5, 4.0]),
                     p=np.array([0.125, 0.375, 0.5]), attention=3, psi=np.array([0.4, 0.6]),
                     system=2, objective=Objective.ENERGY)
 PLAN = np.array([[100.0, 110.0], [115.0, 125.0], [130.0, 140.0]])
+#: the risk zone the flown plan was made against (the forecast's cells above α = 0.1)
+ZONE = Rect(300.0, 300.0, 20.0, 10.0).polytope()
 
 
 def publish_round(session: Any, uav: str, k: int) -> dict[str, int]:
@@ -51,7 +54,7 @@ def publish_round(session: Any, uav: str, k: int) -> dict[str, int]:
                         answers=parse_answers("s2:timeout;s1:ok"), planned_positions=PLAN,
                         planning_time_s=5.0,
                         fire_substeps=10, d_t=math.inf, fires_active=1, snapshot=snap,
-                        time_s=18.0)
+                        time_s=18.0, risk=RiskNote(None, (ZONE,), 0.1))
     msgs: dict[str, Any] = {
         "mission/event": supervisor_pb2.MissionEvent(
             kind=supervisor_pb2.MISSION_EVENT_KIND_STARTED, mission_id=f"m-{uav}",
@@ -140,6 +143,9 @@ def test_viewer_serves_every_vehicle_over_the_foxglove_protocol(
         assert (uav.cubes[0].pose.position.x, uav.cubes[0].pose.position.y) == (115.0 + k,
                                                                                125.0)
         assert got["uav"][0] == stamps[u]["vehicle/state"]
+        (zone,) = got["risk"][1].entities
+        assert (zone.id, meta(zone)) == ("zone/0", {"step": "3", "alpha": "0.1"})
+        assert np.allclose(points(zone.lines[0]), ZONE.vertices)
         grid = got["forecast"][1]
         assert [f.name for f in grid.fields] == ["p_0s", "p_2s"]  # horizon 4 x 0.5 s
         assert (grid.column_count, grid.cell_stride) == (3, 2)

@@ -9,6 +9,7 @@ from hypothesis import strategies as st
 
 from dualpilot.mission.config import CONTROLLER_NAMES, MissionConfig
 from dualpilot.mission.params import Timing
+from dualpilot.model.forecast import ForecastParams
 from dualpilot.model.geometry import Rect
 from dualpilot.model.risk import RiskParams
 from dualpilot.readings import PROFILES
@@ -54,6 +55,10 @@ def configs(draw: st.DrawFn) -> MissionConfig:
         profile=draw(st.sampled_from(list(PROFILES))), settings=settings_,
         system2_method=draw(st.sampled_from(["fast", "exact", "thorough"])),
         concurrent=dataclasses.replace(draw(_concurrent()), threat="current"),
+        forecast=draw(st.builds(ForecastParams, members=st.integers(1, 256),
+                                resolution_m=st.floats(1.0, 50.0),
+                                horizon_s=st.floats(0.0, 120.0),
+                                interval_s=st.floats(0.1, 10.0))),
         goal=Rect(cx, cy, w, w), area_size_m=size, start=start,
         mission_id=draw(st.text("abc-_0123456789", max_size=20)))
 

@@ -13,6 +13,7 @@ import pytest
 from dualpilot.mission.answers import parse_answers
 from dualpilot.model.fire import FireSnapshot
 from dualpilot.model.geometry import Polytope, Rect
+from dualpilot.model.risk import RiskNote
 from dualpilot.viz import foxglove as fx
 from dualpilot.viz import scene
 
@@ -58,7 +59,7 @@ def test_topics_are_namespaced_by_vehicle() -> None:
 
     ch = fx.VehicleChannels("uav7", foxglove.Context())
     assert ch.topics() == ["/uav7/tf", "/uav7/area", "/uav7/fires", "/uav7/forecast",
-                           "/uav7/plan/system1", "/uav7/plan/system2", "/uav7/path",
+                           "/uav7/risk", "/uav7/plan/system1", "/uav7/plan/system2", "/uav7/path",
                            "/uav7/uav", "/uav7/decision", "/uav7/events"]
     ch.close()
 
@@ -100,6 +101,23 @@ def test_plans_carry_status_and_the_flown_positions() -> None:
     assert e1.texts[0].text == "S1 ok"
     assert meta(e2) == {"system": "2", "step": "12", "status": "timeout", "flown": "false"}
     assert not e2.lines
+
+
+def test_risk_zones_are_outlined_and_cleared_with_no_note() -> None:
+    zone = Rect(300, 300, 20, 10).polytope()
+    note = RiskNote(None, (zone,), 0.1)
+
+    def draw(ch: fx.VehicleChannels) -> None:
+        ch.risk(scene.risk_view(note), 4, 1)
+        ch.risk(scene.risk_view(None), 5, 2)
+
+    (_, schema, first), (_, _, second) = record(draw)["/uav7/risk"]
+    assert schema == "foxglove.SceneUpdate"
+    (e,) = first.entities
+    assert (e.id, meta(e)) == ("zone/0", {"step": "4", "alpha": "0.1"})
+    assert e.lines[0].type == 1 and pts(e.lines[0]) == zone.vertices.tolist()
+    assert {p.z for p in e.lines[0].points} == {fx.Z_RISK}
+    assert not second.entities and [d.type for d in second.deletions] == [1]
 
 
 def test_uav_area_path_decision_forecast_events_and_frame() -> None:

@@ -4,6 +4,10 @@ hand-built forecasts."""
 
 from __future__ import annotations
 
+import dataclasses
+import json
+from typing import Any
+
 import numpy as np
 import pytest
 
@@ -242,3 +246,66 @@ def test_the_step_asks_for_the_forecast_only_for_risk_aware_planners() -> None:
         assert seen
         want = {1: 1, 2: 10} if risk else {1: None, 2: None}
         assert all(n == want[s] for s, n in seen), seen
+
+
+def test_the_monitor_refuses_a_plan_that_says_it_met_the_zones_and_does_not() -> None:
+    """The paper plan runs straight through the box: said to have met the zones, the monitor
+    finds its p_τ inside them (distance 0); the honest risk plan and a plan that says it did
+    not meet them pass (the hulls' checks still hold for every plan)."""
+    view = ForecastView(box_forecast(), 1)
+    plain = build_planner(2, SPEC, "fast").plan(_state(), ())
+    liar = dataclasses.replace(plain, info={**plain.info, "risk": "met"})
+    verdict = monitor.check_risk(liar, view, SPEC)
+    assert not verdict.ok and verdict.clearance_m == 0.0 and "risk zone" in verdict.reason
+    unmet = dataclasses.replace(plain, info={**plain.info, "risk": "unmet (no plan)"})
+    assert monitor.check_risk(unmet, view, SPEC).ok
+    assert monitor.check_risk(liar, None, SPEC).ok  # no forecast sent: nothing promised
+    honest = build_planner(2, SPEC, "fast", risk=True).plan(  # type: ignore[call-arg]
+        _state(), (), forecast=view)
+    ok = monitor.check_risk(honest, view, SPEC)
+    assert ok.ok and ok.clearance_m >= SPEC.clearance_m - 1e-6
+
+
+def test_the_monitor_refuses_a_system1_plan_that_misstates_its_distance() -> None:
+    view = ForecastView(box_forecast(), 1)
+    honest = build_planner(1, SPEC, "rrt", risk=True).plan(  # type: ignore[call-arg]
+        _state(), (), forecast=view)
+    assert honest.info["risk"] == "met" and monitor.check_risk(honest, view, SPEC).ok
+    said = float(honest.info["risk_clearance_m"])  # type: ignore[arg-type]
+    liar = dataclasses.replace(honest, info={**honest.info, "risk_clearance_m": said + 5.0})
+    verdict = monitor.check_risk(liar, view, SPEC)
+    assert not verdict.ok and verdict.clearance_m == pytest.approx(said)
+    missing = dataclasses.replace(honest, info={"risk": "met"})
+    assert not monitor.check_risk(missing, view, SPEC).ok
+
+
+@pytest.mark.slow
+def test_the_records_and_mission_mcap_show_the_zones_each_plan_was_made_against(
+        tmp_path: Any) -> None:
+    """grass-15, seed 1, concurrent+risk: each flown step's note holds the zones of the view
+    its plan was made on (recomputed here), and mission.mcap draws them and the next slice."""
+    from integration.foxglove_check import read_mcap
+
+    from dualpilot.mission.records import record_from_json, record_to_json
+    from dualpilot.viz.foxglove import write_mcap
+
+    config = MissionConfig.named("concurrent+risk", seed=1, profile="today",
+                                 settings=(("scenario", "grass-15"),))
+    result = local_mission(config).run()
+    noted = [r for r in result.records if r.risk is not None]
+    assert len(noted) > 10 and any(r.risk.zones for r in noted)  # type: ignore[union-attr]
+    for r in noted:
+        assert r.risk is not None and r.risk.alpha == monitor.PLANNER_RISK.alpha
+        assert r.risk.heat is None or len(r.risk.heat.horizons) == 1
+        back = record_from_json(json.loads(json.dumps(record_to_json(r))))
+        assert back.risk is not None and len(back.risk.zones) == len(r.risk.zones)
+    rec = read_mcap(write_mcap(result, tmp_path))
+    risk = rec.messages["/uav1/risk"]
+    assert len(risk) == len(result.records)
+    by_t = {int(r.t): r for r in result.records}
+    for _, update in risk:
+        if update.entities:
+            t = int(next(kv.value for kv in update.entities[0].metadata if kv.key == "step"))
+            assert len(update.entities) == len(by_t[t].risk.zones)  # type: ignore[union-attr]
+    assert len(rec.messages["/uav1/forecast"]) == sum(
+        1 for r in noted if r.risk is not None and r.risk.heat is not None)

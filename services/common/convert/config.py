@@ -16,6 +16,7 @@ from typing import Any
 from dualpilot.mission.config import MissionConfig
 from dualpilot.mission.params import Controller, Timing
 from dualpilot.mission.supervisors import SupervisorKind
+from dualpilot.model.forecast import ForecastParams
 from dualpilot.model.risk import RiskParams
 from dualpilot.readings import parse_value, value_text
 from dualpilot.supervisor.concurrent import ConcurrentParams
@@ -59,6 +60,9 @@ def config_to_msg(config: MissionConfig, out: config_pb2.MissionConfig
     for name in _NUMBERS:
         setattr(out.concurrent, name, getattr(p, name))
     out.concurrent.risk.alpha = p.risk.alpha
+    f = c.forecast
+    out.forecast.members, out.forecast.resolution_m = f.members, f.resolution_m
+    out.forecast.horizon_s, out.forecast.interval_s = f.horizon_s, f.interval_s
     rect_to_msg(c.goal, out.goal)
     out.area_size_m = c.area_size_m
     if c.start is not None:
@@ -87,6 +91,25 @@ def _concurrent_from_msg(m: config_pb2.ConcurrentParams, risk: bool) -> Concurre
                                 risk=RiskParams(alpha=float(values[-1])))
     except ValueError as err:
         raise invalid(f"concurrent parameters: {err}", Reason.OUT_OF_RANGE) from err
+
+
+#: the most ensemble members and the longest forecast horizon (s) a configuration may ask for
+MAX_FORECAST_MEMBERS = 4096
+MAX_FORECAST_HORIZON_S = 3600.0
+
+
+def _forecast_from_msg(m: config_pb2.ForecastParams) -> ForecastParams:
+    resolution, horizon, interval = check_floats(
+        [m.resolution_m, m.horizon_s, m.interval_s], "forecast parameters", MAX_ABS_M)
+    if m.members > MAX_FORECAST_MEMBERS or horizon > MAX_FORECAST_HORIZON_S:
+        raise invalid(f"forecast of {m.members} members over {horizon:g} s: at most "
+                      f"{MAX_FORECAST_MEMBERS} members and {MAX_FORECAST_HORIZON_S:g} s",
+                      Reason.OUT_OF_RANGE)
+    try:
+        return ForecastParams(members=int(m.members), resolution_m=float(resolution),
+                              horizon_s=float(horizon), interval_s=float(interval))
+    except ValueError as err:
+        raise invalid(f"forecast parameters: {err}", Reason.OUT_OF_RANGE) from err
 
 
 def _settings_from_msg(m: config_pb2.MissionConfig) -> tuple[tuple[str, Any], ...]:
@@ -122,6 +145,8 @@ def config_from_msg(m: config_pb2.MissionConfig) -> MissionConfig:
             system1_method=check_text(m.system1_method, "system1_method", 64),
             system2_method=check_text(m.system2_method, "system2_method", 64),
             concurrent=_concurrent_from_msg(m.concurrent, bool(m.risk)),
+            forecast=_forecast_from_msg(m.forecast) if m.HasField("forecast")
+            else ForecastParams(),
             goal=rect_from_msg(m.goal, "goal"), area_size_m=float(area), start=start,
             mission_id=check_text(m.mission_id, "mission_id", 256),
             uav_id=check_text(m.uav_id, "uav_id", 64))

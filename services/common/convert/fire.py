@@ -8,6 +8,7 @@ mission configuration is decoded by services/common/convert/config.py.
 from __future__ import annotations
 
 import math
+import zlib
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -38,6 +39,7 @@ from services.common.limits import (
     MAX_SUBSTEPS,
     check_count,
     check_floats,
+    check_int,
     check_text,
     finite,
 )
@@ -91,32 +93,85 @@ def regions_from_msg(m: fire_pb2.FireState) -> tuple[Rect, ...]:
     return tuple(rect_from_msg(f.region, f"front {i} region") for i, f in enumerate(m.fronts))
 
 
-def occupancy_to_msg(fc: OccupancyForecast, out: fire_pb2.OccupancyGrid) -> fire_pb2.OccupancyGrid:
-    """The core's occupancy forecast as an OccupancyGrid (its levels, byte for byte)."""
+def occupancy_to_msg(fc: OccupancyForecast, out: fire_pb2.OccupancyGrid,
+                     compress: bool = True) -> fire_pb2.OccupancyGrid:
+    """The core's occupancy forecast as an OccupancyGrid (its levels, byte for byte; each
+    slice zlib-compressed unless ``compress`` is False)."""
     out.origin.east_m, out.origin.north_m = fc.origin_m
     out.resolution_m = fc.resolution_m
     out.rows, out.cols = fc.shape
     out.horizons.extend(fc.horizons)
-    out.probabilities.extend(np.ascontiguousarray(lv).tobytes() for lv in fc.layers)
+    raw = [np.ascontiguousarray(lv).tobytes() for lv in fc.layers]
+    out.probabilities.extend([zlib.compress(b, 1) for b in raw] if compress else raw)
+    out.encoding = fire_pb2.SLICE_ENCODING_ZLIB if compress else fire_pb2.SLICE_ENCODING_RAW
     out.horizon_s = fc.max_substeps * fc.substep_s
     out.substeps_per_step = fc.substeps_per_step
     return out
 
 
-def occupancy_from_msg(m: fire_pb2.FireForecast) -> OccupancyForecast | None:
-    """A FireForecast's grid as the core's OccupancyForecast (None when it carries none).
+#: where a forecast keeps its wire form (OccupancyForecast.memo): encoded once a forecast,
+#: however many plan requests carry it (the stack keeps the EWS's own message there)
+WIRE_GRID = "wire_grid"
 
-    Rejected: a grid without cells or with more than MAX_FORECAST_CELLS, a slice whose
-    length is not rows × cols, horizons that are not increasing (or past MAX_SUBSTEPS) or not
-    one per slice, a horizon_s that is not horizons[-1]·T_f, a bad origin, resolution or T_f.
-    """
+
+def wire_grid(fc: OccupancyForecast) -> fire_pb2.OccupancyGrid:
+    """``fc`` as an OccupancyGrid, encoded on first use and kept in its memo."""
+    grid = fc.memo.get(WIRE_GRID)
+    if grid is None:
+        grid = occupancy_to_msg(fc, fire_pb2.OccupancyGrid())
+        fc.memo[WIRE_GRID] = grid
+    return grid
+
+
+def occupancy_from_msg(m: fire_pb2.FireForecast) -> OccupancyForecast | None:
+    """A FireForecast's grid as the core's OccupancyForecast (None when it carries none);
+    :func:`grid_from_msg` says what is rejected."""
     check_header(m.header)
     if not m.HasField("occupancy"):
         return None
-    g = m.occupancy
-    check_floats([m.substep_s], "substep_s", MAX_SUBSTEP_S)
-    if m.substep_s <= 0:
-        raise invalid(f"substep_s must be positive, got {m.substep_s}", Reason.OUT_OF_RANGE)
+    return grid_from_msg(m.occupancy, m.substep_s, int(m.substeps_done))
+
+
+def _slice_bytes(data: bytes, encoding: int, cells: int, i: int) -> bytes:
+    """Slice ``i``'s rows × cols bytes; a zlib slice is inflated to at most ``cells`` bytes."""
+    if encoding == fire_pb2.SLICE_ENCODING_RAW:
+        out = data
+    elif encoding == fire_pb2.SLICE_ENCODING_ZLIB:
+        inflate = zlib.decompressobj()
+        try:
+            out = inflate.decompress(data, cells)
+        except zlib.error as err:
+            raise invalid(f"slice {i} is not zlib data: {err}") from err
+        if inflate.unconsumed_tail:
+            raise invalid(f"slice {i} inflates to more than the grid's {cells} bytes",
+                          Reason.SIZE)
+        if not inflate.eof:
+            raise invalid(f"slice {i}'s zlib stream is cut short after {len(out)} of "
+                          f"{cells} bytes", Reason.SIZE)
+        if inflate.unused_data:
+            raise invalid(f"slice {i} has {len(inflate.unused_data)} bytes after its zlib "
+                          "stream", Reason.SIZE)
+    else:
+        raise invalid(f"slice encoding {encoding} is not one of RAW, ZLIB", Reason.OUT_OF_RANGE)
+    if len(out) != cells:
+        raise invalid(f"slice {i} has {len(out)} bytes, the grid {cells}", Reason.SIZE)
+    return out
+
+
+def grid_from_msg(g: fire_pb2.OccupancyGrid, substep_s: float,
+                  issued_substep: int) -> OccupancyForecast:
+    """An OccupancyGrid as the core's OccupancyForecast, issued after ``issued_substep``
+    sub-steps of T_f = ``substep_s``.
+
+    Rejected: a grid without cells or with more than MAX_FORECAST_CELLS, a slice that is not
+    rows × cols bytes (once inflated: a zlib slice may not inflate past it), horizons that
+    are not increasing (or past MAX_SUBSTEPS) or not one per slice, a horizon_s that is not
+    horizons[-1]·T_f, a bad origin, resolution, encoding or T_f. Every byte is a probability
+    (P = byte / 255 lies in [0, 1] by construction).
+    """
+    check_floats([substep_s], "substep_s", MAX_SUBSTEP_S)
+    if substep_s <= 0:
+        raise invalid(f"substep_s must be positive, got {substep_s}", Reason.OUT_OF_RANGE)
     origin = finite((g.origin.east_m, g.origin.north_m), "grid origin", MAX_ABS_M)
     check_floats([g.resolution_m], "resolution_m", MAX_ABS_M)
     if g.resolution_m <= 0:
@@ -135,30 +190,28 @@ def occupancy_from_msg(m: fire_pb2.FireForecast) -> OccupancyForecast | None:
             horizons[-1] > MAX_SUBSTEPS):
         raise invalid(f"horizons must increase, at most {MAX_SUBSTEPS}: {horizons[:8]}",
                       Reason.OUT_OF_RANGE)
-    bad = [i for i, b in enumerate(g.probabilities) if len(b) != cells]
-    if bad:
-        raise invalid(f"slice {bad[0]} has {len(g.probabilities[bad[0]])} bytes, the grid "
-                      f"{g.rows} x {g.cols}", Reason.SIZE)
     check_floats([g.horizon_s], "horizon_s", MAX_SUBSTEPS * MAX_SUBSTEP_S)
-    if not math.isclose(g.horizon_s, horizons[-1] * m.substep_s, rel_tol=1e-9, abs_tol=1e-9):
+    if not math.isclose(g.horizon_s, horizons[-1] * substep_s, rel_tol=1e-9, abs_tol=1e-9):
         raise invalid(f"horizon_s {g.horizon_s} is not the last horizon {horizons[-1]} x "
-                      f"T_f {m.substep_s}", Reason.INVALID)
-    levels = np.frombuffer(b"".join(g.probabilities), dtype=np.uint8).reshape(
+                      f"T_f {substep_s}", Reason.INVALID)
+    slices = [_slice_bytes(b, g.encoding, cells, i) for i, b in enumerate(g.probabilities)]
+    levels = np.frombuffer(b"".join(slices), dtype=np.uint8).reshape(
         len(horizons), int(g.rows), int(g.cols))
-    return OccupancyForecast(resolution_m=float(g.resolution_m), substep_s=float(m.substep_s),
+    return OccupancyForecast(resolution_m=float(g.resolution_m), substep_s=float(substep_s),
                              horizons=tuple(horizons), levels=levels.copy(),
                              origin_m=(float(origin[0]), float(origin[1])),
-                             issued_substep=int(m.substeps_done),
+                             issued_substep=issued_substep,
                              substeps_per_step=max(1, int(g.substeps_per_step)))
 
 
 @dataclass(frozen=True)
 class FireCommand:
-    """A validated FireCommand in core types: a reset (seed, area, the mission's config) or
-    an advance (step, sub-steps, the pacing clock, the keep-out)."""
+    """A validated FireCommand in core types: a reset (seed, area, the mission's config), an
+    advance (step, sub-steps, the pacing clock, the keep-out) or a forecast query (step, the
+    fire state's revision ``substeps_done``, the time-step length ``substeps``)."""
 
     mission_id: str
-    kind: str  # "reset" or "advance"
+    kind: str  # "reset", "advance" or "forecast"
     seed: int = 0
     area_size_m: float = 0.0  # reset: the mission's area (0: the EWS's default)
     step: int = 0
@@ -167,6 +220,7 @@ class FireCommand:
     keep_out: KeepOut | None = None  # advance: (position, ignition clearance m)
     #: reset: the mission's configuration, whose reading the EWS runs (None: the EWS's own)
     config: MissionConfig | None = None
+    substeps_done: int = 0  # forecast: the fire state (revision) it must start from
 
 
 def fire_reset_msg(mission_id: str, seed: int, area_size_m: float, config: MissionConfig | None,
@@ -195,6 +249,27 @@ def fire_advance_msg(mission_id: str, step: int, substeps: int, keep_out: KeepOu
     return m
 
 
+def fire_forecast_query_msg(mission_id: str, step: int, substeps_done: int,
+                            substeps_per_step: int, stamper: Stamper,
+                            sim_time_s: float) -> fire_pb2.FireCommand:
+    """The supervisor's question: the occupancy forecast from the fire state after
+    ``substeps_done`` sub-steps, for time-steps of ``substeps_per_step`` sub-steps."""
+    m = fire_pb2.FireCommand(mission_id=mission_id)
+    q = m.forecast
+    q.step, q.substeps_done, q.substeps_per_step = step, substeps_done, substeps_per_step
+    stamper.stamp(m.header, sim_time_s)
+    return m
+
+
+def forecast_reply_msg(fc: OccupancyForecast, step: int, compute_s: float,
+                       out: fire_pb2.FireForecast) -> fire_pb2.FireForecast:
+    """The EWS's answer to a forecast query: ``fc`` (made for ``step`` in ``compute_s``)."""
+    out.step, out.substeps_done, out.substep_s = step, fc.issued_substep, fc.substep_s
+    out.compute_s = compute_s
+    occupancy_to_msg(fc, out.occupancy)
+    return out
+
+
 def fire_command_from_msg(m: fire_pb2.FireCommand) -> FireCommand:
     mission_id = check_text(m.mission_id, "mission_id", 256)
     kind = m.WhichOneof("command")
@@ -218,4 +293,9 @@ def fire_command_from_msg(m: fire_pb2.FireCommand) -> FireCommand:
         return FireCommand(mission_id, "advance", step=int(a.step), substeps=int(a.substeps),
                            anchor=clock_from_msg(a.clock) if a.HasField("clock") else None,
                            keep_out=keep_out)
-    raise invalid("FireCommand carries neither reset nor advance")
+    if kind == "forecast":
+        q = m.forecast
+        check_int(q.substeps_per_step, "substeps_per_step", 1, MAX_SUBSTEPS)
+        return FireCommand(mission_id, "forecast", step=int(q.step),
+                           substeps=int(q.substeps_per_step), substeps_done=int(q.substeps_done))
+    raise invalid("FireCommand carries no reset, advance or forecast")

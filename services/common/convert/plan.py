@@ -19,6 +19,7 @@ import numpy as np
 from dualpilot.mission.config import MissionConfig
 from dualpilot.mission.ports import PlanRequest
 from dualpilot.model.dynamics import DynamicsParams, SpeedLimit
+from dualpilot.model.risk import ForecastView
 from dualpilot.plan import Objective, Plan, PlanStatus
 from dualpilot.spec import MissionSpec
 from services.common.convert.common import (
@@ -31,6 +32,7 @@ from services.common.convert.common import (
     rect_to_msg,
 )
 from services.common.convert.config import config_from_msg, config_to_msg
+from services.common.convert.fire import grid_from_msg, wire_grid
 from services.common.convert.vehicle import state_from_msg, state_to_msg
 from services.common.limits import (
     AREA_MARGIN,
@@ -38,10 +40,12 @@ from services.common.limits import (
     MAX_FORCE_N,
     MAX_FRONTS,
     MAX_HORIZON,
+    MAX_SUBSTEPS,
     MAX_TEXT,
     check_count,
     check_floats,
     check_in_box,
+    check_int,
     check_text,
     finite,
 )
@@ -180,7 +184,33 @@ def plan_query_msg(query: PlanQuery, stamper: Stamper, sim_time_s: float) -> pla
     m.prev_control.east_n, m.prev_control.north_n = (float(v) for v in req.prev_control)
     for poly in req.obstacles:
         polygon_to_msg(poly, m.obstacles.add())
+    if req.forecast is not None:
+        forecast_to_msg(req.forecast, req.t, m.forecast)
     return m
+
+
+def forecast_to_msg(view: ForecastView, step: int, out: plan_pb2.PlanForecast) -> None:
+    """The forecast a plan of ``step`` is made on (its grid's slices zlib-compressed)."""
+    fc = view.forecast
+    out.step, out.substeps_done, out.substep_s = step, fc.issued_substep, fc.substep_s
+    out.substeps_per_step, out.offset_substeps = view.substeps_per_step, view.offset_substeps
+    out.occupancy.CopyFrom(wire_grid(fc))
+
+
+def forecast_from_msg(m: plan_pb2.PlanForecast, step: int) -> ForecastView:
+    """A plan request's forecast as the core's ForecastView; refused (CodecError): one made
+    for another step than the request's, a bad grid (:func:`grid_from_msg`), a time-step
+    length outside 1..MAX_SUBSTEPS, an offset past MAX_SUBSTEPS (an offset past the
+    forecast's horizon is a plan with no zones, as in-process)."""
+    if m.step != step:
+        raise invalid(f"the forecast was made for step {m.step}, the request is for step "
+                      f"{step}", Reason.STALE)
+    if not m.HasField("occupancy"):
+        raise invalid("a plan forecast without its occupancy grid")
+    check_int(m.substeps_per_step, "substeps_per_step", 1, MAX_SUBSTEPS)
+    check_int(m.offset_substeps, "offset_substeps", 0, MAX_SUBSTEPS)
+    fc = grid_from_msg(m.occupancy, m.substep_s, int(m.substeps_done))
+    return ForecastView(fc, int(m.substeps_per_step), int(m.offset_substeps))
 
 
 def prepare_msg(prep: Prepare, stamper: Stamper, sim_time_s: float) -> plan_pb2.PlanRequest:
@@ -230,9 +260,10 @@ def plan_request_from_msg(m: plan_pb2.PlanRequest) -> PlanQuery | Prepare:
     assert objective is not None
     check_count(len(m.obstacles), "obstacles", MAX_FRONTS * 2)
     obstacles = tuple(polygon_from_msg(p, f"obstacle {i}") for i, p in enumerate(m.obstacles))
+    forecast = forecast_from_msg(m.forecast, int(m.step)) if m.HasField("forecast") else None
     request = PlanRequest(t=int(m.step), system=int(m.system), state=state_from_msg(m.state),
                           prev_control=force_from_msg(m.prev_control, "prev_control"),
-                          obstacles=obstacles, objective=objective)
+                          obstacles=obstacles, objective=objective, forecast=forecast)
     return PlanQuery(request, mission_id, int(m.header.seq), deadline,
                      int(m.waypoints_revision))
 

@@ -15,9 +15,15 @@ import numpy as np
 
 from dualpilot.mission.answers import PlanView, statuses_by_system
 from dualpilot.mission.result import StepRecord
+from dualpilot.model.dynamics import Array
 from dualpilot.spec import MissionSpec
 from dualpilot.supervisor.decision import Decision
-from services.common.convert.common import packed_from_msg, packed_to_msg
+from services.common.convert.common import (
+    packed_from_msg,
+    packed_to_msg,
+    polygon_from_msg,
+    polygon_to_msg,
+)
 from services.common.convert.plan import (
     objective_from_msg,
     objective_to_msg,
@@ -27,6 +33,7 @@ from services.common.convert.plan import (
 from services.common.limits import (
     MAX_ABS_M,
     MAX_HORIZON,
+    MAX_RISK_ZONES,
     MAX_TEXT,
     check_count,
     check_floats,
@@ -109,6 +116,9 @@ class StepPlans:
     flown: int  # 0: none
     plans: tuple[PlanView, ...]  # systems 1 and 2; status "" for a system not asked
     spec: MissionSpec
+    #: the risk zones the flown plan was made against (vertices, m) and their α (none: 0)
+    risk_zones: tuple[Array, ...] = ()
+    risk_alpha: float = 0.0
 
 
 def step_plans_msg(record: StepRecord, mission_id: str, spec: MissionSpec, stamper: Stamper,
@@ -125,6 +135,10 @@ def step_plans_msg(record: StepRecord, mission_id: str, spec: MissionSpec, stamp
         sp = m.plans.add(system=system, status=status[:MAX_TEXT])
         if system == record.system:
             packed_to_msg(np.asarray(record.planned_positions)[:, :2], sp.positions_m)
+    if record.risk is not None:
+        m.risk_alpha = record.risk.alpha
+        for zone in record.risk.zones[:MAX_RISK_ZONES]:
+            polygon_to_msg(zone, m.risk_zones.add())
     return m
 
 
@@ -158,8 +172,23 @@ def step_plans_from_msg(m: supervisor_pb2.StepPlans) -> StepPlans:
         raise invalid(f"system {m.flown_system} flew but its plan's positions are missing")
     empty = np.empty((0, 2))
     plans = tuple(got.get(k, PlanView(k, "", empty, False)) for k in (1, 2))
+    zones, alpha = _risk_zones(m)
     return StepPlans(mission_id, int(m.step), float(m.step_time_s), int(m.flown_system), plans,
-                     spec)
+                     spec, zones, alpha)
+
+
+def _risk_zones(m: supervisor_pb2.StepPlans) -> tuple[tuple[Array, ...], float]:
+    """The risk zones' vertices and α; rejected: more than MAX_RISK_ZONES, a bad polygon, an
+    α outside [0, 1), zones without a plan flown."""
+    check_count(len(m.risk_zones), "risk zones", MAX_RISK_ZONES)
+    check_floats([m.risk_alpha], "risk_alpha", 1.0)
+    if not 0.0 <= m.risk_alpha < 1.0:
+        raise invalid(f"risk_alpha must be in [0, 1), got {m.risk_alpha}", Reason.OUT_OF_RANGE)
+    if len(m.risk_zones) and not m.flown_system:
+        raise invalid("risk zones for a step that flew no plan")
+    zones = tuple(polygon_from_msg(z, f"risk zone {i}").vertices
+                  for i, z in enumerate(m.risk_zones))
+    return zones, float(m.risk_alpha)
 
 
 def check_mission_event(m: supervisor_pb2.MissionEvent) -> supervisor_pb2.MissionEvent:
