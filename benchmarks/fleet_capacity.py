@@ -1,8 +1,10 @@
 """Fleet capacity at real time: N vehicles sharing one EWS and a planner pool, per N.
 
 For each N of ``--vehicles`` a fresh stack (router, EWS, ``--replicas`` of
-System 1 and System 2 serving every vehicle id) and N vehicles fly cc
-missions (paper timing) at speed factor ``--speed-factor`` (1: real time),
+System 1 and System 2 serving every vehicle id) and N vehicles fly
+``--controller`` missions (default cc; any ``dualpilot evaluate`` name, e.g.
+concurrent+risk) on ``--scenario`` (default: the paper's fires), paper
+timing, at speed factor ``--speed-factor`` (1: real time),
 seeds 0..N-1, each capped at ``--max-steps``. Vehicles are hosted
 (``--layout hosted``, the default: one uavsim process simulating them all and
 ``--hosts`` supervisor processes flying them, each with one stream process)
@@ -24,6 +26,8 @@ The capacity is the largest N with p99 round trip ≤ ``--p99-ms`` and no
 failsafe. Prints a table; ``--out`` keeps every run and ``capacity.json``.
 
     .venv/bin/python benchmarks/fleet_capacity.py --vehicles 10,25,40
+    .venv/bin/python benchmarks/fleet_capacity.py --vehicles 25 --controller concurrent+risk \
+        --scenario shrub
 """
 
 from __future__ import annotations
@@ -124,15 +128,22 @@ class Sampler:
 quantiles = harness.quantiles  # p50, p99, max (2 decimals) and n
 
 
+def fleet_mission(args: argparse.Namespace) -> MissionConfig:
+    """Every vehicle's mission: ``--controller`` (paper timing) on ``--scenario`` (none: the
+    paper's fires), capped at ``--max-steps``."""
+    settings: list[tuple[str, object]] = [("max_steps", args.max_steps)]
+    if args.scenario:
+        settings.append(("scenario", args.scenario))
+    return MissionConfig.named(args.controller, settings=tuple(settings))
+
+
 def fly(n: int, out: Path, args: argparse.Namespace) -> dict[str, Any]:
     uavs = [f"f{k + 1}" for k in range(n)]
     scale = {"system1": args.s1_replicas, "system2": args.s2_replicas}
+    mission = fleet_mission(args)
     cfg = launch.StackConfig(run_dir=out / "shared", speed_factor=args.speed_factor,
-                             free_ports=True, log_format="text", scale=scale,
-                             mission=MissionConfig(settings=(("max_steps", args.max_steps),)))
-    env = {"CONTROLLER": "cc", "TIMING": "paper", "SUPERVISOR": "paper",
-           "IGNITION_CLEARANCE_M": "", "MAX_STEPS": str(args.max_steps),
-           "START_STAGGER_S": str(args.stagger_s)}
+                             free_ports=True, log_format="text", scale=scale, mission=mission)
+    env = {"START_STAGGER_S": str(args.stagger_s)}
     seeds = list(range(n))
     t0 = time.monotonic()
     with launch.Fleet(cfg, uavs) as fleet:
@@ -143,9 +154,9 @@ def fly(n: int, out: Path, args: argparse.Namespace) -> dict[str, Any]:
             for chunk in chunks:
                 ids = [uavs[k] for k in chunk]
                 vehicles += fleet.start_hosted(ids, [seeds[k] for k in chunk], out, env=env,
-                                               tag=f"n{n}")
+                                               tag=f"n{n}", config=mission)
         else:
-            vehicles = [fleet.start_vehicle(uav, seed, out / uav, env=env)
+            vehicles = [fleet.start_vehicle(uav, seed, out / uav, env=env, config=mission)
                         for uav, seed in zip(uavs, seeds, strict=True)]
         own = sorted({p.popen.pid for v in vehicles for p in v.procs})
         time.sleep(3.0)  # the supervisors have started their stream processes
@@ -183,7 +194,8 @@ def fly(n: int, out: Path, args: argparse.Namespace) -> dict[str, Any]:
                     "faults", {}).items():
                 faults[name] = faults.get(name, 0) + int(count)
     return {
-        "vehicles": n, "layout": args.layout, "hosts": args.hosts if args.layout == "hosted"
+        "vehicles": n, "controller": args.controller, "scenario": args.scenario or "paper",
+        "layout": args.layout, "hosts": args.hosts if args.layout == "hosted"
         else n, "replicas": scale, "ended": sum(o.ended for o in outcomes.values()),
         "steps": steps, "wall_s": round(wall, 1), "total_s": round(time.monotonic() - t0, 1),
         "round_trip_ms": quantiles(per_request),
@@ -206,6 +218,11 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--hosts", type=int, default=1, help="supervisor processes (hosted)")
     p.add_argument("--s1-replicas", type=int, default=1)
     p.add_argument("--s2-replicas", type=int, default=2)
+    p.add_argument("--controller", default="cc",
+                   help="every vehicle's controller, a dualpilot evaluate name (cc, "
+                        "concurrent+risk, ...)")
+    p.add_argument("--scenario", default="", help="fire scenario (grass-15, shrub, ...); "
+                                                  "none: the paper's fires")
     p.add_argument("--speed-factor", type=float, default=1.0)
     p.add_argument("--max-steps", type=int, default=40)
     p.add_argument("--stagger-s", type=float, default=0.5,
@@ -221,7 +238,8 @@ def main(argv: list[str] | None = None) -> int:
         rows.append(row)
         print(json.dumps(row), flush=True)
     (out / "capacity.json").write_text(json.dumps(rows, indent=1) + "\n")
-    print(f"\nspeed factor {args.speed_factor:g}, cc paper timing, max {args.max_steps} steps, "
+    print(f"\nspeed factor {args.speed_factor:g}, {args.controller} on "
+          f"{args.scenario or 'the paper fires'}, paper timing, max {args.max_steps} steps, "
           f"{args.layout} ({args.hosts} supervisor host(s)), replicas S1 {args.s1_replicas} "
           f"S2 {args.s2_replicas}, {os.cpu_count()} cores")
     print("| N | steps | RTT p50 | RTT p99 | stream p99.9 (worst) | longest gap | failsafes | "
