@@ -129,6 +129,7 @@ class PlannerPool:
         self.demoted: dict[int, float] = {}  # system → clock time of its last health query
         self.suspect: dict[int, set[str]] = {1: set(), 2: set()}  # replicas that timed out
         self._lock = threading.Lock()  # a background request's thread counts too
+        self._background: list[tuple[int, float]] = []  # (step, round trip s) not yet taken
 
     # -- which replica ------------------------------------------------------------------------
     def order(self, system: int) -> list[str]:
@@ -235,7 +236,16 @@ class PlannerPool:
                                f"{job.deadline_s:g} s")
         if account:
             self.request_wall_s += self.clock() - job.t0
+        else:
+            with self._lock:
+                self._background.append((step, self.clock() - job.t0))
         return plan
+
+    def take_background(self) -> list[tuple[int, float]]:
+        """The background requests answered since the last call: (step asked, round trip s)."""
+        with self._lock:
+            out, self._background = self._background, []
+        return out
 
     def _failed_over(self, job: _Ask, zid: str, plan: Plan) -> bool:
         """Whether ``zid`` vanished with the request (no reply, time left): ask the next."""

@@ -39,9 +39,12 @@ class Latency:
     ``request_wall`` is the time spent in plan requests (round trip, the
     planner service's decoding and encoding, and compute), ``service`` the
     part of it the planner services report (decode, plan, encode).
+    ``background``: the requests asked off the step's path (the concurrent
+    supervisor's System 2), each (step asked, round trip s), in background.csv.
     """
 
     rows: list[tuple[int, float, float, float, int, float, float]] = field(default_factory=list)
+    background: list[tuple[int, float]] = field(default_factory=list)
 
     def add(self, t: int, total: float, compute: float, requests: int, request_wall: float,
             service: float) -> None:
@@ -62,6 +65,10 @@ class Latency:
             for t, total, compute, overhead, requests, wall, service in self.rows:
                 w.writerow([t, f"{total:.6f}", f"{compute:.6f}", f"{overhead:.6f}", requests,
                             f"{wall:.6f}", f"{service:.6f}"])
+        with (out / "background.csv").open("w", newline="") as fh:
+            w = csv.writer(fh)
+            w.writerow(["t", "round_trip_s"])
+            w.writerows([t, f"{rtt:.6f}"] for t, rtt in self.background)
         return path
 
 
