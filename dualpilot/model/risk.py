@@ -82,12 +82,18 @@ class RiskMap:
         return int(np.floor(self.params.alpha * LEVELS + 1e-9))
 
     def slice_zones(self, i: int) -> tuple[Polytope, ...]:
-        """The zones of slice i: hulls of its groups of cells above the threshold."""
+        """The zones of slice i: hulls of its groups of cells above the threshold (slices
+        with the same risky cells share them)."""
         fc = self.view.forecast
         key = ("zones", i, self.threshold)
         got = fc.memo.get(key)
         if got is None:
-            got = cell_hulls(fc.level(i) > self.threshold, fc.resolution_m, fc.origin_m)
+            risky = fc.level(i) > self.threshold
+            cells = ("zones of cells", risky.shape, risky.tobytes())
+            got = fc.memo.get(cells)
+            if got is None:
+                got = cell_hulls(risky, fc.resolution_m, fc.origin_m)
+                fc.memo[cells] = got
             fc.memo[key] = got
         return cast(tuple[Polytope, ...], got)
 
