@@ -110,7 +110,7 @@ class StackObserver:
         pool = p.pool
         self.record.latency.add(t, self.mission.vehicle.sent - self.tick, p.compute,
                                 pool.requests, pool.request_wall_s, pool.service_s)
-        self.record.latency.background.extend(pool.take_background())
+        self.record.latency.requests.extend(pool.take_answered())
         rejected = p.last_info.get(1, {}).get("operator_rejected")
         op = OperatorRecord(t, self.mission.waypoints_n,
                             str(info.get("source", "")) if flown == 1 else "",
