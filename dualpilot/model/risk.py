@@ -79,7 +79,7 @@ class RiskMap:
     @property
     def threshold(self) -> int:
         """The largest level that is not risky: P > α ⟺ level > ⌊255 α⌋."""
-        return int(np.floor(self.params.alpha * LEVELS + 1e-9))
+        return threshold_level(self.params.alpha)
 
     def slice_zones(self, i: int) -> tuple[Polytope, ...]:
         """The zones of slice i: hulls of its groups of cells above the threshold (slices
@@ -106,8 +106,10 @@ class RiskMap:
         return tuple(z for i in self.slices(tau) for z in self.slice_zones(i))
 
     def checker(self, tau: int) -> SegmentChecker:
-        """A :class:`SegmentChecker` of :meth:`zones` (kept per window)."""
-        key = self.view.window(tau)
+        """A :class:`SegmentChecker` of :meth:`zones` (kept per slices: windows that stand on
+        the same slices share it)."""
+        idx = self.slices(tau)
+        key = (idx.start, idx.stop)
         got = self._checkers.get(key)
         if got is None:
             got = SegmentChecker(self.zones(tau))
@@ -116,17 +118,23 @@ class RiskMap:
 
     def step_masks(self, steps: int, first: int = 1) -> list[tuple[Polytope, AnyArray]]:
         """Each zone of the slices of steps first..``steps`` with the plan steps it applies to
-        (a bool mask over τ = 0..steps)."""
-        out: dict[tuple[int, int], tuple[Polytope, AnyArray]] = {}
+        (a bool mask over τ = 0..steps), slice by slice (the windows move forward with τ,
+        so that is the order in which the steps meet them)."""
+        taus: dict[int, list[int]] = {}  # slice -> the steps whose window it stands for
         for tau in range(first, min(steps, self.view.last_step) + 1):
             for i in self.slices(tau):
-                for j, z in enumerate(self.slice_zones(i)):
-                    got = out.get((i, j))
-                    if got is None:
-                        got = (z, np.zeros(steps + 1, dtype=bool))
-                        out[(i, j)] = got
-                    got[1][tau] = True
-        return list(out.values())
+                taus.setdefault(i, []).append(tau)
+        out: list[tuple[Polytope, AnyArray]] = []
+        for i in sorted(taus):
+            mask = np.zeros(steps + 1, dtype=bool)
+            mask[taus[i]] = True
+            out.extend((z, mask.copy()) for z in self.slice_zones(i))
+        return out
+
+
+def threshold_level(alpha: float) -> int:
+    """The largest forecast level (1/255) whose probability is not above ``alpha``."""
+    return int(np.floor(alpha * LEVELS + 1e-9))
 
 
 def cell_hulls(risky: np.ndarray, resolution_m: float,
