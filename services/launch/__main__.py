@@ -11,6 +11,7 @@ from __future__ import annotations
 import argparse
 import json
 import re
+import signal
 import sys
 import time
 from dataclasses import replace
@@ -97,7 +98,13 @@ def report(cfg: StackConfig, outcome: Outcome, codes: dict[str, int], wall: floa
     return 0
 
 
+def _terminated(signum: int, frame: object) -> None:
+    """SIGTERM (``kill``, ``timeout``) stops the stack as Ctrl-C does: every service too."""
+    raise KeyboardInterrupt(f"signal {signum}")
+
+
 def main(argv: list[str] | None = None) -> int:
+    signal.signal(signal.SIGTERM, _terminated)
     p = parser()
     args = p.parse_args(argv)
     try:
@@ -105,7 +112,11 @@ def main(argv: list[str] | None = None) -> int:
     except ValueError as err:
         p.error(str(err))
     if args.vehicles > 1:
-        return run_fleet(cfg, args.vehicles, args.timeout_s, args.compose)
+        try:
+            return run_fleet(cfg, args.vehicles, args.timeout_s, args.compose)
+        except KeyboardInterrupt:
+            print("interrupted: the fleet's services are stopped", file=sys.stderr)
+            return 130
     t0 = time.perf_counter()
     try:
         outcome, codes = run_mission(cfg, args.timeout_s, not args.no_figures, args.quiet,
