@@ -26,6 +26,10 @@ BRAKED_COLOR = "#e03c31"  # no OK plan: the UAV braked
 UNKNOWN_COLOR = "#888888"  # no decision yet
 
 
+#: a flown system's name (flown_name) → its number
+FLOWN_NUMBER = {"S1": 1, "S2": 2, "braked": 0}
+
+
 def flown_name(flown: int | None) -> str:
     """``S1``, ``S2``, ``braked`` (0) or ``-`` (no decision yet)."""
     return "-" if flown is None else ("braked" if flown == 0 else f"S{flown}")
@@ -93,24 +97,25 @@ def fire_columns(frame: Frame) -> dict[str, Columns]:
     return {"fires": fires, "hulls": closed, "risk": risk}
 
 
-#: the heat map's opacity at P ≥ HEAT_FULL_P (below it, proportional to P: the small, even
-#: chance of a fire being born anywhere stays nearly transparent)
-HEAT_ALPHA, HEAT_FULL_P = 0.85, 0.5
-#: the heat map's colours from P = 0 to 1 (ColorBrewer's YlOrRd, light to dark)
+#: the heat map's colour scale: log10 P from HEAT_LOW_P (clear below) to 1, so that the small
+#: probabilities of the paper's fire process (about 0.01 everywhere, a few 0.1 beside a front)
+#: are told apart; its opacity grows with the square of the position on that scale, to
+#: HEAT_ALPHA at P = 1 (the even chance of a birth anywhere stays a faint tint)
+HEAT_LOW_P, HEAT_ALPHA = 1e-3, 0.85
+#: the heat map's colours from HEAT_LOW_P to 1 (ColorBrewer's YlOrRd, light to dark)
 HEAT_COLORS = ("#ffffcc", "#ffeda0", "#fed976", "#feb24c", "#fd8d3c", "#fc4e2a", "#e31a1c",
                "#bd0026", "#800026")
 
 
 def heat_palette(n: int = 256) -> list[str]:
-    """``n`` colours ``#rrggbbaa`` for P = 0 … 1: YlOrRd interpolated, opacity rising from 0
-    at P = 0 to :data:`HEAT_ALPHA` at :data:`HEAT_FULL_P` and above."""
+    """``n`` colours ``#rrggbbaa`` along the heat map's log scale: YlOrRd interpolated, the
+    opacity HEAT_ALPHA · s² at the scale's fraction s (0 at HEAT_LOW_P, 1 at P = 1)."""
     rgb = np.array([[int(c[i:i + 2], 16) for i in (1, 3, 5)] for c in HEAT_COLORS], float)
     at = np.linspace(0.0, 1.0, len(HEAT_COLORS))
     out = []
-    for p in np.linspace(0.0, 1.0, n):
-        r, g, b = (int(round(np.interp(p, at, rgb[:, k]))) for k in range(3))
-        alpha = int(round(255 * HEAT_ALPHA * min(1.0, p / HEAT_FULL_P)))
-        out.append(f"#{r:02x}{g:02x}{b:02x}{alpha:02x}")
+    for s in np.linspace(0.0, 1.0, n):
+        r, g, b = (int(round(np.interp(s, at, rgb[:, k]))) for k in range(3))
+        out.append(f"#{r:02x}{g:02x}{b:02x}{int(round(255 * HEAT_ALPHA * s * s)):02x}")
     return out
 
 

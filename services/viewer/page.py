@@ -22,18 +22,10 @@ from collections.abc import Callable
 from typing import Any
 
 from bokeh.layouts import column, row
-from bokeh.models import ColumnDataSource, HoverTool, LinearColorMapper
+from bokeh.models import ColumnDataSource, HoverTool, LogColorMapper
 from bokeh.models.annotations import ColorBar, LabelSet
 from bokeh.models.glyphs import Image
-from bokeh.models.widgets import (
-    Button,
-    DataTable,
-    Div,
-    NumberFormatter,
-    Select,
-    Slider,
-    TableColumn,
-)
+from bokeh.models.widgets import Button, Div, Select, Slider, Toggle
 from bokeh.plotting import figure
 
 from . import columns as C
@@ -46,12 +38,12 @@ PLAY_MS = 200
 FIRE_FILL, FIRE_LINE, HULL_LINE = "#ff4019", "#d62410", "#ff9900"
 RISK_LINE, TRAIL_LINE, SAFETY_LINE = "#b34dff", "#333333", "#d4a000"
 SOURCES = ("area", "goal", "start", "fires", "hulls", "risk", "forecast", "trails", "plans",
-           "safety", "vehicles", "table", "psi")
+           "safety", "vehicles", "psi")
 
 
 def _sources() -> dict[str, ColumnDataSource]:
     empty: dict[str, Callable[[Frame], Any]] = {
-        "forecast": lambda f: C.forecast_columns(f), "table": C.table_columns,
+        "forecast": lambda f: C.forecast_columns(f),
         "psi": lambda f: C.psi_columns(f, "")}
     out = {}
     blank = Frame()
@@ -62,7 +54,7 @@ def _sources() -> dict[str, ColumnDataSource]:
     return out
 
 
-def map_figure(src: dict[str, ColumnDataSource], mapper: LinearColorMapper) -> Any:
+def map_figure(src: dict[str, ColumnDataSource], mapper: LogColorMapper) -> Any:
     """The map: areas, forecast, fires, hulls, risk zones, trails, plans, vehicles."""
     fig = figure(title="operations picture (east/north, m)", match_aspect=True,
                  sizing_mode="stretch_both", min_width=500, min_height=500,
@@ -96,7 +88,8 @@ def map_figure(src: dict[str, ColumnDataSource], mapper: LinearColorMapper) -> A
         ("speed", "@speed{0.0} m/s"), ("Ψ", "@psi1{0.000}, @psi2{0.000}")]))
     fig.add_tools(HoverTool(renderers=[fires], tooltips=[
         ("uav", "@uav"), ("front", "@front_id"), ("born at step", "@born_step")]))
-    fig.add_layout(ColorBar(color_mapper=mapper, title="P(fire)", width=12), "right")
+    fig.add_layout(ColorBar(color_mapper=mapper, title="P(fire) at the horizon", width=12),
+                   "right")
     return fig
 
 
@@ -117,20 +110,38 @@ def psi_figure(src: ColumnDataSource) -> Any:
     return fig
 
 
-def fleet_table(src: ColumnDataSource) -> DataTable:
-    num = NumberFormatter(format="0.000", nan_format="-")
-    cols = [TableColumn(field="uav", title="UAV", width=60),
-            TableColumn(field="step", title="step", width=40),
-            TableColumn(field="flies", title="flies", width=55),
-            TableColumn(field="psi1", title="Ψ₁", formatter=num, width=55),
-            TableColumn(field="psi2", title="Ψ₂", formatter=num, width=55),
-            TableColumn(field="attention", title="A_t", width=35),
-            TableColumn(field="d_t_m", title="d_t (m)",
-                        formatter=NumberFormatter(format="0.0", nan_format="-"), width=55),
-            TableColumn(field="plans", title="plans", width=170),
-            TableColumn(field="event", title="last event", width=260)]
-    return DataTable(source=src, columns=cols, height=160, sizing_mode="stretch_width",
-                     index_position=None, reorderable=False, name="fleet_table")
+#: the fleet table's columns: (title, columns.table_columns key, format)
+FLEET_COLUMNS = (("UAV", "uav", "{}"), ("step", "step", "{}"), ("flies", "flies", "{}"),
+                 ("Ψ₁", "psi1", "{:.3f}"), ("Ψ₂", "psi2", "{:.3f}"), ("A_t", "attention", "{}"),
+                 ("d_t (m)", "d_t_m", "{:.1f}"), ("plans", "plans", "{}"),
+                 ("last event", "event", "{}"))
+
+
+def _cell(fmt: str, value: Any) -> str:
+    if isinstance(value, float) and value != value:  # NaN: not known yet
+        return "-"
+    return html.escape(fmt.format(value))
+
+
+FLEET_CSS = ("<style>table.fleet{font:12px sans-serif;border-collapse:collapse;width:100%}"
+             "table.fleet th,table.fleet td{padding:2px 6px;text-align:left;"
+             "border-bottom:1px solid #ddd}</style>")
+
+
+def fleet_html(frame: Frame) -> str:
+    """The fleet table: one row a vehicle (who flies it, Ψ_t, A_t, d_t, the plans' status, its
+    last event), the "flies" cell in the flown system's colour."""
+    rows = C.table_columns(frame)
+    head = "".join(f"<th>{html.escape(t)}</th>" for t, _, _ in FLEET_COLUMNS)
+    body = []
+    for i, flies in enumerate(rows["flies"]):
+        cells = []
+        for _, key, fmt in FLEET_COLUMNS:
+            style = (f' style="color:{C.flown_color(C.FLOWN_NUMBER.get(flies))};'
+                     f'font-weight:bold"' if key == "flies" else "")
+            cells.append(f'<td class="{key}"{style}>{_cell(fmt, rows[key][i])}</td>')
+        body.append(f"<tr>{''.join(cells)}</tr>")
+    return f'{FLEET_CSS}<table class="fleet"><tr>{head}</tr>{"".join(body)}</table>'
 
 
 def events_html(frame: Frame) -> str:
@@ -158,10 +169,11 @@ class Page:
         self.frames, self.step_frames = frames, step_frames
         self.src = _sources()
         self.drawn: dict[str, object] = {}
-        self.mapper = LinearColorMapper(palette=C.heat_palette(), low=0.0, high=1.0,
-                                        nan_color="#00000000")
+        self.mapper = LogColorMapper(palette=C.heat_palette(), low=C.HEAT_LOW_P, high=1.0,
+                                     nan_color="#00000000", low_color="#00000000")
         self.header = Div(text="", sizing_mode="stretch_width", name="header")
         self.events = Div(text="", sizing_mode="stretch_width", name="events")
+        self.fleet = Div(text="", sizing_mode="stretch_width", name="fleet")
         self.uav = Select(title="Ψ of", value="", options=[], width=120, name="psi_vehicle")
         furthest: list[str | tuple[Any, str]] = [("-1", "furthest")]
         self.horizon = Select(title="forecast horizon", value="-1", options=furthest,
@@ -169,7 +181,12 @@ class Page:
         _on_change(self.uav, "value", self.redraw)
         _on_change(self.horizon, "value", self.redraw)
         self.slider: Slider | None = None
+        #: live: this session's picture held still (to look at a moment), the stack going on
+        self.freeze = Toggle(label="❚❚ freeze", active=False, width=100, name="freeze")
+        _on_change(self.freeze, "active", self.refresh)
         controls: list[Any] = [self.uav, self.horizon]
+        if not replay_steps:
+            controls.append(self.freeze)
         if replay_steps:
             self.slider = Slider(start=0, end=max(replay_steps - 1, 1), value=replay_steps - 1,
                                  step=1, title="step", width=400, name="replay_step")
@@ -178,7 +195,7 @@ class Page:
             self.play.on_click(self.toggle_play)
             self.playing: Any = None
             controls = [self.slider, self.play, *controls]
-        side = column(fleet_table(self.src["table"]), psi_figure(self.src["psi"]), self.events,
+        side = column(self.fleet, psi_figure(self.src["psi"]), self.events,
                       sizing_mode="stretch_width", width=560)
         doc.add_root(column(self.header, row(*controls),
                             row(map_figure(self.src, self.mapper), side,
@@ -227,7 +244,10 @@ class Page:
         return self.frames()
 
     def refresh(self) -> None:
-        """Redraw the layers that changed since this session last drew them."""
+        """Redraw the layers that changed since this session last drew them (none while the
+        live picture is frozen)."""
+        if self.freeze.active and self.slider is None:
+            return
         f = self.frame()
         k = int(self.horizon.value)
         self._assign("area", f.layer_key("area"), lambda: C.area_columns(f))
@@ -238,9 +258,10 @@ class Page:
         self._assign("vehicles", tuple(f.layer_key(x) for x in ("vehicle", "path", "plans",
                                                                    "decision")),
                      lambda: C.vehicle_columns(f))
-        self._assign("table", tuple(f.layer_key(x) for x in ("vehicle", "decision", "plans",
-                                                                "event")),
-                     lambda: {"table": C.table_columns(f)})
+        fleet_key = tuple(f.layer_key(x) for x in ("vehicle", "decision", "plans", "event"))
+        if self.drawn.get("fleet") != fleet_key:
+            self.fleet.text = fleet_html(f)
+            self.drawn["fleet"] = fleet_key
         self._widgets(f)
         self._assign("psi", (f.layer_key("decision"), self.uav.value),
                      lambda: {"psi": C.psi_columns(f, self.uav.value)})
