@@ -5,13 +5,15 @@ occupancy forecast as a heat map (P of fire at one horizon), the fire regions
 and their hulls, the risk zones, each vehicle's trail, its current plan (the
 flown system's colour), its d_safe disc and a marker pointing along its
 velocity, coloured by the system that flies it. Beside it: a table of the
-fleet (step, who flies, Ψ_t, A_t, d_t, the plans' status, the last event), the
-supervisor's Ψ_t over the steps of one vehicle, and the newest events. Live,
-a periodic callback redraws what changed (:meth:`Page.refresh`); a replay
-adds a step slider and a play button.
+fleet (step, who flies, Ψ_t, A_t, d_t, the plans' status, the last event; an
+HTML table, ``table.fleet``), the supervisor's Ψ_t over the steps of one
+vehicle, and the newest events. Live, a periodic callback redraws what changed
+(:meth:`Page.refresh`) unless the session is frozen; a replay adds a step
+slider and a play button.
 
-Every data source and renderer has a ``name`` (``vehicles``, ``fires``, …) so a
-test can read what the page holds (``Bokeh.documents[0].get_model_by_name``).
+Every data source, renderer and widget has a ``name`` (``vehicles``, ``fires``,
+``freeze``, …) so a test can read what the page holds
+(``Bokeh.documents[0].get_model_by_name``).
 """
 
 from __future__ import annotations
@@ -42,16 +44,11 @@ SOURCES = ("area", "goal", "start", "fires", "hulls", "risk", "forecast", "trail
 
 
 def _sources() -> dict[str, ColumnDataSource]:
-    empty: dict[str, Callable[[Frame], Any]] = {
-        "forecast": lambda f: C.forecast_columns(f),
-        "psi": lambda f: C.psi_columns(f, "")}
-    out = {}
+    """The page's data sources, empty (the columns of a frame with no vehicle)."""
     blank = Frame()
-    groups = {**C.area_columns(blank), **C.fire_columns(blank), **C.vehicle_columns(blank)}
-    for name in SOURCES:
-        data = empty[name](blank) if name in empty else groups[name]
-        out[name] = ColumnDataSource(data=data, name=name)
-    return out
+    data = {**C.area_columns(blank), **C.fire_columns(blank), **C.vehicle_columns(blank),
+            "forecast": C.forecast_columns(blank), "psi": C.psi_columns(blank, "")}
+    return {name: ColumnDataSource(data=data[name], name=name) for name in SOURCES}
 
 
 def map_figure(src: dict[str, ColumnDataSource], mapper: LogColorMapper) -> Any:
@@ -183,7 +180,7 @@ class Page:
         self.slider: Slider | None = None
         #: live: this session's picture held still (to look at a moment), the stack going on
         self.freeze = Toggle(label="❚❚ freeze", active=False, width=100, name="freeze")
-        _on_change(self.freeze, "active", self.refresh)
+        _on_change(self.freeze, "active", self.toggle_freeze)
         controls: list[Any] = [self.uav, self.horizon]
         if not replay_steps:
             controls.append(self.freeze)
@@ -204,6 +201,10 @@ class Page:
         doc.title = title
         self.refresh()
         doc.add_periodic_callback(self.refresh, REFRESH_MS)
+
+    def toggle_freeze(self) -> None:
+        self.freeze.label = "▶ follow live" if self.freeze.active else "❚❚ freeze"
+        self.refresh()
 
     # -- replay -----------------------------------------------------------------------------------
     def toggle_play(self) -> None:
