@@ -40,8 +40,10 @@ from services.common.convert import vehicle as vehicle_convert
 from services.common.log import fields
 from services.msgs import fire_pb2, supervisor_pb2, vehicle_pb2
 
+from . import replay
 from .live import LiveVehicle, log_time_ns
 from .picture import Picture
+from .replay import Timeline
 from .web import DEFAULT_WEB_LISTEN, WebServer
 
 log = logging.getLogger("services.viewer")
@@ -199,20 +201,30 @@ def body(ctx: bus.Context, host: str, port: int, web: WebServer | None) -> None:
         log.info("live view stopped", extra=fields(frames_skipped=skipped))
 
 
-def replay_body(ctx: bus.Context, paths: list[Path], web: WebServer) -> None:
+def replay_body(ctx: bus.Context, timeline: Timeline, web: WebServer) -> None:
     """Serve the page of recorded missions (no Zenoh) until stopped."""
-    from .replay import load
-
-    timeline = load(paths)
     web.step_frames, web.replay_steps = timeline.at, len(timeline.frames)
-    web.title = f"dualpilot replay: {', '.join(p.name for p in paths)}"
-    log.info("replaying", extra=fields(files=[str(p) for p in paths],
-                                       frames=len(timeline.frames)))
+    web.title = f"dualpilot replay: {', '.join(Path(f).name for f in timeline.files)}"
+    log.info("replaying", extra=fields(files=list(timeline.files), frames=len(timeline.frames)))
     web.start()
     try:
         ctx.stop.wait()
     finally:
         web.stop()
+
+
+def load_replay(paths: list[Path]) -> Timeline:
+    """The recordings' timeline; ValueError naming the file for anything unreadable."""
+    from mcap.exceptions import McapError
+
+    missing = [str(f) for f in paths if not f.is_file()]
+    if missing:
+        raise ValueError(f"no such recording: {', '.join(missing)}")
+    try:
+        return replay.load(paths)
+    except (McapError, OSError, KeyError, IndexError) as err:
+        raise ValueError(f"cannot replay {', '.join(map(str, paths))}: not a mission.mcap "
+                         f"of dualpilot's channels ({type(err).__name__}: {err})") from err
 
 
 def web_server(args: Any) -> WebServer | None:
@@ -232,7 +244,7 @@ def web_server(args: Any) -> WebServer | None:
     return WebServer(host, port, "dualpilot operations picture", None, allow_origins=origins)
 
 
-def main(argv: list[str] | None = None) -> int:
+def parser() -> Any:
     p = common_cli.parser("viewer", "The stack's missions, live, on a web page (Bokeh) and over "
                                     "the Foxglove WebSocket protocol (foxglove-sdk); or a run's "
                                     "mission.mcap replayed on the page.")
@@ -251,7 +263,13 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--replay", nargs="+", type=Path, default=None, metavar="MCAP",
                    help="serve the page of these mission.mcap files (no Zenoh, no Foxglove "
                         "server): a step slider and a play button")
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = parser()
     args = p.parse_args(argv)
+    timeline = None
     try:
         settings = common_cli.settings("viewer", args)
         host, port = parse_listen(args.listen)
@@ -263,14 +281,12 @@ def main(argv: list[str] | None = None) -> int:
         if args.replay is not None:
             if web is None:
                 raise ValueError("--replay serves the web page: drop --no-web")
-            missing = [str(f) for f in args.replay if not f.is_file()]
-            if missing:
-                raise ValueError(f"no such recording: {', '.join(missing)}")
+            timeline = load_replay(args.replay)
     except ValueError as err:
         p.error(str(err))
-    if args.replay is not None:
+    if timeline is not None:
         assert web is not None
-        return bus.run_service(settings, lambda ctx: replay_body(ctx, args.replay, web),
+        return bus.run_service(settings, lambda ctx: replay_body(ctx, timeline, web),
                                zenoh_session=False)
     return bus.run_service(settings, lambda ctx: body(ctx, host, port, web))
 

@@ -119,3 +119,17 @@ def test_the_page_draws_the_newest_frame_and_a_replay_its_sliders_step(tmp_path:
     assert page.src["vehicles"].data["x"] == [50.0] and page.src["psi"].data["t"] == [0]
     assert doc.get_model_by_name("vehicles") is page.src["vehicles"]
     assert "replay: step 0 of 2" in page.header.text
+
+
+def test_a_file_that_is_no_recording_is_refused_with_its_name(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    from services.viewer.__main__ import main
+
+    bad = tmp_path / "notes.mcap"
+    bad.write_text("not a recording")
+    for argv, said in ((["--replay", str(bad)], f"cannot replay {bad}: not a mission.mcap"),
+                       (["--replay", str(tmp_path / "gone.mcap")], "no such recording"),
+                       (["--replay", str(bad), "--no-web"], "drop --no-web")):
+        with pytest.raises(SystemExit) as stop:
+            main(argv)
+        assert stop.value.code == 2 and said in capsys.readouterr().err
