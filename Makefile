@@ -11,7 +11,8 @@ PROFILE ?= today
 SUPERVISOR ?=
 # who flies: cc, s1, s2, concurrent, each also with +risk (dualpilot evaluate's names)
 CONTROLLER ?= cc
-# VIEWER=1: also the live view (services/viewer): Foxglove WebSocket on ws://127.0.0.1:8765
+# VIEWER=1: also the live view (services/viewer): the web page on http://127.0.0.1:8766/ and
+# Foxglove WebSocket on ws://127.0.0.1:8765 (free ports when taken; the launcher prints them)
 VIEWER ?=
 # TLS=1: mutual TLS and the router's access control (services/common/acl.py), off by default
 # (every service then a Zenoh client, one hop more per query than the default peers);
@@ -20,9 +21,14 @@ TLS ?=
 CERTS ?=
 TLS_FLAGS := $(if $(TLS),$(if $(CERTS),--tls-dir $(CERTS),--tls))
 
-.PHONY: setup run certs mission proto test test-fast flake-hunt lint bench docs figures clean compose-check
+.PHONY: setup browser run certs mission proto test test-fast flake-hunt lint bench docs figures clean compose-check
 
 setup: $(STAMP)
+
+# Debian's chromium, the headless browser of the web page's test (apt, as root; a no-op when
+# /usr/bin/chromium is there): scripts/install_browser.sh. `make test` runs it first.
+browser:
+	sh scripts/install_browser.sh
 
 $(STAMP): pyproject.toml scripts/pyretechnics-requirements.txt
 	test -x $(BIN)/python || $(PY) -m venv $(VENV)
@@ -53,7 +59,7 @@ proto: setup
 	$(BIN)/python -m services.protogen --clean
 
 # every tier (unit, integration, e2e; tests/conftest.py), the slowest 25 listed at the end
-test: setup
+test: setup browser
 	$(BIN)/python -m pytest -q --durations=25
 
 # the inner loop: the unit tier without its slow tests (under 2 min)

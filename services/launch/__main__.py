@@ -52,7 +52,8 @@ def parser() -> argparse.ArgumentParser:
                         "docker compose up --scale; repeatable")
     g.add_argument("--viewer", action="store_true",
                    help="also run the live view (services/viewer, compose profile 'viewer'): "
-                        "Foxglove WebSocket on ws://127.0.0.1:8765 (or the free port printed)")
+                        "a web page on http://127.0.0.1:8766/ and Foxglove WebSocket on "
+                        "ws://127.0.0.1:8765 (or the free ports printed)")
     g.add_argument("--timeout-s", type=float, default=600.0)
     g.add_argument("--log-format", choices=["json", "text"], default="json")
     g.add_argument("--no-figures", action="store_true")
@@ -137,8 +138,9 @@ def run_fleet(cfg: StackConfig, n: int, timeout_s: float, compose: Path) -> int:
     with Fleet(replace(cfg, run_dir=cfg.run_dir / "shared"), uavs, compose) as fleet:
         print(f"fleet: {n} vehicles, router {fleet.endpoint}, replicas "
               f"{cfg.scale or 'one of each'}; records in {cfg.run_dir}/<uav>/", flush=True)
-        if fleet.stack.viewer_url():
-            print(f"live view: {fleet.stack.viewer_url()} (every vehicle side by side)",
+        if fleet.stack.web_url():
+            print(f"live view: {fleet.stack.web_url()} in a browser, "
+                  f"{fleet.stack.viewer_url()} in Foxglove (every vehicle side by side)",
                   flush=True)
         seed = cfg.mission.seed
         vehicles = fleet.start_hosted(uavs, [seed + k for k in range(n)], cfg.run_dir,

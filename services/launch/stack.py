@@ -147,6 +147,13 @@ class Stack:
         listen = self.service_env("viewer").get("VIEWER_LISTEN", "")
         return "ws://" + listen.removeprefix("tcp/") if listen else ""
 
+    def web_url(self) -> str:
+        """The live view's web page (services/viewer), "" when it does not run."""
+        if "viewer" not in self.service_names():
+            return ""
+        listen = self.service_env("viewer").get("WEB_LISTEN", "")
+        return "http://" + listen.removeprefix("tcp/") + "/" if listen else ""
+
     def start(self) -> None:
         self.logs.mkdir(parents=True, exist_ok=True)
         if self.tls_dir is not None:
@@ -325,9 +332,10 @@ def run_mission(cfg: StackConfig, timeout_s: float = 600.0, figures: bool = True
                   f"{', '.join(stack.service_names())} (MAVLink ports "
                   f"{dict(stack.ports.ports)}); logs in {stack.logs}/",
                   flush=True)
-            if stack.viewer_url():
-                print(f"live view: {stack.viewer_url()} (Foxglove or Lichtblick: open "
-                      f"connection, Foxglove WebSocket)", flush=True)
+            if stack.web_url():
+                print(f"live view: {stack.web_url()} in a browser; {stack.viewer_url()} in "
+                      f"Foxglove or Lichtblick (open connection, Foxglove WebSocket)",
+                      flush=True)
         try:
             outcome = follow(stack, timeout_s, quiet)
         except KeyboardInterrupt:
