@@ -266,15 +266,13 @@ class MissionItem:
     def is_waypoint(self) -> bool:
         return self.command == mavlink.MAV_CMD_NAV_WAYPOINT and not self.is_home()
 
-    def send_int(self, sender: Sender, target: tuple[int, int], mission_type: int = 0) -> Any:
-        return sender("mission_item_int", target[0], target[1], self.seq, self.frame,
-                      self.command, self.current, self.autocontinue, self.param1, self.param2,
-                      self.param3, self.param4, self.x, self.y, self.z, mission_type)
-
-    def send_float(self, sender: Sender, target: tuple[int, int], mission_type: int = 0) -> Any:
-        return sender("mission_item", target[0], target[1], self.seq, self.frame, self.command,
-                      self.current, self.autocontinue, self.param1, self.param2, self.param3,
-                      self.param4, self.lat, self.lon, self.z, mission_type)
+    def fields(self, target: tuple[int, int], float_latlon: bool = False) -> tuple[Any, ...]:
+        """MISSION_ITEM_INT's fields (MISSION_ITEM's with ``float_latlon``: degrees), up to
+        but without ``mission_type``."""
+        x, y = (self.lat, self.lon) if float_latlon else (self.x, self.y)
+        return (target[0], target[1], self.seq, self.frame, self.command, self.current,
+                self.autocontinue, self.param1, self.param2, self.param3, self.param4, x, y,
+                self.z)
 
     def same(self, other: MissionItem) -> bool:
         """Field-wise equality where NaN equals NaN (an unset param of MISSION_ITEM_INT)."""
