@@ -41,7 +41,8 @@ from services.common.log import fields
 
 from . import clock as vclock
 from . import flavour as fl
-from .endpoint import SIGNED_ONLY, Endpoint, VehicleSetup
+from .autopilot import VehicleSetup
+from .endpoint import SIGNED_ONLY, Endpoint
 from .storage import open_tlog
 from .vehicle import Vehicle
 

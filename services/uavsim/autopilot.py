@@ -21,16 +21,18 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from dualpilot.model.dynamics import Array
-from services.common import mav
+from services.common import mav, rejections
 from services.common.log import fields
 
-from . import missionrun
+from . import geofence, missionrun
+from .clock import LOCKSTEP, REALTIME
 from .commander import Commander, Conditions, Outcome
 from .control import OFFBOARD
 from .failsafe import OFFBOARD_LOST, FailsafeMonitor
-from .flavour import Flavour, Nav
+from .flavour import ARDUPILOT, Flavour, Nav
 from .geofence import Geofence
-from .mission import MissionServer
+from .mission import FENCE, FreeBounds, MissionServer, PlanningBounds
+from .missionrun import Frame
 from .navigator import Navigator
 from .outbox import Outbox, statustext
 from .params import Parameters
@@ -41,6 +43,25 @@ log = logging.getLogger("services.uavsim")
 m = mav.mavlink
 #: MANUAL_CONTROL older than this is no manual control (s; PX4's COM_RC_LOSS_T is 0.5)
 MANUAL_LOSS_S = 1.0
+#: how far from the local frame's origin a vehicle on its own clock flies (m per axis)
+FREE_RANGE_M = 50_000.0
+
+
+@dataclass(frozen=True)
+class VehicleSetup:
+    """What a vehicle is told at start: its identity, frame, failsafe and clock."""
+
+    sysid: int  #: MAVLink system id (component 1)
+    altitude_m: float  #: the fixed flight altitude in lockstep (SIM_ALT_M)
+    home: tuple[float, float]  #: deg lat, lon of the local frame's origin
+    offboard_loss_s: float  #: hold after this long without setpoints (COM_OF_LOSS_T)
+    area_size_m: float = 1000.0  #: lockstep: mission waypoints must lie in [0, area]²
+    flavour: Flavour = ARDUPILOT  #: the autopilot it claims to be
+    clock: str = LOCKSTEP  #: lockstep or realtime (services/uavsim/clock.py)
+    speed_factor: float = 1.0  #: realtime: simulated s per wall s
+    home_amsl_m: float = 0.0  #: the origin's altitude above mean sea level
+
+
 
 
 @dataclass
@@ -116,8 +137,10 @@ class Autopilot:
                ) -> Outcome:
         """Run one request of the state machine on a fresh snapshot, then carry out what it
         changed; the outcome's STATUSTEXT goes to the ground station."""
-        armed = self.commander.armed
+        armed, failsafe = self.commander.armed, self.commander.failsafe
         out = fn(self.conditions(now, link))
+        if self.commander.failsafe != failsafe:  # a mode change or a disarm ended it
+            self._failsafe_changed(failsafe, self.commander.failsafe, now)
         if out.text:
             statustext(self.outbox, out.text, out.severity)
         if self.commander.armed != armed:
@@ -198,8 +221,11 @@ class Autopilot:
             self.stream_stats.failsafe_s += now - self.failsafe_since
             log.info("offboard failsafe over", extra=fields(
                 held_s=round(now - self.failsafe_since, 3)))
-        if cause not in (None, OFFBOARD_LOST, was):
-            log.warning("failsafe", extra=fields(cause=cause))
+        if cause is not None and cause != was:
+            statustext(self.outbox, f"Failsafe: {getattr(fs, 'text', cause)}",
+                       m.MAV_SEVERITY_CRITICAL)
+            if cause != OFFBOARD_LOST:
+                log.warning("failsafe", extra=fields(cause=cause))
 
     @property
     def in_offboard_failsafe(self) -> bool:
@@ -261,3 +287,38 @@ class Autopilot:
             self.outbox.send(None, "mission_item_reached", seq)
         if reached:
             self.mission.send_current()
+
+    def mission_changed(self, mission_type: int) -> None:
+        """A stored mission or fence changed: the fence's zones (ValueError refuses the upload:
+        MissionServer._commit), or MIS_ID and the ground station told."""
+        ms = self.mission
+        if mission_type == FENCE:
+            self.fence = Geofence(tuple(geofence.zones(ms.stored[FENCE], ms.bounds.origin)))
+            statustext(self.outbox, f"geofence: {len(self.fence.zones)} zones")
+            return
+        self.params.set("MIS_ID", float(ms.version))
+        waypoints = sum(it.is_waypoint() for it in ms.items)
+        statustext(self.outbox, f"mission {ms.version}: {len(ms.items)} items, "
+                                f"{waypoints} waypoints")
+        ms.send_current()
+
+
+def build(setup: VehicleSetup, vehicle: Vehicle, params: Parameters, outbox: Outbox,
+          control_link: Callable[[], str] = lambda: OFFBOARD,
+          reject: Callable[[str, rejections.CodecError], None] = lambda _l, _e: None
+          ) -> Autopilot:
+    """The autopilot of one vehicle and its parts, as ``setup`` says (the endpoint's, and a
+    unit test's with a recording outbox)."""
+    own_clock = setup.clock == REALTIME
+    bounds: FreeBounds | PlanningBounds = (
+        FreeBounds(setup.home, FREE_RANGE_M) if own_clock
+        else PlanningBounds(setup.home, setup.area_size_m))
+    mission = MissionServer(outbox, bounds, on_reject=reject,
+                            empty_upload_clears=setup.flavour is ARDUPILOT)
+    home_local = (float(vehicle.state[0]), float(vehicle.state[1]))
+    nav = Navigator(vehicle, params, home_local, Frame(setup.home, setup.home_amsl_m),
+                    own_clock, lambda: mission.items)
+    ap = Autopilot(setup.flavour, vehicle, params, outbox, mission, nav, control_link,
+                   setup.sysid)
+    mission.on_change = ap.mission_changed
+    return ap

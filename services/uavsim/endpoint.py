@@ -20,22 +20,17 @@ import socket
 import threading
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
 from typing import Any
 
 from services.common import mav, mavlink_codec, rejections
 from services.common.log import fields
 
-from . import arrivals, geofence
+from . import arrivals
 from . import clock as vclock
-from . import flavour as fl
-from .autopilot import Autopilot
+from .autopilot import FREE_RANGE_M, VehicleSetup, build
 from .commands import Commands
 from .control import ControlArbiter
 from .intervals import Schedule
-from .mission import FENCE, FreeBounds, MissionServer, PlanningBounds
-from .missionrun import Frame
-from .navigator import Navigator
 from .outbox import LinkOutbox, statustext
 from .params import Parameters, ParamProtocol
 from .setpoint import normalised
@@ -51,8 +46,6 @@ MAX_CLIENTS = 8
 #: datagrams read from one link before the loop sends telemetry again (a flood cannot starve it)
 MAX_DATAGRAMS_PER_POLL = 200
 CLIENT_TIMEOUT_S = 10.0
-#: how far from the local frame's origin a vehicle on its own clock flies (m per axis)
-FREE_RANGE_M = 50_000.0
 #: Messages a ground station sends that the vehicle ignores without counting them as bad
 #: input (housekeeping of MAVProxy and QGroundControl).
 GCS_CHATTER = frozenset({
@@ -76,21 +69,6 @@ SIGNED_ONLY = frozenset({"SET_POSITION_TARGET_LOCAL_NED", "COMMAND_LONG", "COMMA
                          "MANUAL_CONTROL"})
 
 
-@dataclass(frozen=True)
-class VehicleSetup:
-    """What a vehicle is told at start: its identity, frame, failsafe and clock."""
-
-    sysid: int  #: MAVLink system id (component 1)
-    altitude_m: float  #: the fixed flight altitude in lockstep (SIM_ALT_M)
-    home: tuple[float, float]  #: deg lat, lon of the local frame's origin
-    offboard_loss_s: float  #: hold after this long without setpoints (COM_OF_LOSS_T)
-    area_size_m: float = 1000.0  #: lockstep: mission waypoints must lie in [0, area]²
-    flavour: fl.Flavour = fl.ARDUPILOT  #: the autopilot it claims to be
-    clock: str = vclock.LOCKSTEP  #: lockstep or realtime (services/uavsim/clock.py)
-    speed_factor: float = 1.0  #: realtime: simulated s per wall s
-    home_amsl_m: float = 0.0  #: the origin's altitude above mean sea level
-
-
 class Endpoint:
     """The vehicle's MAVLink side: links, checks, the parts that act, the loop."""
 
@@ -105,9 +83,8 @@ class Endpoint:
                 arrivals.enable(conn.port)
         self.tlog = tlog
         self.outbox = LinkOutbox({name: mav.Sender(conn, tlog) for name, conn in links.items()})
-        own_clock = setup.clock == vclock.REALTIME
         self.realtime = (vclock.RealtimeClock(setup.speed_factor, int(vehicle.dyn.dt_s * 1000))
-                         if own_clock else None)
+                         if setup.clock == vclock.REALTIME else None)
         self.schedule = Schedule(time.monotonic())
         self.params = Parameters(MAV_SYS_ID=setup.sysid, COM_OF_LOSS_T=setup.offboard_loss_s,
                                  SIM_ALT_M=setup.altitude_m, SIM_KP=vehicle.kp,
@@ -115,7 +92,9 @@ class Endpoint:
         self.params.on_change(self._param_changed)
         self.arbiter = ControlArbiter(lambda: self.params["COM_OF_LOSS_T"],
                                       lambda: self.params["COM_DL_LOSS_T"])
-        self.ap = self._autopilot(own_clock)
+        self.ap = build(setup, vehicle, self.params, self.outbox,
+                        control_link=lambda: self.arbiter.link,
+                        reject=lambda link, err: self.reject(link, err, "mavlink"))
         home_local = (float(vehicle.state[0]), float(vehicle.state[1]))
         self.telemetry = Telemetry(self.ap, self.outbox, setup.home, home_local,
                                    setup.home_amsl_m)
@@ -132,21 +111,6 @@ class Endpoint:
         self.repeat: tuple[Any, Any] | None = None
         self.fault = ""  # a storage fault to report (STATUSTEXT) from the loop
 
-    def _autopilot(self, own_clock: bool) -> Autopilot:
-        setup = self.setup
-        bounds: FreeBounds | PlanningBounds = (
-            FreeBounds(setup.home, FREE_RANGE_M) if own_clock
-            else PlanningBounds(setup.home, setup.area_size_m))
-        mission = MissionServer(self.outbox, bounds, on_change=self._mission_changed,
-                                on_reject=lambda link, err: self.reject(link, err, "mavlink"),
-                                empty_upload_clears=setup.flavour is fl.ARDUPILOT)
-        frame = Frame(setup.home, setup.home_amsl_m)
-        home_local = (float(self.vehicle.state[0]), float(self.vehicle.state[1]))
-        nav = Navigator(self.vehicle, self.params, home_local, frame, own_clock,
-                        lambda: mission.items)
-        return Autopilot(setup.flavour, self.vehicle, self.params, self.outbox, mission, nav,
-                         control_link=lambda: self.arbiter.link, sysid=setup.sysid)
-
     # -- the parts' callbacks ------------------------------------------------------------------
     def _param_changed(self, name: str, value: float) -> None:
         self.repeat = None  # a setpoint accepted under the old value is checked again
@@ -159,19 +123,6 @@ class Endpoint:
             v.kp = value
         elif name == "BAT_CAP_NS":
             v.capacity_ns = value
-
-    def _mission_changed(self, mission_type: int) -> None:
-        ms = self.ap.mission
-        if mission_type == FENCE:  # ValueError refuses the upload (MissionServer._commit)
-            self.ap.fence = geofence.Geofence(tuple(geofence.zones(ms.stored[FENCE],
-                                                                   self.setup.home)))
-            statustext(self.outbox, f"geofence: {len(self.ap.fence.zones)} zones")
-            return
-        self.params.set("MIS_ID", float(ms.version))
-        waypoints = sum(it.is_waypoint() for it in ms.items)
-        statustext(self.outbox, f"mission {ms.version}: {len(ms.items)} items, "
-                                f"{waypoints} waypoints")
-        ms.send_current()
 
     def reject(self, link: str, err: rejections.CodecError, what: str = "mavlink") -> None:
         """Count and log (rate-limited) a rejected MAVLink input under ``mavlink/<link>``."""

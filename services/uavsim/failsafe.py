@@ -11,6 +11,8 @@ cause           when                                    action              clea
 offboard_lost   intended OFFBOARD, no setpoint for      hold                the stream back for
                 COM_OF_LOSS_T (ArduPilot's GUIDED:                          COM_OF_RSM_T, a mode
                 only once a stream has flown it)                            change, disarming
+manual_lost     intended POSITION, no MANUAL_CONTROL    hold                the sticks back, a
+                for 1 s (PX4: NAV_RCL_ACT)                                  mode change
 geofence        armed, in the air, the vehicle leaves   GF_ACTION: none,    a mode change,
                 the fence                               warn, hold, return, disarming
                                                         land
@@ -35,6 +37,7 @@ from .commander import Commander, Conditions, Failsafe
 from .flavour import Nav
 
 OFFBOARD_LOST = "offboard_lost"
+MANUAL_LOST = "manual_lost"
 GEOFENCE = "geofence"
 BATTERY_EMPTY = "battery_empty"
 #: GF_ACTION (PX4's values) → the state flown; 1 (warn) and 0 (none) fly nothing
@@ -59,6 +62,9 @@ class FailsafeMonitor:
         if (cmd.armed and cmd.intended is Nav.OFFBOARD and c.offboard_expected
                 and not c.offboard_signal):
             candidates.append(Failsafe(OFFBOARD_LOST, Nav.HOLD, "offboard lost", "condition"))
+        if cmd.armed and cmd.intended is Nav.POSITION and not c.manual_control:
+            candidates.append(Failsafe(MANUAL_LOST, Nav.HOLD, "manual control lost",
+                                       "condition"))
         breach = not c.inside_fence
         if cmd.armed and not c.landed and breach and self._was_inside:
             action = GF_ACTIONS.get(gf_action)
@@ -80,5 +86,7 @@ class FailsafeMonitor:
         if fs is None or not cmd.armed:
             return None
         if fs.cause == OFFBOARD_LOST and (c.offboard_resumed or cmd.intended is not Nav.OFFBOARD):
+            return None
+        if fs.cause == MANUAL_LOST and (c.manual_control or cmd.intended is not Nav.POSITION):
             return None
         return fs

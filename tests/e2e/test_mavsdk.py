@@ -1,4 +1,4 @@
-"""MAVSDK-Python (``mavsdk<4``, the gRPC API) as a real offboard client of uavsim, per flavour.
+"""MAVSDK-Python's gRPC API (``mavsdk<4``, now ``mavsdk-grpc``) as a real offboard client of uavsim.
 
 For each ``--autopilot`` (px4, ardupilot) a vehicle runs on its own (no
 Zenoh router) with the real-time clock, and MAVSDK (its ``mavsdk_server``
@@ -38,13 +38,13 @@ from services.uavsim.clock import RealtimeClock
 from services.uavsim.vehicle import Vehicle
 from tests.support.waits import check, explain, logs_in, wait_for
 
-mavsdk = pytest.importorskip("mavsdk")
-from mavsdk import System  # noqa: E402
-from mavsdk.action import ActionError  # noqa: E402
-from mavsdk.mission_raw import MissionItem  # noqa: E402
-from mavsdk.offboard import PositionNedYaw  # noqa: E402
-from mavsdk.param import ParamError  # noqa: E402
-from mavsdk.telemetry import FlightMode  # noqa: E402
+pytest.importorskip("mavsdk_grpc")  # the gRPC API (mavsdk<4), renamed: pip mavsdk-grpc
+from mavsdk_grpc import System  # noqa: E402
+from mavsdk_grpc.action import ActionError  # noqa: E402
+from mavsdk_grpc.mission_raw import MissionItem  # noqa: E402
+from mavsdk_grpc.offboard import PositionNedYaw  # noqa: E402
+from mavsdk_grpc.param import ParamError  # noqa: E402
+from mavsdk_grpc.telemetry import FlightMode  # noqa: E402
 
 pytestmark = pytest.mark.timeout(180)
 m = mav.mavlink
@@ -121,7 +121,7 @@ def observer(port: int, log: Path) -> Any:
 
 def wait_hold(rig: Rig, timeout_s: float) -> Any:
     """The first HEARTBEAT on the ground-station port that reports the flavour's hold mode."""
-    hold = fl.FLAVOURS[rig.flavour].custom_mode(fl.HOLD)
+    hold = fl.FLAVOURS[rig.flavour].custom_mode(fl.Nav.HOLD)
     last: list[Any] = []
 
     def held() -> Any:
