@@ -119,7 +119,7 @@ class Autopilot:
         loss = p["COM_OF_LOSS_T"]
         x = self.vehicle.state
         items = self.mission.items
-        positional = [it for it in items if it.command in missionrun.POSITIONAL]
+        positional = [it for it in items if missionrun.flown_position(it)]
         return Conditions(
             offboard_signal=self.signal.live(link, now, loss),
             offboard_resumed=self.signal.lasting(link, now, loss, p["COM_OF_RSM_T"]),
@@ -198,7 +198,10 @@ class Autopilot:
         self.failsafes.notes.clear()
         if fs != before:
             self._failsafe_changed(before, fs, now)
+            flown = cmd.nav
             cmd.set_failsafe(fs)
+            if fs is not None and fs.action is flown and getattr(before, "cause", None) != fs.cause:
+                self.nav.enter(flown)  # already in that state (a goto in Hold): stop there
             self.apply_changes(now)
         if (cmd.armed and c.landed and self.touchdown_ms is not None
                 and self.vehicle.time_ms - self.touchdown_ms

@@ -196,8 +196,9 @@ class Commander:
             return self.refuse("Disarming denied: not landed")
         self.armed = False
         self.failsafe = None
-        if self.intended in PREVENTS_ARMING[self.flavour.name]:
-            self._set(Nav.HOLD, "disarmed")  # the next arming must not be refused for it
+        if self.intended in PREVENTS_ARMING[self.flavour.name] and not self.flavour.guided:
+            # PX4 leaves a state it cannot arm in; ArduPilot stays (MAVSDK sets a mode first)
+            self._set(Nav.HOLD, "disarmed")
         return Outcome(ACCEPTED, f"Disarmed by {why}")
 
     def takeoff(self, c: Conditions) -> Outcome:

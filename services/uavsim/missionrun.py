@@ -17,7 +17,8 @@ camera, gimbal items  skipped: the vehicle carries no payload
 ====================  ====================================================================
 
 Altitudes: GLOBAL_RELATIVE_ALT frames are above home, GLOBAL frames above
-mean sea level (less home's). A mission started on the ground without a
+mean sea level (less home's). ArduPilot's home slot (item 0 in a GLOBAL frame,
+MAVProxy's ``wp`` files) is not flown. A mission started on the ground without a
 take-off item first climbs to its first altitude (at least MIS_TAKEOFF_ALT),
 as PX4 does.
 """
@@ -42,6 +43,11 @@ POSITIONAL = frozenset({WAYPOINT, LOITER_UNLIM, LOITER_TIME, LAND, TAKEOFF})
 RELATIVE_FRAMES = frozenset({int(m.MAV_FRAME_GLOBAL_RELATIVE_ALT),
                              int(m.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT)})
 ALT_TOLERANCE_M = 1.0
+
+
+def flown_position(item: mav.MissionItem) -> bool:
+    """An item that flies to a position (the home slot is not flown)."""
+    return item.command in POSITIONAL and not item.is_home()
 
 
 @dataclass(frozen=True)
@@ -99,7 +105,7 @@ class MissionRun:
     def start(self, seq: int, here: Goal, landed: bool) -> None:
         self.index = next((k for k, it in enumerate(self.items) if it.seq >= seq), 0)
         self.arrived, self.wait_s = False, 0.0
-        first = next((it for it in self.items[self.index:] if it.command in POSITIONAL), None)
+        first = next((it for it in self.items[self.index:] if flown_position(it)), None)
         if landed and first is not None and first.command != TAKEOFF:
             alt = self.frame.goal(first, here).alt
             self.climb_first = max(self.takeoff_alt_m, alt)
@@ -120,9 +126,10 @@ class MissionRun:
             item = self.items[self.index]
             if item.command == CHANGE_SPEED:
                 speed = item.param2 if math.isfinite(item.param2) and item.param2 > 0 else speed
-            elif item.command not in SKIPPED:
+            elif item.command not in SKIPPED and not item.is_home():
                 break
-            reached.append(item.seq)
+            if not item.is_home():
+                reached.append(item.seq)
             self.index += 1
         if self.index >= len(self.items):
             return Step(here, reached=reached, speed=speed, done=True)

@@ -205,7 +205,8 @@ class Navigator:
         if not self.returning_home and self.v.alt_m >= self.goal.alt - 0.5:
             self.returning_home = True
             self.goal = Goal(*self.home, self.goal.alt)
-        if self.returning_home and math.hypot(x[0] - self.home[0], x[1] - self.home[1]) < 1.0:
+        if (self.returning_home and math.hypot(x[0] - self.home[0], x[1] - self.home[1]) < 0.5
+                and math.hypot(x[2], x[3]) < 0.5):  # over home, slowed: land there
             ev.done = Nav.RETURN
         return approach(x, (self.goal.east, self.goal.north), self.speed, dt), self.goal.alt, ev
 

@@ -1,4 +1,4 @@
-"""MAVSDK-Python's gRPC API (``mavsdk<4``, now ``mavsdk-grpc``) as a real offboard client of uavsim.
+"""MAVSDK-Python (``mavsdk<4``, the gRPC API) as a real offboard client of uavsim, per flavour.
 
 For each ``--autopilot`` (px4, ardupilot) a vehicle runs on its own (no
 Zenoh router) with the real-time clock, and MAVSDK (its ``mavsdk_server``
@@ -38,13 +38,13 @@ from services.uavsim.clock import RealtimeClock
 from services.uavsim.vehicle import Vehicle
 from tests.support.waits import check, explain, logs_in, wait_for
 
-pytest.importorskip("mavsdk_grpc")  # the gRPC API (mavsdk<4), renamed: pip mavsdk-grpc
-from mavsdk_grpc import System  # noqa: E402
-from mavsdk_grpc.action import ActionError  # noqa: E402
-from mavsdk_grpc.mission_raw import MissionItem  # noqa: E402
-from mavsdk_grpc.offboard import PositionNedYaw  # noqa: E402
-from mavsdk_grpc.param import ParamError  # noqa: E402
-from mavsdk_grpc.telemetry import FlightMode  # noqa: E402
+mavsdk = pytest.importorskip("mavsdk")
+from mavsdk import System  # noqa: E402
+from mavsdk.action import ActionError  # noqa: E402
+from mavsdk.mission_raw import MissionItem  # noqa: E402
+from mavsdk.offboard import PositionNedYaw  # noqa: E402
+from mavsdk.param import ParamError  # noqa: E402
+from mavsdk.telemetry import FlightMode  # noqa: E402
 
 pytestmark = pytest.mark.timeout(180)
 m = mav.mavlink
@@ -388,5 +388,7 @@ def test_offboard_loss_failsafe_holds_then_the_stream_resumes(rig: Rig) -> None:
     rig.first(d.telemetry.flight_mode(), "flight mode OFFBOARD again",
               lambda f: f == FlightMode.OFFBOARD, 15)
     rig.run(d.offboard.stop())
-    rig.run(d.action.land())
-    rig.run(d.action.disarm())
+    rig.run(d.action.land())  # from 50 m: 1.5 m/s, the last 5 m at 0.7 m/s (docs/vehicle.md)
+    rig.first(d.telemetry.in_air(), "the vehicle on the ground", lambda a: not a, 30)
+    rig.run(d.action.disarm())  # or disarmed already: COM_DISARM_LAND after the touchdown
+    rig.first(d.telemetry.armed(), "the vehicle disarmed", lambda a: not a)

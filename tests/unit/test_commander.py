@@ -103,11 +103,14 @@ def test_disarming_in_the_air_needs_the_force_flag(flavour: Flavour) -> None:
     assert c.disarm(flying).accepted  # disarmed already
 
 
-def test_disarming_in_a_state_that_prevents_arming_leaves_it_for_hold() -> None:
+def test_disarming_in_a_state_that_prevents_arming_leaves_it_for_hold_in_px4() -> None:
     c = Commander(PX4, armed=True, intended=Nav.LAND)
     assert c.disarm(Conditions(), why="landing").text == "Disarmed by landing"
     assert c.nav is Nav.HOLD and c.changes == [(Nav.LAND, Nav.HOLD, "disarmed")]
     assert c.arm(ALL).accepted
+    apm = Commander(ARDUPILOT, armed=True, intended=Nav.LAND)  # ArduCopter stays in LAND
+    assert apm.disarm(Conditions()).accepted and apm.nav is Nav.LAND
+    assert apm.arm(ALL).text == "Arming denied: not in LAND"
 
 
 @pytest.mark.parametrize("flavour", FLAVOURS, ids=lambda f: f.name)

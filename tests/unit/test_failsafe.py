@@ -163,3 +163,21 @@ def test_an_empty_battery_lands() -> None:
     assert r.nav is Nav.LAND and r.ap.commander.failsafe is not None
     assert r.ap.decide(lambda c: r.ap.commander.request(Nav.HOLD, c), 2.0).accepted
     assert r.nav is Nav.LAND  # only disarming ends it
+
+
+def test_a_fence_hold_stops_a_goto_that_flies_out() -> None:
+    """A goto in Hold (PX4) towards a point outside the fence: the breach's Hold (GF_ACTION 2)
+    is the state already flown, and it stops the vehicle where it broke out."""
+    r = rig(fl.PX4)
+    fenced(r, 2)
+    assert r.command(m.MAV_CMD_DO_REPOSITION, -1, 1, 0, float("nan"),
+                     *mav.to_geodetic(100.0, 0.0, (47.397742, 8.545594)), float("nan")) == 0
+    for _ in range(30):
+        r.fly(1.0)
+        if r.ap.commander.failsafe is not None:
+            break
+    assert r.ap.commander.failsafe is not None and r.nav is Nav.HOLD
+    east = float(r.ap.vehicle.state[0])
+    assert 10.0 < east < 16.0  # out by at most one step at the cruise speed
+    r.fly(10.0)
+    assert float(r.ap.vehicle.state[0]) == pytest.approx(east, abs=5.0)  # it stopped there
