@@ -1,0 +1,130 @@
+"""The supervisor flies a whole mission with each flavour, and a ground station takes over and
+hands back in the middle of it.
+
+The stack (router, EWS, System 1 and 2, uavsim, supervisor) flies System 1's
+mission of seed 3 with the vehicle claiming PX4 (OFFBOARD is main mode 6)
+or ArduPilot (GUIDED is 4): the supervisor reads the mode numbers from the
+vehicle's HEARTBEAT. After 10 steps a ground station (pymavlink on the
+ground-station link) asks for the hold mode: the vehicle holds, the mission
+pauses; then it asks for the offboard mode, which hands control back to the
+supervisor's live setpoint stream: the mission resumes and ends. The run's
+record shows every mode change (``vehicle_mode`` events in steps.jsonl, the
+list in summary.json) and names the hold as a fault of its step.
+"""
+
+from __future__ import annotations
+
+import json
+import queue
+import time
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from dualpilot.mission.config import MissionConfig
+from e2e.conftest import drain_messages
+from services import launch
+from services.common import keys, mav, mavmodes
+from services.msgs import supervisor_pb2
+from tests.support.waits import check, logs_in, wait_for
+
+pytestmark = [pytest.mark.slow, pytest.mark.timeout(300)]
+m = mav.mavlink
+SEED = 3  # System 1 reaches the goal in 97 steps in-process
+KIND = supervisor_pb2.MissionEventKind
+
+
+class GroundStation:
+    """pymavlink on the vehicle's ground-station link: heartbeats, modes, the newest state."""
+
+    def __init__(self, port: int, logs: Path):
+        self.conn = mav.connect(f"udpout:127.0.0.1:{port}", 255, 190)
+        self.logs = logs
+        self.newest: dict[str, Any] = {}
+
+    def pump(self) -> dict[str, Any]:
+        self.conn.mav.heartbeat_send(m.MAV_TYPE_GCS, m.MAV_AUTOPILOT_INVALID, 0, 0, 0)
+        while (msg := self.conn.recv_match(blocking=True, timeout=0.05)) is not None:
+            if msg.get_srcComponent() == 1:
+                self.newest[msg.get_type()] = msg
+        return self.newest
+
+    def until(self, pred: Any, timeout_s: float, what: str) -> Any:
+        return wait_for(lambda: pred(self.pump()), timeout_s, what, logs_in(self.logs),
+                        last=lambda: {k: str(v) for k, v in self.newest.items()
+                                      if k in ("HEARTBEAT", "LOCAL_POSITION_NED")})
+
+    def mode(self, modes: mavmodes.ModeMap, custom: int, sub: float) -> int:
+        """DO_SET_MODE for ``custom`` (its main mode and ``sub`` for PX4): the ACK's result."""
+        main = (custom >> 16) & 0xFF if modes.family == "px4" else custom
+        self.newest.pop("COMMAND_ACK", None)
+        self.conn.mav.command_long_send(1, 1, m.MAV_CMD_DO_SET_MODE, 0,
+                                        m.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, main, sub,
+                                        0, 0, 0, 0)
+        ack = self.until(lambda n: n.get("COMMAND_ACK"), 10, "the COMMAND_ACK of DO_SET_MODE")
+        return int(ack.result)
+
+
+def mode_of(newest: dict[str, Any]) -> tuple[int, bool] | None:
+    hb = newest.get("HEARTBEAT")
+    return None if hb is None else (int(hb.custom_mode), bool(hb.base_mode
+                                                               & m.MAV_MODE_FLAG_SAFETY_ARMED))
+
+
+@pytest.mark.parametrize("flavour", ["px4", "ardupilot"])
+def test_a_mission_with_a_ground_station_take_over_and_hand_back(flavour: str,
+                                                                  tmp_path: Path) -> None:
+    modes = mavmodes.PX4_MODES if flavour == "px4" else mavmodes.ARDUPILOT_MODES
+    cfg = launch.StackConfig(
+        run_dir=tmp_path / "run", mission=MissionConfig.named("s1", seed=SEED),
+        speed_factor=20.0, free_ports=True, uav_id=f"e2e-{flavour}", log_format="text",
+        deferred=("supervisor",), extra_env={"uavsim": {"UAV_AUTOPILOT": flavour}})
+    cfg.run_dir.mkdir(parents=True)
+    stack = launch.Stack(cfg)
+    logs = cfg.run_dir
+    gcs_port = int(stack.service_env("uavsim")["GCS_URL"].rsplit(":", 1)[1])
+    events: queue.Queue[bytes] = queue.Queue()
+    seen: list[int] = []
+
+    def kinds() -> list[int]:
+        seen.extend(e.kind for e in drain_messages(events, supervisor_pb2.MissionEvent))
+        return seen
+
+    with stack, launch.client_session(stack.endpoint) as session:
+        sub = session.declare_subscriber(keys.mission_event(cfg.uav_id),
+                                         lambda s: events.put(s.payload.to_bytes()))
+        gcs = GroundStation(gcs_port, logs)
+        gcs.until(lambda n: n.get("HEARTBEAT"), 60, "the vehicle's HEARTBEAT")
+        stack.start_deferred()
+        gcs.until(lambda n: mode_of(n) == (modes.offboard, True)
+                  and n["LOCAL_POSITION_NED"].time_boot_ms >= 10_000, 90,
+                  f"the supervisor flying the vehicle in {modes.name(modes.offboard)} 10 s")
+        # the ground station takes over: the vehicle holds, the mission pauses
+        assert gcs.mode(modes, modes.hold, 3) == m.MAV_RESULT_ACCEPTED
+        gcs.until(lambda n: mode_of(n) == (modes.hold, True), 10, "the hold mode")
+        wait_for(lambda: KIND.Value("MISSION_EVENT_KIND_PAUSED") in kinds(), 10,
+                 "the mission's PAUSED event", logs_in(logs))
+        held = gcs.pump()["LOCAL_POSITION_NED"].time_boot_ms
+        time.sleep(1.0)  # the supervisor's stream goes on: nothing flies it meanwhile
+        assert gcs.pump()["LOCAL_POSITION_NED"].time_boot_ms == held
+        # and hands back: the offboard link's stream is live, so offboard mode is accepted
+        assert gcs.mode(modes, modes.offboard, 0) == m.MAV_RESULT_ACCEPTED
+        wait_for(lambda: KIND.Value("MISSION_EVENT_KIND_ENDED") in kinds(), 120,
+                 "the mission's ENDED event", logs_in(logs),
+                 last=lambda: [KIND.Name(k) for k in kinds()[-5:]])
+        sub.undeclare()
+    assert KIND.Value("MISSION_EVENT_KIND_RESUMED") in seen
+    assert KIND.Value("MISSION_EVENT_KIND_ABORTED") not in seen
+    summary = json.loads((cfg.run_dir / "summary.json").read_text())
+    check(summary["success"], "the mission to reach the goal", logs_in(logs), summary)
+    names = [(c["mode"], c["armed"]) for c in summary["stack"]["vehicle_modes"]]
+    offboard, hold = modes.name(modes.offboard), modes.name(modes.hold)
+    assert names[:3] == [(hold, False), (offboard, False), (offboard, True)]
+    assert (hold, True) in names and names[names.index((hold, True)) + 1] == (offboard, True)
+    lines = [json.loads(x) for x in (cfg.run_dir / "steps.jsonl").read_text().splitlines()]
+    events_ = [e for e in lines if e.get("event") == "vehicle_mode"]
+    assert [(e["mode"], e["armed"]) for e in events_] == names
+    assert all(e["autopilot"] == flavour for e in events_)
+    faults = [f for e in lines if e.get("kind") == "step" for f in e.get("faults", [])]
+    assert any(f.startswith("vehicle_hold") for f in faults), faults
