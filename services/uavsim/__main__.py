@@ -119,19 +119,7 @@ def _parser() -> argparse.ArgumentParser:
     """The vehicle's flags, each with its environment variable."""
     env = common_cli.env
     p = common_cli.parser("uavsim", "Simulated vehicle: MAVLink endpoint flying Eq. (1).")
-    p.add_argument("--autopilot", choices=sorted(fl.FLAVOURS),
-                   default=env("UAV_AUTOPILOT", fl.ARDUPILOT.name),
-                   help="the autopilot the vehicle claims to be and behaves like: HEARTBEAT "
-                        "autopilot, mode numbers, and its SITL's links and home "
-                        "[UAV_AUTOPILOT]")
-    p.add_argument("--mavlink-url", default=os.environ.get("MAVLINK_URL"),
-                   help="the offboard link; default: the autopilot's SITL (px4: "
-                        f"{fl.PX4.sitl.offboard_url}, ardupilot: {fl.ARDUPILOT.sitl.offboard_url})"
-                        " [MAVLINK_URL]")
-    p.add_argument("--gcs-url", default=os.environ.get("GCS_URL"),
-                   help="the ground-station link, empty to disable; default: the autopilot's "
-                        f"SITL (px4: {fl.PX4.sitl.gcs_url}, ardupilot: "
-                        f"{fl.ARDUPILOT.sitl.gcs_url}) [GCS_URL]")
+    _link_flags(p)
     p.add_argument("--sysid", type=int, default=env("MAV_SYSID", "1"), help="[MAV_SYSID]")
     p.add_argument("--start", default=os.environ.get("UAV_START"),
                    help="start position 'east,north' in m of the origin; default: px4 0,0 (at "
@@ -179,6 +167,24 @@ def _parser() -> argparse.ArgumentParser:
                    help="hold a liveliness token on Zenoh; auto: only when ZENOH_CONNECT or "
                         "--zenoh-connect is given (the vehicle needs no router) [UAV_ZENOH]")
     return p
+
+
+def _link_flags(p: argparse.ArgumentParser) -> None:
+    """The autopilot and its links: without them, the autopilot's SITL defaults."""
+    env = common_cli.env
+    p.add_argument("--autopilot", choices=sorted(fl.FLAVOURS),
+                   default=env("UAV_AUTOPILOT", fl.ARDUPILOT.name),
+                   help="the autopilot the vehicle claims to be and behaves like: HEARTBEAT "
+                        "autopilot, mode numbers, and its SITL's links and home "
+                        "[UAV_AUTOPILOT]")
+    p.add_argument("--mavlink-url", default=os.environ.get("MAVLINK_URL"),
+                   help="the offboard link; default: the autopilot's SITL (px4: "
+                        f"{fl.PX4.sitl.offboard_url}, ardupilot: {fl.ARDUPILOT.sitl.offboard_url})"
+                        " [MAVLINK_URL]")
+    p.add_argument("--gcs-url", default=os.environ.get("GCS_URL"),
+                   help="the ground-station link, empty to disable; default: the autopilot's "
+                        f"SITL (px4: {fl.PX4.sitl.gcs_url}, ardupilot: "
+                        f"{fl.ARDUPILOT.sitl.gcs_url}) [GCS_URL]")
 
 
 @dataclass(frozen=True)

@@ -37,7 +37,7 @@ from tests.support.waits import check
 
 grpc = pytest.importorskip("tests.e2e.examples_grpc")  # needs mavsdk<4
 
-pytestmark = [pytest.mark.timeout(240)]
+pytestmark = [pytest.mark.slow, pytest.mark.timeout(240)]
 m = mav.mavlink
 SPEED = 10.0  # simulated s per wall s
 HOME = fl.PX4_SITL.home  # PX4 SITL's: 47.397742, 8.545594, 488 m
