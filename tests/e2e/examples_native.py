@@ -47,7 +47,7 @@ from mavsdk.asyncio.plugins.param import ParamAsync
 from mavsdk.asyncio.plugins.telemetry import TelemetryAsync
 
 from services.common import mav
-from tests.e2e.examples_grpc import MISSION, plain
+from tests.e2e.examples_common import MISSION, plain
 
 Sim = Callable[[float], float]
 

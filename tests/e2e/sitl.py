@@ -10,10 +10,12 @@ outside the project does, the test falls back to a free port, given to the
 vehicle with ``--mavlink-url`` (the override stays tested) and to MAVSDK in
 the same form of connection string. Everything is on 127.0.0.1.
 
-:class:`Watch` is a pymavlink ground station on the vehicle's ground-station
-link: it records every HEARTBEAT, STATUSTEXT, MISSION_ITEM_REACHED and the
-newest of each other message, so a test checks outcomes independently of
-the client it drives.
+:class:`Watch` is a pymavlink ground station on a vehicle's ground-station
+link (or on MAVProxy's ``--out``): on a thread of its own it records every
+HEARTBEAT, STATUSTEXT, MISSION_ITEM_REACHED and the newest of each other
+message, so a test checks outcomes independently of the client it drives;
+with ``speak`` it heartbeats once a second (a ``udpout`` side speaks first)
+and sends commands (:meth:`Watch.command`).
 """
 
 from __future__ import annotations
@@ -25,6 +27,7 @@ import socket
 import sys
 import tempfile
 import threading
+import time
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -62,18 +65,49 @@ def api_port() -> Iterator[tuple[int, bool]]:
 
 @dataclass
 class Watch:
-    """What the vehicle told its ground-station link (module docstring)."""
+    """What the vehicle told a ground station (module docstring)."""
 
     conn: Any
+    speak: bool = False
     heartbeats: list[Any] = field(default_factory=list)
     texts: list[str] = field(default_factory=list)
     reached: list[int] = field(default_factory=list)
+    acks: list[Any] = field(default_factory=list)
+    params: dict[str, float] = field(default_factory=dict)  #: the newest PARAM_VALUE of each
     max_alt_m: float = 0.0  #: the highest relative altitude seen
     newest: dict[str, Any] = field(default_factory=dict)
     stop: threading.Event = field(default_factory=threading.Event)
+    lock: threading.Lock = field(default_factory=threading.Lock)
+
+    @contextlib.contextmanager
+    def running(self) -> Iterator[Watch]:
+        thread = threading.Thread(target=self.run, daemon=True, name="watch")
+        thread.start()
+        try:
+            yield self
+        finally:
+            self.stop.set()
+            thread.join(2)
+            self.conn.close()
+
+    def send(self, name: str, *args: Any) -> None:
+        with self.lock:  # pymavlink's sequence counter is not thread-safe
+            getattr(self.conn.mav, f"{name}_send")(*args)
+
+    def command(self, cmd: int, *params: float, timeout_s: float = 10.0) -> int:
+        """COMMAND_LONG to system 1 (unset parameters 0): the COMMAND_ACK's result."""
+        seen = len(self.acks)
+        self.send("command_long", 1, 1, cmd, 0, *params, *([0.0] * (7 - len(params))))
+        ack = wait_for(lambda: next((a for a in self.acks[seen:] if a.command == cmd), None),
+                       timeout_s, f"the COMMAND_ACK of {cmd}")
+        return int(ack.result)
 
     def run(self) -> None:
+        next_hb = 0.0
         while not self.stop.is_set():
+            if self.speak and time.monotonic() >= next_hb:
+                self.send("heartbeat", m.MAV_TYPE_GCS, m.MAV_AUTOPILOT_INVALID, 0, 0, 0)
+                next_hb = time.monotonic() + 1.0
             msg = self.conn.recv_match(blocking=True, timeout=0.1)
             if msg is None or msg.get_srcComponent() != 1:
                 continue
@@ -84,6 +118,10 @@ class Watch:
                 self.texts.append(msg.text)
             elif kind == "MISSION_ITEM_REACHED":
                 self.reached.append(int(msg.seq))
+            elif kind == "COMMAND_ACK":
+                self.acks.append(msg)
+            elif kind == "PARAM_VALUE":
+                self.params[msg.param_id] = float(msg.param_value)
             elif kind == "GLOBAL_POSITION_INT":
                 self.max_alt_m = max(self.max_alt_m, msg.relative_alt / 1000.0)
             self.newest[kind] = msg
@@ -101,11 +139,18 @@ class Watch:
         ext = self.last("EXTENDED_SYS_STATE")
         return ext is not None and ext.landed_state == m.MAV_LANDED_STATE_ON_GROUND
 
-    def modes(self, flavour: Any) -> list[str]:
-        """The modes the heartbeats showed, each change once, in the flavour's names."""
+    def mode(self) -> tuple[int, bool] | None:
+        """The newest HEARTBEAT's custom mode and arming."""
+        if not self.heartbeats:
+            return None
+        hb = self.heartbeats[-1]
+        return int(hb.custom_mode), bool(hb.base_mode & m.MAV_MODE_FLAG_SAFETY_ARMED)
+
+    def modes(self, name_of: Any) -> list[str]:
+        """The modes the heartbeats showed, each change once, named by ``name_of(custom)``."""
         names: list[str] = []
-        for hb in self.heartbeats:
-            name = flavour.name_of(int(hb.custom_mode))
+        for hb in list(self.heartbeats):
+            name = name_of(int(hb.custom_mode))
             if not names or names[-1] != name:
                 names.append(name)
         return names
@@ -150,13 +195,11 @@ def px4_sitl(logs_dir: Path, speed: float, *flags: str) -> Iterator[Sitl]:
     PX4 SITL's 14540 unless taken), its ground-station link to a watching pymavlink."""
     gcs_port = free_port("udp")
     watch = Watch(mav.connect(f"udpin:127.0.0.1:{gcs_port}", 255, 190))
-    thread = threading.Thread(target=watch.run, daemon=True, name="sitl-watch")
-    thread.start()
     group = ProcessGroup()
     env = {k: v for k, v in os.environ.items() if not k.startswith(("ZENOH", "UAV_", "MAVLINK",
                                                                     "GCS_"))}
     env.update(PYTHONPATH=str(REPO), PYTHONUNBUFFERED="1", LOG_FORMAT="text", LOG_LEVEL="INFO")
-    with api_port() as (port, fixed):
+    with watch.running(), api_port() as (port, fixed):
         argv = [sys.executable, "-m", "services.uavsim", "--autopilot", "px4",
                 "--speed-factor", str(speed), "--gcs-url", f"udpout:127.0.0.1:{gcs_port}",
                 *flags]
@@ -170,7 +213,4 @@ def px4_sitl(logs_dir: Path, speed: float, *flags: str) -> Iterator[Sitl]:
             yield sitl
         finally:
             codes = group.stop_all()
-            watch.stop.set()
-            thread.join(2)
-            watch.conn.close()
             assert codes.get("uavsim") == 0, (logs_dir / "uavsim.log").read_text()[-3000:]

@@ -27,6 +27,7 @@ from e2e.conftest import drain_messages
 from services import launch
 from services.common import keys, mav, mavmodes
 from services.msgs import supervisor_pb2
+from tests.e2e.sitl import Watch
 from tests.support.waits import check, logs_in, wait_for
 
 pytestmark = [pytest.mark.slow, pytest.mark.timeout(300)]
@@ -35,41 +36,10 @@ SEED = 3  # System 1 reaches the goal in 97 steps in-process
 KIND = supervisor_pb2.MissionEventKind
 
 
-class GroundStation:
-    """pymavlink on the vehicle's ground-station link: heartbeats, modes, the newest state."""
-
-    def __init__(self, port: int, logs: Path):
-        self.conn = mav.connect(f"udpout:127.0.0.1:{port}", 255, 190)
-        self.logs = logs
-        self.newest: dict[str, Any] = {}
-
-    def pump(self) -> dict[str, Any]:
-        self.conn.mav.heartbeat_send(m.MAV_TYPE_GCS, m.MAV_AUTOPILOT_INVALID, 0, 0, 0)
-        while (msg := self.conn.recv_match(blocking=True, timeout=0.05)) is not None:
-            if msg.get_srcComponent() == 1:
-                self.newest[msg.get_type()] = msg
-        return self.newest
-
-    def until(self, pred: Any, timeout_s: float, what: str) -> Any:
-        return wait_for(lambda: pred(self.pump()), timeout_s, what, logs_in(self.logs),
-                        last=lambda: {k: str(v) for k, v in self.newest.items()
-                                      if k in ("HEARTBEAT", "LOCAL_POSITION_NED")})
-
-    def mode(self, modes: mavmodes.ModeMap, custom: int, sub: float) -> int:
-        """DO_SET_MODE for ``custom`` (its main mode and ``sub`` for PX4): the ACK's result."""
-        main = (custom >> 16) & 0xFF if modes.family == "px4" else custom
-        self.newest.pop("COMMAND_ACK", None)
-        self.conn.mav.command_long_send(1, 1, m.MAV_CMD_DO_SET_MODE, 0,
-                                        m.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, main, sub,
-                                        0, 0, 0, 0)
-        ack = self.until(lambda n: n.get("COMMAND_ACK"), 10, "the COMMAND_ACK of DO_SET_MODE")
-        return int(ack.result)
-
-
-def mode_of(newest: dict[str, Any]) -> tuple[int, bool] | None:
-    hb = newest.get("HEARTBEAT")
-    return None if hb is None else (int(hb.custom_mode), bool(hb.base_mode
-                                                               & m.MAV_MODE_FLAG_SAFETY_ARMED))
+def set_mode(gcs: Watch, modes: mavmodes.ModeMap, custom: int, sub: float) -> int:
+    """DO_SET_MODE for ``custom`` (its main mode, and ``sub`` for PX4): the ACK's result."""
+    main = (custom >> 16) & 0xFF if modes.family == "px4" else custom
+    return gcs.command(m.MAV_CMD_DO_SET_MODE, m.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, main, sub)
 
 
 @pytest.mark.parametrize("flavour", ["px4", "ardupilot"])
@@ -91,25 +61,29 @@ def test_a_mission_with_a_ground_station_take_over_and_hand_back(flavour: str,
         seen.extend(e.kind for e in drain_messages(events, supervisor_pb2.MissionEvent))
         return seen
 
-    with stack, launch.client_session(stack.endpoint) as session:
+    gcs = Watch(mav.connect(f"udpout:127.0.0.1:{gcs_port}", 255, 190), speak=True)
+    with stack, launch.client_session(stack.endpoint) as session, gcs.running():
         sub = session.declare_subscriber(keys.mission_event(cfg.uav_id),
                                          lambda s: events.put(s.payload.to_bytes()))
-        gcs = GroundStation(gcs_port, logs)
-        gcs.until(lambda n: n.get("HEARTBEAT"), 60, "the vehicle's HEARTBEAT")
+
+        def until(pred: Any, timeout_s: float, what: str) -> None:
+            wait_for(pred, timeout_s, what, logs_in(logs), last=gcs.mode)
+
+        until(gcs.mode, 60, "the vehicle's HEARTBEAT")
         stack.start_deferred()
-        gcs.until(lambda n: mode_of(n) == (modes.offboard, True)
-                  and n["LOCAL_POSITION_NED"].time_boot_ms >= 10_000, 90,
-                  f"the supervisor flying the vehicle in {modes.name(modes.offboard)} 10 s")
+        until(lambda: gcs.mode() == (modes.offboard, True)
+              and gcs.last("LOCAL_POSITION_NED").time_boot_ms >= 10_000, 90,
+              f"the supervisor flying the vehicle in {modes.name(modes.offboard)} 10 s")
         # the ground station takes over: the vehicle holds, the mission pauses
-        assert gcs.mode(modes, modes.hold, 3) == m.MAV_RESULT_ACCEPTED
-        gcs.until(lambda n: mode_of(n) == (modes.hold, True), 10, "the hold mode")
-        wait_for(lambda: KIND.Value("MISSION_EVENT_KIND_PAUSED") in kinds(), 10,
-                 "the mission's PAUSED event", logs_in(logs))
-        held = gcs.pump()["LOCAL_POSITION_NED"].time_boot_ms
+        assert set_mode(gcs, modes, modes.hold, 3) == m.MAV_RESULT_ACCEPTED
+        until(lambda: gcs.mode() == (modes.hold, True), 10, "the hold mode")
+        until(lambda: KIND.Value("MISSION_EVENT_KIND_PAUSED") in kinds(), 10,
+              "the mission's PAUSED event")
+        held = gcs.last("LOCAL_POSITION_NED").time_boot_ms
         time.sleep(1.0)  # the supervisor's stream goes on: nothing flies it meanwhile
-        assert gcs.pump()["LOCAL_POSITION_NED"].time_boot_ms == held
+        assert gcs.last("LOCAL_POSITION_NED").time_boot_ms == held
         # and hands back: the offboard link's stream is live, so offboard mode is accepted
-        assert gcs.mode(modes, modes.offboard, 0) == m.MAV_RESULT_ACCEPTED
+        assert set_mode(gcs, modes, modes.offboard, 0) == m.MAV_RESULT_ACCEPTED
         wait_for(lambda: KIND.Value("MISSION_EVENT_KIND_ENDED") in kinds(), 120,
                  "the mission's ENDED event", logs_in(logs),
                  last=lambda: [KIND.Name(k) for k in kinds()[-5:]])

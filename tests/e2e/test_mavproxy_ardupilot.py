@@ -18,7 +18,6 @@ import os
 import sys
 from collections.abc import Iterator
 from pathlib import Path
-from typing import Any
 
 import pytest
 
@@ -26,6 +25,7 @@ from e2e.test_ground_station import MAVPROXY, MavProxy
 from services.common import mav
 from services.launch import REPO, ProcessGroup, free_port
 from services.uavsim import flavour as fl
+from tests.e2e.sitl import Watch
 from tests.support.waits import check, logs_in, wait_for
 
 pytestmark = [pytest.mark.timeout(240)]
@@ -52,33 +52,8 @@ def wp_file(path: Path) -> Path:
     return path
 
 
-class Seen:
-    """Everything the observer has received so far, read on demand."""
-
-    def __init__(self, port: int):
-        self.conn = mav.connect(f"udpin:127.0.0.1:{port}", 254, 191)
-        self.msgs: list[Any] = []
-
-    def pump(self) -> list[Any]:
-        while (msg := self.conn.recv_match(blocking=False)) is not None:
-            if msg.get_srcComponent() == 1:
-                self.msgs.append(msg)
-        return self.msgs
-
-    def last(self, kind: str) -> Any:
-        return next((x for x in reversed(self.pump()) if x.get_type() == kind), None)
-
-    def modes(self) -> list[str]:
-        names: list[str] = []
-        for hb in (x for x in self.pump() if x.get_type() == "HEARTBEAT"):
-            name = fl.ARDUPILOT.name_of(int(hb.custom_mode))
-            if not names or names[-1] != name:
-                names.append(name)
-        return names
-
-
 @pytest.fixture
-def flight(tmp_path: Path) -> Iterator[tuple[MavProxy, Seen, Path]]:
+def flight(tmp_path: Path) -> Iterator[tuple[MavProxy, Watch, Path]]:
     port, out = free_port("tcp"), free_port("udp")
     env = {k: v for k, v in os.environ.items() if not k.startswith(("ZENOH", "UAV_", "MAVLINK",
                                                                     "GCS_"))}
@@ -88,26 +63,25 @@ def flight(tmp_path: Path) -> Iterator[tuple[MavProxy, Seen, Path]]:
                            "--speed-factor", str(SPEED), "--gcs-url", f"tcpin:127.0.0.1:{port}",
                            "--mavlink-url", f"tcpin:127.0.0.1:{free_port('tcp')}"],
                 env, tmp_path / "uavsim.log")
-    seen = Seen(out)
+    seen = Watch(mav.connect(f"udpin:127.0.0.1:{out}", 254, 191))
     gcs = MavProxy(f"tcp:127.0.0.1:{port}", out, tmp_path)
     try:
-        yield gcs, seen, tmp_path
+        with seen.running():
+            yield gcs, seen, tmp_path
     finally:
         gcs.stop()
-        seen.conn.close()
         codes = group.stop_all()
         check(codes.get("uavsim") == 0, "uavsim to exit with 0", logs_in(tmp_path), codes)
 
 
-def test_mavproxy_flies_guided_takeoff_and_an_auto_mission(flight: tuple[MavProxy, Seen, Path],
+def test_mavproxy_flies_guided_takeoff_and_an_auto_mission(flight: tuple[MavProxy, Watch, Path],
                                                            tmp_path: Path) -> None:
     gcs, seen, logs = flight
     gcs.wait_for(r"Detected vehicle 1:1", 40)
     gcs.wait_for(r"Mode LOITER", 20)  # ArduCopter's number 5
     gcs.wait_for(r"Received \d+ parameters", 20)
     gcs.send("param set RTL_RETURN_ALT 20")  # ArduPilot's RTL_ALT is 15 m; PX4's 60
-    wait_for(lambda: any(x.get_type() == "PARAM_VALUE" and x.param_id == "RTL_RETURN_ALT"
-                         and x.param_value == 20.0 for x in seen.pump()), 10,
+    wait_for(lambda: seen.params.get("RTL_RETURN_ALT") == 20.0, 10,
              "the vehicle's PARAM_VALUE RTL_RETURN_ALT = 20", logs_in(logs))
     mark = len(gcs.output())
     gcs.send("mode guided")  # GUIDED needs no setpoint stream (ArduPilot)
@@ -124,12 +98,12 @@ def test_mavproxy_flies_guided_takeoff_and_an_auto_mission(flight: tuple[MavProx
     wait_for(lambda: (g := seen.last("GLOBAL_POSITION_INT")) is not None
              and g.relative_alt > 19_500, 20, "the vehicle at 20 m", logs_in(logs))
     gcs.send("mode auto")
-    wait_for(lambda: "LAND" in seen.modes() and not seen.last("HEARTBEAT").base_mode
-             & m.MAV_MODE_FLAG_SAFETY_ARMED, 60, "the mission flown, returned, landed, disarmed",
-             logs_in(logs), last=lambda: seen.modes())
-    reached = [x.seq for x in seen.pump() if x.get_type() == "MISSION_ITEM_REACHED"]
-    assert reached == [1, 2, 3, 4]
-    modes = seen.modes()
+    name = fl.ARDUPILOT.name_of
+    wait_for(lambda: "LAND" in seen.modes(name) and not seen.armed, 60,
+             "the mission flown, returned, landed, disarmed", logs_in(logs),
+             last=lambda: seen.modes(name))
+    assert seen.reached == [1, 2, 3, 4]
+    modes = seen.modes(name)
     assert modes[modes.index("AUTO"):] == ["AUTO", "RTL", "LAND"]
     gpi = seen.last("GLOBAL_POSITION_INT")
     east, north = mav.to_local(gpi.lat / 1e7, gpi.lon / 1e7, HOME)

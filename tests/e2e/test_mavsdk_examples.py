@@ -32,6 +32,7 @@ from services.common import mav
 from services.launch import REPO
 from services.uavsim import flavour as fl
 from services.uavsim.params import PARAMS
+from tests.e2e.examples_common import plain
 from tests.e2e.sitl import Sitl, px4_sitl
 from tests.support.waits import check
 
@@ -68,7 +69,7 @@ def run(sitl: Sitl, api: str, name: str, *args: Any, timeout_s: float = 90.0) ->
         return await asyncio.wait_for(example(sitl.url, sitl.sim, *args), timeout_s)
 
     try:
-        return grpc.plain(asyncio.run(bounded()))
+        return plain(asyncio.run(bounded()))
     except TimeoutError:
         check(False, f"examples_grpc.{name} to end within {timeout_s:g} s", sitl.logs())
 
@@ -131,7 +132,7 @@ def test_takeoff_and_land(api: str, sitl: Sitl) -> None:
     assert sitl.watch.max_alt_m == pytest.approx(2.5, abs=0.01)
     landed_and_disarmed(sitl, 20)
     assert "Landing at current position" in sitl.watch.texts
-    assert sitl.watch.modes(fl.PX4)[:4] == ["AUTO.LOITER", "AUTO.TAKEOFF", "AUTO.LOITER",
+    assert sitl.watch.modes(fl.PX4.name_of)[:4] == ["AUTO.LOITER", "AUTO.TAKEOFF", "AUTO.LOITER",
                                             "AUTO.LAND"]
 
 
@@ -147,7 +148,7 @@ def test_offboard_position_ned(api: str, sitl: Sitl) -> None:
     landed_and_disarmed(sitl, 10)  # z = 0: it landed, and disarmed after COM_DISARM_LAND
     n, e, d = sitl.watch.local()
     assert math.hypot(n - 0.0, e - 10.0) < 1.0 and d == 0.0
-    assert "OFFBOARD" in sitl.watch.modes(fl.PX4)
+    assert "OFFBOARD" in sitl.watch.modes(fl.PX4.name_of)
 
 
 def test_goto(api: str, sitl: Sitl) -> None:
@@ -164,7 +165,7 @@ def test_goto(api: str, sitl: Sitl) -> None:
     assert (gpi.lat / 1e7, gpi.lon / 1e7) == pytest.approx((47.397606, 8.543060), abs=1e-5)
     assert gpi.relative_alt / 1000 == pytest.approx(20.0, abs=0.5)
     assert gpi.alt / 1000 == pytest.approx(HOME[2] + 20.0, abs=0.5)  # AMSL, as goto asked
-    assert sitl.watch.modes(fl.PX4)[-1] == "AUTO.LOITER"  # PX4 flies a goto in Hold
+    assert sitl.watch.modes(fl.PX4.name_of)[-1] == "AUTO.LOITER"  # PX4 flies a goto in Hold
 
 
 def test_mission(api: str, sitl: Sitl) -> None:
@@ -175,7 +176,7 @@ def test_mission(api: str, sitl: Sitl) -> None:
     landed_and_disarmed(sitl, 20)
     n, e, _ = sitl.watch.local()
     assert math.hypot(n, e) < 1.0  # back at home
-    modes = sitl.watch.modes(fl.PX4)
+    modes = sitl.watch.modes(fl.PX4.name_of)
     assert modes[modes.index("AUTO.MISSION"):][:3] == ["AUTO.MISSION", "AUTO.RTL", "AUTO.LAND"]
 
 
