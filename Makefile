@@ -34,6 +34,10 @@ $(STAMP): pyproject.toml scripts/pyretechnics-requirements.txt
 	test -x $(BIN)/python || $(PY) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
 	$(BIN)/python -m pip install --quiet -e '.[dev]'
+	# MAVSDK's native 4.x binding in a directory of its own: it is the module mavsdk too, as
+	# mavsdk<4 in dev (pyproject.toml, extra mavsdk4; tests/e2e/test_mavsdk_examples.py)
+	$(BIN)/python -m pip install --quiet --no-deps --upgrade --target $(VENV)/mavsdk4 \
+		"$$($(BIN)/python -c 'import tomllib; print(*tomllib.load(open("pyproject.toml", "rb"))["project"]["optional-dependencies"]["mavsdk4"])')"
 	# the physics fire process's library, built against our numpy/scipy pins (~4 min once)
 	sh scripts/install_pyretechnics.sh $(BIN)/python
 	$(BIN)/python -m dualpilot.warmup  # compiles the Numba kernels into their disk cache

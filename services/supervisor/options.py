@@ -128,7 +128,7 @@ def _add_stack_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def parser(doc: str) -> argparse.ArgumentParser:
-    p = common_cli.parser("supervisor", doc, mavlink_default="udpout:127.0.0.1:14540")
+    p = common_cli.parser("supervisor", doc, mavlink_default="udpin:127.0.0.1:14540")
     add_config_arguments(p, common_cli.env)
     _add_stack_arguments(p)
     return p

@@ -376,7 +376,8 @@ def test_a_setpoint_far_ahead_is_refused_and_never_moves_the_clock(tmp_path: Pat
     group = launch.ProcessGroup()
     group.start("uavsim", [sys.executable, "-m", "services.uavsim", "--mavlink-url",
                            f"udpin:127.0.0.1:{off}", "--gcs-url",
-                           f"udpin:127.0.0.1:{gcs_port}", "--zenoh", "off"], env,
+                           f"udpin:127.0.0.1:{gcs_port}", "--zenoh", "off",
+                           "--clock", "lockstep"], env,
                 tmp_path / "uavsim.log")
     conn = mav.connect(f"udpout:127.0.0.1:{off}", 1, 191)
     logs = [tmp_path / "uavsim.log"]
