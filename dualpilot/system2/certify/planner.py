@@ -1,0 +1,130 @@
+"""System 2 with a certificate: the fast plan, then branch and bound until its gap is proven.
+
+Method "certified" (:class:`CertifiedSystem2`): the fast method's verified plan
+(:mod:`dualpilot.system2.fast.planner`) is the incumbent; the branch and bound of
+:mod:`dualpilot.system2.certify.bnb` then raises a lower bound on (P2) until the
+certified gap (cost − bound) / bound is at most ``CertifyParams.tolerance`` or the budget
+ends, and returns the best verified plan with its bound. Every plan it returns passes
+:func:`dualpilot.system2.problem.verify_p2_plan`; a relaxation that proves no trajectory
+satisfies (P2) turns a failed fast plan into INFEASIBLE.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import time
+from collections.abc import Sequence
+
+import numpy as np
+
+from dualpilot.arrays import Array
+from dualpilot.model.dynamics import rollout
+from dualpilot.model.geometry import Polytope
+from dualpilot.plan import Objective, Plan, PlanStatus
+from dualpilot.spec import MissionSpec
+from dualpilot.system2.certify.bnb import BranchAndBound, CertifyParams, Outcome
+from dualpilot.system2.certify.model import Maps, controls, maps
+from dualpilot.system2.certify.relaxation import Relaxation
+from dualpilot.system2.fast.planner import FastParams, FastSystem2
+from dualpilot.system2.problem import System2Params, p2_cost, verify_p2_plan
+
+
+def relaxation_of(spec: MissionSpec, params: System2Params, state: Array,
+                  hulls: Sequence[Polytope], objective: Objective,
+                  prev_control: Array | None) -> Relaxation:
+    """The relaxations of the (P2) instance of one plan request."""
+    mp = maps(params.horizon, spec.dynamics, speed_sides=params.speed_polygon_sides)
+    u_prev = np.zeros(2) if prev_control is None else np.asarray(prev_control, dtype=float)
+    area = spec.area_size_m if params.keep_in_area else None
+    return Relaxation(mp, np.asarray(state, dtype=float), u_prev, spec.goal.center,
+                      params.kappa(objective), hulls, spec.clearance_m, area)
+
+
+class PlanCheck:
+    """A relaxation solution as a plan: its controls rolled out by Eq. (1), checked by
+    :func:`verify_p2_plan`; returns (Eq. (S2) cost, controls) or None."""
+
+    def __init__(self, spec: MissionSpec, params: System2Params, rel: Relaxation,
+                 hulls: Sequence[Polytope]) -> None:
+        self.spec, self.rel, self.hulls = spec, rel, tuple(hulls)
+        self.area = spec.area_size_m if params.keep_in_area else None
+        self.mp: Maps = rel.maps
+
+    def __call__(self, z: Array) -> tuple[float, Array] | None:
+        dyn = self.spec.dynamics
+        u = np.clip(controls(self.mp, z, self.rel.off), -dyn.u_max_n, dyn.u_max_n)
+        states = rollout(self.rel.x0, u, dyn)
+        verdict = verify_p2_plan(states, u, self.hulls, dyn, self.spec.clearance_m,
+                                 self.spec.d_safe_m, self.area, rolled_out=True)
+        if not verdict.ok:
+            return None
+        return p2_cost(states, u, self.spec.goal.center, self.rel.kappa, self.rel.u_prev), u
+
+
+class CertifiedSystem2:
+    """"certified": the fast plan with a lower bound proven by branch and bound.
+
+    Parameters
+    ----------
+    spec : MissionSpec
+        Goal, area, ε, d_safe and Eq. (1).
+    params : System2Params
+        T and κ.
+    certify : CertifyParams
+        The tolerance on the certified gap and the budget of the search.
+    fast : FastParams
+        The fast method that gives the first incumbent.
+    """
+
+    system = 2
+    method = "certified"
+
+    def __init__(self, spec: MissionSpec, params: System2Params = System2Params(),
+                 certify: CertifyParams = CertifyParams(),
+                 fast: FastParams = FastParams()) -> None:
+        self.spec, self.params, self.certify = spec, params, certify
+        self.fast_planner = FastSystem2(spec, params, fast)
+
+    def reset(self) -> None:
+        self.fast_planner.reset()
+
+    def plan(self, state: Array, hulls: Sequence[Polytope],
+             objective: Objective = Objective.MISSION_TIME,
+             prev_control: Array | None = None) -> Plan:
+        """Plan from ``state`` avoiding ``hulls``; ``prev_control`` is u_{t|t} (N)."""
+        t0 = time.perf_counter()
+        fast = self.fast_planner.plan(state, hulls, objective, prev_control)
+        if fast.status in (PlanStatus.INVALID_INPUT, PlanStatus.INFEASIBLE):
+            return fast
+        hull_t = tuple(hulls)
+        rel = relaxation_of(self.spec, self.params, state, hull_t, objective, prev_control)
+        cost = fast.cost if fast.ok and fast.cost is not None else math.inf
+        search = BranchAndBound(rel, self.certify, cost, PlanCheck(self.spec, self.params,
+                                                                    rel, hull_t))
+        out = search.run()
+        return self._answer(fast, out, rel, objective, t0)
+
+    def _answer(self, fast: Plan, out: Outcome, rel: Relaxation, objective: Objective,
+                t0: float) -> Plan:
+        """The better verified plan with the search's bound and statistics."""
+        info = dict(fast.info)
+        info.update(certify_nodes=out.nodes, certify_relaxations=out.relaxations,
+                    certify_stop=out.stop, certify_root_bound=out.root_bound,
+                    certify_time_s=out.time_s, fast_cost=fast.cost)
+        elapsed = time.perf_counter() - t0
+        if out.controls is not None:
+            states = rollout(rel.x0, out.controls, self.spec.dynamics)
+            info["source"] = "branch and bound"
+            return Plan(system=2, status=PlanStatus.OK, states=states, controls=out.controls,
+                        compute_time_s=elapsed, objective=objective, cost=out.cost,
+                        info=info, bound=min(out.bound, out.cost))
+        if fast.ok and fast.cost is not None:
+            info["source"] = "fast"
+            return dataclasses.replace(fast, compute_time_s=elapsed, info=info,
+                                       bound=min(out.bound, fast.cost))
+        if out.bound == math.inf:
+            failed = Plan.failed(2, PlanStatus.INFEASIBLE, elapsed,
+                                 "(P2) is infeasible: the relaxation holds no trajectory")
+            return dataclasses.replace(failed, objective=objective, info=info)
+        return dataclasses.replace(fast, compute_time_s=elapsed, info=info)
