@@ -83,8 +83,8 @@ class Outcome:
         return certified_gap(self.cost, self.bound)
 
 
-#: A check of a candidate's scaled positions: its cost and controls if (P2) holds, else None.
-Candidate = Callable[[Array], "tuple[float, Array] | None"]
+#: A relaxation's solution made into a plan: its cost and controls if (P2) holds, else None.
+Candidate = Callable[[NodeResult], "tuple[float, Array] | None"]
 
 
 class BranchAndBound:
@@ -97,7 +97,8 @@ class BranchAndBound:
     def __init__(self, rel: Relaxation, params: CertifyParams, cost: float,
                  candidate: Candidate, initial_blocks: set[Pair] | None = None) -> None:
         self.rel, self.p, self.candidate = rel, params, candidate
-        self.cost, self.controls = float(cost), None
+        self.cost = float(cost)
+        self.controls: Array | None = None
         self.initial = _merged({}, {b for b in (initial_blocks or set()) if rel.pair_needed(b)})
         self.closed_min = math.inf  # least bound of the closed leaves
         self.heap: list[tuple[float, int, _Node]] = []
@@ -167,7 +168,10 @@ class BranchAndBound:
         blocks = dict(node.blocks)
         best: NodeResult | None = None
         for _ in range(self.p.block_rounds):
-            res = self.rel.solve(node.fixed, blocks)
+            left = self.p.time_budget_s - (time.perf_counter() - self.t0)
+            if left <= 0.0:
+                break
+            res = self.rel.solve(node.fixed, blocks, left)
             self.out.relaxations += 1
             if res.bound > node.bound:
                 node.bound = res.bound
@@ -176,10 +180,12 @@ class BranchAndBound:
             best = res
             if node.bound * (1.0 + self.p.tolerance) >= self.cost:
                 break
+            self._offer(res)
+            if node.bound * (1.0 + self.p.tolerance) >= self.cost:
+                break
             new = {p for p in self._violated(res.z, node.fixed)
                    if p[1] not in _hulls_at(blocks, p[0])}
             if not new:
-                self._offer(res.z)
                 break
             blocks = _merged(blocks, self._with_neighbours(new, node.fixed))
         node.blocks = blocks
@@ -207,9 +213,9 @@ class BranchAndBound:
                         out.add(nb)
         return out
 
-    def _offer(self, z: Array) -> None:
-        """A relaxation solution that violates no disjunction: try it as the incumbent."""
-        got = self.candidate(z)
+    def _offer(self, res: NodeResult) -> None:
+        """A relaxation solution, as it is or repaired: try it as the incumbent."""
+        got = self.candidate(res)
         if got is not None and got[0] < self.cost:
             self.cost, self.controls = got
             self.out.controls = got[1]
@@ -218,10 +224,10 @@ class BranchAndBound:
     def _branch(self, node: _Node) -> None:
         res = node.result
         if res is None or res.z is None:
-            return  # nothing to branch on: the node stays closed at its bound
+            self._close(node.bound)  # nothing to branch on: closed at the bound it has
+            return
         pair = self._choose(node, res)
         if pair is None:
-            self._offer(res.z)
             self._close(node.bound)
             return
         for face in self.rel.faces[pair]:

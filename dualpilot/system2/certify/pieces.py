@@ -82,7 +82,31 @@ def cover(lo: Array, hi: Array, fixed: HalfPlanes, hulls: Sequence[Polytope], ep
                 cut = np.vstack([piece, row[None, :]])
                 if len(clip(lo, hi, cut)):
                     split.append(cut)
-        pieces = split
+        pieces = _undominated(lo, hi, split)
         if len(pieces) > max_pieces:
             return None
     return pieces
+
+
+def _undominated(lo: Array, hi: Array, pieces: list[HalfPlanes]) -> list[HalfPlanes]:
+    """``pieces`` without those inside another one (their union is the same)."""
+    verts = [clip(lo, hi, p) for p in pieces]
+    keep: list[int] = []
+    for k, vk in enumerate(verts):
+        inside = False
+        for j, pj in enumerate(pieces):
+            if j == k or (j < k and j not in keep):
+                continue
+            # piece k inside piece j (of two equal pieces the later one goes)
+            tie = j > k and _holds(verts[j], pieces[k])
+            if _holds(vk, pj) and not tie:
+                inside = True
+                break
+        if not inside:
+            keep.append(k)
+    return [pieces[k] for k in keep]
+
+
+def _holds(vertices: Array, piece: HalfPlanes) -> bool:
+    """True if every vertex satisfies every half-plane of ``piece`` (within the slack)."""
+    return bool(np.all(vertices @ piece[:, :2].T - piece[:, 2] >= -_SLACK))

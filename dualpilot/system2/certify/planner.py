@@ -24,9 +24,12 @@ from dualpilot.model.geometry import Polytope
 from dualpilot.plan import Objective, Plan, PlanStatus
 from dualpilot.spec import MissionSpec
 from dualpilot.system2.certify.bnb import BranchAndBound, CertifyParams, Outcome
-from dualpilot.system2.certify.model import Maps, controls, maps
-from dualpilot.system2.certify.relaxation import Relaxation
+from dualpilot.system2.certify.model import controls, maps, positions
+from dualpilot.system2.certify.relaxation import NodeResult, Relaxation
+from dualpilot.system2.certify.repair import repair
+from dualpilot.system2.fast.geometry import Inflated
 from dualpilot.system2.fast.planner import FastParams, FastSystem2
+from dualpilot.system2.fast.qp import P2Qp
 from dualpilot.system2.problem import System2Params, p2_cost, verify_p2_plan
 
 
@@ -42,18 +45,38 @@ def relaxation_of(spec: MissionSpec, params: System2Params, state: Array,
 
 
 class PlanCheck:
-    """A relaxation solution as a plan: its controls rolled out by Eq. (1), checked by
-    :func:`verify_p2_plan`; returns (Eq. (S2) cost, controls) or None."""
+    """A relaxation solution as a plan: flown as it is when it keeps every disjunction, else
+    repaired (:func:`dualpilot.system2.certify.repair.repair`); the controls are rolled out
+    by Eq. (1) and checked by :func:`verify_p2_plan`. Returns (Eq. (S2) cost, controls)."""
 
     def __init__(self, spec: MissionSpec, params: System2Params, rel: Relaxation,
-                 hulls: Sequence[Polytope]) -> None:
-        self.spec, self.rel, self.hulls = spec, rel, tuple(hulls)
+                 hulls: Sequence[Polytope], qp: P2Qp) -> None:
+        self.spec, self.rel, self.hulls, self.qp = spec, rel, tuple(hulls), qp
         self.area = spec.area_size_m if params.keep_in_area else None
-        self.mp: Maps = rel.maps
+        self.polys = Inflated.make_many(self.hulls, spec.clearance_m)
 
-    def __call__(self, z: Array) -> tuple[float, Array] | None:
+    def __call__(self, res: NodeResult) -> tuple[float, Array] | None:
+        mp, rel = self.rel.maps, self.rel
+        assert res.z is not None
+        direct = self._checked(controls(mp, res.z, rel.off))
+        if direct is not None:
+            return direct
+        ref = positions(mp, res.z, rel.off.p1)
+        best = None
+        for rounding in (res.rounding(), None):
+            try:
+                fixed = repair(self.qp, rel.x0, rel.u_prev, self.spec.goal.center, rel.kappa,
+                               self.polys, ref, area=self.area, rounding=rounding)
+            except (ValueError, ArithmeticError, np.linalg.LinAlgError):
+                fixed = None  # the fast QP refuses the problem (e.g. T = 2): no repair
+            got = None if fixed is None else self._checked(fixed.controls)
+            if got is not None and (best is None or got[0] < best[0]):
+                best = got
+        return best
+
+    def _checked(self, u: Array) -> tuple[float, Array] | None:
         dyn = self.spec.dynamics
-        u = np.clip(controls(self.mp, z, self.rel.off), -dyn.u_max_n, dyn.u_max_n)
+        u = np.clip(u, -dyn.u_max_n, dyn.u_max_n)
         states = rollout(self.rel.x0, u, dyn)
         verdict = verify_p2_plan(states, u, self.hulls, dyn, self.spec.clearance_m,
                                  self.spec.d_safe_m, self.area, rolled_out=True)
@@ -73,8 +96,8 @@ class CertifiedSystem2:
         T and κ.
     certify : CertifyParams
         The tolerance on the certified gap and the budget of the search.
-    fast : FastParams
-        The fast method that gives the first incumbent.
+    fast : FastParams, optional
+        The fast method that gives the first incumbent (its defaults).
     """
 
     system = 2
@@ -82,9 +105,9 @@ class CertifiedSystem2:
 
     def __init__(self, spec: MissionSpec, params: System2Params = System2Params(),
                  certify: CertifyParams = CertifyParams(),
-                 fast: FastParams = FastParams()) -> None:
+                 fast: FastParams | None = None) -> None:
         self.spec, self.params, self.certify = spec, params, certify
-        self.fast_planner = FastSystem2(spec, params, fast)
+        self.fast_planner = FastSystem2(spec, params, fast or FastParams())
 
     def reset(self) -> None:
         self.fast_planner.reset()
@@ -100,8 +123,8 @@ class CertifiedSystem2:
         hull_t = tuple(hulls)
         rel = relaxation_of(self.spec, self.params, state, hull_t, objective, prev_control)
         cost = fast.cost if fast.ok and fast.cost is not None else math.inf
-        search = BranchAndBound(rel, self.certify, cost, PlanCheck(self.spec, self.params,
-                                                                    rel, hull_t))
+        check = PlanCheck(self.spec, self.params, rel, hull_t, self.fast_planner.qp)
+        search = BranchAndBound(rel, self.certify, cost, check)
         out = search.run()
         return self._answer(fast, out, rel, objective, t0)
 

@@ -63,6 +63,15 @@ class NodeResult:
     status: str
     z: Array | None
     weights: Mapping[tuple[int, frozenset[int]], Array] = field(default_factory=dict)
+    pieces: Mapping[tuple[int, frozenset[int]], tuple[Array, ...]] = field(default_factory=dict)
+
+    def rounding(self) -> dict[int, Array]:
+        """Per τ, the half-planes (a_x, a_y, c) of each block's heaviest piece (m)."""
+        out: dict[int, list[Array]] = {}
+        for key, w in self.weights.items():
+            if len(w):
+                out.setdefault(key[0], []).append(self.pieces[key][int(np.argmax(w))])
+        return {tau: np.vstack(rows) for tau, rows in out.items()}
 
 
 @dataclass
@@ -156,7 +165,7 @@ class Relaxation:
                 if np.any(lo_dot >= rhs):
                     self.always.add((tau, i))
                     continue
-                reach = np.flatnonzero(hi_dot >= rhs)
+                reach = np.flatnonzero(hi_dot >= rhs - 1e-9)  # touching counts
                 if not len(reach):
                     self.infeasible = True  # no face can hold: every trajectory violates
                 self.faces[(tau, i)] = reach
@@ -184,13 +193,17 @@ class Relaxation:
         return pair in self.faces
 
     # ------------------------------------------------------------------ solve
-    def solve(self, fixed: Mapping[Pair, int], blocks: Blocks) -> NodeResult:
-        """The relaxation with the faces ``fixed`` and the clusters ``blocks`` convexified."""
+    def solve(self, fixed: Mapping[Pair, int], blocks: Blocks,
+              time_limit_s: float = math.inf) -> NodeResult:
+        """The relaxation with the faces ``fixed`` and the clusters ``blocks`` convexified.
+
+        Clarabel stops after ``time_limit_s``; the bound of its last iterate still holds.
+        """
         if self.infeasible:
             return NodeResult(math.inf, "infeasible (reach)", None)
         groups: list[tuple[int, frozenset[int], _Template]] = []
         for tau, clusters in sorted(blocks.items()):
-            fixed_here = tuple(sorted((i, l) for (t, i), l in fixed.items() if t == tau))
+            fixed_here = tuple(sorted((i, f) for (t, i), f in fixed.items() if t == tau))
             done = {i for i, _ in fixed_here}
             for cluster in clusters:
                 hulls = frozenset(i for i in cluster if (tau, i) in self.faces) - done
@@ -200,7 +213,7 @@ class Relaxation:
                     if tpl.n_pieces == 0:
                         return NodeResult(math.inf, "infeasible (pieces)", None)
                     groups.append((tau, part, tpl))
-        return _Program(self, fixed, groups).solve()
+        return _Program(self, fixed, groups).solve(time_limit_s)
 
     def templates(self, tau: int, hulls: frozenset[int], fixed_here: tuple[tuple[int, int], ...]
                   ) -> list[tuple[frozenset[int], _Template]]:
@@ -210,8 +223,8 @@ class Relaxation:
         if hit is not None:
             return hit
         s = self.maps.scale
-        fixed_hp = np.array([[*self.hulls[i].A[l], self.hulls[i].b[l] + self.eps]
-                             for i, l in fixed_here]).reshape(-1, 3)
+        fixed_hp = np.array([[*self.hulls[i].A[f], self.hulls[i].b[f] + self.eps]
+                             for i, f in fixed_here]).reshape(-1, 3)
         lo, hi = self.box_lo[tau - 1], self.box_hi[tau - 1]
         order = sorted(hulls)
         found = cover(lo, hi, fixed_hp, [self.hulls[i] for i in order], self.eps, MAX_PIECES)
@@ -248,6 +261,7 @@ class _Template:
     n_pieces: int
     lo: Array
     hi: Array
+    pieces: tuple[Array, ...] = ()
 
     @property
     def n_var(self) -> int:
@@ -289,7 +303,8 @@ class _Template:
                 np.zeros(4 * n))
         one_lo = np.r_[min(lo[0], 0.0), min(lo[1], 0.0), 0.0, 0.0]
         one_hi = np.r_[max(hi[0], 0.0), max(hi[1], 0.0), 1.0, t_max]
-        return _Template(zero, nonneg, soc, n, np.tile(one_lo, n), np.tile(one_hi, n))
+        return _Template(zero, nonneg, soc, n, np.tile(one_lo, n), np.tile(one_hi, n),
+                         tuple(pieces))
 
 
 class _Program:
@@ -339,10 +354,11 @@ class _Program:
         zero, nonneg, soc = _Rows(), _Rows(), _Rows()
         base = rel._base
         nonneg.add(*base.stacked(0))
-        for (tau, i), l in fixed.items():  # α_l·p_τ ≥ β_l + ε
+        for (tau, i), face in fixed.items():  # α_l·p_τ ≥ β_l + ε
             h = rel.hulls[i]
             j = 2 * (tau - 2)
-            nonneg.add(np.zeros(2), np.r_[j, j + 1], -h.A[l], [-(h.b[l] + rel.eps) / mp.scale])
+            nonneg.add(np.zeros(2), np.r_[j, j + 1], -h.A[face],
+                       np.array([-(h.b[face] + rel.eps) / mp.scale]))
         soc_sizes: list[int] = []
         for (tau, _, tpl), start in zip(self.groups, self.group_col, strict=True):
             place = {-1: 2 * (tau - 2) + 1, -2: 2 * (tau - 2), -3: self.t_col[tau]}
@@ -372,11 +388,13 @@ class _Program:
             hi.append(tpl.hi)
         self.lo, self.hi = np.concatenate(lo), np.concatenate(hi)
 
-    def solve(self) -> NodeResult:
+    def solve(self, time_limit_s: float) -> NodeResult:
         settings = clarabel.DefaultSettings()
         settings.verbose = False
         settings.max_threads = 1
         settings.max_iter = 100
+        if math.isfinite(time_limit_s):
+            settings.time_limit = max(1e-3, float(time_limit_s))
         for key, val in SOLVER_SETTINGS.items():
             setattr(settings, key, val)
         cones: list[object] = []
@@ -399,4 +417,6 @@ class _Program:
                                  self.lo, self.hi)
         weights = {(tau, part): x[start + 2:start + tpl.n_var:4].copy()
                    for (tau, part, tpl), start in zip(self.groups, self.group_col, strict=True)}
-        return NodeResult(self.rel.c * bound, status, x[:self.rel.maps.n].copy(), weights)
+        pieces = {(tau, part): tpl.pieces for tau, part, tpl in self.groups}
+        return NodeResult(self.rel.c * bound, status, x[:self.rel.maps.n].copy(), weights,
+                          pieces)
