@@ -228,6 +228,20 @@ def test_certified_plan_on_a_paper_instance() -> None:
     assert isinstance(root, float) and root <= plan.bound
 
 
+def test_the_search_trace_never_overstates_the_bound() -> None:
+    """The bound at every node of the trace is at most the final one and never falls: the
+    bench reads the gap at shorter budgets from it."""
+    inst = make_instance(8, 1, 9)  # a search that branches
+    planner = CertifiedSystem2(SPEC, System2Params(), CertifyParams(time_budget_s=1.0))
+    plan = planner.plan(inst.state, inst.hulls, inst.objective, inst.prev_control)
+    bounds = [b for _, b, _ in planner.trace]
+    assert plan.bound is not None and len(bounds) >= 2
+    assert all(b <= plan.bound * (1 + 1e-12) + 1e-9 for b in bounds)
+    assert all(b2 >= b1 - 1e-9 * abs(b1) for b1, b2 in zip(bounds, bounds[1:]))
+    times = [t for t, _, _ in planner.trace]
+    assert times == sorted(times)
+
+
 def test_proven_infeasible_when_no_trajectory_can_stop() -> None:
     """At 15 m/s towards a wall whose ε-band starts 2 m past p_{t+1|t}: braking as hard as
     U allows still moves 4.86 m in the next step, so (P2) has no solution."""

@@ -77,6 +77,7 @@ class Outcome:
     time_s: float = 0.0
     stop: str = ""
     trace: list[tuple[float, float, float]] = field(default_factory=list)
+    root_blocks: set[Pair] = field(default_factory=set)
 
     @property
     def gap(self) -> float:
@@ -128,8 +129,10 @@ class BranchAndBound:
             self._evaluate(node)
             if first:
                 self.out.root_bound = node.bound
+                self.out.root_blocks = {(tau, i) for tau, clusters in node.blocks.items()
+                                        for c in clusters for i in c}
                 first = False
-            self._record()
+            self._record(node.bound)  # the node is out of the heap until closed or branched
             if node.bound * (1.0 + self.p.tolerance) >= self.cost:
                 self._close(node.bound)
                 continue
@@ -152,8 +155,10 @@ class BranchAndBound:
         open_min = self.heap[0][0] if self.heap else math.inf
         return min(open_min, self.closed_min, self.cost)
 
-    def _record(self) -> None:
-        self.out.trace.append((time.perf_counter() - self.t0, self._bound(), self.cost))
+    def _record(self, current: float = math.inf) -> None:
+        """(time, bound, cost) now; ``current`` is the bound of a node being worked on."""
+        bound = min(self._bound(), current)
+        self.out.trace.append((time.perf_counter() - self.t0, bound, self.cost))
 
     def _push(self, node: _Node) -> None:
         heapq.heappush(self.heap, (node.bound, next(self.count), node))

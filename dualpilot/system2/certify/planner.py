@@ -6,7 +6,12 @@ Method "certified" (:class:`CertifiedSystem2`): the fast method's verified plan
 certified gap (cost − bound) / bound is at most ``CertifyParams.tolerance`` or the budget
 ends, and returns the best verified plan with its bound. Every plan it returns passes
 :func:`dualpilot.system2.problem.verify_p2_plan`; a relaxation that proves no trajectory
-satisfies (P2) turns a failed fast plan into INFEASIBLE.
+satisfies (P2) turns a failed fast plan into INFEASIBLE. Across the steps of a mission the
+search is warm-started twice: the fast method starts from the previous plan (the first
+incumbent), and the root convexifies at once, one step on, what the previous root did.
+
+After each plan, ``CertifiedSystem2.trace`` lists (seconds since the plan began, bound,
+incumbent cost) at every node, so one run gives the certified gap at any shorter budget.
 """
 
 from __future__ import annotations
@@ -25,7 +30,7 @@ from dualpilot.plan import Objective, Plan, PlanStatus
 from dualpilot.spec import MissionSpec
 from dualpilot.system2.certify.bnb import BranchAndBound, CertifyParams, Outcome
 from dualpilot.system2.certify.model import controls, maps, positions
-from dualpilot.system2.certify.relaxation import NodeResult, Relaxation
+from dualpilot.system2.certify.relaxation import NodeResult, Pair, Relaxation
 from dualpilot.system2.certify.repair import repair
 from dualpilot.system2.fast.geometry import Inflated
 from dualpilot.system2.fast.planner import FastParams, FastSystem2
@@ -108,9 +113,14 @@ class CertifiedSystem2:
                  fast: FastParams | None = None) -> None:
         self.spec, self.params, self.certify = spec, params, certify
         self.fast_planner = FastSystem2(spec, params, fast or FastParams())
+        self.trace: list[tuple[float, float, float]] = []
+        #: the previous plan's convexified (τ, hull centroid): the next root starts from them
+        self._warm: list[tuple[int, Array]] = []
 
     def reset(self) -> None:
+        """Forget the previous plan (the fast method's seed and the root's clusters)."""
         self.fast_planner.reset()
+        self._warm = []
 
     def plan(self, state: Array, hulls: Sequence[Polytope],
              objective: Objective = Objective.MISSION_TIME,
@@ -124,14 +134,31 @@ class CertifiedSystem2:
         rel = relaxation_of(self.spec, self.params, state, hull_t, objective, prev_control)
         cost = fast.cost if fast.ok and fast.cost is not None else math.inf
         check = PlanCheck(self.spec, self.params, rel, hull_t, self.fast_planner.qp)
-        search = BranchAndBound(rel, self.certify, cost, check)
+        search = BranchAndBound(rel, self.certify, cost, check, self._warm_start(hull_t))
         out = search.run()
+        self._warm = [(tau, hull_t[i].vertices.mean(axis=0)) for tau, i in out.root_blocks]
         return self._answer(fast, out, rel, objective, t0)
+
+    def _warm_start(self, hulls: tuple[Polytope, ...], near_m: float = 100.0) -> set[Pair]:
+        """The previous root's clusters one step on: (τ − 1, the hull whose centroid is
+        nearest, within ``near_m``). Only a first guess of what to convexify: any is valid."""
+        if not self._warm or not hulls:
+            return set()
+        centroids = np.array([h.vertices.mean(axis=0) for h in hulls])
+        out: set[Pair] = set()
+        for tau, c in self._warm:
+            d = np.linalg.norm(centroids - c, axis=1)
+            i = int(np.argmin(d))
+            if tau > 2 and d[i] <= near_m:
+                out.add((tau - 1, i))
+        return out
 
     def _answer(self, fast: Plan, out: Outcome, rel: Relaxation, objective: Objective,
                 t0: float) -> Plan:
         """The better verified plan with the search's bound and statistics."""
         info = dict(fast.info)
+        start = time.perf_counter() - t0 - out.time_s  # the fast plan, before the search
+        self.trace = [(start + t, b, c) for t, b, c in out.trace]
         info.update(certify_nodes=out.nodes, certify_relaxations=out.relaxations,
                     certify_stop=out.stop, certify_root_bound=out.root_bound,
                     certify_time_s=out.time_s, fast_cost=fast.cost)
