@@ -180,6 +180,7 @@ class BranchAndBound:
             self.out.relaxations += 1
             if res.bound > node.bound:
                 node.bound = res.bound
+                self._record(node.bound)
             if res.z is None:
                 break
             best = res

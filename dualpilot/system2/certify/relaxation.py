@@ -40,9 +40,6 @@ from dualpilot.system2.certify.duality import Cones, lagrangian_bound, proves_in
 from dualpilot.system2.certify.model import Maps, Offsets, offsets
 from dualpilot.system2.certify.pieces import cover
 
-#: Clarabel settings of every relaxation (the bound is certified whatever the accuracy).
-SOLVER_SETTINGS: dict[str, object] = {}
-
 Pair = tuple[int, int]
 """(τ, hull index) of one avoidance disjunction, τ = 2..T."""
 
@@ -395,8 +392,6 @@ class _Program:
         settings.max_iter = 100
         if math.isfinite(time_limit_s):
             settings.time_limit = max(1e-3, float(time_limit_s))
-        for key, val in SOLVER_SETTINGS.items():
-            setattr(settings, key, val)
         cones: list[object] = []
         if self.cones.zero:
             cones.append(clarabel.ZeroConeT(self.cones.zero))
