@@ -84,6 +84,7 @@ lint: setup
 bench: setup
 	$(BIN)/dualpilot bench system1 --out runs/bench
 	$(BIN)/dualpilot bench system2 --instances 20 --reference-timeout 30 --out runs/bench
+	$(BIN)/dualpilot bench certify --out runs/bench --figure runs/bench/certify_gap_vs_time.png
 
 # the documentation site (mkdocs.yml, docs/) into site/; --strict: a broken link fails it
 docs: setup
