@@ -237,7 +237,7 @@ def test_the_search_trace_never_overstates_the_bound() -> None:
     bounds = [b for _, b, _ in planner.trace]
     assert plan.bound is not None and len(bounds) >= 2
     assert all(b <= plan.bound * (1 + 1e-12) + 1e-9 for b in bounds)
-    assert all(b2 >= b1 - 1e-9 * abs(b1) for b1, b2 in zip(bounds, bounds[1:]))
+    assert all(b2 >= b1 - 1e-9 * abs(b1) for b1, b2 in zip(bounds[:-1], bounds[1:], strict=True))
     times = [t for t, _, _ in planner.trace]
     assert times == sorted(times)
 
