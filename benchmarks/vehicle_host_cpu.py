@@ -46,10 +46,12 @@ SETPOINT_HZ = 20.0
 ARDUPILOT_GUIDED = 4
 
 
-def proc_cpu(pid: int) -> tuple[float, int, int, int]:
-    """(user + system CPU s, voluntary and involuntary context switches, threads) of ``pid``."""
+def proc_cpu(pid: int) -> tuple[float, int, int, int, float]:
+    """(user + system CPU s, voluntary and involuntary context switches, threads, system CPU
+    s) of ``pid``."""
     stat = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
     cpu = (int(stat[11]) + int(stat[12])) / TICK
+    system = int(stat[12]) / TICK
     vol = invol = threads = 0
     for task in Path(f"/proc/{pid}/task").iterdir():
         try:
@@ -60,7 +62,7 @@ def proc_cpu(pid: int) -> tuple[float, int, int, int]:
         vol += int(status["voluntary_ctxt_switches"])
         invol += int(status["nonvoluntary_ctxt_switches"])
         threads += 1
-    return cpu, vol, invol, threads
+    return cpu, vol, invol, threads, system
 
 
 @dataclass
@@ -180,6 +182,7 @@ def measure(n: int, args: argparse.Namespace, out: Path) -> dict[str, Any]:
     cpu_pct = 100 * (after[0] - before[0]) / wall
     return {"vehicles": n, "wall_s": round(wall, 1), "cpu_pct": round(cpu_pct, 1),
             "cpu_pct_per_vehicle": round(cpu_pct / n, 3),
+            "system_pct": round(100 * (after[4] - before[4]) / wall, 1),
             "wakeups_per_s": round((after[1] - before[1]) / wall),
             "preemptions_per_s": round((after[2] - before[2]) / wall),
             "threads": after[3]}
