@@ -181,8 +181,9 @@ def fly(n: int, out: Path, args: argparse.Namespace) -> dict[str, Any]:
             vehicles = []
             for chunk in chunks:
                 ids = [uavs[k] for k in chunk]
-                vehicles += fleet.start_hosted(ids, [seeds[k] for k in chunk], out, env=env,
-                                               tag=f"n{n}", config=mission)
+                vehicles += fleet.start_hosted(
+                    ids, [seeds[k] for k in chunk], out, env=env, tag=f"n{n}", config=mission,
+                    service_env={"uavsim": {"NICE": str(args.uavsim_nice)}})
         else:
             vehicles = [fleet.start_vehicle(uav, seed, out / uav, env=env, config=mission)
                         for uav, seed in zip(uavs, seeds, strict=True)]
@@ -227,6 +228,7 @@ def fly(n: int, out: Path, args: argparse.Namespace) -> dict[str, Any]:
                 faults[name] = faults.get(name, 0) + int(count)
     return {
         "vehicles": n, "controller": args.controller, "scenario": args.scenario or "paper",
+        "uavsim_nice": args.uavsim_nice,
         "layout": args.layout, "hosts": args.hosts if args.layout == "hosted"
         else n, "replicas": scale, "ended": sum(o.ended for o in outcomes.values()),
         "steps": steps, "wall_s": round(wall, 1), "total_s": round(time.monotonic() - t0, 1),
@@ -260,6 +262,9 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--max-steps", type=int, default=40)
     p.add_argument("--stagger-s", type=float, default=0.5,
                    help="vehicle k of a host takes off k times this many s after the first")
+    p.add_argument("--uavsim-nice", type=int, default=0,
+                   help="the vehicle host's nice value (hosted): the simulated vehicles stand "
+                        "for hardware that is not on this machine")
     p.add_argument("--p99-ms", type=float, default=100.0)
     p.add_argument("--timeout-s", type=float, default=1200.0)
     p.add_argument("--out", default="")
@@ -273,7 +278,8 @@ def main(argv: list[str] | None = None) -> int:
     (out / "capacity.json").write_text(json.dumps(rows, indent=1) + "\n")
     print(f"\nspeed factor {args.speed_factor:g}, {args.controller} on "
           f"{args.scenario or 'the paper fires'}, paper timing, max {args.max_steps} steps, "
-          f"{args.layout} ({args.hosts} supervisor host(s)), replicas S1 {args.s1_replicas} "
+          f"{args.layout} ({args.hosts} supervisor host(s), uavsim nice {args.uavsim_nice}), "
+          f"replicas S1 {args.s1_replicas} "
           f"S2 {args.s2_replicas}, {os.cpu_count()} cores")
     print("| N | steps | RTT p50 | RTT p99 | waited p99 | background p99 | requests "
           "(background) | S2 service p99 | stream p99.9 (worst) | longest gap | failsafes | "

@@ -4,7 +4,9 @@ Keys are namespaced by vehicle id (services/common/keys.py), so serving a
 fleet is serving each id's keys: ``--uav-ids uav1,uav2,…`` (``UAV_IDS``) runs
 the service's body once per id, each in a thread of its own over the one
 Zenoh session, with its own state (one fire field, one planner cache, one
-simulated vehicle or one mission per vehicle) and its own liveliness token.
+simulated vehicle or one mission per vehicle) and its own liveliness token;
+the vehicle host (uavsim) serves its vehicles from one loop instead
+(:func:`contexts`, services/uavsim/host.py).
 Without the flag the service serves ``--uav-id`` alone, exactly as before.
 The status queryable stays the one of ``--uav-id``; it counts the rejections
 of every id's keys. A vehicle's own MAVLink link is instance k of the fleet
@@ -72,6 +74,22 @@ def uav_ids(text: str, default: str) -> tuple[str, ...]:
     return tuple(ids)
 
 
+def contexts(ctx: bus.Context, ids: tuple[str, ...]) -> list[bus.Context]:
+    """Each vehicle's :class:`bus.Context`: ``ctx`` itself for its own id alone, else one per id
+    carrying it, sharing the session and the stop event (for a service that serves its
+    vehicles from one loop; :func:`release` undeclares their tokens)."""
+    if ids == (ctx.settings.uav_id,):
+        return [ctx]
+    return [bus.Context(replace(ctx.settings, uav_id=uav), ctx.stop, ctx.session) for uav in ids]
+
+
+def release(ctx: bus.Context, subs: list[bus.Context]) -> None:
+    """Undeclare the liveliness tokens of the contexts :func:`contexts` made (not ``ctx``'s)."""
+    for sub in subs:
+        if sub is not ctx and sub.token is not None:
+            sub.token.undeclare()
+
+
 def for_each(ctx: bus.Context, ids: tuple[str, ...], body: Callable[[bus.Context], None]) -> None:
     """Run ``body`` for every vehicle id: directly for one id, else one thread per id.
 
@@ -82,7 +100,7 @@ def for_each(ctx: bus.Context, ids: tuple[str, ...], body: Callable[[bus.Context
     if ids == (ctx.settings.uav_id,):
         body(ctx)
         return
-    subs = [bus.Context(replace(ctx.settings, uav_id=uav), ctx.stop, ctx.session) for uav in ids]
+    subs = contexts(ctx, ids)
     errors: list[BaseException] = []
 
     def run(sub: bus.Context) -> None:
@@ -102,8 +120,6 @@ def for_each(ctx: bus.Context, ids: tuple[str, ...], body: Callable[[bus.Context
     log.info("serving vehicles", extra=fields(uavs=",".join(ids)))
     for th in threads:
         th.join()
-    for sub in subs:
-        if sub.token is not None:
-            sub.token.undeclare()
+    release(ctx, subs)
     if errors:
         raise errors[0]

@@ -22,9 +22,19 @@ _FIELDS = "fields"
 _THREAD = threading.local()
 
 
-def tag_vehicle(uav: str) -> None:
-    """Log lines of the calling thread name vehicle ``uav`` (a fleet process's vehicle thread)."""
-    _THREAD.uav = uav
+def tag_vehicle(uav: str | None) -> None:
+    """Log lines of the calling thread name vehicle ``uav`` (a fleet process's vehicle thread;
+    None: the process's own again)."""
+    if uav is None:
+        _THREAD.__dict__.pop("uav", None)
+    else:
+        _THREAD.uav = uav
+
+
+def vehicle_tag() -> str | None:
+    """The vehicle the calling thread's log lines name (None: the process's own)."""
+    uav = getattr(_THREAD, "uav", None)
+    return None if uav is None else str(uav)
 
 
 def _uav(default: str) -> str:

@@ -125,10 +125,13 @@ class Fleet:
 
     def start_hosted(self, uav_ids: list[str], seeds: list[int], out: Path,
                      env: Mapping[str, str] | None = None, tag: str = "",
-                     config: MissionConfig | None = None) -> list[Vehicle]:
+                     config: MissionConfig | None = None,
+                     service_env: Mapping[str, Mapping[str, str]] | None = None
+                     ) -> list[Vehicle]:
         """Start one uavsim and one supervisor process for all of ``uav_ids`` (vehicle k flies
         ``seeds[k]`` into ``out/<uav>``); returns the vehicles (their processes are the host's,
-        shared). Stop them with :meth:`stop_vehicle` of any of them."""
+        shared). ``env`` goes to both, ``service_env[name]`` to ``name`` alone. Stop them with
+        :meth:`stop_vehicle` of any of them."""
         if len(seeds) != len(uav_ids):
             raise ValueError("one seed per vehicle")
         base = free_port_run(len(uav_ids), "udp")
@@ -142,6 +145,8 @@ class Fleet:
                   "MAV_SYSID": "1", **(env or {})}
         own = {"uavsim": {"MAVLINK_URL": f"udpin:127.0.0.1:{base}", "GCS_URL": ""},
                "supervisor": {"MAVLINK_URL": f"udpout:127.0.0.1:{base}"}}
+        for name, extra in (service_env or {}).items():
+            own[name].update(extra)
         host = f"host-{uav_ids[0]}"
         procs = []
         for uav in uav_ids:

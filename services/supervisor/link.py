@@ -7,10 +7,11 @@ PX4's OFFBOARD is main mode 6, ArduPilot's GUIDED 4, services/common/mavmodes.py
 every change of mode is kept with the STATUSTEXT before it, and each time it
 leaves offboard mode is counted: services/supervisor/faults.py), COMMAND_ACKs,
 the geodetic origin (GPS_GLOBAL_ORIGIN) and the mission id (parameter
-``MIS_ID``); a poller asks for ``MIS_ID`` and the origin at 1 Hz; a mission
-watcher downloads the vehicle's mission (MISSION_REQUEST_LIST →
-MISSION_COUNT → MISSION_REQUEST_INT for each item → MISSION_ACK, with
-retries) whenever ``MIS_ID`` changes.
+``MIS_ID``); a poller asks for ``MIS_ID`` and the origin at 1 Hz (for a UDP
+link the process's one link loop is reader and poller of all its links,
+services/supervisor/linkloop.py); a mission watcher downloads the vehicle's
+mission (MISSION_REQUEST_LIST → MISSION_COUNT → MISSION_REQUEST_INT for each
+item → MISSION_ACK, with retries) whenever ``MIS_ID`` changes.
 
 The stream — the current SET_POSITION_TARGET_LOCAL_NED at ``rate_hz`` (≥ 10
 Hz; PX4 needs ≥ 2 Hz) and a HEARTBEAT at 1 Hz (5 Hz until the vehicle
@@ -44,7 +45,8 @@ import numpy as np
 
 from dualpilot.model.dynamics import Array
 from services.common import mav, mavlink_codec, mavmodes, rejections
-from services.common.log import fields, vehicle_thread
+from services.common.log import fields, vehicle_tag, vehicle_thread
+from services.supervisor.linkloop import READER_PERIOD_S, link_loop
 from services.supervisor.stream.client import StreamLink, stream_process
 
 log = logging.getLogger(__name__)
@@ -54,10 +56,6 @@ MISSION = m.MAV_MISSION_TYPE_MISSION
 #: who sends the stream: the stream process (UDP links), or a thread of this process (a link
 #: that is not UDP, and the comparison of benchmarks/stream_gaps.py)
 STREAMS = ("process", "thread")
-#: the reader wakes at least this often (s)
-READER_PERIOD_S = 0.1
-#: the poller's period with a stream process (s): the stream's destination and heartbeat rate
-POLL_PERIOD_S = 0.25
 
 
 class OffboardError(RuntimeError):
@@ -135,12 +133,16 @@ class VehicleLink:
         self.command_timeout_s = command_timeout_s
         self._init_vehicle_view()
         self._stop = threading.Event()
-        self._threads = [
-            threading.Thread(target=vehicle_thread(self._read), name="mav-reader", daemon=True),
-            threading.Thread(target=vehicle_thread(self._poll), name="mav-poller", daemon=True),
-            threading.Thread(target=vehicle_thread(self._watch_mission), name="mav-mission",
-                             daemon=True),
-        ]
+        self.tag = vehicle_tag()  # the vehicle this link's log lines name
+        self._next_poll = 0.0
+        self._threads = [threading.Thread(target=vehicle_thread(self._watch_mission),
+                                          name="mav-mission", daemon=True)]
+        if self.stream is None:  # else the process's link loop reads and polls it
+            self._threads += [
+                threading.Thread(target=vehicle_thread(self._read), name="mav-reader",
+                                 daemon=True),
+                threading.Thread(target=vehicle_thread(self._poll), name="mav-poller",
+                                 daemon=True)]
 
     def _init_vehicle_view(self) -> None:
         """What the link knows of the vehicle before it has heard it: nothing yet."""
@@ -180,11 +182,14 @@ class VehicleLink:
             self._heartbeat()
         for th in self._threads:
             th.start()
+        if self.stream is not None:
+            link_loop().add(self)
 
     def close(self) -> dict[str, object]:
         """Stop the stream and the threads, close the link; the stream's statistics."""
         stats: dict[str, object] = {}
         if self.stream is not None:
+            link_loop().remove(self)
             stats = dict(self.stream.close())
             log.info("setpoint stream closed", extra=fields(**stats))
         self._stop.set()
@@ -285,28 +290,31 @@ class VehicleLink:
             self._dests = dests
             self.stream.dests(dests)
 
+    def poll(self, now: float) -> None:
+        """The stream's destination and heartbeat period; the parameter and origin polls at
+        1 Hz (from the link loop, or from :meth:`_poll`)."""
+        self._update_stream()
+        if now >= self._next_poll and self.seen.is_set():
+            self.send("param_request_read", *self.target, b"MIS_ID", -1)
+            if self.origin is None:
+                self.send("command_long", *self.target, m.MAV_CMD_REQUEST_MESSAGE, 0,
+                          m.MAVLINK_MSG_ID_GPS_GLOBAL_ORIGIN, 0, 0, 0, 0, 0, 0)
+            self._next_poll = now + 1.0
+
     def _poll(self) -> None:
-        """Parameter and origin polls at 1 Hz; the stream's destination and heartbeat period
-        (or, on a link that is not UDP, the stream itself)."""
-        next_hb = next_poll = 0.0
+        """A link that is not UDP: the polls, the heartbeat and the setpoint stream."""
+        next_hb = 0.0
         while not self._stop.is_set():
             now = time.monotonic()
-            self._update_stream()
-            if self.stream is None and now >= next_hb:
+            self.poll(now)
+            if now >= next_hb:
                 self._heartbeat()
                 next_hb = now + (1.0 if self.alive() else 0.2)
-            if now >= next_poll and self.seen.is_set():
-                self.send("param_request_read", *self.target, b"MIS_ID", -1)
-                if self.origin is None:
-                    self.send("command_long", *self.target, m.MAV_CMD_REQUEST_MESSAGE, 0,
-                              m.MAVLINK_MSG_ID_GPS_GLOBAL_ORIGIN, 0, 0, 0, 0, 0, 0)
-                next_poll = now + 1.0
-            if self.stream is None:
-                with self.cond:
-                    sp = self.setpoint
-                if sp is not None:
-                    self._send_target(*sp)
-            self._stop.wait(self.period_s if self.stream is None else POLL_PERIOD_S)
+            with self.cond:
+                sp = self.setpoint
+            if sp is not None:
+                self._send_target(*sp)
+            self._stop.wait(self.period_s)
 
     def command(self, cmd: int, *params: float, stop: threading.Event | None = None) -> int:
         """COMMAND_LONG, re-sent (``confirmation`` + 1) until a COMMAND_ACK arrives; the result,
@@ -379,14 +387,22 @@ class VehicleLink:
 
     # -- incoming -------------------------------------------------------------------------------
     def _read(self) -> None:
+        """A link that is not UDP: its own reader thread."""
         fd = self.conn.fd
         while not self._stop.is_set():
-            self._listened = time.monotonic()
+            self.listening(time.monotonic())
             ready, _, _ = select.select([fd], [], [], READER_PERIOD_S)
-            if not ready:
-                continue
-            while (msg := self.conn.recv_msg()) is not None:
-                self._on(msg)
+            if ready:
+                self.read()
+
+    def listening(self, now: float) -> None:
+        """The reader waits for the vehicle from ``now`` (monotonic s) on (see :meth:`alive`)."""
+        self._listened = now
+
+    def read(self) -> None:
+        """Handle every frame waiting on the link."""
+        while (msg := self.conn.recv_msg()) is not None:
+            self._on(msg)
 
     def _on(self, msg: Any) -> None:
         kind = msg.get_type()

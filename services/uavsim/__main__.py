@@ -19,7 +19,8 @@ wall seconds; ``--clock lockstep`` (the stack: ``make run``, compose, every
 mission) makes each setpoint, stamped with the simulated time it is due,
 one ΔT step of Eq. (1) (services/uavsim/clock.py), with the dynamics of the
 readings profile ``--profile`` (its speed limit per axis or as a norm,
-``--speed-limit``). The parts: endpoint.py (links), commander.py (modes and
+``--speed-limit``). ``--uav-ids`` hosts several vehicles, served by one loop
+(host.py). The parts: endpoint.py (links), commander.py (modes and
 arming), failsafe.py, navigator.py, missionrun.py, geofence.py, commands.py,
 params.py, telemetry.py, mission.py, control.py, vehicle.py (physics).
 """
@@ -31,18 +32,20 @@ import logging
 import math
 import os
 import sys
+import time
 from dataclasses import dataclass
 from typing import Any
 
 from dualpilot.readings import PROFILES, get_profile
 from services.common import bus, fleet, mav, rejections
 from services.common import cli as common_cli
-from services.common.log import fields
+from services.common.log import fields, tag_vehicle
 
 from . import clock as vclock
 from . import flavour as fl
 from .autopilot import VehicleSetup
 from .endpoint import SIGNED_ONLY, Endpoint
+from .host import Host
 from .storage import open_tlog
 from .vehicle import Vehicle
 
@@ -110,7 +113,7 @@ def main(argv: list[str] | None = None) -> int:
         p.error(str(err))
 
     def serve(ctx: bus.Context) -> None:
-        fleet.for_each(ctx, opts.uavs, lambda c: _fly(c, opts))
+        _serve(ctx, opts)
 
     return bus.run_service(opts.settings, serve, zenoh_session=opts.use_zenoh)
 
@@ -262,11 +265,33 @@ def _links(opts: VehicleOptions, k: int, sysid: int) -> dict[str, Any]:
     return links
 
 
-def _fly(ctx: bus.Context, opts: VehicleOptions) -> None:
-    """One vehicle (instance k of the process): its links, endpoint and records, until stop."""
+@dataclass
+class HostedVehicle:
+    """One vehicle of the process, opened: its endpoint, links, flight log and stream file."""
+
+    uav: str
+    endpoint: Endpoint
+    links: dict[str, Any]
+    tlog: Any
+    tlog_path: str
+    stats: StatsFile | None
+
+    def close(self) -> None:
+        if self.stats is not None:
+            self.stats.write()
+        for conn in self.links.values():
+            conn.close()
+        if self.tlog is not None:
+            self.tlog.close()
+            log.info("tlog closed", extra=fields(path=self.tlog_path, frames=self.tlog.frames))
+
+
+def _open(ctx: bus.Context, opts: VehicleOptions, boot: float) -> HostedVehicle:
+    """Vehicle ``ctx.settings.uav_id`` (instance k of the process: ports and sysid + k), booted
+    at ``boot`` (monotonic s): its links, endpoint and records, announced on Zenoh."""
     args, start = opts.args, opts.start
-    k = opts.uavs.index(ctx.settings.uav_id)  # this vehicle's instance: ports and sysid + k
     uav = ctx.settings.uav_id
+    k = opts.uavs.index(uav)
     sysid = args.sysid + k
     tlog_path = fleet.per_vehicle(args.tlog, uav)
     stats_path = fleet.per_vehicle(args.stream_stats, uav)
@@ -284,7 +309,7 @@ def _fly(ctx: bus.Context, opts: VehicleOptions) -> None:
     setup = VehicleSetup(sysid, args.altitude_m, opts.home, args.offboard_loss_s,
                          args.area_size_m, fl.FLAVOURS[args.autopilot], args.clock, opts.speed,
                          opts.home_amsl_m)
-    endpoint = Endpoint(vehicle, links, setup, tlog)
+    endpoint = Endpoint(vehicle, links, setup, tlog, boot)
     if tlog is not None:
         tlog.on_fault = lambda text: setattr(endpoint, "fault", text)
     elif tlog_path:
@@ -292,16 +317,29 @@ def _fly(ctx: bus.Context, opts: VehicleOptions) -> None:
     stats = StatsFile(stats_path, endpoint) if stats_path else None
     if ctx.session is not None:
         ctx.announce()
+    return HostedVehicle(uav, endpoint, links, tlog, tlog_path, stats)
+
+
+def _serve(ctx: bus.Context, opts: VehicleOptions) -> None:
+    """Every vehicle of the process, booted together and served by one loop until stop."""
+    subs = fleet.contexts(ctx, opts.uavs)
+    boot = time.monotonic()
+    host = Host()
+    opened: list[HostedVehicle] = []
     try:
-        endpoint.run(ctx.stop, on_tick=stats.tick if stats is not None else None)
+        for sub in subs:
+            tag_vehicle(sub.settings.uav_id)
+            v = _open(sub, opts, boot)
+            opened.append(v)
+            host.add(v.uav, v.endpoint, v.stats.tick if v.stats is not None else None)
+        if len(subs) > 1:
+            log.info("serving vehicles", extra=fields(uavs=",".join(opts.uavs)))
+        host.run(ctx.stop)
     finally:
-        if stats is not None:
-            stats.write()
-        for conn in links.values():
-            conn.close()
-        if tlog is not None:
-            tlog.close()
-            log.info("tlog closed", extra=fields(path=tlog_path, frames=tlog.frames))
+        for v in opened:
+            tag_vehicle(v.uav)
+            v.close()
+        fleet.release(ctx, subs)
 
 
 if __name__ == "__main__":

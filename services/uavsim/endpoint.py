@@ -19,7 +19,7 @@ import select
 import socket
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from typing import Any
 
 from services.common import mav, mavlink_codec, rejections
@@ -46,6 +46,9 @@ MAX_CLIENTS = 8
 #: datagrams read from one link before the loop sends telemetry again (a flood cannot starve it)
 MAX_DATAGRAMS_PER_POLL = 200
 CLIENT_TIMEOUT_S = 10.0
+#: the longest wait between two passes of the loop (s): the failsafes are judged at least this
+#: often
+MAX_WAIT_S = 0.05
 #: Messages a ground station sends that the vehicle ignores without counting them as bad
 #: input (housekeeping of MAVProxy and QGroundControl).
 GCS_CHATTER = frozenset({
@@ -73,7 +76,10 @@ class Endpoint:
     """The vehicle's MAVLink side: links, checks, the parts that act, the loop."""
 
     def __init__(self, vehicle: Vehicle, links: dict[str, Any], setup: VehicleSetup,
-                 tlog: mav.Tlog | None = None):
+                 tlog: mav.Tlog | None = None, boot: float | None = None):
+        """``boot``: when the vehicle booted (monotonic s; default now): its telemetry is due
+        at boot + whole periods, so the vehicles of a host booted together send together."""
+        boot = time.monotonic() if boot is None else boot
         self.setup = setup
         self.vehicle = vehicle
         self.sysid = setup.sysid
@@ -83,9 +89,10 @@ class Endpoint:
                 arrivals.enable(conn.port)
         self.tlog = tlog
         self.outbox = LinkOutbox({name: mav.Sender(conn, tlog) for name, conn in links.items()})
-        self.realtime = (vclock.RealtimeClock(setup.speed_factor, int(vehicle.dyn.dt_s * 1000))
+        self.realtime = (vclock.RealtimeClock(setup.speed_factor, int(vehicle.dyn.dt_s * 1000),
+                                              boot)
                          if setup.clock == vclock.REALTIME else None)
-        self.schedule = Schedule(time.monotonic())
+        self.schedule = Schedule(boot)
         self.params = Parameters(MAV_SYS_ID=setup.sysid, COM_OF_LOSS_T=setup.offboard_loss_s,
                                  SIM_ALT_M=setup.altitude_m, SIM_KP=vehicle.kp,
                                  BAT_CAP_NS=vehicle.capacity_ns)
@@ -363,30 +370,54 @@ class Endpoint:
                                        north_m=float(x[1]), alt_m=self.ap.nav.alt))
 
     # -- loop ----------------------------------------------------------------------------------
+    # One pass of the vehicle's loop: what is due (:meth:`due_work`), a wait on the links until
+    # the time it returns or a datagram, then :meth:`settle`. A vehicle host runs the passes of
+    # all its vehicles in one loop (services/uavsim/host.py); :meth:`run` serves this one alone.
+    def begin(self, now: float) -> float:
+        """Say the vehicle is ready and do what is due; the first pass's deadline (monotonic s)."""
+        statustext(self.outbox, "dualpilot uavsim ready")
+        return self.due_work(now)
+
+    def due_work(self, now: float) -> float:
+        """The steps of the vehicle's own clock, the telemetry, the mission protocol's retries
+        and a storage fault that are due at ``now``; when the next pass is due (monotonic s:
+        at the latest :data:`MAX_WAIT_S` from now)."""
+        if self.realtime is not None:
+            for due_ms in self.realtime.due_steps(now):
+                if self.ap.fly(due_ms, now):
+                    self.after_step()
+        for msg_id in self.schedule.due(now):
+            self.telemetry.stream(msg_id)
+        self.ap.mission.poll(now)
+        if self.fault:
+            statustext(self.outbox, self.fault[:50], m.MAV_SEVERITY_ERROR)
+            self.fault = ""
+        timeout = min(self.schedule.wait_s(now), MAX_WAIT_S)
+        if self.realtime is not None:
+            timeout = min(timeout, self.realtime.wall_until_next(now))
+        return now + max(0.0, timeout)
+
+    def settle(self, ready: Iterable[str], on_tick: Callable[[float], None] | None = None
+               ) -> None:
+        """After the wait: read the ``ready`` links, then the failsafes and landing (a vehicle
+        kept off the CPU finds its queued setpoints first), then ``on_tick(now)``."""
+        for link in ready:
+            self.receive(link)
+        self.ap.watch(time.monotonic())
+        if on_tick is not None:
+            on_tick(time.monotonic())
+
+    def fds(self) -> dict[int, str]:
+        """The links' descriptors (a TCP link's changes when a client connects or goes)."""
+        return {conn.fd: name for name, conn in self.links.items()}
+
     def run(self, stop: threading.Event,
             on_tick: Callable[[float], None] | None = None) -> None:
         """Serve the links until ``stop``; ``on_tick(now)`` after every pass of the loop."""
-        statustext(self.outbox, "dualpilot uavsim ready")
+        deadline = self.begin(time.monotonic())
         while not stop.is_set():
-            now = time.monotonic()
-            if self.realtime is not None:
-                for due_ms in self.realtime.due_steps(now):
-                    if self.ap.fly(due_ms, now):
-                        self.after_step()
-            for msg_id in self.schedule.due(now):
-                self.telemetry.stream(msg_id)
-            self.ap.mission.poll(now)
-            if self.fault:
-                statustext(self.outbox, self.fault[:50], m.MAV_SEVERITY_ERROR)
-                self.fault = ""
-            timeout = min(self.schedule.wait_s(now), 0.05)
-            if self.realtime is not None:
-                timeout = min(timeout, self.realtime.wall_until_next(now))
-            fds = {conn.fd: name for name, conn in self.links.items()}  # a TCP link's changes
-            ready, _, _ = select.select(list(fds), [], [], max(0.0, timeout))
-            for fd in ready:
-                self.receive(fds[fd])
-            # after the reads: a vehicle kept off the CPU finds its queued setpoints first
-            self.ap.watch(time.monotonic())
-            if on_tick is not None:
-                on_tick(time.monotonic())
+            fds = self.fds()
+            ready, _, _ = select.select(list(fds), [], [],
+                                        max(0.0, deadline - time.monotonic()))
+            self.settle([fds[fd] for fd in ready], on_tick)
+            deadline = self.due_work(time.monotonic())

@@ -9,6 +9,8 @@ UNSUPPORTED. The stream after each Eq. (1) step is not affected.
 
 from __future__ import annotations
 
+import math
+
 from services.common import mav
 
 m = mav.mavlink
@@ -64,8 +66,11 @@ class Schedule:
         for msg_id, period in self.period.items():
             if period is not None and now >= self.next_due[msg_id]:
                 out.append(msg_id)
-                # never fall behind by more than one period (no bursts after a stall)
-                self.next_due[msg_id] = max(self.next_due[msg_id] + period, now)
+                nxt = self.next_due[msg_id] + period
+                if nxt <= now:  # a stall: the missed periods are skipped (no burst), on the
+                    # same grid (the vehicles of a host booted together keep sending together)
+                    nxt += period * math.floor((now - nxt) / period + 1.0)
+                self.next_due[msg_id] = nxt
         return out
 
     def wait_s(self, now: float) -> float:

@@ -58,17 +58,17 @@ class Telemetry:
         alt = self.ap.nav.alt
         n, e, d, vn, ve, _ = mavlink_codec.state_to_ned(v.state, alt)
         vd = -v.vz_mps if self.ap.own_clock else 0.0
-        lat, lon = mav.to_geodetic(float(v.state[0]), float(v.state[1]), self.origin)
         t_ms = v.time_ms
-        hdg = int(math.degrees(math.atan2(ve, vn)) % 360 * 100) if (vn or ve) else 65535
-        roll, pitch, yaw = v.attitude()
         if only in (None, m.MAVLINK_MSG_ID_LOCAL_POSITION_NED):
             self.outbox.send(link, "local_position_ned", t_ms, n, e, d, vn, ve, vd)
         if only in (None, m.MAVLINK_MSG_ID_GLOBAL_POSITION_INT):
+            lat, lon = mav.to_geodetic(float(v.state[0]), float(v.state[1]), self.origin)
+            hdg = int(math.degrees(math.atan2(ve, vn)) % 360 * 100) if (vn or ve) else 65535
             self.outbox.send(link, "global_position_int", t_ms, int(lat * 1e7), int(lon * 1e7),
                              int((self.home_amsl_m + alt) * 1000), int(alt * 1000),
                              int(vn * 100), int(ve * 100), int(vd * 100), hdg)
         if only in (None, m.MAVLINK_MSG_ID_ATTITUDE):
+            roll, pitch, yaw = v.attitude()
             self.outbox.send(link, "attitude", t_ms, roll, pitch, yaw, 0.0, 0.0, 0.0)
 
     def status(self, only: int | None = None, link: str | None = None) -> None:

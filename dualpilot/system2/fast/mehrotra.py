@@ -5,7 +5,9 @@ cached on disk). The banded Cholesky factorisation and solves are LAPACK's
 ``dpbtrf`` / ``dpbtrs`` (scipy's, by address), H z and the dot products are
 BLAS, and every sparse product adds its terms in the order of scipy's
 ``csr_matvec`` / ``csc_matvec``: the iterates are those of the same loop
-written with numpy and scipy, bit for bit.
+written with numpy and scipy, bit for bit. It runs without the GIL: a planner
+service's other threads (the Zenoh callbacks that take the next request, the
+other vehicles' planners) are not held up while it iterates.
 """
 
 from __future__ import annotations
@@ -263,7 +265,7 @@ def _advance(z: AnyArray, s: AnyArray, lam: AnyArray, dz: AnyArray, ds: AnyArray
         lam[i] = lam[i] + a * dl[i]
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)  # another thread of the process runs while it iterates
 def mehrotra(h_dense: AnyArray, h_band: AnyArray, q: AnyArray, h: AnyArray, g_ptr: AnyArray,
              g_idx: AnyArray, g_dat: AnyArray, b_ptr: AnyArray, b_idx: AnyArray,
              b_dat: AnyArray, z0: AnyArray, slack0: float, max_iter: int, tol: float,

@@ -96,7 +96,7 @@ def leave(code: int) -> None:
     os._exit(code)
 
 
-def _tune_process(settings: Settings) -> None:
+def _tune_process(settings: Settings) -> str:
     """Logging, the nice value and the GIL's switch interval of a service process.
 
     A thread woken by I/O (a Zenoh reply, a MAVLink frame) waits for the GIL up to the
@@ -104,9 +104,30 @@ def _tune_process(settings: Settings) -> None:
     budget of a tick. Services are I/O-bound around their one compute thread.
     """
     logsetup.configure(settings.service, settings.uav_id, settings.log_level, settings.log_format)
-    if settings.nice:
-        os.nice(settings.nice)  # lowering one's own priority needs no privilege
+    priority = lower_priority(settings.nice) if settings.nice else "default"
     sys.setswitchinterval(SWITCH_INTERVAL_S)
+    return priority
+
+
+def lower_priority(nice: int) -> str:
+    """Lower this process's priority by ``nice`` (1..19); what it did.
+
+    Linux's scheduler shares the CPU fairly between *autogroups* first (one per
+    session, when ``/proc/sys/kernel/sched_autogroup_enabled`` is 1) and a
+    process's nice value only weighs against the processes of its own group.
+    A service started in a session of its own (the launcher starts every one
+    so) is its group: its group's nice (``/proc/self/autogroup``) is lowered
+    too, else the nice value would change nothing against the other services.
+    """
+    os.nice(nice)  # lowering one's own priority needs no privilege
+    if os.getsid(0) != os.getpid():
+        return f"nice {nice}"
+    try:
+        with open("/proc/self/autogroup", "w") as fh:
+            fh.write(str(nice))
+    except OSError:  # no autogroups (a container without /proc write access, another OS)
+        return f"nice {nice}"
+    return f"nice {nice}, autogroup nice {nice}"
 
 
 def _serve(ctx: Context, body: Body, zenoh_session: bool, started: float) -> None:
@@ -147,7 +168,7 @@ def run_service(settings: Settings, body: Body, zenoh_session: bool = True) -> i
     The body must return soon after ``ctx.stop`` is set; if it has not
     finished :data:`STOP_GRACE_S` after a signal the process exits anyway.
     """
-    _tune_process(settings)
+    priority = _tune_process(settings)
     started = time.monotonic()
     stop = Stop()
     ctx = Context(settings, stop)
@@ -161,7 +182,7 @@ def run_service(settings: Settings, body: Body, zenoh_session: bool = True) -> i
 
     signal.signal(signal.SIGINT, on_signal)
     signal.signal(signal.SIGTERM, on_signal)
-    log.info("starting", extra=logsetup.fields(pid=os.getpid()))
+    log.info("starting", extra=logsetup.fields(pid=os.getpid(), priority=priority))
     thread = threading.Thread(target=_serve, args=(ctx, body, zenoh_session, started),
                               name=f"{settings.service}-main", daemon=True)
     thread.start()
