@@ -110,6 +110,8 @@ class MissionConfig:
             raise ValueError(f"the {self.supervisor.value} supervisor does not run "
                              f"{self.controller.value} (it runs "
                              f"{', '.join(sorted(c.value for c in entry.controllers))})")
+        if self.mission_id.startswith("-"):  # "--" would read as the end of the flags
+            raise ValueError(f"mission_id must not start with '-', got {self.mission_id!r}")
         if not 0 <= self.seed < 2**64:
             raise ValueError(f"seed must be in [0, 2^64), got {self.seed}")
         object.__setattr__(self, "settings", _canonical_settings(self.settings))

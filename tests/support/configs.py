@@ -60,6 +60,7 @@ def configs(draw: st.DrawFn) -> MissionConfig:
                                 horizon_s=st.floats(0.0, 120.0),
                                 interval_s=st.floats(0.1, 10.0))),
         goal=Rect(cx, cy, w, w), area_size_m=size, start=start,
-        mission_id=draw(st.text("abc-_0123456789", max_size=20)))
+        mission_id=draw(st.text("abc-_0123456789", max_size=20).filter(
+            lambda m: not m.startswith("-"))))
 
 

@@ -117,3 +117,12 @@ def test_bad_flags_are_clear_errors() -> None:
     with pytest.raises(ValueError, match="contradicts"):
         parse_config(["--controller", "concurrent", "--supervisor", "paper"])
     assert "risk.alpha" in concurrent_names() and "threat" not in concurrent_names()
+
+
+def test_a_mission_id_that_reads_as_a_flag_is_refused() -> None:
+    """argparse reads ``--mission-id=--`` as the end of the flags (an empty list), so an id
+    that starts with "-" cannot travel as a flag: the configuration refuses it."""
+    for bad in ("--", "-a"):
+        with pytest.raises(ValueError, match="mission_id must not start with '-'"):
+            MissionConfig.named("cc", mission_id=bad)
+    assert parse_config(["--mission-id=a--"]).mission_id == "a--"
