@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import enum
 import json
 import os
 import signal
@@ -15,7 +16,13 @@ import pytest
 
 from dualpilot.mission.local import local_mission
 from dualpilot.mission.params import Controller, MissionParams, Timing
-from dualpilot.mission.records import StepLog, read_step_log, record_from_json, result_from_log
+from dualpilot.mission.records import (
+    StepLog,
+    _clean,
+    read_step_log,
+    record_from_json,
+    result_from_log,
+)
 from dualpilot.mission.step import Mission
 from dualpilot.model.fire import FireParams
 from dualpilot.planners import build_planner
@@ -77,6 +84,25 @@ def test_inf_d_t_and_numpy_values_are_written_as_json(tmp_path: Path) -> None:
     line = json.loads(path.read_text())
     assert line["arr"] == [0, 1, 2] and line["f"] == 1.5
     assert record_from_json(line).d_t == rec.d_t  # inf when no fire: "inf" on disk
+
+
+def test_every_kind_of_value_is_written_as_the_plain_cleaner_writes_it(tmp_path: Path) -> None:
+    """The encoder's fast path and the recursive cleaner write the same line, with and
+    without a non-finite float (which sends the whole line through the cleaner)."""
+    class Colour(enum.Enum):
+        RED = "red"
+
+    finite = {"a": np.array([[0.5, 1.0], [2.0, 3.25]]), "n": np.int64(7), "b": np.bool_(True),
+              "f32": np.float32(0.25), "e": Colour.RED, "t": (1, "x", None), "o": Path("p"),
+              "k": {3: 1.5}}
+    for doc in (finite, {**finite, "inf": float("inf"), "nan": np.array([np.nan, -np.inf])}):
+        path = tmp_path / "v.jsonl"
+        path.unlink(missing_ok=True)
+        with StepLog(path) as log:
+            log.write("x", **doc)
+        line = path.read_text()
+        assert line == json.dumps(_clean({"kind": "x", **doc}), allow_nan=False) + "\n"
+    assert json.loads(line)["nan"] == ["nan", "-inf"] and json.loads(line)["k"] == {"3": 1.5}
 
 
 def test_a_torn_last_line_is_skipped(tmp_path: Path) -> None:
