@@ -43,14 +43,14 @@ pytestmark = [pytest.mark.slow, pytest.mark.timeout(300)]
 
 SEED = 26
 EV = supervisor_pb2
-ENV = {"CONTROLLER": "cc", "TIMING": "paper", "SPEED_FACTOR": "4", "SUPERVISOR": "paper",
+ENV = {"CONTROLLER": "cc", "TIMING": "paper", "SPEED_FACTOR": "8", "SUPERVISOR": "paper",
        "IGNITION_CLEARANCE_M": "", "PLAN_DEADLINE_S": "20,20"}
 
 
 @pytest.fixture(scope="module")
 def fleet(tmp_path_factory: pytest.TempPathFactory) -> Any:
     out = tmp_path_factory.mktemp("stream")
-    cfg = launch.StackConfig(run_dir=out / "shared", speed_factor=4.0, free_ports=True,
+    cfg = launch.StackConfig(run_dir=out / "shared", speed_factor=8.0, free_ports=True,
                              log_format="text")
     with launch.Fleet(cfg, ["st1"]) as f:
         yield f, out
