@@ -59,6 +59,7 @@ from services.common.log import fields
 from services.msgs import common_pb2, fire_pb2
 
 from .forecast import envelope, forecast_regions
+from .warm import warm_up
 
 log = logging.getLogger("services.ews")
 
@@ -341,8 +342,15 @@ def main(argv: list[str] | None = None) -> int:
             horizon_s=args.occupancy_horizon_s, interval_s=args.occupancy_interval_s)
     except ValueError as err:
         p.error(str(err))
-    return bus.run_service(settings, lambda ctx: fleet.for_each(
-        ctx, uavs, lambda sub: body(sub, params, args.forecast_horizon_s, occupancy)))
+    def serve(ctx: bus.Context) -> None:
+        if occupancy is not None:  # before any vehicle's EWS announces itself
+            took = warm_up(params, occupancy)
+            log.info("forecasts warmed", extra=fields(
+                **{name: round(s, 3) for name, s in took.items()}))
+        fleet.for_each(ctx, uavs, lambda sub: body(sub, params, args.forecast_horizon_s,
+                                                   occupancy))
+
+    return bus.run_service(settings, serve)
 
 
 if __name__ == "__main__":

@@ -19,12 +19,13 @@ from dualpilot.mission.config import MissionConfig
 from dualpilot.mission.local import LocalFires
 from dualpilot.model.fire import FireParams
 from dualpilot.model.fire_field import FireField
-from dualpilot.model.forecast import LEVELS
+from dualpilot.model.forecast import LEVELS, ForecastParams
 from dualpilot.model.scenarios import SCENARIOS
 from dualpilot.spec import MissionSpec, Stream, stream_rng
 from services.common import bus, keys, rejections, wire
 from services.common.convert import config as config_convert
 from services.common.convert import fire as fire_convert
+from services.ews.warm import warm_up
 from services.msgs import fire_pb2
 from tests.support.missions import config_for
 
@@ -165,3 +166,11 @@ def test_the_reset_carries_the_scenario_and_the_codec_checks_it() -> None:
     for bad, match in (("tundra", "scenario must be one of"), ("x" * 257, "longer than 256")):
         with pytest.raises(rejections.CodecError, match=match):
             fire_convert.fire_command_from_msg(_scenario_reset(bad))
+
+
+def test_the_ews_warms_a_forecast_of_every_fire_process_before_it_serves() -> None:
+    """warm_up makes one forecast of the paper's process and of each named scenario (from
+    its first front), so a mission's first forecast is not the process's first."""
+    took = warm_up(FireParams(), ForecastParams(members=4))
+    assert list(took) == ["paper", *SCENARIOS]
+    assert all(s > 0 for s in took.values())
