@@ -37,7 +37,7 @@ def draw(runs: list[tuple[str, list[dict[str, Any]]]], limit_ms: float, path: Pa
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, ax = plt.subplots(figsize=(7.0, 4.2))
+    fig, ax = plt.subplots(figsize=(7.0, 5.2))
     for k, (label, rows) in enumerate(runs):
         color = f"C{k}"
         n = [r["vehicles"] for r in rows]
@@ -54,7 +54,7 @@ def draw(runs: list[tuple[str, list[dict[str, Any]]]], limit_ms: float, path: Pa
     ax.set_ylabel("plan round trip (ms)")
     ax.set_title("Fleet capacity: plan round trip against fleet size")
     ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=7, loc="upper left")
+    ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.14), ncol=2)
     fig.tight_layout()
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=120)
