@@ -1,0 +1,290 @@
+"""Compiled kernels of the oracle's search: a time-expanded A* over a lattice of Eq. (1)'s states.
+
+A lattice state at step t is a position p = p_0 + h·(i_x, i_y) and a velocity
+v = δ·(j_x, j_y), h = δ·ΔT, so that p_{t+1} = p_t + ΔT·v_t (Eq. 1) stays on the
+lattice. From v a step reaches every lattice velocity v' with
+|v'_i − (1 − ζ)·v_i| ≤ ΔT·u_max/m per axis (|u_i| ≤ u_max) inside the speed limit
+(per axis, or ‖v'‖ ≤ v_max): the control u = m·(v' − (1 − ζ)·v)/ΔT is exact.
+
+The move of step t, p_t → p_t + ΔT·v_t, is fixed by the state; it is safe when
+(the failure rules of dualpilot/mission/step.py with rule "any")
+
+* p_t keeps ``d`` from every region after the step's planning sub-step tk + 1,
+* p_{t+1} keeps ``d`` from every region after each of the step's motion sub-steps,
+* the segment p_t–p_{t+1} keeps ``d`` from every region after the step's last
+  sub-step (t + 1)k,
+
+and p_{t+1} lies in the area. The search is A* on (t, p, v) with the number of
+flights as the cost and an admissible heuristic: per axis, the fewest flights whose
+reachable displacement interval meets G (:func:`reach_table`), the larger of the
+two axes. Ties go to the deeper node. Lengths m, speeds m/s.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+from numba import types as nbt
+from numba.typed import Dict
+
+from dualpilot.arrays import AnyArray, Array
+
+#: search outcomes
+FOUND, EXHAUSTED, BUDGET = 0, 1, 2
+#: a heuristic for a goal out of reach within the steps left
+FAR = 1 << 20
+
+
+@njit(cache=True)
+def segment_box_d2(ax: float, ay: float, bx: float, by: float, x0: float, y0: float,
+                   x1: float, y1: float) -> float:
+    """Squared distance (m²) between the segment a–b and the box [x0, x1] × [y0, y1]."""
+    dx, dy = bx - ax, by - ay
+    t0, t1 = 0.0, 1.0  # Liang–Barsky: does the segment cross the box?
+    crosses = True
+    for p, q in ((-dx, ax - x0), (dx, x1 - ax), (-dy, ay - y0), (dy, y1 - ay)):
+        if p == 0.0:
+            if q < 0.0:
+                crosses = False
+                break
+        else:
+            r = q / p
+            if p < 0.0:
+                t0 = max(t0, r)
+            else:
+                t1 = min(t1, r)
+            if t0 > t1:
+                crosses = False
+                break
+    if crosses:
+        return 0.0
+    best = math.inf
+    for px, py in ((ax, ay), (bx, by)):  # the ends against the box
+        gx = max(0.0, max(x0 - px, px - x1))
+        gy = max(0.0, max(y0 - py, py - y1))
+        best = min(best, gx * gx + gy * gy)
+    seg2 = dx * dx + dy * dy
+    for cx, cy in ((x0, y0), (x1, y0), (x1, y1), (x0, y1)):  # the corners against the segment
+        s = 0.0 if seg2 == 0.0 else min(1.0, max(0.0, ((cx - ax) * dx + (cy - ay) * dy) / seg2))
+        ex, ey = ax + s * dx - cx, ay + s * dy - cy
+        best = min(best, ex * ex + ey * ey)
+    return best
+
+
+@njit(cache=True)
+def segment_clear(ax: float, ay: float, bx: float, by: float, boxes: Array, lo: int, hi: int,
+                  d: float) -> bool:
+    """Whether the segment a–b keeps at least ``d`` from every box ``boxes[lo:hi]``."""
+    lox, hix = min(ax, bx), max(ax, bx)
+    loy, hiy = min(ay, by), max(ay, by)
+    d2 = d * d
+    for k in range(lo, hi):
+        x0, y0, x1, y1 = boxes[k, 0], boxes[k, 1], boxes[k, 2], boxes[k, 3]
+        gx = max(0.0, max(x0 - hix, lox - x1))
+        gy = max(0.0, max(y0 - hiy, loy - y1))
+        if gx * gx + gy * gy >= d2:
+            continue
+        if segment_box_d2(ax, ay, bx, by, x0, y0, x1, y1) < d2:
+            return False
+    return True
+
+
+@njit(cache=True)
+def move_clear(ax: float, ay: float, bx: float, by: float, t: int, k: int, boxes: Array,
+               offsets: AnyArray, d: float) -> bool:
+    """The failure rules of step t's move a → b (module docstring), ``k`` sub-steps a step."""
+    s = t * k + 1
+    if not segment_clear(ax, ay, ax, ay, boxes, offsets[s], offsets[s + 1], d):
+        return False
+    for m in range(s + 1, (t + 1) * k + 1):
+        if not segment_clear(bx, by, bx, by, boxes, offsets[m], offsets[m + 1], d):
+            return False
+    e = (t + 1) * k
+    return segment_clear(ax, ay, bx, by, boxes, offsets[e], offsets[e + 1], d)
+
+
+def reach_table(n_vel: int, delta: float, keep: float, acc: float, v_max: float, dt: float,
+                steps: int) -> Array:
+    """D[j + n_vel, k]: the largest displacement along an axis after k flights from the
+    lattice velocity j·δ (m), every later velocity at min((1 − ζ)·v + ΔT·u_max/m, v_max)."""
+    table = np.zeros((2 * n_vel + 1, steps + 1))
+    for j in range(-n_vel, n_vel + 1):
+        w, total = j * delta, 0.0
+        for k in range(1, steps + 1):
+            total += dt * w
+            table[j + n_vel, k] = total
+            w = min(keep * w + acc, v_max)
+    return table
+
+
+@njit(cache=True)
+def flights_needed(p: float, j: int, lo: float, hi: float, table: Array, n_vel: int,
+                   limit: int) -> int:
+    """The fewest flights k ≥ 1 after which the displacement interval from p with velocity
+    index j meets [lo, hi] (``FAR`` when none within ``limit``)."""
+    for k in range(1, limit + 1):
+        up = p + table[j + n_vel, k]
+        down = p - table[n_vel - j, k]
+        if up >= lo and down <= hi:
+            return k
+    return FAR
+
+
+@njit(cache=True)
+def _grown(a: AnyArray, n: int) -> AnyArray:
+    """``a`` with room for at least ``n`` rows (doubled)."""
+    if n <= len(a):
+        return a
+    out = np.empty((max(n, 2 * len(a)),) + a.shape[1:], dtype=a.dtype)
+    out[: len(a)] = a
+    return out
+
+
+@njit(cache=True)
+def _heap_push(heap: AnyArray, size: int, item: np.int64) -> AnyArray:
+    heap = _grown(heap, size + 1)
+    i = size
+    heap[i] = item
+    while i > 0:
+        parent = (i - 1) >> 1
+        if heap[parent] <= heap[i]:
+            break
+        heap[parent], heap[i] = heap[i], heap[parent]
+        i = parent
+    return heap
+
+
+@njit(cache=True)
+def _heap_pop(heap: AnyArray, size: int) -> np.int64:
+    """The smallest item; the heap's first ``size - 1`` entries are a heap again."""
+    top = heap[0]
+    size -= 1
+    heap[0] = heap[size]
+    i = 0
+    while True:
+        left, small = 2 * i + 1, i
+        if left < size and heap[left] < heap[small]:
+            small = left
+        if left + 1 < size and heap[left + 1] < heap[small]:
+            small = left + 1
+        if small == i:
+            break
+        heap[small], heap[i] = heap[i], heap[small]
+        i = small
+    return top
+
+
+#: bits of a heap entry that hold the node (the rest: the priority)
+_ID_BITS = 26
+
+
+@njit(cache=True)
+def _entry(t: int, hval: int, weight16: int, max_steps: int, node: int) -> np.int64:
+    """A heap entry: priority 16·t + weight16·h (then the deeper node first), then the node."""
+    prio = (np.int64(16 * t + weight16 * hval) << 12) | min(4095, max_steps - t)
+    return (prio << _ID_BITS) | node
+
+
+@njit(cache=True)
+def astar(start: Array, boxes: Array, offsets: AnyArray, k: int, goal: Array, area: float,
+          d: float, delta: float, dt: float, n_vel: int, keep: float, acc: float,
+          v_max: float, norm: bool, max_steps: int, budget: int, table: Array,
+          weight16: int, bucket: int) -> tuple[int, AnyArray, int]:
+    """Time-expanded A* from ``start`` at rest to a flight that ends in ``goal`` (x_lo, y_lo,
+    x_hi, y_hi); the failure rules of the module docstring at distance ``d``.
+
+    Priority t + (weight16/16)·h (16: A*, the fewest flights on the lattice; more: weighted
+    A*, faster and within that factor of the fewest). A node is dropped when one with the
+    same t and velocity was already queued in its square of ``bucket`` × ``bucket`` lattice
+    positions (1: none is). Returns (outcome, path, expansions): ``path`` rows
+    (t, i_x, i_y, j_x, j_y) from the start to the first state in G (outcome FOUND), or empty
+    (EXHAUSTED: no path within ``max_steps`` flights; BUDGET: ``budget`` expansions spent).
+    """
+    h = delta * dt
+    sx, sy = start[0], start[1]
+    ix0, iy0 = math.ceil(-sx / h - 1e-9), math.ceil(-sy / h - 1e-9)
+    nx = (math.floor((area - sx) / h + 1e-9) - ix0) // bucket + 1
+    ny = (math.floor((area - sy) / h + 1e-9) - iy0) // bucket + 1
+    nv = 2 * n_vel + 1
+    gx0, gy0, gx1, gy1 = goal[0] - sx, goal[1] - sy, goal[2] - sx, goal[3] - sy
+    nodes = np.empty((1 << 14, 6), dtype=np.int64)  # t, i_x, i_y, j_x, j_y, parent
+    goal_node = np.zeros(1 << 14, dtype=np.bool_)
+    heap = np.empty(1 << 14, dtype=np.int64)
+    seen = Dict.empty(key_type=nbt.int64, value_type=nbt.int8)
+    first = max(flights_needed(0.0, 0, gx0, gx1, table, n_vel, max_steps),
+                flights_needed(0.0, 0, gy0, gy1, table, n_vel, max_steps))
+    if first > max_steps:
+        return EXHAUSTED, np.empty((0, 5), dtype=np.int64), 0
+    nodes[0] = (0, 0, 0, 0, 0, -1)
+    n, size, expansions = 1, 1, 0
+    heap[0] = _entry(0, first, weight16, max_steps, 0)
+    while size > 0:
+        if expansions >= budget or n >= (1 << _ID_BITS) - 64:
+            return BUDGET, np.empty((0, 5), dtype=np.int64), expansions
+        node = int(_heap_pop(heap, size) & ((1 << _ID_BITS) - 1))
+        size -= 1
+        if goal_node[node]:
+            return FOUND, _path(nodes, node), expansions
+        expansions += 1
+        t, ix, iy, jx, jy = nodes[node, 0], nodes[node, 1], nodes[node, 2], nodes[node, 3], \
+            nodes[node, 4]
+        if t >= max_steps:
+            continue
+        ax, ay = sx + h * ix, sy + h * iy
+        bx, by = ax + h * jx, ay + h * jy
+        if not (0.0 <= bx <= area and 0.0 <= by <= area):
+            continue
+        if not move_clear(ax, ay, bx, by, t, k, boxes, offsets, d):
+            continue
+        ix1, iy1 = ix + jx, iy + jy
+        if gx0 <= h * ix1 <= gx1 and gy0 <= h * iy1 <= gy1:  # this flight ends in G
+            nodes = _grown(nodes, n + 1)
+            goal_node = _grown(goal_node, n + 1)
+            nodes[n] = (t + 1, ix1, iy1, jx, jy, node)
+            goal_node[n] = True
+            heap = _heap_push(heap, size, _entry(t + 1, 0, weight16, max_steps, n))
+            n, size = n + 1, size + 1
+            continue
+        lox = max(-n_vel, math.ceil((keep * jx * delta - acc) / delta - 1e-9))
+        hix = min(n_vel, math.floor((keep * jx * delta + acc) / delta + 1e-9))
+        loy = max(-n_vel, math.ceil((keep * jy * delta - acc) / delta - 1e-9))
+        hiy = min(n_vel, math.floor((keep * jy * delta + acc) / delta + 1e-9))
+        cell = (((t + 1) * nx + (ix1 - ix0) // bucket) * ny + (iy1 - iy0) // bucket) * nv
+        for kx in range(lox, hix + 1):
+            hx = flights_needed(h * ix1, kx, gx0, gx1, table, n_vel, max_steps - t - 1)
+            if hx > max_steps:
+                continue
+            for ky in range(loy, hiy + 1):
+                if norm and (kx * kx + ky * ky) * delta * delta > v_max * v_max + 1e-9:
+                    continue
+                key = (cell + kx + n_vel) * nv + ky + n_vel
+                if key in seen:
+                    continue
+                seen[key] = np.int8(1)
+                hy = flights_needed(h * iy1, ky, gy0, gy1, table, n_vel, max_steps - t - 1)
+                if t + 1 + max(hx, hy) > max_steps:
+                    continue
+                nodes = _grown(nodes, n + 1)
+                goal_node = _grown(goal_node, n + 1)
+                nodes[n] = (t + 1, ix1, iy1, kx, ky, node)
+                goal_node[n] = False
+                heap = _heap_push(heap, size, _entry(t + 1, max(hx, hy), weight16, max_steps, n))
+                n, size = n + 1, size + 1
+    return EXHAUSTED, np.empty((0, 5), dtype=np.int64), expansions
+
+
+@njit(cache=True)
+def _path(nodes: AnyArray, last: int) -> AnyArray:
+    """Rows (t, i_x, i_y, j_x, j_y) from the start to ``last``."""
+    count, node = 0, last
+    while node >= 0:
+        count += 1
+        node = nodes[node, 5]
+    out = np.empty((count, 5), dtype=np.int64)
+    node = last
+    for i in range(count - 1, -1, -1):
+        out[i] = nodes[node, :5]
+        node = nodes[node, 5]
+    return out
