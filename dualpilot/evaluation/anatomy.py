@@ -193,7 +193,7 @@ def anatomy(run_dir: Path, controllers: Sequence[str] | None = None,
 
     todo = cases(run_dir, controllers)
     rows = sorted(execute(todo, jobs, fn=examine),
-                  key=lambda r: (str(r["controller"]), int(r["mission"])))
+                  key=lambda r: (str(r["controller"]), int(str(r["mission"]))))
     columns = ["mission", "seed", "controller", "class", "ending", "step", "front_id",
                "born_step", "where", "substeps", "system"]
     with (run_dir / "anatomy.csv").open("w", newline="") as fh:

@@ -28,7 +28,7 @@ import numpy as np
 
 from dualpilot.evaluation.missions import ORACLE, flight_columns
 from dualpilot.evaluation.stats import mean_interval, wilson_interval
-from dualpilot.mission.config import MissionConfig
+from dualpilot.mission.config import CONTROLLER_NAMES, MissionConfig
 from dualpilot.oracle.certificate import CertificateParams, Scope, scope_of
 from dualpilot.oracle.oracle import FEASIBLE, IMPOSSIBLE, UNKNOWN, OracleParams, solve
 
@@ -115,7 +115,9 @@ def yardstick(rows: Sequence[Row], config: MissionConfig,
         "scope": {"substeps": v.scope.substeps, "one_substep_steps": v.scope.one_substep_steps},
         "controllers": {},
     }
-    names = list(dict.fromkeys(r["controller"] for r in rows))
+    present = {r["controller"] for r in rows}
+    names = [c for c in (*CONTROLLER_NAMES, *sorted(present)) if c in present and c != ORACLE]
+    names = list(dict.fromkeys(names)) + ([ORACLE] if ORACLE in present else [])
     for name in names:
         mine = [r for r in rows if r["controller"] == name and int(r["mission"]) in v.oracle]
         out["controllers"][name] = _line(mine, v)

@@ -65,7 +65,7 @@ def draw_case(case: Case, path: Path, reading_label: str) -> Path:
     gx0, gy0, gx1, gy1 = spec.goal.bounds
     ax.add_patch(Rectangle((gx0, gy0), gx1 - gx0, gy1 - gy0, facecolor=GOAL_FACE,
                            edgecolor=GOAL_EDGE, alpha=0.7))
-    if witness is not None:
+    if witness is not None and witness.final_state is not None:
         w = np.array([r.state[:2] for r in witness.records] + [witness.final_state[:2]])
         ax.plot(w[:, 0], w[:, 1], "--", color="#2a9d3a", lw=1.6, label="oracle's witness")
     flown = np.array([r.state[:2] for r in result.records]
@@ -76,8 +76,8 @@ def draw_case(case: Case, path: Path, reading_label: str) -> Path:
                 color=SYSTEM_COLORS.get(systems[min(k, len(systems) - 1)], "k"), lw=1.8)
     ax.plot([], [], "-", color=SYSTEM_COLORS[1], label=f"{case.controller}: System 1")
     ax.plot([], [], "-", color=SYSTEM_COLORS[2], label=f"{case.controller}: System 2")
-    last = result.records[-1].state[:2]
-    ax.add_patch(Circle(last, spec.d_safe_m, fill=False, edgecolor="k", lw=1.0))
+    last = result.records[-1].state
+    ax.add_patch(Circle((float(last[0]), float(last[1])), spec.d_safe_m, fill=False, edgecolor="k", lw=1.0))
     ax.plot(*spec.start, "ko", ms=5)
     ax.set_xlim(-20, a + 20)
     ax.set_ylim(-20, a + 20)
