@@ -77,7 +77,8 @@ def draw_case(case: Case, path: Path, reading_label: str) -> Path:
     ax.plot([], [], "-", color=SYSTEM_COLORS[1], label=f"{case.controller}: System 1")
     ax.plot([], [], "-", color=SYSTEM_COLORS[2], label=f"{case.controller}: System 2")
     last = result.records[-1].state
-    ax.add_patch(Circle((float(last[0]), float(last[1])), spec.d_safe_m, fill=False, edgecolor="k", lw=1.0))
+    ax.add_patch(Circle((float(last[0]), float(last[1])), spec.d_safe_m, fill=False,
+                        edgecolor="k", lw=1.0))
     ax.plot(*spec.start, "ko", ms=5)
     ax.set_xlim(-20, a + 20)
     ax.set_ylim(-20, a + 20)
