@@ -56,7 +56,8 @@ def solve(config: MissionConfig, params: OracleParams = OracleParams(),
     ``fires`` replace its fire future and its fire port (a scripted fire, in the tests).
 
     The certificate runs first over the sub-steps the oracle's own flights can see (one a
-    step): a set that empties there, or never meets G there, needs no search.
+    step): a set that empties there, or never meets G there, needs no search; one that meets
+    G, or a certificate that gives up, leaves the answer to the search.
     """
     t0 = time.perf_counter()
     future = FireFuture(config) if future is None else future
@@ -65,7 +66,7 @@ def solve(config: MissionConfig, params: OracleParams = OracleParams(),
     if cert is not None and cert.verdict == IMPOSSIBLE:
         return Verdict(IMPOSSIBLE, cert.reason, None, 0, cert, seconds=time.perf_counter() - t0)
     expansions, why, problem = 0, "not run: G out of reach of one sub-step steps", ""
-    if cert is not None and cert.verdict == "reachable":
+    if cert is not None:  # G within reach, or the certificate cannot tell: search
         found = search(config, future, params.search)
         expansions, why = found.expansions, found.reason
         if found.witness is not None:

@@ -48,11 +48,11 @@ class Stage:
 class SearchParams:
     """The stages of the witness search, tried in turn until one finds a witness."""
 
-    #: a coarse lattice first (δ = 5 m/s: few states, most missions), then a finer one
-    #: (δ = 2.5 m/s), then the finer one greedier (weighted A*: faster, longer witnesses)
-    stages: tuple[Stage, ...] = (Stage(5.0, 300_000, weight=1.5),
-                                 Stage(2.5, 600_000, weight=1.5),
-                                 Stage(2.5, 2_000_000, weight=3.0))
+    #: a coarse lattice first (δ = 5 m/s: few states, most missions), then greedier on it
+    #: (weighted A*: faster, longer witnesses), then the finer lattice (δ = 2.5 m/s)
+    stages: tuple[Stage, ...] = (Stage(5.0, 200_000, weight=1.5),
+                                 Stage(5.0, 600_000, weight=3.0),
+                                 Stage(2.5, 1_000_000, weight=3.0))
     #: distance kept beyond d_safe (m), for the round-off of flying the witness
     margin_m: float = 0.05
 
