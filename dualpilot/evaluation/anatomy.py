@@ -12,8 +12,12 @@ class is the first that applies (:data:`CLASSES`):
 ``deliberating``
     caught while the fires ran more than one planning sub-step (waiting for a slow plan);
 ``ignition``
-    the front that ended it was born during the failing step, after the step's control
-    had been committed (``where``: within d_safe of the idle UAV, or only of its path);
+    the front that ended it was born after the last control that could have moved the
+    UAV elsewhere was committed: a flight p_t → p_{t+1} = p_t + ΔT·v_t is fixed by u_{t−1}
+    (committed at step t − 1, before that step's sub-steps), the idle position p_t during
+    step t's sub-steps by u_{t−2}; so a front born during step t − 1 (fire contact) or
+    t − 2 (caught while planning) or later (``where``: within d_safe of the idle UAV, or
+    only of its path);
 ``refused``
     the failing step flew no plan because the run-time monitor refused one;
 ``no_plan``
@@ -43,7 +47,7 @@ CLASSES = ("out_of_steps", "deliberating", "ignition", "refused", "no_plan", "kn
 DESCRIPTIONS = {
     "out_of_steps": "the step limit came first",
     "deliberating": "overtaken while the fires ran more than one sub-step for its plan",
-    "ignition": "a front born during the failing step, after its control was committed",
+    "ignition": "a front born after the UAV's position there was already committed",
     "refused": "no plan flown: the run-time monitor refused the plan",
     "no_plan": "no plan flown: no system had a safe plan (boxed in)",
     "known_front": "a front its planner saw came within d_safe of where it flew",
@@ -111,7 +115,8 @@ def classify(result: MissionResult, final: FireSnapshot) -> Failure:
         return failure("out_of_steps")
     if ending is Ending.FIRE_WHILE_PLANNING and planning > 1:
         return failure("deliberating")
-    if fid >= 0 and fid not in last.snapshot.front_ids:
+    latency = 2 if ending is Ending.FIRE_WHILE_PLANNING else 1  # steps the UAV is committed
+    if fid >= 0 and born >= last.t - latency:
         return failure("ignition")
     if last.system == 0:
         refused = any(MONITOR_TAG in a.note for a in last.answers)

@@ -9,7 +9,7 @@ each sub-step, dualpilot/mission/step.py). It over-approximates because
   (|v_i| ≤ v_max; ‖v‖ ≤ v_max is inside that square): D_{s+1} is D_s grown by that
   square, in cells, rounded up; Eq. (1)'s inertia and the force limit are used only
   from the start at rest: after k steps the UAV is at most D_k per axis from it
-  (:func:`~dualpilot.oracle.lattice.reach_table`);
+  (:func:`~dualpilot.spacetime.lattice.reach_table`);
 * a cell leaves D_s only when every point of it fails the check of sub-step s: its
   four corners lie closer than d_safe to one region (the distance to a box is convex,
   so the whole cell does); the flown segments are not checked at all.
@@ -47,7 +47,7 @@ from dualpilot.arrays import AnyArray, Array
 from dualpilot.mission.config import MissionConfig
 from dualpilot.model.scenarios import PAPER
 from dualpilot.oracle.future import Future, schedule_free
-from dualpilot.oracle.lattice import reach_table
+from dualpilot.spacetime.lattice import reach_table
 
 
 @dataclass(frozen=True)

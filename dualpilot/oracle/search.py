@@ -1,6 +1,6 @@
 """The oracle's witness search: a path to G through the known fire future, under Eq. (1).
 
-A time-expanded A* (:func:`dualpilot.oracle.lattice.astar`) over a lattice of the
+A time-expanded A* (:func:`dualpilot.spacetime.lattice.astar`) over a lattice of the
 states of Eq. (1) (velocities in steps of δ per axis, positions in steps of δ·ΔT),
 with the failure rules at a distance d = max(d_safe, ignition clearance) + a margin
 from the regions of the known future (:mod:`~dualpilot.oracle.future`). Keeping the
@@ -22,26 +22,8 @@ import numpy as np
 from dualpilot.arrays import Array
 from dualpilot.mission.config import MissionConfig
 from dualpilot.oracle.future import Future
-from dualpilot.oracle.lattice import BUDGET, EXHAUSTED, FOUND, astar, reach_table
-
-
-@dataclass(frozen=True)
-class Stage:
-    """One A* run: its lattice, priority weight, pruning and budget."""
-
-    #: lattice velocity step δ (m/s); v_max must be a multiple of it
-    delta_mps: float
-    #: node expansions before this stage gives up
-    budget: int
-    #: weighted A*: priority t + weight·h (1: A*, the fewest flights on the lattice)
-    weight: float = 1.0
-    #: one queued node per step, velocity and square of this many lattice positions a side
-    bucket: int = 1
-
-    def __post_init__(self) -> None:
-        if not (self.delta_mps > 0 and self.budget > 0 and self.weight >= 1.0
-                and self.bucket >= 1):
-            raise ValueError(f"invalid search stage: {self}")
+from dualpilot.spacetime.lattice import BUDGET, EXHAUSTED, FOUND, astar, reach_table
+from dualpilot.spacetime.plan import Stage
 
 
 @dataclass(frozen=True)
@@ -117,7 +99,8 @@ def _run_stage(config: MissionConfig, future: Future, stage: Stage,
     boxes, offsets = future.packed(steps * future.substeps_per_step)
     g = np.array(spec.goal.bounds) + np.array([1, 1, -1, -1]) * 1e-6
     outcome, path, expansions = astar(
-        np.array(spec.start, dtype=float), boxes, offsets, future.substeps_per_step, g,
+        np.array(spec.start, dtype=float), 0, np.zeros((1, 2), dtype=np.int64), boxes, offsets,
+        future.substeps_per_step, g,
         spec.area_size_m, d, stage.delta_mps, dyn.dt_s, n_vel, keep, acc, dyn.v_max_mps,
         dyn.speed_limit == "norm", steps, stage.budget, table, round(16 * stage.weight),
         stage.bucket)

@@ -12,7 +12,8 @@ from dualpilot.mission.config import MissionConfig
 from dualpilot.model.geometry import Rect
 from dualpilot.oracle.certificate import certify, scope_of
 from dualpilot.oracle.oracle import FEASIBLE, IMPOSSIBLE, solve
-from dualpilot.oracle.search import SearchParams, Stage, search
+from dualpilot.oracle.search import SearchParams, search
+from dualpilot.spacetime.plan import Stage
 from dualpilot.oracle.witness import fly_witness
 from tests.support.scripted_fires import ScriptedFire, ScriptedFront, moving_box
 

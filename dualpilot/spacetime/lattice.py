@@ -188,38 +188,72 @@ def _entry(t: int, hval: int, weight16: int, max_steps: int, node: int) -> np.in
 
 
 @njit(cache=True)
-def astar(start: Array, boxes: Array, offsets: AnyArray, k: int, goal: Array, area: float,
-          d: float, delta: float, dt: float, n_vel: int, keep: float, acc: float,
-          v_max: float, norm: bool, max_steps: int, budget: int, table: Array,
+def _successors(t: int, px: float, py: float, jx: int, jy: int, goal: Array, delta: float,
+                dt: float, n_vel: int, keep: float, acc: float, v_max: float, norm: bool,
+                max_steps: int, table: Array) -> AnyArray:
+    """Rows (j_x, j_y, h) of the lattice velocities a step from velocity (j_x, j_y) can reach,
+    with the heuristic h of the node at (px, py) relative to the lattice origin, step t + 1;
+    those that cannot reach G within ``max_steps`` flights left out."""
+    lox = max(-n_vel, math.ceil((keep * jx * delta - acc) / delta - 1e-9))
+    hix = min(n_vel, math.floor((keep * jx * delta + acc) / delta + 1e-9))
+    loy = max(-n_vel, math.ceil((keep * jy * delta - acc) / delta - 1e-9))
+    hiy = min(n_vel, math.floor((keep * jy * delta + acc) / delta + 1e-9))
+    out = np.empty((max(0, (hix - lox + 1) * (hiy - loy + 1)), 3), dtype=np.int64)
+    m, left = 0, max_steps - t - 1
+    for kx in range(lox, hix + 1):
+        hx = flights_needed(px, kx, goal[0], goal[2], table, n_vel, left)
+        if hx > left:
+            continue
+        for ky in range(loy, hiy + 1):
+            if norm and (kx * kx + ky * ky) * delta * delta > v_max * v_max + 1e-9:
+                continue
+            hy = flights_needed(py, ky, goal[1], goal[3], table, n_vel, left)
+            if hy > left:
+                continue
+            out[m] = (kx, ky, max(hx, hy))
+            m += 1
+    return out[:m]
+
+
+@njit(cache=True)
+def astar(origin: Array, t0: int, v_init: AnyArray, boxes: Array, offsets: AnyArray, k: int,
+          goal: Array, area: float, d: float, delta: float, dt: float, n_vel: int, keep: float,
+          acc: float, v_max: float, norm: bool, max_steps: int, budget: int, table: Array,
           weight16: int, bucket: int) -> tuple[int, AnyArray, int]:
-    """Time-expanded A* from ``start`` at rest to a flight that ends in ``goal`` (x_lo, y_lo,
-    x_hi, y_hi); the failure rules of the module docstring at distance ``d``.
+    """Time-expanded A* from ``origin`` at step ``t0`` with any velocity of ``v_init`` (rows
+    j_x, j_y) to a flight that ends in ``goal`` (x_lo, y_lo, x_hi, y_hi); the failure rules of
+    the module docstring at distance ``d``, the fires of step t in sub-steps t·k + 1..(t+1)·k.
 
     Priority t + (weight16/16)·h (16: A*, the fewest flights on the lattice; more: weighted
     A*, faster and within that factor of the fewest). A node is dropped when one with the
     same t and velocity was already queued in its square of ``bucket`` × ``bucket`` lattice
     positions (1: none is). Returns (outcome, path, expansions): ``path`` rows
-    (t, i_x, i_y, j_x, j_y) from the start to the first state in G (outcome FOUND), or empty
+    (t, i_x, i_y, j_x, j_y) from ``origin`` to the first state in G (outcome FOUND), or empty
     (EXHAUSTED: no path within ``max_steps`` flights; BUDGET: ``budget`` expansions spent).
     """
     h = delta * dt
-    sx, sy = start[0], start[1]
+    sx, sy = origin[0], origin[1]
     ix0, iy0 = math.ceil(-sx / h - 1e-9), math.ceil(-sy / h - 1e-9)
     nx = (math.floor((area - sx) / h + 1e-9) - ix0) // bucket + 1
     ny = (math.floor((area - sy) / h + 1e-9) - iy0) // bucket + 1
     nv = 2 * n_vel + 1
-    gx0, gy0, gx1, gy1 = goal[0] - sx, goal[1] - sy, goal[2] - sx, goal[3] - sy
+    rel = np.array([goal[0] - sx, goal[1] - sy, goal[2] - sx, goal[3] - sy])
     nodes = np.empty((1 << 14, 6), dtype=np.int64)  # t, i_x, i_y, j_x, j_y, parent
     goal_node = np.zeros(1 << 14, dtype=np.bool_)
     heap = np.empty(1 << 14, dtype=np.int64)
     seen = Dict.empty(key_type=nbt.int64, value_type=nbt.int8)
-    first = max(flights_needed(0.0, 0, gx0, gx1, table, n_vel, max_steps),
-                flights_needed(0.0, 0, gy0, gy1, table, n_vel, max_steps))
-    if first > max_steps:
-        return EXHAUSTED, np.empty((0, 5), dtype=np.int64), 0
-    nodes[0] = (0, 0, 0, 0, 0, -1)
-    n, size, expansions = 1, 1, 0
-    heap[0] = _entry(0, first, weight16, max_steps, 0)
+    n, size, expansions = 0, 0, 0
+    for r in range(len(v_init)):
+        jx, jy = v_init[r, 0], v_init[r, 1]
+        first = max(flights_needed(0.0, jx, rel[0], rel[2], table, n_vel, max_steps - t0),
+                    flights_needed(0.0, jy, rel[1], rel[3], table, n_vel, max_steps - t0))
+        if t0 + first <= max_steps:
+            nodes = _grown(nodes, n + 1)
+            goal_node = _grown(goal_node, n + 1)
+            nodes[n] = (t0, 0, 0, jx, jy, -1)
+            goal_node[n] = False
+            heap = _heap_push(heap, size, _entry(t0, first, weight16, max_steps, n))
+            n, size = n + 1, size + 1
     while size > 0:
         if expansions >= budget or n >= (1 << _ID_BITS) - 64:
             return BUDGET, np.empty((0, 5), dtype=np.int64), expansions
@@ -230,48 +264,30 @@ def astar(start: Array, boxes: Array, offsets: AnyArray, k: int, goal: Array, ar
         expansions += 1
         t, ix, iy, jx, jy = nodes[node, 0], nodes[node, 1], nodes[node, 2], nodes[node, 3], \
             nodes[node, 4]
-        if t >= max_steps:
-            continue
         ax, ay = sx + h * ix, sy + h * iy
         bx, by = ax + h * jx, ay + h * jy
-        if not (0.0 <= bx <= area and 0.0 <= by <= area):
-            continue
-        if not move_clear(ax, ay, bx, by, t, k, boxes, offsets, d):
+        if t >= max_steps or not (0.0 <= bx <= area and 0.0 <= by <= area) or not move_clear(
+                ax, ay, bx, by, t, k, boxes, offsets, d):
             continue
         ix1, iy1 = ix + jx, iy + jy
-        if gx0 <= h * ix1 <= gx1 and gy0 <= h * iy1 <= gy1:  # this flight ends in G
-            nodes = _grown(nodes, n + 1)
-            goal_node = _grown(goal_node, n + 1)
-            nodes[n] = (t + 1, ix1, iy1, jx, jy, node)
-            goal_node[n] = True
-            heap = _heap_push(heap, size, _entry(t + 1, 0, weight16, max_steps, n))
-            n, size = n + 1, size + 1
-            continue
-        lox = max(-n_vel, math.ceil((keep * jx * delta - acc) / delta - 1e-9))
-        hix = min(n_vel, math.floor((keep * jx * delta + acc) / delta + 1e-9))
-        loy = max(-n_vel, math.ceil((keep * jy * delta - acc) / delta - 1e-9))
-        hiy = min(n_vel, math.floor((keep * jy * delta + acc) / delta + 1e-9))
+        landed = rel[0] <= h * ix1 <= rel[2] and rel[1] <= h * iy1 <= rel[3]
+        succ = np.array([[jx, jy, 0]], dtype=np.int64) if landed else _successors(
+            t, h * ix1, h * iy1, jx, jy, rel, delta, dt, n_vel, keep, acc, v_max, norm,
+            max_steps, table)
         cell = (((t + 1) * nx + (ix1 - ix0) // bucket) * ny + (iy1 - iy0) // bucket) * nv
-        for kx in range(lox, hix + 1):
-            hx = flights_needed(h * ix1, kx, gx0, gx1, table, n_vel, max_steps - t - 1)
-            if hx > max_steps:
-                continue
-            for ky in range(loy, hiy + 1):
-                if norm and (kx * kx + ky * ky) * delta * delta > v_max * v_max + 1e-9:
-                    continue
-                key = (cell + kx + n_vel) * nv + ky + n_vel
+        for r in range(len(succ)):
+            kx, ky = succ[r, 0], succ[r, 1]
+            key = (cell + kx + n_vel) * nv + ky + n_vel
+            if not landed:
                 if key in seen:
                     continue
                 seen[key] = np.int8(1)
-                hy = flights_needed(h * iy1, ky, gy0, gy1, table, n_vel, max_steps - t - 1)
-                if t + 1 + max(hx, hy) > max_steps:
-                    continue
-                nodes = _grown(nodes, n + 1)
-                goal_node = _grown(goal_node, n + 1)
-                nodes[n] = (t + 1, ix1, iy1, kx, ky, node)
-                goal_node[n] = False
-                heap = _heap_push(heap, size, _entry(t + 1, max(hx, hy), weight16, max_steps, n))
-                n, size = n + 1, size + 1
+            nodes = _grown(nodes, n + 1)
+            goal_node = _grown(goal_node, n + 1)
+            nodes[n] = (t + 1, ix1, iy1, kx, ky, node)
+            goal_node[n] = landed  # this flight ends in G: a terminal node, h = 0
+            heap = _heap_push(heap, size, _entry(t + 1, succ[r, 2], weight16, max_steps, n))
+            n, size = n + 1, size + 1
     return EXHAUSTED, np.empty((0, 5), dtype=np.int64), expansions
 
 
