@@ -36,7 +36,7 @@ def measure(name: str, missions: int, seed: int, jobs: int) -> dict[str, object]
     t0 = time.perf_counter()
     rows = list(execute(tasks, jobs))
     batch = time.perf_counter() - t0
-    walls = [float(r["wall_s"]) for r in rows]
+    walls = [float(str(r["wall_s"])) for r in rows]
     verdicts = Counter("feasible" if r["success"] == 1 else str(r["failure_cause"])
                        for r in rows)
     return {"reading": name, "missions": missions, "jobs": jobs,

@@ -12,12 +12,17 @@ class is the first that applies (:data:`CLASSES`):
 ``deliberating``
     caught while the fires ran more than one planning sub-step (waiting for a slow plan);
 ``ignition``
-    the front that ended it was born after the last control that could have moved the
-    UAV elsewhere was committed: a flight p_t → p_{t+1} = p_t + ΔT·v_t is fixed by u_{t−1}
-    (committed at step t − 1, before that step's sub-steps), the idle position p_t during
-    step t's sub-steps by u_{t−2}; so a front born during step t − 1 (fire contact) or
-    t − 2 (caught while planning) or later (``where``: within d_safe of the idle UAV, or
-    only of its path);
+    the front that ended it could not be escaped once it was known: either it was born
+    after the last control that could have moved the UAV elsewhere was committed (a
+    flight p_t → p_{t+1} = p_t + ΔT·v_t is fixed by u_{t−1}, committed at step t − 1
+    before that step's sub-steps, and the idle position p_t during step t's sub-steps by
+    u_{t−2}: a front born during step t − 1 (fire contact) or t − 2 (caught while
+    planning) or later; ``proof`` "committed"), or the oracle's certificate
+    (:class:`dualpilot.oracle.certificate.ReachableSet`) run from the UAV's state at the
+    first step the front was in its snapshot, on the fires' own future, finds no position
+    that survives the next ``ESCAPE_SUBSTEPS`` sub-steps (``proof`` "no escape": no
+    controller, however it flew from then on, would have); ``where``: within d_safe of the
+    idle UAV, or only of its path;
 ``refused``
     the failing step flew no plan because the run-time monitor refused one;
 ``no_plan``
@@ -47,7 +52,7 @@ CLASSES = ("out_of_steps", "deliberating", "ignition", "refused", "no_plan", "kn
 DESCRIPTIONS = {
     "out_of_steps": "the step limit came first",
     "deliberating": "overtaken while the fires ran more than one sub-step for its plan",
-    "ignition": "a front born after the UAV's position there was already committed",
+    "ignition": "a front born where it could not be escaped once it was known",
     "refused": "no plan flown: the run-time monitor refused the plan",
     "no_plan": "no plan flown: no system had a safe plan (boxed in)",
     "known_front": "a front its planner saw came within d_safe of where it flew",
@@ -67,11 +72,12 @@ class Failure:
     where: str
     substeps: int
     system: int
+    proof: str = ""
 
     def row(self) -> dict[str, Any]:
         return {"class": self.cls, "ending": self.ending, "step": self.step,
                 "front_id": self.front_id, "born_step": self.born_step, "where": self.where,
-                "substeps": self.substeps, "system": self.system}
+                "substeps": self.substeps, "system": self.system, "proof": self.proof}
 
 
 def replay(config: MissionConfig) -> tuple[MissionResult, FireSnapshot]:
@@ -101,15 +107,17 @@ def culprit(result: MissionResult, final: FireSnapshot, d_safe_m: float) -> tupl
     return (-1, -1, "") if best is None else best[1:]
 
 
-def classify(result: MissionResult, final: FireSnapshot) -> Failure:
-    """The class of a failed mission (module docstring)."""
+def classify(result: MissionResult, final: FireSnapshot,
+             config: MissionConfig | None = None) -> Failure:
+    """The class of a failed mission (module docstring); with its ``config``, the certificate
+    from the first sight of the front that ended it is tried too."""
     last = result.records[-1]
     ending = result.ending or Ending.ERROR
     fid, born, where = culprit(result, final, result.spec.d_safe_m)
     planning = last.fire_substeps
 
-    def failure(cls: str) -> Failure:
-        return Failure(cls, ending.value, last.t, fid, born, where, planning, last.system)
+    def failure(cls: str, proof: str = "") -> Failure:
+        return Failure(cls, ending.value, last.t, fid, born, where, planning, last.system, proof)
 
     if ending is Ending.STEP_LIMIT:
         return failure("out_of_steps")
@@ -117,13 +125,43 @@ def classify(result: MissionResult, final: FireSnapshot) -> Failure:
         return failure("deliberating")
     latency = 2 if ending is Ending.FIRE_WHILE_PLANNING else 1  # steps the UAV is committed
     if fid >= 0 and born >= last.t - latency:
-        return failure("ignition")
+        return failure("ignition", "committed")
+    if fid >= 0 and config is not None and no_escape(result, config, fid):
+        return failure("ignition", "no escape")
     if last.system == 0:
         refused = any(MONITOR_TAG in a.note for a in last.answers)
         return failure("refused" if refused else "no_plan")
     if fid >= 0:
         return failure("known_front")
     return failure("other")
+
+
+#: sub-steps after the first sight of a front within which no position may survive for its
+#: failure to be unavoidable ("no escape")
+ESCAPE_SUBSTEPS = 20
+
+
+def no_escape(result: MissionResult, config: MissionConfig, front_id: int) -> bool:
+    """Whether no position survives :data:`ESCAPE_SUBSTEPS` sub-steps from the UAV's state at
+    the first step ``front_id`` was in its snapshot, on the mission's fire future (the oracle's
+    certificate from a moving state). Only where that future is the flight's own: fires free
+    of the step length, or a flight whose steps each took one planning sub-step."""
+    from dualpilot.oracle.certificate import ReachableSet
+    from dualpilot.oracle.future import FireFuture
+
+    future = FireFuture(config)
+    seen = next((k for k, r in enumerate(result.records) if front_id in r.snapshot.front_ids),
+                None)
+    if seen is None:
+        return False
+    before = result.records[:seen]
+    motion = config.reading().mission.fire_substeps_per_motion
+    if not future.schedule_free and any(r.fire_substeps != 1 for r in result.records):
+        return False
+    substep0 = sum(r.fire_substeps + motion for r in before)
+    reach = ReachableSet(config, future, state=result.records[seen].state, substep0=substep0)
+    got = reach.run(ESCAPE_SUBSTEPS)
+    return got is not None and got.verdict == "impossible" and got.reason.startswith("no position")
 
 
 # -- over an evaluation's run directory ----------------------------------------------------------
@@ -156,7 +194,7 @@ def examine(case: Case) -> dict[str, Any]:
         if result.success:
             row["class"] = "not a failure"
         else:
-            row.update(classify(result, final).row())
+            row.update(classify(result, final, config).row())
     except Exception as err:  # noqa: BLE001 - recorded, the others go on
         row["class"] = f"error: {type(err).__name__}: {err}"
     return row
@@ -199,7 +237,7 @@ def anatomy(run_dir: Path, controllers: Sequence[str] | None = None,
     todo = cases(run_dir, controllers)
     rows = sorted(execute(todo, jobs, fn=examine),
                   key=lambda r: (str(r["controller"]), int(str(r["mission"]))))
-    columns = ["mission", "seed", "controller", "class", "ending", "step", "front_id",
+    columns = ["mission", "seed", "controller", "class", "proof", "ending", "step", "front_id",
                "born_step", "where", "substeps", "system"]
     with (run_dir / "anatomy.csv").open("w", newline="") as fh:
         writer = csv.DictWriter(fh, fieldnames=columns, extrasaction="ignore")

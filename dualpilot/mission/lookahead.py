@@ -127,7 +127,7 @@ class LookaheadPlanning(ConcurrentPlanning):
                record_time: Callable[[int, float], None]) -> Plan | None:
         """A space-time plan into G on the known future, smoothed when it can be; timed as a
         System 1 answer. None when none is found or it does not verify."""
-        p, spec = self.lookahead, self.spec
+        spec = self.spec
         t0 = time.perf_counter()
         plan = self._lattice(t, state, prev_control, known, d)
         seconds = time.perf_counter() - t0

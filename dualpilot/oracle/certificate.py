@@ -8,8 +8,9 @@ each sub-step, dualpilot/mission/step.py). It over-approximates because
   least one sub-step), and a step moves the UAV by ΔT·v_t, at most ΔT·v_max per axis
   (|v_i| ≤ v_max; ‖v‖ ≤ v_max is inside that square): D_{s+1} is D_s grown by that
   square, in cells, rounded up; Eq. (1)'s inertia and the force limit are used only
-  from the start at rest: after k steps the UAV is at most D_k per axis from it
-  (:func:`~dualpilot.spacetime.lattice.reach_table`);
+  from the start: after k flights the UAV lies in the box that the force and speed
+  limits allow from its initial state (:func:`~dualpilot.model.dynamics.reach_boxes`),
+  or one of the earlier flights' boxes (it may have flown fewer);
 * a cell leaves D_s only when every point of it fails the check of sub-step s: its
   four corners lie closer than d_safe to one region (the distance to a box is convex,
   so the whole cell does); the flown segments are not checked at all.
@@ -45,9 +46,9 @@ from numba import njit
 
 from dualpilot.arrays import AnyArray, Array
 from dualpilot.mission.config import MissionConfig
+from dualpilot.model.dynamics import hover_state, reach_boxes
 from dualpilot.model.scenarios import PAPER
 from dualpilot.oracle.future import Future, schedule_free
-from dualpilot.spacetime.lattice import reach_table
 
 
 @dataclass(frozen=True)
@@ -193,10 +194,10 @@ class _Grid:
         """Clear, in place, the cells whose four corners lie closer than ``d`` to one box."""
         _drop_failing(cells, np.ascontiguousarray(boxes, dtype=float), self.lo, self.c, d)
 
-    def box_around(self, p: tuple[float, float], r: float) -> AnyArray:
-        """The cells that meet the square of half-side ``r`` around ``p``."""
+    def box_between(self, lo: Array, hi: Array) -> AnyArray:
+        """The cells that meet the box [lo, hi] (m)."""
         out = np.zeros((self.n, self.n), dtype=bool)
-        out[self.cells_touching(p[0] - r, p[1] - r, p[0] + r, p[1] + r)] = True
+        out[self.cells_touching(float(lo[0]), float(lo[1]), float(hi[0]), float(hi[1]))] = True
         return out
 
     def near(self, cells: AnyArray, boxes: Array, d: float) -> bool:
@@ -209,25 +210,33 @@ class _Grid:
 
 
 class ReachableSet:
-    """D_s of a mission over a fire future, advanced sub-step by sub-step (module docstring)."""
+    """D_s of a mission over a fire future, advanced sub-step by sub-step (module docstring).
+
+    By default from the start at rest at sub-step 0; with ``state`` from that state (m, m/s)
+    after ``substep0`` sub-steps of the future (the fires an in-flight UAV still faces).
+    """
 
     def __init__(self, config: MissionConfig, future: Future,
-                 params: CertificateParams = CertificateParams()):
+                 params: CertificateParams = CertificateParams(), state: Array | None = None,
+                 substep0: int = 0):
         reading = config.reading()
         self.spec = spec = config.spec()
-        self.future = future
+        dyn = spec.dynamics
+        self.future, self.substep0 = future, substep0
         self.grid = grid = _Grid(spec.area_size_m, params)
+        x0 = hover_state(np.array(spec.start), dyn) if state is None else np.asarray(state)
         self.reach = np.zeros((grid.n, grid.n), dtype=bool)
-        self.reach[grid.cell(*spec.start)] = True
+        self.reach[grid.cell(*x0[:2])] = True
         self.goal = np.zeros_like(self.reach)
         self.goal[grid.cells_touching(*spec.goal.bounds)] = True
-        dyn = spec.dynamics
         self.move = math.ceil(dyn.dt_s * dyn.v_max_mps / grid.c)
         self.clearance = reading.mission.ignition_clearance_m
         self.riding = reading.mission.failure_rule == "become"
-        self.last = scope_of(config, params, future.schedule_free).substeps
-        self.from_rest = reach_table(0, 1.0, 1.0 - dyn.zeta, dyn.dt_s * dyn.u_max_n / dyn.mass_kg,
-                                     dyn.v_max_mps, dyn.dt_s, reading.mission.max_steps)[0]
+        self.last = scope_of(config, params, future.schedule_free).substeps - substep0
+        #: row j: where the UAV can be after at most j + 1 flights from x0, per axis (m)
+        lo, hi = reach_boxes(x0, reading.mission.max_steps, dyn)
+        self.lo = np.minimum.accumulate(np.vstack([x0[:2], lo]), axis=0)[1:]
+        self.hi = np.maximum.accumulate(np.vstack([x0[:2], hi]), axis=0)[1:]
         self.s = 0  # sub-steps done
         self.unsupported = unsupported(config)
 
@@ -249,7 +258,7 @@ class ReachableSet:
 
     def _substep(self, s: int) -> Certificate | None:
         grid, spec = self.grid, self.spec
-        born = self.future.newborn(s)
+        born = self.future.newborn(self.substep0 + s)
         if len(born) and self.clearance is not None and grid.near(self.reach, born,
                                                                    self.clearance):
             return Certificate("gave up", f"a birth could be redrawn off the UAV at sub-step {s}",
@@ -257,12 +266,12 @@ class ReachableSet:
         if len(born) and self.riding and grid.near(self.reach, born, spec.d_safe_m):
             return Certificate("gave up", f"a front born on the UAV at sub-step {s} "
                                "(rule become)", s)
-        grid.drop_failing(self.reach, self.future.regions(s), spec.d_safe_m)
+        grid.drop_failing(self.reach, self.future.regions(self.substep0 + s), spec.d_safe_m)
         if not self.reach.any():
             return Certificate("impossible", f"no position survives sub-step {s}", s)
         self.reach = grown(self.reach, self.move)
-        if s < len(self.from_rest):  # s steps flown at most, from rest
-            self.reach &= grid.box_around(spec.start, self.from_rest[s] + 1e-6)
+        if s <= len(self.lo):  # s flights at most: Eq. (1)'s reach from x0
+            self.reach &= grid.box_between(self.lo[s - 1] - 1e-6, self.hi[s - 1] + 1e-6)
         if (self.reach & self.goal).any():
             return Certificate("reachable", f"G within reach after sub-step {s}", s)
         return None

@@ -67,7 +67,7 @@ def _rollout_matrices(zeta: float, dt: float, mass: float, horizon: int
     (D u)_k, k = 1..T: (a, B, c, D)."""
     keep, gain = 1.0 - zeta, dt / mass
     k = np.arange(1, horizon + 1)
-    a = keep ** k
+    a = np.asarray(keep ** k, dtype=float)
     expo = k[:, None] - 1 - np.arange(horizon)[None, :]
     b = np.where(expo >= 0, keep ** np.maximum(expo, 0), 0.0) * gain
     before = np.tril(np.ones((horizon, horizon)), -1)  # p_k sums v_1..v_{k−1}, and v_0

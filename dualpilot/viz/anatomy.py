@@ -46,7 +46,7 @@ def draw_case(case: Case, path: Path, reading_label: str) -> Path:
     """The figure of one avoidable failure, written to ``path``."""
     config = case.config()
     result, final = replay(config)
-    failure = classify(result, final)
+    failure = classify(result, final, config)
     witness = solve(config).flight
     spec = config.spec()
     fig = Figure(figsize=(6.4, 6.6))

@@ -13,8 +13,8 @@ from dualpilot.model.geometry import Rect
 from dualpilot.oracle.certificate import certify, scope_of
 from dualpilot.oracle.oracle import FEASIBLE, IMPOSSIBLE, solve
 from dualpilot.oracle.search import SearchParams, search
-from dualpilot.spacetime.plan import Stage
 from dualpilot.oracle.witness import fly_witness
+from dualpilot.spacetime.plan import Stage
 from tests.support.scripted_fires import ScriptedFire, ScriptedFront, moving_box
 
 START, GOAL = (50.0, 500.0), Rect(900.0, 500.0, 100.0, 100.0)
