@@ -16,10 +16,10 @@ from typing import Any
 
 import numpy as np
 
+from dualpilot.evaluation.columns import flight_columns, oracle_columns
 from dualpilot.mission.config import MissionConfig
 from dualpilot.mission.params import Timing
-from dualpilot.mission.result import Ending, MissionResult
-from dualpilot.readings import Profile
+from dualpilot.mission.result import Ending
 from dualpilot.spec import MissionSpec
 
 CONTROLLERS = ("cc", "s1", "s2")
@@ -93,24 +93,6 @@ class Task:
                 "timing": c.timing.value}
 
 
-def flight_columns(result: MissionResult, reading: Profile) -> dict[str, object]:
-    """The columns of :data:`COLUMNS` a flown mission fills."""
-    times = result.planning_time_s["s1"] + result.planning_time_s["s2"]
-    return dict(
-        success=int(result.success), failure_cause=result.failure_cause,
-        steps=result.steps, mission_time_s=result.mission_time_s,
-        energy=round(result.energy, 6), switches=result.switches,
-        switch_energy=round(result.switch_energy, 6),
-        fire_substeps=sum(r.fire_substeps for r in result.records)
-        + reading.mission.fire_substeps_per_motion * result.steps,
-        s1_plans=len(result.planning_time_s["s1"]),
-        s2_plans=len(result.planning_time_s["s2"]),
-        planning_time_s_median=float(np.median(times)) if times else "",
-        planning_time_s_p95=float(np.percentile(times, 95)) if times else "",
-        planning_time_s_total=float(np.sum(times)),
-    )
-
-
 def run_task(task: Task) -> dict[str, object]:
     """Fly one mission (or ask the oracle); never raises (an exception becomes an error row)."""
     from dualpilot.mission.local import local_mission
@@ -125,8 +107,6 @@ def run_task(task: Task) -> dict[str, object]:
         reading = task.config.reading()
         row.update(reading.values())
         if task.oracle:
-            from dualpilot.evaluation.yardstick import oracle_columns
-
             row.update(oracle_columns(task.mission()))
         else:
             row.update(flight_columns(local_mission(task.mission()).run(), reading))

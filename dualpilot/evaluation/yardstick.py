@@ -26,35 +26,17 @@ from typing import Any
 
 import numpy as np
 
-from dualpilot.evaluation.missions import ORACLE, flight_columns
+from dualpilot.evaluation.missions import ORACLE
 from dualpilot.evaluation.stats import mean_interval, wilson_interval
 from dualpilot.mission.config import CONTROLLER_NAMES, MissionConfig
 from dualpilot.oracle.certificate import CertificateParams, Scope, scope_of
-from dualpilot.oracle.oracle import FEASIBLE, IMPOSSIBLE, UNKNOWN, OracleParams, solve
+from dualpilot.oracle.oracle import FEASIBLE, IMPOSSIBLE, UNKNOWN
 
 Row = dict[str, str]
 
 
 class ContradictionError(AssertionError):
     """A flight the certificate covers reached G on a mission it calls impossible."""
-
-
-def oracle_columns(config: MissionConfig, params: OracleParams = OracleParams()
-                   ) -> dict[str, object]:
-    """The results.csv columns of the oracle's verdict on ``config``'s mission."""
-    verdict = solve(config, params)
-    if verdict.flight is not None:
-        cols = flight_columns(verdict.flight, config.reading())
-    else:
-        cert = verdict.certificate
-        cols = dict(success=0, steps=0, mission_time_s="", energy="", switches=0,
-                    switch_energy=0, fire_substeps=cert.substeps if cert else 0, s1_plans=0,
-                    s2_plans=0, planning_time_s_median="", planning_time_s_p95="",
-                    planning_time_s_total=0.0)
-    cols["failure_cause"] = "" if verdict.verdict == FEASIBLE else verdict.verdict
-    if verdict.problem:
-        cols["error"] = verdict.problem
-    return cols
 
 
 def verdict_of(row: Row) -> str:
