@@ -50,7 +50,7 @@ class LookaheadParams:
     #: half-side of the tube a space-time plan is smoothed in
     tube_m: float = 3.0
     #: the lattice search's stages (weighted A*, a coarse lattice, a small budget)
-    stages: tuple[Stage, ...] = field(default_factory=lambda: (Stage(5.0, 30_000, weight=2.0),))
+    stages: tuple[Stage, ...] = field(default_factory=lambda: (Stage(5.0, 250_000, weight=2.0),))
 
     def __post_init__(self) -> None:
         if min(self.check_steps, self.arrive_steps, self.guard_steps) < 1:

@@ -3,9 +3,10 @@ tests.
 
 A :class:`ScriptedFire` is both what the oracle reads of a fire future (regions per
 sub-step, the fronts new at each) and, through :meth:`ScriptedFire.port`, a fire port
-the mission step flies against (:class:`dualpilot.mission.ports.FirePort`): the same
-boxes at the same sub-steps, so a witness is checked against the very fires it was
-planned on. The fires do not depend on the UAV or on the step length.
+the mission step flies against (:class:`dualpilot.mission.ports.FirePort`, with the
+fires' exact forecast): the same boxes at the same sub-steps, so a witness is checked
+against the very fires it was planned on. The fires do not depend on the UAV or on the
+step length.
 """
 
 from __future__ import annotations
@@ -18,6 +19,7 @@ import numpy as np
 from dualpilot.arrays import AnyArray, Array
 from dualpilot.mission.ports import KeepOut
 from dualpilot.model.fire import FireSnapshot
+from dualpilot.model.forecast import OccupancyForecast
 from dualpilot.model.geometry import Rect
 
 Box = Callable[[int], Rect]
@@ -89,9 +91,31 @@ class ScriptedFirePort:
     def margin_m(self) -> float:
         return 0.0
 
+    def forecast(self, substeps_per_step: int) -> OccupancyForecast:
+        """The exact forecast of these fires from now, 40 s ahead in slices of 1 s."""
+        return rasterised(self.fire, self.s, tuple(range(0, 81, 2)))
+
     def advance(self, t: int, n: int, keep_out: KeepOut | None) -> list[tuple[Rect, ...]]:
         out = []
         for _ in range(n):
             self.s += 1
             out.append(tuple(r for _, r in self.fire.active(self.s)))
         return out
+
+
+def rasterised(fire: ScriptedFire, issued: int, horizons: tuple[int, ...],
+               resolution_m: float = 10.0, area_m: float = 1000.0,
+               substep_s: float = 0.5) -> OccupancyForecast:
+    """The scripted fires' exact forecast: P = 1 in the cells whose centre lies in a region
+    ``h`` sub-steps after ``issued``, 0 elsewhere, for each horizon h."""
+    n = round(area_m / resolution_m)
+    centres = (np.arange(n) + 0.5) * resolution_m
+    xs, ys = np.meshgrid(centres, centres)
+    levels = []
+    for h in horizons:
+        lv = np.zeros((n, n), dtype=np.uint8)
+        for _, r in fire.active(issued + h):
+            x0, y0, x1, y1 = r.bounds
+            lv[(xs >= x0) & (xs <= x1) & (ys >= y0) & (ys <= y1)] = 255
+        levels.append(lv)
+    return OccupancyForecast(resolution_m, substep_s, horizons, levels, issued_substep=issued)
