@@ -144,8 +144,9 @@ class LookaheadPlanning(ConcurrentPlanning):
         p, spec = self.lookahead, self.spec
         steps = self.max_steps - t
         wide = d + math.sqrt(2.0) * p.tube_m
+        static = known.boxes[known.offsets[0]:known.offsets[1]]  # the hulls: every sub-step
         for stage in p.stages:
-            found, _ = lattice_plan(state, known, spec, stage, steps, wide)
+            found, _ = lattice_plan(state, known, spec, stage, steps, wide, static)
             if found is not None:
                 smoothed = smooth(found, spec, prev_control, p.tube_m)
                 if smoothed is not None and arrival(smoothed, spec) is not None and plan_clear(
@@ -153,7 +154,7 @@ class LookaheadPlanning(ConcurrentPlanning):
                     return smoothed
                 return found
         for stage in p.stages:
-            found, _ = lattice_plan(state, known, spec, stage, steps, d)
+            found, _ = lattice_plan(state, known, spec, stage, steps, d, static)
             if found is not None:
                 return found
         return None

@@ -22,6 +22,7 @@ import numpy as np
 from dualpilot.arrays import Array
 from dualpilot.mission.config import MissionConfig
 from dualpilot.oracle.future import Future
+from dualpilot.spacetime.field import no_field
 from dualpilot.spacetime.lattice import BUDGET, EXHAUSTED, FOUND, astar, reach_table
 from dualpilot.spacetime.plan import Stage
 
@@ -103,7 +104,7 @@ def _run_stage(config: MissionConfig, future: Future, stage: Stage,
         future.substeps_per_step, g,
         spec.area_size_m, d, stage.delta_mps, dyn.dt_s, n_vel, keep, acc, dyn.v_max_mps,
         dyn.speed_limit == "norm", steps, stage.budget, table, round(16 * stage.weight),
-        stage.bucket)
+        stage.bucket, no_field(), 1.0)
     if outcome == FOUND:
         return path, "found", expansions
     return None, {EXHAUSTED: "exhausted", BUDGET: "budget"}[outcome], expansions

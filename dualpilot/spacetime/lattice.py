@@ -30,6 +30,7 @@ from numba import types as nbt
 from numba.typed import Dict
 
 from dualpilot.arrays import AnyArray, Array
+from dualpilot.spacetime.field import field_flights
 
 #: search outcomes
 FOUND, EXHAUSTED, BUDGET = 0, 1, 2
@@ -219,7 +220,8 @@ def _successors(t: int, px: float, py: float, jx: int, jy: int, goal: Array, del
 def astar(origin: Array, t0: int, v_init: AnyArray, boxes: Array, offsets: AnyArray, k: int,
           goal: Array, area: float, d: float, delta: float, dt: float, n_vel: int, keep: float,
           acc: float, v_max: float, norm: bool, max_steps: int, budget: int, table: Array,
-          weight16: int, bucket: int) -> tuple[int, AnyArray, int]:
+          weight16: int, bucket: int, field: AnyArray, field_cell: float
+          ) -> tuple[int, AnyArray, int]:
     """Time-expanded A* from ``origin`` at step ``t0`` with any velocity of ``v_init`` (rows
     j_x, j_y) to a flight that ends in ``goal`` (x_lo, y_lo, x_hi, y_hi); the failure rules of
     the module docstring at distance ``d``, the fires of step t in sub-steps t·k + 1..(t+1)·k.
@@ -227,9 +229,11 @@ def astar(origin: Array, t0: int, v_init: AnyArray, boxes: Array, offsets: AnyAr
     Priority t + (weight16/16)·h (16: A*, the fewest flights on the lattice; more: weighted
     A*, faster and within that factor of the fewest). A node is dropped when one with the
     same t and velocity was already queued in its square of ``bucket`` × ``bucket`` lattice
-    positions (1: none is). Returns (outcome, path, expansions): ``path`` rows
-    (t, i_x, i_y, j_x, j_y) from ``origin`` to the first state in G (outcome FOUND), or empty
-    (EXHAUSTED: no path within ``max_steps`` flights; BUDGET: ``budget`` expansions spent).
+    positions (1: none is). ``field`` (cells of ``field_cell`` m over the area,
+    :mod:`dualpilot.spacetime.field`; empty: none) bounds the flights left around the boxes
+    that stay put. Returns (outcome, path, expansions): ``path`` rows (t, i_x, i_y, j_x, j_y)
+    from ``origin`` to the first state in G (outcome FOUND), or empty (EXHAUSTED: no path
+    within ``max_steps`` flights; BUDGET: ``budget`` expansions spent).
     """
     h = delta * dt
     sx, sy = origin[0], origin[1]
@@ -243,10 +247,13 @@ def astar(origin: Array, t0: int, v_init: AnyArray, boxes: Array, offsets: AnyAr
     heap = np.empty(1 << 14, dtype=np.int64)
     seen = Dict.empty(key_type=nbt.int64, value_type=nbt.int8)
     n, size, expansions = 0, 0, 0
+    reach = dt * v_max
+    floor0 = field_flights(field, field_cell, sx, sy, reach)
     for r in range(len(v_init)):
         jx, jy = v_init[r, 0], v_init[r, 1]
         first = max(flights_needed(0.0, jx, rel[0], rel[2], table, n_vel, max_steps - t0),
-                    flights_needed(0.0, jy, rel[1], rel[3], table, n_vel, max_steps - t0))
+                    flights_needed(0.0, jy, rel[1], rel[3], table, n_vel, max_steps - t0),
+                    floor0)
         if t0 + first <= max_steps:
             nodes = _grown(nodes, n + 1)
             goal_node = _grown(goal_node, n + 1)
@@ -271,6 +278,9 @@ def astar(origin: Array, t0: int, v_init: AnyArray, boxes: Array, offsets: AnyAr
             continue
         ix1, iy1 = ix + jx, iy + jy
         landed = rel[0] <= h * ix1 <= rel[2] and rel[1] <= h * iy1 <= rel[3]
+        floor = 0 if landed else field_flights(field, field_cell, bx, by, reach)
+        if t + 1 + floor > max_steps:
+            continue
         succ = np.array([[jx, jy, 0]], dtype=np.int64) if landed else _successors(
             t, h * ix1, h * iy1, jx, jy, rel, delta, dt, n_vel, keep, acc, v_max, norm,
             max_steps, table)
@@ -286,7 +296,8 @@ def astar(origin: Array, t0: int, v_init: AnyArray, boxes: Array, offsets: AnyAr
             goal_node = _grown(goal_node, n + 1)
             nodes[n] = (t + 1, ix1, iy1, kx, ky, node)
             goal_node[n] = landed  # this flight ends in G: a terminal node, h = 0
-            heap = _heap_push(heap, size, _entry(t + 1, succ[r, 2], weight16, max_steps, n))
+            hval = max(succ[r, 2], floor)
+            heap = _heap_push(heap, size, _entry(t + 1, hval, weight16, max_steps, n))
             n, size = n + 1, size + 1
     return EXHAUSTED, np.empty((0, 5), dtype=np.int64), expansions
 

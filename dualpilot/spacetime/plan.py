@@ -17,8 +17,12 @@ import numpy as np
 from dualpilot.arrays import AnyArray, Array
 from dualpilot.model.dynamics import rollout
 from dualpilot.plan import Plan, PlanStatus
+from dualpilot.spacetime.field import no_field, static_field
 from dualpilot.spacetime.lattice import FOUND, astar, move_clear, reach_table
 from dualpilot.spec import MissionSpec
+
+#: the cells of the static distance field (m)
+FIELD_CELL_M = 10.0
 
 
 @dataclass(frozen=True)
@@ -86,13 +90,15 @@ def plan_clear(plan: Plan, future: FutureBoxes, d: float, steps: int | None = No
 
 
 def lattice_plan(state: Array, future: FutureBoxes, spec: MissionSpec, stage: Stage, steps: int,
-                 d: float) -> tuple[Plan | None, int]:
+                 d: float, static: Array | None = None) -> tuple[Plan | None, int]:
     """A plan from ``state`` into G within ``steps`` flights that keeps ``d`` from the boxes of
     ``future`` (the A* of :mod:`~dualpilot.spacetime.lattice`), and the expansions spent.
 
     The first flight is fixed by the state (x_1 = x_0 + ΔT·v_0 in position); the search starts
     at x_1 with every lattice velocity one control can reach from v_0. None when the first
-    flight fails, lands in G already (nothing to plan), or no path is found.
+    flight fails, lands in G already (nothing to plan), or no path is found. ``static``:
+    boxes present at every sub-step of ``future``, whose distance field
+    (:mod:`~dualpilot.spacetime.field`) sharpens the search's heuristic.
     """
     dyn = spec.dynamics
     n_vel = round(dyn.v_max_mps / stage.delta_mps)
@@ -109,10 +115,12 @@ def lattice_plan(state: Array, future: FutureBoxes, spec: MissionSpec, stage: St
         return None, 0
     table = reach_table(n_vel, stage.delta_mps, keep, acc, dyn.v_max_mps, dyn.dt_s, steps)
     goal = np.array(spec.goal.bounds) + np.array([1, 1, -1, -1]) * 1e-6
+    field = no_field() if static is None or not len(static) else static_field(
+        np.ascontiguousarray(static, dtype=float), goal, spec.area_size_m, d, FIELD_CELL_M)
     outcome, path, expansions = astar(
         p1, 1, first, future.boxes, future.offsets, future.per_step, goal, spec.area_size_m, d,
         stage.delta_mps, dyn.dt_s, n_vel, keep, acc, dyn.v_max_mps, dyn.speed_limit == "norm",
-        steps, stage.budget, table, round(16 * stage.weight), stage.bucket)
+        steps, stage.budget, table, round(16 * stage.weight), stage.bucket, field, FIELD_CELL_M)
     if outcome != FOUND:
         return None, expansions
     h = stage.delta_mps * dyn.dt_s
