@@ -73,3 +73,22 @@ def test_fires_tied_to_the_step_length_speak_only_for_one_substep_steps() -> Non
     one_pace = oracle(VERDICTS) + [row(2, "s1", True, substeps=40, steps=40)]
     with pytest.raises(ContradictionError):
         yardstick(one_pace, FIG_R5)
+
+
+def test_an_evaluation_and_a_sweep_with_the_oracle_carry_the_yardstick(tmp_path: object) -> None:
+    """Two missions, in this process: evaluate writes yardstick.md and the summary's yardstick;
+    a sweep has one per grid point; every completed mission is achievable."""
+    from pathlib import Path
+
+    from dualpilot.evaluation.evaluate import evaluate
+    from dualpilot.evaluation.sweep import grid_points, sweep
+
+    out = Path(str(tmp_path))
+    summary = evaluate(2, out / "eval", jobs=1, controllers=("s1", "oracle"), progress=False)
+    ys = summary["yardstick"]
+    assert isinstance(ys, dict) and ys["missions"] == 2
+    assert ys["controllers"]["s1"]["successes"] <= ys["achievable"]
+    assert (out / "eval" / "yardstick.md").read_text().count("| s1 |") == 1
+    swept = sweep(grid_points({}), 2, out / "sweep", jobs=1, controllers=("s1", "oracle"),
+                  progress=False, figures=False)
+    assert swept["points"][0]["yardstick"]["controllers"]["oracle"]["n"] == 2
