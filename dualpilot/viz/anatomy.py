@@ -94,6 +94,18 @@ def draw_case(case: Case, path: Path, reading_label: str) -> Path:
     return path
 
 
+def replay_command(case: Case) -> str:
+    """``dualpilot mission`` flying the case's mission again (its seed, start and goal)."""
+    config = case.config()
+    g, start = config.goal, config.start
+    assert start is not None  # an evaluation's mission has its own start
+    sets = "".join(f" --set {k}={v}" for k, v in config.settings)
+    return (f"dualpilot mission --controller {case.controller} --seed {config.seed} "
+            f"--start {start[0]!r},{start[1]!r} --goal {g.center_x!r},{g.center_y!r},"
+            f"{g.width!r},{g.height!r} --profile {config.profile} "
+            f"--timing {config.timing.value}{sets}")
+
+
 def class_table(counted: dict[str, dict[str, int]]) -> str:
     """Controller × class counts of avoidable failures as a Markdown table."""
     classes = [c for c in CLASSES if any(c in per for per in counted.values())]
@@ -124,6 +136,10 @@ def _anatomy(args: argparse.Namespace) -> int:
             drawn.add(cls)
             path = out / f"anatomy_{args.label or run_dir.name}_{cls}.png"
             print(draw_case(case, path, args.label or run_dir.name))
+            line = f"- {path.name}: `{replay_command(case)}`"
+            print(line)
+            table += line + "\n"
+        (run_dir / "anatomy.md").write_text(table)
     print(f"rows in {run_dir / 'anatomy.csv'}; table in {run_dir / 'anatomy.md'}")
     return 0
 
