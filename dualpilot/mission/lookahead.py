@@ -26,7 +26,7 @@ from dualpilot.model.fire import FireParams, FireSnapshot
 from dualpilot.model.forecast import OccupancyForecast
 from dualpilot.model.geometry import Polytope
 from dualpilot.plan import Plan
-from dualpilot.spacetime.known import known_future
+from dualpilot.spacetime.known import growing, growth_per_substep, known_future
 from dualpilot.spacetime.plan import FutureBoxes, arrival, lattice_plan, plan_clear
 from dualpilot.spacetime.smooth import smooth
 from dualpilot.spec import MissionSpec
@@ -34,8 +34,8 @@ from dualpilot.supervisor.concurrent import Choice, ConcurrentParams, Flown, che
 from dualpilot.supervisor.decision import SupervisorParams
 from dualpilot.supervisor.lookahead import LookaheadParams
 
-#: the note of a space-time plan's answer in the records ("s1:ok[space-time]")
-SPACE_TIME = "[space-time]"
+#: the notes of the supervisor's own plans' answers in the records ("s1:ok[space-time]")
+SPACE_TIME, ESCAPE = "[space-time]", "[escape]"
 
 
 class LookaheadPlanning(ConcurrentPlanning):
@@ -52,6 +52,8 @@ class LookaheadPlanning(ConcurrentPlanning):
         self.guarded = 0
         self.fires: FirePort | None = None
         self.max_steps = mission.max_steps
+        #: how far a region's edge can move in a sub-step (m), for escapes
+        self.growth_m = growth_per_substep(fire)
 
     def plan(self, step: StepView, t: int, d_t: float, snapshot: FireSnapshot) -> Planned:
         """Step t as the concurrent supervisor's (it calls :meth:`choose`)."""
@@ -78,13 +80,22 @@ class LookaheadPlanning(ConcurrentPlanning):
         if choice.plan is not None and self.sound(choice.plan, state, known, d):
             return choice
         guard = self.search(t, state, prev_control, known, obstacles, d, record_time)
-        if guard is None:
-            return choice
-        choice.answers.append(Answer(1, S.OK, SPACE_TIME))
-        choice.wait_s += self.response_s(1, guard)
-        self.guard, self.guarded = Flown(guard, 0, frozenset(snapshot.front_ids)), 0
-        self.flown, self.pending = None, None  # a deliberation along the old plan is stale
-        choice.plan, choice.note = guard, "space-time"
+        if guard is not None:
+            self.guard, self.guarded = Flown(guard, 0, frozenset(snapshot.front_ids)), 0
+            return self._fly_own(choice, guard, SPACE_TIME, "space-time")
+        if choice.plan is None:  # boxed in: the UAV would brake
+            escape = self.escape(t, state, obstacles, d, record_time)
+            if escape is not None:
+                return self._fly_own(choice, escape, ESCAPE, "escape")
+        return choice
+
+    def _fly_own(self, choice: Choice, plan: Plan, note: str, what: str) -> Choice:
+        """Fly the supervisor's own plan: answered as System 1's, a deliberation along the
+        old plan dropped (it is stale)."""
+        choice.answers.append(Answer(1, S.OK, note))
+        choice.wait_s += self.response_s(1, plan)
+        self.flown, self.pending = None, None
+        choice.plan, choice.note = plan, what
         return choice
 
     # -- the known future and what is sound on it ----------------------------------------------
@@ -158,6 +169,24 @@ class LookaheadPlanning(ConcurrentPlanning):
             if found is not None:
                 return found
         return None
+
+    def escape(self, t: int, state: Array, obstacles: tuple[Polytope, ...], d: float,
+               record_time: Callable[[int, float], None]) -> Plan | None:
+        """``escape_steps`` flights anywhere that keep ``d`` from the obstacles of now, each
+        grown as fast as a front can grow (:func:`~dualpilot.spacetime.known.growing`);
+        timed as a System 1 answer."""
+        p, spec = self.lookahead, self.spec
+        t0 = time.perf_counter()
+        per_step = self._step_substeps()
+        near = growing(obstacles, (p.escape_steps + 1) * per_step, self.growth_m, per_step)
+        plan, _ = lattice_plan(state, near, spec, p.escape_stage, self.max_steps - t, d,
+                               survive=p.escape_steps)
+        seconds = time.perf_counter() - t0
+        record_time(1, seconds)
+        if plan is None or check_near(plan, state, obstacles, spec, self.params.check_steps):
+            return None
+        return Plan(plan.system, plan.status, plan.states, plan.controls, seconds,
+                    info={**plan.info, "planner": "escape"})
 
     def after_flight(self, system: int, p0: Array, p1: Array, du2: float) -> None:
         """One step flown: as the concurrent supervisor's, and along the space-time plan."""

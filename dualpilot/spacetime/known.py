@@ -23,8 +23,10 @@ from collections.abc import Sequence
 import numpy as np
 
 from dualpilot.arrays import AnyArray, Array
+from dualpilot.model.fire import FireParams
 from dualpilot.model.forecast import LEVELS, OccupancyForecast
 from dualpilot.model.geometry import Polytope
+from dualpilot.model.scenarios import PAPER
 from dualpilot.spacetime.plan import FutureBoxes
 
 
@@ -51,22 +53,26 @@ def hull_boxes(obstacles: Sequence[Polytope]) -> Array:
                     dtype=float)
 
 
-def risky_boxes(forecast: OccupancyForecast, i: int, alpha: float) -> Array:
-    """Slice i's cells above α as row runs grown by half a cell (kept on the forecast)."""
-    key = ("spacetime.risky", i, alpha)
+def risky_boxes(forecast: OccupancyForecast, i: int, alpha: float, grow: bool = True) -> Array:
+    """Slice i's cells above α as row runs, grown by half a cell unless not ``grow`` (kept on
+    the forecast)."""
+    key = ("spacetime.risky", i, alpha, grow)
     got = forecast.memo.get(key)
     if got is None:
         threshold = int(np.floor(alpha * LEVELS + 1e-9))
         res = forecast.resolution_m
-        got = row_runs(forecast.level(i) > threshold, res, forecast.origin_m, res / 2)
+        got = row_runs(forecast.level(i) > threshold, res, forecast.origin_m,
+                       res / 2 if grow else 0.0)
         forecast.memo[key] = got
     return np.asarray(got)
 
 
 def known_future(obstacles: Sequence[Polytope], forecast: OccupancyForecast | None,
-                 substeps: int, alpha: float, per_step: int = 1) -> FutureBoxes:
+                 substeps: int, alpha: float, per_step: int = 1,
+                 grow: bool = True) -> FutureBoxes:
     """The known future over the next ``substeps`` sub-steps (module docstring), steps of
-    ``per_step`` sub-steps (the forecast's own assumption)."""
+    ``per_step`` sub-steps (the forecast's own assumption); ``grow`` False: the risky cells
+    as they are (the cells' centres, not all a region may reach)."""
     static = hull_boxes(obstacles)
     parts = [static]
     last = len(forecast.horizons) - 1 if forecast is not None else -1
@@ -75,5 +81,27 @@ def known_future(obstacles: Sequence[Polytope], forecast: OccupancyForecast | No
             parts.append(static)
             continue
         slices = list(forecast.slices(s, s)) or [last]
-        parts.append(np.vstack([static, *(risky_boxes(forecast, i, alpha) for i in slices)]))
+        parts.append(np.vstack([static, *(risky_boxes(forecast, i, alpha, grow)
+                                          for i in slices)]))
     return FutureBoxes.of(parts, per_step)
+
+
+def growth_per_substep(fire: FireParams) -> float:
+    """How far (m) a region's edge can move in one sub-step: a physics scenario's head fire
+    (Rothermel, its wind and fuel) runs T_f·rate; a paper front moves T_f·(mean speed + 4σ)
+    (its sides redrawn, when they are, are not bounded by this)."""
+    if fire.scenario != PAPER:
+        from dualpilot.model.physics_fire import head_spread_rate_mps
+        from dualpilot.model.scenarios import get_scenario
+
+        return fire.substep_s * head_spread_rate_mps(get_scenario(fire.scenario).params)
+    return fire.substep_s * (fire.speed_mean_mps + 4.0 * fire.speed_sigma_mps)
+
+
+def growing(obstacles: Sequence[Polytope], substeps: int, growth_m: float,
+            per_step: int = 1) -> FutureBoxes:
+    """The obstacles' boxes, each grown by ``growth_m`` a sub-step, over ``substeps``
+    sub-steps: the near future of the fires of now, without a forecast."""
+    static = hull_boxes(obstacles)
+    grow = np.array([-1.0, -1.0, 1.0, 1.0])
+    return FutureBoxes.of([static + grow * growth_m * s for s in range(substeps + 1)], per_step)

@@ -220,7 +220,7 @@ def _successors(t: int, px: float, py: float, jx: int, jy: int, goal: Array, del
 def astar(origin: Array, t0: int, v_init: AnyArray, boxes: Array, offsets: AnyArray, k: int,
           goal: Array, area: float, d: float, delta: float, dt: float, n_vel: int, keep: float,
           acc: float, v_max: float, norm: bool, max_steps: int, budget: int, table: Array,
-          weight16: int, bucket: int, field: AnyArray, field_cell: float
+          weight16: int, bucket: int, field: AnyArray, field_cell: float, survive: int = 0
           ) -> tuple[int, AnyArray, int]:
     """Time-expanded A* from ``origin`` at step ``t0`` with any velocity of ``v_init`` (rows
     j_x, j_y) to a flight that ends in ``goal`` (x_lo, y_lo, x_hi, y_hi); the failure rules of
@@ -231,9 +231,11 @@ def astar(origin: Array, t0: int, v_init: AnyArray, boxes: Array, offsets: AnyAr
     same t and velocity was already queued in its square of ``bucket`` × ``bucket`` lattice
     positions (1: none is). ``field`` (cells of ``field_cell`` m over the area,
     :mod:`dualpilot.spacetime.field`; empty: none) bounds the flights left around the boxes
-    that stay put. Returns (outcome, path, expansions): ``path`` rows (t, i_x, i_y, j_x, j_y)
-    from ``origin`` to the first state in G (outcome FOUND), or empty (EXHAUSTED: no path
-    within ``max_steps`` flights; BUDGET: ``budget`` expansions spent).
+    that stay put. With ``survive`` > 0 the search is for a path that lasts until step
+    ``survive`` anywhere (``goal`` is then the area it may go). Returns (outcome, path,
+    expansions): ``path`` rows (t, i_x, i_y, j_x, j_y) from ``origin`` to the first state in
+    G (outcome FOUND), or empty (EXHAUSTED: no path within ``max_steps`` flights; BUDGET:
+    ``budget`` expansions spent).
     """
     h = delta * dt
     sx, sy = origin[0], origin[1]
@@ -277,7 +279,10 @@ def astar(origin: Array, t0: int, v_init: AnyArray, boxes: Array, offsets: AnyAr
                 ax, ay, bx, by, t, k, boxes, offsets, d):
             continue
         ix1, iy1 = ix + jx, iy + jy
-        landed = rel[0] <= h * ix1 <= rel[2] and rel[1] <= h * iy1 <= rel[3]
+        if survive > 0:
+            landed = t + 1 >= survive
+        else:
+            landed = rel[0] <= h * ix1 <= rel[2] and rel[1] <= h * iy1 <= rel[3]
         floor = 0 if landed else field_flights(field, field_cell, bx, by, reach)
         if t + 1 + floor > max_steps:
             continue

@@ -90,7 +90,8 @@ def plan_clear(plan: Plan, future: FutureBoxes, d: float, steps: int | None = No
 
 
 def lattice_plan(state: Array, future: FutureBoxes, spec: MissionSpec, stage: Stage, steps: int,
-                 d: float, static: Array | None = None) -> tuple[Plan | None, int]:
+                 d: float, static: Array | None = None,
+                 survive: int = 0) -> tuple[Plan | None, int]:
     """A plan from ``state`` into G within ``steps`` flights that keeps ``d`` from the boxes of
     ``future`` (the A* of :mod:`~dualpilot.spacetime.lattice`), and the expansions spent.
 
@@ -98,7 +99,8 @@ def lattice_plan(state: Array, future: FutureBoxes, spec: MissionSpec, stage: St
     at x_1 with every lattice velocity one control can reach from v_0. None when the first
     flight fails, lands in G already (nothing to plan), or no path is found. ``static``:
     boxes present at every sub-step of ``future``, whose distance field
-    (:mod:`~dualpilot.spacetime.field`) sharpens the search's heuristic.
+    (:mod:`~dualpilot.spacetime.field`) sharpens the search's heuristic. With ``survive``
+    > 0 the plan need not reach G: it keeps ``d`` for ``survive`` flights (an escape).
     """
     dyn = spec.dynamics
     n_vel = round(dyn.v_max_mps / stage.delta_mps)
@@ -106,6 +108,8 @@ def lattice_plan(state: Array, future: FutureBoxes, spec: MissionSpec, stage: St
     p0, v0 = np.asarray(state[:2], dtype=float), np.asarray(state[2:], dtype=float)
     p1 = p0 + dyn.dt_s * v0
     steps = min(steps, future.steps)
+    if survive:
+        steps = min(steps, survive)
     if steps < 2 or spec.goal.contains(p1) or not move_clear(
             p0[0], p0[1], p1[0], p1[1], 0, future.per_step, future.boxes, future.offsets, d):
         return None, 0
@@ -115,12 +119,15 @@ def lattice_plan(state: Array, future: FutureBoxes, spec: MissionSpec, stage: St
         return None, 0
     table = reach_table(n_vel, stage.delta_mps, keep, acc, dyn.v_max_mps, dyn.dt_s, steps)
     goal = np.array(spec.goal.bounds) + np.array([1, 1, -1, -1]) * 1e-6
-    field = no_field() if static is None or not len(static) else static_field(
+    if survive:  # anywhere in the area will do
+        goal = np.array([0.0, 0.0, spec.area_size_m, spec.area_size_m])
+    field = no_field() if survive or static is None or not len(static) else static_field(
         np.ascontiguousarray(static, dtype=float), goal, spec.area_size_m, d, FIELD_CELL_M)
     outcome, path, expansions = astar(
         p1, 1, first, future.boxes, future.offsets, future.per_step, goal, spec.area_size_m, d,
         stage.delta_mps, dyn.dt_s, n_vel, keep, acc, dyn.v_max_mps, dyn.speed_limit == "norm",
-        steps, stage.budget, table, round(16 * stage.weight), stage.bucket, field, FIELD_CELL_M)
+        steps, stage.budget, table, round(16 * stage.weight), stage.bucket, field, FIELD_CELL_M,
+        survive)
     if outcome != FOUND:
         return None, expansions
     h = stage.delta_mps * dyn.dt_s

@@ -18,8 +18,15 @@ when its target is pushed out of G. The lookahead supervisor adds one rule:
   UAV's state into G, keeping d_safe (+ ``margin_m``), smoothed in a tube
   (:mod:`dualpilot.spacetime.smooth`). It is flown while it stays clear, for at most
   ``guard_steps`` steps; then the concurrent supervisor chooses again.
+* **Escape when boxed in.** When no plan is left to fly (the UAV would brake), the same
+  search looks for ``escape_steps`` flights, anywhere, that keep d_safe (+ ``margin_m``)
+  from the obstacles of now grown as fast as a front can grow
+  (:func:`dualpilot.spacetime.known.growing`: a physics scenario's head fire, a paper
+  front's speed; not its redrawn sides): a last resort, closer to the fires than the
+  forecast's cells allow; it is flown one step, and the choice is made again at the next.
 
-The search is the supervisor's own and answers like System 1 ("s1:ok[space-time]"):
+The search is the supervisor's own and answers like System 1 ("s1:ok[space-time]",
+"s1:ok[escape]"):
 under the paper's timing it takes System 1's 155 ms; its compute time is recorded as
 System 1's. Lengths m.
 """
@@ -51,10 +58,15 @@ class LookaheadParams:
     tube_m: float = 3.0
     #: the lattice search's stages (weighted A*, a coarse lattice, a small budget)
     stages: tuple[Stage, ...] = field(default_factory=lambda: (Stage(5.0, 250_000, weight=2.0),))
+    #: flights an escape must last
+    escape_steps: int = 10
+    #: the escape search's budget (the same lattice)
+    escape_stage: Stage = Stage(5.0, 20_000, weight=2.0)
 
     def __post_init__(self) -> None:
-        if min(self.check_steps, self.arrive_steps, self.guard_steps) < 1:
-            raise ValueError("check_steps, arrive_steps and guard_steps must be >= 1")
+        if min(self.check_steps, self.arrive_steps, self.guard_steps, self.escape_steps) < 1:
+            raise ValueError("check_steps, arrive_steps, guard_steps and escape_steps must be "
+                             ">= 1")
         if not (0 <= self.alpha < 1 and self.margin_m >= 0 and self.tube_m >= 0
                 and self.stall_radius_m >= 0 and self.stages):
             raise ValueError(f"invalid lookahead parameters: {self}")
