@@ -11,7 +11,8 @@ PROFILE ?= today
 SUPERVISOR ?=
 # who flies: cc, s1, s2, concurrent, each also with +risk (dualpilot evaluate's names)
 CONTROLLER ?= cc
-# VIEWER=1: also the live view (services/viewer): Foxglove WebSocket on ws://127.0.0.1:8765
+# VIEWER=1: also the live view (services/viewer): the web page on http://127.0.0.1:8766/ and
+# Foxglove WebSocket on ws://127.0.0.1:8765 (free ports when taken; the launcher prints them)
 VIEWER ?=
 # TLS=1: mutual TLS and the router's access control (services/common/acl.py), off by default
 # (every service then a Zenoh client, one hop more per query than the default peers);
@@ -20,14 +21,23 @@ TLS ?=
 CERTS ?=
 TLS_FLAGS := $(if $(TLS),$(if $(CERTS),--tls-dir $(CERTS),--tls))
 
-.PHONY: setup run certs mission proto test test-fast flake-hunt lint bench docs figures clean compose-check
+.PHONY: setup browser run certs mission proto test test-fast flake-hunt lint bench docs figures clean compose-check
 
 setup: $(STAMP)
+
+# Debian's chromium, the headless browser of the web page's test (apt, as root; a no-op when
+# /usr/bin/chromium is there): scripts/install_browser.sh. `make test` runs it first.
+browser:
+	sh scripts/install_browser.sh
 
 $(STAMP): pyproject.toml scripts/pyretechnics-requirements.txt
 	test -x $(BIN)/python || $(PY) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
 	$(BIN)/python -m pip install --quiet -e '.[dev]'
+	# MAVSDK's native 4.x binding in a directory of its own: it is the module mavsdk too, as
+	# mavsdk<4 in dev (pyproject.toml, extra mavsdk4; tests/e2e/test_mavsdk_examples.py)
+	$(BIN)/python -m pip install --quiet --no-deps --upgrade --target $(VENV)/mavsdk4 \
+		"$$($(BIN)/python -c 'import tomllib; print(*tomllib.load(open("pyproject.toml", "rb"))["project"]["optional-dependencies"]["mavsdk4"])')"
 	# the physics fire process's library, built against our numpy/scipy pins (~4 min once)
 	sh scripts/install_pyretechnics.sh $(BIN)/python
 	$(BIN)/python -m dualpilot.warmup  # compiles the Numba kernels into their disk cache
@@ -53,7 +63,7 @@ proto: setup
 	$(BIN)/python -m services.protogen --clean
 
 # every tier (unit, integration, e2e; tests/conftest.py), the slowest 25 listed at the end
-test: setup
+test: setup browser
 	$(BIN)/python -m pytest -q --durations=25
 
 # the inner loop: the unit tier without its slow tests (under 2 min)
@@ -74,6 +84,7 @@ lint: setup
 bench: setup
 	$(BIN)/dualpilot bench system1 --out runs/bench
 	$(BIN)/dualpilot bench system2 --instances 20 --reference-timeout 30 --out runs/bench
+	$(BIN)/dualpilot bench certify --out runs/bench --figure runs/bench/certify_gap_vs_time.png
 
 # the documentation site (mkdocs.yml, docs/) into site/; --strict: a broken link fails it
 docs: setup

@@ -15,9 +15,9 @@ Vehicle k of a host takes off ``--stagger-s`` × k after the first (a fleet
 launched one vehicle after another, not all in the same millisecond).
 
 * plan round trip per request (request → reply: Zenoh, the replica's queue,
-  the plan), p50 and p99 over every request of every vehicle: those a step
-  waits for (``latency.csv``) and those asked in the background by the
-  concurrent supervisor (``background.csv``; also apart);
+  the plan), p50 and p99 over every request of every vehicle (``requests.csv``):
+  those a step waits for and those asked in the background by the concurrent
+  supervisor (also apart), and the planners' own share (service time);
 * the setpoint stream as each vehicle saw it (``stream.json``): the worst
   vehicle's p99.9 gap and the longest gap; offboard-loss failsafes; the
   named faults of the step records;
@@ -126,8 +126,33 @@ class Sampler:
         return sum(self.peak.get(p, 0.0) for p in self.groups[group])
 
 
+def parent(pid: int) -> int:
+    """The parent of ``pid`` (0 once it is gone)."""
+    try:
+        return int(Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[1])
+    except OSError:
+        return 0
+
+
 # -- one N -------------------------------------------------------------------------------------
 quantiles = harness.quantiles  # p50, p99, max (2 decimals) and n
+
+
+def request_quantiles(rows: list[dict[str, str]]) -> dict[str, dict[str, float]]:
+    """Round trip (ms) of every request, of those a step waited for and of the background
+    ones; the planner services' own time (decode, plan, encode) per system; the request's
+    size (bytes)."""
+    def ms(sel: list[dict[str, str]], col: str) -> dict[str, float]:
+        return quantiles([float(r[col]) * 1e3 for r in sel])
+
+    fore = [r for r in rows if r["background"] == "0"]
+    back = [r for r in rows if r["background"] == "1"]
+    return {"round_trip_ms": ms(rows, "round_trip_s"),
+            "round_trip_waited_ms": ms(fore, "round_trip_s"),
+            "round_trip_background_ms": ms(back, "round_trip_s"),
+            "service_s1_ms": ms([r for r in rows if r["system"] == "1"], "service_s"),
+            "service_s2_ms": ms([r for r in rows if r["system"] == "2"], "service_s"),
+            "request_bytes": quantiles([float(r["request_bytes"]) for r in rows])}
 
 
 def fleet_mission(args: argparse.Namespace) -> MissionConfig:
@@ -150,6 +175,7 @@ def fly(n: int, out: Path, args: argparse.Namespace) -> dict[str, Any]:
     t0 = time.monotonic()
     with launch.Fleet(cfg, uavs) as fleet:
         shared = [p.popen.pid for p in fleet.stack.group.procs]
+        names = {p.popen.pid: p.name for p in fleet.stack.group.procs}
         if args.layout == "hosted":
             chunks = np.array_split(np.arange(n), args.hosts)
             vehicles = []
@@ -161,6 +187,7 @@ def fly(n: int, out: Path, args: argparse.Namespace) -> dict[str, Any]:
             vehicles = [fleet.start_vehicle(uav, seed, out / uav, env=env, config=mission)
                         for uav, seed in zip(uavs, seeds, strict=True)]
         own = sorted({p.popen.pid for v in vehicles for p in v.procs})
+        names.update({p.popen.pid: p.name for v in vehicles for p in v.procs})
         time.sleep(3.0)  # the supervisors have started their stream processes
         sampler = Sampler({"shared": shared, "vehicles": own})
         sampler.start()
@@ -169,27 +196,26 @@ def fly(n: int, out: Path, args: argparse.Namespace) -> dict[str, Any]:
         outcomes = fleet.wait_end({v.uav_id: v.mission_id for v in vehicles}, args.timeout_s)
         wall = time.monotonic() - t_fly
         sampler.stop()
-        cpu = {g: sum(cpu_s(p) - cpu0.get(p, 0.0) for p in pids)
-               for g, pids in sampler.groups.items()}
+        used = {p: cpu_s(p) - cpu0.get(p, 0.0) for p in sampler.pids()}
+        cpu = {g: sum(used[p] for p in pids) for g, pids in sampler.groups.items()}
+        by_process: dict[str, float] = {}  # % of one core, by service (children: "/child")
+        for pid, s_cpu in used.items():
+            name = names.get(pid) or f"{names.get(parent(pid), '?')}/child"
+            by_process[name] = by_process.get(name, 0.0) + round(100 * s_cpu / wall, 1)
         for v in vehicles:
             if v.uav_id in fleet.vehicles:
                 fleet.stop_vehicle(v.uav_id)
-    per_request: list[float] = []
-    background: list[float] = []  # the concurrent supervisor's System 2, asked off the path
+    requests: list[dict[str, str]] = []  # every plan request of every vehicle
     worst_p999, longest, failsafes, steps = 0.0, 0.0, 0, 0
     faults: dict[str, int] = {}
     for uav in uavs:
         run = out / uav
         if (run / "latency.csv").is_file():
             with (run / "latency.csv").open() as fh:
-                for row in csv.DictReader(fh):
-                    k = int(row["requests"])
-                    steps += 1
-                    if k:
-                        per_request.append(float(row["request_wall_s"]) * 1e3 / k)
-        if (run / "background.csv").is_file():
-            with (run / "background.csv").open() as fh:
-                background += [float(row["round_trip_s"]) * 1e3 for row in csv.DictReader(fh)]
+                steps += sum(1 for _ in csv.DictReader(fh))
+        if (run / "requests.csv").is_file():
+            with (run / "requests.csv").open() as fh:
+                requests += list(csv.DictReader(fh))
         if (run / "stream.json").is_file():
             s = json.loads((run / "stream.json").read_text())
             worst_p999 = max(worst_p999, s["gaps"]["p999_ms"])
@@ -204,8 +230,7 @@ def fly(n: int, out: Path, args: argparse.Namespace) -> dict[str, Any]:
         "layout": args.layout, "hosts": args.hosts if args.layout == "hosted"
         else n, "replicas": scale, "ended": sum(o.ended for o in outcomes.values()),
         "steps": steps, "wall_s": round(wall, 1), "total_s": round(time.monotonic() - t0, 1),
-        "round_trip_ms": quantiles(per_request + background),
-        "round_trip_background_ms": quantiles(background),
+        **request_quantiles(requests),
         "stream": {"worst_p999_ms": worst_p999, "max_ms": longest, "failsafes": failsafes},
         "faults": faults,
         "cpu_pct_per_vehicle": round(100 * cpu["vehicles"] / wall / n, 2),
@@ -213,6 +238,7 @@ def fly(n: int, out: Path, args: argparse.Namespace) -> dict[str, Any]:
         "pss_mb_per_vehicle": round(sampler.mb("vehicles") / n, 1),
         "pss_mb_shared": round(sampler.mb("shared"), 1),
         "vehicle_processes": len(sampler.groups["vehicles"]),
+        "cpu_pct_by_process": dict(sorted(by_process.items())),
     }
 
 
@@ -249,18 +275,23 @@ def main(argv: list[str] | None = None) -> int:
           f"{args.scenario or 'the paper fires'}, paper timing, max {args.max_steps} steps, "
           f"{args.layout} ({args.hosts} supervisor host(s)), replicas S1 {args.s1_replicas} "
           f"S2 {args.s2_replicas}, {os.cpu_count()} cores")
-    print("| N | steps | RTT p50 | RTT p99 | requests (background) | stream p99.9 (worst) | "
-          "longest gap | failsafes | "
+    print("| N | steps | RTT p50 | RTT p99 | waited p99 | background p99 | requests "
+          "(background) | S2 service p99 | stream p99.9 (worst) | longest gap | failsafes | "
           "faults | CPU/vehicle | CPU shared | PSS/vehicle | PSS shared |")
-    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|")
+    print("|" + "---|" * 16)
     for r in rows:
         rt, st = r["round_trip_ms"], r["stream"]
         print(f"| {r['vehicles']} | {r['steps']} | {rt['p50']:.1f} ms | {rt['p99']:.1f} ms | "
+              f"{r['round_trip_waited_ms']['p99']:.1f} ms | "
+              f"{r['round_trip_background_ms']['p99']:.1f} ms | "
               f"{rt['n']:.0f} ({r['round_trip_background_ms']['n']:.0f}) | "
+              f"{r['service_s2_ms']['p99']:.1f} ms | "
               f"{st['worst_p999_ms']:.1f} ms | {st['max_ms']:.1f} ms | {st['failsafes']} | "
               f"{sum(r['faults'].values())} | {r['cpu_pct_per_vehicle']:.2f} % | "
               f"{r['cpu_pct_shared']:.0f} % | {r['pss_mb_per_vehicle']:.1f} MB | "
               f"{r['pss_mb_shared']:.0f} MB |")
+        print("  CPU by process (% of one core): " + ", ".join(
+            f"{k} {v:g}" for k, v in r["cpu_pct_by_process"].items()))
     ok = [r["vehicles"] for r in rows if r["round_trip_ms"]["p99"] <= args.p99_ms
           and r["stream"]["failsafes"] == 0 and r["ended"] == r["vehicles"]]
     print(f"largest N with p99 round trip <= {args.p99_ms:g} ms and no failsafe: "

@@ -82,7 +82,10 @@ def main() -> None:
         task = Task.of(int(r["mission"]), meta["seed"], args.controller, r["timing"],
                        meta["s2_method"], profile=meta["profile"], settings=settings)
         result = local_mission(task.mission()).run()
-        pos = np.array([rec.state[:2] for rec in result.records] + [result.final_state[:2]])
+        track = [rec.state[:2] for rec in result.records]
+        if result.final_state is not None:
+            track.append(result.final_state[:2])
+        pos = np.array(track)
         values.append(exposure(pos, reading.fire.p_birth, centres, half, d))
     harness.emit({"run": str(args.run), "controller": args.controller,
                   "flights": len(values), "box_side_m": 2 * half,

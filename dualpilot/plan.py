@@ -1,8 +1,14 @@
-"""What a planner returns: a predicted trajectory over the horizon and its status."""
+"""What a planner returns: a predicted trajectory over the horizon and its status.
+
+A plan carries its Eq. (S2) cost and, when a method proved one, a lower bound on the
+optimum of the problem it solved (Problem (P2) for System 2); the certified gap
+(cost − bound) / bound then says how far from optimal the plan can be at most.
+"""
 
 from __future__ import annotations
 
 import enum
+import math
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Protocol
 
@@ -32,6 +38,21 @@ class Objective(enum.Enum):
     ENERGY = "energy"  # (κ1, κ2) = (0.001, 1)
 
 
+def certified_gap(cost: float | None, bound: float | None) -> float:
+    """(cost − bound) / bound: the cost is at most (1 + gap) × the optimum (inf: no proof).
+
+    0 when the bound reaches the cost; inf without a cost or a positive finite bound.
+    The bench's gap to a known optimum, (cost − opt) / opt, is never larger.
+    """
+    if cost is None or bound is None or not (math.isfinite(cost) and math.isfinite(bound)):
+        return math.inf
+    if bound >= cost:
+        return 0.0
+    if bound <= 0.0:
+        return math.inf
+    return (cost - bound) / bound
+
+
 @dataclass(frozen=True)
 class Plan:
     """A plan x_{t|t..t+T|t}, u_{t+1|t..t+T|t} from one system.
@@ -39,6 +60,9 @@ class Plan:
     ``states`` has shape (T+1, 2·dim) starting at the current state; ``controls``
     has shape (T, dim) where controls[k] drives states[k] to states[k+1].
     A plan whose status is not OK carries empty arrays and must not be flown.
+    ``cost`` is its Eq. (S2) value; ``bound``, when given, a proven lower bound on the
+    optimum of the problem solved (never above ``cost``), and :attr:`certified_gap`
+    their relative difference.
     """
 
     system: int
@@ -51,10 +75,18 @@ class Plan:
     path: Array | None = None  # System 1's reference path (k, 2)
     message: str = ""
     info: dict[str, object] = field(default_factory=dict)
+    bound: float | None = None  # a proven lower bound on the optimum (Eq. (S2) units)
 
     @property
     def ok(self) -> bool:
         return self.status is PlanStatus.OK
+
+    @property
+    def certified_gap(self) -> float | None:
+        """(cost − bound) / bound (:func:`certified_gap`), None without a bound or a cost."""
+        if self.bound is None or self.cost is None:
+            return None
+        return certified_gap(self.cost, self.bound)
 
     @staticmethod
     def failed(

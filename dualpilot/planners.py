@@ -2,7 +2,8 @@
 
 One registry, like python-control's ``trajectory_method=``: System 1's "rrt"
 (Alg. 1 + LQR) and System 2's "fast" (the default), "exact" (the cvxpy
-MIQP, solved in a killable worker process), "fast+exact" and "thorough".
+MIQP, solved in a killable worker process), "fast+exact", "thorough" and "certified"
+(the fast plan with a lower bound on (P2) proven by branch and bound).
 With ``risk`` a method's risk-aware variant (:data:`RISK_AWARE`: System 1's
 "rrt" and "rrt+du", System 2's "fast") also takes the fire forecast as a
 chance constraint (dualpilot/model/risk.py).
@@ -72,6 +73,12 @@ def _thorough(spec: MissionSpec, params: System2Params | None) -> Planner:
     return ThoroughSystem2(spec, params or System2Params())
 
 
+def _certified(spec: MissionSpec, params: System2Params | None) -> Planner:
+    from dualpilot.system2.certify.planner import CertifiedSystem2
+
+    return CertifiedSystem2(spec, params or System2Params())
+
+
 def _rrt_risk(spec: MissionSpec, params: System1Params | None) -> Planner:
     from dualpilot.system1.planner import RiskSystem1, System1Params
 
@@ -89,6 +96,7 @@ def _rrt_du_risk(spec: MissionSpec, params: System1Params | None) -> Planner:
 SYSTEM1: Mapping[str, System1Constructor] = {"rrt": _rrt, "rrt+du": _rrt_du}
 SYSTEM2: Mapping[str, System2Constructor] = {
     "fast": _fast, "exact": _exact, "fast+exact": _anytime, "thorough": _thorough,
+    "certified": _certified,
 }
 #: The risk-aware variant of a method (it also takes the fire forecast, dualpilot/model/risk.py);
 #: a method without one cannot fly a risk-aware controller.

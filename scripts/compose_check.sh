@@ -8,7 +8,9 @@
 #    goes in, so pip inside the build trusts the same TLS roots as the host's pip);
 # 4. builds the project's image on it (ARG BASE_IMAGE), flies one mission with
 #    docker-compose.yml + docker-compose.router.yml (the project's own router: eclipse/zenoh
-#    cannot be pulled), `--exit-code-from supervisor`, and checks runs/compose/summary.json;
+#    cannot be pulled) and the viewer profile, `--exit-code-from supervisor`, fetches the live
+#    view's web page and its scripts through the published port 8766 while the mission flies,
+#    and checks runs/compose/summary.json;
 # 5. takes the stack down and stops the daemon it started (and only that one).
 #
 # Settings (environment): BASE_IMAGE (skip step 3 and use this image), KEEP_BASE=1 (reuse a
@@ -112,17 +114,45 @@ say "image built in $(( $(date +%s) - B0 )) s: $("$DOCKER" image inspect dualpil
 COMPOSE_CMD="${COMPOSE:-docker-compose} -p $PROJECT -f docker-compose.yml -f docker-compose.router.yml"
 SUMMARY=runs/compose/summary.json
 rm -f "$SUMMARY"
-say "$COMPOSE_CMD up --no-build --exit-code-from supervisor"
+say "$COMPOSE_CMD --profile viewer up --no-build --exit-code-from supervisor"
 M0=$(date +%s)
 set +e
-$COMPOSE_CMD up --no-build --exit-code-from supervisor >"$WORK/up.log" 2>&1
+$COMPOSE_CMD --profile viewer up --no-build --exit-code-from supervisor >"$WORK/up.log" 2>&1 &
+UP_PID=$!
+# the live view's web page, through the published port while the mission flies: the page and
+# the BokehJS it names, both from the viewer's container (no CDN)
+python3 - "${WEB_URL:-http://127.0.0.1:8766/}" >"$WORK/web.log" 2>&1 <<'EOF_WEB' &
+import re, sys, time, urllib.request
+url, deadline = sys.argv[1], time.monotonic() + 120
+while True:
+    try:
+        page = urllib.request.urlopen(url, timeout=5).read().decode()
+        break
+    except OSError as err:
+        if time.monotonic() > deadline:
+            sys.exit(f"web page: nothing at {url} ({err})")
+        time.sleep(1)
+scripts = re.findall(r'src="(/static/js/[^"?]+)', page)
+assert "/static/js/bokeh.min.js" in scripts, page[:500]
+for path in scripts:
+    body = urllib.request.urlopen(url.rstrip("/") + path, timeout=5).read()
+    assert len(body) > 1000, path
+print(f"web page: {url} served, {len(page)} bytes, {len(scripts)} scripts from the viewer "
+      f"({', '.join(p.rsplit('/', 1)[1] for p in scripts)})")
+EOF_WEB
+WEB_PID=$!
+wait "$UP_PID"
 UP_RC=$?
+wait "$WEB_PID"
+WEB_RC=$?
 set -e
 say "mission stack exited with $UP_RC after $(( $(date +%s) - M0 )) s"
+cat "$WORK/web.log"
 grep -h '"summary"' "$WORK/up.log" | tail -1 || true
 # 0: the mission reached G; 3: it ended in a failure (a fire): both are a mission flown to its
 # end with its records written. Anything else (1: aborted, a service died) fails the check.
 if [ "$UP_RC" != 0 ] && [ "$UP_RC" != 3 ]; then tail -40 "$WORK/up.log" >&2; exit 1; fi
+if [ "$WEB_RC" != 0 ]; then grep viewer "$WORK/up.log" | tail -20 >&2; exit 1; fi
 python3 - "$SUMMARY" <<'EOF'
 import json, sys
 s = json.load(open(sys.argv[1]))

@@ -425,8 +425,9 @@ def _frac(v: float | None) -> str:
 
 
 def add_bench_parser(subparsers: Any) -> None:
-    """``bench system2 …`` and ``bench system1 …`` under the ``dualpilot`` command."""
-    b = subparsers.add_parser("bench", help="benchmark System 2 (fast vs exact) or System 1")
+    """``bench system2 …``, ``bench system1 …`` and ``bench certify …`` under ``dualpilot``."""
+    b = subparsers.add_parser("bench", help="benchmark System 2 (fast vs exact, certified gap "
+                              "vs SCIP) or System 1")
     sub = b.add_subparsers(dest="bench_target", required=True)
     s2 = sub.add_parser("system2", help="System 2 methods against the exact MIQP")
     s2.add_argument("--instances", type=int, default=30)
@@ -451,6 +452,9 @@ def add_bench_parser(subparsers: Any) -> None:
     s1.add_argument("--out", default="runs/bench")
     s1.add_argument("--max-hulls", type=int, default=10)
     s1.set_defaults(func=_cli_system1)
+    from dualpilot.evaluation.certify_bench import add_parser as add_certify
+
+    add_certify(sub)
 
 
 def _cli_system2(args: argparse.Namespace) -> int:

@@ -84,6 +84,67 @@ def make_instance(index: int, seed: int, n_hulls: int, fire: FireParams = FirePa
     raise RuntimeError(f"could not draw instance {index} with {n_hulls} hulls")
 
 
+def make_physics_instance(index: int, seed: int, scenario: str,
+                          spec: MissionSpec = SPEC) -> Instance:
+    """A seeded instance on a fire-behaviour scenario (dualpilot/model/scenarios.py).
+
+    The scenario's fire runs from one birth for 20–160 sub-steps of T_f (its own births
+    go on at p_b); the hulls are its snapshot's, the UAV as in :func:`make_instance`.
+    """
+    rng = np.random.default_rng(np.random.SeedSequence([seed, index, 2]))
+    start = np.array(spec.start)
+    for _attempt in range(200):
+        field = FireField(FireParams(scenario=scenario))
+        field.spawn(rng, 0)
+        substeps = int(rng.integers(20, 161))
+        for k in range(substeps):
+            field.substep(rng, k)
+        hulls = field.snapshot().hulls
+        if not hulls or any(h.contains(start, margin=spec.clearance_m + 5.0) for h in hulls):
+            continue
+        state = _free_state(rng, hulls, spec)
+        if state is None:
+            continue
+        objective = Objective.MISSION_TIME if rng.random() < 0.5 else Objective.ENERGY
+        return Instance(index, seed, state, hulls, objective, rng.uniform(-3.0, 3.0, size=2),
+                        substeps)
+    raise RuntimeError(f"could not draw physics instance {index} on {scenario}")
+
+
+def small_instance(seed: int, spec: MissionSpec = SPEC) -> tuple[Instance, int]:
+    """A small (P2) instance for checks against a proven optimum, and its horizon T (3–8).
+
+    One or two rectangles (30–120 m a side) near the straight line the UAV would fly in
+    T steps, a random velocity, objective and u_{t|t}; redrawn until the start is free.
+    """
+    rng = np.random.default_rng(np.random.SeedSequence([seed, 17]))
+    horizon = int(rng.integers(3, 9))
+    for _attempt in range(1000):
+        pos = rng.uniform(150.0, spec.area_size_m - 150.0, size=2)
+        vel = rng.uniform(-12.0, 12.0, size=2)
+        heading = spec.goal.center - pos
+        heading /= max(float(np.linalg.norm(heading)), 1e-9)
+        hulls = []
+        for _ in range(int(rng.integers(1, 3))):
+            centre = pos + rng.uniform(0.2, 1.0) * 15.0 * horizon * heading \
+                + rng.normal(0.0, 25.0, size=2)
+            half = rng.uniform(15.0, 60.0, size=2)
+            hulls.append(Polytope.from_vertices(np.array([
+                centre - half, centre + [half[0], -half[1]], centre + half,
+                centre + [-half[0], half[1]]])))
+        p1 = pos + spec.dynamics.dt_s * vel
+        if any(h.distance(pos) < spec.d_safe_m + 1.0
+               or float(np.max(h.A @ p1 - h.b)) < spec.clearance_m + 1.0 for h in hulls):
+            continue
+        if any(h.segment_distance(pos, p1) < spec.d_safe_m + 1.0 for h in hulls):
+            continue
+        objective = Objective.MISSION_TIME if rng.random() < 0.5 else Objective.ENERGY
+        inst = Instance(seed, seed, np.concatenate([pos, vel]), tuple(hulls), objective,
+                        rng.uniform(-3.0, 3.0, size=2), 0)
+        return inst, horizon
+    raise RuntimeError(f"could not draw small instance {seed}")
+
+
 def _free_state(rng: np.random.Generator, hulls: Sequence[Polytope],
                 spec: MissionSpec) -> Array | None:
     start = np.array(spec.start)

@@ -1,7 +1,9 @@
 """Mission records on disk: summary.json, steps.csv, trace.json and mission.mcap, and steps.jsonl.
 
 ``steps.csv`` has one row per step (``system`` and ``attention`` 1-based as in
-the paper; ``system`` 0 means no plan was flown and the UAV braked).
+the paper; ``system`` 0 means no plan was flown and the UAV braked); ``plan_cost``,
+``plan_bound`` and ``certified_gap`` are the flown plan's Eq. (S2) cost, the lower bound
+its method proved on the optimum and (cost − bound) / bound, empty when there is none.
 ``trace.json`` keeps what the figures need: per step the planned positions
 and the fire regions and hulls the planners saw; ``mission.mcap`` the live view's Foxglove
 channels (dualpilot/viz/foxglove.py). Those four are written when a mission ends;
@@ -60,12 +62,22 @@ STEP_COLUMNS = [
     "fire_substeps",
     "plan_status",
     "source",
+    "plan_cost",
+    "plan_bound",
+    "certified_gap",
 ]
 
 
 def _num(v: float) -> float | str:
     return v if np.isfinite(v) else "inf" if v > 0 else "nan"
 
+
+def _optional(v: float | None) -> str:
+    """A value that may be missing: '' for None, else full precision (inf/nan as text)."""
+    if v is None:
+        return ""
+    x = _num(float(v))
+    return x if isinstance(x, str) else repr(x)
 
 def atomic_write(path: Path, text: str) -> Path:
     """Write ``text`` to ``path`` atomically: a temporary file beside it, fsync, rename.
@@ -116,6 +128,7 @@ def write_steps_csv(result: MissionResult, out: Path) -> Path:
                     r.fire_substeps,
                     r.plan_status,
                     r.info.get("source", ""),
+                    *(_optional(v) for v in (r.cost, r.bound, r.certified_gap)),
                 ]
             )
         return atomic_write(path, fh.getvalue())
@@ -169,8 +182,8 @@ def read_steps_csv(path: Path) -> dict[str, np.ndarray]:
     cols: dict[str, np.ndarray] = {}
     for name in STEP_COLUMNS:
         vals = [row.get(name, "") for row in rows]
-        try:
-            cols[name] = np.array([float(v) for v in vals])
+        try:  # an empty cell of a numeric column (no bound, say) reads as nan
+            cols[name] = np.array([float(v) if v != "" else np.nan for v in vals])
         except ValueError:
             cols[name] = np.array(vals, dtype=object)
     return cols
@@ -207,6 +220,9 @@ def record_to_json(r: StepRecord) -> dict[str, object]:
         "hulls": [np.round(h.vertices, 3).tolist() for h in r.snapshot.hulls],
         "front_ids": list(r.snapshot.front_ids), "born_steps": list(r.snapshot.born_steps),
         "info": json.loads(json.dumps(r.info, default=str)),
+        "cost": None if r.cost is None else _num(r.cost),
+        "bound": None if r.bound is None else _num(r.bound),
+        "certified_gap": None if r.certified_gap is None else _num(r.certified_gap),
         **({} if r.risk is None else {"risk": {
             "alpha": r.risk.alpha,
             "zones": [np.round(z.vertices, 3).tolist() for z in r.risk.zones]}}),
@@ -233,7 +249,13 @@ def record_from_json(doc: dict[str, Any]) -> StepRecord:
         d_t=float(doc["d_t"]), fires_active=int(doc["fires_active"]),
         planned_positions=plan if plan.size else np.empty((0, 2)), snapshot=snapshot,
         info=dict(doc.get("info", {})), time_s=float(doc.get("time_s", 0.0)),
-        risk=_risk_from_json(doc.get("risk")))
+        risk=_risk_from_json(doc.get("risk")), cost=_maybe(doc.get("cost")),
+        bound=_maybe(doc.get("bound")))
+
+
+def _maybe(v: Any) -> float | None:
+    """An optional number of steps.jsonl (None, a number, or inf/nan as text)."""
+    return None if v is None else float(v)
 
 
 def _risk_from_json(doc: dict[str, Any] | None) -> RiskNote | None:

@@ -12,6 +12,7 @@ from dualpilot.mission.answers import Answer, format_answers
 from dualpilot.model.dynamics import Array
 from dualpilot.model.fire import FireSnapshot
 from dualpilot.model.risk import RiskNote
+from dualpilot.plan import certified_gap
 from dualpilot.spec import MissionSpec
 from dualpilot.supervisor.decision import Decision
 
@@ -76,6 +77,17 @@ class StepRecord:
     time_s: float = 0.0
     #: the forecast the flown plan was made on: its next slice and risk zones (None: none)
     risk: RiskNote | None = None
+    #: the flown plan's Eq. (S2) cost and proven lower bound on its problem's optimum
+    #: (None: no plan flown, or no cost / no bound from its method)
+    cost: float | None = None
+    bound: float | None = None
+
+    @property
+    def certified_gap(self) -> float | None:
+        """The flown plan's (cost − bound) / bound (:func:`dualpilot.plan.certified_gap`)."""
+        if self.cost is None or self.bound is None:
+            return None
+        return certified_gap(self.cost, self.bound)
 
     @property
     def plan_status(self) -> str:

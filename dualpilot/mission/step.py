@@ -288,6 +288,8 @@ class Mission:
             planning_time_s=planned.planning_s, fire_substeps=n_sub, d_t=d_t,
             fires_active=len(snapshot.regions), planned_positions=positions, snapshot=snapshot,
             info=info, time_s=started_s, risk=self._risk_note(planned),
+            cost=None if planned.plan is None else planned.plan.cost,
+            bound=None if planned.plan is None else planned.plan.bound,
         )
         self.result.records.append(record)
         if caught:  # the vehicle's step towards this setpoint does not count

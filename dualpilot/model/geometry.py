@@ -263,8 +263,16 @@ def point_segment_d2(px: Array | float, py: Array | float, ax: Array | float,
 
 def hull_boxes(hulls: Sequence[Polytope]) -> tuple[Array, Array]:
     """Lower and upper corners (H, 2) of each hull's bounding box (m)."""
-    return (np.array([h.vertices.min(axis=0) for h in hulls]).reshape(-1, 2),
-            np.array([h.vertices.max(axis=0) for h in hulls]).reshape(-1, 2))
+    if not hulls:
+        return np.zeros((0, 2)), np.zeros((0, 2))
+    v = np.vstack([h.vertices for h in hulls])
+    starts = _starts(hulls)
+    return np.minimum.reduceat(v, starts, axis=0), np.maximum.reduceat(v, starts, axis=0)
+
+
+def _starts(hulls: Sequence[Polytope]) -> AnyArray:
+    """The first row of each hull's vertices (or faces) when they are stacked."""
+    return np.concatenate([[0], np.cumsum([len(h.b) for h in hulls[:-1]])]).astype(np.int64)
 
 
 def path_clearance(points: Array, polytopes: Sequence[Polytope]) -> float:
@@ -455,7 +463,10 @@ class _HullEdges:
 
     def __init__(self, hulls: Sequence[Polytope]):
         a = np.vstack([h.vertices for h in hulls])
-        c = np.vstack([np.vstack([h.vertices[1:], h.vertices[:1]]) for h in hulls])
+        starts = _starts(hulls)
+        following = np.arange(1, len(a) + 1)  # each vertex's successor, around its own hull
+        following[np.append(starts[1:], len(a)) - 1] = starts
+        c = a[following]
         self.ax, self.ay = a[:, 0].copy(), a[:, 1].copy()
         self.dx, self.dy = c[:, 0] - a[:, 0], c[:, 1] - a[:, 1]
         len2 = self.dx**2 + self.dy**2
@@ -463,7 +474,7 @@ class _HullEdges:
         normals = np.vstack([h.A for h in hulls])
         self.nx, self.ny = normals[:, 0].copy(), normals[:, 1].copy()
         self.offsets = np.concatenate([h.b for h in hulls])
-        self.starts = np.cumsum([0] + [h.n_faces for h in hulls[:-1]])
+        self.starts = starts
 
     def distances(self, p0: Array, p1: Array) -> Array:
         return _hull_distances(np.ascontiguousarray(p0, dtype=float),

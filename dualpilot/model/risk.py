@@ -21,7 +21,7 @@ from numba import njit
 
 from dualpilot.arrays import AnyArray, Array
 from dualpilot.model.forecast import LEVELS, OccupancyForecast
-from dualpilot.model.geometry import Polytope, SegmentChecker
+from dualpilot.model.geometry import Polytope, SegmentChecker, _faces, _monotone_chain
 
 
 @dataclass(frozen=True)
@@ -79,15 +79,21 @@ class RiskMap:
     @property
     def threshold(self) -> int:
         """The largest level that is not risky: P > α ⟺ level > ⌊255 α⌋."""
-        return int(np.floor(self.params.alpha * LEVELS + 1e-9))
+        return threshold_level(self.params.alpha)
 
     def slice_zones(self, i: int) -> tuple[Polytope, ...]:
-        """The zones of slice i: hulls of its groups of cells above the threshold."""
+        """The zones of slice i: hulls of its groups of cells above the threshold (slices
+        with the same risky cells share them)."""
         fc = self.view.forecast
         key = ("zones", i, self.threshold)
         got = fc.memo.get(key)
         if got is None:
-            got = cell_hulls(fc.level(i) > self.threshold, fc.resolution_m, fc.origin_m)
+            risky = fc.level(i) > self.threshold
+            cells = ("zones of cells", risky.shape, risky.tobytes())
+            got = fc.memo.get(cells)
+            if got is None:
+                got = cell_hulls(risky, fc.resolution_m, fc.origin_m)
+                fc.memo[cells] = got
             fc.memo[key] = got
         return cast(tuple[Polytope, ...], got)
 
@@ -100,8 +106,10 @@ class RiskMap:
         return tuple(z for i in self.slices(tau) for z in self.slice_zones(i))
 
     def checker(self, tau: int) -> SegmentChecker:
-        """A :class:`SegmentChecker` of :meth:`zones` (kept per window)."""
-        key = self.view.window(tau)
+        """A :class:`SegmentChecker` of :meth:`zones` (kept per slices: windows that stand on
+        the same slices share it)."""
+        idx = self.slices(tau)
+        key = (idx.start, idx.stop)
         got = self._checkers.get(key)
         if got is None:
             got = SegmentChecker(self.zones(tau))
@@ -110,35 +118,72 @@ class RiskMap:
 
     def step_masks(self, steps: int, first: int = 1) -> list[tuple[Polytope, AnyArray]]:
         """Each zone of the slices of steps first..``steps`` with the plan steps it applies to
-        (a bool mask over τ = 0..steps)."""
-        out: dict[tuple[int, int], tuple[Polytope, AnyArray]] = {}
+        (a bool mask over τ = 0..steps), slice by slice (the windows move forward with τ,
+        so that is the order in which the steps meet them)."""
+        taus: dict[int, list[int]] = {}  # slice -> the steps whose window it stands for
         for tau in range(first, min(steps, self.view.last_step) + 1):
             for i in self.slices(tau):
-                for j, z in enumerate(self.slice_zones(i)):
-                    got = out.get((i, j))
-                    if got is None:
-                        got = (z, np.zeros(steps + 1, dtype=bool))
-                        out[(i, j)] = got
-                    got[1][tau] = True
-        return list(out.values())
+                taus.setdefault(i, []).append(tau)
+        out: list[tuple[Polytope, AnyArray]] = []
+        for i in sorted(taus):
+            mask = np.zeros(steps + 1, dtype=bool)
+            mask[taus[i]] = True
+            out.extend((z, mask.copy()) for z in self.slice_zones(i))
+        return out
+
+
+def threshold_level(alpha: float) -> int:
+    """The largest forecast level (1/255) whose probability is not above ``alpha``."""
+    return int(np.floor(alpha * LEVELS + 1e-9))
 
 
 def cell_hulls(risky: np.ndarray, resolution_m: float,
                origin_m: tuple[float, float] = (0.0, 0.0)) -> tuple[Polytope, ...]:
     """The convex hull of the cell squares of each 8-connected group of ``risky`` cells."""
     comp, row, first, last = _groups(np.ascontiguousarray(risky, dtype=np.bool_))
-    out: list[Polytope] = []
-    for k in range(int(comp.max()) + 1 if len(comp) else 0):
-        sel = comp == k
-        r, c0, c1 = row[sel], first[sel], last[sel] + 1
-        y0 = origin_m[1] + r * resolution_m
-        y1 = y0 + resolution_m
-        x0 = origin_m[0] + c0 * resolution_m
-        x1 = origin_m[0] + c1 * resolution_m
-        corners = np.column_stack([np.concatenate([x0, x1, x0, x1]),
-                                   np.concatenate([y0, y0, y1, y1])])
-        out.append(Polytope.from_vertices(corners))
-    return tuple(out)
+    if not len(comp):
+        return ()
+    verts, normals, offsets, ends = _group_hulls(comp, row, first, last, float(resolution_m),
+                                                 float(origin_m[0]), float(origin_m[1]))
+    starts = np.concatenate([[0], ends[:-1]])
+    return tuple(Polytope(vertices=verts[a:b], A=normals[a:b], b=offsets[a:b])
+                 for a, b in zip(starts.tolist(), ends.tolist(), strict=True))
+
+
+@njit(cache=True)
+def _group_hulls(comp: AnyArray, row: AnyArray, first: AnyArray, last: AnyArray, res: float,
+                 ox: float, oy: float) -> tuple[AnyArray, AnyArray, AnyArray, AnyArray]:
+    """Each group's hull of its cell squares' corners (Polytope.from_vertices' operations):
+    vertices, normals and offsets stacked, and the end row of each group's."""
+    n_groups = comp.max() + 1
+    verts = np.empty((4 * len(comp), 2))
+    normals = np.empty((4 * len(comp), 2))
+    offsets = np.empty(4 * len(comp))
+    ends = np.empty(n_groups, dtype=np.int64)
+    at = 0
+    for k in range(n_groups):
+        sel = np.flatnonzero(comp == k)
+        m = len(sel)
+        corners = np.empty((4 * m, 2))
+        for q in range(m):
+            i = sel[q]
+            y0 = oy + row[i] * res
+            y1 = y0 + res
+            x0 = ox + first[i] * res
+            x1 = ox + (last[i] + 1) * res
+            corners[q, 0], corners[q, 1] = x0, y0
+            corners[m + q, 0], corners[m + q, 1] = x1, y0
+            corners[2 * m + q, 0], corners[2 * m + q, 1] = x0, y1
+            corners[3 * m + q, 0], corners[3 * m + q, 1] = x1, y1
+        hull, _ = _monotone_chain(corners)
+        nrm, b = _faces(hull)
+        h = len(hull)
+        verts[at:at + h] = hull
+        normals[at:at + h] = nrm
+        offsets[at:at + h] = b
+        at += h
+        ends[k] = at
+    return verts[:at].copy(), normals[:at].copy(), offsets[:at].copy(), ends
 
 
 @njit(cache=True)

@@ -4,18 +4,10 @@
 import time). A ``udpin`` end binds and learns its peer from the first packet;
 a ``udpout`` end must send first (a heartbeat) — see ARCHITECTURE §10.
 
-Flight modes (HEARTBEAT ``custom_mode``) of uavsim's default ``ardupilot``
-flavour (MAV_AUTOPILOT_ARDUPILOTMEGA) use ArduCopter's numbers, which MAVProxy,
-MAVSDK and QGroundControl name that way (the ``px4`` flavour's numbers are in
-services/uavsim/flavour.py); the supervisor asks for these:
-
-=========  ===========  =====================================================
-custom     name         meaning in uavsim
-=========  ===========  =====================================================
-4          GUIDED       offboard: flying the companion's SET_POSITION_TARGET
-5          LOITER       hold: at boot, on the operator's command, and the
-                        offboard-loss failsafe (no setpoint for COM_OF_LOSS_T)
-=========  ===========  =====================================================
+Flight modes (HEARTBEAT ``custom_mode``) are read by the vehicle's
+``autopilot`` field (services/common/mavmodes.py); ArduCopter's GUIDED (4,
+offboard control) and LOITER (5, hold) are named here because the stack's
+default vehicle claims ArduPilot.
 """
 
 from __future__ import annotations
@@ -40,10 +32,9 @@ mavlink = mavutil.mavlink
 MAV_COMP_ID_AUTOPILOT1 = mavlink.MAV_COMP_ID_AUTOPILOT1
 MAV_COMP_ID_ONBOARD_COMPUTER = mavlink.MAV_COMP_ID_ONBOARD_COMPUTER
 
-#: HEARTBEAT.custom_mode of the vehicle's modes (ArduCopter numbering, see the module docstring).
+#: ArduCopter's custom_mode of offboard control and hold (services/common/mavmodes.py)
 MODE_GUIDED = 4
 MODE_LOITER = 5
-MODE_NAMES = {MODE_GUIDED: "GUIDED", MODE_LOITER: "LOITER"}
 
 EARTH_RADIUS_M = 6_378_137.0
 SIGNING_KEY_LEN = 32
@@ -266,15 +257,13 @@ class MissionItem:
     def is_waypoint(self) -> bool:
         return self.command == mavlink.MAV_CMD_NAV_WAYPOINT and not self.is_home()
 
-    def send_int(self, sender: Sender, target: tuple[int, int], mission_type: int = 0) -> Any:
-        return sender("mission_item_int", target[0], target[1], self.seq, self.frame,
-                      self.command, self.current, self.autocontinue, self.param1, self.param2,
-                      self.param3, self.param4, self.x, self.y, self.z, mission_type)
-
-    def send_float(self, sender: Sender, target: tuple[int, int], mission_type: int = 0) -> Any:
-        return sender("mission_item", target[0], target[1], self.seq, self.frame, self.command,
-                      self.current, self.autocontinue, self.param1, self.param2, self.param3,
-                      self.param4, self.lat, self.lon, self.z, mission_type)
+    def fields(self, target: tuple[int, int], float_latlon: bool = False) -> tuple[Any, ...]:
+        """MISSION_ITEM_INT's fields (MISSION_ITEM's with ``float_latlon``: degrees), up to
+        but without ``mission_type``."""
+        x, y = (self.lat, self.lon) if float_latlon else (self.x, self.y)
+        return (target[0], target[1], self.seq, self.frame, self.command, self.current,
+                self.autocontinue, self.param1, self.param2, self.param3, self.param4, x, y,
+                self.z)
 
     def same(self, other: MissionItem) -> bool:
         """Field-wise equality where NaN equals NaN (an unset param of MISSION_ITEM_INT)."""

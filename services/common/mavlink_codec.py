@@ -45,16 +45,18 @@ def state_from_ned(n: float, e: float, vn: float, ve: float) -> Array:
 
 
 def setpoint_from_mavlink(msg: Any, area_size_m: float | None = None,
-                          lead_ms: int | None = None) -> Array:
+                          lead_ms: int | None = None, range_m: float | None = None) -> Array:
     """A SET_POSITION_TARGET_LOCAL_NED as the core target state [p_e, p_n, v_e, v_n].
 
     Accepts LOCAL_NED with type_mask 3520 (position + velocity) or 3576
     (position only; velocity target 0). With ``area_size_m`` the position must
-    lie in the area [0, A]² grown by :data:`SETPOINT_AREA_MARGIN` × A, the
-    velocity within :data:`MAX_SETPOINT_SPEED_MPS` per axis and the altitude
-    (``-z``) within [0, :data:`MAX_SETPOINT_ALT_M`]; with ``lead_ms`` (the
-    setpoint's ``time_boot_ms`` minus the vehicle's clock) it must be due at
-    most :data:`MAX_SETPOINT_LEAD_S` ahead. Raises CodecError (reasons
+    lie in the area [0, A]² grown by :data:`SETPOINT_AREA_MARGIN` × A (a
+    planning mission), with ``range_m`` within ``range_m`` of the origin on
+    each axis (a vehicle flying where its user puts it); with either, the
+    velocity must lie within :data:`MAX_SETPOINT_SPEED_MPS` per axis and the
+    altitude (``-z``) within [0, :data:`MAX_SETPOINT_ALT_M`]; with ``lead_ms``
+    (the setpoint's ``time_boot_ms`` minus the vehicle's clock) it must be due
+    at most :data:`MAX_SETPOINT_LEAD_S` ahead. Raises CodecError (reasons
     ``invalid``, ``not_finite``, ``out_of_range``).
     """
     if msg.coordinate_frame != mav.MAV_FRAME_LOCAL_NED:
@@ -67,12 +69,17 @@ def setpoint_from_mavlink(msg: Any, area_size_m: float | None = None,
     else:
         raise invalid(f"setpoint type_mask {msg.type_mask}: only {mav.TYPE_MASK_POS_VEL} and "
                       f"{mav.TYPE_MASK_POS} are supported")
-    if area_size_m is not None:
+    if area_size_m is not None or range_m is not None:
         finite([msg.z], "setpoint z", MAX_SETPOINT_ALT_M)
-        margin = SETPOINT_AREA_MARGIN * area_size_m
-        if not (np.all(x[:2] >= -margin) and np.all(x[:2] <= area_size_m + margin)):
-            raise invalid(f"setpoint position ({x[0]:.6g}, {x[1]:.6g}) m is outside the area "
-                          f"[0, {area_size_m:g}]² grown by {margin:g} m", Reason.OUT_OF_RANGE)
+        if area_size_m is not None:
+            margin = SETPOINT_AREA_MARGIN * area_size_m
+            if not (np.all(x[:2] >= -margin) and np.all(x[:2] <= area_size_m + margin)):
+                raise invalid(f"setpoint position ({x[0]:.6g}, {x[1]:.6g}) m is outside the "
+                              f"area [0, {area_size_m:g}]² grown by {margin:g} m",
+                              Reason.OUT_OF_RANGE)
+        if range_m is not None and np.any(np.abs(x[:2]) > range_m):
+            raise invalid(f"setpoint position ({x[0]:.6g}, {x[1]:.6g}) m is more than "
+                          f"{range_m:g} m from the origin", Reason.OUT_OF_RANGE)
         if np.any(np.abs(x[2:]) > MAX_SETPOINT_SPEED_MPS) or not -msg.z >= 0.0:
             raise invalid(f"setpoint velocity ({x[2]:.6g}, {x[3]:.6g}) m/s or altitude "
                           f"{-msg.z:.6g} m out of range", Reason.OUT_OF_RANGE)

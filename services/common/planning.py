@@ -78,12 +78,12 @@ class PlannerService:
         self.waypoints: OrderedDict[str, vehicle_convert.Waypoints] = OrderedDict()
 
     def prepare(self, mission_id: str, spec: MissionSpec, config: MissionConfig) -> _Prepared:
-        """The mission's planner, built from its spec and configuration (again only if they
-        changed). Raises ValueError for an unknown method (or one with no risk-aware variant
-        under risk)."""
-        held = self.missions.get(mission_id)
-        if held is not None and held.spec == spec and held.config == config:
-            return held
+        """The mission's planner, built afresh from its spec and configuration: a prepare
+        begins a flight (or rejoins one on a service that lost it), so the planner starts as
+        the in-process one does (its seeded generator, no previous path, no fire revision
+        seen), even when a mission of the same id and configuration flew here before.
+        Raises ValueError for an unknown method (or one with no risk-aware variant under
+        risk)."""
         planner = self.make(spec, config)
         held = _Prepared(spec, config, planner)
         self.missions[mission_id] = held

@@ -11,6 +11,7 @@ from __future__ import annotations
 import argparse
 import json
 import re
+import signal
 import sys
 import time
 from dataclasses import replace
@@ -19,7 +20,7 @@ from pathlib import Path
 from dualpilot.mission.config_args import add_config_arguments, config_from_args
 from services.launch.compose import COMPOSE, REPO
 from services.launch.fleet import Fleet
-from services.launch.stack import Outcome, StackConfig, parse_scale, run_mission
+from services.launch.stack import Outcome, Stack, StackConfig, parse_scale, run_mission
 
 
 def parser() -> argparse.ArgumentParser:
@@ -51,7 +52,17 @@ def parser() -> argparse.ArgumentParser:
                         "docker compose up --scale; repeatable")
     g.add_argument("--viewer", action="store_true",
                    help="also run the live view (services/viewer, compose profile 'viewer'): "
-                        "Foxglove WebSocket on ws://127.0.0.1:8765 (or the free port printed)")
+                        "a web page on http://127.0.0.1:8766/ and Foxglove WebSocket on "
+                        "ws://127.0.0.1:8765 (or the free ports printed)")
+    g.add_argument("--join", default="", metavar="ENDPOINT",
+                   help="join the router of a stack that runs elsewhere (tcp/HOST:7447) and run "
+                        "only --services there, e.g. more planner replicas on another machine, "
+                        "until stopped (Ctrl-C, SIGTERM)")
+    g.add_argument("--services", default="",
+                   help="with --join: the services to run, comma-separated (default system2)")
+    g.add_argument("--uav-ids", default="",
+                   help="with --join: the vehicle ids the services serve, comma-separated "
+                        "(a fleet's: uav1,…,uavN; default --uav-id's, uav1)")
     g.add_argument("--timeout-s", type=float, default=600.0)
     g.add_argument("--log-format", choices=["json", "text"], default="json")
     g.add_argument("--no-figures", action="store_true")
@@ -65,6 +76,11 @@ def stack_config(args: argparse.Namespace) -> StackConfig:
     scale = parse_scale(args.scale)
     if not 1 <= args.vehicles <= 64:
         raise ValueError("--vehicles must be in 1..64")
+    services = tuple(n.strip() for n in args.services.split(",") if n.strip())
+    if (services or args.uav_ids) and not args.join:
+        raise ValueError("--services and --uav-ids go with --join")
+    if args.join and not re.fullmatch(r"tcp/[^\s:/]+:\d{1,5}", args.join):
+        raise ValueError(f"--join takes a Zenoh TCP endpoint tcp/HOST:PORT, got {args.join!r}")
     run_id = f"{time.strftime('%Y%m%d-%H%M%S')}-{mission.controller_name}-s{mission.seed}"
     run_dir = (Path(args.out) if args.out else REPO / "runs" / run_id).resolve()
     mission_id = mission.mission_id or re.sub(r"[^A-Za-z0-9_\-]", "-", run_dir.name)[:64]
@@ -73,7 +89,8 @@ def stack_config(args: argparse.Namespace) -> StackConfig:
                        free_ports=args.free_ports, log_format=args.log_format,
                        tls=args.tls or args.tls_dir is not None,
                        tls_dir=args.tls_dir.resolve() if args.tls_dir else None,
-                       scale=scale, profiles=("viewer",) if args.viewer else ())
+                       scale=scale, profiles=("viewer",) if args.viewer else (),
+                       join=args.join, services=services or (("system2",) if args.join else ()))
 
 
 def report(cfg: StackConfig, outcome: Outcome, codes: dict[str, int], wall: float) -> int:
@@ -97,15 +114,30 @@ def report(cfg: StackConfig, outcome: Outcome, codes: dict[str, int], wall: floa
     return 0
 
 
+def _terminated(signum: int, frame: object) -> None:
+    """SIGTERM (``kill``, ``timeout``) stops the stack as Ctrl-C does: every service too."""
+    raise KeyboardInterrupt(f"signal {signum}")
+
+
 def main(argv: list[str] | None = None) -> int:
+    signal.signal(signal.SIGTERM, _terminated)
     p = parser()
     args = p.parse_args(argv)
     try:
         cfg = stack_config(args)
     except ValueError as err:
         p.error(str(err))
+    if cfg.join:
+        try:
+            return run_replicas(cfg, args.uav_ids)
+        except ValueError as err:
+            p.error(str(err))
     if args.vehicles > 1:
-        return run_fleet(cfg, args.vehicles, args.timeout_s, args.compose)
+        try:
+            return run_fleet(cfg, args.vehicles, args.timeout_s, args.compose)
+        except KeyboardInterrupt:
+            print("interrupted: the fleet's services are stopped", file=sys.stderr)
+            return 130
     t0 = time.perf_counter()
     try:
         outcome, codes = run_mission(cfg, args.timeout_s, not args.no_figures, args.quiet,
@@ -114,6 +146,28 @@ def main(argv: list[str] | None = None) -> int:
         print(f"launch: error: {err}", file=sys.stderr)
         return 2
     return report(cfg, outcome, codes, time.perf_counter() - t0)
+
+
+def run_replicas(cfg: StackConfig, uav_ids: str) -> int:
+    """Services of a stack that runs elsewhere, on its router only (``--join``): they serve
+    ``uav_ids`` until Ctrl-C or SIGTERM (0), or until one of them exits (1)."""
+    from services.common.fleet import uav_ids as checked_ids
+
+    ids = ",".join(checked_ids(uav_ids, cfg.uav_id))
+    cfg = replace(cfg, extra_env={name: {"UAV_IDS": ids} for name in cfg.services})
+    cfg.run_dir.mkdir(parents=True, exist_ok=True)
+    with Stack(cfg) as stack:
+        names = ", ".join(p.name for p in stack.group.procs)
+        print(f"joined {cfg.join}: {names} serving {ids}; logs in {stack.logs}/", flush=True)
+        try:
+            while not (dead := stack.group.dead()):
+                time.sleep(0.5)
+        except KeyboardInterrupt:
+            print("stopping", flush=True)
+            return 0
+        print(f"launch: {', '.join(p.name for p in dead)} exited; stopping the others",
+              file=sys.stderr, flush=True)
+        return 1
 
 
 def run_fleet(cfg: StackConfig, n: int, timeout_s: float, compose: Path) -> int:
@@ -126,8 +180,9 @@ def run_fleet(cfg: StackConfig, n: int, timeout_s: float, compose: Path) -> int:
     with Fleet(replace(cfg, run_dir=cfg.run_dir / "shared"), uavs, compose) as fleet:
         print(f"fleet: {n} vehicles, router {fleet.endpoint}, replicas "
               f"{cfg.scale or 'one of each'}; records in {cfg.run_dir}/<uav>/", flush=True)
-        if fleet.stack.viewer_url():
-            print(f"live view: {fleet.stack.viewer_url()} (every vehicle side by side)",
+        if fleet.stack.web_url():
+            print(f"live view: {fleet.stack.web_url()} in a browser, "
+                  f"{fleet.stack.viewer_url()} in Foxglove (every vehicle side by side)",
                   flush=True)
         seed = cfg.mission.seed
         vehicles = fleet.start_hosted(uavs, [seed + k for k in range(n)], cfg.run_dir,

@@ -4,9 +4,9 @@ ports, and :class:`PortMap`, which puts the services on loopback.
 For each service the launcher runs its ``command`` (``python`` → this
 interpreter) with its ``environment``. Compose host names (``zenoh``,
 ``uavsim``, ``0.0.0.0``) become 127.0.0.1, and every port in ``ZENOH_CONNECT``,
-``MAVLINK_URL``, ``GCS_URL`` and ``VIEWER_LISTEN`` is mapped to a local one: the published
-port (7447, 14550, 8765) when it is free, else a free one (``--free-ports``: always a free
-one). The ``eclipse/zenoh`` router is replaced by ``python -m services.router``
+``MAVLINK_URL``, ``GCS_URL``, ``VIEWER_LISTEN`` and ``WEB_LISTEN`` is mapped to a local one: the
+published port (7447, 14550, 8765, 8766) when it is free, else a free one (``--free-ports``:
+always a free one). The ``eclipse/zenoh`` router is replaced by ``python -m services.router``
 (a zenoh-python session in router mode).
 """
 
@@ -22,7 +22,8 @@ from services.launch.processes import REPO, free_port, port_is_free
 
 COMPOSE = REPO / "docker-compose.yml"
 ROUTER_IMAGE = "eclipse/zenoh"
-ENDPOINT_KEYS = ("ZENOH_CONNECT", "ZENOH_LISTEN", "MAVLINK_URL", "GCS_URL", "VIEWER_LISTEN")
+ENDPOINT_KEYS = ("ZENOH_CONNECT", "ZENOH_LISTEN", "MAVLINK_URL", "GCS_URL", "VIEWER_LISTEN",
+                 "WEB_LISTEN")
 #: ``udpin:host:port`` (pymavlink) or ``tcp/host:port`` (Zenoh endpoint)
 _ENDPOINT = re.compile(r"^(?P<scheme>[a-z]+[:/])(?P<host>[^:/,]+|\[[^\]]+\]):(?P<port>\d{1,5})$")
 

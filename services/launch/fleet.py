@@ -44,7 +44,8 @@ class Fleet:
     """The router and one EWS and pair of planner services shared by several vehicles, each
     vehicle with its own uavsim and supervisor (a context manager).
 
-    ``uav_ids`` are the ids the shared services serve; :meth:`start_vehicle`
+    ``uav_ids`` are the ids the ``shared`` services serve (a planner may run elsewhere:
+    ``services.launch --join``); :meth:`start_vehicle`
     starts one vehicle's uavsim and supervisor for one mission (offboard link on
     a free loopback port, no ground-station link), :meth:`wait_end` waits for
     its MissionEvent ENDED/ABORTED, :meth:`stop_vehicle` stops them. The same
@@ -52,13 +53,13 @@ class Fleet:
     keep running. ``cfg.run_dir`` holds the shared services' logs.
     """
 
-    def __init__(self, cfg: StackConfig, uav_ids: list[str], compose: Path = COMPOSE):
+    def __init__(self, cfg: StackConfig, uav_ids: list[str], compose: Path = COMPOSE,
+                 shared: tuple[str, ...] = SHARED_SERVICES):
         ids = ",".join(uav_ids)
-        extra = {name: {"UAV_IDS": ids, **cfg.extra_env.get(name, {})}
-                 for name in SHARED_SERVICES}
+        extra = {name: {"UAV_IDS": ids, **cfg.extra_env.get(name, {})} for name in shared}
         self.cfg = cfg
         viewer = ("viewer",) if "viewer" in cfg.profiles else ()  # the live view: every vehicle
-        self.stack = Stack(replace(cfg, services=SHARED_SERVICES + viewer, uav_id=uav_ids[0],
+        self.stack = Stack(replace(cfg, services=shared + viewer, uav_id=uav_ids[0],
                                    extra_env={**cfg.extra_env, **extra}), compose)
         self.uav_ids = list(uav_ids)
         self.vehicles: dict[str, Vehicle] = {}

@@ -82,6 +82,9 @@ class StackConfig:
     deferred: tuple[str, ...] = ()
     #: compose profiles to run besides the default services (``("viewer",)``: the live view)
     profiles: tuple[str, ...] = ()
+    #: join the router at this Zenoh endpoint instead of starting one: a host of more
+    #: replicas (``services``) for a stack that runs elsewhere; they share only the router
+    join: str = ""
 
     @property
     def mission_id(self) -> str:
@@ -99,7 +102,7 @@ class Stack:
                                 if str(s.get("image", "")).startswith(ROUTER_IMAGE))
         self.ports = PortMap(published_ports(self.doc), cfg.free_ports)
         self.zenoh_port = self.ports.local(7447, "tcp")
-        self.endpoint = f"tcp/127.0.0.1:{self.zenoh_port}"
+        self.endpoint = cfg.join or f"tcp/127.0.0.1:{self.zenoh_port}"
         self.group = ProcessGroup()
         self.logs = cfg.run_dir / "logs"
         self.tls_dir: Path | None = None
@@ -126,6 +129,9 @@ class Stack:
         for key, value in svc.get("environment", {}).items():
             env[key] = self.ports.rewrite(key, value) if key in ENDPOINT_KEYS else str(value)
         env.update(self.overrides())
+        if self.cfg.join:  # another machine's router: everything through it (its peers'
+            env["ZENOH_CONNECT"] = self.cfg.join  # loopback locators mean nothing here)
+            env["ZENOH_MODE"] = "client"
         env.update(self.cfg.extra_env.get(name, {}))
         return env
 
@@ -147,6 +153,13 @@ class Stack:
         listen = self.service_env("viewer").get("VIEWER_LISTEN", "")
         return "ws://" + listen.removeprefix("tcp/") if listen else ""
 
+    def web_url(self) -> str:
+        """The live view's web page (services/viewer), "" when it does not run."""
+        if "viewer" not in self.service_names():
+            return ""
+        listen = self.service_env("viewer").get("WEB_LISTEN", "")
+        return "http://" + listen.removeprefix("tcp/") + "/" if listen else ""
+
     def start(self) -> None:
         self.logs.mkdir(parents=True, exist_ok=True)
         if self.tls_dir is not None:
@@ -156,8 +169,10 @@ class Stack:
         env = dict(os.environ, PYTHONPATH=str(REPO), PYTHONUNBUFFERED="1",
                    LOG_FORMAT=self.cfg.log_format, UAV_ID=self.cfg.uav_id,
                    ZENOH_TLS_DIR=str(self.tls_dir or ""))
-        self.group.start("router", [sys.executable, "-m", "services.router", "--zenoh-listen",
-                                    self.endpoint], env, self.logs / "router.log")
+        if not self.cfg.join:
+            self.group.start("router", [sys.executable, "-m", "services.router",
+                                        "--zenoh-listen", self.endpoint], env,
+                             self.logs / "router.log")
         for name in self.service_names():
             if name not in self.cfg.deferred:
                 self.start_service(name)
@@ -325,9 +340,10 @@ def run_mission(cfg: StackConfig, timeout_s: float = 600.0, figures: bool = True
                   f"{', '.join(stack.service_names())} (MAVLink ports "
                   f"{dict(stack.ports.ports)}); logs in {stack.logs}/",
                   flush=True)
-            if stack.viewer_url():
-                print(f"live view: {stack.viewer_url()} (Foxglove or Lichtblick: open "
-                      f"connection, Foxglove WebSocket)", flush=True)
+            if stack.web_url():
+                print(f"live view: {stack.web_url()} in a browser; {stack.viewer_url()} in "
+                      f"Foxglove or Lichtblick (open connection, Foxglove WebSocket)",
+                      flush=True)
         try:
             outcome = follow(stack, timeout_s, quiet)
         except KeyboardInterrupt:

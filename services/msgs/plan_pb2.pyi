@@ -133,7 +133,7 @@ class PlanRequest(_message.Message):
     def __init__(self, header: _Optional[_Union[_common_pb2.Header, _Mapping]] = ..., mission: _Optional[_Union[MissionSpec, _Mapping]] = ..., step: _Optional[int] = ..., system: _Optional[int] = ..., objective: _Optional[_Union[Objective, str]] = ..., state: _Optional[_Union[_vehicle_pb2.VehicleState, _Mapping]] = ..., prev_control: _Optional[_Union[_common_pb2.Force2, _Mapping]] = ..., deadline_s: _Optional[float] = ..., prepare: _Optional[bool] = ..., mission_id: _Optional[str] = ..., obstacles: _Optional[_Iterable[_Union[_common_pb2.Polygon, _Mapping]]] = ..., waypoints_revision: _Optional[int] = ..., config: _Optional[_Union[_config_pb2.MissionConfig, _Mapping]] = ..., forecast: _Optional[_Union[PlanForecast, _Mapping]] = ...) -> None: ...
 
 class Plan(_message.Message):
-    __slots__ = ("header", "step", "system", "status", "states", "controls", "compute_time_s", "objective", "cost", "path_m", "message", "info_json", "request_seq", "service_time_s")
+    __slots__ = ("header", "step", "system", "status", "states", "controls", "compute_time_s", "objective", "cost", "path_m", "message", "info_json", "request_seq", "service_time_s", "bound", "certified_gap")
     HEADER_FIELD_NUMBER: _ClassVar[int]
     STEP_FIELD_NUMBER: _ClassVar[int]
     SYSTEM_FIELD_NUMBER: _ClassVar[int]
@@ -148,6 +148,8 @@ class Plan(_message.Message):
     INFO_JSON_FIELD_NUMBER: _ClassVar[int]
     REQUEST_SEQ_FIELD_NUMBER: _ClassVar[int]
     SERVICE_TIME_S_FIELD_NUMBER: _ClassVar[int]
+    BOUND_FIELD_NUMBER: _ClassVar[int]
+    CERTIFIED_GAP_FIELD_NUMBER: _ClassVar[int]
     header: _common_pb2.Header
     step: int
     system: int
@@ -162,4 +164,6 @@ class Plan(_message.Message):
     info_json: str
     request_seq: int
     service_time_s: float
-    def __init__(self, header: _Optional[_Union[_common_pb2.Header, _Mapping]] = ..., step: _Optional[int] = ..., system: _Optional[int] = ..., status: _Optional[_Union[PlanStatus, str]] = ..., states: _Optional[_Iterable[float]] = ..., controls: _Optional[_Iterable[float]] = ..., compute_time_s: _Optional[float] = ..., objective: _Optional[_Union[Objective, str]] = ..., cost: _Optional[float] = ..., path_m: _Optional[_Iterable[float]] = ..., message: _Optional[str] = ..., info_json: _Optional[str] = ..., request_seq: _Optional[int] = ..., service_time_s: _Optional[float] = ...) -> None: ...
+    bound: float
+    certified_gap: float
+    def __init__(self, header: _Optional[_Union[_common_pb2.Header, _Mapping]] = ..., step: _Optional[int] = ..., system: _Optional[int] = ..., status: _Optional[_Union[PlanStatus, str]] = ..., states: _Optional[_Iterable[float]] = ..., controls: _Optional[_Iterable[float]] = ..., compute_time_s: _Optional[float] = ..., objective: _Optional[_Union[Objective, str]] = ..., cost: _Optional[float] = ..., path_m: _Optional[_Iterable[float]] = ..., message: _Optional[str] = ..., info_json: _Optional[str] = ..., request_seq: _Optional[int] = ..., service_time_s: _Optional[float] = ..., bound: _Optional[float] = ..., certified_gap: _Optional[float] = ...) -> None: ...

@@ -86,6 +86,8 @@ def _write_records(mission: StackSession, aborted: str, wall_s: float) -> None:
     record, r = mission.record, mission.result
     if record.dir is None or r is None or not r.records:
         return
+    if mission.planners is not None:  # requests answered after the last step's record
+        record.latency.requests.extend(mission.planners.pool.take_answered())
     try:
         paths = record.write(r, mission.b.uav, mission.stack_summary(
             {"wall_time_s": round(wall_s, 3), "aborted": aborted or None}))

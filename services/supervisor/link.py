@@ -1,9 +1,11 @@
 """The supervisor's MAVLink link to the vehicle: an offboard companion, in MAVSDK/PX4 order.
 
 Threads: a reader keeps the newest LOCAL_POSITION_NED (with its
-``time_boot_ms``, the vehicle's simulated clock), the vehicle's mode and
-arming from its HEARTBEAT (each time it leaves offboard mode is counted, with
-the reason of its last STATUSTEXT: services/supervisor/faults.py), COMMAND_ACKs,
+``time_boot_ms``, the vehicle's simulated clock), the vehicle's autopilot,
+mode and arming from its HEARTBEAT (the mode numbers are the autopilot's:
+PX4's OFFBOARD is main mode 6, ArduPilot's GUIDED 4, services/common/mavmodes.py;
+every change of mode is kept with the STATUSTEXT before it, and each time it
+leaves offboard mode is counted: services/supervisor/faults.py), COMMAND_ACKs,
 the geodetic origin (GPS_GLOBAL_ORIGIN) and the mission id (parameter
 ``MIS_ID``); a poller asks for ``MIS_ID`` and the origin at 1 Hz; a mission
 watcher downloads the vehicle's mission (MISSION_REQUEST_LIST →
@@ -19,7 +21,7 @@ is not UDP (tcp, serial) streams from a thread of this process instead.
 
 :meth:`VehicleLink.start_offboard` is the MAVSDK/PX4 start: wait for a
 heartbeat and a valid position, stream setpoints that hold the current state,
-switch to offboard (GUIDED), arm; a refused command is logged and retried
+switch to offboard (PX4 OFFBOARD, ArduPilot GUIDED), arm; a refused command is logged and retried
 (``command_attempts``), then the start fails with :class:`OffboardError`.
 The vehicle counts as lost after ``lost_after_s`` (3 s) without a heartbeat.
 :meth:`VehicleLink.send_setpoint` sends a new setpoint at once from the
@@ -35,12 +37,13 @@ import select
 import socket
 import threading
 import time
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
 from dualpilot.model.dynamics import Array
-from services.common import mav, mavlink_codec, rejections
+from services.common import mav, mavlink_codec, mavmodes, rejections
 from services.common.log import fields, vehicle_thread
 from services.supervisor.stream.client import StreamLink, stream_process
 
@@ -59,6 +62,16 @@ POLL_PERIOD_S = 0.25
 
 class OffboardError(RuntimeError):
     """The vehicle could not be put under offboard control."""
+
+
+@dataclass(frozen=True)
+class ModeChange:
+    """The vehicle's mode or arming changed (as its HEARTBEAT said)."""
+
+    at_s: float  #: monotonic s the heartbeat was read
+    mode: str  #: the autopilot's name (OFFBOARD, AUTO.LOITER, GUIDED, LOITER, …)
+    armed: bool
+    text: str  #: the last STATUSTEXT before it (the vehicle's reason)
 
 
 def _destinations(conn: Any) -> list[tuple[str, int]]:
@@ -140,6 +153,10 @@ class VehicleLink:
         self._listened = time.monotonic()  # when the reader last waited for the vehicle
         self.mode = -1
         self.armed = False
+        #: the vehicle's mode numbers, from its HEARTBEAT's autopilot field (None: not heard)
+        self.modes: mavmodes.ModeMap | None = None
+        #: every change of mode or arming: (monotonic s, mode name, armed, last STATUSTEXT)
+        self.mode_changes: list[ModeChange] = []
         self.origin: tuple[float, float] | None = None
         self.setpoint: tuple[Array, int] | None = None
         self._sent = 0  # setpoints sent by this process (a link that is not UDP)
@@ -201,14 +218,20 @@ class VehicleLink:
                             self.lost_after_s)
 
     def offboard(self) -> bool:
-        """Alive, armed and in offboard mode (GUIDED): the setpoints fly it."""
-        return self.alive() and self.armed and self.mode == mav.MODE_GUIDED
+        """Alive, armed and in offboard mode (PX4 OFFBOARD, ArduPilot GUIDED): the setpoints
+        fly it."""
+        return (self.alive() and self.armed and self.modes is not None
+                and self.mode == self.modes.offboard)
+
+    def mode_name(self, mode: int | None = None) -> str:
+        mode = self.mode if mode is None else mode
+        return self.modes.name(mode) if self.modes is not None else str(mode)
 
     def status(self) -> str:
         if not self.alive():
             return "lost"
         armed = "armed" if self.armed else "disarmed"
-        return f"{mav.MODE_NAMES.get(self.mode, self.mode)}, {armed}"
+        return f"{self.mode_name()}, {armed}"
 
     # -- outgoing -------------------------------------------------------------------------------
     def _heartbeat(self) -> None:
@@ -324,9 +347,13 @@ class VehicleLink:
                 raise OffboardError("no valid position from the vehicle")
         self.hold()
         stop.wait(5 * self.period_s)  # PX4 accepts offboard only with the stream already live
+        modes = self.modes
+        assert modes is not None  # set with the first heartbeat
+        log.info("taking the vehicle", extra=fields(autopilot=modes.family,
+                                                    offboard=modes.name(modes.offboard)))
         steps = (
-            ("offboard mode", lambda: self.mode == mav.MODE_GUIDED, m.MAV_CMD_DO_SET_MODE,
-             (float(m.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED), float(mav.MODE_GUIDED))),
+            ("offboard mode", lambda: self.mode == modes.offboard, m.MAV_CMD_DO_SET_MODE,
+             (float(m.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED), *modes.offboard_request)),
             ("arm", lambda: self.armed, m.MAV_CMD_COMPONENT_ARM_DISARM, (1.0,)),
         )
         for what, done, cmd, params in steps:
@@ -368,22 +395,7 @@ class VehicleLink:
         if msg.get_srcComponent() != mav.MAV_COMP_ID_AUTOPILOT1:
             return
         if kind == "HEARTBEAT":
-            with self.cond:
-                if not self.seen.is_set() or not self.alive():
-                    log.info("vehicle heartbeat", extra=fields(sysid=self.target_system,
-                                                               mav_type=msg.type))
-                self.last_heartbeat = time.monotonic()
-                mode, armed = int(msg.custom_mode), bool(
-                    msg.base_mode & m.MAV_MODE_FLAG_SAFETY_ARMED)
-                if (mode, armed) != (self.mode, self.armed) and self.seen.is_set():
-                    log.info("vehicle mode", extra=fields(
-                        mode=mav.MODE_NAMES.get(mode, mode), armed=armed))
-                    if self.mode == mav.MODE_GUIDED and self.armed and mode != mav.MODE_GUIDED:
-                        self.holds += 1  # it left offboard control: a fault of the mission
-                        self.hold_reasons.append(self.last_text)
-                self.mode, self.armed = mode, armed
-                self.seen.set()
-                self.cond.notify_all()
+            self._on_heartbeat(msg)
         elif kind == "LOCAL_POSITION_NED":
             try:
                 x = mavlink_codec.state_from_ned(msg.x, msg.y, msg.vx, msg.vy)
@@ -415,6 +427,30 @@ class VehicleLink:
                 self._mission_changed.set()
         elif kind in ("MISSION_COUNT", "MISSION_ITEM_INT", "MISSION_ACK"):
             self._mission_q.put(msg)
+
+    def _on_heartbeat(self, msg: Any) -> None:
+        """The vehicle's autopilot (its mode numbers), mode and arming; a change is kept, and
+        leaving offboard control while armed is counted (a fault of the mission)."""
+        with self.cond:
+            modes = mavmodes.for_autopilot(int(msg.autopilot))
+            if not self.seen.is_set() or not self.alive() or modes != self.modes:
+                log.info("vehicle heartbeat", extra=fields(
+                    sysid=self.target_system, mav_type=msg.type, autopilot=modes.family))
+            self.modes = modes
+            self.last_heartbeat = time.monotonic()
+            mode, armed = int(msg.custom_mode), bool(
+                msg.base_mode & m.MAV_MODE_FLAG_SAFETY_ARMED)
+            if (mode, armed) != (self.mode, self.armed):
+                self.mode_changes.append(ModeChange(self.last_heartbeat, modes.name(mode), armed,
+                                                    self.last_text))
+                if self.seen.is_set():
+                    log.info("vehicle mode", extra=fields(mode=modes.name(mode), armed=armed))
+                if self.mode == modes.offboard and self.armed and mode != modes.offboard:
+                    self.holds += 1  # it left offboard control: a fault of the mission
+                    self.hold_reasons.append(self.last_text)
+            self.mode, self.armed = mode, armed
+            self.seen.set()
+            self.cond.notify_all()
 
     def wait_vehicle(self, timeout_s: float, stop: threading.Event) -> bool:
         deadline = time.monotonic() + timeout_s

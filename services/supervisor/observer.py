@@ -68,6 +68,7 @@ class StackObserver:
     _why: dict[str, object] = field(default_factory=dict)
     _decision: tuple[Decision, int] | None = None
     _holds_seen: int = 0
+    _modes_seen: int = 0
 
     # -- events -------------------------------------------------------------------------------
     def event(self, kind: EventKind, **values: object) -> None:
@@ -110,7 +111,7 @@ class StackObserver:
         pool = p.pool
         self.record.latency.add(t, self.mission.vehicle.sent - self.tick, p.compute,
                                 pool.requests, pool.request_wall_s, pool.service_s)
-        self.record.latency.background.extend(pool.take_background())
+        self.record.latency.requests.extend(pool.take_answered())
         rejected = p.last_info.get(1, {}).get("operator_rejected")
         op = OperatorRecord(t, self.mission.waypoints_n,
                             str(info.get("source", "")) if flown == 1 else "",
@@ -146,7 +147,18 @@ class StackObserver:
             log.warning("step touched by a fault", extra=fields(faults="; ".join(found)))
         return found
 
+    def modes(self) -> None:
+        """A ``vehicle_mode`` event line for every change of the vehicle's mode or arming
+        since the last one (its autopilot's name, and the STATUSTEXT that explained it)."""
+        changes = self.link.mode_changes
+        for ch in changes[self._modes_seen:]:
+            self.record.line("event", event="vehicle_mode", mode=ch.mode, armed=ch.armed,
+                             autopilot=self.link.modes.family if self.link.modes else "",
+                             text=ch.text)
+        self._modes_seen = len(changes)
+
     def recorded(self, record: StepRecord, flown: bool) -> None:
+        self.modes()
         self.pubs.plans(record, self.mission.spec)  # the live view (services/viewer)
         rejected = sum(a.refused_by_monitor for a in record.answers)
         if rejected:
@@ -172,6 +184,7 @@ class StackObserver:
     def ended(self, record: StepRecord, ending: Ending) -> None:
         result = self.mission.result
         assert result is not None
+        self.modes()
         self.record.line("end", success=ending.success, failure_cause=ending.failure_cause,
                          steps=result.steps, final_state=[float(v) for v in self.mission.state])
         self.step_event(record)

@@ -102,6 +102,11 @@ def _add_stack_arguments(p: argparse.ArgumentParser) -> None:
     g.add_argument("--forecast-timeout-s", type=float, default=env("FORECAST_TIMEOUT_S", "10"),
                    help="how long a risk-aware step waits for the EWS's forecast (wall s); "
                         "past it the step flies without (forecast_stale) [FORECAST_TIMEOUT_S]")
+    g.add_argument("--forecast-deadline-periods", type=float,
+                   default=env("FORECAST_DEADLINE_PERIODS", "0.5"),
+                   help="at a speed factor > 0, a step waits for the forecast at most this many "
+                        "control periods ΔT of wall time, as the plan deadlines (and at most "
+                        "--forecast-timeout-s) [FORECAST_DEADLINE_PERIODS]")
     g.add_argument("--setpoint-rate-hz", type=float, default=env("SETPOINT_RATE_HZ", "20"),
                    help="setpoint stream rate, >= 10 [SETPOINT_RATE_HZ]")
     g.add_argument("--setpoint-stream", default=env("SETPOINT_STREAM", "process"),
@@ -123,17 +128,20 @@ def _add_stack_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def parser(doc: str) -> argparse.ArgumentParser:
-    p = common_cli.parser("supervisor", doc, mavlink_default="udpout:127.0.0.1:14540")
+    p = common_cli.parser("supervisor", doc, mavlink_default="udpin:127.0.0.1:14540")
     add_config_arguments(p, common_cli.env)
     _add_stack_arguments(p)
     return p
 
 
 def _stack_params(args: argparse.Namespace) -> StackParams:
-    if not (args.forecast_timeout_s > 0 and args.fire_timeout_s > 0):
-        raise ValueError("--fire-timeout-s and --forecast-timeout-s must be positive")
+    if not (args.forecast_timeout_s > 0 and args.fire_timeout_s > 0
+            and args.forecast_deadline_periods > 0):
+        raise ValueError("--fire-timeout-s, --forecast-timeout-s and "
+                         "--forecast-deadline-periods must be positive")
     base = StackParams(altitude_m=args.altitude_m, fire_timeout_s=args.fire_timeout_s,
-                       forecast_timeout_s=args.forecast_timeout_s)
+                       forecast_timeout_s=args.forecast_timeout_s,
+                       forecast_deadline_periods=args.forecast_deadline_periods)
     if not args.plan_deadline_s:  # default: tied to the control period (plan_deadline_periods)
         return base
     deadlines = tuple(float(v) for v in args.plan_deadline_s.split(","))

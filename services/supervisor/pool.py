@@ -98,7 +98,8 @@ def rendezvous(mission_id: str, replicas: list[str]) -> list[str]:
 
 @dataclass
 class _Ask:
-    """One request in flight: what was sent, when, and by when it must be answered."""
+    """One request in flight: what was sent, when, and by when it must be answered (and
+    what the answering service reports of its own time, s)."""
 
     system: int
     step: int
@@ -106,6 +107,23 @@ class _Ask:
     deadline_s: float
     t0: float
     account: bool
+    service_s: float = 0.0
+
+
+@dataclass(frozen=True)
+class Answered:
+    """One plan request as the pool saw it: the step that asked, the system, whether it was
+    asked in the background (off the step's path), its round trip and the part of it the
+    service reports (s: decode, plan, encode; 0 without a reply), the request's size (bytes)
+    and the answer's status."""
+
+    step: int
+    system: int
+    background: bool
+    round_trip_s: float
+    service_s: float
+    request_bytes: int
+    status: str
 
 
 @dataclass
@@ -129,7 +147,7 @@ class PlannerPool:
         self.demoted: dict[int, float] = {}  # system → clock time of its last health query
         self.suspect: dict[int, set[str]] = {1: set(), 2: set()}  # replicas that timed out
         self._lock = threading.Lock()  # a background request's thread counts too
-        self._background: list[tuple[int, float]] = []  # (step, round trip s) not yet taken
+        self._answered: list[Answered] = []  # every request since the last take_answered
 
     # -- which replica ------------------------------------------------------------------------
     def order(self, system: int) -> list[str]:
@@ -234,17 +252,19 @@ class PlannerPool:
             plan = Plan.failed(system, PlanStatus.TIMEOUT, self.clock() - job.t0,
                                f"no replica of system{system} answered within "
                                f"{job.deadline_s:g} s")
+        wall = self.clock() - job.t0
         if account:
-            self.request_wall_s += self.clock() - job.t0
-        else:
-            with self._lock:
-                self._background.append((step, self.clock() - job.t0))
+            self.request_wall_s += wall
+        with self._lock:
+            self._answered.append(Answered(step, system, not account, wall, job.service_s,
+                                           msg.ByteSize(), plan.status.value))
         return plan
 
-    def take_background(self) -> list[tuple[int, float]]:
-        """The background requests answered since the last call: (step asked, round trip s)."""
+    def take_answered(self) -> list[Answered]:
+        """Every request answered (or given up) since the last call, foreground and
+        background."""
         with self._lock:
-            out, self._background = self._background, []
+            out, self._answered = self._answered, []
         return out
 
     def _failed_over(self, job: _Ask, zid: str, plan: Plan) -> bool:
@@ -306,6 +326,7 @@ class PlannerPool:
                                                       replica=zid or "any",
                                                       seq=reply.request_seq))
         plan = plan_convert.plan_from_msg(reply, system)
+        job.service_s = reply.service_time_s
         if job.account:
             self.service_s += reply.service_time_s
         age = self.clock() - job.t0

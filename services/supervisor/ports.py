@@ -80,6 +80,17 @@ class StackParams:
     #: how long a forecast query to the EWS waits (wall s); past it the step flies without
     #: the forecast (the forecast_stale fault)
     forecast_timeout_s: float = 10.0
+    #: a paced (real-time) mission waits for a forecast at most this many control periods
+    #: (wall s, as the plan deadlines; never longer than ``forecast_timeout_s``): the step keeps
+    #: its beat and flies without a forecast that comes later (forecast_stale)
+    forecast_deadline_periods: float = 0.5
+
+    def forecast_wait_s(self, dt_s: float, speed_factor: float) -> float:
+        """How long a forecast query waits (wall s): ``forecast_timeout_s`` in lockstep
+        (speed factor 0), else ``forecast_deadline_periods`` × ΔT at most."""
+        if speed_factor <= 0:
+            return self.forecast_timeout_s
+        return min(self.forecast_timeout_s, self.forecast_deadline_periods * dt_s)
 
 
 @dataclass
@@ -251,8 +262,9 @@ class StackFires:
                                                    self.b.stamper, self.b.clock.now_s)
         key = keys.fire_command(self.b.uav)
         t0 = time.perf_counter()
+        speed = self.b.clock.speed_factor
         try:
-            payload, enc = self.b.query(key, cmd, self.b.stack.forecast_timeout_s,
+            payload, enc = self.b.query(key, cmd, self.b.stack.forecast_wait_s(self.b.dt_s, speed),
                                         trusted=self.b.trusted("ews"))
             update = wire.parse(payload, fire_pb2.FireUpdate, enc)
             fc = self._checked_forecast(update, revision)
@@ -260,18 +272,23 @@ class StackFires:
             rejections.rejected("FireForecast", err, log, key=key)
             self._no_forecast(f"refused: {err}")
             return None
-        except (TimeoutError, bus.QueryError) as err:
+        except TimeoutError as err:
             if self.b.stop.is_set():
                 raise Aborted("stopped") from err
+            self._no_forecast(f"late: {err}")
+            return None
+        except bus.QueryError as err:
             self._no_forecast(str(err))
             return None
         fc.memo[fire_convert.WIRE_GRID] = update.forecast.occupancy  # sent on as it came
         wall = time.perf_counter() - t0
         compute = update.forecast.compute_s
         self._received.append((compute, wall, len(payload)))
+        # its age when the step plans on it: the simulated time the wait took (0 in lockstep,
+        # where the clock stands still while the step waits)
         self._costs.append({"revision": revision, "substeps_per_step": n,
                             "compute_s": round(compute, 6), "wall_s": round(wall, 6),
-                            "bytes": len(payload), "age_s": 0.0})
+                            "bytes": len(payload), "age_s": round(wall * speed, 6)})
         return fc
 
     def _checked_forecast(self, update: fire_pb2.FireUpdate,

@@ -1,8 +1,9 @@
 """The supervisor's per-step outputs beside dualpilot.mission.records: latency, operator.
 
-``latency.csv`` holds the tick → setpoint latency of every step
-(:class:`Latency`); :func:`write_operator_columns` adds which reference path
-System 1 used (:class:`OperatorRecord`) to ``steps.csv`` and ``trace.json``.
+``latency.csv`` holds the tick → setpoint latency of every step and
+``requests.csv`` every plan request (:class:`Latency`);
+:func:`write_operator_columns` adds which reference path System 1 used
+(:class:`OperatorRecord`) to ``steps.csv`` and ``trace.json``.
 """
 
 from __future__ import annotations
@@ -14,8 +15,12 @@ from pathlib import Path
 
 import numpy as np
 
+from .pool import Answered
+
 LATENCY_COLUMNS = ["t", "tick_to_setpoint_s", "compute_s", "overhead_s", "requests",
                    "request_wall_s", "service_s"]
+REQUEST_COLUMNS = ["t", "system", "background", "round_trip_s", "service_s", "request_bytes",
+                   "status"]
 
 
 @dataclass(frozen=True)
@@ -39,12 +44,13 @@ class Latency:
     ``request_wall`` is the time spent in plan requests (round trip, the
     planner service's decoding and encoding, and compute), ``service`` the
     part of it the planner services report (decode, plan, encode).
-    ``background``: the requests asked off the step's path (the concurrent
-    supervisor's System 2), each (step asked, round trip s), in background.csv.
+    ``requests``: every plan request (:class:`services.supervisor.pool.Answered`),
+    those the step waited for and those asked off its path (the concurrent
+    supervisor's System 2), one row each in requests.csv.
     """
 
     rows: list[tuple[int, float, float, float, int, float, float]] = field(default_factory=list)
-    background: list[tuple[int, float]] = field(default_factory=list)
+    requests: list[Answered] = field(default_factory=list)
 
     def add(self, t: int, total: float, compute: float, requests: int, request_wall: float,
             service: float) -> None:
@@ -65,10 +71,12 @@ class Latency:
             for t, total, compute, overhead, requests, wall, service in self.rows:
                 w.writerow([t, f"{total:.6f}", f"{compute:.6f}", f"{overhead:.6f}", requests,
                             f"{wall:.6f}", f"{service:.6f}"])
-        with (out / "background.csv").open("w", newline="") as fh:
+        with (out / "requests.csv").open("w", newline="") as fh:
             w = csv.writer(fh)
-            w.writerow(["t", "round_trip_s"])
-            w.writerows([t, f"{rtt:.6f}"] for t, rtt in self.background)
+            w.writerow(REQUEST_COLUMNS)
+            w.writerows([a.step, a.system, int(a.background), f"{a.round_trip_s:.6f}",
+                         f"{a.service_s:.6f}", a.request_bytes, a.status]
+                        for a in self.requests)
         return path
 
 

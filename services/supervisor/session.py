@@ -380,7 +380,9 @@ class StackSession:
             "untrusted": _untrusted_counts(), "faults": dict(self.observer.faults.totals),
             "planner_failovers": pool.failovers if pool is not None else 0,
             "forecast": self.fires.forecast_summary() if self.fires is not None else {},
-            "stream": self.link.stream_stats(), **extra,
+            "stream": self.link.stream_stats(),
+            "vehicle_modes": [{"mode": c.mode, "armed": c.armed, "text": c.text}
+                              for c in self.link.mode_changes], **extra,
         }
 
 

@@ -1,21 +1,27 @@
 """uavsim: a simulated vehicle that speaks MAVLink like an autopilot and flies Eq. (1).
 
-Links (pymavlink, MAVLink 2, system ``--sysid``, component 1), like PX4 SITL:
-offboard (``--mavlink-url``, default ``udpin:0.0.0.0:14540``), where the
-supervisor streams SET_POSITION_TARGET_LOCAL_NED, optionally signed; ground
-station (``--gcs-url``, default ``udpin:0.0.0.0:14550``) for MAVProxy or
-QGroundControl. Both get HEARTBEAT and telemetry and answer parameters
-(:data:`PARAMS`), COMMAND_LONG and the mission protocol; ``--tlog`` records
-them in MAVProxy's ``.tlog`` format. The local frame (m east/north) has its
-origin at ``--home``, the area's south-west corner; the vehicle flies at
-``SIM_ALT_M`` (m). Each setpoint, stamped with the simulated time it is due,
-is one ΔT step of Eq. (1), with the dynamics of the readings profile
-``--profile`` (its speed limit per axis or as a norm, ``--speed-limit``).
+Two links (pymavlink, MAVLink 2, system ``--sysid``, component 1): the
+offboard link (``--mavlink-url``), where a companion (the supervisor, MAVSDK)
+streams SET_POSITION_TARGET_LOCAL_NED, optionally signed, and the ground-station
+link (``--gcs-url``) for MAVProxy or QGroundControl. Both get HEARTBEAT and
+telemetry and answer parameters, commands and the mission protocol;
+``--tlog`` records them in MAVProxy's ``.tlog`` format. Without the flags the
+vehicle does what its autopilot's SITL does (services/uavsim/flavour.py):
+``--autopilot px4`` *sends* to 127.0.0.1:14540 (MAVSDK's examples listen
+there) and 127.0.0.1:14550 (QGroundControl listens there) and boots at PX4
+SITL's home; ``--autopilot ardupilot`` serves TCP 5762 (offboard) and 5760
+(ground station), ArduPilot SITL's SERIAL1 and SERIAL0. The local frame (m
+east/north) has its origin at ``--home``.
 
-That is the lockstep clock (``--clock lockstep``, our missions); ``--clock
-realtime`` flies on the vehicle's own clock instead (services/uavsim/clock.py).
-Modules: commands.py (COMMAND_LONG), failsafe.py, intervals.py (stream
-rates), setpoint.py (type masks), mission.py, vehicle.py (physics).
+``--clock realtime`` (the default: a vehicle on its own, as SITL) flies
+Eq. (1) on the vehicle's own clock, one ΔT every ΔT / ``--speed-factor``
+wall seconds; ``--clock lockstep`` (the stack: ``make run``, compose, every
+mission) makes each setpoint, stamped with the simulated time it is due,
+one ΔT step of Eq. (1) (services/uavsim/clock.py), with the dynamics of the
+readings profile ``--profile`` (its speed limit per axis or as a norm,
+``--speed-limit``). The parts: endpoint.py (links), commander.py (modes and
+arming), failsafe.py, navigator.py, missionrun.py, geofence.py, commands.py,
+params.py, telemetry.py, mission.py, control.py, vehicle.py (physics).
 """
 
 from __future__ import annotations
@@ -35,7 +41,8 @@ from services.common.log import fields
 
 from . import clock as vclock
 from . import flavour as fl
-from .endpoint import SIGNED_ONLY, Endpoint, VehicleSetup
+from .autopilot import VehicleSetup
+from .endpoint import SIGNED_ONLY, Endpoint
 from .storage import open_tlog
 from .vehicle import Vehicle
 
@@ -64,8 +71,8 @@ class StatsFile:
         ep = self.endpoint
         try:
             clock = vclock.REALTIME if ep.realtime else vclock.LOCKSTEP
-            ep.stream_stats.write(self.path, clock=clock, sysid=ep.sysid,
-                                  failsafe_now=ep.failsafe)
+            ep.ap.stream_stats.write(self.path, clock=clock, sysid=ep.sysid,
+                                     failsafe_now=ep.ap.in_offboard_failsafe)
         except OSError as err:
             if not self.failed:
                 self.failed = True
@@ -73,13 +80,23 @@ class StatsFile:
                                     key="storage/stream-stats", reason="write_error")
 
 
-def parse_pair(text: str, what: str) -> tuple[float, float]:
+def parse_numbers(text: str, what: str, counts: tuple[int, ...] = (2,)) -> tuple[float, ...]:
+    """Comma-separated finite numbers, as many as one of ``counts``; ValueError otherwise."""
     try:
-        a, b = (float(v) for v in text.split(","))
+        values = tuple(float(v) for v in text.split(","))
     except ValueError as err:
-        raise ValueError(f"{what} must be 'a,b', got {text!r}") from err
-    if not (math.isfinite(a) and math.isfinite(b)):
+        raise ValueError(f"{what} must be {len(counts) and counts[0]} comma-separated numbers, "
+                         f"got {text!r}") from err
+    if len(values) not in counts:
+        raise ValueError(f"{what} must have {' or '.join(map(str, counts))} numbers, "
+                         f"got {text!r}")
+    if not all(math.isfinite(v) for v in values):
         raise ValueError(f"{what} must be finite")
+    return values
+
+
+def parse_pair(text: str, what: str) -> tuple[float, float]:
+    a, b = parse_numbers(text, what)
     return a, b
 
 
@@ -101,17 +118,18 @@ def main(argv: list[str] | None = None) -> int:
 def _parser() -> argparse.ArgumentParser:
     """The vehicle's flags, each with its environment variable."""
     env = common_cli.env
-    p = common_cli.parser("uavsim", "Simulated vehicle: MAVLink endpoint flying Eq. (1).",
-                          mavlink_default="udpin:0.0.0.0:14540")
-    p.add_argument("--gcs-url", default=env("GCS_URL", "udpin:0.0.0.0:14550"),
-                   help="ground-station link, empty to disable [GCS_URL]")
+    p = common_cli.parser("uavsim", "Simulated vehicle: MAVLink endpoint flying Eq. (1).")
+    _link_flags(p)
     p.add_argument("--sysid", type=int, default=env("MAV_SYSID", "1"), help="[MAV_SYSID]")
-    p.add_argument("--start", default=env("UAV_START", "50,50"),
-                   help="start position 'east,north' in m [UAV_START]")
+    p.add_argument("--start", default=os.environ.get("UAV_START"),
+                   help="start position 'east,north' in m of the origin; default: px4 0,0 (at "
+                        "home, as PX4 SITL), ardupilot 50,50 [UAV_START]")
     p.add_argument("--altitude-m", type=float, default=env("UAV_ALTITUDE_M", "50"),
                    help="fixed flight altitude (Sec. IV is 2-D) [UAV_ALTITUDE_M]")
-    p.add_argument("--home", default=env("UAV_HOME", "35.1450,33.4110"),
-                   help="'lat,lon' of the local frame's origin (the area's south-west corner) "
+    p.add_argument("--home", default=os.environ.get("UAV_HOME"),
+                   help="'lat,lon[,alt]' (deg, deg, m above mean sea level) of the local "
+                        "frame's origin, the planning area's south-west corner; default: px4 "
+                        "PX4 SITL's home 47.397742,8.545594,488, ardupilot 35.1450,33.4110,0 "
                         "[UAV_HOME]")
     p.add_argument("--area-size-m", type=float, default=env("AREA_SIZE_M", "1000"),
                    help="mission waypoints must lie in [0, area]² [AREA_SIZE_M]")
@@ -136,15 +154,10 @@ def _parser() -> argparse.ArgumentParser:
     fleet.add_argument(p, "several vehicles in this process, instance k (from 0) on the "
                           "links' ports + k with system id --sysid + k, as PX4 SITL's "
                           "multi-vehicle instances")
-    p.add_argument("--autopilot", choices=sorted(fl.FLAVOURS),
-                   default=env("UAV_AUTOPILOT", fl.ARDUPILOT.name),
-                   help="the autopilot the vehicle claims to be: HEARTBEAT autopilot and mode "
-                        "numbers (ardupilot: GUIDED/LOITER; px4: OFFBOARD/AUTO.LOITER) "
-                        "[UAV_AUTOPILOT]")
-    p.add_argument("--clock", choices=vclock.CLOCKS, default=env("UAV_CLOCK", vclock.LOCKSTEP),
-                   help="lockstep: each new setpoint stamp is one step of Eq. (1) (the stack); "
-                        "realtime: the vehicle flies on its own clock at --speed-factor, as "
-                        "PX4 SITL (MAVSDK and other offboard clients) [UAV_CLOCK]")
+    p.add_argument("--clock", choices=vclock.CLOCKS, default=env("UAV_CLOCK", vclock.REALTIME),
+                   help="realtime: the vehicle flies on its own clock at --speed-factor, as a "
+                        "SITL (MAVSDK, ground stations, missions); lockstep: each new setpoint "
+                        "stamp is one step of Eq. (1) (the stack sets it) [UAV_CLOCK]")
     p.add_argument("--profile", default=env("READINGS_PROFILE", "today"), choices=list(PROFILES),
                    help="the reading of the paper whose dynamics the vehicle flies (Eq. (1), "
                         "its force and speed limits; dualpilot profiles) [READINGS_PROFILE]")
@@ -156,6 +169,24 @@ def _parser() -> argparse.ArgumentParser:
     return p
 
 
+def _link_flags(p: argparse.ArgumentParser) -> None:
+    """The autopilot and its links: without them, the autopilot's SITL defaults."""
+    env = common_cli.env
+    p.add_argument("--autopilot", choices=sorted(fl.FLAVOURS),
+                   default=env("UAV_AUTOPILOT", fl.ARDUPILOT.name),
+                   help="the autopilot the vehicle claims to be and behaves like: HEARTBEAT "
+                        "autopilot, mode numbers, and its SITL's links and home "
+                        "[UAV_AUTOPILOT]")
+    p.add_argument("--mavlink-url", default=os.environ.get("MAVLINK_URL"),
+                   help="the offboard link; default: the autopilot's SITL (px4: "
+                        f"{fl.PX4.sitl.offboard_url}, ardupilot: {fl.ARDUPILOT.sitl.offboard_url})"
+                        " [MAVLINK_URL]")
+    p.add_argument("--gcs-url", default=os.environ.get("GCS_URL"),
+                   help="the ground-station link, empty to disable; default: the autopilot's "
+                        f"SITL (px4: {fl.PX4.sitl.gcs_url}, ardupilot: "
+                        f"{fl.ARDUPILOT.sitl.gcs_url}) [GCS_URL]")
+
+
 @dataclass(frozen=True)
 class VehicleOptions:
     """The checked flags: what every vehicle of this process flies with."""
@@ -164,6 +195,7 @@ class VehicleOptions:
     settings: common_cli.Settings
     start: tuple[float, float]  #: m east, north
     home: tuple[float, float]  #: deg lat, lon of the local frame's origin
+    home_amsl_m: float  #: the origin's altitude above mean sea level
     key: bytes | None  #: the offboard link's signing key
     dynamics: Any  #: Eq. (1) of the profile
     uavs: tuple[str, ...]
@@ -176,11 +208,19 @@ def _options(args: argparse.Namespace, raw_argv: list[str]) -> VehicleOptions:
     use_zenoh = args.zenoh == "on" or (args.zenoh == "auto" and (
         "ZENOH_CONNECT" in os.environ
         or any(a.startswith("--zenoh-connect") for a in raw_argv)))
+    sitl = fl.FLAVOURS[args.autopilot].sitl
+    args.mavlink_url = sitl.offboard_url if args.mavlink_url is None else args.mavlink_url
+    args.gcs_url = sitl.gcs_url if args.gcs_url is None else args.gcs_url
+    if not args.mavlink_url:
+        raise ValueError("--mavlink-url must not be empty (the offboard link)")
     settings = common_cli.settings("uavsim", args)
-    start = parse_pair(args.start, "--start")
-    home = parse_pair(args.home, "--home")
-    if not (abs(home[0]) < 85 and abs(home[1]) <= 180):
-        raise ValueError("--home must be a latitude in (-85, 85) and a longitude")
+    start = parse_pair(args.start, "--start") if args.start is not None else sitl.start
+    lat, lon, *alt = (parse_numbers(args.home, "--home", (2, 3)) if args.home is not None
+                      else sitl.home)
+    if not (abs(lat) < 85 and abs(lon) <= 180 and -500 <= (alt or [0.0])[0] <= 9000):
+        raise ValueError("--home must be a latitude in (-85, 85), a longitude and an altitude "
+                         "in [-500, 9000] m")
+    home = (lat, lon)
     if not 1 <= args.sysid <= 255:
         raise ValueError("--sysid must be in 1..255")
     if not (0 <= args.kp <= 1 and 0.1 <= args.offboard_loss_s <= 60):
@@ -202,7 +242,8 @@ def _options(args: argparse.Namespace, raw_argv: list[str]) -> VehicleOptions:
     speed = settings.speed_factor
     if args.clock == vclock.REALTIME and not speed > 0:
         raise ValueError("--clock realtime needs --speed-factor > 0 (1 is real time)")
-    return VehicleOptions(args, settings, start, home, key, dynamics, uavs, speed, use_zenoh)
+    return VehicleOptions(args, settings, start, home, (alt or [0.0])[0], key, dynamics, uavs,
+                          speed, use_zenoh)
 
 
 def _links(opts: VehicleOptions, k: int, sysid: int) -> dict[str, Any]:
@@ -238,9 +279,11 @@ def _fly(ctx: bus.Context, opts: VehicleOptions) -> None:
         gcs=fleet.instance_url(args.gcs_url, k) if args.gcs_url else "",
         signed=opts.key is not None, autopilot=args.autopilot, clock=args.clock,
         speed_factor=opts.speed, speed_limit=vehicle.dyn.speed_limit,
-        zenoh=opts.use_zenoh, east_m=start[0], north_m=start[1], tlog=tlog_path))
+        zenoh=opts.use_zenoh, east_m=start[0], north_m=start[1], home=opts.home,
+        home_amsl_m=opts.home_amsl_m, tlog=tlog_path))
     setup = VehicleSetup(sysid, args.altitude_m, opts.home, args.offboard_loss_s,
-                         args.area_size_m, fl.FLAVOURS[args.autopilot], args.clock, opts.speed)
+                         args.area_size_m, fl.FLAVOURS[args.autopilot], args.clock, opts.speed,
+                         opts.home_amsl_m)
     endpoint = Endpoint(vehicle, links, setup, tlog)
     if tlog is not None:
         tlog.on_fault = lambda text: setattr(endpoint, "fault", text)

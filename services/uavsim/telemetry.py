@@ -3,96 +3,145 @@
 LOCAL_POSITION_NED, GLOBAL_POSITION_INT and ATTITUDE at 10 Hz and after every
 step; SYS_STATUS, GPS_RAW_INT, EXTENDED_SYS_STATE and MISSION_CURRENT at 1 Hz;
 HOME_POSITION and GPS_GLOBAL_ORIGIN every 5 s (services/uavsim/intervals.py,
-changed by SET_MESSAGE_INTERVAL).
+changed by SET_MESSAGE_INTERVAL); a message on request (REQUEST_MESSAGE).
+Altitudes: LOCAL_POSITION_NED ``z`` is −(height above home), GLOBAL_POSITION_INT
+``alt`` is above mean sea level (home's AMSL altitude + the height),
+``relative_alt`` above home.
 """
 
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING
+from collections.abc import Callable
 
 from services.common import mav, mavlink_codec
 
-if TYPE_CHECKING:
-    from .endpoint import Endpoint
+from .autopilot import Autopilot
+from .flavour import Nav
+from .outbox import Outbox
 
 m = mav.mavlink
+#: AUTOPILOT_VERSION.flight_sw_version: 0.1.0, release (major<<24 | minor<<16 | patch<<8 | type)
+FLIGHT_SW_VERSION = (0 << 24) | (1 << 16) | (0 << 8) | 255
+#: what the vehicle really does: MAVLink 2 and signing on the offboard link, MISSION_ITEM_INT
+#: and MISSION_ITEM uploads (mission and, on its own clock, fence), float parameters,
+#: SET_POSITION_TARGET_LOCAL_NED, COMMAND_INT (DO_REPOSITION). Not claimed: FTP, terrain,
+#: SET_ATTITUDE_TARGET, rally points.
+CAPABILITIES = (m.MAV_PROTOCOL_CAPABILITY_MAVLINK2 | m.MAV_PROTOCOL_CAPABILITY_MISSION_INT
+                | m.MAV_PROTOCOL_CAPABILITY_MISSION_FLOAT | m.MAV_PROTOCOL_CAPABILITY_PARAM_FLOAT
+                | m.MAV_PROTOCOL_CAPABILITY_SET_POSITION_TARGET_LOCAL_NED
+                | m.MAV_PROTOCOL_CAPABILITY_COMMAND_INT
+                | m.MAV_PROTOCOL_CAPABILITY_MISSION_FENCE)
+FAST = (m.MAVLINK_MSG_ID_LOCAL_POSITION_NED, m.MAVLINK_MSG_ID_GLOBAL_POSITION_INT,
+        m.MAVLINK_MSG_ID_ATTITUDE)
+SLOW = (m.MAVLINK_MSG_ID_SYS_STATUS, m.MAVLINK_MSG_ID_GPS_RAW_INT,
+        m.MAVLINK_MSG_ID_EXTENDED_SYS_STATE, m.MAVLINK_MSG_ID_MISSION_CURRENT)
+HOME = (m.MAVLINK_MSG_ID_HOME_POSITION, m.MAVLINK_MSG_ID_GPS_GLOBAL_ORIGIN)
 
 
-def telemetry(ep: Endpoint, only: int | None = None) -> None:
-    """LOCAL_POSITION_NED, GLOBAL_POSITION_INT and ATTITUDE (or ``only`` that one)."""
-    x = ep.vehicle.state
-    alt = ep.altitude_m
-    n, e, d, vn, ve, vd = mavlink_codec.state_to_ned(x, alt)
-    lat, lon = mav.to_geodetic(float(x[0]), float(x[1]), ep.origin)
-    t_ms = ep.vehicle.time_ms
-    hdg = int(math.degrees(math.atan2(ve, vn)) % 360 * 100) if (vn or ve) else 65535
-    roll, pitch, yaw = ep.vehicle.attitude()
-    if only in (None, m.MAVLINK_MSG_ID_LOCAL_POSITION_NED):
-        ep.broadcast("local_position_ned", t_ms, n, e, d, vn, ve, vd)
-    if only in (None, m.MAVLINK_MSG_ID_GLOBAL_POSITION_INT):
-        ep.broadcast("global_position_int", t_ms, int(lat * 1e7), int(lon * 1e7),
-                     int(alt * 1000), int(alt * 1000), int(vn * 100), int(ve * 100),
-                     int(vd * 100), hdg)
-    if only in (None, m.MAVLINK_MSG_ID_ATTITUDE):
-        ep.broadcast("attitude", t_ms, roll, pitch, yaw, 0.0, 0.0, 0.0)
+class Telemetry:
+    """The streamed messages of one vehicle, built from its :class:`Autopilot` and sent on
+    ``outbox``; ``origin`` is the local frame's (deg lat, lon), ``home`` where it booted (m
+    east, north) at ``home_amsl_m`` (m above mean sea level)."""
 
+    def __init__(self, ap: Autopilot, outbox: Outbox, origin: tuple[float, float],
+                 home: tuple[float, float], home_amsl_m: float):
+        self.ap = ap
+        self.outbox = outbox
+        self.origin = origin
+        self.home = home
+        self.home_amsl_m = home_amsl_m
 
-def slow_telemetry(ep: Endpoint, only: int | None = None) -> None:
-    """SYS_STATUS, GPS_RAW_INT, EXTENDED_SYS_STATE, MISSION_CURRENT (or ``only`` one)."""
-    v = ep.vehicle
-    if only in (None, m.MAVLINK_MSG_ID_SYS_STATUS):
-        sensors = (m.MAV_SYS_STATUS_SENSOR_3D_GYRO | m.MAV_SYS_STATUS_SENSOR_3D_ACCEL
-                   | m.MAV_SYS_STATUS_SENSOR_3D_MAG | m.MAV_SYS_STATUS_SENSOR_GPS
-                   | m.MAV_SYS_STATUS_SENSOR_BATTERY | m.MAV_SYS_STATUS_PREARM_CHECK)
-        # the pre-arm check passes while there is charge left (arming's only condition)
-        healthy = sensors if v.battery_fraction > 0 else (
-            sensors & ~m.MAV_SYS_STATUS_PREARM_CHECK)
-        ep.broadcast("sys_status", sensors, sensors, healthy, 100,
-                     int(v.voltage_v * 1000), -1, int(round(v.battery_fraction * 100)), 0,
-                     min(int(ep.p("SIG_REJECTED")), 65535), 0, 0, 0, 0)
-    if only in (None, m.MAVLINK_MSG_ID_GPS_RAW_INT):
-        x = v.state
-        lat, lon = mav.to_geodetic(float(x[0]), float(x[1]), ep.origin)
-        speed = math.hypot(float(x[2]), float(x[3]))
-        cog = (int(math.degrees(math.atan2(float(x[2]), float(x[3]))) % 360 * 100)
-               if speed else 0)
-        ep.broadcast("gps_raw_int", v.time_ms * 1000, m.GPS_FIX_TYPE_3D_FIX,
-                     int(lat * 1e7), int(lon * 1e7), int(ep.altitude_m * 1000), 80, 120,
-                     int(speed * 100), cog, 14)
-    if only in (None, m.MAVLINK_MSG_ID_EXTENDED_SYS_STATE):
-        landed = (m.MAV_LANDED_STATE_IN_AIR if ep.airborne
-                  else m.MAV_LANDED_STATE_ON_GROUND)
-        ep.broadcast("extended_sys_state", m.MAV_VTOL_STATE_UNDEFINED, landed)
-    if only in (None, m.MAVLINK_MSG_ID_MISSION_CURRENT):
-        ep.mission.send_current()
+    def position(self, only: int | None = None, link: str | None = None) -> None:
+        """LOCAL_POSITION_NED, GLOBAL_POSITION_INT and ATTITUDE (or ``only`` that one)."""
+        v = self.ap.vehicle
+        alt = self.ap.nav.alt
+        n, e, d, vn, ve, _ = mavlink_codec.state_to_ned(v.state, alt)
+        vd = -v.vz_mps if self.ap.own_clock else 0.0
+        lat, lon = mav.to_geodetic(float(v.state[0]), float(v.state[1]), self.origin)
+        t_ms = v.time_ms
+        hdg = int(math.degrees(math.atan2(ve, vn)) % 360 * 100) if (vn or ve) else 65535
+        roll, pitch, yaw = v.attitude()
+        if only in (None, m.MAVLINK_MSG_ID_LOCAL_POSITION_NED):
+            self.outbox.send(link, "local_position_ned", t_ms, n, e, d, vn, ve, vd)
+        if only in (None, m.MAVLINK_MSG_ID_GLOBAL_POSITION_INT):
+            self.outbox.send(link, "global_position_int", t_ms, int(lat * 1e7), int(lon * 1e7),
+                             int((self.home_amsl_m + alt) * 1000), int(alt * 1000),
+                             int(vn * 100), int(ve * 100), int(vd * 100), hdg)
+        if only in (None, m.MAVLINK_MSG_ID_ATTITUDE):
+            self.outbox.send(link, "attitude", t_ms, roll, pitch, yaw, 0.0, 0.0, 0.0)
 
+    def status(self, only: int | None = None, link: str | None = None) -> None:
+        """SYS_STATUS, GPS_RAW_INT, EXTENDED_SYS_STATE, MISSION_CURRENT (or ``only`` one)."""
+        v = self.ap.vehicle
+        if only in (None, m.MAVLINK_MSG_ID_SYS_STATUS):
+            sensors = (m.MAV_SYS_STATUS_SENSOR_3D_GYRO | m.MAV_SYS_STATUS_SENSOR_3D_ACCEL
+                       | m.MAV_SYS_STATUS_SENSOR_3D_MAG | m.MAV_SYS_STATUS_SENSOR_GPS
+                       | m.MAV_SYS_STATUS_SENSOR_BATTERY | m.MAV_SYS_STATUS_PREARM_CHECK)
+            # the pre-arm check bit while there is charge left (MAVSDK's is_armable)
+            healthy = sensors if v.battery_fraction > 0 else (
+                sensors & ~m.MAV_SYS_STATUS_PREARM_CHECK)
+            self.outbox.send(link, "sys_status", sensors, sensors, healthy, 100,
+                             int(v.voltage_v * 1000), -1, int(round(v.battery_fraction * 100)),
+                             0, min(int(self.ap.params["SIG_REJECTED"]), 65535), 0, 0, 0, 0)
+        if only in (None, m.MAVLINK_MSG_ID_GPS_RAW_INT):
+            lat, lon = mav.to_geodetic(float(v.state[0]), float(v.state[1]), self.origin)
+            speed = math.hypot(float(v.state[2]), float(v.state[3]))
+            cog = (int(math.degrees(math.atan2(float(v.state[2]), float(v.state[3]))) % 360
+                       * 100) if speed else 0)
+            self.outbox.send(link, "gps_raw_int", v.time_ms * 1000, m.GPS_FIX_TYPE_3D_FIX,
+                             int(lat * 1e7), int(lon * 1e7),
+                             int((self.home_amsl_m + self.ap.nav.alt) * 1000), 80, 120,
+                             int(speed * 100), cog, 14)
+        if only in (None, m.MAVLINK_MSG_ID_EXTENDED_SYS_STATE):
+            self.outbox.send(link, "extended_sys_state", m.MAV_VTOL_STATE_UNDEFINED,
+                             self.landed_state())
+        if only in (None, m.MAVLINK_MSG_ID_MISSION_CURRENT):
+            self.ap.mission.send_current(link)
 
-def stream(ep: Endpoint, msg_id: int) -> None:
-    """Send one scheduled telemetry message (services/uavsim/intervals.py) on every link."""
-    if msg_id == m.MAVLINK_MSG_ID_HEARTBEAT:
-        ep.heartbeat()
-    elif msg_id in (m.MAVLINK_MSG_ID_HOME_POSITION, m.MAVLINK_MSG_ID_GPS_GLOBAL_ORIGIN):
-        home_position(ep, only=msg_id)
-    elif msg_id in (m.MAVLINK_MSG_ID_LOCAL_POSITION_NED, m.MAVLINK_MSG_ID_GLOBAL_POSITION_INT,
-                    m.MAVLINK_MSG_ID_ATTITUDE):
-        telemetry(ep, only=msg_id)
-    else:
-        slow_telemetry(ep, only=msg_id)
+    def landed_state(self) -> int:
+        nav, ap = self.ap.commander.nav, self.ap
+        if ap.nav.landed:
+            return int(m.MAV_LANDED_STATE_ON_GROUND)
+        if nav is Nav.TAKEOFF and ap.vehicle.vz_mps > 0:
+            return int(m.MAV_LANDED_STATE_TAKEOFF)
+        if nav is Nav.LAND and ap.vehicle.vz_mps < 0:
+            return int(m.MAV_LANDED_STATE_LANDING)
+        return int(m.MAV_LANDED_STATE_IN_AIR)
 
-
-def home_position(ep: Endpoint, link: str | None = None, only: int | None = None) -> None:
-    """HOME_POSITION and GPS_GLOBAL_ORIGIN, on every link or on ``link`` (or ``only`` one)."""
-    lat, lon = mav.to_geodetic(*ep.home_local, ep.origin)
-    args = (int(lat * 1e7), int(lon * 1e7), 0, ep.home_local[1], ep.home_local[0], 0.0,
-            [1.0, 0.0, 0.0, 0.0], 0.0, 0.0, 0.0, ep.vehicle.time_ms * 1000)
-    origin = (int(ep.origin[0] * 1e7), int(ep.origin[1] * 1e7), 0,
-              ep.vehicle.time_ms * 1000)
-    if link is None:
+    def home_position(self, only: int | None = None, link: str | None = None) -> None:
+        """HOME_POSITION and GPS_GLOBAL_ORIGIN (or ``only`` one)."""
+        lat, lon = mav.to_geodetic(*self.home, self.origin)
+        t_us = self.ap.vehicle.time_ms * 1000
+        amsl_mm = int(self.home_amsl_m * 1000)
         if only in (None, m.MAVLINK_MSG_ID_HOME_POSITION):
-            ep.broadcast("home_position", *args)
+            self.outbox.send(link, "home_position", int(lat * 1e7), int(lon * 1e7), amsl_mm,
+                             self.home[1], self.home[0], 0.0, [1.0, 0.0, 0.0, 0.0],
+                             0.0, 0.0, 0.0, t_us)
         if only in (None, m.MAVLINK_MSG_ID_GPS_GLOBAL_ORIGIN):
-            ep.broadcast("gps_global_origin", *origin)
-    else:
-        ep.send[link]("home_position", *args)
-        ep.send[link]("gps_global_origin", *origin)
+            self.outbox.send(link, "gps_global_origin", int(self.origin[0] * 1e7),
+                             int(self.origin[1] * 1e7), amsl_mm, t_us)
+
+    def stream(self, msg_id: int, link: str | None = None) -> None:
+        """Send one scheduled (or requested) message."""
+        if msg_id == m.MAVLINK_MSG_ID_HEARTBEAT:
+            self.ap.heartbeat()
+        elif msg_id in HOME:
+            self.home_position(only=msg_id, link=link)
+        elif msg_id in FAST:
+            self.position(only=msg_id, link=link)
+        else:
+            self.status(only=msg_id, link=link)
+
+    def sender(self, link: str, msg_id: int) -> Callable[[], None] | None:
+        """The function that answers REQUEST_MESSAGE of ``msg_id`` on ``link`` (None: not one
+        the vehicle has)."""
+        if msg_id == m.MAVLINK_MSG_ID_AUTOPILOT_VERSION:
+            return lambda: self.outbox.send(link, "autopilot_version", CAPABILITIES,
+                                            FLIGHT_SW_VERSION, 0, 0, 0, [0] * 8, [0] * 8,
+                                            [0] * 8, 0, 0, self.ap.sysid)
+        if msg_id == m.MAVLINK_MSG_ID_HOME_POSITION:  # and the origin with it
+            return lambda: self.home_position(link=link)
+        if msg_id in (*FAST, *SLOW, *HOME, m.MAVLINK_MSG_ID_HEARTBEAT):
+            return lambda: self.stream(msg_id, link)
+        return None

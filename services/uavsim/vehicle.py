@@ -14,6 +14,13 @@ v_cmd = v* + k_p (p* − (p + ΔT v)) / ΔT and solves Eq. (1) for the force,
 On a planned trajectory (x* = Φ x + Γ u_plan) the correction term is 0 and u
 equals the plan's control: the vehicle flies exactly what was planned.
 
+Altitude: Sec. IV is 2-D at a fixed altitude, so Eq. (1) has no vertical
+axis. On its own clock the vehicle still climbs and descends like a
+multicopter's altitude controller: each ΔT the altitude moves towards its
+target by at most ``up`` (climb) or ``down`` (sink) m/s × ΔT
+(:meth:`Vehicle.climb`; PX4's MPC_Z_VEL_MAX_UP / _DN, services/uavsim/params.py).
+In lockstep the altitude is the fixed one (services/uavsim/navigator.py).
+
 Battery: the charge used is the impulse Σ‖u_t‖ΔT (N·s) of the flown controls
 against a capacity of ``BATTERY_CAPACITY_NS`` = 1000 N·s (about five of the
 paper's missions: cruising at 12 m/s against the drag ζ costs ‖u‖ ≈ 2.5 N).
@@ -63,6 +70,8 @@ class Vehicle:
     impulse_ns: float = 0.0
     capacity_ns: float = BATTERY_CAPACITY_NS
     control: Array = field(default_factory=lambda: np.zeros(2))
+    alt_m: float = 0.0  #: above home
+    vz_mps: float = 0.0  #: climb rate (up is positive)
 
     @staticmethod
     def at(east_m: float, north_m: float, dyn: DynamicsParams = DynamicsParams()) -> Vehicle:
@@ -85,17 +94,27 @@ class Vehicle:
         self.steps += 1
         return True
 
+    def climb(self, target_m: float, up_mps: float, down_mps: float) -> None:
+        """One ΔT of the altitude towards ``target_m`` (m above home, never below 0) at most
+        ``up_mps`` up or ``down_mps`` down."""
+        dt = self.dyn.dt_s
+        target = max(0.0, float(target_m))
+        change = min(max(target - self.alt_m, -down_mps * dt), up_mps * dt)
+        self.alt_m = max(0.0, self.alt_m + change)
+        self.vz_mps = change / dt
+
     def brake(self) -> None:
         """Hold: stop where it is (a multirotor's position hold), keeping the clock."""
         self.state = hover_state(self.state[: self.dyn.dim], self.dyn)
         self.control = np.zeros(self.dyn.dim)
+        self.vz_mps = 0.0
 
     def set_limits(self, u_max_n: float | None = None, v_max_mps: float | None = None) -> None:
         """New force/speed limits (parameters); raises ValueError if not positive."""
         self.dyn = replace(self.dyn, u_max_n=self.dyn.u_max_n if u_max_n is None else u_max_n,
                            v_max_mps=self.dyn.v_max_mps if v_max_mps is None else v_max_mps)
 
-    # -- battery ------------------------------------------------------------------------------
+    # -- battery -------------------------------------------------------------------------------
     @property
     def battery_fraction(self) -> float:
         """Charge left, 0..1."""
@@ -105,7 +124,7 @@ class Vehicle:
     def voltage_v(self) -> float:
         return VOLT_EMPTY_V + (VOLT_FULL_V - VOLT_EMPTY_V) * self.battery_fraction
 
-    # -- attitude -----------------------------------------------------------------------------
+    # -- attitude ------------------------------------------------------------------------------
     def attitude(self) -> tuple[float, float, float]:
         """(roll, pitch, yaw) in rad from the last control and the velocity (module docstring)."""
         ue, un = (float(v) for v in self.control[:2])

@@ -1,13 +1,18 @@
-"""Viewer service: every vehicle's mission, live, over the Foxglove WebSocket protocol.
+"""Viewer service: every vehicle's mission, live, on a web page and over the Foxglove WebSocket
+protocol.
 
-``python -m services.viewer --listen tcp/127.0.0.1:8765`` and open
-``ws://localhost:8765`` in Foxglove or Lichtblick (docs/live_view.md). It
+``python -m services.viewer`` and open ``http://127.0.0.1:8766/`` in a browser
+(the operations picture: services/viewer/page.py, served by Bokeh, offline), or
+``ws://localhost:8765`` in Foxglove or Lichtblick (docs/live_view.md).
+``python -m services.viewer --replay runs/latest/mission.mcap`` serves the page
+of a finished run (services/viewer/replay.py), without Zenoh. Live, it
 subscribes to what the stack publishes for any vehicle (``dualpilot/*/…``:
 the supervisor's decision, plans, vehicle state and mission events, the EWS's
 fires and forecast), validates each message in the codec (a rejection is
 counted and logged, never a crash) and logs it on that vehicle's channels
 (services/viewer/live.py; dualpilot/viz/foxglove.py defines them, as in
-mission.mcap), served by foxglove-sdk's WebSocket server. A vehicle's
+mission.mcap), served by foxglove-sdk's WebSocket server, and keeps the
+newest of each in the web page's picture (services/viewer/picture.py). A vehicle's
 channels are advertised when its first message arrives; the k-th vehicle's
 area is placed k·(A + 100 m) east of the first in the ``world`` frame.
 
@@ -23,6 +28,7 @@ from __future__ import annotations
 import logging
 import re
 from collections.abc import Callable
+from pathlib import Path
 from typing import Any
 
 from dualpilot.spec import MissionSpec
@@ -34,7 +40,11 @@ from services.common.convert import vehicle as vehicle_convert
 from services.common.log import fields
 from services.msgs import fire_pb2, supervisor_pb2, vehicle_pb2
 
+from . import replay
 from .live import LiveVehicle, log_time_ns
+from .picture import Picture
+from .replay import Timeline
+from .web import DEFAULT_WEB_LISTEN, WebServer
 
 log = logging.getLogger("services.viewer")
 
@@ -67,15 +77,18 @@ KINDS: dict[str, Callable[[str], str]] = {
 class Viewer:
     """Every vehicle seen so far, and the dispatch of one received message to its handler."""
 
-    def __init__(self, context: Any):
+    def __init__(self, context: Any, picture: Picture | None = None):
         self.context = context
+        self.picture = picture
         self.vehicles: dict[str, LiveVehicle] = {}
 
     def vehicle(self, uav: str, area_m: float) -> LiveVehicle:
         v = self.vehicles.get(uav)
         if v is None:
             k = len(self.vehicles)
-            v = LiveVehicle(uav, self.context, (k * (area_m + AREA_GAP_M), 0.0))
+            offset = (k * (area_m + AREA_GAP_M), 0.0)
+            scene = self.picture.scene(uav, offset) if self.picture is not None else None
+            v = LiveVehicle(uav, self.context, offset, scene)
             self.vehicles[uav] = v
             log.info("vehicle seen", extra=fields(uav=uav, vehicles=len(self.vehicles)))
         return v
@@ -150,7 +163,7 @@ def batch(inbox: bus.Inbox, first: bus.Received) -> list[tuple[bus.Received, boo
     return [(it, i in keep or it.key not in newest) for i, it in enumerate(items)]
 
 
-def body(ctx: bus.Context, host: str, port: int) -> None:
+def body(ctx: bus.Context, host: str, port: int, web: WebServer | None) -> None:
     import foxglove
 
     assert ctx.session is not None
@@ -158,7 +171,11 @@ def body(ctx: bus.Context, host: str, port: int) -> None:
     server = foxglove.start_server(name="dualpilot", host=host, port=port, context=context)
     log.info("serving the live view", extra=fields(url=f"ws://{host}:{server.port}",
                                                    port=server.port))
-    viewer = Viewer(context)
+    picture = Picture()
+    if web is not None:
+        web.frames = picture.frame
+        web.start()
+    viewer = Viewer(context, picture if web is not None else None)
     inbox = bus.Inbox()
     subs = [ctx.session.declare_subscriber(keys.every_vehicle(fn), inbox.on_sample)
             for fn in KINDS.values()]
@@ -179,17 +196,80 @@ def body(ctx: bus.Context, host: str, port: int) -> None:
         for sub in subs:
             sub.undeclare()
         server.stop()
+        if web is not None:
+            web.stop()
         log.info("live view stopped", extra=fields(frames_skipped=skipped))
 
 
-def main(argv: list[str] | None = None) -> int:
-    p = common_cli.parser("viewer", "The stack's missions, live, over the Foxglove WebSocket "
-                                    "protocol (foxglove-sdk).")
+def replay_body(ctx: bus.Context, timeline: Timeline, web: WebServer) -> None:
+    """Serve the page of recorded missions (no Zenoh) until stopped."""
+    web.step_frames, web.replay_steps = timeline.at, len(timeline.frames)
+    web.title = f"dualpilot replay: {', '.join(Path(f).name for f in timeline.files)}"
+    log.info("replaying", extra=fields(files=list(timeline.files), frames=len(timeline.frames)))
+    web.start()
+    try:
+        ctx.stop.wait()
+    finally:
+        web.stop()
+
+
+def load_replay(paths: list[Path]) -> Timeline:
+    """The recordings' timeline; ValueError naming the file for anything unreadable."""
+    from mcap.exceptions import McapError
+
+    missing = [str(f) for f in paths if not f.is_file()]
+    if missing:
+        raise ValueError(f"no such recording: {', '.join(missing)}")
+    try:
+        return replay.load(paths)
+    except (McapError, OSError, KeyError, IndexError) as err:
+        raise ValueError(f"cannot replay {', '.join(map(str, paths))}: not a mission.mcap "
+                         f"of dualpilot's channels ({type(err).__name__}: {err})") from err
+
+
+def web_server(args: Any) -> WebServer | None:
+    """The web page's server the flags ask for (not started), None with ``--no-web``."""
+    if args.no_web:
+        return None
+    host, port = parse_listen(args.web_listen)
+    if args.web_port is not None:
+        if not 0 <= args.web_port <= 65535:
+            raise ValueError(f"--web-port must be in 0..65535, got {args.web_port}")
+        port = args.web_port
+    if port == 0:
+        from services.launch.processes import free_port
+
+        port = free_port("tcp")
+    origins = [o.strip() for o in args.web_origin.split(",") if o.strip()]
+    return WebServer(host, port, "dualpilot operations picture", None, allow_origins=origins)
+
+
+def parser() -> Any:
+    p = common_cli.parser("viewer", "The stack's missions, live, on a web page (Bokeh) and over "
+                                    "the Foxglove WebSocket protocol (foxglove-sdk); or a run's "
+                                    "mission.mcap replayed on the page.")
     p.add_argument("--listen", default=common_cli.env("VIEWER_LISTEN", DEFAULT_LISTEN),
                    help="where the WebSocket server listens, tcp/HOST:PORT [VIEWER_LISTEN]")
     p.add_argument("--port", type=int, default=None,
                    help="the WebSocket port (overrides --listen's; 0: any free port)")
+    p.add_argument("--web-listen", default=common_cli.env("WEB_LISTEN", DEFAULT_WEB_LISTEN),
+                   help="where the web page is served, tcp/HOST:PORT [WEB_LISTEN]")
+    p.add_argument("--web-port", type=int, default=None,
+                   help="the web page's port (overrides --web-listen's; 0: any free port)")
+    p.add_argument("--web-origin", default=common_cli.env("WEB_ORIGIN", ""),
+                   help="comma-separated HOST:PORT a browser may also reach the page by "
+                        "(besides localhost and 127.0.0.1) [WEB_ORIGIN]")
+    p.add_argument("--no-web", action="store_true", help="no web page (Foxglove only)")
+    p.add_argument("--replay", nargs="+", type=Path, default=None, metavar="MCAP",
+                   help="serve the page of these mission.mcap files (no Zenoh, no Foxglove "
+                        "server): a step slider and a play button")
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = parser()
     args = p.parse_args(argv)
+    timeline = None
     try:
         settings = common_cli.settings("viewer", args)
         host, port = parse_listen(args.listen)
@@ -197,9 +277,18 @@ def main(argv: list[str] | None = None) -> int:
             if not 0 <= args.port <= 65535:
                 raise ValueError(f"--port must be in 0..65535, got {args.port}")
             port = args.port
+        web = web_server(args)
+        if args.replay is not None:
+            if web is None:
+                raise ValueError("--replay serves the web page: drop --no-web")
+            timeline = load_replay(args.replay)
     except ValueError as err:
         p.error(str(err))
-    return bus.run_service(settings, lambda ctx: body(ctx, host, port))
+    if timeline is not None:
+        assert web is not None
+        return bus.run_service(settings, lambda ctx: replay_body(ctx, timeline, web),
+                               zenoh_session=False)
+    return bus.run_service(settings, lambda ctx: body(ctx, host, port, web))
 
 
 if __name__ == "__main__":

@@ -1,7 +1,9 @@
-"""One vehicle's live scene: the stack's messages, as they arrive, drawn on its Foxglove channels.
+"""One vehicle's live scene: the stack's messages, as they arrive, drawn on its Foxglove channels
+and in the web page's picture.
 
 The channels and how each view is drawn are dualpilot/viz/foxglove.py's, the
-ones mission.mcap has. A step's decision channel joins the Decision and the
+ones mission.mcap has; the web page's :class:`~services.viewer.picture.VehicleScene`
+takes the same calls. A step's decision channel joins the Decision and the
 StepPlans of that step (whichever arrives second logs it), so it carries the
 flown system and the step's simulated start time as mission.mcap does. Log
 times are the senders' wall clocks (Header.wall_time_ns): one clock for a
@@ -34,6 +36,8 @@ from dualpilot.viz.scene import (
 from services.common.convert.supervisor import StepPlans
 from services.msgs import supervisor_pb2
 
+from .picture import VehicleScene
+
 #: steps kept while a step's Decision waits for its StepPlans (or the other way round)
 JOIN_WINDOW = 64
 
@@ -45,11 +49,15 @@ def log_time_ns(header: Any) -> int:
 
 
 class LiveVehicle:
-    """What the viewer knows of one vehicle's mission, and its channels."""
+    """What the viewer knows of one vehicle's mission, and where it draws it: its Foxglove
+    channels and (with a web page) its scene in the page's picture."""
 
-    def __init__(self, uav: str, context: Any, offset_m: tuple[float, float]):
+    def __init__(self, uav: str, context: Any, offset_m: tuple[float, float],
+                 scene: VehicleScene | None = None):
         self.uav = uav
         self.ch = VehicleChannels(uav, context, offset_m)
+        self.scene = scene
+        self.sinks: tuple[Any, ...] = (self.ch,) if scene is None else (self.ch, scene)
         self.spec = MissionSpec()  # until the supervisor's first StepPlans names the mission's
         self.mission_id = ""
         self.path: list[Array] = []
@@ -63,11 +71,15 @@ class LiveVehicle:
             self.path.clear()
             self.decisions.clear()
             self.plans.clear()
+            if self.scene is not None:
+                self.scene.new_mission()
 
     def _join(self, t: int, t_ns: int) -> None:
         if t in self.decisions and t in self.plans:
             (d, commanded), sp = self.decisions.pop(t), self.plans.pop(t)
-            self.ch.decision(decision_doc(d, commanded, sp.flown, sp.time_s), t_ns)
+            doc = decision_doc(d, commanded, sp.flown, sp.time_s)
+            for s in self.sinks:
+                s.decision(doc, t_ns)
             self.logged += 1
         for store in (self.decisions, self.plans):
             for old in [k for k in store if k < t - JOIN_WINDOW]:
@@ -82,10 +94,12 @@ class LiveVehicle:
         self._new_mission(sp.mission_id)
         self.spec = sp.spec
         self.plans[sp.step] = sp
-        self.ch.transform(t_ns)
-        self.ch.area(area_view(sp.spec), t_ns)
-        self.ch.plans(sp.plans, sp.step, t_ns)
-        self.ch.risk(RiskView(sp.risk_zones, sp.risk_alpha), sp.step, t_ns)
+        area, risk = area_view(sp.spec), RiskView(sp.risk_zones, sp.risk_alpha)
+        for s in self.sinks:
+            s.transform(t_ns)
+            s.area(area, t_ns)
+            s.plans(sp.plans, sp.step, t_ns)
+            s.risk(risk, sp.step, t_ns)
         self.logged += 5
         self._join(sp.step, t_ns)
 
@@ -93,16 +107,22 @@ class LiveVehicle:
         if step == 0:
             self.path.clear()
         self.path.append(np.asarray(x[:2], dtype=float))
-        self.ch.vehicle(x, step, self.spec.d_safe_m, t_ns)
-        self.ch.path(np.array(self.path), t_ns)
+        path = np.array(self.path)
+        for s in self.sinks:
+            s.vehicle(x, step, self.spec.d_safe_m, t_ns)
+            s.path(path, t_ns)
         self.logged += 2
 
     def fires(self, snapshot: FireSnapshot, t_ns: int) -> None:
-        self.ch.fires(fire_view(snapshot), t_ns)
+        view = fire_view(snapshot)
+        for s in self.sinks:
+            s.fires(view, t_ns)
         self.logged += 1
 
     def forecast(self, fc: OccupancyForecast, t_ns: int) -> None:
-        self.ch.forecast(occupancy_view(fc), t_ns)
+        view = occupancy_view(fc)
+        for s in self.sinks:
+            s.forecast(view, t_ns)
         self.logged += 1
 
     def event(self, ev: supervisor_pb2.MissionEvent, t_ns: int) -> None:
@@ -122,5 +142,6 @@ class LiveVehicle:
             name = supervisor_pb2.MissionEventKind.Name(kind).rsplit("_", 1)[-1].lower()
             text = f"{name} at step {ev.step}: {ev.message}"
             level = "warning" if kind == supervisor_pb2.MISSION_EVENT_KIND_PAUSED else "info"
-        self.ch.event(text, t_ns, level)
+        for s in self.sinks:
+            s.event(text, t_ns, level)
         self.logged += 1

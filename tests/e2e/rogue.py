@@ -12,7 +12,9 @@ Modes (``--uav``, ``--connect`` the router endpoint):
   without its token, with a plan that would pass the monitor (it brakes);
   its plans carry ``info.source = "impostor"``.
 * ``ews-impostor``: answers ``ews/command`` at once beside the real EWS,
-  without its token, with "no fires".
+  without its token, with "no fires", and a forecast query with a forecast of
+  exactly the step and fire revision asked for that sees no risk anywhere
+  (its compute time :data:`FORGED_COMPUTE_S` marks it).
 * ``plan-hung``: holds System 2's tokens, prepares, then never answers a plan
   request (and has no status queryable).
 
@@ -32,6 +34,7 @@ import zenoh
 
 from dualpilot.mission.ports import PlanRequest
 from dualpilot.model.dynamics import DynamicsParams, rollout
+from dualpilot.model.forecast import OccupancyForecast
 from dualpilot.plan import Plan, PlanStatus
 from services.common import bus, keys, wire
 from services.common.convert import fire as fire_convert
@@ -39,6 +42,27 @@ from services.common.convert import plan as plan_convert
 from services.msgs import fire_pb2, plan_pb2
 
 DYN = DynamicsParams()
+#: the compute time the rogue EWS's forged forecasts claim (s): a step record that shows it
+#: planned on a forgery
+FORGED_COMPUTE_S = 999.0
+
+
+def forged_forecast(item: bus.Received, uav: str) -> fire_pb2.FireUpdate:
+    """A forecast answering exactly the query ``item`` carries, with no risk anywhere."""
+    cmd = fire_convert.fire_command_from_msg(
+        wire.parse(item.payload, fire_pb2.FireCommand, item.encoding))
+    update = fire_pb2.FireUpdate()
+    stamper = wire.Stamper("ews", uav)
+    stamper.stamp(update.header)
+    state = fire_convert.fire_state_msg([], [], cmd.step, cmd.substeps_done, 0.5, stamper, 0.0)
+    update.states.append(state)
+    horizons = tuple(range(0, 81, 2))
+    nothing = OccupancyForecast(resolution_m=10.0, substep_s=0.5, horizons=horizons,
+                                levels=np.zeros((len(horizons), 100, 100), dtype=np.uint8),
+                                issued_substep=cmd.substeps_done)
+    fire_convert.forecast_reply_msg(nothing, cmd.step, FORGED_COMPUTE_S, update.forecast)
+    stamper.stamp(update.forecast.header)
+    return update
 
 
 def _open(endpoint: str) -> zenoh.Session:
@@ -114,6 +138,9 @@ def main() -> int:
                 continue
             if args.mode == "ews-impostor":
                 cmd = wire.parse(item.payload, fire_pb2.FireCommand, item.encoding)
+                if cmd.WhichOneof("command") == "forecast":
+                    bus.reply(item.query, forged_forecast(item, args.uav))
+                    continue
                 update = fire_pb2.FireUpdate()
                 state = fire_convert.fire_state_msg([], [], cmd.advance.step, 0, 0.5,
                                                       wire.Stamper("ews", args.uav), 0.0)

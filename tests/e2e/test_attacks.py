@@ -31,6 +31,7 @@ from services.common import bus, keys, mav, wire
 from services.msgs import supervisor_pb2
 from tests.support.waits import Logs, check, logs_in, wait_for
 
+from . import rogue
 from .conftest import alive, router_ready, run_process
 
 pytestmark = [pytest.mark.slow, pytest.mark.timeout(150)]
@@ -118,12 +119,16 @@ class Attack:
 @contextmanager
 def attacked(tmp_path: Path, name: str, controller: str = "cc", speed: float = 50.0,
              services: tuple[str, ...] = (), max_steps: int = 25,
-             extra_env: dict[str, dict[str, str]] | None = None) -> Iterator[Attack]:
+             extra_env: dict[str, dict[str, str]] | None = None,
+             scenario: str = "") -> Iterator[Attack]:
+    settings: tuple[tuple[str, object], ...] = (("max_steps", max_steps),)
+    if scenario:
+        settings += (("scenario", scenario),)
     cfg = launch.StackConfig(run_dir=tmp_path / name, speed_factor=speed,
                              mission=MissionConfig.named(controller, seed=SEED,
                                                          timing=Timing.MEASURED,
                                                          mission_id=f"m-{name}",
-                                                         settings=(("max_steps", max_steps),)),
+                                                         settings=settings),
                              free_ports=True, uav_id=f"a-{name}", log_format="text",
                              services=services,
                              extra_env=extra_env or {}, deferred=("supervisor",))
@@ -167,7 +172,11 @@ def test_byzantine_system2_plans_are_never_flown(tmp_path: Path) -> None:
 
 # -- 2. impostors beside the real services: only the token holder is trusted ------------------
 def test_impostor_planner_and_ews_beside_the_real_ones_are_not_trusted(tmp_path: Path) -> None:
-    with attacked(tmp_path, "impostor", controller="s2", speed=20.0, max_steps=40) as run:
+    """System 2 with the forecast: plans, fire states and forecasts from services without the
+    tokens are refused and counted; every forecast planned on is the real EWS's. On grass-15
+    the real EWS takes tens of ms to forecast, so the forgeries arrive first."""
+    with attacked(tmp_path, "impostor", controller="s2+risk", speed=20.0, max_steps=40,
+                  scenario="grass-15") as run:
         run.rogue("plan-impostor", "ews-impostor")
         end = run.end()
         steps = run.steps()
@@ -175,6 +184,11 @@ def test_impostor_planner_and_ews_beside_the_real_ones_are_not_trusted(tmp_path:
     assert steps and not [e for e in steps if e.get("info", {}).get("source") == "impostor"]
     assert any(e["system"] == 2 for e in steps)
     assert any(e["fires_active"] > 0 for e in steps), "the rogue EWS's 'no fires' was believed"
+    forecasts = [f for e in steps for f in e.get("forecast", [])]
+    assert forecasts, "no forecast from the real EWS"
+    assert all(f["compute_s"] != rogue.FORGED_COMPUTE_S for f in forecasts), forecasts
+    stale = [f for e in steps for f in e.get("faults", []) if f.startswith("forecast_stale")]
+    assert all("late:" in f for f in stale), stale  # none refused: the forgeries never arrive
     untrusted = summary(run.run_dir)["stack"]["untrusted"]
     uav = run.stack.cfg.uav_id
     assert untrusted.get(keys.plan(uav, 2), 0) > 0 and untrusted.get(keys.fire_command(uav), 0) > 0
@@ -362,7 +376,8 @@ def test_a_setpoint_far_ahead_is_refused_and_never_moves_the_clock(tmp_path: Pat
     group = launch.ProcessGroup()
     group.start("uavsim", [sys.executable, "-m", "services.uavsim", "--mavlink-url",
                            f"udpin:127.0.0.1:{off}", "--gcs-url",
-                           f"udpin:127.0.0.1:{gcs_port}", "--zenoh", "off"], env,
+                           f"udpin:127.0.0.1:{gcs_port}", "--zenoh", "off",
+                           "--clock", "lockstep"], env,
                 tmp_path / "uavsim.log")
     conn = mav.connect(f"udpout:127.0.0.1:{off}", 1, 191)
     logs = [tmp_path / "uavsim.log"]

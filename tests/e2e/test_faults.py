@@ -438,18 +438,23 @@ def test_ews_killed_a_risk_aware_mission_flies_without_the_forecast_and_gets_it_
     (the step plans as the paper's System 1); once it is back and caught up, the forecast of
     each step's fire state comes again."""
     with running(tmp_path, "ews-risk", controller="s1+risk", speed=10.0) as run:
-        run.step_at_least(4)
+        killed = run.step_at_least(4).step
         run.kill("ews")
         gone(run.live, "ews", 10, run.logs())
         first = run.step_at_least(0).step
         run.step_at_least(first + 3)
+        back = run.step_at_least(0).step
         run.restart("ews")
         alive(run.live, ["ews"], 60, run.logs())
         end = run.ended(150)
     stale, got = check_forecast_record(run, end)
-    check(bool(stale), "steps with a forecast_stale fault while the EWS was gone", run.logs())
-    assert got and min(got) < min(stale), (got, stale)  # a forecast before the kill
-    assert max(got) > max(stale), (got, stale)  # and again once the EWS was back
+    # a forecast may be late on a loaded machine at any step (a named fault too); what the
+    # kill must show: forecasts before it, named faults while the EWS was gone, forecasts after
+    gone_steps = range(killed + 1, back + 1)
+    check(any(t in stale for t in gone_steps),
+          "steps with a forecast_stale fault while the EWS was gone", run.logs())
+    assert any(t <= killed for t in got), (killed, got, stale)  # a forecast before the kill
+    assert any(t > back for t in got), (back, got, stale)  # and again once it was back
     steps = run.steps()
     for t in stale:  # flown as the paper's System 1 there: no forecast, no risk note
         assert not steps[t].get("forecast"), steps[t]
@@ -464,7 +469,7 @@ def test_ews_stalled_a_risk_aware_mission_records_the_late_forecast_and_goes_on(
     env = {"supervisor": {"FIRE_TIMEOUT_S": "1", "FORECAST_TIMEOUT_S": "1"}}
     with running(tmp_path, "ews-stall", controller="concurrent+risk", speed=10.0,
                  extra_env=env) as run:
-        run.step_at_least(4)
+        stopped = run.step_at_least(4).step
         ews = run.proc("ews")
         os.killpg(ews.popen.pid, signal.SIGSTOP)
         try:
@@ -473,5 +478,6 @@ def test_ews_stalled_a_risk_aware_mission_records_the_late_forecast_and_goes_on(
             os.killpg(ews.popen.pid, signal.SIGCONT)
         end = run.ended(150)
     stale, got = check_forecast_record(run, end)
-    check(bool(stale), "steps with a forecast_stale fault while the EWS was stopped", run.logs())
-    assert got and min(got) < min(stale), (got, stale)
+    check(any(t > stopped for t in stale),
+          "steps with a forecast_stale fault while the EWS was stopped", run.logs())
+    assert any(t <= stopped for t in got), (stopped, got, stale)  # forecasts before the stop

@@ -64,14 +64,15 @@ def gcs_logs(workdir: Path) -> list[Path]:
 
 
 class MavProxy:
-    """``mavproxy.py`` on the vehicle's GCS port, commands written to its stdin."""
+    """``mavproxy.py`` on the vehicle's ground-station link (``master``: a pymavlink connection
+    string, e.g. ``udpout:127.0.0.1:14550``, ``tcp:127.0.0.1:5760``), commands on its stdin."""
 
-    def __init__(self, gcs_port: int, out_port: int, workdir: Path):
+    def __init__(self, master: str, out_port: int, workdir: Path):
         self.workdir = workdir
         self.log_path = workdir / "mavproxy.log"
         self.fh = self.log_path.open("wb")
         self.proc = subprocess.Popen(
-            [sys.executable, str(MAVPROXY), f"--master=udpout:127.0.0.1:{gcs_port}",
+            [sys.executable, str(MAVPROXY), f"--master={master}",
              f"--out=udp:127.0.0.1:{out_port}", "--no-state", f"--state-basedir={workdir}",
              "--default-modules=wp,mode,param,cmdlong,arm,link,signing"],
             cwd=workdir, stdin=subprocess.PIPE, stdout=self.fh, stderr=subprocess.STDOUT,
@@ -174,7 +175,7 @@ def run(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Run]:
     out_port = launch.free_port("udp")
     observer = Observer(out_port, work)
     with stack:
-        gcs = MavProxy(gcs_port, out_port, work)
+        gcs = MavProxy(f"udpout:127.0.0.1:{gcs_port}", out_port, work)
         gcs.send(f"signing key {PASSPHRASE}")  # a keyed vehicle refuses unsigned uploads
         r = Run(stack, cfg.run_dir, gcs, observer, offboard_port)
         try:

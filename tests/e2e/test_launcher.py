@@ -3,6 +3,9 @@
 from __future__ import annotations
 
 import os
+import re
+import signal
+import subprocess
 import sys
 from pathlib import Path
 
@@ -10,7 +13,7 @@ import pytest
 
 from e2e.conftest import run_process
 from services.launch import REPO
-from tests.support.waits import check, logs_in
+from tests.support.waits import check, logs_in, wait_for
 
 pytestmark = [pytest.mark.slow, pytest.mark.timeout(240)]
 
@@ -35,3 +38,51 @@ def test_launch_runs_a_mission_and_leaves_a_run_directory(tmp_path: Path) -> Non
     except ImportError:
         return
     assert list(out.glob("*.png")), "figures"
+
+
+def _processes_on(endpoint: str) -> list[int]:
+    """The processes whose command line or environment names the Zenoh ``endpoint``."""
+    found = []
+    for proc in Path("/proc").iterdir():
+        if not proc.name.isdigit():
+            continue
+        try:
+            seen = (proc / "cmdline").read_bytes() + (proc / "environ").read_bytes()
+        except OSError:
+            continue
+        if endpoint.encode() in seen:
+            found.append(int(proc.name))
+    return found
+
+
+@pytest.mark.parametrize("vehicles", [1, 3])
+def test_a_terminated_launcher_stops_every_service(tmp_path: Path, vehicles: int) -> None:
+    """``kill`` (SIGTERM) of the launcher, as ``timeout`` sends it: no service outlives it."""
+    out = tmp_path / "run"
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "services.launch", "--controller", "s1", "--seed", "3",
+         "--speed-factor", "1", "--free-ports", "--no-figures", "--vehicles", str(vehicles),
+         "--out", str(out)], cwd=REPO, env=dict(os.environ, PYTHONPATH=str(REPO)),
+        stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, start_new_session=True)
+    try:
+        assert proc.stdout is not None
+        first = proc.stdout.readline()  # "stack: router tcp/…" / "fleet: N vehicles, router …"
+        got = re.search(r"router (tcp/127\.0\.0\.1:\d+)", first)
+        check(got is not None, "the launcher to name its router", logs_in(out), first)
+        assert got is not None
+        endpoint = got.group(1)
+        # router, EWS, both planners, the vehicle's (or the hosts') uavsim and supervisor
+        wait_for(lambda: len(_processes_on(endpoint)) >= 6, 60.0, "the stack's services to run",
+                 logs_in(out), last=lambda: _processes_on(endpoint))
+        proc.send_signal(signal.SIGTERM)
+        proc.wait(60)
+        left = [pid for pid in _processes_on(endpoint) if pid != proc.pid]
+        check(not left, "no service to outlive the launcher", logs_in(out), left)
+    finally:
+        if proc.poll() is None:  # a failed check: stop it as a user would, then for good
+            proc.send_signal(signal.SIGTERM)
+            try:
+                proc.wait(60)
+            except subprocess.TimeoutExpired:
+                os.killpg(proc.pid, signal.SIGKILL)
+                proc.wait()

@@ -121,7 +121,7 @@ def observer(port: int, log: Path) -> Any:
 
 def wait_hold(rig: Rig, timeout_s: float) -> Any:
     """The first HEARTBEAT on the ground-station port that reports the flavour's hold mode."""
-    hold = fl.FLAVOURS[rig.flavour].custom_mode(fl.HOLD)
+    hold = fl.FLAVOURS[rig.flavour].custom_mode(fl.Nav.HOLD)
     last: list[Any] = []
 
     def held() -> Any:
@@ -388,5 +388,7 @@ def test_offboard_loss_failsafe_holds_then_the_stream_resumes(rig: Rig) -> None:
     rig.first(d.telemetry.flight_mode(), "flight mode OFFBOARD again",
               lambda f: f == FlightMode.OFFBOARD, 15)
     rig.run(d.offboard.stop())
-    rig.run(d.action.land())
-    rig.run(d.action.disarm())
+    rig.run(d.action.land())  # from 50 m: 1.5 m/s, the last 5 m at 0.7 m/s (docs/vehicle.md)
+    rig.first(d.telemetry.in_air(), "the vehicle on the ground", lambda a: not a, 30)
+    rig.run(d.action.disarm())  # or disarmed already: COM_DISARM_LAND after the touchdown
+    rig.first(d.telemetry.armed(), "the vehicle disarmed", lambda a: not a)

@@ -18,6 +18,8 @@ import os
 import queue
 import re
 import signal
+import subprocess
+import sys
 import time
 from pathlib import Path
 from typing import Any
@@ -138,3 +140,86 @@ def test_a_replica_killed_mid_request_loses_no_plan(tmp_path: Path) -> None:
     supervisor_log = stack.logs / "supervisor.log"
     check("failed over" in supervisor_log.read_text(), "the supervisor to log its fail-over",
           [supervisor_log])
+
+
+def _join(endpoint: str, out: Path, uavs: list[str]) -> subprocess.Popen[str]:
+    """A second launcher on the stack's router: one System 2 replica serving ``uavs``."""
+    return subprocess.Popen(
+        [sys.executable, "-m", "services.launch", "--join", endpoint, "--services", "system2",
+         "--uav-ids", ",".join(uavs), "--out", str(out), "--log-format", "text"],
+        cwd=launch.REPO, env=dict(os.environ, PYTHONPATH=str(launch.REPO)),
+        stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, start_new_session=True)
+
+
+def _processes_of(run_dir: Path) -> list[int]:
+    """The processes started with ``run_dir`` as their RUN_DIR (a launcher's services)."""
+    mark = f"RUN_DIR={run_dir}".encode()
+    found = []
+    for proc in Path("/proc").iterdir():
+        try:
+            if proc.name.isdigit() and mark in (proc / "environ").read_bytes().split(b"\0"):
+                found.append(int(proc.name))
+        except OSError:
+            continue
+    return found
+
+
+def test_replicas_of_a_second_launcher_serve_a_fleet_and_fail_over_when_it_dies(
+        tmp_path: Path) -> None:
+    """A fleet whose System 2 runs only on two other launchers (``--join``: they share the
+    router, nothing else, as replicas on other machines would). The host whose replica a
+    mission asks first dies (SIGKILL to its launcher and its replica) while the missions fly:
+    each goes on with the other host's replica, no step without a plan, no fault."""
+    uavs = ["j1", "j2"]
+    cfg = launch.StackConfig(run_dir=tmp_path / "shared", speed_factor=10.0, free_ports=True,
+                             log_format="text")
+    hosts = {name: tmp_path / name for name in ("host-a", "host-b")}
+    joined: dict[str, subprocess.Popen[str]] = {}
+    with launch.Fleet(cfg, uavs, shared=("ews", "system1")) as fleet, \
+            launch.client_session(fleet.endpoint) as session:
+        logs = [*logs_in(fleet.stack.logs), *(p for h in hosts.values() for p in logs_in(h))]
+        live = bus.Liveliness(session, uavs[0])
+        try:
+            for name, out in hosts.items():
+                joined[name] = _join(fleet.endpoint, out, uavs)
+                wait_for(lambda: len(live.replicas("system2")) == len(joined), 120,
+                         f"{name}'s System 2 replica", logs)
+            zids = {zid_of(out / "logs" / "system2.log"): name for name, out in hosts.items()}
+            mission = MissionConfig.named("s2", seed=SEED)
+            ids = {uav: fleet.start_vehicle(uav, SEED, tmp_path / uav, config=mission,
+                                            env={"SPEED_FACTOR": "10"}).mission_id
+                   for uav in uavs}
+            victim = zids[rendezvous(ids["j1"], list(zids))[0]]  # j1's replica: its host dies
+            wait_for(lambda: all(_steps(tmp_path / u) >= 5 for u in uavs), 120,
+                     "both missions at step 5", logs)
+            killed_at = _steps(tmp_path / "j1")
+            for pid in [joined[victim].pid, *_processes_of(hosts[victim])]:
+                os.kill(pid, signal.SIGKILL)  # the host dies: its launcher and its replica
+            joined[victim].wait()
+            outcomes = fleet.wait_end(ids, 200.0)
+            check(all(o.ended for o in outcomes.values()), "both missions to end", logs,
+                  outcomes)
+            check(len(live.replicas("system2")) == 1, f"{victim}'s replica to be gone", logs,
+                  live.replicas("system2"))
+        finally:
+            for proc in joined.values():
+                if proc.poll() is None:
+                    proc.send_signal(signal.SIGTERM)
+                    proc.wait(60)
+    for uav in uavs:
+        steps = [e for e in read_step_log(tmp_path / uav / "steps.jsonl")
+                 if e.get("kind") == "step"]
+        assert steps and all(e["plan_status"].startswith("s2:ok") for e in steps), [
+            e["plan_status"] for e in steps]
+        assert not [f for e in steps for f in e.get("faults", [])]
+    assert _steps(tmp_path / "j1") >= killed_at + 5, "j1 flew on after its replica's host died"
+    survivor = next(name for name in hosts if name != victim)
+    served = (hosts[survivor] / "logs" / "system2.log").read_text()
+    assert f"planner ready mission={ids['j1']}" in served, served[-2000:]
+    assert not _processes_of(hosts["host-a"]) and not _processes_of(hosts["host-b"])
+
+
+def _steps(run_dir: Path) -> int:
+    """How many step lines a vehicle's record holds so far."""
+    path = run_dir / "steps.jsonl"
+    return sum(1 for e in read_step_log(path) if e.get("kind") == "step") if path.is_file() else 0

@@ -34,7 +34,8 @@ class Services:
     def env(self, **extra: str) -> dict[str, str]:
         env = dict(os.environ)
         env.update(PYTHONPATH=str(REPO), PYTHONUNBUFFERED="1", ZENOH_CONNECT=self.endpoint,
-                   UAV_ID=self.uav, LOG_FORMAT="text", LOG_LEVEL="INFO")
+                   UAV_ID=self.uav, LOG_FORMAT="text", LOG_LEVEL="INFO",
+                   UAV_CLOCK="lockstep")  # the stack's clock (a vehicle alone runs realtime)
         env.update(extra)
         return env
 

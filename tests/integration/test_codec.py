@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import math
 import zlib
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -306,6 +307,45 @@ def test_an_ok_plan_must_be_consistent() -> None:
         plan_convert.plan_from_msg(msg)
     with pytest.raises(rejections.CodecError, match="expected 2"):
         plan_convert.plan_from_msg(plan_pb2.Plan(system=1, status=plan_pb2.PLAN_STATUS_OK), 2)
+
+
+def _plan_with(**fields: float) -> plan_pb2.Plan:
+    msg = plan_pb2.Plan(system=2, status=plan_pb2.PLAN_STATUS_OK, compute_time_s=0.1)
+    msg.states.extend([0.0] * 8)
+    msg.controls.extend([0.0] * 2)
+    for name, value in fields.items():
+        setattr(msg, name, value)
+    return msg
+
+
+def test_a_plan_bound_and_gap_round_trip() -> None:
+    plan = Plan(system=2, status=PlanStatus.OK, states=np.zeros((2, 4)),
+                controls=np.zeros((1, 2)), compute_time_s=0.1, cost=110.0, bound=100.0)
+    msg = plan_convert.plan_to_msg(plan, 1, 1, wire.Stamper("system2", "uav1"))
+    assert msg.bound == 100.0 and msg.certified_gap == pytest.approx(0.1)
+    back = plan_convert.plan_from_msg(wire.parse(msg.SerializeToString(), plan_pb2.Plan), 2)
+    assert back.bound == 100.0 and back.certified_gap == pytest.approx(0.1)
+    # no bound: neither field is sent
+    msg2 = plan_convert.plan_to_msg(replace(plan, bound=None), 1, 1, wire.Stamper("s", "u"))
+    assert not msg2.HasField("bound") and not msg2.HasField("certified_gap")
+
+
+@pytest.mark.parametrize(("fields", "match"), [
+    ({"cost": 1.0, "bound": 2.0}, "exceeds its cost"),
+    ({"bound": 2.0}, "needs its cost"),
+    ({"cost": 1.0, "bound": math.nan}, "must be finite"),
+    ({"cost": 1.0, "bound": -math.inf}, "must be finite"),
+    ({"cost": 2.0, "certified_gap": 0.0}, "needs its bound"),
+    ({"cost": 2.0, "bound": 1.0, "certified_gap": 0.5}, "is not \\(cost − bound\\)"),
+    ({"cost": 2.0, "bound": 1.0, "certified_gap": math.inf}, "must be finite"),
+    ({"cost": -1.0, "bound": -2.0, "certified_gap": -0.5}, "is not \\(cost − bound\\)"),
+])
+def test_bad_plan_bounds_are_rejected(fields: dict[str, float], match: str) -> None:
+    before = rejections.REJECTED.by_label.get("Plan-bound", 0)
+    with pytest.raises(rejections.CodecError, match=match) as info:
+        plan_convert.plan_from_msg(_plan_with(**fields), 2)
+    rejections.rejected("Plan-bound", info.value)
+    assert rejections.REJECTED.by_label["Plan-bound"] == before + 1
 
 
 def test_ned_mapping_swaps_axes_and_flips_altitude() -> None:

@@ -195,6 +195,9 @@ def ok_plan(p: Plan) -> None:
         assert len(p.controls) >= 1 and len(p.states) == len(p.controls) + 1
     assert math.isfinite(p.compute_time_s) and p.compute_time_s >= 0
     assert p.cost is None or math.isfinite(p.cost)
+    if p.bound is not None:  # a bound comes with a cost and never exceeds it
+        assert p.cost is not None and math.isfinite(p.bound) and p.bound <= p.cost
+        assert p.certified_gap is not None and p.certified_gap >= 0
     assert isinstance(p.info, dict) and isinstance(p.message, str)
 
 
@@ -207,7 +210,7 @@ def ok_decision(d: Decision) -> None:
 
 
 def ok_fire_command(c: fire_convert.FireCommand) -> None:
-    assert c.kind in ("reset", "advance") and 0 <= c.substeps <= limits.MAX_SUBSTEPS
+    assert c.kind in ("reset", "advance", "forecast") and 0 <= c.substeps <= limits.MAX_SUBSTEPS
     if c.anchor is not None:
         ok_anchor(c.anchor)
 
@@ -250,7 +253,7 @@ DECODERS: dict[str, tuple[type[Message], Callable[[Any], Any], Callable[[Any], N
     "Plan": (plan_pb2.Plan, plan_convert.plan_from_msg, ok_plan,
              lambda: plan_convert.plan_to_msg(
                  flown_plan(np.array([50.0, 50.0, 1.0, 0.0]), np.array([[1.0, 2.0], [0.5, -1.0]]),
-                         cost=3.0, path=np.array([[50.0, 50.0], [900.0, 900.0]]),
+                         cost=3.0, bound=2.5, path=np.array([[50.0, 50.0], [900.0, 900.0]]),
                          info={"source": "rrt"}, objective=Objective.ENERGY),
                  3, 11, wire.Stamper("system2", "uav1"), 1.0)),
     "Decision": (supervisor_pb2.Decision, supervisor_convert.decision_from_msg, ok_decision,
@@ -479,6 +482,21 @@ def test_plan_round_trip(controls: np.ndarray, system: int, objective: Objective
 
 
 @PROPS
+@given(st.floats(-1e9, 1e9), st.floats(0, 1e9) | st.just(0.0))
+def test_plan_bound_round_trip(cost: float, below: float) -> None:
+    """A bound at most the cost travels exactly; the gap on the wire is the core's."""
+    bound = cost - below
+    plan = flown_plan(np.array([50.0, 50.0, 0.0, 0.0]), np.array([[1.0, 0.0]]), cost=cost,
+                      bound=bound)
+    msg = plan_convert.plan_to_msg(plan, 5, 9, wire.Stamper("system2", "uav1"))
+    back = decode("Plan", msg.SerializeToString())
+    assert back.cost == cost and back.bound == min(bound, cost)
+    assert back.certified_gap == plan.certified_gap
+    gap = plan.certified_gap
+    assert gap is not None and msg.HasField("certified_gap") == math.isfinite(gap)
+
+
+@PROPS
 @given(st.sampled_from([s for s in PlanStatus if s is not PlanStatus.OK]))
 def test_failed_plan_round_trip(status: PlanStatus) -> None:
     plan = Plan.failed(1, status, 0.5, "why")
@@ -574,6 +592,8 @@ def value_for(fd: FieldDescriptor) -> st.SearchStrategy[Any]:
         one = st.sampled_from([lo, hi, 0, 1, 2, 3, 7]) | st.integers(lo, hi)
     elif fd.type == FieldDescriptor.TYPE_BOOL:
         one = st.booleans()
+    elif fd.type == FieldDescriptor.TYPE_BYTES:
+        one = st.binary(max_size=300) | st.just(b"x" * 70_000)
     else:
         one = st.text(max_size=300) | st.just("x" * 70_000)
     if fd.is_repeated:

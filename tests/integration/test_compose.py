@@ -40,6 +40,8 @@ def test_compose_file_is_valid(doc: dict[str, Any]) -> None:
     assert services["viewer"]["profiles"] == ["viewer"]
     assert "8765:8765/tcp" in services["viewer"]["ports"]
     assert services["viewer"]["environment"]["VIEWER_LISTEN"] == "tcp/0.0.0.0:8765"
+    assert "8766:8766/tcp" in services["viewer"]["ports"]  # the web page
+    assert services["viewer"]["environment"]["WEB_LISTEN"] == "tcp/0.0.0.0:8766"
     assert "14550:14550/udp" in services["uavsim"]["ports"]
     assert services["supervisor"]["environment"]["MAVLINK_URL"] == "udpout:uavsim:14540"
     assert services["uavsim"]["environment"]["MAVLINK_URL"] == "udpin:0.0.0.0:14540"
@@ -127,6 +129,7 @@ def test_launcher_maps_compose_onto_loopback(tmp_path: Path) -> None:
 def test_the_viewer_runs_only_in_its_profile(tmp_path: Path) -> None:
     plain = launch.Stack(launch.StackConfig(run_dir=tmp_path, free_ports=True))
     assert "viewer" not in plain.service_names() and plain.viewer_url() == ""
+    assert plain.web_url() == ""
     stack = launch.Stack(launch.StackConfig(run_dir=tmp_path, free_ports=True,
                                             profiles=("viewer",)))
     assert stack.service_names() == ["ews", "system1", "system2", "uavsim", "supervisor",
@@ -135,6 +138,9 @@ def test_the_viewer_runs_only_in_its_profile(tmp_path: Path) -> None:
     port = int(env["VIEWER_LISTEN"].rsplit(":", 1)[1])
     assert env["VIEWER_LISTEN"] == f"tcp/127.0.0.1:{port}" and port != 8765  # free port
     assert stack.viewer_url() == f"ws://127.0.0.1:{port}"
+    web = int(env["WEB_LISTEN"].rsplit(":", 1)[1])
+    assert env["WEB_LISTEN"] == f"tcp/127.0.0.1:{web}" and web not in (8766, port)
+    assert stack.web_url() == f"http://127.0.0.1:{web}/"
     assert env["ZENOH_CONNECT"] == stack.endpoint
     assert stack.argv("viewer")[1:] == ["-m", "services.viewer"]
 

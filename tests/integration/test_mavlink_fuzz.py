@@ -6,10 +6,10 @@ status) is known: random bytes (any framing reason; a datagram that happens
 to decode to a real message is not sent), truncated frames, bad CRCs,
 oversize datagrams, MAVLink 1 frames, unknown message ids, valid frames of
 types the vehicle does not accept, frames for another system, NaN/±inf in
-SET_POSITION_TARGET_LOCAL_NED / MISSION_ITEM(_INT) / PARAM_SET / COMMAND_INT,
-±inf in COMMAND_LONG or NaN (MAVLink's "unset") in a parameter the command
-needs, setpoints far outside the area or due far in the
-future, out-of-range parameters and oversized missions. While the fuzzer
+SET_POSITION_TARGET_LOCAL_NED / MISSION_ITEM(_INT) / PARAM_SET, ±inf in
+COMMAND_INT (NaN there is DO_REPOSITION's "unchanged") and COMMAND_LONG, or NaN
+(MAVLink's "unset") in a parameter the command needs, setpoints far outside the
+area or due far in the future, out-of-range parameters and oversized missions. While the fuzzer
 sends, a companion streams a hold setpoint: the vehicle must not move, must
 not crash, and must still fly a good setpoint afterwards. Only 127.0.0.1.
 """
@@ -204,10 +204,10 @@ class Corpus:
                 params[r.randrange(7)] = r.choice([math.inf, -math.inf])
             return self._pack(self.enc.command_long_encode(self.sysid, 1, cmd, 0, *params)), \
                 "not_finite"
-        if kind == "command_int_nan":
+        if kind == "command_int_nan":  # ±inf: NaN in DO_REPOSITION is MAVLink's "unchanged"
             return self._pack(self.enc.command_int_encode(
-                self.sysid, 1, 0, m.MAV_CMD_DO_REPOSITION, 0, 0, self._bad(), 0, 0, 0, 0, 0,
-                50.0)), "not_finite"
+                self.sysid, 1, 0, m.MAV_CMD_DO_REPOSITION, 0, 0,
+                self.rng.choice([math.inf, -math.inf]), 0, 0, 0, 0, 0, 50.0)), "not_finite"
         raise ValueError(kind)
 
     def take(self, n: int) -> Iterator[tuple[bytes, str | None]]:

@@ -126,6 +126,27 @@ def test_valid_request_gets_a_verified_plan(planners: Any, session: Any, system:
     assert verdict.ok, verdict.reason
 
 
+def test_a_certified_plan_carries_its_bound_over_zenoh(planners: Any, session: Any) -> None:
+    """System 2 prepared with the "certified" method: the plan's bound and certified gap
+    travel with it (plan.proto fields 15, 16) and pass the codec's checks."""
+    mission_id = "itest-certified"
+    spec = MissionSpec(seed=7)
+    prep = plan_convert.Prepare(mission_id, 2, spec,
+                                config_for(spec, system2_method="certified"), deadline_s=60.0)
+    key = keys.plan(planners.uav, 2)
+    stamper = wire.Stamper("test", "itest")
+    reply = raw_query(session, key, plan_convert.prepare_msg(prep, stamper, 0.0)
+                      .SerializeToString())
+    assert reply.ok is not None
+    msg = plan_pb2.Plan.FromString(
+        raw_query(session, key, request(2, mission_id=mission_id)).ok.payload.to_bytes())
+    assert msg.HasField("bound") and msg.HasField("certified_gap")
+    plan = plan_convert.plan_from_msg(msg, 2)
+    assert plan.status is PlanStatus.OK, plan.message
+    assert plan.cost is not None and plan.bound is not None and plan.bound <= plan.cost
+    assert plan.certified_gap == msg.certified_gap and msg.certified_gap <= 0.01
+
+
 def test_a_planner_value_error_is_an_invalid_input_plan(planners: Any, session: Any) -> None:
     """A state inside a fire reaches System 1, which refuses it: INVALID_INPUT, not a crash."""
     prepare(session, planners.uav, 1)

@@ -1,9 +1,11 @@
 """The supervisor's offboard link against a real uavsim (and a scripted vehicle for refusals).
 
-MAVSDK/PX4 order (heartbeat, position, setpoints, offboard, arm), refused
-commands retried then given up cleanly, a vehicle that disappears for more
-than 3 s and comes back, and the operator's mission downloaded and converted
-to the local frame.
+MAVSDK/PX4 order (heartbeat, position, setpoints, offboard, arm) with each
+flavour's mode numbers, read from the vehicle's HEARTBEAT (PX4: OFFBOARD
+main mode 6, refused without a setpoint stream; ArduPilot: GUIDED 4, which
+needs none), refused commands retried then given up cleanly, a vehicle that
+disappears for more than 3 s and comes back, and the operator's mission
+downloaded and converted to the local frame.
 """
 
 from __future__ import annotations
@@ -18,7 +20,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from services.common import bus, mav
+from services.common import bus, mav, mavmodes
 from services.launch import free_port
 from services.supervisor.link import OffboardError, VehicleLink
 
@@ -27,16 +29,21 @@ m = mav.mavlink
 HOME = (35.1450, 33.4110)
 
 
-@pytest.fixture(scope="module")
-def vehicle(services: Any, session: Any) -> Any:
+@pytest.fixture(scope="module", params=["ardupilot", "px4"])
+def vehicle(request: pytest.FixtureRequest, services: Any, session: Any) -> Any:
+    flavour = str(request.param)
     ports = {"offboard": free_port("udp"), "gcs": free_port("udp")}
-    proc = services.start("uavsim-link", module="services.uavsim", UAV_ID="itest-link",
+    uav = f"itest-link-{flavour}"
+    proc = services.start(f"uavsim-{flavour}", module="services.uavsim", UAV_ID=uav,
                           MAVLINK_URL=f"udpin:127.0.0.1:{ports['offboard']}",
-                          GCS_URL=f"udpin:127.0.0.1:{ports['gcs']}", UAV_START="80,90")
-    link_live = bus.Liveliness(session, "itest-link")
-    assert link_live.wait_for(["uavsim"], 60), services.log("uavsim-link")[-2000:]
-    services.link_ports, services.link_proc = ports, proc
-    return services
+                          GCS_URL=f"udpin:127.0.0.1:{ports['gcs']}", UAV_START="80,90",
+                          UAV_AUTOPILOT=flavour, UAV_HOME=f"{HOME[0]},{HOME[1]}")
+    link_live = bus.Liveliness(session, uav)
+    assert link_live.wait_for(["uavsim"], 60), services.log(f"uavsim-{flavour}")[-2000:]
+    services.link_ports, services.link_proc, services.flavour = ports, proc, flavour
+    yield services
+    services.group.stop(proc)
+    services.group.procs.remove(proc)
 
 
 @pytest.fixture()
@@ -60,10 +67,19 @@ def until(pred: Any, timeout_s: float) -> bool:
 
 def test_offboard_start_and_a_vehicle_that_disappears(vehicle: Any, link: VehicleLink) -> None:
     stop = threading.Event()
-    assert link.command(m.MAV_CMD_DO_SET_MODE, m.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED,
-                        mav.MODE_GUIDED) == m.MAV_RESULT_DENIED  # no setpoint stream yet
+    assert link.wait_vehicle(20, stop)
+    if vehicle.flavour == "px4":  # PX4's OFFBOARD needs the setpoint stream first
+        assert link.modes == mavmodes.PX4_MODES
+        assert link.command(m.MAV_CMD_DO_SET_MODE, m.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED,
+                            6, 0) == m.MAV_RESULT_TEMPORARILY_REJECTED
+        offboard = "OFFBOARD, armed"
+    else:  # ArduPilot's GUIDED holds without one
+        assert link.modes == mavmodes.ARDUPILOT_MODES
+        offboard = "GUIDED, armed"
     link.start_offboard(stop, timeout_s=20)
-    assert link.offboard() and link.status() == "GUIDED, armed"
+    assert link.offboard() and link.status() == offboard
+    assert [(c.mode, c.armed) for c in link.mode_changes][-2:] == [
+        (offboard.split(",")[0], False), (offboard.split(",")[0], True)]
     t, x = link.wait_state(0, 5, stop) or (0, None)
     assert x is not None and np.allclose(x[:2], [80.0, 90.0])
     assert link.origin is not None and np.allclose(link.origin, HOME)
@@ -144,8 +160,9 @@ class ScriptedVehicle:
             if time.monotonic() >= next_t and self.conn.clients:
                 base = m.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED | (
                     m.MAV_MODE_FLAG_SAFETY_ARMED if self.armed else 0)
-                self.conn.mav.heartbeat_send(m.MAV_TYPE_QUADROTOR, m.MAV_AUTOPILOT_GENERIC, base,
-                                             self.mode, m.MAV_STATE_ACTIVE)
+                self.conn.mav.heartbeat_send(m.MAV_TYPE_QUADROTOR,
+                                             m.MAV_AUTOPILOT_ARDUPILOTMEGA, base, self.mode,
+                                             m.MAV_STATE_ACTIVE)
                 self.conn.mav.local_position_ned_send(0, 10.0, 20.0, -50.0, 0, 0, 0)
                 self.conn.mav.global_position_int_send(0, 351450000, 334110000, 50000, 50000,
                                                        0, 0, 0, 0)

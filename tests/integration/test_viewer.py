@@ -1,5 +1,6 @@
 """The viewer service on a real router: two vehicles' messages, as the stack publishes them, come
-out of its Foxglove WebSocket server to a real client (websockets, foxglove.websocket.v1)."""
+out of its Foxglove WebSocket server to a real client (websockets, foxglove.websocket.v1), and
+onto its web page in a real browser (Debian's chromium), side by side."""
 
 from __future__ import annotations
 
@@ -83,8 +84,8 @@ def publish_round(session: Any, uav: str, k: int) -> dict[str, int]:
 
 def test_viewer_serves_every_vehicle_over_the_foxglove_protocol(
         services: Any, session: Any, liveliness: bus.Liveliness) -> None:
-    port = free_port("tcp")
-    services.start("viewer", "--listen", f"tcp/127.0.0.1:{port}")
+    port, web_port = free_port("tcp"), free_port("tcp")
+    services.start("viewer", "--listen", f"tcp/127.0.0.1:{port}", "--web-port", str(web_port))
     assert liveliness.wait_for(["viewer"], 60), services.log("viewer")
     wanted = {f"/{u}/{t}" for u in VEHICLES for t in TOPICS}
 
@@ -158,8 +159,45 @@ def test_viewer_serves_every_vehicle_over_the_foxglove_protocol(
     offsets = sorted(client.received[f"/{u}/tf"][-1][1].translation.x for u in VEHICLES)
     assert offsets == [0.0, 1100.0]  # side by side: area 1000 m + 100 m apart
 
+    check_web_page(f"http://127.0.0.1:{web_port}/")
     status = bus.query_status(session, "itest", "viewer", 10.0)
     rejected = status["rejected"]
     assert rejected.get(keys.step_plans("alpha"), {}) == {"wrong_type": 1}, rejected
     assert sum(rejected.get(keys.fires("bravo"), {}).values()) == 1, rejected
     assert services.group.procs[-1].popen.poll() is None  # still serving
+
+
+FLEET_JS = """() => {
+  const doc = Bokeh.documents[0];
+  const col = (name, key) => Array.from(doc.get_model_by_name(name).data[key] ?? []);
+  return {uav: col('vehicles', 'uav'), x: col('vehicles', 'x'), y: col('vehicles', 'y'),
+          flies: col('vehicles', 'flies'), fires: col('fires', 'xs').map(a => Array.from(a)),
+          areas: col('area', 'xs').map(a => Array.from(a)), forecast: col('forecast', 'x'),
+          plans: col('plans', 'system')};
+}"""
+
+
+def check_web_page(url: str) -> None:
+    """Both vehicles on the page, each in its own area (the second 1100 m east): markers,
+    fires, areas, forecasts and plans where the Foxglove view puts them; the fleet table's
+    rows in the browser's DOM."""
+    from tests.support.browser import chromium
+
+    with chromium() as browser:
+        page = browser.page()
+        page.goto(url)
+        page.wait_for_function("() => window.Bokeh !== undefined && Bokeh.documents.length > 0"
+                               " && Bokeh.documents[0].get_model_by_name('vehicles')"
+                               ".data.x.length == 2", timeout=30_000)
+        got = page.evaluate(FLEET_JS)
+        rows = page.locator("table.fleet td.uav").all_inner_texts()
+        flies = page.locator("table.fleet td.flies").all_inner_texts()
+        page.close()
+    assert got["uav"] == list(VEHICLES) and got["x"] == [115.0, 1100.0 + 116.0]
+    assert got["y"] == [125.0, 125.0] and got["flies"] == ["S1", "S1"]  # flown_system 1
+    assert [min(xs) for xs in got["fires"]] == [380.0, 1100.0 + 381.0]  # Rect(400 + k, …, 40)
+    assert [min(xs) for xs in got["areas"]] == [0.0, 1100.0]
+    assert got["forecast"] == [0.0, 1100.0] and got["plans"] == [1, 1]
+    assert rows == list(VEHICLES) and flies == ["S1", "S1"]
+    assert browser.hosts() <= {f"http://127.0.0.1:{url.split(':')[2].strip('/')}",
+                               f"ws://127.0.0.1:{url.split(':')[2].strip('/')}"}

@@ -1,98 +1,183 @@
-"""The offboard-loss failsafe (COM_OF_LOSS_T, COM_OF_RSM_T) on injected arrival times.
+"""The failsafes (services/uavsim/failsafe.py) on injected arrival times: offboard loss, geofence
+breach, empty battery.
 
-The vehicle's endpoint is built without links (no socket, no process); setpoints are
-fed in with the arrival time the kernel would have stamped, and the failsafe is
-checked at chosen instants, so no assertion depends on the scheduler.
+The vehicle is built without links (tests/support/vehicles.py); setpoints
+are fed in with the arrival time the kernel would have stamped, and the
+failsafe is chosen at chosen instants, so no assertion depends on the scheduler.
 """
 
 from __future__ import annotations
-
-from typing import Any
 
 import numpy as np
 import pytest
 
 from services.common import mav
 from services.uavsim import flavour as fl
-from services.uavsim.endpoint import Endpoint, VehicleSetup
-from services.uavsim.failsafe import check_offboard
-from services.uavsim.vehicle import Vehicle
+from services.uavsim.flavour import Nav
+from services.uavsim.geofence import Geofence, Zone
+from tests.support.vehicles import Rig, rig
 
 m = mav.mavlink
 LOSS_S = 1.0  # COM_OF_LOSS_T
-_SENDER = m.MAVLink(None, srcSystem=255, srcComponent=190)
 
 
-def setpoint(east: float, north: float, due_ms: int) -> Any:
-    """A SET_POSITION_TARGET_LOCAL_NED (position only) as decoded off the wire."""
-    msg = m.MAVLink_set_position_target_local_ned_message(
-        due_ms, 1, 1, m.MAV_FRAME_LOCAL_NED, 3576, north, east, -50.0, 0, 0, 0, 0, 0, 0, 0, 0)
-    return m.MAVLink(None).decode(bytearray(msg.pack(_SENDER)))
+def target(east: float, north: float) -> np.ndarray:
+    return np.array([east, north, 0.0, 0.0])
 
 
-def flying(clock: str = "lockstep") -> Endpoint:
+def flying(realtime: bool = False, flavour: fl.Flavour = fl.ARDUPILOT) -> Rig:
     """A vehicle at (100, 100) flying offboard, armed and airborne, its last setpoint at 10 s."""
-    setup = VehicleSetup(sysid=1, altitude_m=50.0, home=(35.0, 33.0), offboard_loss_s=LOSS_S,
-                         clock=clock, speed_factor=1.0)
-    ep = Endpoint(Vehicle.at(100.0, 100.0), {}, setup)
-    ep.mode, ep.armed, ep.airborne = fl.OFFBOARD, True, True
-    assert ep.on_setpoint("offboard", setpoint(101.0, 100.0, 1000), now=10.0)
-    return ep
+    r = rig(flavour, realtime=realtime, start=(100.0, 100.0))
+    ap = r.ap
+    ap.setpoint("offboard", target(101.0, 100.0), 50.0, 1000, now=9.9)
+    assert ap.decide(lambda c: ap.commander.request(Nav.OFFBOARD, c), 9.95).accepted
+    assert ap.decide(ap.commander.arm, 9.95).accepted
+    assert ap.setpoint("offboard", target(101.0, 100.0), 50.0, 2000, now=10.0) != realtime
+    if realtime:
+        r.fly(2.0, now=10.0)
+    assert ap.nav.flown_offboard and not ap.nav.landed
+    return r
 
 
 def test_setpoints_within_com_of_loss_t_keep_the_vehicle_offboard() -> None:
-    ep = flying()
+    r = flying()
     for now in (10.5, 10.99, 11.0):  # silence up to COM_OF_LOSS_T is not a loss
-        check_offboard(ep, now)
-        assert ep.mode == fl.OFFBOARD and not ep.failsafe
-    assert ep.p("SIM_FAILSAFES") == 0.0
+        r.ap.watch(now)
+        assert r.nav is Nav.OFFBOARD and r.ap.commander.failsafe is None
+    assert r.params["SIM_FAILSAFES"] == 0.0
 
 
 def test_silence_past_com_of_loss_t_holds_as_it_is_in_lockstep() -> None:
-    ep = flying()
-    before = ep.vehicle.state.copy(), ep.vehicle.time_ms
-    check_offboard(ep, 11.01)
-    assert ep.mode == fl.HOLD and ep.failsafe and ep.failsafe_since == 11.01
-    assert ep.p("SIM_FAILSAFES") == 1.0 and ep.stream_stats.failsafes == 1
+    r = flying()
+    v = r.ap.vehicle
+    before = v.state.copy(), v.time_ms
+    assert np.any(v.state[2:] != 0)  # still moving after its step
+    r.ap.watch(11.01)
+    assert r.nav is Nav.HOLD and r.ap.in_offboard_failsafe and r.ap.failsafe_since == 11.01
+    assert r.params["SIM_FAILSAFES"] == 1.0 and r.ap.stream_stats.failsafes == 1
+    assert "LOITER: offboard lost" in r.texts()
     # lockstep: the supervisor is the clock, so the held vehicle is exactly as it was
-    assert np.array_equal(ep.vehicle.state, before[0]) and ep.vehicle.time_ms == before[1]
-    check_offboard(ep, 30.0)  # one episode, counted once
-    assert ep.p("SIM_FAILSAFES") == 1.0
+    assert np.array_equal(v.state, before[0]) and v.time_ms == before[1]
+    r.ap.watch(30.0)  # one episode, counted once
+    assert r.params["SIM_FAILSAFES"] == 1.0
 
 
 def test_the_realtime_failsafe_brakes() -> None:
-    ep = flying("realtime")
-    ep.vehicle.state[2:] = (5.0, 0.0)  # flying east at 5 m/s
-    check_offboard(ep, 11.5)
-    assert ep.mode == fl.HOLD and ep.failsafe and ep.target is None
+    r = flying(realtime=True)
+    r.ap.vehicle.state[2:] = (5.0, 0.0)  # flying east at 5 m/s
+    r.ap.watch(11.5)
+    assert r.nav is Nav.HOLD and np.array_equal(r.ap.vehicle.state[2:], [0.0, 0.0])
 
 
 def test_one_setpoint_does_not_take_control_back_a_live_stream_for_com_of_rsm_t_does() -> None:
-    ep = flying()
-    check_offboard(ep, 12.0)
-    assert ep.mode == fl.HOLD
-    resume_s = ep.p("COM_OF_RSM_T")
-    due = 2000
+    r = flying()
+    ap = r.ap
+    ap.watch(12.0)
+    assert r.nav is Nav.HOLD
+    resume_s = r.params["COM_OF_RSM_T"]
     t = 20.0  # a new stream starts after the silence
-    ep.on_setpoint("offboard", setpoint(101.0, 100.0, due), now=t)
-    check_offboard(ep, t)
-    assert ep.mode == fl.HOLD  # one setpoint: not yet
-    # the stream at 20 Hz: back in offboard once it has been live COM_OF_RSM_T
-    for k in range(1, 40):
+    ap.setpoint("offboard", target(101.0, 100.0), 50.0, 2000, now=t)
+    ap.watch(t)
+    assert r.nav is Nav.HOLD  # one setpoint: not yet
+    for k in range(1, 40):  # the stream at 20 Hz: offboard again once live COM_OF_RSM_T
         now = t + 0.05 * k
-        ep.on_setpoint("offboard", setpoint(101.0, 100.0, due), now=now)
-        check_offboard(ep, now)
-        if ep.mode == fl.OFFBOARD:
+        ap.setpoint("offboard", target(101.0, 100.0), 50.0, 2000, now=now)
+        ap.watch(now)
+        if r.nav is Nav.OFFBOARD:
             break
-    assert ep.mode == fl.OFFBOARD and not ep.failsafe
+    assert r.nav is Nav.OFFBOARD and ap.commander.failsafe is None
     assert now - t == pytest.approx(resume_s, abs=0.05 + 1e-9)
-    assert ep.stream_stats.failsafe_s == pytest.approx(now - 12.0)
+    assert ap.stream_stats.failsafe_s == pytest.approx(now - 12.0)
+
+
+def test_a_commanded_mode_ends_the_offboard_failsafe() -> None:
+    r = flying()
+    r.ap.watch(12.0)
+    assert r.ap.decide(lambda c: r.ap.commander.request(Nav.LAND, c), 12.5).accepted
+    assert r.ap.commander.failsafe is None and r.nav is Nav.LAND
+    assert r.ap.stream_stats.failsafe_s == pytest.approx(0.5)
+
+
+def test_ardupilots_guided_without_a_stream_has_no_offboard_failsafe() -> None:
+    r = rig(fl.ARDUPILOT, realtime=True)
+    ap = r.ap
+    assert ap.decide(lambda c: ap.commander.request(Nav.OFFBOARD, c), 0.0).accepted
+    assert ap.decide(ap.commander.arm, 0.0).accepted
+    ap.watch(30.0)  # GUIDED, holding, no stream ever: nothing to lose
+    assert r.nav is Nav.OFFBOARD and ap.commander.failsafe is None
 
 
 def test_a_gap_in_the_stream_is_the_arrival_times_not_the_read_times() -> None:
-    ep = flying()
+    r = flying()
     for k in range(1, 11):  # ten setpoints 50 ms apart, as the kernel stamped them
-        ep.on_setpoint("offboard", setpoint(101.0, 100.0, 1000), now=10.0 + 0.05 * k)
-    stats = ep.stream_stats
-    assert stats.gaps == 10 and stats.quantile_ms(0.5) == pytest.approx(50.1, abs=0.1)
-    assert stats.max_ms() == pytest.approx(50.1, abs=0.1)
+        r.ap.setpoint("offboard", target(101.0, 100.0), 50.0, 2000, now=10.0 + 0.05 * k)
+    stats = r.ap.stream_stats
+    assert stats.gaps == 11 and stats.quantile_ms(0.5) == pytest.approx(50.1, abs=0.1)
+
+
+def fenced(r: Rig, action: int) -> None:
+    """A 20 m inclusion square around (0, 0), GF_ACTION ``action``, the vehicle in the air at
+    (0, 0) in Hold."""
+    r.params.set("GF_ACTION", action)
+    r.ap.fence = Geofence((Zone(True, np.array([[-10.0, -10], [10, -10], [10, 10], [-10, 10]])),))
+    ap = r.ap
+    assert ap.decide(ap.commander.arm, 0.0).accepted
+    r.ap.nav.takeoff_alt = 10.0
+    assert ap.decide(ap.commander.takeoff, 0.0).accepted
+    r.fly(6.0)
+    assert r.nav is Nav.HOLD and ap.vehicle.alt_m == pytest.approx(10.0)
+
+
+@pytest.mark.parametrize(("action", "nav"), [(2, Nav.HOLD), (3, Nav.RETURN), (5, Nav.LAND)])
+def test_leaving_the_fence_does_gf_action(action: int, nav: Nav) -> None:
+    r = rig(fl.PX4)
+    fenced(r, action)
+    ap = r.ap
+    ap.vehicle.state[:2] = (15.0, 0.0)  # out of the square (an operator's sticks, a gust)
+    r.out.clear()
+    ap.watch(1.0)
+    assert ap.commander.failsafe is not None and ap.commander.failsafe.cause == "geofence"
+    assert r.nav is nav and "Failsafe: geofence breached" in r.texts()
+    # the operator takes over with a mode change, and flies back in: no second breach
+    assert ap.decide(lambda c: ap.commander.request(Nav.HOLD, c), 2.0).accepted
+    assert ap.commander.failsafe is None
+    ap.watch(3.0)
+    assert ap.commander.failsafe is None and r.nav is Nav.HOLD
+
+
+def test_gf_action_warn_only_says_so() -> None:
+    r = rig(fl.PX4)
+    fenced(r, 1)
+    r.ap.vehicle.state[:2] = (0.0, 15.0)
+    r.out.clear()
+    r.ap.watch(1.0)
+    assert r.ap.commander.failsafe is None and r.nav is Nav.HOLD
+    assert r.texts() == ["Geofence breached"]
+
+
+def test_an_empty_battery_lands() -> None:
+    r = rig(fl.PX4)
+    fenced(r, 0)
+    r.ap.vehicle.impulse_ns = r.ap.vehicle.capacity_ns  # all used
+    r.ap.watch(1.0)
+    assert r.nav is Nav.LAND and r.ap.commander.failsafe is not None
+    assert r.ap.decide(lambda c: r.ap.commander.request(Nav.HOLD, c), 2.0).accepted
+    assert r.nav is Nav.LAND  # only disarming ends it
+
+
+def test_a_fence_hold_stops_a_goto_that_flies_out() -> None:
+    """A goto in Hold (PX4) towards a point outside the fence: the breach's Hold (GF_ACTION 2)
+    is the state already flown, and it stops the vehicle where it broke out."""
+    r = rig(fl.PX4)
+    fenced(r, 2)
+    assert r.command(m.MAV_CMD_DO_REPOSITION, -1, 1, 0, float("nan"),
+                     *mav.to_geodetic(100.0, 0.0, (47.397742, 8.545594)), float("nan")) == 0
+    for _ in range(30):
+        r.fly(1.0)
+        if r.ap.commander.failsafe is not None:
+            break
+    assert r.ap.commander.failsafe is not None and r.nav is Nav.HOLD
+    east = float(r.ap.vehicle.state[0])
+    assert 10.0 < east < 16.0  # out by at most one step at the cruise speed
+    r.fly(10.0)
+    assert float(r.ap.vehicle.state[0]) == pytest.approx(east, abs=5.0)  # it stopped there

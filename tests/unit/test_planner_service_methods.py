@@ -115,6 +115,19 @@ def test_a_forecast_older_than_one_planned_on_is_stale() -> None:
                       plan_pb2.Plan)
 
 
+def test_a_mission_prepared_again_flies_afresh() -> None:
+    """A second flight of the same mission id and configuration (a prepare begins a flight):
+    the forecast's revisions start again from 0, and the planner is a new one."""
+    s = service(2)
+    config = MissionConfig.named("s2+risk", seed=3)
+    first = s.prepare("m1", SPEC, config).planner
+    assert isinstance(handle(s, query(2, t=30, forecast=ForecastView(box_forecast(300), 1))),
+                      plan_pb2.Plan)
+    assert s.prepare("m1", SPEC, config).planner is not first
+    reply = handle(s, query(2, t=0, forecast=ForecastView(box_forecast(0), 1)))
+    assert isinstance(reply, plan_pb2.Plan) and reply.status == plan_pb2.PLAN_STATUS_OK
+
+
 def test_a_risk_aware_method_without_a_forecast_plans_as_its_paper_method() -> None:
     a, b = service(2), service(2)
     a.prepare("m1", SPEC, MissionConfig.named("s2", seed=3))

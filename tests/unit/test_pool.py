@@ -22,6 +22,7 @@ from services.supervisor.pool import NoReply, PlannerPool, PoolParams, Reply, re
 
 UAV = "u1"
 DEADLINE_S = 5.0
+SERVICE_S = 0.125  # what every fake reply says the service took (s)
 
 
 @dataclass
@@ -93,6 +94,7 @@ def _plan_reply(msg: plan_pb2.PlanRequest, system: int, wrong_step: bool) -> tup
                 objective=Objective.MISSION_TIME)
     step = msg.step + (1 if wrong_step else 0)
     reply = plan_convert.plan_to_msg(plan, step, msg.header.seq, wire.Stamper("s", UAV))
+    reply.service_time_s = SERVICE_S
     return reply.SerializeToString(), wire.encoding_name(reply)
 
 
@@ -228,3 +230,23 @@ def test_the_step_counters_add_up_the_requests() -> None:
     p.ask(2, 3, request())
     p.ask(2, 4, request(4), account=False)  # a background request is not the step's
     assert p.requests == 1 and p.request_wall_s == pytest.approx(0.25)
+
+
+def test_every_request_is_kept_with_its_round_trip_and_class() -> None:
+    """One row per request, waited-for or background, answered or not: its step, system,
+    round trip on the pool's clock, the service's reported time, size and status."""
+    p, _, _ = pool([Replica(zids(1)[0], delay_s=0.25)])
+    p.ask(2, 3, request())
+    p.ask(2, 4, request(4), account=False)
+    muted, *_ = pool([Replica(zids(1)[0], muted=True)])
+    muted.ask(2, 5, request(5))
+    rows = p.take_answered()
+    assert [(a.step, a.system, a.background, a.status) for a in rows] == [
+        (3, 2, False, "ok"), (4, 2, True, "ok")]
+    assert all(a.round_trip_s == pytest.approx(0.25) for a in rows)
+    assert all(a.request_bytes == request(a.step).ByteSize() for a in rows)
+    assert all(a.service_s == SERVICE_S for a in rows)
+    assert p.take_answered() == []  # taken once
+    (lost,) = muted.take_answered()
+    assert (lost.step, lost.status, lost.round_trip_s, lost.service_s) == (
+        5, "timeout", DEADLINE_S, 0.0)

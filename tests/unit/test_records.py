@@ -116,3 +116,40 @@ def test_every_line_written_survives_sigkill(tmp_path: Path) -> None:
     entries = read_step_log(path)
     assert len(entries) > 500
     assert [e["t"] for e in entries] == list(range(len(entries)))
+
+
+def test_each_step_records_the_flown_plans_cost_bound_and_certified_gap(tmp_path: Path
+                                                                         ) -> None:
+    """System 2 by the "certified" method: steps.csv and steps.jsonl carry each flown plan's
+    cost, bound and gap, and a record rebuilt from steps.jsonl has them back."""
+    import csv
+
+    from dualpilot.mission.records import write_all
+    from dualpilot.plan import certified_gap
+    from dualpilot.system2.certify.bnb import CertifyParams
+    from dualpilot.system2.certify.planner import CertifiedSystem2
+    from dualpilot.system2.problem import System2Params
+
+    spec = MissionSpec(seed=5)
+    s2 = CertifiedSystem2(spec, System2Params(), CertifyParams(time_budget_s=0.3))
+    config = config_for(spec, Controller.S2, fire=FireParams(p_birth=0.3),
+                        mission=MissionParams(max_steps=3), timing=Timing.PAPER)
+    m = local_mission(config, planners={1: build_planner(1, spec), 2: s2})
+    with StepLog(tmp_path / "steps.jsonl") as log:
+        log.write("mission", **_head(m))
+        while (rec := m.step()) is not None:
+            log.step(rec)
+    flown = [r for r in m.result.records if r.system == 2]
+    assert flown
+    for r in flown:
+        assert r.cost is not None and r.bound is not None and r.bound <= r.cost
+        assert r.certified_gap == certified_gap(r.cost, r.bound)
+    back = result_from_log(read_step_log(tmp_path / "steps.jsonl"))
+    assert [(r.cost, r.bound) for r in back.records] == [(r.cost, r.bound)
+                                                       for r in m.result.records]
+    write_all(m.result, tmp_path)
+    with (tmp_path / "steps.csv").open() as fh:
+        rows = list(csv.DictReader(fh))
+    for row, r in zip(rows, m.result.records, strict=True):
+        want = tuple("" if v is None else repr(v) for v in (r.cost, r.bound, r.certified_gap))
+        assert (row["plan_cost"], row["plan_bound"], row["certified_gap"]) == want

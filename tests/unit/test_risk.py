@@ -88,6 +88,13 @@ def test_cell_hulls_by_hand() -> None:
     assert cell_hulls(np.zeros((4, 4), dtype=bool), 10.0) == ()
 
 
+def test_slices_with_the_same_risky_cells_share_their_zones() -> None:
+    """The box forecast is the same at every horizon: every slice's zones are one tuple."""
+    risk = RiskMap(ForecastView(box_forecast(), 1))
+    first = risk.slice_zones(0)
+    assert len(first) == 1 and all(risk.slice_zones(i) is first for i in range(1, 6))
+
+
 def test_zones_cover_every_risky_cell() -> None:
     risk = RiskMap(ForecastView(box_forecast(), 1))
     (zone,) = risk.slice_zones(5)

@@ -87,6 +87,28 @@ def test_disjunction_margin_by_hand():
     np.testing.assert_allclose(faces.margins(pts)[:, 0], [5.0, 2.0])
 
 
+def test_face_stack_margins_and_below_match_each_hull():
+    """The compiled margins equal each inflated hull's own (max over its faces), and
+    ``below`` is margin < threshold where the mask allows, nothing elsewhere."""
+    polys = Inflated.make_many(make_instance(3, 5, 20).hulls, 25.0)
+    faces = FaceStack.of(polys)
+    pts = np.random.default_rng(1).uniform(0.0, 1000.0, size=(60, 2))
+    margins = faces.margins(pts)
+    for i, q in enumerate(polys):
+        np.testing.assert_allclose(margins[:, i], q.margin(pts), rtol=0, atol=1e-9)
+    mask = np.random.default_rng(2).random((len(polys), len(pts))) < 0.5
+    for threshold in (0.0, 60.0):
+        np.testing.assert_array_equal(faces.below(pts, threshold, mask),
+                                      mask & (threshold > margins.T))
+        np.testing.assert_array_equal(faces.below(pts, threshold), threshold > margins.T)
+    # by hand: Q = [375, 625]² (ε = 25); (700, 500) is 75 m out, the centre 125 m in
+    sq = FaceStack.of([Inflated.make(SQUARE, 25.0)])
+    centre_and_out = np.array([[500.0, 500.0], [700.0, 500.0]])
+    np.testing.assert_allclose(sq.margins(centre_and_out)[:, 0], [-125.0, 75.0])
+    assert sq.below(centre_and_out, 75.0).tolist() == [[True, False]]
+    assert FaceStack.of([]).margins(centre_and_out).shape == (2, 0)
+
+
 def test_banded_ipm_box_qp_by_hand():
     """min ½‖z‖² − q·z s.t. z ≥ lo has the solution z = max(q, lo)."""
     n = 12

@@ -49,12 +49,15 @@ class EwsBus(Bus):
     ews: Any = None
     down: bool = False
     asked: list[str] = field(default_factory=list)
+    waits: list[float] = field(default_factory=list)  # each query's timeout (wall s)
+    forecast_takes_s: float = 0.0  # how long the EWS takes to answer a forecast query
 
     def query(self, key: str, msg: Any, timeout_s: float, trusted: Any = None
               ) -> tuple[bytes, str]:
         cmd = fire_convert.fire_command_from_msg(msg)
         self.asked.append(cmd.kind)
-        if self.down:
+        self.waits.append(timeout_s)
+        if self.down or (cmd.kind == "forecast" and self.forecast_takes_s > timeout_s):
             raise TimeoutError("no reply on ews/command")
         update = self.ews.handle(cmd)
         return update.SerializeToString(), wire.encoding_name(update)
@@ -63,11 +66,12 @@ class EwsBus(Bus):
         return not (service == "ews" and self.down)
 
 
-def fires_port(config: MissionConfig) -> tuple[StackFires, EwsBus]:
+def fires_port(config: MissionConfig, speed_factor: float = 0.0
+               ) -> tuple[StackFires, EwsBus]:
     stop = threading.Event()
     ews = Ews(FakeSession(), "u1", FireParams(), 80.0, stop)  # type: ignore[arg-type]
-    b = EwsBus(None, "u1", "m1", wire.Stamper("supervisor", "u1"), SimClock(0.0),  # type: ignore[arg-type]
-               stop, StackParams(), ews=ews)
+    b = EwsBus(None, "u1", "m1", wire.Stamper("supervisor", "u1"),  # type: ignore[arg-type]
+               SimClock(speed_factor), stop, StackParams(), ews=ews)
     return StackFires(b, config.spec(), config), b
 
 
@@ -107,6 +111,39 @@ def test_an_ews_on_another_t_f_is_refused() -> None:
     port.config = MissionConfig(seed=3)  # the reset carries the default T_f: 0.5 s
     with pytest.raises(Aborted, match="the EWS runs T_f = 0.5 s, the mission 0.25 s"):
         port.reset()
+
+
+def test_a_forecast_waits_for_its_deadline_lockstep_long_real_time_half_a_period() -> None:
+    params = StackParams(forecast_timeout_s=10.0, forecast_deadline_periods=0.5)
+    assert params.forecast_wait_s(1.0, 0.0) == 10.0  # lockstep: the timeout
+    assert params.forecast_wait_s(1.0, 1.0) == 0.5  # paced: half of ΔT = 1 s, in wall time
+    assert params.forecast_wait_s(1.0, 20.0) == 0.5  # as the plan deadlines: wall periods
+    assert params.forecast_wait_s(100.0, 1.0) == 10.0  # never longer than the timeout
+
+
+@pytest.mark.parametrize(("speed", "takes_s", "got"), [
+    (0.0, 2.0, True),  # lockstep waits for a slow forecast (up to 10 s)
+    (1.0, 0.2, True),  # real time: within half a period
+    (1.0, 2.0, False),  # real time: later than half a period, the step goes on without it
+])
+def test_a_late_forecast_in_real_time_is_a_named_fault(speed: float, takes_s: float,
+                                                      got: bool) -> None:
+    config = MissionConfig.named("s2+risk", seed=26)
+    port, b = fires_port(config, speed)
+    b.forecast_takes_s = takes_s
+    port.reset()
+    port.begin_step(0)
+    fc = port.forecast(10)
+    assert (fc is not None) == got and b.waits[-1] == (10.0 if speed == 0 else 0.5)
+    if got:
+        (cost,) = port.take_costs()
+        assert cost["revision"] == 0 and float(cost["age_s"]) >= 0.0  # type: ignore[arg-type]
+        assert speed or cost["age_s"] == 0.0  # lockstep: the clock stands still meanwhile
+        assert port.take_faults() == []
+    else:
+        (why,) = port.take_faults()
+        assert why.startswith("late: ")
+        assert port.forecast(10) is None and port.take_faults() == []  # one fault a step
 
 
 @dataclass

@@ -150,7 +150,8 @@ def test_transition_matrices_reading():
 
 
 def test_planners_by_name_from_the_registry():
-    assert METHODS == {1: ("rrt", "rrt+du"), 2: ("fast", "exact", "fast+exact", "thorough")}
+    assert METHODS == {1: ("rrt", "rrt+du"),
+                       2: ("fast", "exact", "fast+exact", "thorough", "certified")}
     assert {k: tuple(v) for k, v in RISK_AWARE.items()} == {1: ("rrt", "rrt+du"), 2: ("fast",)}
     with pytest.raises(ValueError, match="'exact' has no risk-aware variant"):
         build_planner(2, SPEC, "exact", risk=True)

@@ -22,6 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
+from numba import njit
 from scipy.sparse.csgraph import dijkstra
 
 from dualpilot.arrays import AnyArray
@@ -135,15 +136,64 @@ class FaceStack:
                          np.cumsum([0] + [len(q.b) for q in polys[:-1]]), len(polys))
 
     def margins(self, points: AnyArray) -> AnyArray:
-        """Inflated.margin of every hull: array (n points, n hulls) (m).
-
-        One matrix product over all faces and a segmented max (``reduceat``)
-        instead of a Python loop over the hulls.
-        """
-        pts = np.asarray(points, dtype=float).reshape(-1, 2)
+        """Inflated.margin of every hull: array (n points, n hulls) (m), compiled
+        (:func:`_stack_margins`)."""
+        pts = np.ascontiguousarray(points, dtype=float).reshape(-1, 2)
         if not self.n:
             return np.zeros((len(pts), 0))
-        return np.asarray(np.maximum.reduceat(pts @ self.A.T - self.b, self.starts, axis=1))
+        return _stack_margins(pts, self.A, self.b, self._bounds())
+
+    def below(self, points: AnyArray, threshold: float, mask: AnyArray | None = None
+              ) -> AnyArray:
+        """(n hulls, n points): hull i's margin at point k is below ``threshold`` (m), where
+        ``mask[i, k]`` (all pairs without a mask); a hull's faces are read only until one
+        reaches the threshold (:func:`_stack_below`)."""
+        pts = np.ascontiguousarray(points, dtype=float).reshape(-1, 2)
+        if mask is None:
+            mask = np.ones((self.n, len(pts)), dtype=np.bool_)
+        return _stack_below(pts, self.A, self.b, self._bounds(), float(threshold),
+                            np.ascontiguousarray(mask, dtype=np.bool_))
+
+    def _bounds(self) -> AnyArray:
+        """The faces of hull i are rows bounds[i]..bounds[i + 1] − 1 of A and b."""
+        return np.append(np.asarray(self.starts, dtype=np.int64), len(self.b))
+
+
+@njit(cache=True)
+def _stack_margins(pts: AnyArray, a: AnyArray, b: AnyArray, bounds: AnyArray) -> AnyArray:
+    """max over each hull's faces l of α_l·p − b_l, for every point (rows) and hull (columns)."""
+    n_pts, n_hulls = pts.shape[0], len(bounds) - 1
+    out = np.empty((n_pts, n_hulls))
+    for k in range(n_pts):
+        x, y = pts[k, 0], pts[k, 1]
+        for i in range(n_hulls):
+            best = -np.inf
+            for f in range(bounds[i], bounds[i + 1]):
+                m = (x * a[f, 0] + y * a[f, 1]) - b[f]
+                if m > best:
+                    best = m
+            out[k, i] = best
+    return out
+
+
+@njit(cache=True)
+def _stack_below(pts: AnyArray, a: AnyArray, b: AnyArray, bounds: AnyArray, threshold: float,
+                 mask: AnyArray) -> AnyArray:
+    """mask[i, k] and max_l (α_l·p_k − b_l) < threshold over hull i's faces (early exit)."""
+    n_pts, n_hulls = pts.shape[0], len(bounds) - 1
+    out = np.zeros((n_hulls, n_pts), dtype=np.bool_)
+    for i in range(n_hulls):
+        for k in range(n_pts):
+            if not mask[i, k]:
+                continue
+            x, y = pts[k, 0], pts[k, 1]
+            inside = True
+            for f in range(bounds[i], bounds[i + 1]):
+                if (x * a[f, 0] + y * a[f, 1]) - b[f] >= threshold:
+                    inside = False
+                    break
+            out[i, k] = inside
+    return out
 
 
 @dataclass(frozen=True)

@@ -173,10 +173,8 @@ class _Cfs:
 
     def _activate(self, pos: Array) -> None:
         T = self.T
-        near = (self.faces.margins(pos[1:T]) < self.o.fast.near_m).T
-        if self.o._mask is not None:  # keep-outs of some steps only (the risk zones)
-            near &= self.o._mask[:, 2:T + 1]
-        self.active[:, 2:T + 1] |= near
+        mask = None if self.o._mask is None else self.o._mask[:, 2:T + 1]  # the risk zones' steps
+        self.active[:, 2:T + 1] |= self.faces.below(pos[1:T], self.o.fast.near_m, mask)
 
     def _rows(self) -> tuple[Array, Array, Array]:
         """Half-planes (τ, normal, rhs) of the active (τ, i) pairs, hull-major, vectorised."""
@@ -692,10 +690,8 @@ class FastSystem2:
     def _violations(self, pos: Array, faces: FaceStack) -> NDArray[np.int64]:
         """(τ, i) pairs (τ = 2..T) where the disjunction fails for the hulls of ``faces``."""
         T = self.params.horizon
-        bad = faces.margins(pos[1:T]).T < 0
-        if self._mask is not None:
-            bad &= self._mask[:, 2:T + 1]
-        hull, tt = np.nonzero(bad)  # hull-major
+        mask = None if self._mask is None else self._mask[:, 2:T + 1]
+        hull, tt = np.nonzero(faces.below(pos[1:T], 0.0, mask))  # hull-major
         return np.column_stack([tt + 2, hull]).astype(np.int64).reshape(-1, 2)
 
 

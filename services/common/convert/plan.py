@@ -20,7 +20,7 @@ from dualpilot.mission.config import MissionConfig
 from dualpilot.mission.ports import PlanRequest
 from dualpilot.model.dynamics import DynamicsParams, SpeedLimit
 from dualpilot.model.risk import ForecastView
-from dualpilot.plan import Objective, Plan, PlanStatus
+from dualpilot.plan import Objective, Plan, PlanStatus, certified_gap
 from dualpilot.spec import MissionSpec
 from services.common.convert.common import (
     force_from_msg,
@@ -297,6 +297,11 @@ def plan_to_msg(plan: Plan, step: int, request_seq: int, stamper: Stamper,
     packed_to_msg(plan.controls, m.controls)
     if plan.cost is not None and math.isfinite(plan.cost):
         m.cost = float(plan.cost)
+        if plan.bound is not None and math.isfinite(plan.bound):
+            m.bound = min(float(plan.bound), m.cost)
+            gap = certified_gap(m.cost, m.bound)
+            if math.isfinite(gap):
+                m.certified_gap = gap
     if plan.path is not None:
         packed_to_msg(plan.path, m.path_m)
     try:
@@ -328,6 +333,7 @@ def plan_from_msg(m: plan_pb2.Plan, expected_system: int | None = None) -> Plan:
                       Reason.OUT_OF_RANGE)
     if m.HasField("cost"):
         check_floats([m.cost], "plan cost", math.inf)
+    bound = _bound_from_msg(m)
     path = (packed_from_msg(m.path_m, "plan path", 2, MAX_HORIZON * 10, MAX_ABS_M)
             if len(m.path_m) else None)
     info_json = check_text(m.info_json, "plan info_json")
@@ -342,5 +348,28 @@ def plan_from_msg(m: plan_pb2.Plan, expected_system: int | None = None) -> Plan:
         compute_time_s=float(m.compute_time_s),
         objective=objective_from_msg(m.objective, required=False),
         cost=float(m.cost) if m.HasField("cost") else None, path=path,
-        message=check_text(m.message, "plan message"), info=info,
+        message=check_text(m.message, "plan message"), info=info, bound=bound,
     )
+
+
+def _bound_from_msg(m: plan_pb2.Plan) -> float | None:
+    """A plan's bound, checked: finite, with a cost and at most it; its certified gap, if
+    sent, with a bound, finite, ≥ 0 and (cost − bound) / bound (relative 1e-9)."""
+    if m.HasField("certified_gap") and not m.HasField("bound"):
+        raise invalid("a plan's certified_gap needs its bound")
+    if not m.HasField("bound"):
+        return None
+    if not m.HasField("cost"):
+        raise invalid("a plan's bound needs its cost")
+    check_floats([m.bound], "plan bound", math.inf)
+    if m.bound > m.cost:
+        raise invalid(f"plan bound {m.bound!r} exceeds its cost {m.cost!r}",
+                      Reason.OUT_OF_RANGE)
+    if m.HasField("certified_gap"):
+        check_floats([m.certified_gap], "plan certified_gap", math.inf)
+        expected = certified_gap(m.cost, m.bound)
+        if m.certified_gap < 0 or not math.isclose(m.certified_gap, expected, rel_tol=1e-9,
+                                                   abs_tol=1e-12):
+            raise invalid(f"plan certified_gap {m.certified_gap!r} is not (cost − bound) / "
+                          f"bound = {expected!r}", Reason.OUT_OF_RANGE)
+    return float(m.bound)
