@@ -117,6 +117,22 @@ def class_table(counted: dict[str, dict[str, int]]) -> str:
     return "\n".join(lines) + "\n"
 
 
+def figure_cases(todo: list[Case], rows: list[dict[str, Any]],
+                 controllers: list[str] | None) -> list[tuple[Case, str]]:
+    """One case per class: the first controller's first of that class, else the first
+    case of it of the next controller (in ``controllers``' order) that has one."""
+    order = {c: k for k, c in enumerate(controllers or [])}
+    ranked = sorted(zip(todo, rows, strict=True),
+                    key=lambda cr: (order.get(cr[0].controller, len(order)), cr[0].controller,
+                                    cr[0].index))
+    chosen: dict[str, Case] = {}
+    for case, row in ranked:
+        cls = str(row["class"])
+        if cls in CLASSES and cls not in chosen:
+            chosen[cls] = case
+    return [(chosen[c], c) for c in CLASSES if c in chosen]
+
+
 def _anatomy(args: argparse.Namespace) -> int:
     run_dir = Path(args.run)
     controllers = args.controllers.split(",") if args.controllers else None
@@ -127,13 +143,7 @@ def _anatomy(args: argparse.Namespace) -> int:
     if args.figures:
         out = Path(args.figures)
         out.mkdir(parents=True, exist_ok=True)
-        shown = controllers[0] if controllers else None
-        drawn: set[str] = set()
-        for case, row in zip(cases(run_dir, controllers), rows, strict=True):
-            cls = str(row["class"])
-            if cls in drawn or (shown is not None and case.controller != shown):
-                continue
-            drawn.add(cls)
+        for case, cls in figure_cases(cases(run_dir, controllers), rows, controllers):
             path = out / f"anatomy_{args.label or run_dir.name}_{cls}.png"
             print(draw_case(case, path, args.label or run_dir.name))
             line = f"- {path.name}: `{replay_command(case)}`"
@@ -150,7 +160,7 @@ def add_anatomy_parser(sub: Any) -> None:
                        "with the oracle (docs/yardstick.md)")
     p.add_argument("run", help="the run directory of dualpilot evaluate --controllers ...,oracle")
     p.add_argument("--controllers", default="", help="only these (default: all but the oracle); "
-                   "the figures show the first")
+                   "a class's figure shows the first of them that has one")
     p.add_argument("--jobs", type=int, default=1, help="Dask workers (default: in this process)")
     p.add_argument("--figures", default="", metavar="DIR",
                    help="one figure per class into DIR (anatomy_<label>_<class>.png)")

@@ -92,3 +92,20 @@ def test_an_evaluation_and_a_sweep_with_the_oracle_carry_the_yardstick(tmp_path:
     swept = sweep(grid_points({}), 2, out / "sweep", jobs=1, controllers=("s1", "oracle"),
                   progress=False, figures=False)
     assert swept["points"][0]["yardstick"]["controllers"]["oracle"]["n"] == 2
+
+
+def test_one_anatomy_figure_per_class_the_first_controller_first() -> None:
+    from dualpilot.evaluation.anatomy import Case
+    from dualpilot.viz.anatomy import figure_cases
+
+    def case(controller: str, index: int) -> Case:
+        return Case(index, 0, controller, "paper", "fast", "today", ())
+
+    todo = [case("cc", 1), case("cc", 4), case("lookahead+risk", 7), case("s2", 2)]
+    rows = [{"class": "deliberating"}, {"class": "ignition"}, {"class": "ignition"},
+            {"class": "error: boom"}]
+    got = figure_cases(todo, rows, ["lookahead+risk", "cc", "s2"])
+    # ignition from the first controller (mission 7, not cc's 4), deliberating from cc;
+    # an error row is no class; classes in CLASSES' order
+    assert [(c.controller, c.index, cls) for c, cls in got] == [
+        ("cc", 1, "deliberating"), ("lookahead+risk", 7, "ignition")]
