@@ -87,7 +87,7 @@ def draw_case(case: Case, path: Path, reading_label: str) -> Path:
     ax.set_ylabel("north (m)")
     ax.legend(loc="lower right", fontsize=8)
     ax.set_title(f"{failure.cls}: {DESCRIPTIONS[failure.cls]}\n{reading_label}, "
-                 f"{case.controller}, mission {case.index} (seed {config.seed}), "
+                 f"{case.controller}, mission {case.index} (seed {config.seed}),\n"
                  f"{failure.ending.replace('_', ' ')} at step {failure.step}", fontsize=9)
     fig.tight_layout()
     fig.savefig(path, dpi=DPI)
