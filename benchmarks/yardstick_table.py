@@ -3,7 +3,7 @@
 Reads the ``summary.json`` that ``dualpilot evaluate --controllers ...,oracle`` writes in
 each run directory (and its ``results.csv``: the missions any controller completed that
 the oracle calls impossible, which must be none) and prints one Markdown table a measure:
-success as % of the achievable missions (95 % interval), avoidable failures, mean mission
+success, success as % of the achievable missions (95 % interval), avoidable failures, mean mission
 time (s) and energy (N²) over each controller's successes. The columns are the run
 directories' names. ::
 
@@ -28,6 +28,8 @@ def _pct(x: float) -> str:
 
 def cell(c: dict[str, Any], measure: str) -> str:
     """One controller's value of ``measure`` in one reading's yardstick."""
+    if measure == "success":
+        return f"{100 * c['successes'] / max(c['n'], 1):.1f}"
     if measure == "achievable":
         lo, hi = c["of_achievable_ci95"]
         return f"{_pct(c['of_achievable'])} ({_pct(lo)}–{_pct(hi)})"
@@ -37,7 +39,8 @@ def cell(c: dict[str, Any], measure: str) -> str:
     return "—" if not math.isfinite(value) else f"{value:.{1 if measure == 'time' else 0}f}"
 
 
-TITLES = {"achievable": "success, % of achievable (95 % CI)",
+TITLES = {"success": "success, % of missions",
+          "achievable": "success, % of achievable (95 % CI)",
           "avoidable": "avoidable failures",
           "time": "mean mission time on successes (s)",
           "energy": "mean energy on successes (N²)"}
