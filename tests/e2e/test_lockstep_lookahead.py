@@ -4,9 +4,11 @@ The supervisor process runs the lookahead supervisor (dualpilot/mission/lookahea
 known future is the EWS's forecast of each step's fire state, asked over the wire, and its
 space-time plans are its own. Three seeds of each physics scenario of the yardstick's tables
 (grass-5, grass-15, shrub), paper timing, flown through the stack (a shared router, EWS and
-planner pair; a uavsim and a supervisor per vehicle, unpaced) and in-process: identical
-records (tests/e2e/test_lockstep.py's comparison), a forecast received at every step that
-asked for one, and no forecast_stale fault.
+planner pair; a uavsim and a supervisor per vehicle, unpaced) and in-process given the
+vehicle's measurements (tests/e2e/test_lockstep.py's ``ReplayedStates``, as for every
+risk-aware controller on physics fires: a float32 step of the measured state decides
+near-ties between plans): identical records (tests/e2e/test_lockstep.py's comparison), a
+forecast received at every step that asked for one, and no forecast_stale fault.
 """
 
 from __future__ import annotations
@@ -41,4 +43,4 @@ def test_the_lookahead_supervisor_flies_the_in_process_mission_through_the_stack
     for run, (run_dir, result) in fly(f, runs, out).items():
         received, stale = forecasts_in(run_dir)
         assert received > 0 and stale == 0, (run, received, stale)
-        assert_same_mission(result, in_process(run), str(run))
+        assert_same_mission(result, in_process(run, run_dir, states=True), str(run))
