@@ -126,9 +126,13 @@ def _evaluate(args: argparse.Namespace) -> int:
         profile=args.profile,
         settings=_settings(args),
         scheduler=args.scheduler,
+        first_mission=args.first_mission,
     )
     print(json.dumps(summary, indent=2))
-    print(f"results in {out}/: results.csv summary.json fig_r5.png")
+    if (out / "yardstick.md").exists():
+        print((out / "yardstick.md").read_text())
+    print(f"results in {out}/: results.csv summary.json fig_r5.png"
+          + (" yardstick.md" if "yardstick" in summary else ""))
     return 0
 
 
@@ -199,12 +203,15 @@ def _add_mission(sub: Any) -> None:
 def _add_evaluate(sub: Any) -> None:
     e = sub.add_parser("evaluate", help="Monte-Carlo comparison of CC, S1 and S2 (Fig. r5)")
     e.add_argument("--missions", type=int, default=200)
+    e.add_argument("--first-mission", type=int, default=0, metavar="I",
+                   help="fly configurations I .. I + missions − 1 of --seed (held-out sets)")
     e.add_argument("--timing", choices=[t.value for t in Timing], default="paper")
     e.add_argument("--jobs", type=int, default=0, help="worker processes (default: all cores)")
     e.add_argument("--seed", type=int, default=0)
     e.add_argument("--controllers", default="cc,s1,s2",
                    help=f"any of {','.join(CONTROLLER_NAMES)} (concurrent: cc with the "
-                        "concurrent supervisor; +risk: with the fire forecast)")
+                        "concurrent supervisor; +risk: with the fire forecast), and oracle: "
+                        "the clairvoyant yardstick (docs/yardstick.md)")
     e.add_argument("--s2-method", default="fast")
     e.add_argument("--ignition-clearance", type=float, default=None, metavar="M",
                    help="no front ignites within M m of the UAV (default: anywhere, as the "
@@ -256,12 +263,14 @@ def build_parser() -> argparse.ArgumentParser:
     _add_sweep(sub)
     _add_readings(sub)
     from dualpilot.evaluation.bench import add_bench_parser
+    from dualpilot.viz.anatomy import add_anatomy_parser  # the yardstick's failure anatomy
     from dualpilot.viz.bound import add_bound_parser  # the supervisor's bound (issue 13.4)
     from dualpilot.viz.showcase import add_showcase_parser  # the Fig. r1 story (issue 13.5)
 
     add_showcase_parser(sub)
     add_bench_parser(sub)
     add_bound_parser(sub)
+    add_anatomy_parser(sub)
     return parser
 
 

@@ -16,10 +16,11 @@ from collections.abc import Iterable, Mapping
 from pathlib import Path
 from typing import Any
 
-from dualpilot.evaluation.missions import COLUMNS, CONTROLLERS, Task
+from dualpilot.evaluation.missions import COLUMNS, CONTROLLERS, ORACLE, Task
 from dualpilot.evaluation.results import check_config, read_results
 from dualpilot.evaluation.runner import run
 from dualpilot.evaluation.stats import summarize
+from dualpilot.evaluation.yardstick import markdown, yardstick
 from dualpilot.readings import get_profile
 
 
@@ -36,12 +37,15 @@ def evaluate(
     profile: str = "today",
     settings: Mapping[str, Any] | None = None,
     scheduler: str | None = None,
+    first_mission: int = 0,
 ) -> dict[str, object]:
     """Run (or resume) the evaluation in ``out``; returns the summary it writes.
 
     ``profile`` and ``settings`` (field name → value or its text) choose the
     reading (:mod:`dualpilot.readings`); ``ignition_clearance_m``, when set,
-    overrides the profile's.
+    overrides the profile's. Configurations ``first_mission`` .. ``first_mission +
+    missions − 1`` are flown. With the controller ``oracle`` the summary has the
+    yardstick (:mod:`dualpilot.evaluation.yardstick`), also written to ``yardstick.md``.
     """
     out.mkdir(parents=True, exist_ok=True)
     path = out / "results.csv"
@@ -56,16 +60,23 @@ def evaluate(
     pinned = tuple((k, reading.values()[k]) for k in extra)
     check_config(out, {"seed": seed, "profile": profile, "s2_method": s2_method,
                        "settings": {k: v for k, v in pinned}})
+    indices = range(first_mission, first_mission + missions)
     tasks = [Task.of(i, seed, c, timing, s2_method, profile=profile, settings=pinned)
-             for i in range(missions) for c in controllers]
+             for i in indices for c in controllers]
     wall = run(tasks, path, COLUMNS, ("mission", "controller"),
                jobs or os.cpu_count() or 1, scheduler, progress)
-    rows = [r for r in read_results(path) if int(r["mission"]) < missions]
+    rows = [r for r in read_results(path) if int(r["mission"]) in indices]
     summary = summarize(rows, missions, timing, wall_s=wall)
+    summary["first_mission"] = first_mission
     summary["ignition_clearance_m"] = reading.mission.ignition_clearance_m
     summary["s2_method"] = s2_method
     summary["profile"] = profile
     summary["readings"] = reading.readings()
+    if ORACLE in controllers:
+        ys = yardstick(rows, tasks[0].config)
+        summary["yardstick"] = ys
+        (out / "yardstick.md").write_text(markdown(ys, f"{profile} {dict(pinned)}, missions "
+                                                       f"{indices.start}–{indices.stop - 1}"))
     (out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
     from dualpilot.viz.evaluation import plot_fig_r5
 

@@ -16,12 +16,15 @@ from typing import Any
 
 import numpy as np
 
+from dualpilot.evaluation.columns import flight_columns, oracle_columns
 from dualpilot.mission.config import MissionConfig
 from dualpilot.mission.params import Timing
 from dualpilot.mission.result import Ending
 from dualpilot.spec import MissionSpec
 
 CONTROLLERS = ("cc", "s1", "s2")
+#: the clairvoyant oracle's row of an evaluation (dualpilot/oracle, evaluation/yardstick.py)
+ORACLE = "oracle"
 #: evaluate's results.csv (unchanged by the sweep)
 COLUMNS = [
     "mission", "seed", "controller", "timing", "success", "failure_cause", "steps",
@@ -59,15 +62,21 @@ class Task:
     config: MissionConfig
     point: int = 0
     label: str = ""
+    #: the oracle's verdict on the mission instead of a flight (the config's reading; its
+    #: controller is System 1, whose pace the oracle flies)
+    oracle: bool = False
 
     @staticmethod
     def of(index: int, seed: int, controller: str, timing: str, s2_method: str,
            profile: str = "today", settings: Settings = (), point: int = 0,
            label: str = "") -> Task:
-        """The task of an evaluation's controller name, timing, System 2 method and reading."""
-        config = MissionConfig.named(controller, timing=Timing(timing), system2_method=s2_method,
-                                     profile=profile, settings=settings)
-        return Task(index, seed, config, point, label)
+        """The task of an evaluation's controller name (or :data:`ORACLE`), timing, System 2
+        method and reading."""
+        oracle = controller == ORACLE
+        config = MissionConfig.named("s1" if oracle else controller, timing=Timing(timing),
+                                     system2_method=s2_method, profile=profile,
+                                     settings=settings)
+        return Task(index, seed, config, point, label, oracle)
 
     def mission(self) -> MissionConfig:
         """The configuration flown: the task's, at configuration ``index``'s start and goal."""
@@ -80,11 +89,12 @@ class Task:
         c = self.config
         return {"point": self.point, "label": self.label, "profile": c.profile,
                 "mission": self.index, "seed": mission_seed(self.seed, self.index),
-                "controller": c.controller_name, "timing": c.timing.value}
+                "controller": ORACLE if self.oracle else c.controller_name,
+                "timing": c.timing.value}
 
 
 def run_task(task: Task) -> dict[str, object]:
-    """Fly one mission; never raises (an exception becomes an error row)."""
+    """Fly one mission (or ask the oracle); never raises (an exception becomes an error row)."""
     from dualpilot.mission.local import local_mission
 
     config = mission_spec(task.seed, task.index)
@@ -96,21 +106,10 @@ def run_task(task: Task) -> dict[str, object]:
     try:
         reading = task.config.reading()
         row.update(reading.values())
-        result = local_mission(task.mission()).run()
-        times = result.planning_time_s["s1"] + result.planning_time_s["s2"]
-        row.update(
-            success=int(result.success), failure_cause=result.failure_cause,
-            steps=result.steps, mission_time_s=result.mission_time_s,
-            energy=round(result.energy, 6), switches=result.switches,
-            switch_energy=round(result.switch_energy, 6),
-            fire_substeps=sum(r.fire_substeps for r in result.records)
-            + reading.mission.fire_substeps_per_motion * result.steps,
-            s1_plans=len(result.planning_time_s["s1"]),
-            s2_plans=len(result.planning_time_s["s2"]),
-            planning_time_s_median=float(np.median(times)) if times else "",
-            planning_time_s_p95=float(np.percentile(times, 95)) if times else "",
-            planning_time_s_total=float(np.sum(times)),
-        )
+        if task.oracle:
+            row.update(oracle_columns(task.mission()))
+        else:
+            row.update(flight_columns(local_mission(task.mission()).run(), reading))
     except Exception as err:  # noqa: BLE001 - recorded, the run goes on
         row.update(success=0, failure_cause=Ending.ERROR.value,
                    error=f"{type(err).__name__}: {err}")

@@ -36,7 +36,7 @@ def summarize(
     """summary.json: per controller success rate, mission time, energy, planning time, with CIs."""
     result: dict[str, object] = {"missions": missions, "timing": timing, "wall_s": wall_s}
     ctrl: dict[str, object] = {}
-    for c in CONTROLLER_NAMES:
+    for c in dict.fromkeys([*CONTROLLER_NAMES, *(r["controller"] for r in rows)]):
         rs = [r for r in rows if r["controller"] == c]
         if not rs:
             continue

@@ -17,10 +17,11 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from dualpilot.evaluation.missions import COLUMNS, CONTROLLERS, Settings, Task
+from dualpilot.evaluation.missions import COLUMNS, CONTROLLERS, ORACLE, Settings, Task
 from dualpilot.evaluation.results import check_config, read_results, write_parquet
 from dualpilot.evaluation.runner import run
 from dualpilot.evaluation.stats import summarize
+from dualpilot.evaluation.yardstick import yardstick
 from dualpilot.readings import get_profile, parse_value, settable
 
 #: the sweep's tidy table: the grid point and every parameter value, then COLUMNS
@@ -122,9 +123,13 @@ def sweep(points: Sequence[Point], missions: int, out: Path, seed: int = 0,
     for p in points:
         mine = [r for r in rows if r["label"] == p.label and int(r["mission"]) < missions]
         s = summarize(mine, missions, timing)
-        summary["points"].append({"point": p.index, "label": p.label, "profile": p.profile,
-                                  "settings": dict(p.settings),
-                                  "controllers": s["controllers"]})
+        entry = {"point": p.index, "label": p.label, "profile": p.profile,
+                 "settings": dict(p.settings), "controllers": s["controllers"]}
+        if ORACLE in controllers:  # asserts no completed mission is called impossible
+            point_config = Task.of(0, seed, ORACLE, timing, s2_method, profile=p.profile,
+                                   settings=p.settings).config
+            entry["yardstick"] = yardstick(mine, point_config)
+        summary["points"].append(entry)
     (out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
     if figures:
         from dualpilot.viz.sweep import plot_sweep

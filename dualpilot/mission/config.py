@@ -38,7 +38,7 @@ RISK_SPELLING = "+risk"
 #: The controllers an evaluation compares, by name: the paper's three, the cognitive
 #: controller with the concurrent supervisor, and each flown with the fire forecast.
 CONTROLLER_NAMES = ("cc", "s1", "s2", "concurrent", "cc+risk", "s1+risk", "s2+risk",
-                    "concurrent+risk")
+                    "concurrent+risk", "lookahead", "lookahead+risk")
 
 #: one reading override: (field name of the profile's parameters, its value)
 Setting = tuple[str, Any]
@@ -50,14 +50,14 @@ def parse_controller(name: str) -> tuple[Controller, SupervisorKind, bool]:
         raise ValueError(f"unknown controller {name!r}; choose from {', '.join(CONTROLLER_NAMES)}")
     base = name.removesuffix(RISK_SPELLING)
     risk = base != name
-    if base == "concurrent":
-        return Controller.CC, SupervisorKind.CONCURRENT, risk
+    if base in ("concurrent", "lookahead"):
+        return Controller.CC, SupervisorKind(base), risk
     return Controller(base), SupervisorKind.PAPER, risk
 
 
 def controller_name(controller: Controller, supervisor: SupervisorKind, risk: bool) -> str:
     """The name of :data:`CONTROLLER_NAMES` that spells the three fields."""
-    base = "concurrent" if supervisor is SupervisorKind.CONCURRENT else controller.value
+    base = controller.value if supervisor is SupervisorKind.PAPER else supervisor.value
     return base + (RISK_SPELLING if risk else "")
 
 

@@ -4,7 +4,10 @@
 UAV waits for the chosen system's plan; it runs every controller (cc, s1, s2).
 "concurrent" (:class:`dualpilot.mission.concurrent.ConcurrentPlanning`): System 2
 deliberates while the UAV flies System 1's plans (dualpilot/supervisor/concurrent.py);
-the cognitive controller only, with System 1 tracking under the Δu penalty. Each
+the cognitive controller only, with System 1 tracking under the Δu penalty.
+"lookahead" (:class:`dualpilot.mission.lookahead.LookaheadPlanning`): the concurrent
+supervisor's choice, flown only if it is sound on the known future, else a space-time
+plan (dualpilot/supervisor/lookahead.py). Each
 implements :class:`dualpilot.mission.supervision.SupervisorPlanning`.
 """
 
@@ -16,6 +19,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 from dualpilot.mission.concurrent import ConcurrentPlanning
+from dualpilot.mission.lookahead import LookaheadPlanning
 from dualpilot.mission.paper import PaperPlanning
 from dualpilot.mission.params import Controller
 from dualpilot.mission.supervision import SupervisorPlanning
@@ -34,6 +38,7 @@ class SupervisorKind(enum.Enum):
 
     PAPER = "paper"
     CONCURRENT = "concurrent"
+    LOOKAHEAD = "lookahead"
 
 
 @dataclass(frozen=True)
@@ -56,12 +61,19 @@ def _concurrent(config: MissionConfig, spec: MissionSpec) -> SupervisorPlanning:
                               reading.supervisor, config.concurrent)
 
 
+def _lookahead(config: MissionConfig, spec: MissionSpec) -> SupervisorPlanning:
+    reading = config.reading()
+    return LookaheadPlanning(spec, config.timing, reading.mission, reading.fire,
+                             reading.supervisor, config.concurrent)
+
+
 #: Supervisor kind → its entry; the default first. The concurrent supervisor hands over
 #: between the systems every few steps, so its System 1 tracks with the Δu penalty
 #: (dualpilot/system1/lqr.py: "rrt+du").
 SUPERVISORS: Mapping[SupervisorKind, Supervision] = {
     SupervisorKind.PAPER: Supervision(_paper, frozenset(Controller), "rrt"),
     SupervisorKind.CONCURRENT: Supervision(_concurrent, frozenset({Controller.CC}), "rrt+du"),
+    SupervisorKind.LOOKAHEAD: Supervision(_lookahead, frozenset({Controller.CC}), "rrt+du"),
 }
 
 

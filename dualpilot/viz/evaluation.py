@@ -13,10 +13,12 @@ import numpy as np  # noqa: E402
 
 LABELS = {"cc": "CC", "s1": "S1", "s2": "S2", "concurrent": "CC\n(concurrent)",
           "cc+risk": "CC\n+risk", "s1+risk": "S1\n+risk", "s2+risk": "S2\n+risk",
-          "concurrent+risk": "conc.\n+risk"}
+          "concurrent+risk": "conc.\n+risk", "lookahead": "look-\nahead",
+          "lookahead+risk": "lookahead\n+risk", "oracle": "oracle"}
 COLORS = {"cc": "#2ca02c", "s1": "#1f77b4", "s2": "#d62ca8", "concurrent": "#ff7f0e",
           "cc+risk": "#98df8a", "s1+risk": "#aec7e8", "s2+risk": "#f7b6d2",
-          "concurrent+risk": "#ffbb78"}
+          "concurrent+risk": "#ffbb78", "lookahead": "#9467bd", "lookahead+risk": "#c5b0d5",
+          "oracle": "#7f7f7f"}
 
 
 def plot_fig_r5(summary: dict[str, Any], path: Path) -> Path:

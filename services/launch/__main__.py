@@ -2,7 +2,7 @@
 
 ``python -m services.launch --seed 7 --speed-factor 20 --controller cc --timing paper``
 flies one mission (every controller of dualpilot evaluate by its name: cc, s1, s2,
-concurrent, each with +risk; the mission's flags are those of ``dualpilot mission``);
+concurrent, lookahead, each with +risk; the mission's flags are those of ``dualpilot mission``);
 ``--vehicles 10 --scale system2=2`` a fleet of ten on a planner pool.
 """
 

@@ -20,6 +20,7 @@ class SupervisorKind(int, metaclass=_enum_type_wrapper.EnumTypeWrapper):
     SUPERVISOR_KIND_UNSPECIFIED: _ClassVar[SupervisorKind]
     SUPERVISOR_KIND_PAPER: _ClassVar[SupervisorKind]
     SUPERVISOR_KIND_CONCURRENT: _ClassVar[SupervisorKind]
+    SUPERVISOR_KIND_LOOKAHEAD: _ClassVar[SupervisorKind]
 
 class Timing(int, metaclass=_enum_type_wrapper.EnumTypeWrapper):
     __slots__ = ()
@@ -33,6 +34,7 @@ CONTROLLER_KIND_S2: ControllerKind
 SUPERVISOR_KIND_UNSPECIFIED: SupervisorKind
 SUPERVISOR_KIND_PAPER: SupervisorKind
 SUPERVISOR_KIND_CONCURRENT: SupervisorKind
+SUPERVISOR_KIND_LOOKAHEAD: SupervisorKind
 TIMING_UNSPECIFIED: Timing
 TIMING_PAPER: Timing
 TIMING_MEASURED: Timing

@@ -32,7 +32,7 @@ def test_every_controller_name_is_three_typed_fields_and_back() -> None:
         config = MissionConfig(controller=controller, supervisor=supervisor, risk=risk)
         assert config.controller_name == name and MissionConfig.named(name) == config
         seen.add((controller, supervisor, risk))
-    assert len(seen) == len(CONTROLLER_NAMES) == 8
+    assert len(seen) == len(CONTROLLER_NAMES) == 10
     with pytest.raises(ValueError, match=r"unknown controller 'cc\+fast'"):
         parse_controller("cc+fast")
 

@@ -32,7 +32,8 @@ _CONTROLLERS = {Controller.CC: config_pb2.CONTROLLER_KIND_CC,
                 Controller.S1: config_pb2.CONTROLLER_KIND_S1,
                 Controller.S2: config_pb2.CONTROLLER_KIND_S2}
 _SUPERVISORS = {SupervisorKind.PAPER: config_pb2.SUPERVISOR_KIND_PAPER,
-                SupervisorKind.CONCURRENT: config_pb2.SUPERVISOR_KIND_CONCURRENT}
+                SupervisorKind.CONCURRENT: config_pb2.SUPERVISOR_KIND_CONCURRENT,
+                SupervisorKind.LOOKAHEAD: config_pb2.SUPERVISOR_KIND_LOOKAHEAD}
 _TIMINGS = {Timing.PAPER: config_pb2.TIMING_PAPER, Timing.MEASURED: config_pb2.TIMING_MEASURED}
 #: ConcurrentParams' fields on the wire (its ``threat`` follows ``MissionConfig.risk``)
 CONCURRENT_WIRE = tuple(f.name for f in dataclasses.fields(ConcurrentParams)

@@ -1,0 +1,46 @@
+"""The lookahead supervisor through the stack: the in-process mission, step for step.
+
+The supervisor process runs the lookahead supervisor (dualpilot/mission/lookahead.py); its
+known future is the EWS's forecast of each step's fire state, asked over the wire, and its
+space-time plans are its own. Three seeds of each physics scenario of the yardstick's tables
+(grass-5, grass-15, shrub), paper timing, flown through the stack (a shared router, EWS and
+planner pair; a uavsim and a supervisor per vehicle, unpaced) and in-process given the
+vehicle's measurements (tests/e2e/test_lockstep.py's ``ReplayedStates``, as for every
+risk-aware controller on physics fires: a float32 step of the measured state decides
+near-ties between plans): identical records (tests/e2e/test_lockstep.py's comparison), a
+forecast received at every step that asked for one, and no forecast_stale fault.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import pytest
+
+from services import launch
+from tests.e2e.test_lockstep import assert_same_mission, fly, forecasts_in, in_process
+
+pytestmark = [pytest.mark.slow, pytest.mark.timeout(900)]
+
+SEEDS = (0, 1, 2)
+SCENARIOS = ("grass-5", "grass-15", "shrub")
+
+
+@pytest.fixture(scope="module")
+def fleet(tmp_path_factory: pytest.TempPathFactory) -> Any:
+    out = tmp_path_factory.mktemp("lockstep-lookahead")
+    cfg = launch.StackConfig(run_dir=out / "shared", speed_factor=0.0, free_ports=True,
+                             log_format="text")
+    with launch.Fleet(cfg, [f"la{k}" for k in range(len(SEEDS))]) as f:
+        yield f, out
+
+
+@pytest.mark.parametrize("scenario", SCENARIOS)
+def test_the_lookahead_supervisor_flies_the_in_process_mission_through_the_stack(
+        fleet: Any, scenario: str) -> None:
+    f, out = fleet
+    runs = [(seed, "lookahead+risk", "paper", None, scenario) for seed in SEEDS]
+    for run, (run_dir, result) in fly(f, runs, out).items():
+        received, stale = forecasts_in(run_dir)
+        assert received > 0 and stale == 0, (run, received, stale)
+        assert_same_mission(result, in_process(run, run_dir, states=True), str(run))
