@@ -29,8 +29,9 @@ commanded control (to ``ATOL``) and then observes that measurement, as
 
 from __future__ import annotations
 
+import contextlib
 import json
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from dataclasses import replace
 from pathlib import Path
 from typing import Any
@@ -252,13 +253,22 @@ def in_process(run: Run, replay: Path | None = None, states: bool = False) -> Mi
     return mission.run()
 
 
-@pytest.fixture(scope="module")
-def fleet(tmp_path_factory: pytest.TempPathFactory) -> Any:
-    out = tmp_path_factory.mktemp("lockstep")
+@contextlib.contextmanager
+def unpaced_fleet(tmp_path_factory: pytest.TempPathFactory, name: str, prefix: str,
+                  vehicles: int) -> Iterator[tuple[launch.Fleet, Path]]:
+    """A shared router, EWS and planner pair, unpaced, for ``vehicles`` vehicle ids
+    ``<prefix>0…``; yields the fleet and its output directory."""
+    out = tmp_path_factory.mktemp(name)
     cfg = launch.StackConfig(run_dir=out / "shared", speed_factor=0.0, free_ports=True,
                              log_format="text")
-    with launch.Fleet(cfg, [f"ls{k}" for k in range(len(SEEDS))]) as f:
+    with launch.Fleet(cfg, [f"{prefix}{k}" for k in range(vehicles)]) as f:
         yield f, out
+
+
+@pytest.fixture(scope="module")
+def fleet(tmp_path_factory: pytest.TempPathFactory) -> Any:
+    with unpaced_fleet(tmp_path_factory, "lockstep", "ls", len(SEEDS)) as f:
+        yield f
 
 
 @pytest.mark.parametrize("timing", ["paper", "measured"])

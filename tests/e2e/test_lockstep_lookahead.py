@@ -17,8 +17,13 @@ from typing import Any
 
 import pytest
 
-from services import launch
-from tests.e2e.test_lockstep import assert_same_mission, fly, forecasts_in, in_process
+from tests.e2e.test_lockstep import (
+    assert_same_mission,
+    fly,
+    forecasts_in,
+    in_process,
+    unpaced_fleet,
+)
 
 pytestmark = [pytest.mark.slow, pytest.mark.timeout(900)]
 
@@ -28,11 +33,8 @@ SCENARIOS = ("grass-5", "grass-15", "shrub")
 
 @pytest.fixture(scope="module")
 def fleet(tmp_path_factory: pytest.TempPathFactory) -> Any:
-    out = tmp_path_factory.mktemp("lockstep-lookahead")
-    cfg = launch.StackConfig(run_dir=out / "shared", speed_factor=0.0, free_ports=True,
-                             log_format="text")
-    with launch.Fleet(cfg, [f"la{k}" for k in range(len(SEEDS))]) as f:
-        yield f, out
+    with unpaced_fleet(tmp_path_factory, "lockstep-lookahead", "la", len(SEEDS)) as f:
+        yield f
 
 
 @pytest.mark.parametrize("scenario", SCENARIOS)
