@@ -57,7 +57,22 @@ def _warm() -> float:
             s1 = System1(spec, replace(System1Params(), tracker=tracker))
             s1.plan(state, (hull,), Objective.MISSION_TIME)
         FastSystem2(spec, System2Params()).plan(state, (hull,), Objective.ENERGY)  # "fast"
+    _warm_certificate()
     return time.perf_counter() - t0
+
+
+def _warm_certificate() -> None:
+    """The certified method's kernels: the reach sets, their corridor, the pieces' clipping."""
+    from dualpilot.model.geometry import Rect
+    from dualpilot.system2.certify.pieces import clip
+    from dualpilot.system2.certify.reach import reach_sets
+
+    hull = Rect(40.0, 40.0, 20.0, 20.0).polytope()
+    lo, hi = np.zeros((4, 2)), np.full((4, 2), 100.0)
+    reach = reach_sets(np.array([10.0, 10.0]), lo, hi, (hull,), 25.0, np.array([90.0, 90.0]),
+                       15.0)
+    reach.corridor()
+    clip(np.zeros(2), np.ones(2), np.array([[1.0, 0.0, 0.5]]))
 
 
 if __name__ == "__main__":

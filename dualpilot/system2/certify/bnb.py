@@ -221,7 +221,10 @@ class BranchAndBound:
 
     def _offer(self, res: NodeResult) -> None:
         """A relaxation solution, as it is or repaired: try it as the incumbent."""
-        got = self.candidate(res)
+        self.consider(self.candidate(res))
+
+    def consider(self, got: tuple[float, Array] | None) -> None:
+        """A verified plan (Eq. (S2) cost, controls), or None: the incumbent if cheaper."""
         if got is not None and got[0] < self.cost:
             self.cost, self.controls = got
             self.out.controls = got[1]

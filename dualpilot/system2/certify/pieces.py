@@ -13,6 +13,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 import numpy as np
+from numba import njit
 
 from dualpilot.arrays import Array
 from dualpilot.model.geometry import Polytope
@@ -28,26 +29,50 @@ _SLACK = 1e-7
 def clip(lo: Array, hi: Array, halfplanes: HalfPlanes) -> Array:
     """The vertices of the box [lo, hi] cut by every half-plane a·p ≥ c (empty (0, 2) if none
     is left; Sutherland–Hodgman)."""
-    poly = np.array([[lo[0], lo[1]], [hi[0], lo[1]], [hi[0], hi[1]], [lo[0], hi[1]]])
+    lo, hi = np.asarray(lo, dtype=float), np.asarray(hi, dtype=float)
     if np.any(lo > hi):
         return np.zeros((0, 2))
-    for ax, ay, c in np.asarray(halfplanes, dtype=float).reshape(-1, 3):
-        f = poly @ np.array([ax, ay]) - c
-        inside = f >= -_SLACK
-        if np.all(inside):
+    return _clip(lo, hi, np.ascontiguousarray(halfplanes, dtype=float).reshape(-1, 3), _SLACK)
+
+
+@njit(cache=True)
+def _clip(lo: Array, hi: Array, halfplanes: Array, slack: float) -> Array:
+    """:func:`clip`, compiled (a cut adds at most one vertex)."""
+    m = len(halfplanes)
+    poly = np.empty((4 + m, 2))
+    poly[0, 0], poly[0, 1] = lo[0], lo[1]
+    poly[1, 0], poly[1, 1] = hi[0], lo[1]
+    poly[2, 0], poly[2, 1] = hi[0], hi[1]
+    poly[3, 0], poly[3, 1] = lo[0], hi[1]
+    n = 4
+    out = np.empty((4 + m, 2))
+    f = np.empty(4 + m)
+    for r in range(m):
+        ax, ay, c = halfplanes[r, 0], halfplanes[r, 1], halfplanes[r, 2]
+        n_in = 0
+        for k in range(n):
+            f[k] = poly[k, 0] * ax + poly[k, 1] * ay - c
+            if f[k] >= -slack:
+                n_in += 1
+        if n_in == n:
             continue
-        if not np.any(inside):
+        if n_in == 0:
             return np.zeros((0, 2))
-        out: list[Array] = []
-        n = len(poly)
+        cnt = 0
         for k in range(n):
             j = (k + 1) % n
-            if inside[k]:
-                out.append(poly[k])
-            if inside[k] != inside[j]:
-                out.append(poly[k] + (poly[j] - poly[k]) * (f[k] / (f[k] - f[j])))
-        poly = np.array(out)
-    return poly
+            in_k, in_j = f[k] >= -slack, f[j] >= -slack
+            if in_k:
+                out[cnt, 0], out[cnt, 1] = poly[k, 0], poly[k, 1]
+                cnt += 1
+            if in_k != in_j:
+                t = f[k] / (f[k] - f[j])
+                out[cnt, 0] = poly[k, 0] + (poly[j, 0] - poly[k, 0]) * t
+                out[cnt, 1] = poly[k, 1] + (poly[j, 1] - poly[k, 1]) * t
+                cnt += 1
+        poly, out = out, poly
+        n = cnt
+    return poly[:n].copy()
 
 
 def faces_of(hull: Polytope, eps: float) -> HalfPlanes:
@@ -91,22 +116,27 @@ def cover(lo: Array, hi: Array, fixed: HalfPlanes, hulls: Sequence[Polytope], ep
 def _undominated(lo: Array, hi: Array, pieces: list[HalfPlanes]) -> list[HalfPlanes]:
     """``pieces`` without those inside another one (their union is the same)."""
     verts = [clip(lo, hi, p) for p in pieces]
+    n = len(pieces)
+    if n < 2:
+        return pieces
+    owner = np.concatenate([np.full(len(v), k) for k, v in enumerate(verts)]).astype(np.int64)
+    allv = np.vstack([v.reshape(-1, 2) for v in verts])
+    # within[k, j]: every vertex of piece k satisfies every half-plane of piece j
+    within = np.zeros((n, n), dtype=bool)
+    for j, pj in enumerate(pieces):
+        ok = np.all(allv @ pj[:, :2].T - pj[:, 2] >= -_SLACK, axis=1)
+        bad = np.bincount(owner, weights=~ok, minlength=n)
+        within[:, j] = bad == 0
     keep: list[int] = []
-    for k, vk in enumerate(verts):
+    for k in range(n):
         inside = False
-        for j, pj in enumerate(pieces):
+        for j in range(n):
             if j == k or (j < k and j not in keep):
                 continue
-            # piece k inside piece j (of two equal pieces the later one goes)
-            tie = j > k and _holds(verts[j], pieces[k])
-            if _holds(vk, pj) and not tie:
+            tie = j > k and within[j, k]  # of two equal pieces the later one goes
+            if within[k, j] and not tie:
                 inside = True
                 break
         if not inside:
             keep.append(k)
     return [pieces[k] for k in keep]
-
-
-def _holds(vertices: Array, piece: HalfPlanes) -> bool:
-    """True if every vertex satisfies every half-plane of ``piece`` (within the slack)."""
-    return bool(np.all(vertices @ piece[:, :2].T - piece[:, 2] >= -_SLACK))

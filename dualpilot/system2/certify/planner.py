@@ -40,13 +40,14 @@ from dualpilot.system2.problem import System2Params, p2_cost, verify_p2_plan
 
 def relaxation_of(spec: MissionSpec, params: System2Params, state: Array,
                   hulls: Sequence[Polytope], objective: Objective,
-                  prev_control: Array | None) -> Relaxation:
-    """The relaxations of the (P2) instance of one plan request."""
+                  prev_control: Array | None, reach: bool = True) -> Relaxation:
+    """The relaxations of the (P2) instance of one plan request (``reach``: with the
+    reach sets' bounds, :class:`Relaxation`)."""
     mp = maps(params.horizon, spec.dynamics, speed_sides=params.speed_polygon_sides)
     u_prev = np.zeros(2) if prev_control is None else np.asarray(prev_control, dtype=float)
     area = spec.area_size_m if params.keep_in_area else None
     return Relaxation(mp, np.asarray(state, dtype=float), u_prev, spec.goal.center,
-                      params.kappa(objective), hulls, spec.clearance_m, area)
+                      params.kappa(objective), hulls, spec.clearance_m, area, reach)
 
 
 class PlanCheck:
@@ -78,6 +79,24 @@ class PlanCheck:
             if got is not None and (best is None or got[0] < best[0]):
                 best = got
         return best
+
+    def from_corridor(self) -> tuple[float, Array] | None:
+        """The reach sets' corridor (:meth:`ReachSets.corridor`) repaired into a plan: a
+        first incumbent that goes round what the fast method's homotopy does not."""
+        reach, rel = self.rel.reach, self.rel
+        if reach is None:
+            return None
+        path = reach.corridor()
+        if path is None:
+            return None
+        ref = np.vstack([path, path[-1:]])  # p_1..p_{T+1}
+        ref[0] = rel.off.p1
+        try:
+            fixed = repair(self.qp, rel.x0, rel.u_prev, self.spec.goal.center, rel.kappa,
+                           self.polys, ref, area=self.area)
+        except (ValueError, ArithmeticError, np.linalg.LinAlgError):
+            return None
+        return None if fixed is None else self._checked(fixed.controls)
 
     def _checked(self, u: Array) -> tuple[float, Array] | None:
         dyn = self.spec.dynamics
@@ -131,13 +150,42 @@ class CertifiedSystem2:
         if fast.status in (PlanStatus.INVALID_INPUT, PlanStatus.INFEASIBLE):
             return fast
         hull_t = tuple(hulls)
-        rel = relaxation_of(self.spec, self.params, state, hull_t, objective, prev_control)
         cost = fast.cost if fast.ok and fast.cost is not None else math.inf
-        check = PlanCheck(self.spec, self.params, rel, hull_t, self.fast_planner.qp)
-        search = BranchAndBound(rel, self.certify, cost, check, self._warm_start(hull_t))
-        out = search.run()
+        out = self._search(state, hull_t, objective, prev_control, cost,
+                           self._warm_start(hull_t), t0, reach=False,
+                           params=self._root_only(time.perf_counter() - t0))
+        left = self.certify.time_budget_s - (time.perf_counter() - t0)
+        if out.gap > self.certify.tolerance and out.bound < math.inf and left > 0.0:
+            second = self._search(state, hull_t, objective, prev_control, out.cost,
+                                  set(), t0, reach=True,
+                                  params=dataclasses.replace(self.certify, time_budget_s=left))
+            out = _chained(out, second)
         self._warm = [(tau, hull_t[i].vertices.mean(axis=0)) for tau, i in out.root_blocks]
-        return self._answer(fast, out, rel, objective, t0)
+        return self._answer(fast, out, np.asarray(state, dtype=float), objective, t0)
+
+    def _root_only(self, spent_s: float) -> CertifyParams:
+        """The first stage: the root alone, without the reach sets, in a tenth of the
+        budget (most requests end there; the others go on with the reach sets)."""
+        budget = self.certify.time_budget_s
+        return dataclasses.replace(self.certify, max_nodes=1,
+                                   time_budget_s=max(min(0.1 * budget, budget - spent_s), 1e-3))
+
+    def _search(self, state: Array, hulls: tuple[Polytope, ...], objective: Objective,
+                prev_control: Array | None, cost: float, blocks: set[Pair], t0: float, *,
+                reach: bool, params: CertifyParams) -> Outcome:
+        """One branch and bound from the incumbent ``cost``; with ``reach``, on the
+        relaxation with the reach sets, its corridor offered as a plan first. Its trace is
+        timed from ``t0``, the request."""
+        rel = relaxation_of(self.spec, self.params, state, hulls, objective, prev_control,
+                            reach=reach)
+        check = PlanCheck(self.spec, self.params, rel, hulls, self.fast_planner.qp)
+        search = BranchAndBound(rel, params, cost, check, blocks)
+        if reach:
+            search.consider(check.from_corridor())
+        out = search.run()
+        started = time.perf_counter() - t0 - out.time_s
+        out.trace = [(started + t, b, c) for t, b, c in out.trace]
+        return out
 
     def _warm_start(self, hulls: tuple[Polytope, ...], near_m: float = 100.0) -> set[Pair]:
         """The previous root's clusters one step on: (τ − 1, the hull whose centroid is
@@ -153,18 +201,17 @@ class CertifiedSystem2:
                 out.add((tau - 1, i))
         return out
 
-    def _answer(self, fast: Plan, out: Outcome, rel: Relaxation, objective: Objective,
+    def _answer(self, fast: Plan, out: Outcome, x0: Array, objective: Objective,
                 t0: float) -> Plan:
         """The better verified plan with the search's bound and statistics."""
         info = dict(fast.info)
-        start = time.perf_counter() - t0 - out.time_s  # the fast plan, before the search
-        self.trace = [(start + t, b, c) for t, b, c in out.trace]
+        self.trace = list(out.trace)
         info.update(certify_nodes=out.nodes, certify_relaxations=out.relaxations,
                     certify_stop=out.stop, certify_root_bound=out.root_bound,
                     certify_time_s=out.time_s, fast_cost=fast.cost)
         elapsed = time.perf_counter() - t0
         if out.controls is not None:
-            states = rollout(rel.x0, out.controls, self.spec.dynamics)
+            states = rollout(x0, out.controls, self.spec.dynamics)
             info["source"] = "branch and bound"
             return Plan(system=2, status=PlanStatus.OK, states=states, controls=out.controls,
                         compute_time_s=elapsed, objective=objective, cost=out.cost,
@@ -178,3 +225,16 @@ class CertifiedSystem2:
                                  "(P2) is infeasible: the relaxation holds no trajectory")
             return dataclasses.replace(failed, objective=objective, info=info)
         return dataclasses.replace(fast, compute_time_s=elapsed, info=info)
+
+
+def _chained(first: Outcome, second: Outcome) -> Outcome:
+    """The two stages as one search: the better bound (both are valid), the second's
+    incumbent (it starts from the first's), the work summed, the traces end to end."""
+    trace = first.trace + [(t, max(b, first.bound), c) for t, b, c in second.trace]
+    return Outcome(bound=max(first.bound, second.bound), cost=second.cost,
+                   controls=second.controls if second.controls is not None else first.controls,
+                   nodes=first.nodes + second.nodes,
+                   relaxations=first.relaxations + second.relaxations,
+                   root_bound=max(first.root_bound, second.root_bound),
+                   time_s=first.time_s + second.time_s, stop=second.stop, trace=trace,
+                   root_blocks=second.root_blocks)

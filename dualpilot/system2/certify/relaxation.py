@@ -26,6 +26,7 @@ divided by κ1 s².
 from __future__ import annotations
 
 import math
+import time
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 
@@ -39,6 +40,7 @@ from dualpilot.model.geometry import Polytope
 from dualpilot.system2.certify.duality import Cones, lagrangian_bound, proves_infeasible
 from dualpilot.system2.certify.model import Maps, Offsets, offsets
 from dualpilot.system2.certify.pieces import cover
+from dualpilot.system2.certify.reach import ReachSets, reach_sets
 
 Pair = tuple[int, int]
 """(τ, hull index) of one avoidance disjunction, τ = 2..T."""
@@ -120,11 +122,15 @@ class Relaxation:
         ε of Eq. (P2_3).
     area_size_m : float or None
         p_τ ∈ [0, area]² for τ = 1..T (None: no area bound).
+    reach : bool
+        Also bound each position by the reach sets of the hulls
+        (:mod:`dualpilot.system2.certify.reach`): its box, its floor ‖p_τ − G_o‖ ≥ d_τ and
+        the prefix costs Σ_{σ=2..τ} ‖p_σ − G_o‖² ≥ F_τ, each summand an epigraph t_σ.
     """
 
     def __init__(self, maps: Maps, x0: Array, u_prev: Array, goal: Array,
                  kappa: tuple[float, float], hulls: Sequence[Polytope], epsilon_m: float,
-                 area_size_m: float | None) -> None:
+                 area_size_m: float | None, reach: bool = True) -> None:
         self.maps, self.kappa, self.hulls = maps, kappa, tuple(hulls)
         self.eps, self.area = float(epsilon_m), area_size_m
         self.x0 = np.asarray(x0, dtype=float)
@@ -136,13 +142,28 @@ class Relaxation:
         lo, hi = reach_boxes(self.x0, T + 1, maps.dynamics)  # p_1..p_{T+1}
         if area_size_m is not None:
             lo[:T], hi[:T] = np.maximum(lo[:T], 0.0), np.minimum(hi[:T], area_size_m)
-        self.box_lo, self.box_hi = lo, hi  # (T+1, 2), m; row k is p_{k+1}
         self.infeasible = bool(np.any(lo > hi + 1e-9))  # p_{t+1|t} (fixed) outside the area
+        self.floor = np.zeros(T + 1)  # per p_1..p_{T+1}: least ‖p_τ/s − g‖² (units s)
+        self.prefix = np.zeros(T + 1)  # per p_1..p_{T+1}: least Σ_{σ=2..τ} of those
+        self.suffix = np.zeros(T + 1)  # per p_1..p_{T+1}: least Σ_{σ=τ..T} of those
+        self.reach: ReachSets | None = None
+        if reach and not self.infeasible:
+            sets = reach_sets(self.off.p1, lo[:T], hi[:T], self.hulls, self.eps,
+                              self.g * s, maps.dynamics.dt_s * maps.dynamics.v_max_mps)
+            self.infeasible, self.reach = sets.empty, sets
+            if not sets.empty:
+                lo[:T], hi[:T] = sets.lo, sets.hi
+                self.floor[:T] = (sets.floor_m / s) ** 2
+                self.prefix[:T] = sets.prefix_m2 / (s * s)
+                self.suffix[1:T] = sets.suffix_m2[1:] / (s * s)
+        self.box_lo, self.box_hi = lo, hi  # (T+1, 2), m; row k is p_{k+1}
         self.faces: dict[Pair, AnyArray] = {}  # reachable faces of each disjunction
         self.always: set[Pair] = set()  # disjunctions that hold in the whole reach box
         self._classify()
         self._base = self._base_rows()
         self._dtd = (maps.D.T @ maps.D).tocsr()
+        self._covers: dict[tuple[bytes, bytes, tuple[tuple[int, int], ...], tuple[int, ...],
+                                 int], list[Array] | None] = {}
         self._templates: dict[tuple[int, frozenset[int], tuple[tuple[int, int], ...]],
                               list[tuple[frozenset[int], _Template]]] = {}
 
@@ -175,14 +196,10 @@ class Relaxation:
         rows.add_matrix(mp.U, dyn.u_max_n - off.u)
         rows.add_matrix(-mp.U, dyn.u_max_n + off.u)
         rows.add_matrix(mp.speed, mp.speed_max - mp.speed_v @ off.v)
-        if self.area is not None:
-            lo, hi = self.box_lo[1:T].ravel(), self.box_hi[1:T].ravel()  # p_2..p_T
-            j = np.arange(2 * (T - 1))
-            low = j[lo <= 1e-9]
-            high = j[hi >= self.area - 1e-9]
-            rows.add(np.arange(len(low)), low, np.full(len(low), -s), np.zeros(len(low)))
-            rows.add(np.arange(len(high)), high, np.full(len(high), s),
-                     np.full(len(high), float(self.area)))
+        # p_2..p_T in the boxes of their reach sets (inside the area: they are clipped to it)
+        j = np.arange(2 * (T - 1))
+        rows.add(j, j, np.full(len(j), -s), -self.box_lo[1:T].ravel())
+        rows.add(j, j, np.full(len(j), s), self.box_hi[1:T].ravel())
         return rows
 
     def pair_needed(self, pair: Pair) -> bool:
@@ -195,9 +212,12 @@ class Relaxation:
         """The relaxation with the faces ``fixed`` and the clusters ``blocks`` convexified.
 
         Clarabel stops after ``time_limit_s``; the bound of its last iterate still holds.
+        Clusters whose pieces are not yet made when the time is up are left out (any
+        subset of the blocks is a relaxation too); a later call makes them.
         """
         if self.infeasible:
             return NodeResult(math.inf, "infeasible (reach)", None)
+        deadline = time.perf_counter() + time_limit_s
         groups: list[tuple[int, frozenset[int], _Template]] = []
         for tau, clusters in sorted(blocks.items()):
             fixed_here = tuple(sorted((i, f) for (t, i), f in fixed.items() if t == tau))
@@ -206,11 +226,14 @@ class Relaxation:
                 hulls = frozenset(i for i in cluster if (tau, i) in self.faces) - done
                 if not hulls:
                     continue
+                if (tau, hulls, fixed_here) not in self._templates \
+                        and time.perf_counter() > deadline:
+                    continue
                 for part, tpl in self.templates(tau, hulls, fixed_here):
                     if tpl.n_pieces == 0:
                         return NodeResult(math.inf, "infeasible (pieces)", None)
                     groups.append((tau, part, tpl))
-        return _Program(self, fixed, groups).solve(time_limit_s)
+        return _Program(self, fixed, groups).solve(max(deadline - time.perf_counter(), 1e-3))
 
     def templates(self, tau: int, hulls: frozenset[int], fixed_here: tuple[tuple[int, int], ...]
                   ) -> list[tuple[frozenset[int], _Template]]:
@@ -224,17 +247,28 @@ class Relaxation:
                              for i, f in fixed_here]).reshape(-1, 3)
         lo, hi = self.box_lo[tau - 1], self.box_hi[tau - 1]
         order = sorted(hulls)
-        found = cover(lo, hi, fixed_hp, [self.hulls[i] for i in order], self.eps, MAX_PIECES)
+        found = self._cover(lo, hi, fixed_here, fixed_hp, tuple(order), MAX_PIECES)
         if found is not None:
             out = [(hulls, _Template.make(found, lo / s, hi / s, self.g, s, self.t_max(tau)))]
         else:
             out = []
             for i in order:
-                one = cover(lo, hi, fixed_hp, [self.hulls[i]], self.eps, 10**6) or []
+                one = self._cover(lo, hi, fixed_here, fixed_hp, (i,), 10**6) or []
                 out.append((frozenset([i]),
                             _Template.make(one, lo / s, hi / s, self.g, s, self.t_max(tau))))
         self._templates[key] = out
         return out
+
+    def _cover(self, lo: Array, hi: Array, fixed_here: tuple[tuple[int, int], ...],
+               fixed_hp: Array, hulls: tuple[int, ...], max_pieces: int
+               ) -> list[Array] | None:
+        """:func:`cover` of the box, once per (box, fixed faces, hulls): positions whose
+        reach sets have filled the area share their boxes, and so their pieces."""
+        key = (lo.tobytes(), hi.tobytes(), fixed_here, hulls, max_pieces)
+        if key not in self._covers:
+            self._covers[key] = cover(lo, hi, fixed_hp, [self.hulls[i] for i in hulls],
+                                      self.eps, max_pieces)
+        return self._covers[key]
 
     def t_max(self, tau: int) -> float:
         """The largest ‖p_τ/s − g‖² over the reach box of p_τ."""
@@ -312,7 +346,12 @@ class _Program:
         self.rel, self.groups = rel, list(groups)
         mp = rel.maps
         n, T = mp.n, mp.horizon
-        taus = sorted({tau for tau, _, _ in self.groups})
+        split = {tau for tau, _, _ in self.groups}
+        #: positions whose cost is an epigraph t_τ: the split ones (t_τ ≥ Σ w_k) and those
+        #: with a positive floor (t_τ ≥ ‖p_τ − g‖², a rotated cone of their own)
+        self.floored = [tau for tau in range(2, T + 1) if tau not in split
+                        and (rel.floor[tau - 1] > 0.0 or rel.prefix[T - 1] > 0.0)]
+        taus = sorted(split | set(self.floored))
         self.t_col = {tau: n + k for k, tau in enumerate(taus)}
         col = n + len(taus)
         self.group_col: list[int] = []
@@ -348,6 +387,7 @@ class _Program:
 
     def _rows(self, fixed: Mapping[Pair, int]) -> None:
         rel, mp = self.rel, self.rel.maps
+        T = mp.horizon
         zero, nonneg, soc = _Rows(), _Rows(), _Rows()
         base = rel._base
         nonneg.add(*base.stacked(0))
@@ -357,6 +397,24 @@ class _Program:
             nonneg.add(np.zeros(2), np.r_[j, j + 1], -h.A[face],
                        np.array([-(h.b[face] + rel.eps) / mp.scale]))
         soc_sizes: list[int] = []
+        g = rel.g
+        for tau in self.floored:  # (t + 1, 2(p − g), t − 1) ∈ SOC(4): t ≥ ‖p − g‖²
+            t, j = self.t_col[tau], 2 * (tau - 2)
+            soc.add(np.r_[0, 1, 2, 3], np.r_[t, j, j + 1, t], np.r_[-1.0, -2.0, -2.0, -1.0],
+                    np.r_[1.0, -2.0 * g[0], -2.0 * g[1], -1.0])
+            soc_sizes.append(4)
+        for tau, t in self.t_col.items():  # t_τ ≥ the floor of p_τ (reach sets)
+            if rel.floor[tau - 1] > 0.0:
+                nonneg.add(np.zeros(1), np.r_[t], np.r_[-1.0], np.r_[-rel.floor[tau - 1]])
+        for tau in range(2, T + 1):  # Σ_{σ=2..τ} t_σ ≥ the prefix cost of p_τ (reach sets)
+            if rel.prefix[tau - 1] > 0.0:
+                cols = [self.t_col[sigma] for sigma in range(2, tau + 1)]
+                nonneg.add(np.zeros(len(cols)), np.array(cols), -np.ones(len(cols)),
+                           np.r_[-rel.prefix[tau - 1]])
+            if tau > 2 and rel.suffix[tau - 1] > 0.0:  # and Σ_{σ=τ..T} t_σ ≥ its suffix
+                cols = [self.t_col[sigma] for sigma in range(tau, T + 1)]
+                nonneg.add(np.zeros(len(cols)), np.array(cols), -np.ones(len(cols)),
+                           np.r_[-rel.suffix[tau - 1]])
         for (tau, _, tpl), start in zip(self.groups, self.group_col, strict=True):
             place = {-1: 2 * (tau - 2) + 1, -2: 2 * (tau - 2), -3: self.t_col[tau]}
             for src, dst in ((tpl.zero, zero), (tpl.nonneg, nonneg), (tpl.soc, soc)):
@@ -378,7 +436,7 @@ class _Program:
     def _box(self) -> None:
         rel, mp = self.rel, self.rel.maps
         s = mp.scale
-        lo = [rel.box_lo[1:].ravel() / s, np.zeros(len(self.taus))]
+        lo = [rel.box_lo[1:].ravel() / s, np.array([rel.floor[tau - 1] for tau in self.taus])]
         hi = [rel.box_hi[1:].ravel() / s, np.array([rel.t_max(tau) for tau in self.taus])]
         for _, _, tpl in self.groups:
             lo.append(tpl.lo)
