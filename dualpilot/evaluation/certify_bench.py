@@ -5,8 +5,9 @@ On the same instances (the paper's fires,
 :func:`~dualpilot.evaluation.instances.make_physics_instance`):
 
 * "certified" (:class:`dualpilot.system2.certify.planner.CertifiedSystem2`, tolerance 1 %)
-  runs once with the largest budget; its trace gives the certified gap
-  (cost − bound) / bound at every smaller budget (the search is the same up to then);
+  runs once per budget and its plan's certified gap (cost − bound) / bound is the gap at
+  that budget; the largest budget's trace gives the gap against time (the figure) and the
+  time to 1 %;
 * SCIP (:func:`dualpilot.system2.scip.solve_seeded`) runs once per budget as its time limit,
   seeded with the same fast plan, and gives its primal and dual bound.
 
@@ -63,18 +64,27 @@ def time_to(trace: Sequence[tuple[float, float, float]], target: float) -> float
     return None
 
 
-def _ours(planner: CertifiedSystem2, inst: Instance) -> dict[str, Any]:
-    planner.reset()
-    t0 = time.perf_counter()
-    plan = planner.plan(inst.state, inst.hulls, inst.objective, inst.prev_control)
-    wall = time.perf_counter() - t0
-    ok, why = check_plan(plan, inst)
+def _ours(planners: dict[float, CertifiedSystem2], inst: Instance) -> dict[str, Any]:
+    """Our certified method once per budget (its gap at that budget is the one its plan
+    proves); the largest budget's run is reported in full (its trace gives the time to
+    1 %)."""
+    gaps: dict[str, float] = {}
+    checks = []
+    for budget, planner in sorted(planners.items()):
+        planner.reset()
+        t0 = time.perf_counter()
+        plan = planner.plan(inst.state, inst.hulls, inst.objective, inst.prev_control)
+        wall = time.perf_counter() - t0
+        gaps[str(budget)] = (certified_gap(plan.cost, plan.bound)
+                             if plan.cost is not None and plan.bound is not None else math.inf)
+        checks.append(check_plan(plan, inst))
+    ok = all(c[0] for c in checks)
+    why = "; ".join(sorted({c[1] for c in checks}))
     trace = planner.trace
     return {"status": plan.status.value, "verified": ok, "why": why, "cost": plan.cost,
             "bound": plan.bound, "time_s": wall, "fast_cost": plan.info.get("fast_cost"),
             "nodes": plan.info.get("certify_nodes"), "stop": plan.info.get("certify_stop"),
-            "gap": {str(b): gap_at(trace, b) for b in BUDGETS},
-            "time_to_target_s": time_to(trace, TARGET),
+            "gap": gaps, "time_to_target_s": time_to(trace, TARGET),
             "trace": [(round(t, 4), b, c) for t, b, c in trace]}
 
 
@@ -124,14 +134,16 @@ def run(n_paper: int, n_physics: int, seed: int, scenarios: Sequence[str], out_d
     """
     reuse = _scip_rows(scip_from)
     params = System2Params()
-    planner = CertifiedSystem2(SPEC, params, CertifyParams(tolerance=TARGET,
-                                                           time_budget_s=max(BUDGETS)))
+    planners = {b: CertifiedSystem2(SPEC, params, CertifyParams(tolerance=TARGET,
+                                                                time_budget_s=b))
+                for b in BUDGETS}
+    planner = planners[max(BUDGETS)]
     warm_up()  # every Numba kernel loaded before the first timed plan
     warm = make_instance(0, seed, 1)
     planner.plan(warm.state, warm.hulls, warm.objective, warm.prev_control)
     rows: list[dict[str, Any]] = []
     for kind, inst in instances(n_paper, n_physics, seed, scenarios):
-        ours = _ours(planner, inst)
+        ours = _ours(planners, inst)
         planner.fast_planner.reset()
         t0 = time.perf_counter()
         fast = planner.fast_planner.plan(inst.state, inst.hulls, inst.objective,
@@ -229,7 +241,11 @@ def plot(rows: Sequence[dict[str, Any]], path: Path) -> Path:
     ours = np.array([[gap_at(r["ours"]["trace"], t) for t in times] for r in rows])
     scip = np.array([[r["scip"][str(b)]["gap"] for b in BUDGETS] for r in rows])
     fig, (ax_share, ax_gap) = plt.subplots(1, 2, figsize=(11, 4.2))
-    ax_share.plot(times, 100 * np.mean(ours <= TARGET, axis=0), label="certified (ours)")
+    runs = np.array([[r["ours"]["gap"][str(b)] for b in BUDGETS] for r in rows])
+    ax_share.plot(times, 100 * np.mean(ours <= TARGET, axis=0),
+                  label=f"certified (ours), the {max(BUDGETS):g} s run's trace")
+    ax_share.plot(BUDGETS, 100 * np.mean(runs <= TARGET, axis=0), "s", color="C0",
+                  label="certified (ours), one run per budget")
     ax_share.plot(BUDGETS, 100 * np.mean(scip <= TARGET, axis=0), "o--",
                   label="SCIP (seeded with the fast plan)")
     ax_share.axhline(90, color="grey", lw=0.8, ls=":")
@@ -240,6 +256,8 @@ def plot(rows: Sequence[dict[str, Any]], path: Path) -> Path:
     for q, style in ((50, "-"), (90, ":")):
         ax_gap.plot(times, 100 * np.percentile(shown, q, axis=0), style, color="C0",
                     label=f"certified (ours), {'median' if q == 50 else '90th percentile'}")
+        ax_gap.plot(BUDGETS, 100 * np.percentile(np.clip(runs, floor, cap), q, axis=0),
+                    "s", color="C0")
         ax_gap.plot(BUDGETS, 100 * np.percentile(np.clip(scip, floor, cap), q, axis=0),
                     "o" + ("--" if q == 50 else ":"), color="C1",
                     label=f"SCIP, {'median' if q == 50 else '90th percentile'}")

@@ -39,7 +39,9 @@ class CertifyParams:
     ``tolerance``: stop once the certified gap (cost − bound) / bound is at most this;
     ``time_budget_s`` (wall clock) and ``max_nodes`` stop the search earlier, the bound
     still valid; ``block_rounds`` relaxations a node may solve while adding blocks;
-    ``neighbours``: a violated (τ, i) also blocks (τ ± k, i) for k ≤ this.
+    ``neighbours``: a violated (τ, i) also blocks (τ ± k, i) for k ≤ this;
+    ``plain_root_s``: the root is first solved without the reach sets for at most this
+    long (and a tenth of the budget); most requests end there.
     """
 
     tolerance: float = 0.01
@@ -47,10 +49,11 @@ class CertifyParams:
     max_nodes: int = 10_000
     block_rounds: int = 3
     neighbours: int = 1
+    plain_root_s: float = 0.1
 
     def __post_init__(self) -> None:
         if not (self.tolerance >= 0 and self.time_budget_s > 0 and self.max_nodes >= 1
-                and self.block_rounds >= 1 and self.neighbours >= 0):
+                and self.block_rounds >= 1 and self.neighbours >= 0 and self.plain_root_s > 0):
             raise ValueError(f"invalid CertifyParams: {self}")
 
 

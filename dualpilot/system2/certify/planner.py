@@ -164,11 +164,12 @@ class CertifiedSystem2:
         return self._answer(fast, out, np.asarray(state, dtype=float), objective, t0)
 
     def _root_only(self, spent_s: float) -> CertifyParams:
-        """The first stage: the root alone, without the reach sets, in a tenth of the
-        budget (most requests end there; the others go on with the reach sets)."""
-        budget = self.certify.time_budget_s
-        return dataclasses.replace(self.certify, max_nodes=1,
-                                   time_budget_s=max(min(0.1 * budget, budget - spent_s), 1e-3))
+        """The first stage: the root alone, without the reach sets, for at most
+        ``plain_root_s`` and a tenth of the budget (most requests end there; the others go
+        on with the reach sets)."""
+        c = self.certify
+        budget = min(c.plain_root_s, 0.1 * c.time_budget_s, c.time_budget_s - spent_s)
+        return dataclasses.replace(c, max_nodes=1, time_budget_s=max(budget, 1e-3))
 
     def _search(self, state: Array, hulls: tuple[Polytope, ...], objective: Objective,
                 prev_control: Array | None, cost: float, blocks: set[Pair], t0: float, *,
