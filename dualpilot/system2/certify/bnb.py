@@ -41,7 +41,7 @@ class CertifyParams:
     still valid; ``block_rounds`` relaxations a node may solve while adding blocks;
     ``neighbours``: a violated (τ, i) also blocks (τ ± k, i) for k ≤ this;
     ``plain_root_s``: the root is first solved without the reach sets for at most this
-    long (and a tenth of the budget); most requests end there.
+    long; most requests end there.
     """
 
     tolerance: float = 0.01

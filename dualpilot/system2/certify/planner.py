@@ -165,10 +165,9 @@ class CertifiedSystem2:
 
     def _root_only(self, spent_s: float) -> CertifyParams:
         """The first stage: the root alone, without the reach sets, for at most
-        ``plain_root_s`` and a tenth of the budget (most requests end there; the others go
-        on with the reach sets)."""
+        ``plain_root_s`` (most requests end there; the others go on with the reach sets)."""
         c = self.certify
-        budget = min(c.plain_root_s, 0.1 * c.time_budget_s, c.time_budget_s - spent_s)
+        budget = min(c.plain_root_s, c.time_budget_s - spent_s)
         return dataclasses.replace(c, max_nodes=1, time_budget_s=max(budget, 1e-3))
 
     def _search(self, state: Array, hulls: tuple[Polytope, ...], objective: Objective,
