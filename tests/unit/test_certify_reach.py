@@ -89,3 +89,29 @@ def test_every_verified_plan_respects_the_reach_sets(index: int, n_hulls: int,
     d2 = dist[1:] ** 2  # p_2..p_T
     assert np.all(np.cumsum(d2) >= reach.prefix_m2[1:] * (1 - 1e-9))
     assert np.all(np.cumsum(d2[::-1])[::-1] >= reach.suffix_m2[1:] * (1 - 1e-9))
+
+
+@settings(max_examples=30, deadline=None)
+@given(seed=st.integers(0, 10**6), k=st.integers(1, 6))
+def test_window_minimum_is_the_brute_force_one(seed: int, k: int) -> None:
+    """The separable van Herk–Gil-Werman minimum equals the minimum over each window,
+    taken only over the source box, on random boxes and values (inf included)."""
+    from dualpilot.system2.certify.reach import _window_min
+
+    rng = np.random.default_rng(seed)
+    nx, ny = rng.integers(5, 40, size=2)
+    src = rng.uniform(0, 10, (nx, ny)).astype(np.float32)
+    src[rng.uniform(size=(nx, ny)) < 0.3] = np.inf
+    i0, i1 = np.sort(rng.integers(0, nx, 2))
+    j0, j1 = np.sort(rng.integers(0, ny, 2))
+    o = np.array([max(i0 - k, 0), max(j0 - k, 0), min(i1 + k, nx - 1), min(j1 + k, ny - 1)])
+    out = np.full((nx, ny), -1.0, dtype=np.float32)
+    work = [np.empty((nx + 2 * k + 1, ny + 2 * k + 1), dtype=np.float32) for _ in range(2)]
+    _window_min(src, np.array([i0, j0, i1, j1]), out, o, k,
+                np.empty((nx, ny), dtype=np.float32), *work)
+    masked = np.full((nx, ny), np.inf, dtype=np.float32)
+    masked[i0:i1 + 1, j0:j1 + 1] = src[i0:i1 + 1, j0:j1 + 1]
+    for i in range(o[0], o[2] + 1):
+        for j in range(o[1], o[3] + 1):
+            want = masked[max(i - k, 0):i + k + 1, max(j - k, 0):j + k + 1].min()
+            assert out[i, j] == want

@@ -168,37 +168,45 @@ def _window_min(src: AnyArray, src_box: AnyArray, out: AnyArray, out_box: AnyArr
     (nx + 2k, ny + 2k)) over blocks of 2k + 1 cells, three comparisons a cell.
     """
     w = 2 * k + 1
+    inf = np.float32(np.inf)
     si0, sj0, si1, sj1 = src_box[0], src_box[1], src_box[2], src_box[3]
     oi0, oj0, oi1, oj1 = out_box[0], out_box[1], out_box[2], out_box[3]
     # along x: rows p = i - (oi0 - k), i over [oi0 - k, oi1 + k]; columns j over the source's
     n = oi1 - oi0 + 2 * k + 1
     ncol = sj1 - sj0 + 1
-    for p in range(n):
-        d = p + oi0 - k
-        for c in range(ncol):
-            v = src[d, sj0 + c] if si0 <= d <= si1 else np.float32(np.inf)
-            pre[p, c] = v if p % w == 0 else min(pre[p - 1, c], v)
-    for p in range(n - 1, -1, -1):
-        d = p + oi0 - k
-        for c in range(ncol):
-            v = src[d, sj0 + c] if si0 <= d <= si1 else np.float32(np.inf)
-            suf[p, c] = v if (p + 1) % w == 0 or p == n - 1 else min(suf[p + 1, c], v)
+    for b0 in range(0, n, w):  # blocks of w rows: minima from the block's start and end
+        b1 = min(b0 + w, n)
+        for p in range(b0, b1):
+            d = p + oi0 - k
+            inside = si0 <= d <= si1
+            for c in range(ncol):
+                v = src[d, sj0 + c] if inside else inf
+                pre[p, c] = v if p == b0 else min(pre[p - 1, c], v)
+        for p in range(b1 - 1, b0 - 1, -1):
+            d = p + oi0 - k
+            inside = si0 <= d <= si1
+            for c in range(ncol):
+                v = src[d, sj0 + c] if inside else inf
+                suf[p, c] = v if p == b1 - 1 else min(suf[p + 1, c], v)
     for i in range(oi0, oi1 + 1):
         p0 = i - oi0
         for c in range(ncol):
             scratch[i, sj0 + c] = min(suf[p0, c], pre[p0 + w - 1, c])
-    # along y, one row at a time
+    # along y, one row at a time (the row's values first, inf outside the source)
     m = oj1 - oj0 + 2 * k + 1
+    row, row_pre, row_suf = pre[0], pre[1], suf[0]
     for i in range(oi0, oi1 + 1):
-        row_pre, row_suf = pre[0], suf[0]
         for q in range(m):
             d = q + oj0 - k
-            v = scratch[i, d] if sj0 <= d <= sj1 else np.float32(np.inf)
-            row_pre[q] = v if q % w == 0 else min(row_pre[q - 1], v)
-        for q in range(m - 1, -1, -1):
-            d = q + oj0 - k
-            v = scratch[i, d] if sj0 <= d <= sj1 else np.float32(np.inf)
-            row_suf[q] = v if (q + 1) % w == 0 or q == m - 1 else min(row_suf[q + 1], v)
+            row[q] = scratch[i, d] if sj0 <= d <= sj1 else inf
+        for b0 in range(0, m, w):
+            b1 = min(b0 + w, m)
+            row_pre[b0] = row[b0]
+            for q in range(b0 + 1, b1):
+                row_pre[q] = min(row_pre[q - 1], row[q])
+            row_suf[b1 - 1] = row[b1 - 1]
+            for q in range(b1 - 2, b0 - 1, -1):
+                row_suf[q] = min(row_suf[q + 1], row[q])
         for j in range(oj0, oj1 + 1):
             q0 = j - oj0
             out[i, j] = min(row_suf[q0], row_pre[q0 + w - 1])
