@@ -59,7 +59,8 @@ def main() -> int:
                color="0.85", label=f"cells p_T can reach ({int(last.sum())})")
     for k, hull in enumerate(inst.hulls):
         v = np.vstack([hull.vertices, hull.vertices[:1]])
-        ax.fill(v[:, 0], v[:, 1], color="tab:red", alpha=0.35, label="fire hulls" if k == 0 else None)
+        ax.fill(v[:, 0], v[:, 1], color="tab:red", alpha=0.35,
+                label="fire hulls" if k == 0 else None)
     if fast.ok:
         ax.plot(fast.states[:, 0], fast.states[:, 1], ".-", ms=3, color="tab:blue",
                 label=f"fast plan, cost {fast.cost:.3g}")

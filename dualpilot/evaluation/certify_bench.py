@@ -6,8 +6,8 @@ On the same instances (the paper's fires,
 
 * "certified" (:class:`dualpilot.system2.certify.planner.CertifiedSystem2`, tolerance 1 %)
   runs once per budget; the certified gap (cost − bound) / bound its trace shows at that
-  budget (a last node may end after it and does not count) is the gap at that budget; the largest budget's trace gives the gap against time (the figure) and the
-  time to 1 %;
+  budget (a last node may end after it and does not count) is the gap at that budget;
+  the largest budget's trace gives the gap against time (the figure) and the time to 1 %;
 * SCIP (:func:`dualpilot.system2.scip.solve_seeded`) runs once per budget as its time limit,
   seeded with the same fast plan, and gives its primal and dual bound.
 
