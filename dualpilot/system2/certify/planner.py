@@ -4,14 +4,18 @@ Method "certified" (:class:`CertifiedSystem2`): the fast method's verified plan
 (:mod:`dualpilot.system2.fast.planner`) is the incumbent; the branch and bound of
 :mod:`dualpilot.system2.certify.bnb` then raises a lower bound on (P2) until the
 certified gap (cost − bound) / bound is at most ``CertifyParams.tolerance`` or the budget
-ends, and returns the best verified plan with its bound. Every plan it returns passes
+ends, and returns the best verified plan with its bound. It searches in two stages: the
+root alone on the plain relaxation (``CertifyParams.plain_root_s``), which closes most
+requests, then, if the gap is still open, the search on the relaxation with the reach sets
+(:mod:`dualpilot.system2.certify.reach`), whose cheapest cell path, repaired, is offered as
+an incumbent first. Every plan it returns passes
 :func:`dualpilot.system2.problem.verify_p2_plan`; a relaxation that proves no trajectory
 satisfies (P2) turns a failed fast plan into INFEASIBLE. Across the steps of a mission the
 search is warm-started twice: the fast method starts from the previous plan (the first
 incumbent), and the root convexifies at once, one step on, what the previous root did.
 
 After each plan, ``CertifiedSystem2.trace`` lists (seconds since the plan began, bound,
-incumbent cost) at every node, so one run gives the certified gap at any shorter budget.
+incumbent cost) at every node: how the run's certified gap closed over time.
 """
 
 from __future__ import annotations
