@@ -59,7 +59,7 @@ from services.common.log import fields
 from services.msgs import common_pb2, fire_pb2
 
 from .forecast import envelope, forecast_regions
-from .warm import warm_up
+from .warm import Warmer
 
 log = logging.getLogger("services.ews")
 
@@ -72,7 +72,7 @@ class Ews:
 
     def __init__(self, session: zenoh.Session, uav: str, params: FireParams,
                  forecast_horizon_s: float, stop: threading.Event,
-                 occupancy: ForecastParams | None = None):
+                 occupancy: ForecastParams | None = None, warmer: Warmer | None = None):
         self.session = session
         self.uav = uav
         self.own = params  # for a reset that carries no configuration
@@ -94,6 +94,9 @@ class Ews:
         self.step_substeps = 0  # sub-steps run so far in the latest time-step
         #: the mission asks for its forecasts (each is published as it is answered)
         self.asked_forecasts = False
+        #: warms each fire process once, from the first reset that runs it (shared by a
+        #: fleet's vehicles: one per EWS process)
+        self.warmer = warmer or Warmer()
 
     @property
     def forecast_substeps(self) -> int:
@@ -121,6 +124,8 @@ class Ews:
             self.mission_id, self.step, self.sim_time_s = cmd.mission_id, 0, 0.0
             self.seed, self.step_substeps = cmd.seed, 0
             self.asked_forecasts = False
+            if self.occupancy is not None and self.will_forecast(cmd):
+                self.warmer.start(params, self.occupancy)
             state = self.state_msg()
             bus.put(self.fires_pub, "", state)
             update.states.append(state)
@@ -155,6 +160,13 @@ class Ews:
         self.stamper.stamp(update.header, self.sim_time_s)
         return update
 
+    def will_forecast(self, cmd: fire_convert.FireCommand) -> bool:
+        """Whether the mission ``cmd`` resets will see forecasts: it asks for them (a
+        risk-aware controller; a reset without a configuration may), or someone listens to
+        ``<ns>/ews/forecast`` (a live view)."""
+        matching: Any = self.forecast_pub.matching_status
+        return cmd.config is None or cmd.config.risk or bool(matching.matching)
+
     def answer_forecast(self, cmd: fire_convert.FireCommand, out: fire_pb2.FireForecast) -> None:
         """The occupancy forecast of the fire state ``cmd`` names (its revision: sub-steps
         done), made now; raises CodecError for another mission or revision, or none to give."""
@@ -169,6 +181,7 @@ class Ews:
         if self.occupancy is None:
             raise rejections.invalid("this EWS makes no occupancy forecast "
                                      "(--occupancy-horizon-s 0) and the mission set none")
+        self.warmer.wait(f.params)  # the reset's warm-up, done in the background
         t0 = time.perf_counter()
         fc = field_forecast(f, self.occupancy, self.seed,
                             forecast_step_substeps(f.params, cmd.substeps))
@@ -224,6 +237,7 @@ class Ews:
         f = self.field
         if self.occupancy is None or f is None:
             return
+        self.warmer.wait(f.params)
         fc = field_forecast(f, self.occupancy, self.seed, max(1, self.step_substeps))
         fire_convert.occupancy_to_msg(fc, m.occupancy)
 
@@ -257,10 +271,10 @@ class Binding:
 
 
 def body(ctx: bus.Context, params: FireParams, forecast_horizon_s: float,
-         occupancy: ForecastParams | None = None) -> None:
+         occupancy: ForecastParams | None = None, warmer: Warmer | None = None) -> None:
     assert ctx.session is not None
     uav = ctx.settings.uav_id
-    ews = Ews(ctx.session, uav, params, forecast_horizon_s, ctx.stop, occupancy)
+    ews = Ews(ctx.session, uav, params, forecast_horizon_s, ctx.stop, occupancy, warmer)
     key = keys.fire_command(uav)
     inbox = bus.Inbox(key)
     queryable = ctx.session.declare_queryable(key, inbox.on_query)
@@ -343,12 +357,9 @@ def main(argv: list[str] | None = None) -> int:
     except ValueError as err:
         p.error(str(err))
     def serve(ctx: bus.Context) -> None:
-        if occupancy is not None:  # before any vehicle's EWS announces itself
-            took = warm_up(params, occupancy)
-            log.info("forecasts warmed", extra=fields(
-                **{name: round(s, 3) for name, s in took.items()}))
+        warmer = Warmer()  # one for every vehicle's fire process: a fire process warms once
         fleet.for_each(ctx, uavs, lambda sub: body(sub, params, args.forecast_horizon_s,
-                                                   occupancy))
+                                                   occupancy, warmer))
 
     return bus.run_service(settings, serve)
 

@@ -3,13 +3,16 @@
 The reset carries the mission's configuration, whose reading names the fire
 process (the setting ``scenario``); an EWS started with ``FIRE_SCENARIO`` runs
 that scenario when a reset carries no configuration; an unknown name gets an
-error reply; the occupancy forecast it publishes is the in-process one.
+error reply; the occupancy forecast it publishes is the in-process one; the EWS warms the
+fire process of a mission that asks for forecasts at its reset, before its first forecast.
 """
 
 from __future__ import annotations
 
 import queue
+import re
 import time
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -25,7 +28,7 @@ from dualpilot.spec import MissionSpec, Stream, stream_rng
 from services.common import bus, keys, rejections, wire
 from services.common.convert import config as config_convert
 from services.common.convert import fire as fire_convert
-from services.ews.warm import warm_up
+from services.ews.warm import Warmer, warm_process
 from services.msgs import fire_pb2
 from tests.support.missions import config_for
 
@@ -168,9 +171,60 @@ def test_the_reset_carries_the_scenario_and_the_codec_checks_it() -> None:
             fire_convert.fire_command_from_msg(_scenario_reset(bad))
 
 
-def test_the_ews_warms_a_forecast_of_every_fire_process_before_it_serves() -> None:
-    """warm_up makes one forecast of the paper's process and of each named scenario (from
-    its first front), so a mission's first forecast is not the process's first."""
-    took = warm_up(FireParams(), ForecastParams(members=4))
-    assert list(took) == ["paper", *SCENARIOS]
-    assert all(s > 0 for s in took.values())
+def test_every_fire_process_can_be_warmed() -> None:
+    """warm_process makes one forecast of the paper's process and of each named scenario (from
+    its first front)."""
+    for name in ["paper", *SCENARIOS]:
+        assert warm_process(FireParams(scenario=name), ForecastParams(members=4)) > 0, name
+
+
+def test_a_warmer_warms_each_fire_process_once() -> None:
+    warmer = Warmer()
+    grass, shrub = FireParams(scenario="grass-15"), FireParams(scenario="shrub", substep_s=0.25)
+    grid = ForecastParams(members=4)
+    assert warmer.start(grass, grid) and warmer.start(shrub, grid)
+    assert not warmer.start(replace(grass, substep_s=0.25), grid)  # the same process
+    warmer.wait(FireParams())  # never started: returns at once
+    warmer.wait(grass)
+    warmer.wait(shrub)
+    assert warmer.started() == ["grass-15", "shrub"]
+    assert set(warmer.took) == {"grass-15", "shrub"} and all(s > 0 for s in warmer.took.values())
+
+
+def _forecast(session: Any, uav: str, mission: str, substeps_done: int) -> fire_pb2.FireForecast:
+    cmd = fire_convert.fire_forecast_query_msg(mission, 0, substeps_done, 10,
+                                               wire.Stamper("test", uav), 0.0)
+    return _send(session, uav, cmd).forecast
+
+
+def _reset_and_forecast(session: Any, uav: str, mission: str, controller: str,
+                        scenario: str) -> None:
+    cmd = fire_pb2.FireCommand(mission_id=mission)
+    cmd.reset.seed = 26
+    config_convert.config_to_msg(config_for(MissionSpec(seed=26), controller,
+                                            fire=FireParams(scenario=scenario)),
+                                 cmd.reset.config)
+    _send(session, uav, cmd)
+    assert _forecast(session, uav, mission, 0).occupancy.horizon_s > 0
+
+
+def test_the_ews_warms_the_fire_process_of_a_mission_that_asks_for_forecasts(
+        services: Any, session: Any) -> None:
+    """The EWS announces itself without warming any forecast; a reset of a risk-aware mission
+    warms that mission's fire process (and no other), once a process, and its first forecast
+    is answered only once the warm-up is done: the mission's first forecast is not the
+    process's first. A mission that asks for none (and nobody listening) warms nothing."""
+    uav, name = "itestwarm", "ews-warm"
+    services.start(name, module="services.ews", UAV_ID=uav)
+    assert bus.Liveliness(session, uav).wait_for(["ews"], 60), services.log(name)[-2000:]
+
+    def warmed() -> list[str]:
+        return re.findall(r"forecast warmed .*scenario=(\S+)", services.log(name))
+
+    assert warmed() == []
+    _reset_and_forecast(session, uav, "warm-cc", "cc", "grass-5")  # asks none: no warm-up
+    assert warmed() == []
+    _reset_and_forecast(session, uav, "warm-risk", "s1+risk", "grass-15")
+    assert warmed() == ["grass-15"]  # logged before the forecast was answered
+    _reset_and_forecast(session, uav, "warm-again", "s2+risk", "grass-15")
+    assert warmed() == ["grass-15"]
