@@ -22,12 +22,12 @@ from __future__ import annotations
 
 import logging
 
-from dualpilot.warmup import warm_up
 from services.common import bus, fleet
 
 from .companion import fly
 from .options import parse
 from .stream.client import close_stream_process
+from .warm import warm_kernels
 
 log = logging.getLogger("services.supervisor")
 
@@ -40,9 +40,9 @@ def main(argv: list[str] | None = None) -> int:
         codes[ctx.settings.uav_id] = fly(ctx, opts)
 
     def serve(ctx: bus.Context) -> None:
-        # the compiled kernels the step's checks use (hulls, the monitor), loaded before the
-        # first mission: else the step that meets the first fire waits for them
-        warm_up()
+        # the compiled kernels the step itself runs (hulls, risk zones, the lookahead's lattice),
+        # loaded before the first mission: else the step that meets the first fire waits for them
+        warm_kernels()
         try:
             fleet.for_each(ctx, opts.uavs, body)
         finally:
