@@ -43,14 +43,18 @@ pytestmark = [pytest.mark.slow, pytest.mark.timeout(300)]
 
 SEED = 26
 EV = supervisor_pb2
-ENV = {"CONTROLLER": "cc", "TIMING": "paper", "SPEED_FACTOR": "8", "SUPERVISOR": "paper",
+#: the stalls and the kill are in wall time and the mission is lockstep, so the pace changes
+#: nothing the tests check; at 25 the mission (331 simulated s) still streams for ~13 s, 260
+#: setpoints at the link's 20 Hz and more than a hundred after the stall
+SPEED = 25
+ENV = {"CONTROLLER": "cc", "TIMING": "paper", "SPEED_FACTOR": str(SPEED), "SUPERVISOR": "paper",
        "IGNITION_CLEARANCE_M": "", "PLAN_DEADLINE_S": "20,20"}
 
 
 @pytest.fixture(scope="module")
 def fleet(tmp_path_factory: pytest.TempPathFactory) -> Any:
     out = tmp_path_factory.mktemp("stream")
-    cfg = launch.StackConfig(run_dir=out / "shared", speed_factor=8.0, free_ports=True,
+    cfg = launch.StackConfig(run_dir=out / "shared", speed_factor=float(SPEED), free_ports=True,
                              log_format="text")
     with launch.Fleet(cfg, ["st1"]) as f:
         yield f, out
