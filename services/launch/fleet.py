@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import re
 import time
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -176,25 +176,34 @@ class Fleet:
             self.stack.group.procs.remove(proc)
         return codes
 
-    def wait_end(self, mission_ids: dict[str, str], timeout_s: float) -> dict[str, Outcome]:
+    def wait_end(self, mission_ids: dict[str, str], timeout_s: float,
+                 on_end: Callable[[str, Outcome], None] | None = None) -> dict[str, Outcome]:
         """Wait for the end of the missions {uav: mission id}; a vehicle whose process died or
-        that did not end in time gets an Outcome with ``ended=False``."""
+        that did not end in time gets an Outcome with ``ended=False``. ``on_end(uav, outcome)``
+        is called as each mission's outcome is known (its records are written by then)."""
         out: dict[str, Outcome] = {}
         deadline = time.monotonic() + timeout_s
         by_mission = {mid: uav for uav, mid in mission_ids.items()}
+
+        def known(uav: str, outcome: Outcome) -> None:
+            out[uav] = outcome
+            if on_end is not None:
+                on_end(uav, outcome)
+
         while len(out) < len(mission_ids) and time.monotonic() < deadline:
             for proc in self.stack.group.dead():
                 for uav in [u for u, v in self.vehicles.items() if proc in v.procs]:
                     if uav in mission_ids and uav not in out:
-                        out[uav] = Outcome(False, message=f"{proc.name} exited "
-                                                          f"{proc.popen.returncode}")
+                        known(uav, Outcome(False, message=f"{proc.name} exited "
+                                                          f"{proc.popen.returncode}"))
             ev = next_event(self._events)
             if ev is None:
                 continue
             ended = by_mission.get(ev.mission_id)
             outcome = Outcome.of(ev)
             if ended is not None and ended not in out and outcome is not None:
-                out[ended] = outcome
+                known(ended, outcome)
         for uav in mission_ids:
-            out.setdefault(uav, Outcome(False, message=f"no mission end within {timeout_s:.0f} s"))
+            if uav not in out:
+                known(uav, Outcome(False, message=f"no mission end within {timeout_s:.0f} s"))
         return out

@@ -6,7 +6,10 @@ planner pair; a uavsim and a supervisor per vehicle, unpaced) and in-process
 whole mission: the decision (Ξ, P, A, Ψ, S), the system flown, the plan
 statuses, the fire sub-steps, the planned positions, the state and control,
 and the outcome. Numbers that crossed MAVLink (float32 positions and
-setpoints) are compared to 1e-3; everything discrete exactly.
+setpoints) are compared to 1e-3; everything discrete exactly. The in-process
+twin is worked out in a thread of the test process while the stack flies
+(:func:`fly`): from the start when it needs nothing of the stack's run, else as
+soon as that run's mission has ended.
 
 With ``timing="measured"`` a step's fire sub-steps are ⌈T_s / 0.5 s⌉ of the
 planners' measured compute times, which differ between two runs (a loaded
@@ -31,8 +34,9 @@ from __future__ import annotations
 
 import contextlib
 import json
-from collections.abc import Iterator, Sequence
-from dataclasses import replace
+from collections.abc import Callable, Iterator, Sequence
+from concurrent.futures import Future, ThreadPoolExecutor
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -199,30 +203,70 @@ def replayed(mission: Mission, run_dir: Path, what: str) -> MissionResult:
     return result
 
 
-def fly(fleet: launch.Fleet, runs: Sequence[Run],
-        out: Path) -> dict[Run, tuple[Path, MissionResult]]:
+#: the in-process twin of a run flown through the stack, given the run and its run directory
+Reference = Callable[[Run, Path], MissionResult]
+
+
+@dataclass
+class Flown:
+    """A run flown through the stack: its run directory, its records as a result, and the
+    in-process twin :func:`fly` was asked to work out (None if it was not)."""
+
+    run_dir: Path
+    result: MissionResult
+    reference: MissionResult | None = None
+
+
+def fly(fleet: launch.Fleet, runs: Sequence[Run], out: Path,
+        reference: Reference | None = None, from_records: bool = True) -> dict[Run, Flown]:
     """Fly ``runs`` (seed, controller, timing, ignition clearance) at once, one vehicle each;
-    per run its run directory and its records as a result."""
-    mission_ids = {}
+    per run its run directory, its records as a result and, with ``reference``, its
+    in-process twin, worked out in a thread of this process while the stack flies: each once
+    its mission has ended and its records are written (``from_records``: the twin replays
+    them), else all from the start."""
+    mission_ids, dirs = {}, {}
     for k, run in enumerate(runs):
         seed, controller, timing, clear, *scenario = run
         uav = fleet.uav_ids[k]
-        run_dir = out / "-".join(str(v) for v in (controller, timing, f"s{seed}", f"ic{clear}",
-                                                  *scenario))
-        mission_ids[uav] = fleet.start_vehicle(uav, seed, run_dir, env={"SPEED_FACTOR": "0"},
-                                               config=config_of(*run)).mission_id
-    outcomes = fleet.wait_end(mission_ids, 300.0)
-    results = {}
-    for k, run in enumerate(runs):
-        uav = fleet.uav_ids[k]
-        v = fleet.vehicles[uav]
-        logs = [*logs_in(v.run_dir), *logs_in(fleet.stack.logs)]
-        check(outcomes[uav].ended, f"the mission {run} to end", logs, outcomes[uav])
-        codes = fleet.stop_vehicle(uav)
-        check(all(code == 0 for code in codes.values()), f"the processes of {run} to exit "
-              f"with 0", logs, codes)
-        results[run] = v.run_dir, result_from_log(read_step_log(v.run_dir / "steps.jsonl"))
+        dirs[uav] = out / "-".join(str(v) for v in (controller, timing, f"s{seed}",
+                                                    f"ic{clear}", *scenario))
+    with ThreadPoolExecutor(max_workers=1, thread_name_prefix="in-process") as pool:
+        twins: dict[str, Future[MissionResult]] = {}
+
+        def work_out(uav: str) -> None:
+            if reference is not None and uav not in twins:
+                twins[uav] = pool.submit(reference, runs[fleet.uav_ids.index(uav)], dirs[uav])
+
+        for k, run in enumerate(runs):
+            uav = fleet.uav_ids[k]
+            mission_ids[uav] = fleet.start_vehicle(uav, run[0], dirs[uav],
+                                                   env={"SPEED_FACTOR": "0"},
+                                                   config=config_of(*run)).mission_id
+            if not from_records:
+                work_out(uav)
+        outcomes = fleet.wait_end(mission_ids, 300.0, on_end=lambda uav, o: (
+            work_out(uav) if o.ended else None))
+        results = {}
+        for k, run in enumerate(runs):
+            uav = fleet.uav_ids[k]
+            v = fleet.vehicles[uav]
+            logs = [*logs_in(v.run_dir), *logs_in(fleet.stack.logs)]
+            check(outcomes[uav].ended, f"the mission {run} to end", logs, outcomes[uav])
+            codes = fleet.stop_vehicle(uav)
+            check(all(code == 0 for code in codes.values()), f"the processes of {run} to exit "
+                  f"with 0", logs, codes)
+            results[run] = Flown(v.run_dir, result_from_log(read_step_log(v.run_dir /
+                                                                          "steps.jsonl")))
+        for k, run in enumerate(runs):
+            twin = twins.get(fleet.uav_ids[k])
+            results[run].reference = twin.result() if twin is not None else None
     return results
+
+
+def twin_of(flown: Flown) -> MissionResult:
+    """The in-process twin :func:`fly` worked out for a run."""
+    assert flown.reference is not None, "fly was given no reference"
+    return flown.reference
 
 
 def config_of(seed: int, controller: str, timing: str, clear: float | None,
@@ -277,8 +321,16 @@ def test_stack_and_in_process_records_are_identical(fleet: Any, controller: str,
                                                     timing: str) -> None:
     f, out = fleet
     runs = [(seed, controller, timing, None) for seed in SEEDS]
-    for run, (run_dir, result) in fly(f, runs, out).items():
-        assert_same_mission(result, in_process(run, replay=run_dir), str(run))
+    # paper timing: the in-process mission is the run's alone; measured: it replays the stack's
+    flown = fly(f, runs, out, lambda run, run_dir: in_process(run, replay=run_dir),
+                from_records=timing == "measured")
+    for run, got in flown.items():
+        assert_same_mission(got.result, twin_of(got), str(run))
+
+
+def replaying_states(run: Run, run_dir: Path) -> MissionResult:
+    """The in-process twin of ``run`` given the states its stack run's vehicle measured."""
+    return in_process(run, run_dir, states=True)
 
 
 def forecasts_in(run_dir: Path) -> tuple[int, int]:
@@ -299,10 +351,10 @@ def test_risk_aware_controllers_fly_the_in_process_mission_through_the_stack(
     step."""
     f, out = fleet
     runs = [(seed, controller, "paper", None, scenario) for seed in SEEDS[:3]]
-    for run, (run_dir, result) in fly(f, runs, out).items():
-        received, stale = forecasts_in(run_dir)
+    for run, got in fly(f, runs, out, replaying_states).items():
+        received, stale = forecasts_in(got.run_dir)
         assert received > 0 and stale == 0, (run, received, stale)
-        assert_same_mission(result, in_process(run, run_dir, states=True), str(run))
+        assert_same_mission(got.result, twin_of(got), str(run))
 
 
 def test_a_fleet_of_five_with_mixed_controllers_on_shrub(fleet: Any) -> None:
@@ -313,10 +365,10 @@ def test_a_fleet_of_five_with_mixed_controllers_on_shrub(fleet: Any) -> None:
     names = ("concurrent+risk", "s1+risk", "cc", "s2+risk", "cc+risk")
     runs = [(seed, name, "paper", None, "shrub") for seed, name in zip(SEEDS, names,
                                                                       strict=True)]
-    for run, (run_dir, result) in fly(f, runs, out).items():
-        received, stale = forecasts_in(run_dir)
+    for run, got in fly(f, runs, out, replaying_states).items():
+        received, stale = forecasts_in(got.run_dir)
         assert stale == 0 and (received > 0) == run[1].endswith("+risk"), (run, received)
-        assert_same_mission(result, in_process(run, run_dir, states=True), str(run))
+        assert_same_mission(got.result, twin_of(got), str(run))
 
 
 def test_the_ignition_clearance_reaches_the_stack(fleet: Any) -> None:
@@ -324,9 +376,10 @@ def test_the_ignition_clearance_reaches_the_stack(fleet: Any) -> None:
     the missions are those of the in-process loop with the same reading."""
     f, out = fleet
     runs = [(seed, "cc", "paper", 20.0) for seed in SEEDS[:3]]
-    results = {run: result for run, (_, result) in fly(f, runs, out).items()}
-    for run, result in results.items():
-        assert_same_mission(result, in_process(run), str(run))
+    flown = fly(f, runs, out, lambda run, _: in_process(run), from_records=False)
+    results = {run: got.result for run, got in flown.items()}
+    for run, got in flown.items():
+        assert_same_mission(got.result, twin_of(got), str(run))
     # the reading matters: without it, some of these missions differ
     plain = [in_process((seed, "cc", "paper", None)) for seed, *_ in runs]
     assert [r.steps for r in plain] != [results[run].steps for run in runs]

@@ -21,7 +21,8 @@ from tests.e2e.test_lockstep import (
     assert_same_mission,
     fly,
     forecasts_in,
-    in_process,
+    replaying_states,
+    twin_of,
     unpaced_fleet,
 )
 
@@ -42,7 +43,7 @@ def test_the_lookahead_supervisor_flies_the_in_process_mission_through_the_stack
         fleet: Any, scenario: str) -> None:
     f, out = fleet
     runs = [(seed, "lookahead+risk", "paper", None, scenario) for seed in SEEDS]
-    for run, (run_dir, result) in fly(f, runs, out).items():
-        received, stale = forecasts_in(run_dir)
+    for run, got in fly(f, runs, out, replaying_states).items():
+        received, stale = forecasts_in(got.run_dir)
         assert received > 0 and stale == 0, (run, received, stale)
-        assert_same_mission(result, in_process(run, run_dir, states=True), str(run))
+        assert_same_mission(got.result, twin_of(got), str(run))
