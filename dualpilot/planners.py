@@ -75,7 +75,9 @@ def _thorough(spec: MissionSpec, params: System2Params | None) -> Planner:
 
 def _certified(spec: MissionSpec, params: System2Params | None) -> Planner:
     from dualpilot.system2.certify.planner import CertifiedSystem2
+    from dualpilot.warmup import warm_certificate
 
+    warm_certificate()  # its kernels, before its first plan is timed
     return CertifiedSystem2(spec, params or System2Params())
 
 
