@@ -50,7 +50,7 @@ def _fast(spec: MissionSpec, params: System2Params | None) -> Planner:
 
 
 def _fast_risk(spec: MissionSpec, params: System2Params | None) -> Planner:
-    from dualpilot.system2.fast.planner import RiskSystem2
+    from dualpilot.system2.fast.risk import RiskSystem2
 
     return RiskSystem2(spec, params or System2Params())
 
@@ -62,13 +62,13 @@ def _exact(spec: MissionSpec, params: System2Params | None) -> Planner:
 
 
 def _anytime(spec: MissionSpec, params: System2Params | None) -> Planner:
-    from dualpilot.system2.fast.planner import AnytimeSystem2
+    from dualpilot.system2.anytime import AnytimeSystem2
 
     return AnytimeSystem2(spec, params or System2Params())
 
 
 def _thorough(spec: MissionSpec, params: System2Params | None) -> Planner:
-    from dualpilot.system2.fast.planner import ThoroughSystem2
+    from dualpilot.system2.fast.thorough import ThoroughSystem2
 
     return ThoroughSystem2(spec, params or System2Params())
 

@@ -128,7 +128,7 @@ def _timed_planners(methods: Sequence[str], params: System2Params,
                     anytime_budget_s: float) -> dict[str, Any]:
     """The in-process planners of ``methods`` ("exact" runs in a worker instead)."""
     from dualpilot.planners import build_planner
-    from dualpilot.system2.fast.planner import AnytimeSystem2
+    from dualpilot.system2.anytime import AnytimeSystem2
 
     planners: dict[str, Any] = {}
     for m in methods:

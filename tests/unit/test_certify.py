@@ -29,7 +29,7 @@ from dualpilot.system2.certify.duality import Cones, lagrangian_bound, proves_in
 from dualpilot.system2.certify.model import controls, maps, offsets, positions
 from dualpilot.system2.certify.pieces import cover
 from dualpilot.system2.certify.planner import CertifiedSystem2, relaxation_of
-from dualpilot.system2.fast.qp import P2Qp
+from dualpilot.system2.fast.qp import P2Qp, QpParams
 from dualpilot.system2.problem import System2Params, p2_cost
 
 
@@ -73,8 +73,8 @@ def test_plain_relaxation_bound_is_the_qp_optimum(objective: Objective) -> None:
     rel = relaxation_of(SPEC, params, inst.state, inst.hulls, objective, inst.prev_control,
                         reach=False)
     res = rel.solve({}, {})
-    qp = P2Qp(params.horizon, SPEC.dynamics, SPEC.area_size_m, v_margin=0.0, u_margin=0.0,
-              area_margin=0.0, tol=1e-10)
+    qp = P2Qp(params.horizon, SPEC.dynamics, SPEC.area_size_m,
+              QpParams(v_margin=0.0, u_margin=0.0, area_margin=0.0, tol=1e-10))
     free = qp.solve(inst.state, inst.prev_control, SPEC.goal.center, params.kappa(objective),
                     np.zeros(0, int), np.zeros((0, 2)), np.zeros(0), confirm=True)
     assert free.ok

@@ -17,6 +17,7 @@ from dualpilot.system2.fast.geometry import (
 )
 from dualpilot.system2.fast.ipm import Rows, band_pairs, solve_qp
 from dualpilot.system2.fast.planner import FastSystem2
+from dualpilot.system2.fast.references import all_candidates
 from dualpilot.system2.problem import System2Params, disjunction_margin
 
 DYN = DynamicsParams()
@@ -126,7 +127,7 @@ def test_banded_ipm_box_qp_by_hand():
 
 
 def _timing_reference(planner, path, speeds, v0, factor=1.0):
-    """The numpy-scalar loop that FastSystem2._timing replaced."""
+    """The numpy-scalar loop that References.timing replaced."""
     rho = planner.fast.speed_factor * factor
     dyn = planner.dynamics
     d = np.diff(path, axis=0)
@@ -153,15 +154,16 @@ def test_timing_is_the_same_recursion():
     rng = np.random.default_rng(2)
     speeds = rng.uniform(-1.0, 20.0, size=80)
     for v0, factor in ((np.array([5.0, 0.0]), 1.0), (np.array([-3.0, 2.0]), 0.35)):
-        got = planner._timing(path, speeds, v0, factor)
+        got = planner.references.timing(path, speeds, v0, factor)
         assert np.array_equal(got, _timing_reference(planner, path, speeds, v0, factor))
     # a path that is finished: the arc length stops at its length
     short = np.array([[0.0, 0.0], [30.0, 40.0]])
-    assert planner._timing(short, np.full(80, 15.0), np.zeros(2))[-1] == pytest.approx(50.0)
+    arc = planner.references.timing(short, np.full(80, 15.0), np.zeros(2))
+    assert arc[-1] == pytest.approx(50.0)
 
 
 def _candidates_reference(q, g):
-    """The per-hull candidates that FastSystem2._all_candidates replaced: G_o projected onto
+    """The per-hull candidates that references.all_candidates replaced: G_o projected onto
     every edge of Q and Q's vertices, each pushed 2 m outwards."""
     a = q.W
     e = np.roll(a, -1, axis=0) - a
@@ -176,7 +178,7 @@ def _candidates_reference(q, g):
 def test_all_candidates_are_each_hulls_candidates():
     polys = Inflated.make_many([TRIANGLE, SQUARE, TRIANGLE], 25.0)
     g = np.array([950.0, 950.0])
-    pts, owner = FastSystem2._all_candidates(polys, g)
+    pts, owner = all_candidates(polys, g)
     want = np.vstack([_candidates_reference(q, g) for q in polys])
     np.testing.assert_allclose(pts, want, rtol=0, atol=1e-12)
     assert owner.tolist() == [0] * 6 + [1] * 8 + [2] * 6
@@ -190,7 +192,7 @@ def test_covered_goal_target_is_two_metres_outside():
     cover = Rect(900.0, 925.0, 100.0, 70.0).polytope()
     far = Rect(100.0, 100.0, 50.0, 50.0).polytope()
     polys = Inflated.make_many([far, cover], SPEC.clearance_m)
-    np.testing.assert_allclose(planner._target(polys), [900.0, 863.0], atol=1e-9)
+    np.testing.assert_allclose(planner.references.target(polys), [900.0, 863.0], atol=1e-9)
 
 
 def test_start_checks_name_the_right_hull_among_far_ones():
@@ -282,10 +284,10 @@ def test_csr_matvec_adds_in_scipys_order():
 def test_p2qp_of_one_shape_share_their_matrices_not_their_state():
     """A second P2Qp of the same shape reuses the first one's matrices and memo tables,
     keeps its own backend and per-plan state, and solves the same QP to the same bits."""
-    from dualpilot.system2.fast.qp import P2Qp
+    from dualpilot.system2.fast.qp import P2Qp, QpParams
 
     a = P2Qp(20, DYN, 1000.0)
-    b = P2Qp(20, DYN, 1000.0, backend="clarabel")
+    b = P2Qp(20, DYN, 1000.0, QpParams(backend="clarabel"))
     c = P2Qp(20, DynamicsParams(speed_limit="norm"), 1000.0)
     assert a.shape is b.shape and a.shape.U is b.shape.U
     assert c.shape is not a.shape and c.shape.norm and not a.shape.norm
@@ -306,9 +308,9 @@ def test_p2qp_of_one_shape_share_their_matrices_not_their_state():
 def test_p2qp_refuses_a_half_plane_outside_p2_to_pT(backend: str, tau: int):
     """Half-planes constrain p_2..p_T (p_1 is fixed by x_0): τ outside is a ValueError on
     either backend, never an out-of-bounds read in the compiled solver."""
-    from dualpilot.system2.fast.qp import P2Qp
+    from dualpilot.system2.fast.qp import P2Qp, QpParams
 
-    qp = P2Qp(20, DYN, 1000.0, backend=backend)
+    qp = P2Qp(20, DYN, 1000.0, QpParams(backend=backend))
     x0, u0 = np.array([100.0, 120.0, 3.0, -2.0]), np.array([0.5, -0.25])
     with pytest.raises(ValueError, match="half-planes apply to p_2..p_20"):
         qp.solve(x0, u0, np.array([900.0, 850.0]), (1.0, 0.1), np.array([tau]),

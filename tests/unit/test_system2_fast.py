@@ -14,9 +14,11 @@ from dualpilot.model.dynamics import DynamicsParams, rollout, transition_matrice
 from dualpilot.model.geometry import Polytope, Rect
 from dualpilot.plan import Objective, Plan, PlanStatus
 from dualpilot.planners import METHODS, RISK_AWARE, build_planner, build_planners
+from dualpilot.system2.anytime import AnytimeSystem2
+from dualpilot.system2.fast.cfs import KeepOuts
 from dualpilot.system2.fast.geometry import Inflated, homotopy_paths
-from dualpilot.system2.fast.planner import AnytimeSystem2, FastSystem2
-from dualpilot.system2.fast.qp import P2Qp
+from dualpilot.system2.fast.planner import FastSystem2
+from dualpilot.system2.fast.qp import P2Qp, QpParams
 from dualpilot.system2.problem import System2Params, verify_p2_plan
 from dualpilot.system2.worker import Worker
 
@@ -92,7 +94,7 @@ def test_verification_rejects_a_point_inside_the_epsilon_corner():
 def test_a_plan_failing_verification_is_never_returned(monkeypatch):
     """If the solver's candidates were wrongly judged feasible, the final check still stops them."""
     fast = FastSystem2(SPEC, SMALL)
-    monkeypatch.setattr(fast, "_violations", lambda pos, polys: np.zeros((0, 2), dtype=int))
+    monkeypatch.setattr(KeepOuts, "violations", lambda self, pos: np.zeros((0, 2), dtype=int))
     block = (Rect(450.0, 450.0, 150.0, 150.0).polytope(),)
     plan = fast.plan(np.array([300.0, 300.0, 10.0, 10.0]), block, Objective.MISSION_TIME)
     assert plan.status is PlanStatus.UNSAFE and len(plan.states) == 0
@@ -117,10 +119,10 @@ def test_interior_point_qp_matches_clarabel():
     normals = np.tile([[-1.0, 0.0]], (len(tau), 1))  # p_x ≤ 300 for τ = 5..19
     rhs = np.full(len(tau), -300.0)
     for kappa in ((1.0, 0.001), (0.001, 1.0)):
-        a = P2Qp(20, DYN, 1000.0, backend="ipm").solve(x0, u_prev, GOAL.center, kappa, tau,
-                                                      normals, rhs)
-        b = P2Qp(20, DYN, 1000.0, backend="clarabel").solve(x0, u_prev, GOAL.center, kappa,
-                                                           tau, normals, rhs)
+        ipm = P2Qp(20, DYN, 1000.0, QpParams(backend="ipm"))
+        clarabel = P2Qp(20, DYN, 1000.0, QpParams(backend="clarabel"))
+        a = ipm.solve(x0, u_prev, GOAL.center, kappa, tau, normals, rhs)
+        b = clarabel.solve(x0, u_prev, GOAL.center, kappa, tau, normals, rhs)
         assert a.ok and b.ok
         assert a.objective == pytest.approx(b.objective, rel=1e-6)
         assert np.max(a.positions[4:19, 0]) <= 300.0 + 1e-6

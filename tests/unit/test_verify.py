@@ -12,7 +12,8 @@ from dualpilot.plan import Objective, PlanStatus
 from dualpilot.spec import MissionSpec
 from dualpilot.system1.planner import System1
 from dualpilot.system2.exact import ExactSystem2
-from dualpilot.system2.fast.planner import FastSystem2, _Candidate
+from dualpilot.system2.fast.cfs import Candidate
+from dualpilot.system2.fast.planner import FastSystem2
 from dualpilot.system2.problem import System2Params, p2_cost, verify_p2_plan
 from dualpilot.verify import verify_trajectory
 
@@ -58,7 +59,7 @@ def test_fast_system2_check_follows_d_safe(spec: MissionSpec, ok: bool) -> None:
     states, controls = _plan()
     planner = FastSystem2(spec, System2Params(horizon=T))
     kappa = planner.params.kappa(Objective.MISSION_TIME)
-    cand = _Candidate("hand", states[1:, :2], controls, 0.0, 0)
+    cand = Candidate("hand", states[1:, :2], controls, 0.0, 0)
     reasons: list[str] = []
     plan = planner._finish(cand, states[0], HULLS, Objective.MISSION_TIME, kappa, np.zeros(2),
                            0.0, {}, reasons)

@@ -37,7 +37,8 @@ from dualpilot.system2.certify.model import controls, maps, positions
 from dualpilot.system2.certify.relaxation import NodeResult, Pair, Relaxation
 from dualpilot.system2.certify.repair import repair
 from dualpilot.system2.fast.geometry import Inflated
-from dualpilot.system2.fast.planner import FastParams, FastSystem2
+from dualpilot.system2.fast.params import FastParams
+from dualpilot.system2.fast.planner import FastSystem2
 from dualpilot.system2.fast.qp import P2Qp
 from dualpilot.system2.problem import System2Params, p2_cost, verify_p2_plan
 

@@ -22,20 +22,18 @@ that touch the four coordinates of p_τ and p_{τ+1}.
 
 from __future__ import annotations
 
-import threading
 import time
-from collections import OrderedDict
 from dataclasses import dataclass
-from functools import lru_cache
 
-import clarabel
 import numpy as np
 import scipy.sparse as sp
 
 from dualpilot.arrays import AnyArray
-from dualpilot.model.dynamics import DynamicsParams, reach_boxes, speed_polygon
-from dualpilot.system2.fast.ipm import BandedQp, Rows, band_pairs
+from dualpilot.model.dynamics import DynamicsParams, reach_boxes
+from dualpilot.system2.fast.ipm import BandedQp, Rows
 from dualpilot.system2.fast.mehrotra import csr_matvec
+from dualpilot.system2.fast.qp_clarabel import ClarabelQp
+from dualpilot.system2.fast.qp_shape import qp_shape
 
 
 @dataclass(frozen=True)
@@ -55,76 +53,29 @@ class QpResult:
 #: about 0.25 MB each (0.5 MB with a speed polygon)
 STRUCTURES_KEPT = 128
 
+@dataclass(frozen=True)
+class QpParams:
+    """Numerics of the QP and its solver.
 
-class _Shape:
-    """What every :class:`P2Qp` of one shape (T, dynamics, area, margins, scale, K) shares:
-    the sparse maps of Eq. (1), the banded solver's fixed rows, and the memo tables
-    (Hessians, bands, interior-point structures, the last under a lock). Built once a
-    process by :func:`_shape`; only the memo tables change after."""
+    ``v_margin``, ``u_margin``, ``area_margin`` (m/s, N, m): the QP uses the
+    bounds tightened by these, so that the solver's tolerance never shows as a
+    violation of the true bounds. Positions are solved in units of ``scale``
+    metres (numerics only). ``tol``: Clarabel's gap and feasibility tolerances.
+    ``backend``: "ipm" (the banded interior point of
+    :mod:`dualpilot.system2.fast.ipm`, Clarabel to decide when it fails) or
+    "clarabel" (every QP).
+    """
 
-    def __init__(self, T: int, dynamics: DynamicsParams, area_size_m: float | None,
-                 v_margin: float, u_margin: float, area_margin: float, s: float,
-                 speed_sides: int) -> None:
-        self.T, self.dyn, self.area, self.scale, self.n = T, dynamics, area_size_m, s, 2 * T
-        n = self.n
-        self.bw = 6
-        self.vmax = dynamics.v_max_mps - v_margin
-        self.umax = dynamics.u_max_n - u_margin
-        self.area_margin = area_margin
-        dt, a, mass = dynamics.dt_s, 1.0 - dynamics.zeta, dynamics.mass_kg
-        eye2 = sp.identity(2, format="csr")
-        # P = [p_1; p_2..p_{T+1}] = M z + e, e = [p_1; 0]
-        m_pos = sp.vstack([sp.csr_matrix((2, n)), s * sp.identity(n, format="csr")]).tocsr()
-        d_v = sp.kron(sp.diags([-np.ones(T), np.ones(T)], [0, 1], shape=(T, T + 1)), eye2) / dt
-        self.V = (d_v @ m_pos).tocsr()  # v_1..v_T (without the p_1 offset)
-        self.dv = d_v.tocsr()
-        self.shift = sp.kron(sp.diags([np.ones(T - 1)], [-1], shape=(T, T)), eye2).tocsr()
-        self.U = ((mass / dt) * (self.V - a * (self.shift @ self.V))).tocsr()
-        self.diff = sp.kron(sp.diags([np.ones(T), -np.ones(T - 1)], [0, -1], shape=(T, T)),
-                            eye2).tocsr()
-        self.dU = (self.diff @ self.U).tocsr()
-        self.dUT = self.dU.T.tocsr()
-        # costed positions p_1..p_T: p_1 constant, p_2..p_T = s z[:2(T-1)]
-        sel = sp.hstack([s * sp.identity(2 * (T - 1)), sp.csr_matrix((2 * (T - 1), 2))]).tocsr()
-        self.selT = sel.T.tocsr()
-        self.H_pos = (sel.T @ sel).tocsc()
-        self.H_du = (self.dU.T @ self.dU).tocsc()
-        self.norm = dynamics.speed_limit == "norm"
-        if self.norm:  # n_k·v_τ ≤ v_max cos(π/K): one row per (τ, k), τ-major
-            normals, cos_k = speed_polygon(speed_sides)
-            self.vpoly = dynamics.v_max_mps * cos_k - v_margin
-            self.N = sp.kron(sp.identity(T, format="csr"), sp.csr_matrix(normals)).tocsr()
-            self.P = (self.N @ self.V).tocsr()
-            self.box = sp.vstack([self.U, -self.U, self.P]).tocsr()
-        else:
-            self.box = sp.vstack([self.U, -self.U, self.V, -self.V]).tocsr()
-        # padded rows of the banded interior-point solver: U, V (two-sided) and the area
-        # (the speed polygon's rows have four entries: then every fixed row has four)
-        width = 4 if self.norm else 3
-        fixed_rows = [_padded(self.U, width), _padded(self.P if self.norm else self.V, width)]
-        if area_size_m is not None:
-            j = np.arange(2 * (T - 1))
-            cols = np.column_stack([j] * width)
-            vals = np.column_stack([np.full(len(j), s)] + [np.zeros(len(j))] * (width - 1))
-            fixed_rows.append((cols, vals))
-        self.fixed_norm = [np.linalg.norm(v, axis=1) for _, v in fixed_rows]
-        self.fixed = Rows(np.vstack([c for c, _ in fixed_rows]),
-                          np.vstack([v / nr[:, None] for (_, v), nr in
-                                     zip(fixed_rows, self.fixed_norm, strict=True)]),
-                          np.zeros(0), np.zeros(0))
-        self.fixed_pairs = band_pairs(self.fixed, n)
-        self.H_cache: dict[tuple[float, float], sp.csc_matrix] = {}
-        self.band_cache: dict[tuple[float, float], AnyArray] = {}
-        self.struct_cache: OrderedDict[tuple[float, float, bytes, bytes], BandedQp] = (
-            OrderedDict())
-        self.struct_lock = threading.Lock()  # a fleet's planners share it from their threads
+    v_margin: float = 1e-4
+    u_margin: float = 1e-5
+    area_margin: float = 1e-3
+    scale: float = 100.0
+    tol: float = 1e-8
+    backend: str = "ipm"
 
-
-@lru_cache(maxsize=8)
-def _shape(T: int, dynamics: DynamicsParams, area_size_m: float | None, v_margin: float,
-           u_margin: float, area_margin: float, s: float, speed_sides: int) -> _Shape:
-    """The one :class:`_Shape` of these arguments in this process."""
-    return _Shape(T, dynamics, area_size_m, v_margin, u_margin, area_margin, s, speed_sides)
+    def __post_init__(self) -> None:
+        if self.backend not in ("ipm", "clarabel"):
+            raise ValueError(f"backend must be 'ipm' or 'clarabel', got {self.backend!r}")
 
 
 def _control_steps(u_prev: AnyArray, controls: AnyArray) -> AnyArray:
@@ -140,29 +91,6 @@ def _mv(mat: sp.csr_matrix, x: AnyArray) -> AnyArray:
     return csr_matvec(mat.indptr, mat.indices, mat.data, np.ascontiguousarray(x, dtype=float))
 
 
-def _padded(mat: sp.csr_matrix, width: int = 3) -> tuple[AnyArray, AnyArray]:
-    """(cols, vals) of shape (rows, width) for a CSR matrix with ≤ width nonzeros a row."""
-    mat = mat.tocsr(copy=True)
-    mat.eliminate_zeros()
-    mat.sort_indices()
-    nnz = np.diff(mat.indptr)
-    if np.any(nnz > width):
-        raise ValueError(f"rows with more than {width} nonzeros")
-    rows = mat.shape[0]
-    cols = np.zeros((rows, width), dtype=np.int64)
-    vals = np.zeros((rows, width))
-    for k in range(width):
-        has = nnz > k
-        pos = mat.indptr[:-1][has] + k
-        cols[has, k] = mat.indices[pos]
-        vals[has, k] = mat.data[pos]
-    # padding repeats the first column with value 0 (keeps band offsets small)
-    for k in range(1, width):
-        pad = nnz <= k
-        cols[pad, k] = cols[pad, 0]
-    return cols, vals
-
-
 class P2Qp:
     """The convex restriction of (P2) for a fixed set of half-planes.
 
@@ -174,37 +102,25 @@ class P2Qp:
         Eq. (1) and the bounds U, X (2-D).
     area_size_m : float or None
         Keep p_{t+τ|t} in [0, area]² (τ = 1..T); None for no area constraint.
-    v_margin, u_margin, area_margin : float
-        The QP uses bounds tightened by these (m/s, N, m) so that the solver's
-        tolerance never shows as a violation of the true bounds.
-    scale : float
-        Positions are solved in units of ``scale`` metres (numerics only).
+    params : QpParams
+        The margins, the scale and the solver.
     speed_sides : int
         K of the speed polygon under ``speed_limit = "norm"`` (unused per axis).
     """
 
     def __init__(self, horizon: int, dynamics: DynamicsParams, area_size_m: float | None,
-                 *, v_margin: float = 1e-4, u_margin: float = 1e-5, area_margin: float = 1e-3,
-                 scale: float = 100.0, tol: float = 1e-8, backend: str = "ipm",
-                 speed_sides: int = 16) -> None:
-        if backend not in ("ipm", "clarabel"):
-            raise ValueError(f"backend must be 'ipm' or 'clarabel', got {backend!r}")
+                 params: QpParams = QpParams(), *, speed_sides: int = 16) -> None:
         if dynamics.dim != 2:
             raise ValueError(f"the P2 QP is planar, got dim={dynamics.dim}")
         if horizon < 2:
             raise ValueError(f"horizon must be >= 2, got {horizon}")
+        self.params = params
         # the matrices and the memo tables of this shape, built once a process
-        self.shape = _shape(int(horizon), dynamics, area_size_m, float(v_margin),
-                            float(u_margin), float(area_margin), float(scale), int(speed_sides))
-        self._settings = clarabel.DefaultSettings()
-        self._settings.verbose = False
-        self._settings.tol_gap_abs = tol
-        self._settings.tol_gap_rel = tol
-        self._settings.tol_feas = tol
-        self._settings.max_threads = 1
-        self._settings.max_iter = 60
-        self._settings.equilibrate_enable = False
-        self.backend = backend
+        self.shape = qp_shape(int(horizon), dynamics, area_size_m, float(params.v_margin),
+                              float(params.u_margin), float(params.area_margin),
+                              float(params.scale), int(speed_sides))
+        self.clarabel = ClarabelQp(self.shape, params.tol)
+        self.backend = params.backend
         # the last plan's offsets and interior-point context (every QP of one plan shares them)
         self._ctx: BandedQp | None = None
         self._ctx_key: tuple[bytes, bytes, float, float] | None = None
@@ -244,32 +160,6 @@ class P2Qp:
         self._off, self._off_key = out, key
         return out
 
-    def hessian(self, kappa: tuple[float, float]) -> sp.csc_matrix:
-        sh = self.shape
-        key = (float(kappa[0]), float(kappa[1]))
-        h = sh.H_cache.get(key)
-        if h is None:
-            h = sp.triu(2.0 * key[0] * sh.H_pos + 2.0 * key[1] * sh.H_du).tocsc()
-            sh.H_cache[key] = h
-        return h
-
-    def hessian_band(self, kappa: tuple[float, float]) -> AnyArray:
-        """H of the QP in lower band form (bw+1, n)."""
-        sh = self.shape
-        key = (float(kappa[0]), float(kappa[1]))
-        band = sh.band_cache.get(key)
-        if band is None:
-            h = (2.0 * key[0] * sh.H_pos + 2.0 * key[1] * sh.H_du).tocsr()
-            n, bw = sh.n, sh.bw
-            band = np.zeros((bw + 1, n))
-            for d in range(bw + 1):
-                band[d, : n - d] = h.diagonal(-d)
-            coo = h.tocoo()
-            if np.any(np.abs(coo.row - coo.col) > bw):
-                raise AssertionError("QP Hessian is not within the band")  # pragma: no cover
-            sh.band_cache[key] = band
-        return band
-
     def _context(self, x0: AnyArray, u_prev: AnyArray, q: AnyArray,
                  kappa: tuple[float, float]) -> BandedQp:
         """The fixed part of the interior-point QP for one (state, u_{t|t}, κ), cached."""
@@ -308,7 +198,7 @@ class P2Qp:
                 cache.move_to_end(skey)
         if base is None:
             fixed = Rows(sh.fixed.cols, sh.fixed.vals, lo_a, hi_a)
-            base = BandedQp(self.hessian_band(kappa), q, fixed, sh.fixed_pairs)
+            base = BandedQp(sh.hessian_band(kappa), q, fixed, sh.fixed_pairs)
             with sh.struct_lock:
                 if len(cache) >= STRUCTURES_KEPT:
                     cache.popitem(last=False)  # the least recently used
@@ -395,11 +285,7 @@ class P2Qp:
             if banded is not None:
                 return banded
             area_rows = None  # Clarabel decides, with every area row
-        h, q, A, b = self._clarabel_problem(kappa, q, vc, uc, tau, normals, rhs, area_rows,
-                                            elastic)
-        solver = clarabel.DefaultSolver(h, q, A, b, [clarabel.NonnegativeConeT(A.shape[0])],
-                                        self._settings)
-        sol = solver.solve()
+        sol = self.clarabel.solve(kappa, q, vc, uc, (tau, normals, rhs), area_rows, elastic)
         status = str(sol.status)
         ok = status in ("Solved", "AlmostSolved")
         z = np.asarray(sol.x, dtype=float)[: sh.n]
@@ -438,70 +324,3 @@ class P2Qp:
         pos = self.positions(z, x0)
         ctrl = np.asarray(_mv(self.shape.U, z) + uc).reshape(-1, 2)
         return pos, ctrl, self.cost(pos, ctrl, goal, kappa, u_prev)
-
-    def _clarabel_problem(self, kappa: tuple[float, float], q: AnyArray, vc: AnyArray,
-                          uc: AnyArray, tau: AnyArray, normals: AnyArray, rhs: AnyArray,
-                          area_rows: AnyArray | None, elastic: float | None
-                          ) -> tuple[sp.csc_matrix, AnyArray, sp.csc_matrix, AnyArray]:
-        """Clarabel's (P, q, A, b), A z ≤ b: U, X, the half-planes and the area rows; with
-        ``elastic`` one slack column per half-plane, costing ``elastic`` a metre."""
-        sh = self.shape
-        m = len(tau)
-        n_sl = m if elastic is not None else 0
-        n = sh.n + n_sl
-        h = self.hessian(kappa)
-        box = sh.box
-        if n_sl:
-            h = sp.block_diag([h, sp.csc_matrix((n_sl, n_sl))], format="csc")
-            q = np.concatenate([q, np.full(n_sl, float(elastic or 0.0))])
-            box = sp.hstack([box, sp.csr_matrix((box.shape[0], n_sl))], format="csr")
-        blocks: list[sp.spmatrix] = [box]
-        bs = [sh.umax - uc, sh.umax + uc]
-        bs += ([sh.vpoly - sh.N @ vc] if sh.norm
-               else [sh.vmax - vc, sh.vmax + vc])
-        if m:
-            hp_blocks, hp_bs = self._half_plane_rows(tau, normals, rhs, n_sl)
-            blocks.extend(hp_blocks)
-            bs.extend(hp_bs)
-        if sh.area is not None:
-            ar = self._area_rows(area_rows)
-            if len(ar):
-                col = 2 * (ar[:, 0] - 2) + ar[:, 1]
-                sign = np.where(ar[:, 2] == 0, -1.0, 1.0)
-                blocks.append(sp.csr_matrix((sign * sh.scale, (np.arange(len(ar)), col)),
-                                            shape=(len(ar), n)))
-                bs.append(np.where(ar[:, 2] == 0, -sh.area_margin,
-                                   sh.area - sh.area_margin))
-        A = sp.vstack(blocks, format="csc")
-        b = np.concatenate(bs)
-        return h, q, A, b
-
-    def _half_plane_rows(self, tau: AnyArray, normals: AnyArray, rhs: AnyArray, n_sl: int
-                         ) -> tuple[list[sp.spmatrix], list[AnyArray]]:
-        """Rows −s·n_k·z ≤ −rhs_k of the half-planes (with ``n_sl`` slacks: −σ_k added, and
-        −σ_k ≤ 0), and their right-hand sides."""
-        sh = self.shape
-        m, n, s = len(tau), sh.n + n_sl, sh.scale
-        tau = np.asarray(tau, dtype=int)
-        if np.any(tau < 2) or np.any(tau > sh.T):
-            raise ValueError("half-planes apply to p_2..p_T")
-        cols = np.column_stack([2 * (tau - 2), 2 * (tau - 2) + 1]).ravel()
-        rows = np.repeat(np.arange(m), 2)
-        vals = (-s * np.asarray(normals, dtype=float)).ravel()
-        if n_sl:
-            cols = np.concatenate([cols, sh.n + np.arange(m)])
-            rows = np.concatenate([rows, np.arange(m)])
-            vals = np.concatenate([vals, -np.ones(m)])
-            slack = sp.csr_matrix((-np.ones(m), (np.arange(m), sh.n + np.arange(m))),
-                                  shape=(m, n))
-            return ([sp.csr_matrix((vals, (rows, cols)), shape=(m, n)), slack],
-                    [-np.asarray(rhs, dtype=float), np.zeros(m)])
-        return [sp.csr_matrix((vals, (rows, cols)), shape=(m, n))], [-np.asarray(rhs, dtype=float)]
-
-    def _area_rows(self, area_rows: AnyArray | None) -> AnyArray:
-        if area_rows is None:
-            tau = np.arange(2, self.shape.T + 1)
-            grid = np.array(np.meshgrid(tau, [0, 1], [0, 1], indexing="ij")).reshape(3, -1).T
-            return grid.astype(int)
-        return np.asarray(area_rows, dtype=int).reshape(-1, 3)
-
