@@ -1,25 +1,19 @@
-"""System 2, the exact reference: Problem (P2) as a mixed-integer QP in cvxpy.
+"""System 2, the exact reference: Problem (P2) as a mixed-integer QP, solved to optimality.
 
-Eq. (S2) objective, Eq. (P2_1)-(P2_6) constraints, solved to optimality by
-SCIP (or Gurobi when a working licence is present). The problem is built once
-with DPP parameters and re-solved each tick by updating ``.value``.
-
-Avoidance, Eq. (P2_3)-(P2_4), is big-M over the faces of each H-polytope (unit
-outward normals α, margin ε in m) in fixed slots (``max_hulls`` ×
-``max_faces``); more reachable hulls than slots: INVALID_INPUT. A plan is the
-roll-out of Eq. (1) under the solver's controls, verified at the spec's d_safe;
-``Plan.cost`` is the Eq. (S2) value. ``isolate=True`` (the registry's "exact")
-runs the solver in a :class:`dualpilot.system2.worker.Worker` with a hard
-deadline.
+The compiled cvxpy problem (:class:`dualpilot.system2.miqp.P2Miqp`, Eq. (S2) with
+Eq. (P2_1)-(P2_6)) is solved by SCIP (or Gurobi when a working licence is present),
+with the request's hulls in its slots (:mod:`dualpilot.system2.slots`); more reachable
+hulls than slots: INVALID_INPUT. A plan is the roll-out of Eq. (1) under the solver's
+controls, verified at the spec's d_safe; ``Plan.cost`` is the Eq. (S2) value.
+``isolate=True`` (the registry's "exact") runs the solver in a
+:class:`dualpilot.system2.worker.Worker` with a hard deadline.
 """
 
 from __future__ import annotations
 
-import contextlib
 import dataclasses
 import math
 import time
-import warnings
 import weakref
 from collections.abc import Mapping, Sequence
 from typing import Any
@@ -28,80 +22,17 @@ import cvxpy as cp
 import numpy as np
 
 from dualpilot.arrays import Array
-from dualpilot.model.dynamics import reach_radius, rollout, speed_polygon, transition_matrices
+from dualpilot.model.dynamics import rollout
 from dualpilot.model.geometry import Polytope
 from dualpilot.plan import Objective, Plan, PlanStatus
 from dualpilot.spec import MissionSpec
-from dualpilot.system2.fast.geometry import Inflated
+from dualpilot.system2.miqp import P2Miqp, gurobi_available
 from dualpilot.system2.problem import System2Params, check_request, p2_cost
+from dualpilot.system2.slots import big_m_ok, select_hulls
 from dualpilot.system2.worker import PlannerFactory, Worker
 from dualpilot.verify import verify_trajectory
 
 _SOLVERS = ("auto", "SCIP", "GUROBI")
-
-DEFAULT_SCIP_OPTIONS: dict[str, Any] = {
-    "separating/maxroundsroot": 15,
-    "separating/maxrounds": 2,
-}
-"""Fewer cut rounds: SCIP's root cut loop on the outer approximation of the
-quadratic objective otherwise ate the whole budget (T = 80: 1 hull 23 s -> ~13 s,
-3 hulls 45 s limit with 3 % gap -> optimal in 7-15 s). User options override."""
-
-
-def gurobi_available() -> bool:
-    """True if gurobipy imports and cvxpy lists Gurobi (the licence is tried on first solve)."""
-    try:
-        import gurobipy  # noqa: F401
-    except ImportError:
-        return False
-    return "GUROBI" in cp.installed_solvers()
-
-
-def face_inflated(poly: Polytope, eps: float) -> Polytope:
-    """{p : α_l·p ≤ β_l + ε ∀l}: the region Eq. (P2_3)-(P2_4) forbid, faces pushed out by ε (m).
-
-    It extends beyond the ε-distance offset at sharp vertices; the vertices
-    are those of :class:`dualpilot.system2.fast.geometry.Inflated`.
-    """
-    return poly if eps <= 0 else Polytope.from_vertices(Inflated.make(poly, eps).W)
-
-
-def outer_simplify(poly: Polytope, max_faces: int) -> Polytope:
-    """A polygon with at most ``max_faces`` faces that contains ``poly``.
-
-    Greedily removes the edge whose removal (extending its two neighbours to
-    their intersection) adds the least area; only edges whose neighbours
-    meet on the outside (turn < π) are removable, so the result stays bounded.
-    """
-    if max_faces < 4:
-        raise ValueError(f"max_faces must be >= 4, got {max_faces}")
-    verts = [np.asarray(p, dtype=float) for p in poly.vertices]
-    while len(verts) > max_faces:
-        k = len(verts)
-        best: tuple[float, int, Array] | None = None
-        for i in range(k):
-            # edge i runs verts[i] -> verts[i+1]; its neighbours are a0->a1 and b0->b1
-            a0, a1 = verts[i - 1], verts[i]
-            b0, b1 = verts[(i + 1) % k], verts[(i + 2) % k]
-            da, db = a1 - a0, b1 - b0
-            den = da[0] * db[1] - da[1] * db[0]
-            if den <= 1e-12 * np.linalg.norm(da) * np.linalg.norm(db):
-                continue  # neighbours parallel or diverging: removal would be unbounded
-            s = ((b0 - a0)[0] * db[1] - (b0 - a0)[1] * db[0]) / den
-            r = ((b0 - a0)[0] * da[1] - (b0 - a0)[1] * da[0]) / den
-            if s < 1.0 - 1e-12 or r > 1e-12:
-                continue  # the extended neighbours would not meet outside edge i
-            apex = a0 + s * da
-            area = 0.5 * abs((b0 - a1)[0] * (apex - a1)[1] - (b0 - a1)[1] * (apex - a1)[0])
-            if best is None or area < best[0]:
-                best = (area, i, apex)
-        if best is None:  # cannot happen for a convex polygon with > 4 edges
-            raise ValueError("cannot simplify polygon conservatively")
-        _, i, apex = best
-        j = (i + 1) % k
-        # replace verts[i] and verts[j] by the apex
-        verts = [apex] + verts[1:i] if j == 0 else verts[:i] + [apex] + verts[j + 1 :]
-    return Polytope.from_vertices(np.array(verts))
 
 
 class ExactSystem2:
@@ -123,7 +54,8 @@ class ExactSystem2:
         instances we tried 1.5-2x faster than 1 or 1e3).
     solver_options : mapping, optional
         Extra native parameters (SCIP names such as ``"limits/gap"``, or
-        Gurobi names), merged over the time limit and ``DEFAULT_SCIP_OPTIONS``.
+        Gurobi names), merged over the time limit and
+        :data:`dualpilot.system2.miqp.DEFAULT_SCIP_OPTIONS`.
     isolate : bool
         Solve in a persistent worker process with a hard deadline (see the
         module notes). The worker is spawned on the first plan (~2 s; a
@@ -181,7 +113,9 @@ class ExactSystem2:
         self.hard_timeout_s = (
             1.5 * params.time_limit_s + 10.0 if hard_timeout_s is None else float(hard_timeout_s)
         )
-        self._build()
+        self.model = P2Miqp(params, dynamics, self.epsilon_m, spec.area_size_m,
+                            self.objective_scale)
+        self.problem = self.model.problem
         self._worker: Worker | None = None
         if isolate:
             options = {"objective_scale": self.objective_scale,
@@ -201,112 +135,6 @@ class ExactSystem2:
     def __exit__(self, *exc: object) -> None:
         self.close()
 
-    # ------------------------------------------------------------------ build
-    def _build(self) -> None:
-        """Compile (P2) once; every tick only sets parameter values."""
-        p, d = self.params, self.dynamics
-        T, H, F = p.horizon, p.max_hulls, p.max_faces
-        phi, gamma = transition_matrices(d)
-        big_m, eps = p.big_m, self.epsilon_m
-
-        self._x0 = cp.Parameter(4, name="x0")
-        # sqrt-weights keep the objective DPP: ‖w1 p − w1 G_o‖² = κ1/s ‖p − G_o‖²
-        self._w1 = cp.Parameter(nonneg=True, name="w1")
-        self._w1_goal = cp.Parameter(2, name="w1_goal")
-        self._w2 = cp.Parameter(nonneg=True, name="w2")
-        self._w2_uprev = cp.Parameter(2, name="w2_uprev")
-        self._alpha = cp.Parameter((H * F, 2), name="alpha")
-        self._beta = cp.Parameter((H * F, 1), name="beta")
-
-        inf = np.inf
-        pos_lo, pos_hi = (0.0, self.area_size_m) if p.keep_in_area else (-inf, inf)
-        lo = np.tile([pos_lo, pos_lo, -d.v_max_mps, -d.v_max_mps], (T, 1))
-        hi = np.tile([pos_hi, pos_hi, d.v_max_mps, d.v_max_mps], (T, 1))
-        self._X = cp.Variable((T, 4), name="X", bounds=[lo, hi])  # x_{t+1|t}..x_{t+T|t}
-        self._U = cp.Variable((T, 2), name="U", bounds=[-d.u_max_n, d.u_max_n])
-        self._B = cp.Variable((H * F, T), boolean=True, name="b")
-        xs, us, bs = self._X, self._U, self._B
-        pos = xs[:, :2]
-        speed: list[cp.Constraint] = []
-        if d.speed_limit == "norm":  # X: n_k·v_τ ≤ v_max cos(π/K), inside the disc
-            normals, cos_k = speed_polygon(p.speed_polygon_sides)
-            speed.append(xs[:, 2:] @ normals.T <= d.v_max_mps * cos_k)
-
-        cons = [
-            xs[0] == phi @ self._x0 + gamma @ us[0],  # Eq. (P2_1)-(P2_2)
-            xs[1:] == xs[:-1] @ phi.T + us[1:] @ gamma.T,
-            # Eq. (P2_3): α·p_τ − β ≥ ε − M b
-            self._alpha @ pos.T - self._beta @ np.ones((1, T)) >= eps - big_m * bs,
-            # Eq. (P2_4): Σ_l b ≤ F − 1 per hull and τ
-            np.kron(np.eye(H), np.ones((1, F))) @ bs <= F - 1,
-            *speed,
-        ]
-        dist = self._w1 * pos - np.ones((T, 1)) @ cp.reshape(self._w1_goal, (1, 2), order="C")
-        du0 = self._w2 * us[0] - self._w2_uprev
-        du = self._w2 * (us[1:] - us[:-1])
-        objective = cp.sum_squares(dist) + cp.sum_squares(du0) + cp.sum_squares(du)
-        self.problem = cp.Problem(cp.Minimize(objective), cons)
-        if not self.problem.is_dpp():
-            raise RuntimeError("P2 is not DPP")  # pragma: no cover - construction bug
-        # neutral values so the first compile succeeds
-        self._alpha.value = np.zeros((H * F, 2))
-        self._beta.value = np.full((H * F, 1), -big_m)
-        self._x0.value = np.zeros(4)
-        self._w1.value = 1.0
-        self._w1_goal.value = np.zeros(2)
-        self._w2.value = 1.0
-        self._w2_uprev.value = np.zeros(2)
-
-    # -------------------------------------------------------------- helpers
-    def _select_hulls(
-        self, state: Array, hulls: Sequence[Polytope]
-    ) -> tuple[list[tuple[int, Polytope]], list[int]]:
-        """Reachable hulls (index, polygon ≤ max_faces) sorted by distance; simplified indices."""
-        eps = self.epsilon_m
-        reach = reach_radius(state[2:], self.params.horizon, self.dynamics)
-        kept: list[tuple[float, int, Polytope]] = []
-        simplified: list[int] = []
-        for i, hull in enumerate(hulls):
-            poly = hull
-            if poly.n_faces > self.params.max_faces:
-                poly = outer_simplify(poly, self.params.max_faces)
-                simplified.append(i)
-            dist = face_inflated(poly, eps).distance(state[:2])
-            if dist <= reach + 1e-6:
-                kept.append((dist, i, poly))
-        kept.sort(key=lambda item: item[0])
-        return [(i, poly) for _, i, poly in kept], simplified
-
-    def _set_hull_params(self, polys: Sequence[Polytope]) -> None:
-        H, F, big_m = self.params.max_hulls, self.params.max_faces, self.params.big_m
-        alpha = np.zeros((H * F, 2))
-        beta = np.full((H * F, 1), -big_m)
-        for k, poly in enumerate(polys):
-            nf = poly.n_faces
-            alpha[k * F:k * F + nf] = poly.A
-            beta[k * F:k * F + nf, 0] = poly.b
-            # padded face slot: 0 ≥ M/2 + ε − M b forces b = 1, so Σ_l b ≤ F − 1
-            # leaves at least one real face with b = 0 (the disjunction is exact and,
-            # unlike repeating a face, adds no symmetric choices for branching)
-            beta[k * F + nf:(k + 1) * F, 0] = big_m / 2
-        self._alpha.value = alpha
-        self._beta.value = beta
-
-    def _big_m_ok(self, state: Array, polys: Sequence[Polytope]) -> bool:
-        """M must relax Eq. (P2_3) everywhere a planned position can be."""
-        p = self.params
-        if p.keep_in_area:
-            lo, hi = np.zeros(2), np.full(2, self.area_size_m)
-        else:
-            r = reach_radius(state[2:], self.params.horizon, self.dynamics)
-            lo, hi = state[:2] - r, state[:2] + r
-        corners = np.array([[lo[0], lo[1]], [hi[0], lo[1]], [hi[0], hi[1]], [lo[0], hi[1]]])
-        for poly in polys:
-            need = np.max(poly.b[:, None] + self.epsilon_m - poly.A @ corners.T)
-            if need > p.big_m:
-                return False
-        return True
-
     # ----------------------------------------------------------------- plan
     def plan(
         self,
@@ -325,7 +153,8 @@ class ExactSystem2:
         if unsafe_start is not None:
             return self._fail(t0, objective, PlanStatus.INVALID_INPUT, unsafe_start)
 
-        selected, simplified = self._select_hulls(x0, hulls)
+        selected, simplified = select_hulls(x0, hulls, self.params, self.dynamics,
+                                            self.epsilon_m)
         info: dict[str, object] = {
             "n_hulls": len(selected), "n_hulls_input": len(hulls),
             "simplified_hulls": simplified,
@@ -369,7 +198,8 @@ class ExactSystem2:
                         f"compiled problem has max_hulls={self.params.max_hulls}; construct "
                         "ExactSystem2 with a larger System2Params.max_hulls")
         polys = [poly for _, poly in selected]
-        if not self._big_m_ok(x0, polys):
+        if not big_m_ok(x0, polys, self.params, self.dynamics, self.epsilon_m,
+                        self.area_size_m):
             return polys, f"big_m={self.params.big_m} is too small for this geometry"
         return polys, None
 
@@ -405,16 +235,9 @@ class ExactSystem2:
     def _set_values(self, x0: Array, u_prev: Array, objective: Objective,
                     polys: Sequence[Polytope]) -> tuple[float, float]:
         """Set the DPP parameters of (P2) for this tick; returns κ = (κ1, κ2) of Eq. (S2)."""
-        k1, k2 = self.params.kappa(objective)
-        s = self.objective_scale
-        w1, w2 = math.sqrt(k1 / s), math.sqrt(k2 / s)
-        self._x0.value = x0
-        self._w1.value = w1
-        self._w1_goal.value = w1 * self.goal.center
-        self._w2.value = w2
-        self._w2_uprev.value = w2 * u_prev
-        self._set_hull_params(polys)
-        return k1, k2
+        kappa = self.params.kappa(objective)
+        self.model.set_values(x0, u_prev, self.goal.center, kappa, polys)
+        return kappa
 
     def _solver_failure(self, result: Mapping[str, object], status: str,
                         simplified: Sequence[int]) -> tuple[PlanStatus, str] | None:
@@ -484,8 +307,7 @@ class ExactSystem2:
     def _solve_isolated(self, name: str) -> dict[str, object]:
         """:meth:`_solve_with` in the worker, killed past ``hard_timeout_s``."""
         assert self._worker is not None
-        values = {prm.name(): prm.value for prm in self.problem.parameters()}
-        out, why = self._worker.solve((values, name), self.hard_timeout_s)
+        out, why = self._worker.solve((self.model.values(), name), self.hard_timeout_s)
         if isinstance(out, dict):
             return out
         if why.startswith("killed"):
@@ -496,61 +318,9 @@ class ExactSystem2:
 
     def solve_values(self, values: Mapping[str, Any], name: str) -> dict[str, object]:
         """Set the parameters by name and solve in this process (the worker's handler)."""
-        by_name = {prm.name(): prm for prm in self.problem.parameters()}
-        for key, val in values.items():
-            by_name[key].value = val
+        self.model.load(values)
         return self._solve_with(name)
 
     def _solve_with(self, name: str) -> dict[str, object]:
         """One in-process solve of the compiled problem with solver ``name``."""
-        tl = self.params.time_limit_s
-        opts: dict[str, Any]
-        if name == "SCIP":
-            opts = {"scip_params": {**DEFAULT_SCIP_OPTIONS, "limits/time": tl,
-                                    **self.solver_options}}
-        else:
-            opts = {"TimeLimit": tl, **self.solver_options}
-        out: dict[str, object] = {"solver": name}
-        t_solve = time.perf_counter()
-        try:
-            with warnings.catch_warnings():
-                # cvxpy's bound inference multiplies inf by 0 on first compile
-                warnings.simplefilter("ignore", RuntimeWarning)
-                data, chain, inv = self.problem.get_problem_data(name, enforce_dpp=True)
-            raw = chain.solve_via_data(self.problem, data, False, False, opts)
-        except Exception as exc:  # noqa: BLE001 - any solver crash becomes an ERROR plan
-            out["solver_time_s"] = time.perf_counter() - t_solve
-            out["error"] = f"{type(exc).__name__}: {exc}"
-            return out
-        solver_time = time.perf_counter() - t_solve
-        out["solver_time_s"] = solver_time
-        native = None
-        if isinstance(raw, dict):
-            native = raw.get("scip_status")
-            model = raw.pop("model", None)  # drop the SCIP model once read
-            if model is not None:
-                with contextlib.suppress(Exception):
-                    gap = float(model.getGap())
-                    out["mip_gap"] = gap if gap < 1e19 else math.inf  # 1e20: no incumbent
-                    out["scip_time_s"] = float(model.getSolvingTime())
-        out["native_status"] = native
-        timed_out = native == "timelimit" or (native is None and solver_time >= 0.99 * tl)
-        out["timeout"] = timed_out
-        try:
-            with warnings.catch_warnings():
-                warnings.simplefilter("ignore")  # "solution may be inaccurate": we verify it
-                self.problem.unpack_results(raw, chain, inv)
-        except cp.error.SolverError as exc:
-            out["error"] = str(exc)
-            return out
-        out["solver_status"] = self.problem.status
-        if "mip_gap" not in out:
-            with contextlib.suppress(Exception):
-                gurobi_model: Any = self.problem.solver_stats.extra_stats
-                out["mip_gap"] = float(gurobi_model.MIPGap)
-        if self._U.value is not None and self._X.value is not None:
-            out["U"] = np.array(self._U.value, dtype=float)
-            out["X"] = np.array(self._X.value, dtype=float)
-            val = self.problem.value
-            out["value"] = float(val) if val is not None else math.nan  # type: ignore[arg-type]
-        return out
+        return self.model.solve(name, self.solver_options)

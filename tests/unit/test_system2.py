@@ -13,8 +13,10 @@ from dualpilot.model.geometry import Polytope, Rect
 from dualpilot.plan import Objective, PlanStatus
 from dualpilot.spec import MissionSpec
 from dualpilot.system2 import exact as s2mod
-from dualpilot.system2.exact import ExactSystem2, face_inflated, gurobi_available, outer_simplify
+from dualpilot.system2.exact import ExactSystem2
+from dualpilot.system2.miqp import gurobi_available
 from dualpilot.system2.problem import System2Params, p2_cost
+from dualpilot.system2.slots import face_inflated, outer_simplify
 from dualpilot.verify import Verdict
 
 SPEC = MissionSpec()
