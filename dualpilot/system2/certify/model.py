@@ -23,6 +23,7 @@ import scipy.sparse as sp
 
 from dualpilot.arrays import Array
 from dualpilot.model.dynamics import DynamicsParams, speed_polygon
+from dualpilot.model.geometry import Polytope
 
 
 @dataclass(frozen=True)
@@ -49,6 +50,21 @@ class Maps:
     def n(self) -> int:
         """Number of variables, 2T."""
         return 2 * self.horizon
+
+
+@dataclass(frozen=True)
+class Instance:
+    """One (P2) instance: x_t (4,), u_{t|t} (2,, N), G_o (2,, m), κ = (κ1, κ2) of Eq. (S2),
+    the hulls whose ε-inflation (P2_3)-(P2_4) forbids, ε (m), and the area's side (m;
+    None: no area bound)."""
+
+    x0: Array
+    u_prev: Array
+    goal: Array
+    kappa: tuple[float, float]
+    hulls: tuple[Polytope, ...]
+    epsilon_m: float
+    area_size_m: float | None
 
 
 @dataclass(frozen=True)

@@ -33,7 +33,7 @@ from dualpilot.model.geometry import Polytope
 from dualpilot.plan import Objective, Plan, PlanStatus
 from dualpilot.spec import MissionSpec
 from dualpilot.system2.certify.bnb import BranchAndBound, CertifyParams, Outcome
-from dualpilot.system2.certify.model import controls, maps, positions
+from dualpilot.system2.certify.model import Instance, controls, maps, positions
 from dualpilot.system2.certify.relaxation import NodeResult, Pair, Relaxation
 from dualpilot.system2.certify.repair import repair
 from dualpilot.system2.fast.geometry import Inflated
@@ -51,8 +51,9 @@ def relaxation_of(spec: MissionSpec, params: System2Params, state: Array,
     mp = maps(params.horizon, spec.dynamics, speed_sides=params.speed_polygon_sides)
     u_prev = np.zeros(2) if prev_control is None else np.asarray(prev_control, dtype=float)
     area = spec.area_size_m if params.keep_in_area else None
-    return Relaxation(mp, np.asarray(state, dtype=float), u_prev, spec.goal.center,
-                      params.kappa(objective), hulls, spec.clearance_m, area, reach)
+    instance = Instance(np.asarray(state, dtype=float), u_prev, spec.goal.center,
+                        params.kappa(objective), tuple(hulls), spec.clearance_m, area)
+    return Relaxation(mp, instance, reach)
 
 
 class PlanCheck:

@@ -36,9 +36,8 @@ import scipy.sparse as sp
 
 from dualpilot.arrays import AnyArray, Array
 from dualpilot.model.dynamics import reach_boxes
-from dualpilot.model.geometry import Polytope
 from dualpilot.system2.certify.duality import Cones, lagrangian_bound, proves_infeasible
-from dualpilot.system2.certify.model import Maps, Offsets, offsets
+from dualpilot.system2.certify.model import Instance, Maps, Offsets, offsets
 from dualpilot.system2.certify.pieces import cover
 from dualpilot.system2.certify.reach import ReachSets, reach_sets
 
@@ -110,34 +109,24 @@ class Relaxation:
     ----------
     maps : Maps
         Eq. (1) in the positions (:func:`dualpilot.system2.certify.model.maps`).
-    x0, u_prev : array
-        x_t (4,) and u_{t|t} (2,).
-    goal : array
-        G_o (2,), m.
-    kappa : (float, float)
-        (κ1, κ2) of Eq. (S2).
-    hulls : sequence of Polytope
-        The hulls whose ε-inflation (P2_3)-(P2_4) forbids.
-    epsilon_m : float
-        ε of Eq. (P2_3).
-    area_size_m : float or None
-        p_τ ∈ [0, area]² for τ = 1..T (None: no area bound).
+    instance : Instance
+        x_t, u_{t|t}, G_o, κ, the hulls, ε and the area
+        (:class:`dualpilot.system2.certify.model.Instance`).
     reach : bool
         Also bound each position by the reach sets of the hulls
         (:mod:`dualpilot.system2.certify.reach`): its box, its floor ‖p_τ − G_o‖ ≥ d_τ and
         the prefix costs Σ_{σ=2..τ} ‖p_σ − G_o‖² ≥ F_τ, each summand an epigraph t_σ.
     """
 
-    def __init__(self, maps: Maps, x0: Array, u_prev: Array, goal: Array,
-                 kappa: tuple[float, float], hulls: Sequence[Polytope], epsilon_m: float,
-                 area_size_m: float | None, reach: bool = True) -> None:
-        self.maps, self.kappa, self.hulls = maps, kappa, tuple(hulls)
-        self.eps, self.area = float(epsilon_m), area_size_m
-        self.x0 = np.asarray(x0, dtype=float)
-        self.u_prev = np.asarray(u_prev, dtype=float)
-        self.off: Offsets = offsets(maps, self.x0, u_prev)
+    def __init__(self, maps: Maps, instance: Instance, reach: bool = True) -> None:
+        kappa, area_size_m = instance.kappa, instance.area_size_m
+        self.maps, self.kappa, self.hulls = maps, kappa, tuple(instance.hulls)
+        self.eps, self.area = float(instance.epsilon_m), area_size_m
+        self.x0 = np.asarray(instance.x0, dtype=float)
+        self.u_prev = np.asarray(instance.u_prev, dtype=float)
+        self.off: Offsets = offsets(maps, self.x0, instance.u_prev)
         T, s = maps.horizon, maps.scale
-        self.g = np.asarray(goal, dtype=float)[:2] / s
+        self.g = np.asarray(instance.goal, dtype=float)[:2] / s
         self.c = float(kappa[0]) * s * s  # the objective's scale
         lo, hi = reach_boxes(self.x0, T + 1, maps.dynamics)  # p_1..p_{T+1}
         if area_size_m is not None:
