@@ -23,6 +23,7 @@ two axes. Ties go to the deeper node. Lengths m, speeds m/s.
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 from numba import njit
@@ -239,30 +240,14 @@ def astar(origin: Array, t0: int, v_init: AnyArray, boxes: Array, offsets: AnyAr
     """
     h = delta * dt
     sx, sy = origin[0], origin[1]
-    ix0, iy0 = math.ceil(-sx / h - 1e-9), math.ceil(-sy / h - 1e-9)
-    nx = (math.floor((area - sx) / h + 1e-9) - ix0) // bucket + 1
-    ny = (math.floor((area - sy) / h + 1e-9) - iy0) // bucket + 1
-    nv = 2 * n_vel + 1
+    frame = _frame(sx, sy, h, area, bucket, n_vel)
     rel = np.array([goal[0] - sx, goal[1] - sy, goal[2] - sx, goal[3] - sy])
-    nodes = np.empty((1 << 14, 6), dtype=np.int64)  # t, i_x, i_y, j_x, j_y, parent
-    goal_node = np.zeros(1 << 14, dtype=np.bool_)
-    heap = np.empty(1 << 14, dtype=np.int64)
     seen = Dict.empty(key_type=nbt.int64, value_type=nbt.int8)
-    n, size, expansions = 0, 0, 0
     reach = dt * v_max
     floor0 = field_flights(field, field_cell, sx, sy, reach)
-    for r in range(len(v_init)):
-        jx, jy = v_init[r, 0], v_init[r, 1]
-        first = max(flights_needed(0.0, jx, rel[0], rel[2], table, n_vel, max_steps - t0),
-                    flights_needed(0.0, jy, rel[1], rel[3], table, n_vel, max_steps - t0),
-                    floor0)
-        if t0 + first <= max_steps:
-            nodes = _grown(nodes, n + 1)
-            goal_node = _grown(goal_node, n + 1)
-            nodes[n] = (t0, 0, 0, jx, jy, -1)
-            goal_node[n] = False
-            heap = _heap_push(heap, size, _entry(t0, first, weight16, max_steps, n))
-            n, size = n + 1, size + 1
+    nodes, goal_node, heap, n = _start(v_init, t0, rel, table, n_vel, max_steps, floor0,
+                                       weight16)
+    size, expansions = n, 0
     while size > 0:
         if expansions >= budget or n >= (1 << _ID_BITS) - 64:
             return BUDGET, np.empty((0, 5), dtype=np.int64), expansions
@@ -279,32 +264,102 @@ def astar(origin: Array, t0: int, v_init: AnyArray, boxes: Array, offsets: AnyAr
                 ax, ay, bx, by, t, k, boxes, offsets, d):
             continue
         ix1, iy1 = ix + jx, iy + jy
-        if survive > 0:
-            landed = t + 1 >= survive
-        else:
-            landed = rel[0] <= h * ix1 <= rel[2] and rel[1] <= h * iy1 <= rel[3]
+        landed = _lands(t, h * ix1, h * iy1, rel, survive)
         floor = 0 if landed else field_flights(field, field_cell, bx, by, reach)
         if t + 1 + floor > max_steps:
             continue
         succ = np.array([[jx, jy, 0]], dtype=np.int64) if landed else _successors(
             t, h * ix1, h * iy1, jx, jy, rel, delta, dt, n_vel, keep, acc, v_max, norm,
             max_steps, table)
-        cell = (((t + 1) * nx + (ix1 - ix0) // bucket) * ny + (iy1 - iy0) // bucket) * nv
-        for r in range(len(succ)):
-            kx, ky = succ[r, 0], succ[r, 1]
-            key = (cell + kx + n_vel) * nv + ky + n_vel
-            if not landed:
-                if key in seen:
-                    continue
-                seen[key] = np.int8(1)
-            nodes = _grown(nodes, n + 1)
-            goal_node = _grown(goal_node, n + 1)
-            nodes[n] = (t + 1, ix1, iy1, kx, ky, node)
-            goal_node[n] = landed  # this flight ends in G: a terminal node, h = 0
-            hval = max(succ[r, 2], floor)
-            heap = _heap_push(heap, size, _entry(t + 1, hval, weight16, max_steps, n))
-            n, size = n + 1, size + 1
+        nodes, goal_node, heap, n, size = _children(
+            nodes, goal_node, heap, n, size, seen, frame, node, t, ix1, iy1, succ, landed,
+            floor, weight16, max_steps)
     return EXHAUSTED, np.empty((0, 5), dtype=np.int64), expansions
+
+
+@njit(cache=True)
+def _frame(sx: float, sy: float, h: float, area: float, bucket: int, n_vel: int
+           ) -> tuple[int, int, int, int, int, int]:
+    """The grid of the duplicate check: (i_x0, i_y0, nx, ny, ``bucket``, ``n_vel``), the lowest
+    lattice indices inside the area from the origin (sx, sy) at spacing ``h`` (m), the
+    buckets of ``bucket`` × ``bucket`` positions a side, and the velocities an axis."""
+    ix0, iy0 = math.ceil(-sx / h - 1e-9), math.ceil(-sy / h - 1e-9)
+    nx = (math.floor((area - sx) / h + 1e-9) - ix0) // bucket + 1
+    ny = (math.floor((area - sy) / h + 1e-9) - iy0) // bucket + 1
+    return ix0, iy0, nx, ny, bucket, n_vel
+
+
+@njit(cache=True)
+def _start(v_init: AnyArray, t0: int, rel: Array, table: Array, n_vel: int, max_steps: int,
+           floor0: int, weight16: int) -> tuple[AnyArray, AnyArray, AnyArray, int]:
+    """The queue at the start: the origin (lattice position 0, 0) at step ``t0`` with each
+    velocity of ``v_init`` that can still reach G (``rel``, relative to the origin) within
+    ``max_steps``. Returns (nodes, goal flags, heap, count), one heap entry per node."""
+    nodes = np.empty((1 << 14, 6), dtype=np.int64)  # t, i_x, i_y, j_x, j_y, parent
+    goal_node = np.zeros(1 << 14, dtype=np.bool_)
+    heap = np.empty(1 << 14, dtype=np.int64)
+    n = 0
+    for r in range(len(v_init)):
+        jx, jy = v_init[r, 0], v_init[r, 1]
+        first = max(flights_needed(0.0, jx, rel[0], rel[2], table, n_vel, max_steps - t0),
+                    flights_needed(0.0, jy, rel[1], rel[3], table, n_vel, max_steps - t0),
+                    floor0)
+        if t0 + first <= max_steps:
+            nodes, goal_node, heap = _queued(nodes, goal_node, heap, n, n, t0, 0, 0, jx, jy,
+                                             -1, False,
+                                             _entry(t0, first, weight16, max_steps, n))
+            n += 1
+    return nodes, goal_node, heap, n
+
+
+@njit(cache=True)
+def _lands(t: int, px: float, py: float, rel: Array, survive: int) -> bool:
+    """Whether the flight of step t that ends at (px, py) (m from the origin) ends the
+    search: it ends in G (``rel``), or step t + 1 reaches ``survive`` (> 0)."""
+    if survive > 0:
+        return t + 1 >= survive
+    return rel[0] <= px <= rel[2] and rel[1] <= py <= rel[3]
+
+
+@njit(cache=True)
+def _children(nodes: AnyArray, goal_node: AnyArray, heap: AnyArray, n: int, size: int,
+              seen: Any, frame: tuple[int, int, int, int, int, int], node: int, t: int,
+              ix1: int, iy1: int, succ: AnyArray, landed: bool, floor: int, weight16: int,
+              max_steps: int) -> tuple[AnyArray, AnyArray, AnyArray, int, int]:
+    """Queue the children of ``node``, at lattice position (i_x1, i_y1) at step t + 1 with the
+    velocities and heuristics of ``succ`` (at least ``floor``). A child whose step, bucket
+    and velocity (``frame``, :func:`_frame`) were queued before (``seen``) is dropped,
+    unless it ends the search (``landed``: a terminal node, h = 0)."""
+    ix0, iy0, nx, ny, bucket, n_vel = frame
+    nv = 2 * n_vel + 1
+    cell = (((t + 1) * nx + (ix1 - ix0) // bucket) * ny + (iy1 - iy0) // bucket) * nv
+    for r in range(len(succ)):
+        kx, ky = succ[r, 0], succ[r, 1]
+        key = (cell + kx + n_vel) * nv + ky + n_vel
+        if not landed:
+            if key in seen:
+                continue
+            seen[key] = np.int8(1)
+        hval = max(succ[r, 2], floor)
+        nodes, goal_node, heap = _queued(nodes, goal_node, heap, n, size, t + 1, ix1, iy1, kx,
+                                         ky, node, landed,
+                                         _entry(t + 1, hval, weight16, max_steps, n))
+        n, size = n + 1, size + 1
+    return nodes, goal_node, heap, n, size
+
+
+@njit(cache=True)
+def _queued(nodes: AnyArray, goal_node: AnyArray, heap: AnyArray, n: int, size: int, t: int,
+            ix: int, iy: int, jx: int, jy: int, parent: int, landed: bool, entry: np.int64
+            ) -> tuple[AnyArray, AnyArray, AnyArray]:
+    """Node n = (t, i_x, i_y, j_x, j_y, parent), ending the search if ``landed``, with its
+    heap ``entry`` pushed (the heap holding ``size`` entries); the arrays grown as needed."""
+    nodes = _grown(nodes, n + 1)
+    goal_node = _grown(goal_node, n + 1)
+    nodes[n] = (t, ix, iy, jx, jy, parent)
+    goal_node[n] = landed
+    heap = _heap_push(heap, size, entry)
+    return nodes, goal_node, heap
 
 
 @njit(cache=True)
