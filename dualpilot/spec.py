@@ -34,7 +34,7 @@ class Stream(enum.Enum):
 
 #: Seed-sequence key of System 1's stream, apart from the fire and supervisor streams.
 _SYSTEM1_KEY = 7
-#: Seed-sequence key of the fire forecast's streams (dualpilot/model/forecast.py).
+#: Seed-sequence key of the fire forecast's streams (dualpilot/model/front_forecast.py).
 _FORECAST_KEY = 11
 
 

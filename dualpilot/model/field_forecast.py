@@ -1,6 +1,6 @@
 """The occupancy forecast of a fire field's current state, whichever fire process it runs.
 
-The paper's rectangles (Sec. II-B): :func:`dualpilot.model.forecast.forecast` of the
+The paper's rectangles (Sec. II-B): :func:`dualpilot.model.front_forecast.front_forecast` of the
 fronts, their motion paths on the forecast stream of the mission seed and the sub-steps
 done (:func:`dualpilot.spec.forecast_rng`). A fire-behaviour scenario: its level set run
 ahead (:func:`dualpilot.model.physics_forecast.physics_forecast`). The fire port
@@ -12,7 +12,8 @@ from __future__ import annotations
 
 from dualpilot.model.fire import FireParams
 from dualpilot.model.fire_field import FireField
-from dualpilot.model.forecast import ForecastParams, OccupancyForecast, forecast
+from dualpilot.model.forecast import ForecastParams, OccupancyForecast
+from dualpilot.model.front_forecast import front_forecast
 from dualpilot.model.physics_forecast import physics_forecast
 from dualpilot.spec import forecast_rng
 
@@ -30,5 +31,5 @@ def field_forecast(field: FireField, params: ForecastParams, seed: int,
     if field.physics is not None:
         return physics_forecast(field.physics, params, substeps_per_step, field.substeps_done)
     rng = forecast_rng(seed, field.substeps_done) if field.fronts else None
-    return forecast(field.fronts, field.params, field.area_size_m, rng, params,
+    return front_forecast(field.fronts, field.params, field.area_size_m, rng, params,
                     substeps_per_step=substeps_per_step, issued_substep=field.substeps_done)

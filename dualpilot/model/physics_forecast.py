@@ -1,6 +1,6 @@
 """Occupancy forecast of the physics fire process: its level set run ahead, and the births.
 
-The fire-behaviour model's counterpart of :mod:`dualpilot.model.forecast`, on
+The fire-behaviour model's counterpart of :mod:`dualpilot.model.front_forecast`, on
 the same grid, slices and levels (an :class:`OccupancyForecast`). For the
 centre x of a grid cell, k sub-steps (k·T_f seconds) ahead,
 

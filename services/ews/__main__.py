@@ -233,7 +233,7 @@ class Ews:
     def add_occupancy(self, m: fire_pb2.FireForecast) -> None:
         """The occupancy forecast into ``m`` (the in-process fire port's: the paper's fronts on
         their own stream from the mission seed and the sub-steps done, or a scenario's level set
-        run ahead; dualpilot/model/forecast.py), time-steps as long as the latest one."""
+        run ahead; dualpilot/model/field_forecast.py), time-steps as long as the latest one."""
         f = self.field
         if self.occupancy is None or f is None:
             return

@@ -366,11 +366,12 @@ def test_parse_waypoints() -> None:
 
 
 def _occupancy_msg() -> tuple[Any, Any]:
-    from dualpilot.model.forecast import ForecastParams, forecast
+    from dualpilot.model.forecast import ForecastParams
+    from dualpilot.model.front_forecast import front_forecast
 
     field = _fires()
-    fc = forecast(field.fronts, field.params, 1000.0, np.random.default_rng(2),
-                  ForecastParams(horizon_s=4.0), substeps_per_step=3, issued_substep=12)
+    fc = front_forecast(field.fronts, field.params, 1000.0, np.random.default_rng(2),
+                        ForecastParams(horizon_s=4.0), substeps_per_step=3, issued_substep=12)
     msg = fire_pb2.FireForecast(substeps_done=12, substep_s=0.5)
     wire.Stamper("ews", "uav1").stamp(msg.header, 6.0)
     fire_convert.occupancy_to_msg(fc, msg.occupancy)

@@ -14,11 +14,13 @@ from dualpilot.model.forecast import (
     LEVELS,
     ForecastParams,
     OccupancyForecast,
-    area_cover,
-    forecast,
     life_events,
-    mean_displacement,
     occupancy,
+)
+from dualpilot.model.front_forecast import (
+    area_cover,
+    front_forecast,
+    mean_displacement,
     side_cover,
 )
 from dualpilot.model.geometry import Rect
@@ -78,7 +80,7 @@ def test_horizon_zero_is_the_current_occupancy() -> None:
     field = FireField()
     for _ in range(3):
         field.spawn(rng, 0)
-    fc = forecast(field.fronts, field.params, 1000.0, forecast_rng(1, 0))
+    fc = front_forecast(field.fronts, field.params, 1000.0, forecast_rng(1, 0))
     now = occupancy([f.region for f in field.fronts], fc.resolution_m, fc.shape)
     assert fc.horizons[0] == 0
     assert np.array_equal(fc.levels[0], np.where(now, LEVELS, 0))
@@ -91,7 +93,7 @@ def test_no_noise_no_births_kept_sides_is_the_propagated_region() -> None:
                       extent="birth")
     field = FireField(params=fire)
     field.fronts.append(front(Rect(312.3, 287.9, 163.1, 121.7), speed=4.0, direction=0.3))
-    fc = forecast(field.fronts, fire, 1000.0, np.random.default_rng(0), SHORT)
+    fc = front_forecast(field.fronts, fire, 1000.0, np.random.default_rng(0), SHORT)
     rng = np.random.default_rng(9)
     for k in range(fc.max_substeps + 1):
         if k in fc.horizons:
@@ -104,8 +106,8 @@ def test_no_noise_no_births_kept_sides_is_the_propagated_region() -> None:
 def test_no_noise_redrawn_sides_by_hand() -> None:
     """A still front whose sides are redrawn from U[100, 250]: a cell at offset (dx, dy) is
     covered with f(dx)·f(dy)."""
-    fc = forecast([front(Rect(505.0, 505.0, 120.0, 120.0))], STILL, 1000.0,
-                  np.random.default_rng(0), SHORT)
+    fc = front_forecast([front(Rect(505.0, 505.0, 120.0, 120.0))], STILL, 1000.0,
+                        np.random.default_rng(0), SHORT)
     i = fc.horizons.index(4)
     for (dx, dy), p in {(0, 0): 1.0, (50, 50): 1.0, (100, 0): 1 / 3, (80, 40): 0.6,
                         (-100, 100): 1 / 9, (200, 0): 0.0}.items():
@@ -116,8 +118,8 @@ def test_no_noise_redrawn_sides_by_hand() -> None:
 
 def test_far_cell_without_births_is_zero() -> None:
     fire = replace(FireParams(), p_birth=0.0)
-    fc = forecast([front(Rect(200.0, 200.0, 150.0, 150.0), speed=3.0, direction=np.pi / 4)],
-                  fire, 1000.0, np.random.default_rng(1))
+    fc = front_forecast([front(Rect(200.0, 200.0, 150.0, 150.0), speed=3.0, direction=np.pi / 4)],
+                        fire, 1000.0, np.random.default_rng(1))
     assert np.all(fc.levels[:, 90:, 90:] == 0)  # cells around (950, 950), every horizon
     assert fc.levels.max() == LEVELS
 
@@ -128,8 +130,8 @@ def test_survival_by_hand() -> None:
         ("substep", 1, {2: 0.25, 4: 0.0625}), ("step", 4, {2: 0.5, 4: 0.5, 6: 0.25}))
     for life_base, n, expect in cases:
         fire = replace(STILL, p_survive=0.5, extent="birth", life_base=life_base)
-        fc = forecast([front(Rect(505.0, 505.0, 100.0, 100.0))], fire, 1000.0,
-                      np.random.default_rng(0), SHORT, substeps_per_step=n)
+        fc = front_forecast([front(Rect(505.0, 505.0, 100.0, 100.0))], fire, 1000.0,
+                            np.random.default_rng(0), SHORT, substeps_per_step=n)
         for k, p in expect.items():
             assert level_at(fc, fc.horizons.index(k), 505.0, 505.0) == round(LEVELS * p)
 
@@ -138,7 +140,7 @@ def test_births_only_in_the_interior_by_hand() -> None:
     """No fronts: an interior cell is covered by a front born j sub-steps ago with
     p_b·p_s^j·0.175², so B_k = 1 − Π_{j<k} (1 − p_b p_s^j 0.030625)."""
     fire = FireParams()
-    fc = forecast([], fire, 1000.0, np.random.default_rng(0), SHORT)
+    fc = front_forecast([], fire, 1000.0, np.random.default_rng(0), SHORT)
     for k in fc.horizons:
         b = 1.0 - np.prod([1.0 - 0.1 * 0.75 ** j * 0.175 ** 2 for j in range(k)])
         assert level_at(fc, fc.horizons.index(k), 505.0, 505.0) == round(LEVELS * b), k
@@ -152,8 +154,8 @@ def test_probabilities_are_deterministic_and_in_range() -> None:
     field = FireField()
     for _ in range(4):
         field.spawn(rng, 0)
-    a = forecast(field.fronts, field.params, 1000.0, forecast_rng(5, 12))
-    b = forecast(field.fronts, field.params, 1000.0, forecast_rng(5, 12))
+    a = front_forecast(field.fronts, field.params, 1000.0, forecast_rng(5, 12))
+    b = front_forecast(field.fronts, field.params, 1000.0, forecast_rng(5, 12))
     assert np.array_equal(a.levels, b.levels)
     p = np.stack([a.probability(i) for i in range(len(a.horizons))])
     assert p.min() >= 0.0 and p.max() <= 1.0
@@ -188,7 +190,8 @@ def test_forecast_matches_the_fire_process(fire: FireParams, n: int) -> None:
     fronts = [front(Rect(420.0, 380.0, 210.0, 140.0), 3.4, 0.9, 0),
               front(Rect(560.0, 470.0, 120.0, 180.0), 2.2, 0.6, 1)]
     params = ForecastParams(resolution_m=20.0, horizon_s=6.0, interval_s=2.0, members=64)
-    fc = forecast(fronts, fire, 1000.0, np.random.default_rng(11), params, substeps_per_step=n)
+    fc = front_forecast(fronts, fire, 1000.0, np.random.default_rng(11), params,
+                        substeps_per_step=n)
     freq = _empirical(fronts, fire, fc.horizons, 3000, 20.0, n)
     p = np.stack([fc.probability(i) for i in range(len(fc.horizons))])
     assert np.abs(p - freq).max() < 0.05
