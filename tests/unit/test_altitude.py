@@ -109,14 +109,14 @@ def test_paper_cuboid_heights():
     tall = FireHeightParams()
     assert not tall.draws
     assert cuboid_top_m(tall, band, 25.0) == 145.0  # ceiling + ε: taller than the band
-    uniform = FireHeightParams(reading="uniform")
+    uniform = FireHeightParams(fire_height="uniform")
     tops = [cuboid_top_m(uniform, band, 25.0, np.random.default_rng(k)) for k in range(500)]
     assert min(tops) >= 100.0 and max(tops) <= 250.0
     # the same draw as numpy's U[100, 250] of that generator
     assert tops[0] == np.random.default_rng(0).uniform(100.0, 250.0)
     with pytest.raises(ValueError, match="needs a generator"):
         cuboid_top_m(uniform, band, 25.0)
-    with pytest.raises(ValueError, match="reading must be one of"):
-        FireHeightParams(reading="tall")  # type: ignore[arg-type]
-    with pytest.raises(ValueError, match="min_m <= max_m"):
-        FireHeightParams(min_m=300.0)
+    with pytest.raises(ValueError, match="fire_height must be one of"):
+        FireHeightParams(fire_height="tall")  # type: ignore[arg-type]
+    with pytest.raises(ValueError, match="fire_height_min_m <= fire_height_max_m"):
+        FireHeightParams(fire_height_min_m=300.0)
