@@ -80,3 +80,14 @@ def test_a_flat_set_has_no_hull():
         Polytope3.from_points([[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0]])
     with pytest.raises(ValueError, match="finite"):
         Polytope3.from_points(np.array([[0, 0, math.nan], [1, 0, 0], [0, 1, 0], [0, 0, 1]]))
+
+
+def test_with_one_height_the_exact_hull_is_the_swept_prism():
+    rng = np.random.default_rng(8)
+    cuboids = [Prism.cuboid(Rect(*rng.uniform(0.0, 50.0, 2), *rng.uniform(5.0, 20.0, 2)),
+                            0.0, 30.0) for _ in range(4)]
+    hull, swept = Polytope3.hull_of(cuboids), Prism.swept(cuboids)
+    assert hull.n_faces == swept.n_faces
+    assert _rows(hull.A, hull.b) == _rows(swept.A, swept.b)
+    for p in rng.uniform([-20, -20, -10], [80, 80, 50], size=(100, 3)):
+        assert hull.distance(p) == pytest.approx(swept.distance(p), abs=1e-9)
