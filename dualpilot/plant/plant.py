@@ -177,7 +177,7 @@ class MultirotorPlant:
         seen = np.vstack([before[None, :], after[:-1]])
         path = fly(self.x, setpoints, 1.0 / mr.setpoint_hz, wind, seen, mr)
         self._measured = self._measure()
-        times = np.arange(n + 1) * dt
+        times = np.arange(n + 1, dtype=np.float64) * dt
         held = np.minimum((times * mr.setpoint_hz + 1e-9).astype(int), len(setpoints) - 1)
         return Flight(times, path[:, :3], path[:, 3:], np.asarray(setpoints)[held, :3],
                       self.state, self._measured.copy(), wind)
