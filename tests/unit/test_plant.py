@@ -26,7 +26,7 @@ ALT = 50.0
 MR = MultirotorParams()
 
 
-def _hold(target: np.ndarray, seconds: float, params: MultirotorParams = MR) -> np.ndarray:
+def _hold(target: list[float], seconds: float, params: MultirotorParams = MR) -> np.ndarray:
     sp = np.zeros((1, 9))
     sp[0, :3] = target
     return np.repeat(sp, int(seconds * params.setpoint_hz), axis=0)
