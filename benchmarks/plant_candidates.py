@@ -7,7 +7,7 @@ limit, and a 60 s flight for the wall time per simulated second at 100 and
 environment that has them (``pip install rotorpy==3.0.0 jsbsim==1.3.3
 torch==2.13.0`` beside the project's pins), from the repository root::
 
-    PYTHONPATH=. /tmp/plant-venv/bin/python benchmarks/plant_candidates.py
+    PYTHONPATH=. VENV/bin/python benchmarks/plant_candidates.py
 
 A candidate whose package is missing is reported as such. Prints one JSON document.
 """

@@ -15,6 +15,8 @@ departs from it by ΔT (τ² − τ³) ‖v_t − v_{t+1}‖ at τ = s/ΔT, at m
 
 from __future__ import annotations
 
+from functools import lru_cache
+
 import numpy as np
 
 from dualpilot.arrays import Array
@@ -31,6 +33,21 @@ def to_plant(x: Array, dim: int, altitude_m: float) -> tuple[Array, Array]:
     return p, v
 
 
+@lru_cache(maxsize=16)
+def _hermite_basis(n: int, samples_per_s: float, duration_s: float) -> Array:
+    """(3n, 4) weights of [p0, ΔT·v0, p1, ΔT·v1] for position, velocity·ΔT and
+    acceleration·ΔT² at τ = k/(duration·rate), k < n."""
+    tau = np.arange(n) / (duration_s * samples_per_s)
+    t2, t3 = tau**2, tau**3
+    pos = np.column_stack([2 * t3 - 3 * t2 + 1, t3 - 2 * t2 + tau, -2 * t3 + 3 * t2, t3 - t2])
+    vel = np.column_stack([6 * t2 - 6 * tau, 3 * t2 - 4 * tau + 1, -6 * t2 + 6 * tau,
+                           3 * t2 - 2 * tau])
+    acc = np.column_stack([12 * tau - 6, 6 * tau - 4, -12 * tau + 6, 6 * tau - 2])
+    out = np.vstack([pos, vel, acc])
+    out.setflags(write=False)
+    return out
+
+
 def hermite_stream(start: Array, end: Array, duration_s: float, rate_hz: float,
                    dim: int, altitude_m: float) -> Array:
     """Setpoints (S, 9) of [p, v, a] (ENU; m, m/s, m/s²) at t = k/rate_hz, k < S, over one
@@ -38,15 +55,9 @@ def hermite_stream(start: Array, end: Array, duration_s: float, rate_hz: float,
     p0, v0 = to_plant(start, dim, altitude_m)
     p1, v1 = to_plant(end, dim, altitude_m)
     n = max(int(round(duration_s * rate_hz)), 1)
-    tau = (np.arange(n) / (duration_s * rate_hz))[:, None]
     d = duration_s
-    pos = ((2 * tau**3 - 3 * tau**2 + 1) * p0 + (tau**3 - 2 * tau**2 + tau) * d * v0
-           + (-2 * tau**3 + 3 * tau**2) * p1 + (tau**3 - tau**2) * d * v1)
-    vel = ((6 * tau**2 - 6 * tau) * p0 / d + (3 * tau**2 - 4 * tau + 1) * v0
-           + (-6 * tau**2 + 6 * tau) * p1 / d + (3 * tau**2 - 2 * tau) * v1)
-    acc = ((12 * tau - 6) * p0 / d**2 + (6 * tau - 4) * v0 / d
-           + (-12 * tau + 6) * p1 / d**2 + (6 * tau - 2) * v1 / d)
-    return np.hstack([pos, vel, acc])
+    curve = _hermite_basis(n, rate_hz, d) @ np.vstack([p0, d * v0, p1, d * v1])
+    return np.hstack([curve[:n], curve[n:2 * n] / d, curve[2 * n:] / d**2])
 
 
 def segment_path(start: Array, times_s: Array, dim: int, altitude_m: float) -> Array:

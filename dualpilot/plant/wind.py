@@ -129,8 +129,12 @@ def second_order_step(h: float) -> tuple[Array, Array]:
     """
     phi = math.exp(-h) * np.array([[1.0, 0.0], [h, 1.0]])
     q = _P2 - phi @ _P2 @ phi.T
-    # q is positive definite for h > 0; a tiny h can leave it semi-definite in floating point
-    return phi, np.linalg.cholesky(q + 1e-15 * np.eye(2))
+    # Cholesky of the 2×2 q, written out; q is positive definite for h > 0, and a tiny h can
+    # leave it semi-definite in floating point (hence the floors)
+    l11 = math.sqrt(max(q[0, 0], 0.0))
+    l21 = q[1, 0] / l11 if l11 > 0 else 0.0
+    l22 = math.sqrt(max(q[1, 1] - l21 * l21, 0.0))
+    return phi, np.array([[l11, 0.0], [l21, l22]])
 
 
 class DrydenTurbulence:
