@@ -21,6 +21,7 @@ from collections.abc import Callable
 from typing import Any
 
 import numpy as np
+from numba import njit
 
 from dualpilot.model.dynamics import DynamicsParams, step
 from dualpilot.plant.multirotor import (
@@ -193,36 +194,21 @@ def jsbsim_flyer() -> Flyer:
         x[V:V + 3] = v0
         x[VPREV:VPREV + 3] = v0
         dt = 1.0 / rate_hz
-        r_earth = 6378137.0
-        path = []
-        hover_throttle = 0.42  # trimmed: F450 climbs at 0.45 and sinks at 0.40 (this script)
-        for k in range(int(seconds * rate_hz) + 1):
-            east = (fdm["position/long-gc-rad"] - lon0) * r_earth * math.cos(lat0) + p0[0]
-            north = (fdm["position/lat-geod-rad"] - lat0) * r_earth + p0[1]
-            up = fdm["position/h-agl-ft"] * FT
-            vel = np.array([fdm["velocities/v-east-fps"], fdm["velocities/v-north-fps"],
-                            -fdm["velocities/v-down-fps"]]) * FT
-            x[0:3], x[V:V + 3] = (east, north, up), vel
-            path.append(np.concatenate([x[:3], vel]))
-            if k == int(seconds * rate_hz):
-                break
+        names = ["position/long-gc-rad", "position/lat-geod-rad", "position/h-agl-ft",
+                 "velocities/v-east-fps", "velocities/v-north-fps", "velocities/v-down-fps",
+                 "attitude/phi-rad", "attitude/theta-rad", "attitude/psi-rad"]
+        origin = np.array([lon0, lat0, p0[0], p0[1]])
+        steps = int(seconds * rate_hz)
+        path = np.empty((steps + 1, 6))
+        for k in range(steps + 1):
+            reads = np.array([fdm[name] for name in names])
             s = sp[min(int(k * dt * 20 + 1e-9), len(sp) - 1)]
-            thr = _control(x, s, np.zeros(3), prm, dt)
-            phi, theta, psi = (fdm["attitude/phi-rad"], fdm["attitude/theta-rad"],
-                               fdm["attitude/psi-rad"])
-            rot = _body_to_ned(phi, theta, psi)
-            b3_ned = -rot[:, 2]
-            b3 = np.array([b3_ned[1], b3_ned[0], -b3_ned[2]])
-            bd = thr / np.linalg.norm(thr)
-            axis = np.cross(b3, bd)
-            sn = np.linalg.norm(axis)
-            ang = math.atan2(sn, float(b3 @ bd))
-            w_enu = axis / sn * min(prm[23] * ang, prm[24]) if sn > 1e-12 else np.zeros(3)
-            w_body = rot.T @ np.array([w_enu[1], w_enu[0], -w_enu[2]])
-            fdm["fcs/aileron-cmd-norm"] = float(np.clip(w_body[0] / 0.75, -1, 1))
-            fdm["fcs/elevator-cmd-norm"] = float(np.clip(w_body[1] / 0.75, -1, 1))
-            frac = float(np.linalg.norm(thr)) / prm[21]
-            fdm["fcs/throttle-cmd-norm"] = hover_throttle * math.sqrt(max(frac, 0.0))
+            cmd = _jsb_glue(reads, s, x, prm, dt, origin, path[k])
+            if k == steps:
+                break
+            fdm["fcs/aileron-cmd-norm"] = cmd[0]
+            fdm["fcs/elevator-cmd-norm"] = cmd[1]
+            fdm["fcs/throttle-cmd-norm"] = cmd[2]
             fdm.run()
         return np.array(path)
 
@@ -254,6 +240,40 @@ def jsbsim_floor(rate_hz: float, seconds: float = 60.0) -> float:
     return (time.perf_counter() - t0) / seconds
 
 
+#: the F450's hover throttle, trimmed by hand: it climbs at 0.45 and sinks at 0.40
+HOVER_THROTTLE = 0.42
+
+
+@njit(cache=True)
+def _jsb_glue(reads: np.ndarray, sp: np.ndarray, x: np.ndarray, prm: np.ndarray, dt: float,
+              origin: np.ndarray, out: np.ndarray) -> np.ndarray:
+    """One step of our controller on JSBSim's F450 (one compiled call): local ENU state from
+    the reads, PX4's position control, the attitude P as body-rate references for the F450's
+    rate loop (``fcs/ScasEngage``, 0.75 rad/s per unit) and the throttle; writes [p, v] to
+    ``out`` and returns (aileron, elevator, throttle) commands."""
+    r_earth = 6378137.0
+    x[0] = (reads[0] - origin[0]) * r_earth * math.cos(origin[1]) + origin[2]
+    x[1] = (reads[1] - origin[1]) * r_earth + origin[3]
+    x[2] = reads[2] * FT
+    x[V], x[V + 1], x[V + 2] = reads[3] * FT, reads[4] * FT, -reads[5] * FT
+    out[:3], out[3:] = x[:3], x[V:V + 3]
+    thr = _control(x, sp, np.zeros(3), prm, dt)
+    rot = _body_to_ned(reads[6], reads[7], reads[8])
+    b3 = np.array([-rot[1, 2], -rot[0, 2], rot[2, 2]])
+    bd = thr / np.sqrt(np.sum(thr * thr))
+    axis = np.cross(b3, bd)
+    sn = np.sqrt(np.sum(axis * axis))
+    w_enu = np.zeros(3)
+    if sn > 1e-12:
+        w_enu = axis / sn * min(prm[23] * math.atan2(sn, np.sum(b3 * bd)), prm[24])
+    w_body = rot.T @ np.array([w_enu[1], w_enu[0], -w_enu[2]])
+    frac = np.sqrt(np.sum(thr * thr)) / prm[21]
+    return np.array([min(max(w_body[0] / 0.75, -1.0), 1.0),
+                     min(max(w_body[1] / 0.75, -1.0), 1.0),
+                     HOVER_THROTTLE * math.sqrt(max(frac, 0.0))])
+
+
+@njit(cache=True)
 def _body_to_ned(phi: float, theta: float, psi: float) -> np.ndarray:
     cf, sf, ct, st, cp, sp = (math.cos(phi), math.sin(phi), math.cos(theta), math.sin(theta),
                               math.cos(psi), math.sin(psi))

@@ -12,8 +12,10 @@ given turbulence and GPS error. Two replays:
   re-anchored (how far the plant drifts from the ideal flight as a whole).
 
 Distances are taken at every integration step (100 Hz) against Eq. (1)'s straight
-segment. The mean wind blows towards a direction drawn per mission; wind and
-sensor streams come from the mission seed. Run under the heavy lock::
+segment, in 3-D (``path``) and horizontally (``path_horizontal``, what the 2-D
+missions' d_safe measures), and at the step ends. The mean wind blows towards a
+direction drawn per mission; wind and sensor streams come from the mission seed.
+Run under the heavy lock::
 
     flock /tmp/dualpilot-heavy.lock .venv/bin/python benchmarks/plant_tracking.py \\
         --missions 20 --winds 0,5,10 --turbulence moderate --gps-sigma 1.5 --out runs/plant
@@ -50,20 +52,22 @@ def flown_plans(missions: int, controller: str) -> list[tuple[int, list[tuple[Ar
 
 
 def replay(steps: list[tuple[Array, Array]], plant_params: PlantParams, seed: int,
-           dyn: DynamicsParams, mode: str) -> tuple[Array, Array, float]:
-    """Errors at 100 Hz (m), errors at the step ends (m), and wall time per step (s)."""
+           dyn: DynamicsParams, mode: str) -> tuple[Array, Array, Array, float]:
+    """3-D and horizontal errors at 100 Hz (m), 3-D errors at the step ends (m), and the
+    plant's wall time per step (s)."""
     rng = np.random.default_rng(np.random.SeedSequence([seed, _PLANT_KEY]))
     plant = make_plant(plant_params, steps[0][0], dyn, rng)
-    errs, ends = [], []
+    errs, flat, ends = [], [], []
     t0 = time.perf_counter()
     for state, control in steps:
         start = plant.measure() if mode == "measured" else state
         flight = plant.fly(start, control)
         e = flight.tracking_error_m()
         errs.append(e[1:])
+        flat.append(flight.tracking_error_m(axes=2)[1:])
         ends.append(e[-1])
     wall = (time.perf_counter() - t0) / len(steps)
-    return np.concatenate(errs), np.array(ends), wall
+    return np.concatenate(errs), np.concatenate(flat), np.array(ends), wall
 
 
 def stats(e: Array) -> dict[str, float]:
@@ -92,7 +96,7 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     for wind in [float(w) for w in args.winds.split(",")]:
         row: dict[str, Any] = {}
         for mode in ("measured", "trajectory"):
-            errs, ends, walls = [], [], []
+            errs, flats, ends, walls = [], [], [], []
             for seed, mission_steps in plans:
                 direction = np.random.default_rng(seed).uniform(0.0, 2.0 * math.pi)
                 turb: Turbulence = args.turbulence  # checked by WindParams
@@ -101,11 +105,13 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
                     wind=WindParams(wind_speed_mps=wind, wind_dir_rad=float(direction),
                                     turbulence=turb),
                     gps=GpsParams(gps_sigma_m=args.gps_sigma))
-                e, end, wall = replay(mission_steps, params, seed, dyn, mode)
+                e, flat, end, wall = replay(mission_steps, params, seed, dyn, mode)
                 errs.append(e)
+                flats.append(flat)
                 ends.append(end)
                 walls.append(wall)
             row[mode] = {"path": stats(np.concatenate(errs)),
+                         "path_horizontal": stats(np.concatenate(flats)),
                          "step_end": stats(np.concatenate(ends)),
                          "plant_wall_s_per_step": float(np.median(walls))}
         report["winds"][f"{wind:g}"] = row

@@ -66,9 +66,11 @@ class Flight:
     measured: Array
     wind: Array
 
-    def tracking_error_m(self) -> Array:
-        """‖flown − Eq. (1) path‖ (m) at each integration time."""
-        return np.asarray(np.linalg.norm(self.positions - self.reference, axis=1))
+    def tracking_error_m(self, axes: int = 3) -> Array:
+        """‖flown − Eq. (1) path‖ (m) at each integration time, over the first ``axes`` axes
+        (2: the horizontal distance, what the 2-D missions' d_safe measures)."""
+        diff = self.positions[:, :axes] - self.reference[:, :axes]
+        return np.asarray(np.linalg.norm(diff, axis=1))
 
 
 class Plant(Protocol):
