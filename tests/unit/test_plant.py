@@ -200,3 +200,16 @@ def test_plant_params_reject_unknown_kind() -> None:
         PlantParams(kind="rocket")  # type: ignore[arg-type]
     with pytest.raises(ValueError, match="rate_hz >= 100"):
         MultirotorParams(rate_hz=50.0)
+
+
+def test_three_d_state_maps_z_to_altitude_and_climbs() -> None:
+    dyn = DynamicsParams(dim=3)
+    x = np.array([50.0, 50.0, 60.0, 0.0, 0.0, 0.0])
+    plant = MultirotorPlant(x, dyn, np.random.default_rng(0))
+    assert np.array_equal(plant.state, x)  # no altitude offset in 3-D
+    worst = 0.0
+    for u in [np.array([2.0, 0.0, 2.0])] * 4:  # climbs at ≤ 2.9 m/s, under MPC_Z_VEL_MAX_UP
+        flight = plant.fly(plant.measure(), u)
+        worst = max(worst, float(flight.tracking_error_m().max()))
+        assert flight.reference[0, 2] == pytest.approx(flight.positions[0, 2], abs=1e-9)
+    assert plant.state[2] > 65.0 and worst < 1.0
