@@ -15,9 +15,9 @@ Distances are taken at every integration step (100 Hz) against Eq. (1)'s straigh
 segment, in 3-D (``path``) and horizontally (``path_horizontal``, what the 2-D
 missions' d_safe measures), and at the step ends. The mean wind blows towards a
 direction drawn per mission; wind and sensor streams come from the mission seed.
-Run under the heavy lock::
+Run it alone on the machine (it times the plant)::
 
-    flock /tmp/dualpilot-heavy.lock .venv/bin/python benchmarks/plant_tracking.py \\
+    .venv/bin/python benchmarks/plant_tracking.py \\
         --missions 20 --winds 0,5,10 --turbulence moderate --gps-sigma 1.5 --out runs/plant
 """
 
