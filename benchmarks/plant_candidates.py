@@ -3,9 +3,10 @@
 Runs each candidate on the same flights: a 10 m position step, a 1 s Eq. (1)
 segment flown from steady flight at 10 m/s, an acceleration beyond the tilt
 limit, and a 60 s flight for the wall time per simulated second at 100 and
-200 Hz. RotorPy and JSBSim are not project dependencies: run this in a scratch
-environment that has them (``pip install rotorpy==3.0.0 jsbsim==1.3.3
-torch==2.13.0`` beside the project's pins), from the repository root::
+200 Hz. RotorPy, JSBSim and PyFlyt (speed only) are not project dependencies: run
+this in a scratch environment that has them (``pip install rotorpy==3.0.0
+jsbsim==1.3.3 torch==2.13.0 pyflyt==0.29.0`` beside the project's pins; PyFlyt
+brings numpy 1.26), from the repository root::
 
     PYTHONPATH=. VENV/bin/python benchmarks/plant_candidates.py
 
@@ -284,6 +285,21 @@ def _body_to_ned(phi: float, theta: float, psi: float) -> np.ndarray:
     ])
 
 
+def pyflyt_wall_per_sim_s(seconds: float = 20.0) -> float:
+    """PyFlyt's QuadX (PyBullet at 240 Hz, its cascade at 120 Hz) holding a position
+    setpoint: wall (s) per simulated second; speed only."""
+    from PyFlyt.core import Aviary
+
+    env = Aviary(start_pos=np.array([[0.0, 0.0, ALT_M]]), start_orn=np.zeros((1, 3)),
+                 render=False, drone_type="quadx", seed=0)
+    env.set_mode(7)  # QuadX mode 7: position (x, y), yaw and altitude
+    env.set_setpoint(0, np.array([10.0, 0.0, 0.0, ALT_M]))
+    t0 = time.perf_counter()
+    while env.elapsed_time < seconds:
+        env.step()
+    return (time.perf_counter() - t0) / env.elapsed_time
+
+
 def measure(name: str, fly_fn: Flyer, slow: bool) -> dict[str, Any]:
     res: dict[str, Any] = {}
     for rate in (100.0, 200.0):
@@ -315,6 +331,10 @@ def main() -> None:
                 1e3 * jsbsim_floor(rate)
     except ImportError as exc:
         report["jsbsim_f450"] = {"missing": str(exc)}
+    try:
+        report["pyflyt"] = {"wall_ms_per_sim_s_240hz": 1e3 * pyflyt_wall_per_sim_s()}
+    except ImportError as exc:
+        report["pyflyt"] = {"missing": str(exc)}
     print(json.dumps(report, indent=2))
 
 
