@@ -116,3 +116,25 @@ def test_zero_gps_sigma_measures_exactly() -> None:
     mp, mv = gps.measure(p, v)
     assert np.array_equal(mp, p) and np.array_equal(mv, v)
     assert not gps.sample(10, 0.01).any()
+
+
+def test_dryden_spectra_follow_mil_f_8785c() -> None:
+    """Welch PSDs of u and w against the spec's spatial spectra mapped to time, S(f) =
+    Φ(2πf/V)·2π/V (one-sided, Hz): Φ_u = σ²(2L/π)/(1 + (LΩ)²), Φ_w = σ²(L/π)(1 + 3(LΩ)²)/
+    (1 + (LΩ)²)², averaged over bands from 0.03 to 2 Hz."""
+    from scipy.signal import welch
+
+    turb = DrydenTurbulence(50.0, 15.4333, np.random.default_rng(21))
+    fs, air = 20.0, 100.0
+    samples = np.vstack([turb.sample(20_000, 1.0 / fs, air) for _ in range(40)])
+    sigma, length = turb.sigma, turb.length
+    f, psd = welch(samples, fs=fs, nperseg=4096, axis=0)
+    omega = 2 * np.pi * f / air
+    lu, lw = length[0], length[2]
+    phi_u = sigma[0] ** 2 * (2 * lu / np.pi) / (1 + (lu * omega) ** 2)
+    phi_w = sigma[2] ** 2 * (lw / np.pi) * (1 + 3 * (lw * omega) ** 2) / (1 + (lw * omega) ** 2) ** 2
+    for lo, hi in ((0.03, 0.1), (0.1, 0.3), (0.3, 1.0), (1.0, 2.0)):
+        band = (f >= lo) & (f < hi)
+        for col, phi in ((0, phi_u), (2, phi_w)):
+            expect = float(np.mean(phi[band] * 2 * np.pi / air))
+            assert float(np.mean(psd[band, col])) == pytest.approx(expect, rel=0.06)
