@@ -132,7 +132,8 @@ def test_dryden_spectra_follow_mil_f_8785c() -> None:
     omega = 2 * np.pi * f / air
     lu, lw = length[0], length[2]
     phi_u = sigma[0] ** 2 * (2 * lu / np.pi) / (1 + (lu * omega) ** 2)
-    phi_w = sigma[2] ** 2 * (lw / np.pi) * (1 + 3 * (lw * omega) ** 2) / (1 + (lw * omega) ** 2) ** 2
+    xw = (lw * omega) ** 2
+    phi_w = sigma[2] ** 2 * (lw / np.pi) * (1 + 3 * xw) / (1 + xw) ** 2
     for lo, hi in ((0.03, 0.1), (0.1, 0.3), (0.3, 1.0), (1.0, 2.0)):
         band = (f >= lo) & (f < hi)
         for col, phi in ((0, phi_u), (2, phi_w)):
