@@ -6,13 +6,17 @@ the planners of its controller and the vehicle (liveliness tokens and a
 MAVLink heartbeat), flies one mission (services/supervisor/session.py), writes
 its records and announces the end on ``mission/event``; the exit code it
 returns is :data:`~services.supervisor.options.EXIT_SUCCESS`,
-``EXIT_ABORTED`` or ``EXIT_FAILED``.
+``EXIT_ABORTED`` or ``EXIT_FAILED``. What it opens — the liveliness tracker,
+the transport to the services and the vehicle's link — comes from a
+:class:`Stack` (the process's: :class:`ZenohStack`), the seam a unit test
+replaces (tests/unit/test_supervisor_companion.py).
 """
 
 from __future__ import annotations
 
 import logging
 import time
+from typing import Protocol
 
 import zenoh
 
@@ -20,9 +24,9 @@ from services.common import bus, keys, rejections, wire
 from services.common.clock import SimClock
 from services.common.log import fields
 
-from .link import VehicleLink
+from .link import LinkParams, VehicleLink
 from .options import EXIT_ABORTED, EXIT_FAILED, EXIT_SUCCESS, Options
-from .ports import Bus
+from .ports import StackBus, StackTransport, ZenohStackTransport
 from .record import RunRecord
 from .session import Aborted, StackSession, VehicleGone
 
@@ -39,10 +43,55 @@ def other_supervisors(session: zenoh.Session, uav: str, timeout_s: float = 2.0) 
     return found
 
 
+class Stack(Protocol):
+    """What the companion opens to fly one vehicle."""
+
+    def own_id(self) -> str:
+        """This process's id among the services (its Zenoh session's)."""
+        ...
+
+    def holders(self, uav: str) -> list[str]:
+        """The supervisors holding ``uav`` now ([] if none)."""
+        ...
+
+    def liveliness(self, uav: str) -> bus.Liveliness:
+        """Who of ``uav``'s services is alive."""
+        ...
+
+    def transport(self) -> StackTransport:
+        """The mission's transport to the services."""
+        ...
+
+    def link(self, params: LinkParams) -> VehicleLink:
+        """The vehicle's MAVLink link (not started)."""
+        ...
+
+
+class ZenohStack:
+    """The supervisor process's stack: its Zenoh session and MAVLink links."""
+
+    def __init__(self, session: zenoh.Session):
+        self.session = session
+
+    def own_id(self) -> str:
+        return str(self.session.info.zid())
+
+    def holders(self, uav: str) -> list[str]:
+        return other_supervisors(self.session, uav)
+
+    def liveliness(self, uav: str) -> bus.Liveliness:
+        return bus.Liveliness(self.session, uav)
+
+    def transport(self) -> StackTransport:
+        return ZenohStackTransport(self.session)
+
+    def link(self, params: LinkParams) -> VehicleLink:
+        return VehicleLink(params)
+
+
 def _ready(ctx: bus.Context, opts: Options, k: int, link: VehicleLink,
-           live: bus.Liveliness) -> int | None:
+           live: bus.Liveliness, own: str) -> int | None:
     """Wait for the services and the vehicle; None when ready, else the exit code."""
-    own = str(ctx.session.info.zid()) if ctx.session is not None else ""
     live.wait_for(["supervisor"], 5.0, ctx.stop)
     if live.holder("supervisor") not in ("", own):  # another started at the same time
         log.error("another supervisor claimed this vehicle first: not starting",
@@ -57,7 +106,7 @@ def _ready(ctx: bus.Context, opts: Options, k: int, link: VehicleLink,
         return EXIT_ABORTED
     if ctx.stop.wait(k * opts.stagger_s):
         return EXIT_SUCCESS
-    if not link.wait_vehicle(opts.wait_services_s, ctx.stop):
+    if not link.status.wait_vehicle(opts.wait_services_s, ctx.stop):
         if ctx.stop.is_set():
             return EXIT_SUCCESS
         log.error("no heartbeat from the vehicle", extra=fields(url=opts.mavlink_url(k)))
@@ -89,8 +138,8 @@ def _write_records(mission: StackSession, aborted: str, wall_s: float) -> None:
     if mission.planners is not None:  # requests answered after the last step's record
         record.latency.requests.extend(mission.planners.pool.take_answered())
     try:
-        paths = record.write(r, mission.b.uav, mission.stack_summary(
-            {"wall_time_s": round(wall_s, 3), "aborted": aborted or None}))
+        paths = record.write(r, mission.b.uav, stack_summary(
+            mission, {"wall_time_s": round(wall_s, 3), "aborted": aborted or None}))
         log.info("records written", extra=fields(files=",".join(p.name for p in paths)))
     except OSError as err:  # a full or read-only disk: logged, the end announced
         rejections.rejected("records", rejections.invalid(f"records not written: {err}"), log,
@@ -108,30 +157,63 @@ def _summary(mission: StackSession, wall_s: float) -> None:
                                     for k, v in mission.record.latency.overhead_ms().items()}))
 
 
-def fly(ctx: bus.Context, opts: Options) -> int:
-    """Vehicle ``ctx.settings.uav_id``'s mission; the exit code."""
-    assert ctx.session is not None
+def stack_summary(mission: StackSession, extra: dict[str, object]) -> dict[str, object]:
+    """summary.json's ``stack``: how the stack flew the mission."""
+    pool = mission.planners.pool if mission.planners is not None else None
+    link = mission.link
+    return {
+        "mission_id": mission.b.mission_id, "transport": "zenoh + mavlink",
+        "speed_factor": mission.b.clock.speed_factor or "unpaced",
+        "setpoints_sent": link.setpoints.sent,
+        "rejected_messages": dict(rejections.REJECTED.by_label),
+        "monitor_rejected": mission.observer.monitor_rejected,
+        "untrusted": _untrusted_counts(), "faults": dict(mission.observer.faults.totals),
+        "planner_failovers": pool.failovers if pool is not None else 0,
+        "forecast": mission.fires.forecasts.summary() if mission.fires is not None else {},
+        "stream": link.setpoints.stats(),
+        "vehicle_modes": [{"mode": c.mode, "armed": c.armed, "text": c.text}
+                          for c in link.status.mode_changes], **extra,
+    }
+
+
+def _untrusted_counts() -> dict[str, int]:
+    """Replies and liveliness claims refused as not from the token holder, per key."""
+    return {key: reasons[bus.UNTRUSTED] for key, reasons in rejections.REJECTED.snapshot().items()
+            if bus.UNTRUSTED in reasons}
+
+
+def link_params(opts: Options, k: int) -> LinkParams:
+    """Vehicle k's link: its MAVLink instance and system id (services/common/fleet.py)."""
+    lo = opts.link
+    return LinkParams(opts.mavlink_url(k), lo.sysid + k, lo.altitude_m, lo.rate_hz, key=lo.key,
+                      lost_after_s=lo.lost_after_s, stream=lo.stream)
+
+
+def fly(ctx: bus.Context, opts: Options, stack: Stack | None = None) -> int:
+    """Vehicle ``ctx.settings.uav_id``'s mission; the exit code (``stack``: what it opens,
+    default the process's Zenoh session and MAVLink)."""
+    if stack is None:
+        assert ctx.session is not None
+        stack = ZenohStack(ctx.session)
     uav = ctx.settings.uav_id
     k = opts.uavs.index(uav)
-    holders = other_supervisors(ctx.session, uav)
+    holders = stack.holders(uav)
     if holders:  # one supervisor per vehicle: never touch a vehicle another one flies
         log.error("another supervisor holds this vehicle: not starting", extra=fields(
             uav=uav, holders=",".join(holders)))
         return EXIT_ABORTED
-    lo = opts.link
-    link = VehicleLink(opts.mavlink_url(k), lo.sysid + k, lo.altitude_m, lo.rate_hz, key=lo.key,
-                       lost_after_s=lo.lost_after_s, stream=lo.stream)
+    link = stack.link(link_params(opts, k))
     link.start()
-    live = bus.Liveliness(ctx.session, uav)
+    live = stack.liveliness(uav)
     ctx.announce()
     try:
-        code = _ready(ctx, opts, k, link, live)
+        code = _ready(ctx, opts, k, link, live, stack.own_id())
         if code is not None:
             return code
         config = opts.config(k)
-        b = Bus(ctx.session, uav, config.mission_id, wire.Stamper("supervisor", uav),
-                SimClock(opts.settings.speed_factor), ctx.stop, opts.stack, live,
-                dt_s=config.spec().dynamics.dt_s)
+        b = StackBus(stack.transport(), uav, config.mission_id,
+                     wire.Stamper("supervisor", uav), SimClock(opts.settings.speed_factor),
+                     ctx.stop, opts.stack, live, dt_s=config.spec().dynamics.dt_s)
         record = RunRecord(opts.run_dir(k), config.mission_id, opts.stack.record_flush_s)
         mission = StackSession(b, link, config, record, opts.waypoints)
         aborted, wall = _fly_session(ctx, opts, mission)

@@ -1,7 +1,7 @@
 """One thread that reads and polls every vehicle link of the supervisor process.
 
 A link whose stream the stream process sends (a UDP link,
-services/supervisor/link.py) needs a reader, which handles what the vehicle
+services/supervisor/link/) needs a reader, which handles what the vehicle
 sends, and a poller, which asks for the mission id and the origin at 1 Hz and
 keeps the stream's destination and heartbeat period. A fleet's supervisor
 host flies 50 vehicles: rather than two threads a vehicle, all woken by every
@@ -30,7 +30,7 @@ POLL_PERIOD_S = 0.25
 
 
 class Polled(Protocol):
-    """What the loop needs of a link (services/supervisor/link.py's VehicleLink)."""
+    """What the loop needs of a link (services/supervisor/link/vehicle.py: VehicleLink)."""
 
     conn: Any
     tag: str | None

@@ -26,7 +26,7 @@ from services.common.log import fields
 from . import faults as fault_names
 from .faults import FaultLog
 from .link import VehicleLink
-from .ports import Bus, StackFires, StackPlanners, StackVehicle
+from .ports import StackBus, StackFires, StackPlanners, StackVehicle
 from .publish import Publications
 from .record import RunRecord
 from .runlog import OperatorRecord
@@ -57,7 +57,7 @@ class MissionView(Protocol):
 class StackObserver:
     """Observes one mission's steps for the stack."""
 
-    b: Bus
+    b: StackBus
     link: VehicleLink
     record: RunRecord
     pubs: Publications
@@ -130,17 +130,18 @@ class StackObserver:
 
     def _step_faults(self) -> list[str]:
         """The named faults since the last step record (services/supervisor/faults.py)."""
-        link = self.link
-        for reason in link.hold_reasons[self._holds_seen:link.holds]:
+        status = self.link.status
+        for reason in status.hold_reasons[self._holds_seen:status.holds]:
             self.faults.note(fault_names.VEHICLE_HOLD, reason)
-        self._holds_seen = link.holds
+        self._holds_seen = status.holds
         planners = self.mission.planners
         misses = planners.pool.deadline_misses if planners is not None else 0
-        self.faults.counters(vehicle_moved=link.moved_without_step, plan_deadline=misses)
+        self.faults.counters(vehicle_moved=self.link.position.moved_without_step,
+                             plan_deadline=misses)
         if self._why.get("fire_stale"):
             self.faults.note(fault_names.FIRE_STALE)
         fires = self.mission.fires
-        for why in fires.take_faults() if fires is not None else ():
+        for why in fires.forecasts.take_faults() if fires is not None else ():
             self.faults.note(fault_names.FORECAST_STALE, why)
         found = self.faults.take()
         if found:
@@ -150,10 +151,11 @@ class StackObserver:
     def modes(self) -> None:
         """A ``vehicle_mode`` event line for every change of the vehicle's mode or arming
         since the last one (its autopilot's name, and the STATUSTEXT that explained it)."""
-        changes = self.link.mode_changes
+        status = self.link.status
+        changes = status.mode_changes
         for ch in changes[self._modes_seen:]:
             self.record.line("event", event="vehicle_mode", mode=ch.mode, armed=ch.armed,
-                             autopilot=self.link.modes.family if self.link.modes else "",
+                             autopilot=status.modes.family if status.modes else "",
                              text=ch.text)
         self._modes_seen = len(changes)
 
@@ -167,7 +169,8 @@ class StackObserver:
                 step=record.t, plan_status=record.plan_status, total=self.monitor_rejected))
         why = dict(self._why)
         why["faults"] = self._step_faults()
-        costs = self.mission.fires.take_costs() if self.mission.fires is not None else []
+        fires = self.mission.fires
+        costs = fires.forecasts.take_costs() if fires is not None else []
         if costs:
             why["forecast"] = costs
         if record.system == 0:

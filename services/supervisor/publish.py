@@ -13,24 +13,24 @@ from dualpilot.mission.result import StepRecord
 from dualpilot.model.dynamics import Array
 from dualpilot.spec import MissionSpec
 from dualpilot.supervisor.decision import Decision
-from services.common import bus, keys
+from services.common import keys
 from services.common.convert import common as common_convert
 from services.common.convert import supervisor as supervisor_convert
 from services.common.convert import vehicle as vehicle_convert
 from services.common.convert.supervisor import DecisionNotes, MissionEvent
 from services.msgs import common_pb2
 
-from .ports import Bus
+from .ports import StackBus
 
 
 class Publications:
     """The supervisor's publishers of one vehicle."""
 
-    def __init__(self, b: Bus, altitude_m: float):
+    def __init__(self, b: StackBus, altitude_m: float):
         self.b = b
         self.altitude_m = altitude_m
         uav = b.uav
-        self.pubs = {name: b.session.declare_publisher(key) for name, key in (
+        self.pubs = {name: b.transport.publisher(key) for name, key in (
             ("decision", keys.decision(uav)), ("state", keys.vehicle_state(uav)),
             ("event", keys.mission_event(uav)), ("clock", keys.clock(uav)),
             ("plans", keys.step_plans(uav)))}
@@ -39,21 +39,20 @@ class Publications:
         return self.b.clock.now_s
 
     def event(self, ev: MissionEvent) -> None:
-        bus.put(self.pubs["event"], "", supervisor_convert.mission_event_msg(
-            ev, self.b.stamper, self._now()))
+        self.pubs["event"](supervisor_convert.mission_event_msg(ev, self.b.stamper, self._now()))
 
     def state(self, x: Array, step: int) -> None:
-        bus.put(self.pubs["state"], "", vehicle_convert.vehicle_state_msg(
+        self.pubs["state"](vehicle_convert.vehicle_state_msg(
             x, step, self.b.stamper, self._now(), self.altitude_m))
 
     def step_started(self, decision: Decision, commanded: int, notes: DecisionNotes) -> None:
         """The clock (its anchor for τ_t) and the step's decision, once the setpoint left."""
         clock = common_convert.sim_clock_to_msg(self.b.clock, common_pb2.Clock())
         self.b.stamper.stamp(clock.header, self._now())
-        bus.put(self.pubs["clock"], "", clock)
-        bus.put(self.pubs["decision"], "", supervisor_convert.decision_to_msg(
+        self.pubs["clock"](clock)
+        self.pubs["decision"](supervisor_convert.decision_to_msg(
             decision, commanded, self.b.stamper, self._now(), notes))
 
     def plans(self, record: StepRecord, spec: MissionSpec) -> None:
-        bus.put(self.pubs["plans"], "", supervisor_convert.step_plans_msg(
+        self.pubs["plans"](supervisor_convert.step_plans_msg(
             record, self.b.mission_id, spec, self.b.stamper, self._now()))

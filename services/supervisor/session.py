@@ -3,27 +3,30 @@
 What is about being a process lives here; the step itself is
 :class:`dualpilot.mission.step.Mission`, the same object the in-process loop
 runs, built from the same :class:`~dualpilot.mission.config.MissionConfig`,
-with the ports of services/supervisor/ports.py. The session
+with the ports of services/supervisor/ports/. The session
 
-* starts a mission: takes the vehicle (services/supervisor/link.py: setpoints,
-  offboard mode, arm), downloads its mission as System 1's operator
-  waypoints, freezes the spec with the vehicle's position as the start,
-  resets the EWS and prepares the planners with the configuration, or
-  **resumes** one from the ``steps.jsonl`` a stopped supervisor left (the
-  recorded decisions replayed, the EWS reset and replayed, the vehicle taken
-  from where it is);
+* starts a mission: takes the vehicle (services/supervisor/watch.py, over the
+  link's take-over: setpoints, offboard mode, arm), downloads its mission as
+  System 1's operator waypoints, freezes the spec with the vehicle's position
+  as the start, resets the EWS and prepares the planners with the
+  configuration, or **resumes** one from the ``steps.jsonl`` a stopped
+  supervisor left (the recorded decisions replayed, the EWS reset and
+  replayed, the vehicle taken from where it is);
 * between steps: pauses (services/supervisor/pause.py) while the vehicle is not
-  flying offboard (lost for 3 s, or put in hold), takes a newly uploaded
+  flying offboard (lost for 3 s, or put in hold: watch.py), takes a newly uploaded
   mission as the next revision of the operator waypoints, holds while no
   planner of the controller is alive (lockstep: nothing advances while paused);
 * is observed by :class:`~services.supervisor.observer.StackObserver`: the run
   record (services/supervisor/record.py) and the publications.
+
+It reaches the services only through its :class:`~services.supervisor.ports.StackBus`
+(transport and wall clock) and the vehicle only through its link, so a unit test
+flies it in-process (tests/unit/test_supervisor_session.py).
 """
 
 from __future__ import annotations
 
 import logging
-import time
 from typing import cast
 
 import numpy as np
@@ -33,32 +36,28 @@ from dualpilot.mission.records import result_from_log
 from dualpilot.mission.result import Ending, MissionResult, StepRecord
 from dualpilot.mission.step import Mission, MissionPorts
 from dualpilot.model.dynamics import Array
-from services.common import bus, rejections
+from services.common import bus
 from services.common.convert.supervisor import EventKind
 from services.common.log import fields
 
-from . import faults as fault_names
-from .link import OffboardError, VehicleLink
+from .link import VehicleLink
 from .observer import StackObserver
 from .pause import PausePolicy
-from .pool import PlannerPool, PoolParams, ZenohTransport
-from .ports import Aborted, Bus, StackFires, StackPlanners, StackVehicle
+from .pool import PlannerPool, PoolParams
+from .ports import Aborted, StackBus, StackFires, StackPlanners, StackVehicle
 from .publish import Publications
 from .record import Entries, RunRecord, StorageFault
+from .watch import OffboardWatch, VehicleGone
 
 log = logging.getLogger(__name__)
 
 __all__ = ["Aborted", "StackSession", "StorageFault", "VehicleGone"]
 
 
-class VehicleGone(Aborted):
-    """The vehicle is lost for good: its token is gone and its heartbeat too (the mission ends)."""
-
-
 class StackSession:
     """One mission of ``config`` flown through the services; ``run()`` flies it."""
 
-    def __init__(self, b: Bus, link: VehicleLink, config: MissionConfig, record: RunRecord,
+    def __init__(self, b: StackBus, link: VehicleLink, config: MissionConfig, record: RunRecord,
                  waypoints: Array | None = None):
         self.b = b
         self.link = link
@@ -70,10 +69,12 @@ class StackSession:
         self.mission: Mission | None = None
         self.fires: StackFires | None = None
         self.planners: StackPlanners | None = None
-        self.vehicle = StackVehicle(b, link, self.spec.dynamics.dt_s, self._ensure_offboard)
         self.pubs = Publications(b, b.stack.altitude_m)
         self.observer = StackObserver(b, link, record, self.pubs, self)
-        self.pause = PausePolicy(b.stop, b.stack.pause_limit_s, self._announce_pause)
+        self.pause = PausePolicy(b.stop, b.stack.pause_limit_s, self._announce_pause,
+                                 b.wall.now, b.wait)
+        self.watch = OffboardWatch(b, link, self.pause, self.observer.faults)
+        self.vehicle = StackVehicle(b, link, self.spec.dynamics.dt_s, self.watch.ensure)
         self.resumed_at: int | None = None
         self.holding = ""
 
@@ -96,54 +97,10 @@ class StackSession:
         ev = EventKind.PAUSED if kind == "paused" else EventKind.RESUMED
         self.observer.event(ev, message=message, step=self._steps())
 
-    # -- the vehicle ------------------------------------------------------------------------------
-    def _take_vehicle(self) -> None:
-        try:
-            self.link.start_offboard(self.b.stop, self.b.stack.offboard_timeout_s)
-        except OffboardError as err:
-            raise Aborted(f"vehicle: {err}") from err
-        if self.b.stop.is_set():
-            raise Aborted("stopped")
-        log.info("vehicle under offboard control", extra=fields(status=self.link.status()))
-
-    def _ensure_offboard(self) -> None:
-        """Pause while the vehicle is not flying offboard; take it again when it comes back."""
-        if self.link.offboard():
-            return
-        faults = self.observer.faults
-        lost = [not self.link.alive()]
-        if lost[0]:
-            faults.note(fault_names.VEHICLE_LOST)
-        gone_since: list[float | None] = [None]
-
-        def tick(_paused: float) -> None:
-            gone = not self.link.alive() and not self.b.alive("uavsim")
-            now = time.monotonic()
-            if not gone:
-                gone_since[0] = None
-            elif gone_since[0] is None:
-                gone_since[0] = now
-            elif now - gone_since[0] > self.b.stack.vehicle_gone_s:
-                raise VehicleGone(f"vehicle lost: no heartbeat and its liveliness token gone "
-                                  f"for {self.b.stack.vehicle_gone_s:g} s")
-            if not self.link.alive():
-                if not lost[0]:
-                    faults.note(fault_names.VEHICLE_LOST)
-                lost[0] = True
-            elif lost[0]:  # back after a loss: take it again (the steps it still needs)
-                lost[0] = False
-                try:
-                    self.link.start_offboard(self.b.stop, self.b.stack.offboard_timeout_s)
-                except OffboardError as err:
-                    log.warning("could not take the vehicle back", extra=fields(error=str(err)))
-
-        reason = ("vehicle lost: no heartbeat for 3 s" if lost[0]
-                  else f"vehicle not flying offboard ({self.link.status()})")
-        self.pause.hold(reason, self.link.offboard, tick)
-
+    # -- between steps ---------------------------------------------------------------------------
     def _update_waypoints(self) -> None:
         """A mission newly downloaded from the vehicle becomes the operator waypoints."""
-        rev, wps, mission_id = self.link.operator_waypoints()
+        rev, wps, mission_id = self.link.mission.operator_waypoints()
         if rev == 0 or rev == self.mission_rev:
             return
         self.mission_rev = rev
@@ -188,12 +145,13 @@ class StackSession:
             self._prepare_again(back)
             return f"{', '.join(f'system{k}' for k in back)} back after {paused:.1f} s"
 
-        self.pause.wait = lambda period: live.wait_any(names, period, self.b.stop)
+        wait, self.pause.wait = self.pause.wait, (
+            lambda period: live.wait_any(names, period, self.b.stop))  # woken by a token
         try:
             self.pause.hold(reason, lambda: any(self.b.alive(n) for n in names),
                             period_s=0.25, resumed=resumed)
         finally:
-            self.pause.wait = None
+            self.pause.wait = wait
         self.holding = ""
 
     def _prepare_again(self, systems: list[int]) -> None:
@@ -210,11 +168,11 @@ class StackSession:
     def start(self) -> None:
         """Take the vehicle, then start the mission from its state or resume its record."""
         self.record.claim()
-        self._take_vehicle()
-        if not self.link.wait_mission(self.b.stack.mission_wait_s, self.b.stop):
+        self.watch.take()
+        if not self.link.mission.wait_downloaded(self.b.stack.mission_wait_s, self.b.stop):
             log.warning("the vehicle's mission was not downloaded before the start")
         self._update_waypoints()
-        got = self.link.wait_state(0, self.b.stack.vehicle_timeout_s, self.b.stop)
+        got = self.link.position.wait_state(0, self.b.stack.vehicle_timeout_s, self.b.stop)
         if got is None:
             raise Aborted("no LOCAL_POSITION_NED from the vehicle")
         prior = self.record.prior()
@@ -248,7 +206,7 @@ class StackSession:
         b = self.b
         self.fires = StackFires(b, self.spec, self.config, self._caught_up)
         st = b.stack
-        pool = PlannerPool(ZenohTransport(b.session, b.uav, b.stop, b.live), b.uav,
+        pool = PlannerPool(b.transport.planners(b.uav, b.stop, b.live), b.uav,
                            b.mission_id, b.deadline_s,
                            PoolParams(st.deadline_misses, st.health_every_s,
                                       st.health_timeout_s, st.prepare_timeout_s))
@@ -322,7 +280,7 @@ class StackSession:
         if self.mission.done:
             return None
         self.record.check()
-        self._ensure_offboard()
+        self.watch.ensure()
         self._update_waypoints()
         self._hold_without_planners()
         self.observer.began()
@@ -367,26 +325,3 @@ class StackSession:
         self.observer.event(EventKind.ENDED, step=r.steps, success=r.success,
                             failure_cause=r.failure_cause, mission_time_s=r.mission_time_s,
                             position=self.state, message=run_dir)
-
-    def stack_summary(self, extra: dict[str, object]) -> dict[str, object]:
-        """summary.json's ``stack``: how the stack flew the mission."""
-        pool = self.planners.pool if self.planners is not None else None
-        return {
-            "mission_id": self.b.mission_id, "transport": "zenoh + mavlink",
-            "speed_factor": self.b.clock.speed_factor or "unpaced",
-            "setpoints_sent": self.link.sent,
-            "rejected_messages": dict(rejections.REJECTED.by_label),
-            "monitor_rejected": self.observer.monitor_rejected,
-            "untrusted": _untrusted_counts(), "faults": dict(self.observer.faults.totals),
-            "planner_failovers": pool.failovers if pool is not None else 0,
-            "forecast": self.fires.forecast_summary() if self.fires is not None else {},
-            "stream": self.link.stream_stats(),
-            "vehicle_modes": [{"mode": c.mode, "armed": c.armed, "text": c.text}
-                              for c in self.link.mode_changes], **extra,
-        }
-
-
-def _untrusted_counts() -> dict[str, int]:
-    """Replies and liveliness claims refused as not from the token holder, per key."""
-    return {key: reasons[bus.UNTRUSTED] for key, reasons in rejections.REJECTED.snapshot().items()
-            if bus.UNTRUSTED in reasons}

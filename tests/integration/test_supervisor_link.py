@@ -22,7 +22,7 @@ import pytest
 
 from services.common import bus, mav, mavmodes
 from services.launch import free_port
-from services.supervisor.link import OffboardError, VehicleLink
+from services.supervisor.link import LinkParams, OffboardError, VehicleLink
 
 pytestmark = pytest.mark.timeout(120)
 m = mav.mavlink
@@ -48,7 +48,7 @@ def vehicle(request: pytest.FixtureRequest, services: Any, session: Any) -> Any:
 
 @pytest.fixture()
 def link(vehicle: Any) -> Iterator[VehicleLink]:
-    lk = VehicleLink(f"udpout:127.0.0.1:{vehicle.link_ports['offboard']}")
+    lk = VehicleLink(LinkParams(f"udpout:127.0.0.1:{vehicle.link_ports['offboard']}"))
     lk.start()
     try:
         yield lk
@@ -67,53 +67,53 @@ def until(pred: Any, timeout_s: float) -> bool:
 
 def test_offboard_start_and_a_vehicle_that_disappears(vehicle: Any, link: VehicleLink) -> None:
     stop = threading.Event()
-    assert link.wait_vehicle(20, stop)
+    assert link.status.wait_vehicle(20, stop)
     if vehicle.flavour == "px4":  # PX4's OFFBOARD needs the setpoint stream first
-        assert link.modes == mavmodes.PX4_MODES
-        assert link.command(m.MAV_CMD_DO_SET_MODE, m.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED,
+        assert link.status.modes == mavmodes.PX4_MODES
+        assert link.commands.command(m.MAV_CMD_DO_SET_MODE, m.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED,
                             6, 0) == m.MAV_RESULT_TEMPORARILY_REJECTED
         offboard = "OFFBOARD, armed"
     else:  # ArduPilot's GUIDED holds without one
-        assert link.modes == mavmodes.ARDUPILOT_MODES
+        assert link.status.modes == mavmodes.ARDUPILOT_MODES
         offboard = "GUIDED, armed"
-    link.start_offboard(stop, timeout_s=20)
-    assert link.offboard() and link.status() == offboard
-    assert [(c.mode, c.armed) for c in link.mode_changes][-2:] == [
+    link.takeover.start_offboard(stop, timeout_s=20)
+    assert link.status.offboard() and link.status.status() == offboard
+    assert [(c.mode, c.armed) for c in link.status.mode_changes][-2:] == [
         (offboard.split(",")[0], False), (offboard.split(",")[0], True)]
-    t, x = link.wait_state(0, 5, stop) or (0, None)
+    t, x = link.position.wait_state(0, 5, stop) or (0, None)
     assert x is not None and np.allclose(x[:2], [80.0, 90.0])
-    assert link.origin is not None and np.allclose(link.origin, HOME)
+    assert link.position.origin is not None and np.allclose(link.position.origin, HOME)
 
     pid = vehicle.link_proc.popen.pid
     os.kill(pid, signal.SIGSTOP)  # the vehicle disappears
     try:
         t0 = time.monotonic()
-        assert until(lambda: not link.alive(), 30), "the link never counted the vehicle lost"
+        assert until(lambda: not link.status.alive(), 30), "the link never counted the vehicle lost"
         # not before lost_after_s (3 s) less one heartbeat period (1 s) since the last one heard:
         # a lower bound (the rule itself, on injected times: tests/unit/test_link_liveness.py)
-        assert time.monotonic() - t0 >= 3.0 - 1.0 - 0.05 and not link.offboard()
+        assert time.monotonic() - t0 >= 3.0 - 1.0 - 0.05 and not link.status.offboard()
     finally:
         os.kill(pid, signal.SIGCONT)
     # back (a frozen process finds the queued setpoints first, so its failsafe may not trip)
-    assert until(link.alive, 30), "the vehicle never came back after SIGCONT"
-    assert until(link.offboard, 30), link.status()
+    assert until(link.status.alive, 30), "the vehicle never came back after SIGCONT"
+    assert until(link.status.offboard, 30), link.status.status()
     sent: list[int] = []
-    command = link.command
+    command = link.commands.command
 
     def counted(cmd: int, *params: float, **kw: Any) -> int:
         sent.append(cmd)
         return command(cmd, *params, **kw)
 
-    link.command = counted  # type: ignore[method-assign]
-    link.start_offboard(stop, timeout_s=5)  # nothing left to do: no command sent
+    link.commands.command = counted  # type: ignore[method-assign]
+    link.takeover.start_offboard(stop, timeout_s=5)  # nothing left to do: no command sent
     assert sent == [], sent
 
 
 def test_operator_mission_is_downloaded_in_the_local_frame(vehicle: Any,
                                                            link: VehicleLink) -> None:
     stop = threading.Event()
-    assert link.wait_mission(10, stop)
-    rev0, wps, _ = link.operator_waypoints()
+    assert link.mission.wait_downloaded(10, stop)
+    rev0, wps, _ = link.mission.operator_waypoints()
     gcs = mav.connect(f"udpout:127.0.0.1:{vehicle.link_ports['gcs']}", 255, 190)
     gcs.mav.heartbeat_send(m.MAV_TYPE_GCS, m.MAV_AUTOPILOT_INVALID, 0, 0, 0)
     local = [(200.0, 300.0), (650.5, 720.25)]
@@ -135,8 +135,8 @@ def test_operator_mission_is_downloaded_in_the_local_frame(vehicle: Any,
             ack = msg
     assert ack is not None and ack.type == m.MAV_MISSION_ACCEPTED
     gcs.close()
-    assert until(lambda: link.operator_waypoints()[0] > rev0, 10)
-    _, wps, mission_id = link.operator_waypoints()
+    assert until(lambda: link.mission.operator_waypoints()[0] > rev0, 10)
+    _, wps, mission_id = link.mission.operator_waypoints()
     assert mission_id and wps is not None
     assert np.allclose(wps, local, atol=0.05)  # degE7 is ≈ 1 cm
 
@@ -199,19 +199,19 @@ def test_refused_commands_are_retried_then_given_up(deny_mode: int, arm_result: 
                                                     error: str | None) -> None:
     port = free_port("udp")
     fake = ScriptedVehicle(port, deny_mode, arm_result)
-    lk = VehicleLink(f"udpout:127.0.0.1:{port}", command_timeout_s=0.3)
+    lk = VehicleLink(LinkParams(f"udpout:127.0.0.1:{port}", command_timeout_s=0.3))
     lk.start()
     try:
         stop = threading.Event()
         if error is None:
-            lk.start_offboard(stop, timeout_s=10, retry_wait_s=0.05)
-            assert lk.offboard()
+            lk.takeover.start_offboard(stop, timeout_s=10, retry_wait_s=0.05)
+            assert lk.status.offboard()
             modes = [c for c in fake.commands if c[0] == m.MAV_CMD_DO_SET_MODE]
             assert len(modes) == 3
         else:
             with pytest.raises(OffboardError, match=error):
-                lk.start_offboard(stop, timeout_s=10, retry_wait_s=0.05)
-            assert not lk.offboard()
+                lk.takeover.start_offboard(stop, timeout_s=10, retry_wait_s=0.05)
+            assert not lk.status.offboard()
     finally:
         lk.close()
         fake.close()
@@ -221,10 +221,10 @@ def test_a_vehicle_that_never_answers_commands(vehicle: Any) -> None:
     """COMMAND_LONG is re-sent with a rising ``confirmation``; no answer gives -1."""
     port = free_port("udp")
     silent = mav.connect(f"udpin:127.0.0.1:{port}", 1, 1)
-    lk = VehicleLink(f"udpout:127.0.0.1:{port}", command_timeout_s=0.2)
+    lk = VehicleLink(LinkParams(f"udpout:127.0.0.1:{port}", command_timeout_s=0.2))
     lk.start()
     try:
-        assert lk.command(m.MAV_CMD_COMPONENT_ARM_DISARM, 1) == -1
+        assert lk.commands.command(m.MAV_CMD_COMPONENT_ARM_DISARM, 1) == -1
         seen = []
         while (msg := silent.recv_match(type="COMMAND_LONG", blocking=True, timeout=0.5)):
             seen.append(int(msg.confirmation))

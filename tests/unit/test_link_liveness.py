@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from services.supervisor.link import READER_PERIOD_S, heard_within
+from services.supervisor.link.heartbeat import READER_PERIOD_S, heard_within
 
 LOST_S = 3.0
 

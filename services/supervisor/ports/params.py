@@ -1,0 +1,52 @@
+"""How the supervisor talks to the stack: its timeouts, deadlines and limits (StackParams)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from dualpilot.model.stale_fire import StaleFireParams
+
+
+@dataclass(frozen=True)
+class StackParams:
+    """How the supervisor talks to the stack."""
+
+    #: how long a plan request waits (wall s), System 1 and System 2; None: tied to the
+    #: control period ΔT by ``plan_deadline_periods`` (the paper's modelled planning times
+    #: stay a modelling choice of the step, never a wait)
+    plan_deadline_s: tuple[float, float] | None = None
+    #: the deadlines in control periods ΔT: 2 ΔT for System 1, 5 ΔT (the paper's 5 s) for System 2
+    plan_deadline_periods: tuple[float, float] = (2.0, 5.0)
+    #: a planner that misses this many deadlines in a row is unavailable until it answers a
+    #: health query (its ``status/<service>`` queryable)
+    deadline_misses: int = 2
+    health_every_s: float = 2.0    # wall s between health queries of an unavailable planner
+    health_timeout_s: float = 0.5
+    #: uavsim's token gone and no heartbeat for this long (s, after the link's 3 s): the
+    #: mission ends ("vehicle_lost", an ``end`` line) instead of waiting ``pause_limit_s``
+    vehicle_gone_s: float = 5.0
+    fire_timeout_s: float = 30.0
+    vehicle_timeout_s: float = 10.0
+    altitude_m: float = 50.0
+    offboard_timeout_s: float = 30.0  # taking the vehicle (heartbeat, position, mode, arm)
+    mission_wait_s: float = 5.0       # downloading the vehicle's mission before step 0
+    prepare_timeout_s: float = 60.0   # a planner's warm-up (not a flight plan: no deadline)
+    pause_limit_s: float = 300.0      # abort when paused for longer
+    #: fire data at least this old (simulated s) is stale (dualpilot/model/stale_fire.py)
+    stale: StaleFireParams = StaleFireParams()
+    #: flush the step record (steps.jsonl) at most this long after a line (s); 0: every line
+    record_flush_s: float = 0.0
+    #: how long a forecast query to the EWS waits (wall s); past it the step flies without
+    #: the forecast (the forecast_stale fault)
+    forecast_timeout_s: float = 10.0
+    #: a paced (real-time) mission waits for a forecast at most this many control periods
+    #: (wall s, as the plan deadlines; never longer than ``forecast_timeout_s``): the step keeps
+    #: its beat and flies without a forecast that comes later (forecast_stale)
+    forecast_deadline_periods: float = 0.5
+
+    def forecast_wait_s(self, dt_s: float, speed_factor: float) -> float:
+        """How long a forecast query waits (wall s): ``forecast_timeout_s`` in lockstep
+        (speed factor 0), else ``forecast_deadline_periods`` × ΔT at most."""
+        if speed_factor <= 0:
+            return self.forecast_timeout_s
+        return min(self.forecast_timeout_s, self.forecast_deadline_periods * dt_s)
