@@ -1,10 +1,10 @@
-"""The simulated vehicle's MAVLink side: its links, the datagrams, and the wiring of its parts.
+"""The simulated vehicle's MAVLink side: its links, the frames it acts on, the wiring of its parts.
 
 One :class:`Endpoint` per simulated vehicle (a vehicle host runs several,
-services/uavsim/__main__.py). It reads its links (a UDP datagram is parsed
-on its own and judged by when it arrived: services/uavsim/arrivals.py; a TCP
-link, ArduPilot SITL's habit, is read as a stream), checks every frame
-(framing, target, the setpoint codec), and hands it to the part that acts on
+services/uavsim/__main__.py). Its links are read by links.py (a UDP datagram
+is parsed on its own and judged by when it arrived; a TCP link, ArduPilot
+SITL's habit, is read as a stream); it checks every frame (target, signing,
+the setpoint codec) and hands it to the part that acts on
 it: the parameters (params.py), the commands (commands.py), the mission
 protocol (mission.py), the control arbiter (control.py) for who may steer,
 and the autopilot (autopilot.py: the state machine, its failsafes and the
@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import logging
 import select
-import socket
 import threading
 import time
 from collections.abc import Callable, Iterable
@@ -25,12 +24,12 @@ from typing import Any
 from services.common import mav, mavlink_codec, rejections
 from services.common.log import fields
 
-from . import arrivals
 from . import clock as vclock
 from .autopilot import FREE_RANGE_M, VehicleSetup, build
 from .commands import Commands
 from .control import ControlArbiter
 from .intervals import Schedule
+from .links import MAX_CLIENTS, Arrival, LinkReader, add_client
 from .outbox import LinkOutbox, statustext
 from .params import Parameters, ParamProtocol
 from .setpoint import normalised
@@ -40,12 +39,6 @@ from .vehicle import Vehicle
 log = logging.getLogger("services.uavsim")
 m = mav.mavlink
 
-#: UDP peers a ``udpin`` link sends to (those that sent a usable frame), the least recently
-#: heard dropped first; a peer silent for CLIENT_TIMEOUT_S is dropped (one is always kept).
-MAX_CLIENTS = 8
-#: datagrams read from one link before the loop sends telemetry again (a flood cannot starve it)
-MAX_DATAGRAMS_PER_POLL = 200
-CLIENT_TIMEOUT_S = 10.0
 #: the longest wait between two passes of the loop (s): the failsafes are judged at least this
 #: often
 MAX_WAIT_S = 0.05
@@ -84,9 +77,7 @@ class Endpoint:
         self.vehicle = vehicle
         self.sysid = setup.sysid
         self.links = links
-        for conn in links.values():
-            if isinstance(getattr(conn, "port", None), socket.socket):
-                arrivals.enable(conn.port)
+        self.reader = LinkReader(links, self.handle, self.reject, self._unsigned)
         self.tlog = tlog
         self.outbox = LinkOutbox({name: mav.Sender(conn, tlog) for name, conn in links.items()})
         self.realtime = (vclock.RealtimeClock(setup.speed_factor, int(vehicle.dyn.dt_s * 1000),
@@ -109,10 +100,7 @@ class Endpoint:
         self.commands = Commands(self.ap, self.arbiter, self.outbox, self.schedule,
                                  self.telemetry.sender, self.reject)
         self.peers: set[tuple[str, int, int]] = set()
-        self.rejected_seen = 0
         self.last_reject_note = 0.0
-        self.addr: Any = None  # the address of the datagram being handled
-        self.rx_time: float | None = None  # when it arrived (monotonic s), if the kernel said
         #: the last setpoint checked and accepted ((link, peer, payload), (target, altitude)):
         #: its repeats (the ≥ 10 Hz stream) are not decoded again; a parameter change clears it
         self.repeat: tuple[Any, Any] | None = None
@@ -136,109 +124,17 @@ class Endpoint:
         rejections.rejected(what, err, log, key=f"mavlink/{link}")
 
     # -- incoming ------------------------------------------------------------------------------
-    def bad_frame(self, link: str, msg: Any) -> rejections.CodecError:
-        """The rejection for a BAD_DATA frame (an unsigned one is also counted as such)."""
-        why = str(getattr(msg, "reason", ""))
-        reason = mavlink_codec.mavlink_frame_reason(why)
-        if reason is rejections.Reason.UNSIGNED:
-            self.count_unsigned(link)
-        return rejections.invalid(f"bad frame on {link}: {why}", reason)
-
-    def receive(self, link: str) -> None:
-        """Read every waiting datagram of ``link`` and handle its frames (never raises).
-
-        A datagram is parsed on its own (a truncated frame never swallows the
-        next datagram's bytes); at most one framing problem is counted per
-        datagram. Only a peer that sent a usable frame becomes a client that
-        telemetry goes to. A stream link (TCP) is read by pymavlink.
-        """
-        conn = self.links[link]
-        port = getattr(conn, "port", None)
-        if not isinstance(port, socket.socket) or port.type != socket.SOCK_DGRAM:
-            self.addr = None
-            while (msg := conn.recv_msg()) is not None:  # a stream (TCP): pymavlink reads
-                self.handle(link, msg)
-            return
-        for _ in range(MAX_DATAGRAMS_PER_POLL):  # then telemetry and the failsafe get a turn
-            try:
-                data, addr, self.rx_time = arrivals.recv(port)
-            except (BlockingIOError, InterruptedError):
-                return
-            except OSError as err:  # e.g. ICMP port unreachable reported on the socket
-                log.debug("recv failed", extra=fields(link=link, error=str(err)))
-                return
-            try:
-                self.addr = addr
-                if self.datagram(link, conn, data) and getattr(conn, "udp_server", False):
-                    self.add_client(conn, addr)  # udpin: the peers telemetry goes to
-            except Exception:  # a bug must not take the vehicle down: count it, go on
-                log.exception("frame handling failed")
-                self.reject(link, rejections.invalid("frame handling failed (internal error)"))
-            finally:
-                self.rx_time = None
-
-    def datagram(self, link: str, conn: Any, data: bytes) -> bool:
-        """Parse and handle one datagram; True if it held at least one usable frame."""
-        if len(data) > mavlink_codec.MAX_MAVLINK_DATAGRAM:
-            self.reject(link, rejections.invalid(
-                f"datagram of {len(data)} bytes (at most {mavlink_codec.MAX_MAVLINK_DATAGRAM})",
-                rejections.Reason.TOO_LARGE))
-            return False
-        parser = conn.mav
-        parser.buf, parser.buf_index = bytearray(), 0
-        parser.expected_length = mav.mavlink.HEADER_LEN_V1 + 2
-        framing: rejections.CodecError | None = None
-        usable = False
-        msgs = parser.parse_buffer(data) or []
-        if parser.buf_len() > 0:
-            framing = rejections.invalid(f"truncated frame: {parser.buf_len()} bytes left over",
-                                         rejections.Reason.MALFORMED)
-            parser.buf, parser.buf_index = bytearray(), 0
-        for msg in msgs:
-            kind = msg.get_type()
-            if kind == "BAD_DATA":
-                framing = framing or self.bad_frame(link, msg)
-                continue
-            if kind.startswith("UNKNOWN_"):
-                if framing is None:
-                    framing = rejections.invalid(f"message id {kind[8:]} is not in the dialect",
-                                                 rejections.Reason.UNKNOWN_MESSAGE)
-                continue
-            if msg.get_msgbuf()[0] == mav.mavlink.PROTOCOL_MARKER_V1 and kind != "HEARTBEAT":
-                if framing is None:  # a MAVLink 1 HEARTBEAT is how a GCS finds us, then v2
-                    framing = rejections.invalid(f"MAVLink 1 {kind}: this vehicle speaks MAVLink 2",
-                                                 rejections.Reason.MAVLINK1)
-                continue
-            usable = self.handle(link, msg) or usable
-        if framing is not None:
-            self.reject(link, framing)
-        return usable
-
-    @staticmethod
-    def add_client(conn: Any, addr: tuple[str, int]) -> None:
-        """Send telemetry to ``addr`` from now on (bounded: the least recently heard goes)."""
-        now = time.time()
-        conn.timeout = CLIENT_TIMEOUT_S
-        conn.clients.add(addr)
-        conn.clients_last_alive[addr] = now
-        while len(conn.clients) > MAX_CLIENTS:
-            oldest = min(conn.clients, key=lambda a: conn.clients_last_alive.get(a, 0.0))
-            conn.clients.discard(oldest)
-            conn.clients_last_alive.pop(oldest, None)
-
-    def handle(self, link: str, msg: Any) -> bool:
-        """Act on one decoded frame; False (after counting it) if it was rejected."""
+    def handle(self, link: str, msg: Any, arrival: Arrival) -> bool:
+        """Act on one decoded frame (links.py read it); False (after counting it) if it was
+        rejected."""
         kind = msg.get_type()
-        if kind == "BAD_DATA":
-            self.reject(link, self.bad_frame(link, msg))
-            return False
         if self.tlog is not None:
             self.tlog.message(msg)
         # when the datagram arrived (the kernel's stamp), not when this process got to it
-        now = self.rx_time if self.rx_time is not None else time.monotonic()
+        now = arrival.rx_time if arrival.rx_time is not None else time.monotonic()
         if kind == "HEARTBEAT":
             self.arbiter.heard_on(link, now)
-            self.on_heartbeat(link, msg)
+            self.on_heartbeat(link, msg, arrival.addr)
             return True
         if kind in GCS_CHATTER:
             return True
@@ -255,14 +151,14 @@ class Endpoint:
                 rejections.Reason.WRONG_TARGET))
             return False
         self.arbiter.heard_on(link, now)
-        return self.dispatch(link, msg, now)
+        return self.dispatch(link, msg, now, arrival.addr)
 
-    def on_heartbeat(self, link: str, msg: Any) -> None:
+    def on_heartbeat(self, link: str, msg: Any, addr: Any) -> None:
         """A new peer is logged and answered at once: it waits for our heartbeat to start."""
         peer = (link, msg.get_srcSystem(), msg.get_srcComponent())
         conn = self.links[link]
-        if self.addr is not None and getattr(conn, "udp_server", False):
-            self.add_client(conn, self.addr)  # a client now, so the answer reaches it
+        if addr is not None and getattr(conn, "udp_server", False):
+            add_client(conn, addr)  # a client now, so the answer reaches it
         if peer in self.peers:
             return
         if len(self.peers) >= 4 * MAX_CLIENTS:
@@ -272,10 +168,10 @@ class Endpoint:
                                       mav_type=msg.type))
         self.ap.heartbeat()
 
-    def dispatch(self, link: str, msg: Any, now: float) -> bool:
-        """A frame addressed to this vehicle, by its type."""
+    def dispatch(self, link: str, msg: Any, now: float, addr: Any) -> bool:
+        """A frame addressed to this vehicle (from ``addr``), by its type."""
         kind = msg.get_type()
-        peer = (self.addr, msg.get_srcSystem(), msg.get_srcComponent())
+        peer = (addr, msg.get_srcSystem(), msg.get_srcComponent())
         if kind in ("MISSION_ITEM_INT", "MISSION_ITEM") and int(msg.current) == 2:
             return self.commands.on_guided_item(link, peer, msg, now)
         handled = self.ap.mission.handle(link, msg, now)
@@ -301,20 +197,14 @@ class Endpoint:
             return self.protocol.param_set(link, msg)
         return True
 
-    def count_unsigned(self, link: str) -> None:
-        """An unsigned or wrongly signed frame on a signed link: SIG_REJECTED, a STATUSTEXT.
-
-        The caller counts the rejection itself (reason ``unsigned``).
-        """
-        total = sum(mav.rejected_frames(conn) for conn in self.links.values())
-        if total != self.rejected_seen:
-            self.rejected_seen = total
-            self.params.set_quietly("SIG_REJECTED", float(total))
-            now = time.monotonic()
-            if now - self.last_reject_note > 2.0:
-                self.last_reject_note = now
-                statustext(self.outbox, f"signing: {total} frames rejected",
-                           m.MAV_SEVERITY_WARNING)
+    def _unsigned(self, total: int) -> None:
+        """Frames refused unsigned or wrongly signed on a signed link: SIG_REJECTED, and a
+        STATUSTEXT at most every 2 s."""
+        self.params.set_quietly("SIG_REJECTED", float(total))
+        now = time.monotonic()
+        if now - self.last_reject_note > 2.0:
+            self.last_reject_note = now
+            statustext(self.outbox, f"signing: {total} frames rejected", m.MAV_SEVERITY_WARNING)
 
     # -- setpoints -----------------------------------------------------------------------------
     def on_setpoint(self, link: str, peer: Any, msg: Any, now: float) -> bool:
@@ -402,7 +292,7 @@ class Endpoint:
         """After the wait: read the ``ready`` links, then the failsafes and landing (a vehicle
         kept off the CPU finds its queued setpoints first), then ``on_tick(now)``."""
         for link in ready:
-            self.receive(link)
+            self.reader.receive(link)
         self.ap.watch(time.monotonic())
         if on_tick is not None:
             on_tick(time.monotonic())
