@@ -114,6 +114,10 @@ class Tokens:
         for service in services:
             self._say(service, f"{service}-zid", zenoh.SampleKind.PUT)
 
+    def claim(self, service: str, zid: str) -> None:
+        """``service``'s token, held by the session ``zid``."""
+        self._say(service, zid, zenoh.SampleKind.PUT)
+
     def down(self, *services: str) -> None:
         for service in services:
             self._say(service, f"{service}-zid", zenoh.SampleKind.DELETE)
