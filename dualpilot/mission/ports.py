@@ -1,7 +1,7 @@
 """The three ports the one mission step talks to: fires, planners, vehicle.
 
 The in-process adapters are in :mod:`dualpilot.mission.local`; the stack's
-(Zenoh and MAVLink) are in ``services/supervisor/ports.py``. Times are
+(Zenoh and MAVLink) are in ``services/supervisor/ports/``. Times are
 simulated seconds of the mission.
 """
 

@@ -142,7 +142,7 @@ def flight_outcome(
 @dataclass(frozen=True)
 class MissionPorts:
     """The three ports the step talks to (in-process: dualpilot/mission/local.py; the stack's:
-    services/supervisor/ports.py)."""
+    services/supervisor/ports/)."""
 
     fires: FirePort
     planners: PlannerPort

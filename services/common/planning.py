@@ -2,7 +2,7 @@
 
 Several processes of one system are replicas of a pool: each answers on
 its own key ``plan/system<k>/<zid>`` as well as the shared one, and the
-supervisor asks one of them (services/supervisor/ports.py: StackPlanners).
+supervisor asks one of them (services/supervisor/ports/planners.py: StackPlanners).
 
 A mission is prepared once: the prepare request carries its frozen spec
 (dualpilot.spec.MissionSpec) and the service builds the mission's planner

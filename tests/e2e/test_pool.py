@@ -3,7 +3,7 @@
 ``--scale system2=3`` (services.launch, as ``docker compose up --scale``)
 starts three replicas; each holds System 2's token under its own Zenoh id
 and answers on ``plan/system2/<zid>``. The supervisor asks the mission's
-replica (rendezvous order, services/supervisor/ports.py). The test freezes
+replica (rendezvous order, services/supervisor/pool.py). The test freezes
 that replica (SIGSTOP) while a request is waiting on it, then kills it
 (SIGKILL): Zenoh ends the pending query, the supervisor asks the next
 replica within the same deadline, and the mission goes on — no plan lost,
@@ -43,7 +43,7 @@ SPEED = 20
 
 
 def rendezvous(mission_id: str, zids: list[str]) -> list[str]:
-    """The replica order of services/supervisor/ports.py, worked out here on its own."""
+    """The replica order of services/supervisor/pool.py, worked out here on its own."""
     return sorted(zids, key=lambda z: hashlib.blake2b(f"{mission_id}/{z}".encode(),
                                                       digest_size=8).digest())
 
