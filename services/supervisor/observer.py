@@ -62,13 +62,14 @@ class StackObserver:
     record: RunRecord
     pubs: Publications
     mission: MissionView
-    faults: FaultLog = field(default_factory=FaultLog)
-    monitor_rejected: int = 0  # plans the run-time monitor refused (dualpilot/mission/monitor)
-    tick: float = 0.0  # perf_counter at the step's start (latency)
-    _why: dict[str, object] = field(default_factory=dict)
-    _decision: tuple[Decision, int] | None = None
-    _holds_seen: int = 0
-    _modes_seen: int = 0
+    faults: FaultLog = field(default_factory=FaultLog, init=False)
+    #: plans the run-time monitor refused (dualpilot/mission/monitor)
+    monitor_rejected: int = field(default=0, init=False)
+    tick: float = field(default=0.0, init=False)  # perf_counter at the step's start (latency)
+    _why: dict[str, object] = field(default_factory=dict, init=False)
+    _decision: tuple[Decision, int] | None = field(default=None, init=False)
+    _holds_seen: int = field(default=0, init=False)
+    _modes_seen: int = field(default=0, init=False)
 
     # -- events -------------------------------------------------------------------------------
     def event(self, kind: EventKind, **values: object) -> None:

@@ -136,11 +136,14 @@ class PlannerPool:
     deadline_s: Callable[[int], float]
     params: PoolParams = field(default_factory=PoolParams)
     clock: Callable[[], float] = time.perf_counter
-    failovers: int = 0  # requests asked again of another replica (theirs vanished)
-    deadline_misses: int = 0  # every missed deadline (the named fault plan_deadline)
-    request_wall_s: float = 0.0  # this step's wall time in plan requests
-    service_s: float = 0.0  # this step's share of it the services report (decode, plan, encode)
-    requests: int = 0  # this step's requests
+    #: requests asked again of another replica (theirs vanished)
+    failovers: int = field(default=0, init=False)
+    #: every missed deadline (the named fault plan_deadline)
+    deadline_misses: int = field(default=0, init=False)
+    request_wall_s: float = field(default=0.0, init=False)  # this step's wall time in requests
+    #: this step's share of it the services report (decode, plan, encode)
+    service_s: float = field(default=0.0, init=False)
+    requests: int = field(default=0, init=False)  # this step's requests
 
     def __post_init__(self) -> None:
         self.misses = {1: 0, 2: 0}  # deadlines missed in a row
