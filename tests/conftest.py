@@ -20,6 +20,9 @@ from hypothesis import settings
 
 TIERS = ("unit", "integration", "e2e")
 
+# the ``testbed`` fixture: the deployment test bed's hosts, or a skip saying why not
+pytest_plugins = ["tests.support.testbed"]
+
 settings.register_profile("dualpilot", deadline=None)
 settings.load_profile("dualpilot")
 

@@ -1,0 +1,81 @@
+"""``python -m services.testbed``: the test bed up until Ctrl-C, then down; or remove leftovers.
+
+``python -m services.testbed [up] [--delay-ms 150 --jitter-ms 20 --loss 0.05 --rate-mbit 1]``
+brings the hosts up with the radio link so shaped, prints them and how to run a command in
+each, and waits; Ctrl-C, SIGTERM or SIGHUP takes it all down. ``python -m services.testbed
+down`` removes test beds whose owner process is gone (``--all``: every one on the machine).
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import signal
+import sys
+import threading
+
+from services.common import log as common_log
+from services.testbed import leftovers
+from services.testbed.availability import unavailable
+from services.testbed.bed import IMPAIRERS, TestBed
+from services.testbed.impairment import Impairment
+
+log = logging.getLogger("services.testbed")
+
+
+def parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="python -m services.testbed",
+                                description=__doc__.splitlines()[0])
+    p.add_argument("action", nargs="?", default="up", choices=["up", "down"])
+    p.add_argument("--all", action="store_true",
+                   help="down: every test bed on the machine, not only those whose owner died")
+    p.add_argument("--impairer", default="auto", choices=IMPAIRERS)
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--link", default="radio", help="the link the shaping flags apply to")
+    p.add_argument("--delay-ms", type=float, default=0.0)
+    p.add_argument("--jitter-ms", type=float, default=0.0)
+    p.add_argument("--loss", type=float, default=0.0, help="a fraction, 0..1")
+    p.add_argument("--rate-mbit", type=float, default=None)
+    p.add_argument("--queue-ms", type=float, default=500.0)
+    return p
+
+
+def _stop_on_signals(stop: threading.Event) -> None:
+    for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
+        signal.signal(sig, lambda *_: stop.set())
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = parser()
+    args = p.parse_args(argv)
+    common_log.configure("testbed", "-", fmt="text")
+    if args.action == "down":
+        removed = leftovers.remove_stale(everything=args.all)
+        log.info("removed %s", ", ".join(removed) if removed else "nothing")
+        return 0
+    try:
+        shape = Impairment(args.delay_ms, args.jitter_ms, args.loss, args.rate_mbit,
+                           args.queue_ms)
+    except ValueError as err:
+        p.error(str(err))
+    reason = unavailable()
+    if reason:
+        log.error("the test bed cannot be made here: %s", reason)
+        return 2
+    stale = leftovers.remove_stale()
+    if stale:
+        log.info("removed leftovers of a crashed test bed: %s", ", ".join(stale))
+    stop = threading.Event()
+    _stop_on_signals(stop)
+    with TestBed(impairer=args.impairer, seed=args.seed) as bed:
+        bed.link(args.link).set(shape)
+        sys.stdout.write(bed.describe() + f"\n  {args.link}: {shape}\n"
+                         "up; Ctrl-C takes it down\n")
+        sys.stdout.flush()
+        stop.wait()
+    log.info("test bed down")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
