@@ -12,7 +12,8 @@ at half the bandwidth for 4 s (one-way delay on one clock, loss), and a TCP tran
 (services/testbed/zprobe.py) on air asking its status every 0.2 s over the radio link at
 1 Mbit/s and 100 ± 20 ms; the link goes down for 10 s, ``--outages`` times, and each
 recovery is the time from the link's return to the first answer to a query sent after it.
-Figures are reported, never asserted.
+``--congestion-control cubic`` sets the hosts' TCP congestion control (default: the
+machine's; the output names it). Figures are reported, never asserted.
 """
 
 from __future__ import annotations
@@ -26,7 +27,7 @@ from typing import Any
 
 import harness  # the repository on the path: before its packages
 
-from services.testbed import measure
+from services.testbed import measure, netns
 from services.testbed.availability import unavailable
 from services.testbed.bed import TestBed
 from services.testbed.impairment import Impairment
@@ -141,14 +142,24 @@ def main() -> int:
     p.add_argument("--out", type=Path, default=None)
     p.add_argument("--outages", type=int, default=3)
     p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--congestion-control", default="",
+                   help="TCP congestion control of the hosts (default: the machine's)")
+    p.add_argument("--no-zenoh", action="store_true", help="leave out the Zenoh outages")
     args = p.parse_args()
     if reason := unavailable():
         sys.exit(f"the test bed cannot be made here: {reason}")
     logs = Path(args.out.parent if args.out else Path("runs")) / "testbed-link-logs"
     with TestBed(seed=args.seed, logs=logs) as bed:
+        for host in bed.hosts.values():
+            if args.congestion_control:
+                netns.sysctl(host.netns, "net.ipv4.tcp_congestion_control",
+                             args.congestion_control)
+        cc = bed.host("air").run(["cat", "/proc/sys/net/ipv4/tcp_congestion_control"])
         cells = [cell(bed, rate, shape) for rate in RATES for shape in SHAPES.values()]
-        doc = {"impairer": "netem" if bed.netem else "user-space", "cells": cells,
-               "capacity": capacity(bed), "zenoh": zenoh_recovery(bed, args.outages, logs)}
+        doc = {"impairer": "netem" if bed.netem else "user-space",
+               "tcp_congestion_control": cc.stdout.strip(), "cells": cells,
+               "capacity": capacity(bed),
+               "zenoh": None if args.no_zenoh else zenoh_recovery(bed, args.outages, logs)}
     harness.emit(doc, args.out)
     print(table(cells))
     return 0

@@ -64,9 +64,15 @@ def clear_argv(dev: str) -> list[str]:
 
 
 def apply(ns: str, dev: str, imp: Impairment, netem: bool, down: bool = False) -> None:
-    """Replace ``dev``'s qdiscs in ``ns`` with those of ``imp``."""
-    netns.command(in_ns(ns, clear_argv(dev)), check=False)  # none there yet is fine
-    for argv in qdisc_argvs(dev, imp, netem, down):
+    """Give ``dev`` in ``ns`` the qdiscs of ``imp``.
+
+    A bandwidth alone is changed in place (``tc qdisc replace``: the frames queued in the
+    bucket stay); with netem the qdiscs are made anew, which drops what they held.
+    """
+    argvs = qdisc_argvs(dev, imp, netem, down)
+    if netem or not argvs:
+        netns.command(in_ns(ns, clear_argv(dev)), check=False)  # none there yet is fine
+    for argv in argvs:
         netns.command(in_ns(ns, argv))
 
 

@@ -274,3 +274,53 @@ def test_sockets_open_in_the_namespace_asked_for(testbed: TestBed) -> None:
         s.bind(("10.10.1.2", 0))  # ground's
     with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as here, pytest.raises(OSError):
         here.bind(("10.10.2.3", 0))  # not in this process's own namespace
+
+
+# -- the command line and netem -----------------------------------------------------------------
+def test_the_command_brings_the_bed_up_and_takes_it_down_on_ctrl_c(tmp_path: Path) -> None:
+    if reason := unavailable():
+        pytest.skip(SKIP_PREFIX + reason)
+    env = dict(os.environ, PYTHONPATH=str(REPO))
+    proc = subprocess.Popen([sys.executable, "-m", "services.testbed", "up", "--delay-ms", "30",
+                             "--loss", "0.01"], cwd=REPO, env=env, stdout=subprocess.PIPE,
+                            stderr=subprocess.DEVNULL, text=True, start_new_session=True)
+    try:
+        assert proc.stdout is not None
+        shown = []
+        for line in proc.stdout:
+            shown.append(line)
+            if line.startswith("up;"):
+                break
+        text = "".join(shown)
+        ours = [ns for ns in netns.names() if owner(ns) and owner(ns)[0] == proc.pid]
+        assert sorted(ours) == sorted(f"dptb{proc.pid}-1-{h}"
+                                      for h in ("air", "ground", "gcs", "wire"))
+        assert f"ip netns exec dptb{proc.pid}-1-air COMMAND" in text
+        assert "radio 10.10.1.2" in text and "delay_ms=30.0" in text
+    finally:
+        os.killpg(proc.pid, signal.SIGINT)  # what Ctrl-C in a terminal sends
+        code = proc.wait(30)
+    assert code == 0
+    assert not [ns for ns in netns.names() if owner(ns) and owner(ns)[0] == proc.pid]
+    assert not leftovers.scratch_dir(proc.pid, 1).exists()
+
+
+def test_netem_where_the_kernel_has_it_else_a_clear_refusal(tmp_path: Path) -> None:
+    if reason := unavailable():
+        pytest.skip(SKIP_PREFIX + reason)
+    bed = TestBed(impairer="netem", logs=tmp_path)
+    probe = TestBed(logs=tmp_path)  # "auto": the kernel's answer decides
+    with probe:
+        have_netem = probe.netem
+        assert all(link.kind == ("netem" if have_netem else "impairer")
+                   for link in probe.links.values())
+    if not have_netem:
+        with pytest.raises(netns.NetnsError, match="no netem qdisc"):
+            bed.up()
+        assert mine(bed) == []
+        return
+    with bed:  # a kernel with netem: the bridge, tbf and netem path, measured
+        bed.link("radio").set(Impairment(delay_ms=60.0, rate_mbit=1.0))
+        rtts = measure.ping(bed.host("air"), bed.host("ground"), 5, 0.05)
+        assert all(r is not None and r >= 120.0 for r in rtts)
+    assert mine(bed) == []
