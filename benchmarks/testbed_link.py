@@ -12,7 +12,7 @@ at half the bandwidth for 4 s (one-way delay on one clock, loss), and a TCP tran
 (services/testbed/zprobe.py) on air asking its status every 0.2 s over the radio link at
 1 Mbit/s and 100 ± 20 ms; the link goes down for 10 s, ``--outages`` times, and each
 recovery is the time from the link's return to the first answer to a query sent after it.
-``--congestion-control cubic`` sets the hosts' TCP congestion control (default: the
+``--congestion-control cubic`` sets the TCP transfers' congestion control (default: the
 machine's; the output names it). Figures are reported, never asserted.
 """
 
@@ -27,7 +27,7 @@ from typing import Any
 
 import harness  # the repository on the path: before its packages
 
-from services.testbed import measure, netns
+from services.testbed import measure
 from services.testbed.availability import unavailable
 from services.testbed.bed import TestBed
 from services.testbed.impairment import Impairment
@@ -54,7 +54,8 @@ def delta(after: dict[str, int], before: dict[str, int]) -> dict[str, int]:
     return {k: after[k] - before[k] for k in after}
 
 
-def cell(bed: TestBed, rate: float | None, shape: Impairment) -> dict[str, Any]:
+def cell(bed: TestBed, rate: float | None, shape: Impairment,
+         congestion: str) -> dict[str, Any]:
     air, ground = bed.host("air"), bed.host("ground")
     bed.link("radio").set(Impairment(shape.delay_ms, shape.jitter_ms, shape.loss, rate))
     rtts = measure.ping(air, ground, 20, 0.05)
@@ -64,7 +65,7 @@ def cell(bed: TestBed, rate: float | None, shape: Impairment) -> dict[str, Any]:
     flow = measure.udp_flow(air, ground, int(pps * SECONDS), pps, PAYLOAD, drain_s=1.5)
     udp_link = delta(counters(bed), before)
     nbytes = int((20e6 if rate is None else rate * 1e6 / 8) * SECONDS)
-    tcp = measure.tcp_transfer(air, ground, nbytes, timeout_s=120.0)
+    tcp = measure.tcp_transfer(air, ground, nbytes, timeout_s=120.0, congestion=congestion)
     return {
         "rate_mbit": rate, "shape": shape.wire(),
         "ping_rtt_ms": harness.quantiles(got, (50, 95)), "ping_lost": len(rtts) - len(got),
@@ -143,21 +144,19 @@ def main() -> int:
     p.add_argument("--outages", type=int, default=3)
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--congestion-control", default="",
-                   help="TCP congestion control of the hosts (default: the machine's)")
+                   help="the TCP transfers' congestion control (default: the machine's)")
     p.add_argument("--no-zenoh", action="store_true", help="leave out the Zenoh outages")
     args = p.parse_args()
     if reason := unavailable():
         sys.exit(f"the test bed cannot be made here: {reason}")
     logs = Path(args.out.parent if args.out else Path("runs")) / "testbed-link-logs"
     with TestBed(seed=args.seed, logs=logs) as bed:
-        for host in bed.hosts.values():
-            if args.congestion_control:
-                netns.sysctl(host.netns, "net.ipv4.tcp_congestion_control",
-                             args.congestion_control)
-        cc = bed.host("air").run(["cat", "/proc/sys/net/ipv4/tcp_congestion_control"])
-        cells = [cell(bed, rate, shape) for rate in RATES for shape in SHAPES.values()]
+        cc = args.congestion_control or bed.host("air").run(
+            ["cat", "/proc/sys/net/ipv4/tcp_congestion_control"]).stdout.strip()
+        cells = [cell(bed, rate, shape, args.congestion_control)
+                 for rate in RATES for shape in SHAPES.values()]
         doc = {"impairer": "netem" if bed.netem else "user-space",
-               "tcp_congestion_control": cc.stdout.strip(), "cells": cells,
+               "tcp_congestion_control": cc, "cells": cells,
                "capacity": capacity(bed),
                "zenoh": None if args.no_zenoh else zenoh_recovery(bed, args.outages, logs)}
     harness.emit(doc, args.out)

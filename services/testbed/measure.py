@@ -148,8 +148,10 @@ class Transfer:
         return self.nbytes * 8 / self.seconds / 1e6 if self.seconds > 0 else 0.0
 
 
-def tcp_transfer(src: Host, dst: Host, nbytes: int, timeout_s: float = 120.0) -> Transfer:
-    """Send ``nbytes`` over one TCP connection from ``src`` to ``dst``."""
+def tcp_transfer(src: Host, dst: Host, nbytes: int, timeout_s: float = 120.0,
+                 congestion: str = "") -> Transfer:
+    """Send ``nbytes`` over one TCP connection from ``src`` to ``dst`` (``congestion``: the
+    sender's congestion control, e.g. ``cubic``; default the host's)."""
     target = dst.address(src.name)
     got = [0]
     last = [0.0]
@@ -170,6 +172,8 @@ def tcp_transfer(src: Host, dst: Host, nbytes: int, timeout_s: float = 120.0) ->
         reader = threading.Thread(target=sink, daemon=True)
         reader.start()
         client.settimeout(timeout_s)
+        if congestion:
+            client.setsockopt(socket.IPPROTO_TCP, socket.TCP_CONGESTION, congestion.encode())
         start = time.monotonic()
         client.connect((target, server.getsockname()[1]))
         chunk = b"\x5a" * (1 << 16)

@@ -28,11 +28,16 @@ from services.testbed import leftovers, measure, netns
 from services.testbed.availability import unavailable
 from services.testbed.bed import TestBed
 from services.testbed.impairment import Impairment
-from services.testbed.topology import TOPOLOGY, LinkSpec, Topology, owner
+from services.testbed.topology import LinkSpec, Topology, owner
 from tests.support.testbed import SKIP_PREFIX
 
 REPO = Path(__file__).resolve().parents[2]
 NOBODY = ["setpriv", "--reuid=65534", "--regid=65534", "--clear-groups"]
+
+
+def owned_by(pid: int) -> list[str]:
+    """The namespaces of every test bed process ``pid`` made."""
+    return [ns for ns in netns.names() if (key := owner(ns)) is not None and key[0] == pid]
 
 
 def mine(bed: TestBed) -> list[str]:
@@ -200,7 +205,7 @@ def test_a_crashed_owners_test_bed_is_removed_by_down(tmp_path: Path) -> None:
     try:
         assert owner_proc.stdout is not None
         scratch = Path(owner_proc.stdout.readline().strip())
-        ours = [ns for ns in netns.names() if owner(ns) and owner(ns)[0] == owner_proc.pid]
+        ours = owned_by(owner_proc.pid)
         assert len(ours) == 4 and scratch.is_dir()
     finally:
         owner_proc.send_signal(signal.SIGKILL)  # no exit handler runs
@@ -231,7 +236,7 @@ def _unavailable_in(prefix: list[str], env: dict[str, str]) -> str:
 
 def test_unavailable_says_why() -> None:
     if os.geteuid() != 0:
-        pytest.skip("checks the reasons from root (here: uid %d)" % os.geteuid())
+        pytest.skip(f"checks the reasons from root (here: uid {os.geteuid()})")
     env = dict(os.environ, PYTHONPATH=str(REPO))
     assert _unavailable_in([], env) == "None"
     no_ip = dict(env, PATH=str(Path(sys.executable).parent))
@@ -241,7 +246,7 @@ def test_unavailable_says_why() -> None:
 
 def test_the_fixture_skips_with_the_reason_where_namespaces_cannot_be_made() -> None:
     if os.geteuid() != 0:
-        pytest.skip("runs a test as root and as nobody (here: uid %d)" % os.geteuid())
+        pytest.skip(f"runs a test as root and as nobody (here: uid {os.geteuid()})")
     work = Path(tempfile.mkdtemp(prefix="testbed-fixture-"))
     try:
         work.chmod(0o755)
@@ -292,7 +297,7 @@ def test_the_command_brings_the_bed_up_and_takes_it_down_on_ctrl_c(tmp_path: Pat
             if line.startswith("up;"):
                 break
         text = "".join(shown)
-        ours = [ns for ns in netns.names() if owner(ns) and owner(ns)[0] == proc.pid]
+        ours = owned_by(proc.pid)
         assert sorted(ours) == sorted(f"dptb{proc.pid}-1-{h}"
                                       for h in ("air", "ground", "gcs", "wire"))
         assert f"ip netns exec dptb{proc.pid}-1-air COMMAND" in text
@@ -301,7 +306,7 @@ def test_the_command_brings_the_bed_up_and_takes_it_down_on_ctrl_c(tmp_path: Pat
         os.killpg(proc.pid, signal.SIGINT)  # what Ctrl-C in a terminal sends
         code = proc.wait(30)
     assert code == 0
-    assert not [ns for ns in netns.names() if owner(ns) and owner(ns)[0] == proc.pid]
+    assert owned_by(proc.pid) == []
     assert not leftovers.scratch_dir(proc.pid, 1).exists()
 
 
