@@ -227,6 +227,15 @@ def test_only_beds_whose_owner_is_gone_are_stale(testbed: TestBed) -> None:
 
 
 # -- where namespaces cannot be made ----------------------------------------------------------
+def _skip_unless_root_and_nobody_can_run_python() -> None:
+    if os.geteuid() != 0:
+        pytest.skip(f"compares root with the user nobody (here: uid {os.geteuid()})")
+    done = subprocess.run([*NOBODY, sys.executable, "-c", "pass"], capture_output=True,
+                          timeout=60)
+    if done.returncode != 0:
+        pytest.skip(f"the user nobody cannot run {sys.executable}: {done.stderr[-200:]!r}")
+
+
 def _unavailable_in(prefix: list[str], env: dict[str, str]) -> str:
     code = "from services.testbed.availability import unavailable; print(unavailable())"
     done = subprocess.run([*prefix, sys.executable, "-c", code], cwd=REPO, env=env,
@@ -241,12 +250,16 @@ def test_unavailable_says_why() -> None:
     assert _unavailable_in([], env) == "None"
     no_ip = dict(env, PATH=str(Path(sys.executable).parent))
     assert _unavailable_in([], no_ip) == "no `ip` on PATH (Debian package iproute2)"
+
+
+def test_unavailable_as_another_user_says_not_root() -> None:
+    _skip_unless_root_and_nobody_can_run_python()
+    env = dict(os.environ, PYTHONPATH=str(REPO))
     assert _unavailable_in(NOBODY, env).startswith("not root (uid 65534)")
 
 
 def test_the_fixture_skips_with_the_reason_where_namespaces_cannot_be_made() -> None:
-    if os.geteuid() != 0:
-        pytest.skip(f"runs a test as root and as nobody (here: uid {os.geteuid()})")
+    _skip_unless_root_and_nobody_can_run_python()
     work = Path(tempfile.mkdtemp(prefix="testbed-fixture-"))
     try:
         work.chmod(0o755)
