@@ -7,8 +7,8 @@ outages.
 Root only (network namespaces). Per bandwidth and shape, across the radio link from air to
 ground: 20 ICMP echoes on the idle link (round trip), a paced UDP flow of 200-byte datagrams
 at half the bandwidth for 4 s (one-way delay on one clock, loss), and a TCP transfer of
-4 s worth of the bandwidth (goodput). ``capacity``: the impairer alone, unshaped, offered
-20000 datagrams/s of 64 bytes for 2 s. ``zenoh``: the router on ground, the probe
+4 s worth of the bandwidth (goodput; cut after 20 s). ``capacity``: the impairer alone,
+unshaped, offered 20000 datagrams/s of 64 bytes for 2 s. ``zenoh``: the router on ground, the probe
 (services/testbed/zprobe.py) on air asking its status every 0.2 s over the radio link at
 1 Mbit/s and 100 ± 20 ms; the link goes down for 10 s, ``--outages`` times, and each
 recovery is the time from the link's return to the first answer to a query sent after it.
@@ -37,6 +37,7 @@ SHAPES = {"clean": Impairment(), "radio": Impairment(delay_ms=100.0, jitter_ms=2
 FRAME_OVERHEAD = 42  # Ethernet 14 + IPv4 20 + UDP 8 bytes around a datagram's payload
 PAYLOAD = 200
 SECONDS = 4.0
+TCP_LIMIT_S = 20.0  # a transfer still going then is cut (``tcp_complete`` false)
 
 
 COUNTED = ("offered", "delivered", "lost", "queue_full")
@@ -65,7 +66,8 @@ def cell(bed: TestBed, rate: float | None, shape: Impairment,
     flow = measure.udp_flow(air, ground, int(pps * SECONDS), pps, PAYLOAD, drain_s=1.5)
     udp_link = delta(counters(bed), before)
     nbytes = int((20e6 if rate is None else rate * 1e6 / 8) * SECONDS)
-    tcp = measure.tcp_transfer(air, ground, nbytes, timeout_s=120.0, congestion=congestion)
+    tcp = measure.tcp_transfer(air, ground, nbytes, timeout_s=60.0, congestion=congestion,
+                               limit_s=TCP_LIMIT_S)
     return {
         "rate_mbit": rate, "shape": shape.wire(),
         "ping_rtt_ms": harness.quantiles(got, (50, 95)), "ping_lost": len(rtts) - len(got),
@@ -73,7 +75,7 @@ def cell(bed: TestBed, rate: float | None, shape: Impairment,
         "udp_one_way_ms": harness.quantiles(flow.delays_ms.values(), (50, 95)),
         "udp_out_of_order": flow.out_of_order, "udp_link": udp_link,
         "tcp_bytes": tcp.nbytes, "tcp_s": round(tcp.seconds, 3),
-        "tcp_mbit_s": round(tcp.mbit_s, 3),
+        "tcp_mbit_s": round(tcp.mbit_s, 3), "tcp_complete": tcp.complete,
     }
 
 

@@ -138,10 +138,12 @@ def _receive(rx: socket.socket, flow: Flow, done: threading.Event) -> None:
 
 @dataclass(frozen=True)
 class Transfer:
-    """A TCP transfer: bytes received and the seconds from connect to the last byte."""
+    """A TCP transfer: bytes received and the seconds from connect to the last byte;
+    ``complete`` when every byte offered arrived (else the time limit ended it)."""
 
     nbytes: int
     seconds: float
+    complete: bool = True
 
     @property
     def mbit_s(self) -> float:
@@ -149,39 +151,57 @@ class Transfer:
 
 
 def tcp_transfer(src: Host, dst: Host, nbytes: int, timeout_s: float = 120.0,
-                 congestion: str = "") -> Transfer:
-    """Send ``nbytes`` over one TCP connection from ``src`` to ``dst`` (``congestion``: the
-    sender's congestion control, e.g. ``cubic``; default the host's)."""
+                 congestion: str = "", limit_s: float | None = None) -> Transfer:
+    """Send ``nbytes`` over one TCP connection from ``src`` to ``dst``, for at most
+    ``limit_s`` (then the connection is reset and what arrived by then counts).
+
+    ``congestion``: the sender's congestion control (e.g. ``cubic``; default the host's).
+    """
     target = dst.address(src.name)
-    got = [0]
-    last = [0.0]
+    got = [0, 0.0]  # bytes, time of the last
+    end_at = time.monotonic() + (limit_s if limit_s is not None else timeout_s)
     with socket_in(dst.netns, kind=socket.SOCK_STREAM) as server, \
             socket_in(src.netns, kind=socket.SOCK_STREAM) as client:
         server.bind((target, 0))
         server.listen(1)
         server.settimeout(timeout_s)
-
-        def sink() -> None:
-            conn, _ = server.accept()
-            with conn:
-                conn.settimeout(timeout_s)
-                while data := conn.recv(1 << 16):
-                    got[0] += len(data)
-                    last[0] = time.monotonic()
-
-        reader = threading.Thread(target=sink, daemon=True)
+        reader = threading.Thread(target=_sink, args=(server, got, end_at, timeout_s),
+                                  daemon=True)
         reader.start()
         client.settimeout(timeout_s)
         if congestion:
             client.setsockopt(socket.IPPROTO_TCP, socket.TCP_CONGESTION, congestion.encode())
         start = time.monotonic()
         client.connect((target, server.getsockname()[1]))
-        chunk = b"\x5a" * (1 << 16)
+        chunk = b"\x5a" * (1 << 14)
         left = nbytes
-        while left > 0:
-            n = client.send(chunk[:min(left, len(chunk))])
-            left -= n
-        with contextlib.suppress(OSError):
-            client.shutdown(socket.SHUT_WR)
+        while left > 0 and time.monotonic() < end_at:
+            try:
+                left -= client.send(chunk[:min(left, len(chunk))])
+            except (ConnectionResetError, BrokenPipeError):
+                break  # the receiver stopped at the time limit
+        if left == 0:
+            with contextlib.suppress(OSError):
+                client.shutdown(socket.SHUT_WR)
+        else:  # out of time: reset, so nothing still queued is waited for
+            with contextlib.suppress(OSError):
+                client.setsockopt(socket.SOL_SOCKET, socket.SO_LINGER, struct.pack("ii", 1, 0))
+            client.close()
         reader.join(timeout_s)
-    return Transfer(got[0], last[0] - start)
+    return Transfer(int(got[0]), got[1] - start, complete=left == 0 and got[0] == nbytes)
+
+
+def _sink(server: socket.socket, got: list[float], end_at: float, timeout_s: float) -> None:
+    conn, _ = server.accept()
+    with conn:
+        conn.settimeout(timeout_s)
+        while True:
+            try:
+                data = conn.recv(1 << 16)
+            except OSError:  # reset at the time limit
+                return
+            now = time.monotonic()
+            if not data or now > end_at:
+                return
+            got[0] += len(data)
+            got[1] = now
