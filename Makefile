@@ -90,6 +90,18 @@ bench: setup
 docs: setup
 	$(BIN)/mkdocs build --strict --site-dir site
 
+# the deployment test bed (root): the air, ground and gcs hosts as network namespaces, the
+# radio link shaped by LINK_ARGS (e.g. "--delay-ms 150 --jitter-ms 20 --loss 0.05 --rate-mbit 1");
+# prints the hosts and waits, Ctrl-C takes it all down (docs/testbed.md)
+.PHONY: testbed testbed-down
+LINK_ARGS ?=
+testbed: setup
+	$(BIN)/python -m services.testbed up $(LINK_ARGS)
+
+# remove what test beds whose owner process died left behind
+testbed-down: setup
+	$(BIN)/python -m services.testbed down
+
 # `docker compose up` for real (root; installs docker.io/docker-compose/debootstrap, starts and
 # stops its own dockerd, builds a debootstrap base, flies one mission): scripts/compose_check.sh
 compose-check:
