@@ -22,7 +22,7 @@ import itertools
 import logging
 import os
 import subprocess
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from types import TracebackType
 from typing import Any
@@ -151,12 +151,14 @@ class TestBed:
         if not self._up:
             return
         self._up = False
-        try:
-            self.processes.stop_all()
-        finally:
-            for link in self.links.values():
-                link.stop()
-            leftovers.remove(self.namespaces, self.scratch)
+        steps: list[Callable[[], object]] = [self.processes.stop_all,
+                                             *(lk.stop for lk in self.links.values())]
+        for step in steps:
+            try:
+                step()
+            except Exception:  # whatever failed, the namespaces still go
+                log.exception("test bed down: %s failed", step)
+        leftovers.remove(self.namespaces, self.scratch)
 
     def _use_netem(self) -> bool:
         if self.impairer == "impairer":
