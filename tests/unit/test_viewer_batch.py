@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from services.common import bus, keys, rejections
-from services.viewer.__main__ import batch
+from services.viewer.serve import batch
 
 
 def _item(key: str, payload: bytes = b"") -> bus.Received:
@@ -25,7 +25,7 @@ def test_only_each_vehicles_newest_fire_frame_is_drawn_and_every_frame_is_kept()
 def test_a_skipped_bad_frame_is_still_counted_as_rejected() -> None:
     import foxglove
 
-    from services.viewer.__main__ import Viewer
+    from services.viewer.serve import Viewer
 
     viewer = Viewer(foxglove.Context())
     key = keys.fires("skipped")
