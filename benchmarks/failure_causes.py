@@ -47,7 +47,7 @@ def main(controller: str, n: int) -> None:
     distances = []
     for i in range(n):
         spec = mission_spec(0, i)
-        mission = local_mission(Task.of(i, 0, controller, "paper", "fast").mission())
+        mission = local_mission(Task.of(i, 0, controller).mission())
         probe = ProbedFires(spec)
         mission.fires = probe
         while not mission.done:

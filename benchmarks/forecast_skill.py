@@ -36,6 +36,7 @@ from typing import Any
 import numpy as np
 
 from dualpilot.evaluation.missions import Task
+from dualpilot.mission.config import MissionConfig
 from dualpilot.mission.local import LocalFires, local_mission
 from dualpilot.mission.result import Ending, StepRecord
 from dualpilot.model.forecast import LEVELS, OccupancyForecast, occupancy
@@ -98,8 +99,8 @@ class Recorder:
 def fly(profile: str, index: int, seed: int, controller: str,
         ks: tuple[int, ...], scenario: str = PAPER) -> Recorder:
     # the forecast is scored, not flown: the controller's plain variant flies
-    config = replace(Task.of(index, seed, controller, "paper", "fast", profile,
-                             (("scenario", scenario),)).mission(), risk=False)
+    base = MissionConfig(profile=profile, settings=(("scenario", scenario),))
+    config = replace(Task.of(index, seed, controller, base).mission(), risk=False)
     mission = local_mission(config)
     fires = mission.fires
     assert isinstance(fires, LocalFires)

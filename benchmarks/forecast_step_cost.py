@@ -31,6 +31,7 @@ from typing import Any
 import numpy as np
 
 from dualpilot.evaluation.missions import Task
+from dualpilot.mission.config import MissionConfig
 from dualpilot.mission.local import LocalFires, local_mission
 from dualpilot.mission.result import Ending, StepRecord
 from dualpilot.model.physics_forecast import RunAhead
@@ -63,8 +64,8 @@ def fly(profile: str, index: int, seed: int, controller: str, forecast: bool,
         scenario: str = PAPER) -> tuple[list[float], list[float], int, tuple[int, int]]:
     """Step CPU times (s), forecast CPU times (s), the steps' total fronts of one mission and
     (reused, fresh) run-aheads of a scenario's forecast."""
-    mission = local_mission(Task.of(index, seed, controller, "paper", "fast", profile,
-                                    (("scenario", scenario),)).mission())
+    base = MissionConfig(profile=profile, settings=(("scenario", scenario),))
+    mission = local_mission(Task.of(index, seed, controller, base).mission())
     obs = Forecaster(mission) if forecast else None
     mission.observer = obs
     steps: list[float] = []

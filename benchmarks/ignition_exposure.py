@@ -21,14 +21,16 @@ from __future__ import annotations
 
 import argparse
 import json
+from dataclasses import replace
 from pathlib import Path
 
 import harness
 import numpy as np
 
-from dualpilot.evaluation.missions import Task
+from dualpilot.evaluation.missions import Task, base_of
 from dualpilot.evaluation.results import read_results
 from dualpilot.mission.local import local_mission
+from dualpilot.mission.params import Timing
 from dualpilot.model.physics_fire import PhysicsFire
 from dualpilot.model.scenarios import get_scenario
 from dualpilot.spacetime.lattice import segment_box_d2
@@ -68,19 +70,17 @@ def main() -> None:
     meta = json.loads((args.run / "run.json").read_text())
     rows = [r for r in read_results(args.run / "results.csv")
             if r["controller"] == args.controller and r["success"] == "1"]
-    settings = tuple(meta["settings"].items())
-    base = Task.of(0, meta["seed"], args.controller, rows[0]["timing"], meta["s2_method"],
-                   profile=meta["profile"], settings=settings)
-    reading = base.config.reading()
+    base = base_of(meta, rows[0]["timing"])
+    reading = base.reading()
     fire = PhysicsFire(get_scenario(reading.fire.scenario).params, reading.fire, 1000.0)
     ticks = (np.arange(fire.n) + 0.5) * fire.cell_m
     centres = np.array([(x, y) for y in ticks for x in ticks])
     half = fire.cell_m / 2 + fire.pad_m
-    d = base.config.spec().d_safe_m
+    d = base.spec().d_safe_m
     values = []
     for r in rows:
-        task = Task.of(int(r["mission"]), meta["seed"], args.controller, r["timing"],
-                       meta["s2_method"], profile=meta["profile"], settings=settings)
+        task = Task.of(int(r["mission"]), meta["seed"], args.controller,
+                       replace(base, timing=Timing(r["timing"])))
         result = local_mission(task.mission()).run()
         track = [rec.state[:2] for rec in result.records]
         if result.final_state is not None:

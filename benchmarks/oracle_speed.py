@@ -22,6 +22,7 @@ import numpy as np
 
 from dualpilot.evaluation.missions import ORACLE, Task
 from dualpilot.evaluation.runner import execute
+from dualpilot.mission.config import MissionConfig
 
 READINGS = {"today": ("today", ()), "fig-r5": ("fig-r5", ()), "literal": ("literal", ()),
             "grass-5": ("today", (("scenario", "grass-5"),)),
@@ -31,8 +32,8 @@ READINGS = {"today": ("today", ()), "fig-r5": ("fig-r5", ()), "literal": ("liter
 
 def measure(name: str, missions: int, seed: int, jobs: int) -> dict[str, object]:
     profile, settings = READINGS[name]
-    tasks = [Task.of(i, seed, ORACLE, "paper", "fast", profile=profile, settings=settings)
-             for i in range(missions)]
+    base = MissionConfig(profile=profile, settings=settings)
+    tasks = [Task.of(i, seed, ORACLE, base) for i in range(missions)]
     t0 = time.perf_counter()
     rows = list(execute(tasks, jobs))
     batch = time.perf_counter() - t0

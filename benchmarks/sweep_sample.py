@@ -22,6 +22,8 @@ from pathlib import Path
 
 from dualpilot.evaluation.missions import CONTROLLERS, MEASURED_COLUMNS, Task, run_task
 from dualpilot.evaluation.sweep import grid_points, load_grid
+from dualpilot.mission.config import MissionConfig
+from dualpilot.mission.params import Timing
 from dualpilot.warmup import warm_up
 
 
@@ -38,8 +40,9 @@ def main() -> int:
     points = grid_points(doc.get("grid") or {}, doc.get("profile", "today"),
                          doc.get("points") or ())
     controllers = doc.get("controllers", CONTROLLERS)
-    tasks = [Task.of(i, int(doc.get("seed", 0)), c, doc.get("timing", "paper"), "fast",
-                     profile=pt.profile, settings=pt.settings, point=pt.index, label=pt.label)
+    base = MissionConfig(timing=Timing(doc.get("timing", "paper")))
+    tasks = [Task.of(i, int(doc.get("seed", 0)), c, pt.config(base), point=pt.index,
+                     label=pt.label)
              for i in range(first, last) for pt in points for c in controllers]
     warm_up()
     t0 = time.perf_counter()

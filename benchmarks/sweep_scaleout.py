@@ -18,6 +18,7 @@ from pathlib import Path
 from distributed import Client, LocalCluster
 
 from dualpilot.evaluation.sweep import grid_points, sweep
+from dualpilot.mission.config import MissionConfig
 from dualpilot.warmup import warm_up
 
 
@@ -37,8 +38,8 @@ def main() -> int:
             with Client(cluster) as client:  # every worker compiled/loaded before the clock
                 client.run(warm_up)
             t0 = time.perf_counter()
-            sweep(points, args.missions, Path(tmp), seed=args.seed, progress=False,
-                  scheduler=cluster.scheduler_address, figures=False)
+            sweep(points, args.missions, Path(tmp), MissionConfig(seed=args.seed),
+                  progress=False, scheduler=cluster.scheduler_address)
             walls[n] = time.perf_counter() - t0
         print(f"{n} worker(s): {walls[n]:.1f} s", flush=True)
     base = walls[min(walls)]

@@ -10,52 +10,16 @@ from pathlib import Path
 from typing import Any
 
 from dualpilot.mission.config import CONTROLLER_NAMES
-from dualpilot.mission.config_args import add_config_arguments
-from dualpilot.mission.params import Timing
-from dualpilot.model.scenarios import scenario_names, scenario_table
-from dualpilot.readings import (
-    PROFILES,
-    Profile,
-    get_profile,
-    parse_settings,
-    profile_table,
-    settable,
+from dualpilot.mission.config_args import (
+    READING_FLAGS,
+    add_config_arguments,
+    config_from_args,
 )
-
-
-def _settings(args: argparse.Namespace) -> dict[str, str]:
-    """``--set`` as settings, with ``--scenario`` (a shorthand for ``--set scenario=NAME``)."""
-    settings = parse_settings(args.set)
-    if args.scenario is not None:
-        settings.setdefault("scenario", args.scenario)
-    return settings
-
-
-def _reading(args: argparse.Namespace) -> Profile:
-    """The profile of ``--profile`` with ``--set``, ``--scenario`` and ``--ignition-clearance``
-    applied."""
-    settings: dict[str, object] = dict(_settings(args))
-    if args.ignition_clearance is not None:
-        settings["ignition_clearance_m"] = args.ignition_clearance
-    return get_profile(args.profile).with_settings(settings)
-
-
-def _add_reading_flags(p: argparse.ArgumentParser, grid: bool = False) -> None:
-    p.add_argument("--profile", default="today", choices=list(PROFILES),
-                   help="named reading of the paper (dualpilot profiles)")
-    p.add_argument("--set", action="append", default=[], metavar="NAME=V1,V2" if grid
-                   else "NAME=VALUE",
-                   help=("a grid axis: parameter NAME takes each value (repeat for more axes)"
-                         if grid else "set one parameter of the reading (repeatable)")
-                   + f"; names: {', '.join(settable())}")
-    p.add_argument("--scenario", default=None, choices=scenario_names(),
-                   help="the fire process: paper (the rectangles of Sec. II-B, the default) or "
-                        "a fire-behaviour scenario (dualpilot scenarios)"
-                        + ("; a grid axis: --set scenario=A,B" if grid else ""))
+from dualpilot.model.scenarios import scenario_table
+from dualpilot.readings import profile_table
 
 
 def _mission(args: argparse.Namespace) -> int:
-    from dualpilot.mission.config_args import config_from_args
     from dualpilot.mission.local import local_mission
     from dualpilot.mission.records import write_all
 
@@ -112,21 +76,18 @@ def _figures(args: argparse.Namespace) -> int:
 
 def _evaluate(args: argparse.Namespace) -> int:
     from dualpilot.evaluation.evaluate import evaluate
+    from dualpilot.viz.evaluation import plot_fig_r5
 
     out = Path(args.out)
     summary = evaluate(
         args.missions,
         out,
-        seed=args.seed,
-        timing=args.timing,
-        jobs=args.jobs,
+        config_from_args(args),
         controllers=args.controllers.split(","),
-        s2_method=args.s2_method,
-        ignition_clearance_m=args.ignition_clearance,
-        profile=args.profile,
-        settings=_settings(args),
+        jobs=args.jobs,
         scheduler=args.scheduler,
         first_mission=args.first_mission,
+        figure=plot_fig_r5,
     )
     print(json.dumps(summary, indent=2))
     if (out / "yardstick.md").exists():
@@ -138,20 +99,25 @@ def _evaluate(args: argparse.Namespace) -> int:
 
 def _sweep(args: argparse.Namespace) -> int:
     from dualpilot.evaluation.sweep import grid_points, load_grid, parse_axes, sweep
+    from dualpilot.viz.sweep import plot_sweep
 
     doc = load_grid(Path(args.grid)) if args.grid else {}
     axes = {**{k: list(v) for k, v in (doc.get("grid") or {}).items()}, **parse_axes(args.set)}
-    if args.scenario is not None:
-        axes.setdefault("scenario", [args.scenario])
-    points = grid_points(axes, doc.get("profile", args.profile), doc.get("points") or ())
+    for _, name in READING_FLAGS:  # a named reading flag: a grid axis of one value
+        if getattr(args, f"reading_{name}"):
+            axes.setdefault(name, [getattr(args, f"reading_{name}")])
+    # the sweep file's seed, timing and System 2 method, unless a flag gives them
+    args = argparse.Namespace(**{
+        **vars(args), "seed": args.seed if args.seed is not None else int(doc.get("seed", 0)),
+        "timing": args.timing or str(doc.get("timing", "paper")),
+        "s2_method": args.s2_method or str(doc.get("s2_method", "fast"))})
+    base = config_from_args(args, settings={})  # the grid points give the reading's settings
+    points = grid_points(axes, doc.get("profile", base.profile), doc.get("points") or ())
     controllers = args.controllers or ",".join(doc.get("controllers") or ["cc", "s1", "s2"])
     summary = sweep(
-        points, args.missions or int(doc.get("missions", 200)), Path(args.out),
-        seed=args.seed if args.seed is not None else int(doc.get("seed", 0)),
-        timing=args.timing or str(doc.get("timing", "paper")),
-        controllers=controllers.split(","),
-        s2_method=args.s2_method or str(doc.get("s2_method", "fast")),
-        jobs=args.jobs, scheduler=args.scheduler, figures=not args.no_figures,
+        points, args.missions or int(doc.get("missions", 200)), Path(args.out), base,
+        controllers=controllers.split(","), jobs=args.jobs, scheduler=args.scheduler,
+        figure=None if args.no_figures else plot_sweep,
     )
     for p in summary["points"]:
         rates = " ".join(f"{c.upper()} {100 * v['success_rate']:5.1f}%"
@@ -201,25 +167,23 @@ def _add_mission(sub: Any) -> None:
 
 
 def _add_evaluate(sub: Any) -> None:
-    e = sub.add_parser("evaluate", help="Monte-Carlo comparison of CC, S1 and S2 (Fig. r5)")
+    e = sub.add_parser("evaluate", help="Monte-Carlo comparison of CC, S1 and S2 (Fig. r5)",
+                       description="Every controller of --controllers flies configurations "
+                       "I .. I + missions − 1 of --seed with the mission configuration's other "
+                       "flags (those of dualpilot mission; the start, goal and area are each "
+                       "configuration's).")
     e.add_argument("--missions", type=int, default=200)
     e.add_argument("--first-mission", type=int, default=0, metavar="I",
                    help="fly configurations I .. I + missions − 1 of --seed (held-out sets)")
-    e.add_argument("--timing", choices=[t.value for t in Timing], default="paper")
     e.add_argument("--jobs", type=int, default=0, help="worker processes (default: all cores)")
-    e.add_argument("--seed", type=int, default=0)
     e.add_argument("--controllers", default="cc,s1,s2",
                    help=f"any of {','.join(CONTROLLER_NAMES)} (concurrent: cc with the "
                         "concurrent supervisor; +risk: with the fire forecast), and oracle: "
                         "the clairvoyant yardstick (docs/yardstick.md)")
-    e.add_argument("--s2-method", default="fast")
-    e.add_argument("--ignition-clearance", type=float, default=None, metavar="M",
-                   help="no front ignites within M m of the UAV (default: anywhere, as the "
-                        "paper states)")
     e.add_argument("--out", default="runs/eval")
     e.add_argument("--scheduler", default=None, metavar="tcp://HOST:8786",
                    help="run on this Dask cluster (default: a LocalCluster of --jobs workers)")
-    _add_reading_flags(e)
+    add_config_arguments(e, seed=0, per_mission=False)
     e.set_defaults(func=_evaluate)
 
 
@@ -229,16 +193,14 @@ def _add_sweep(sub: Any) -> None:
                    "missions, controllers, seed, timing")
     w.add_argument("--missions", type=int, default=0, help="per grid point (default 200)")
     w.add_argument("--controllers", default="")
-    w.add_argument("--seed", type=int, default=None)
-    w.add_argument("--timing", choices=[t.value for t in Timing], default=None)
-    w.add_argument("--s2-method", default="")
     w.add_argument("--jobs", type=int, default=0, help="LocalCluster workers (default: cores)")
     w.add_argument("--scheduler", default=None, metavar="tcp://HOST:8786",
                    help="use this Dask cluster (workers: dask worker tcp://HOST:8786)")
     w.add_argument("--out", default="runs/sweep")
     w.add_argument("--no-figures", action="store_true")
-    _add_reading_flags(w, grid=True)
-    w.set_defaults(func=_sweep)
+    add_config_arguments(w, seed=0, per_mission=False, grid=True)
+    # unset unless given: the sweep file's (else 0, paper, fast)
+    w.set_defaults(func=_sweep, seed=None, timing=None, s2_method=None)
 
 
 def _add_readings(sub: Any) -> None:

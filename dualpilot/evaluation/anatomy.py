@@ -167,21 +167,18 @@ def no_escape(result: MissionResult, config: MissionConfig, front_id: int) -> bo
 # -- over an evaluation's run directory ----------------------------------------------------------
 @dataclass(frozen=True)
 class Case:
-    """One avoidable failure to look at: configuration ``index`` of ``seed`` and a controller."""
+    """One avoidable failure to look at: configuration ``index`` of ``seed`` flown by a
+    controller with the run's base configuration."""
 
     index: int
     seed: int
     controller: str
-    timing: str
-    s2_method: str
-    profile: str
-    settings: tuple[tuple[str, Any], ...]
+    base: MissionConfig
 
     def config(self) -> MissionConfig:
         from dualpilot.evaluation.missions import Task
 
-        return Task.of(self.index, self.seed, self.controller, self.timing, self.s2_method,
-                       profile=self.profile, settings=self.settings).mission()
+        return Task.of(self.index, self.seed, self.controller, self.base).mission()
 
 
 def examine(case: Case) -> dict[str, Any]:
@@ -211,20 +208,16 @@ def cases(run_dir: Path, controllers: Sequence[str] | None = None) -> list[Case]
     rows = read_results(run_dir / "results.csv")
     if not rows:
         raise ValueError(f"{run_dir} has no results")
-    settings = tuple(meta.get("settings", {}).items())
-    timing = rows[0]["timing"]
-    from dualpilot.evaluation.missions import Task
+    from dualpilot.evaluation.missions import Task, base_of
 
-    base = Task.of(0, meta["seed"], "s1", timing, meta["s2_method"], profile=meta["profile"],
-                   settings=settings).config
-    verdicts = Verdicts(rows, base)
+    base = base_of(meta, rows[0]["timing"])
+    verdicts = Verdicts(rows, Task.of(0, meta["seed"], "s1", base).config)
     wanted = set(controllers) if controllers else {r["controller"] for r in rows} - {ORACLE}
     out = []
     for r in rows:
         if (r["controller"] in wanted and r["success"] != "1"
                 and verdicts.kind_of_failure(r) == "avoidable"):
-            out.append(Case(int(r["mission"]), meta["seed"], r["controller"], timing,
-                            meta["s2_method"], meta["profile"], settings))
+            out.append(Case(int(r["mission"]), meta["seed"], r["controller"], base))
     return sorted(out, key=lambda c: (c.controller, c.index))
 
 

@@ -12,73 +12,69 @@ from __future__ import annotations
 
 import json
 import os
-from collections.abc import Iterable, Mapping
+from collections.abc import Callable, Iterable
 from pathlib import Path
 from typing import Any
 
-from dualpilot.evaluation.missions import COLUMNS, CONTROLLERS, ORACLE, Task
+from dualpilot.evaluation.missions import COLUMNS, CONTROLLERS, ORACLE, Task, run_config
 from dualpilot.evaluation.results import check_config, read_results
 from dualpilot.evaluation.runner import run
 from dualpilot.evaluation.stats import summarize
 from dualpilot.evaluation.yardstick import markdown, yardstick
-from dualpilot.readings import get_profile
+from dualpilot.mission.config import MissionConfig
+
+#: draws a summary into a file (dualpilot.viz.evaluation.plot_fig_r5): (summary, path) -> path
+Figure = Callable[[dict[str, Any], Path], Path]
 
 
 def evaluate(
     missions: int,
     out: Path,
-    seed: int = 0,
-    timing: str = "paper",
-    jobs: int | None = None,
+    base: MissionConfig | None = None,
     controllers: Iterable[str] = CONTROLLERS,
-    s2_method: str = "fast",
+    jobs: int | None = None,
     progress: bool = True,
-    ignition_clearance_m: float | None = None,
-    profile: str = "today",
-    settings: Mapping[str, Any] | None = None,
     scheduler: str | None = None,
     first_mission: int = 0,
+    figure: Figure | None = None,
 ) -> dict[str, object]:
     """Run (or resume) the evaluation in ``out``; returns the summary it writes.
 
-    ``profile`` and ``settings`` (field name → value or its text) choose the
-    reading (:mod:`dualpilot.readings`); ``ignition_clearance_m``, when set,
-    overrides the profile's. Configurations ``first_mission`` .. ``first_mission +
-    missions − 1`` are flown. With the controller ``oracle`` the summary has the
-    yardstick (:mod:`dualpilot.evaluation.yardstick`), also written to ``yardstick.md``.
+    Every task is ``base`` (default: the defaults; its seed is the run's seed S, its
+    timing, reading, methods and parameters every mission's) flown by one controller of
+    ``controllers`` on configuration i, drawn from (S, i): configurations
+    ``first_mission`` .. ``first_mission + missions − 1`` are flown. With the controller
+    ``oracle`` the summary has the yardstick (:mod:`dualpilot.evaluation.yardstick`), also
+    written to ``yardstick.md``; with ``figure``, Fig. r5 is drawn to ``fig_r5.png``.
     """
+    base = base or MissionConfig()
     out.mkdir(parents=True, exist_ok=True)
     path = out / "results.csv"
     controllers = tuple(controllers)
+    timing = base.timing.value
     for row in read_results(path):
         if row.get("timing") != timing:
             raise ValueError(f"{path} holds timing={row.get('timing')!r}; use another --out")
-    extra = dict(settings or {})
-    if ignition_clearance_m is not None:
-        extra["ignition_clearance_m"] = ignition_clearance_m
-    reading = get_profile(profile).with_settings(extra)  # checks the settings
-    pinned = tuple((k, reading.values()[k]) for k in extra)
-    check_config(out, {"seed": seed, "profile": profile, "s2_method": s2_method,
-                       "settings": {k: v for k, v in pinned}})
+    reading = base.reading()
+    check_config(out, run_config(base))
     indices = range(first_mission, first_mission + missions)
-    tasks = [Task.of(i, seed, c, timing, s2_method, profile=profile, settings=pinned)
-             for i in indices for c in controllers]
+    tasks = [Task.of(i, base.seed, c, base) for i in indices for c in controllers]
     wall = run(tasks, path, COLUMNS, ("mission", "controller"),
                jobs or os.cpu_count() or 1, scheduler, progress)
     rows = [r for r in read_results(path) if int(r["mission"]) in indices]
     summary = summarize(rows, missions, timing, wall_s=wall)
     summary["first_mission"] = first_mission
     summary["ignition_clearance_m"] = reading.mission.ignition_clearance_m
-    summary["s2_method"] = s2_method
-    summary["profile"] = profile
+    summary["s2_method"] = base.system2_method
+    summary["profile"] = base.profile
     summary["readings"] = reading.readings()
     if ORACLE in controllers:
         ys = yardstick(rows, tasks[0].config)
         summary["yardstick"] = ys
-        (out / "yardstick.md").write_text(markdown(ys, f"{profile} {dict(pinned)}, missions "
-                                                       f"{indices.start}–{indices.stop - 1}"))
+        (out / "yardstick.md").write_text(markdown(ys, f"{base.profile} {dict(base.settings)}, "
+                                                       f"missions {indices.start}–"
+                                                       f"{indices.stop - 1}"))
     (out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
-    from dualpilot.viz.evaluation import plot_fig_r5
-
-    plot_fig_r5(summary, out / "fig_r5.png")
+    if figure is not None:
+        figure(summary, out / "fig_r5.png")
     return summary

@@ -2,8 +2,11 @@
 
 Configuration i (start, goal, fire and supervisor streams) is drawn from the
 seed pair (S, i), so every controller and every grid point sees the same
-mission. :func:`run_task` flies one :class:`Task` and returns its row of
-``results.csv`` (:data:`COLUMNS`); it never raises.
+mission. Every task of a run is one base configuration (the flags of
+``dualpilot mission``: dualpilot/mission/config_args.py) flown by one controller
+name: :func:`flown_by` changes only the controller fields. :func:`run_task` flies
+one :class:`Task` and returns its row of ``results.csv`` (:data:`COLUMNS`); it
+never raises.
 """
 
 from __future__ import annotations
@@ -17,7 +20,8 @@ from typing import Any
 import numpy as np
 
 from dualpilot.evaluation.columns import flight_columns, oracle_columns
-from dualpilot.mission.config import MissionConfig
+from dualpilot.mission.config import MissionConfig, parse_controller
+from dualpilot.mission.config_args import config_to_argv, parse_config
 from dualpilot.mission.params import Timing
 from dualpilot.mission.result import Ending
 from dualpilot.spec import MissionSpec
@@ -39,6 +43,43 @@ MEASURED_COLUMNS = frozenset({"wall_s", "planning_time_s_median", "planning_time
                               "planning_time_s_total"})
 
 Settings = tuple[tuple[str, Any], ...]
+#: the flags a run records by name (run.json) or a task sets itself; :func:`other_flags` the rest
+NAMED_FLAGS = ("--controller", "--seed", "--timing", "--profile", "--set", "--s2-method",
+               "--goal", "--area-size-m", "--start", "--mission-id")
+
+
+def flown_by(base: MissionConfig, controller: str) -> MissionConfig:
+    """``base`` flown by ``controller`` (a name of CONTROLLER_NAMES): only the controller fields
+    change (controller, supervisor, risk; the concurrent supervisor's threat rule follows
+    risk, a System 1 method left "" the supervisor)."""
+    kind, supervisor, risk = parse_controller(controller)
+    return replace(base, controller=kind, supervisor=supervisor, risk=risk,
+                   concurrent=replace(base.concurrent, threat="current"))
+
+
+def other_flags(config: MissionConfig) -> list[str]:
+    """``config``'s flags that :data:`NAMED_FLAGS` leave out and that differ from the defaults
+    (System 1's method, System 2's time limit, the concurrent supervisor's and the forecast's
+    parameters)."""
+    default = set(config_to_argv(MissionConfig()))
+    return [f for f in config_to_argv(config)
+            if f.split("=", 1)[0] not in NAMED_FLAGS and f not in default]
+
+
+def run_config(base: MissionConfig) -> dict[str, Any]:
+    """What run.json records of a run's base configuration (a resumed run must match it)."""
+    doc: dict[str, Any] = {"seed": base.seed, "profile": base.profile,
+                           "s2_method": base.system2_method, "settings": dict(base.settings)}
+    if other_flags(base):
+        doc["config"] = other_flags(base)
+    return doc
+
+
+def base_of(doc: dict[str, Any], timing: str) -> MissionConfig:
+    """The base configuration of a run's run.json (:func:`run_config`) flown with ``timing``."""
+    return replace(parse_config(doc.get("config", [])), seed=int(doc["seed"]),
+                   profile=doc["profile"], system2_method=doc["s2_method"],
+                   settings=tuple(doc.get("settings", {}).items()), timing=Timing(timing))
 
 
 def mission_seed(seed: int, index: int) -> int:
@@ -67,15 +108,12 @@ class Task:
     oracle: bool = False
 
     @staticmethod
-    def of(index: int, seed: int, controller: str, timing: str, s2_method: str,
-           profile: str = "today", settings: Settings = (), point: int = 0,
-           label: str = "") -> Task:
-        """The task of an evaluation's controller name (or :data:`ORACLE`), timing, System 2
-        method and reading."""
+    def of(index: int, seed: int, controller: str, base: MissionConfig | None = None,
+           point: int = 0, label: str = "") -> Task:
+        """Configuration ``index`` of ``seed`` flown by an evaluation's controller name (or
+        :data:`ORACLE`) with the run's ``base`` configuration (default: the defaults)."""
         oracle = controller == ORACLE
-        config = MissionConfig.named("s1" if oracle else controller, timing=Timing(timing),
-                                     system2_method=s2_method, profile=profile,
-                                     settings=settings)
+        config = flown_by(base or MissionConfig(), "s1" if oracle else controller)
         return Task(index, seed, config, point, label, oracle)
 
     def mission(self) -> MissionConfig:

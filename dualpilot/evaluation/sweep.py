@@ -12,16 +12,24 @@ from __future__ import annotations
 import itertools
 import json
 import os
-from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
-from dualpilot.evaluation.missions import COLUMNS, CONTROLLERS, ORACLE, Settings, Task
+from dualpilot.evaluation.missions import (
+    COLUMNS,
+    CONTROLLERS,
+    ORACLE,
+    Settings,
+    Task,
+    other_flags,
+)
 from dualpilot.evaluation.results import check_config, read_results, write_parquet
 from dualpilot.evaluation.runner import run
 from dualpilot.evaluation.stats import summarize
 from dualpilot.evaluation.yardstick import yardstick
+from dualpilot.mission.config import MissionConfig
 from dualpilot.readings import get_profile, parse_value, settable
 
 #: the sweep's tidy table: the grid point and every parameter value, then COLUMNS
@@ -35,6 +43,10 @@ class Point:
     index: int
     profile: str
     settings: Settings
+
+    def config(self, base: MissionConfig) -> MissionConfig:
+        """``base`` with this point's reading."""
+        return replace(base, profile=self.profile, settings=self.settings)
 
     @property
     def label(self) -> str:
@@ -100,18 +112,23 @@ def load_grid(path: Path) -> dict[str, Any]:
     return doc
 
 
-def sweep(points: Sequence[Point], missions: int, out: Path, seed: int = 0,
-          timing: str = "paper", controllers: Sequence[str] = CONTROLLERS,
-          s2_method: str = "fast", jobs: int | None = None, scheduler: str | None = None,
-          progress: bool = True, processes: bool = True,
-          figures: bool = True) -> dict[str, Any]:
-    """Run (or resume) the sweep in ``out``: results.csv/.parquet, summary.json, figures."""
+def sweep(points: Sequence[Point], missions: int, out: Path, base: MissionConfig | None = None,
+          controllers: Sequence[str] = CONTROLLERS, jobs: int | None = None,
+          scheduler: str | None = None, progress: bool = True, processes: bool = True,
+          figure: Callable[[dict[str, Any], Path], Path] | None = None) -> dict[str, Any]:
+    """Run (or resume) the sweep in ``out``: results.csv/.parquet, summary.json and, with
+    ``figure`` (dualpilot.viz.sweep.plot_sweep), fig_sweep.png. Every task is ``base``
+    (its seed the run's, its timing, methods and parameters every mission's) with a point's
+    reading, flown by one of ``controllers``."""
+    base = base or MissionConfig()
+    seed, timing = base.seed, base.timing.value
     out.mkdir(parents=True, exist_ok=True)
-    config = {"seed": seed, "timing": timing, "s2_method": s2_method,
-              "points": [p.label for p in points]}
+    config: dict[str, Any] = {"seed": seed, "timing": timing, "s2_method": base.system2_method,
+                              "points": [p.label for p in points]}
+    if other_flags(base):
+        config["config"] = other_flags(base)
     check_config(out, {k: v for k, v in config.items() if k != "points"})
-    tasks = [Task.of(i, seed, c, timing, s2_method, profile=p.profile, settings=p.settings,
-                  point=p.index, label=p.label)
+    tasks = [Task.of(i, seed, c, p.config(base), point=p.index, label=p.label)
              for i in range(missions) for p in points for c in controllers]
     path = out / "results.csv"
     wall = run(tasks, path, SWEEP_COLUMNS, ("label", "mission", "controller"),
@@ -126,13 +143,9 @@ def sweep(points: Sequence[Point], missions: int, out: Path, seed: int = 0,
         entry = {"point": p.index, "label": p.label, "profile": p.profile,
                  "settings": dict(p.settings), "controllers": s["controllers"]}
         if ORACLE in controllers:  # asserts no completed mission is called impossible
-            point_config = Task.of(0, seed, ORACLE, timing, s2_method, profile=p.profile,
-                                   settings=p.settings).config
-            entry["yardstick"] = yardstick(mine, point_config)
+            entry["yardstick"] = yardstick(mine, Task.of(0, seed, ORACLE, p.config(base)).config)
         summary["points"].append(entry)
     (out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
-    if figures:
-        from dualpilot.viz.sweep import plot_sweep
-
-        summary["figure"] = str(plot_sweep(summary, out / "fig_sweep.png"))
+    if figure is not None:
+        summary["figure"] = str(figure(summary, out / "fig_sweep.png"))
     return summary

@@ -4,11 +4,12 @@ A :class:`MissionConfig` is what a user chooses for one mission: which
 controller flies (the paper's three, the concurrent supervisor, each with or
 without the fire forecast), the reading of the paper (a profile and its
 overrides, the fire scenario among them), the planners' methods, the timing,
-the seed and the ids. It is built once (``dualpilot mission``, the stack's
-supervisor from its flags or environment, an evaluation's tasks), and the
-in-process mission, the stack's supervisor, the planner services and the EWS
-all read their settings from it: none re-lists them. Its wire form is written
-once, in ``services/common/convert/config.py``.
+the seed and the ids. It is built once (``dualpilot mission``, ``evaluate`` and
+``sweep`` from their flags, dualpilot/mission/config_args.py; the stack's
+supervisor from the same flags or the environment, services/common/mission_env.py),
+and the in-process mission, the stack's supervisor, the planner services, the
+EWS and uavsim all read their settings from it: none re-lists them. Its wire
+form is written once, in ``services/common/convert/config.py``.
 
 The controller names of ``dualpilot evaluate`` (:data:`CONTROLLER_NAMES`:
 ``cc``, ``s1``, ``s2``, ``concurrent`` and each with ``+risk``) are spellings of
@@ -18,6 +19,7 @@ and ``risk``.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field, replace
 from typing import Any, Literal
 
@@ -28,6 +30,7 @@ from dualpilot.model.geometry import Rect
 from dualpilot.readings import Profile, get_profile, parse_value, part_of
 from dualpilot.spec import MissionSpec
 from dualpilot.supervisor.concurrent import ConcurrentParams
+from dualpilot.system2.problem import System2Params
 
 __all__ = ["CONTROLLER_NAMES", "MissionConfig", "SupervisorKind", "controller_name",
            "parse_controller"]
@@ -78,8 +81,11 @@ class MissionConfig:
     ``profile`` and ``settings`` are the reading of the paper
     (:mod:`dualpilot.readings`; the fire scenario is the setting ``scenario``,
     the step limit ``max_steps``, the ignition clearance ``ignition_clearance_m``);
-    :meth:`reading` resolves them. ``system1_method`` defaults to the
-    supervisor's (:data:`dualpilot.mission.supervisors.SUPERVISORS`). With ``risk``
+    :meth:`reading` resolves them. ``system1_method`` "" is the supervisor's
+    (:data:`dualpilot.mission.supervisors.SUPERVISORS`; :meth:`methods` resolves it, so a
+    configuration flown by another controller keeps its choice). ``system2_time_limit_s``
+    bounds each System 2 solve (the exact, anytime and certified methods;
+    :class:`~dualpilot.system2.problem.System2Params`). With ``risk``
     both planners take the fire forecast (their risk-aware variants) and the
     concurrent supervisor judges threats on it (``concurrent.threat`` is then "forecast");
     ``forecast`` is that forecast's grid and ensemble (the in-process fire port's and the
@@ -96,6 +102,7 @@ class MissionConfig:
     settings: tuple[Setting, ...] = ()
     system1_method: str = ""
     system2_method: str = "fast"
+    system2_time_limit_s: float = System2Params().time_limit_s
     concurrent: ConcurrentParams = field(default_factory=ConcurrentParams)
     forecast: ForecastParams = field(default_factory=ForecastParams)
     goal: Rect = MissionSpec().goal
@@ -115,8 +122,10 @@ class MissionConfig:
         if not 0 <= self.seed < 2**64:
             raise ValueError(f"seed must be in [0, 2^64), got {self.seed}")
         object.__setattr__(self, "settings", _canonical_settings(self.settings))
-        if not self.system1_method:
-            object.__setattr__(self, "system1_method", entry.system1_method)
+        if not 0 < self.system2_time_limit_s < math.inf:
+            raise ValueError(f"system2_time_limit_s must be a positive number of seconds, got "
+                             f"{self.system2_time_limit_s}")
+        object.__setattr__(self, "system2_time_limit_s", float(self.system2_time_limit_s))
         threat: Literal["current", "forecast"] = "forecast" if self.risk else "current"
         if self.concurrent.threat == "forecast" and not self.risk:
             raise ValueError("forecast threats are the risk-aware controller's: set risk")
@@ -154,8 +163,14 @@ class MissionConfig:
         return self.reading().spec(base)
 
     def methods(self) -> dict[int, str]:
-        """The planners' registry names by system (:mod:`dualpilot.planners`)."""
-        return {1: self.system1_method, 2: self.system2_method}
+        """The planners' registry names by system (:mod:`dualpilot.planners`); System 1's
+        "" is the supervisor's."""
+        system1 = self.system1_method or SUPERVISORS[self.supervisor].system1_method
+        return {1: system1, 2: self.system2_method}
+
+    def system2_params(self) -> System2Params:
+        """System 2's parameters: the paper's, with this configuration's time limit."""
+        return System2Params(time_limit_s=self.system2_time_limit_s)
 
     def systems(self) -> list[int]:
         """The planners this controller may ask."""

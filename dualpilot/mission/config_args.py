@@ -1,24 +1,28 @@
 """A :class:`~dualpilot.mission.config.MissionConfig` from command-line flags, and back.
 
-One grammar for every entry point: ``dualpilot mission`` and the stack's
-supervisor (``python -m services.supervisor``, whose flags take their defaults
-from the environment: ``CONTROLLER``, ``MISSION_SEED``, …, so docker compose and
-the local launcher set a mission by environment) add the same flags
-(:func:`add_config_arguments`) and read them with :func:`config_from_args`.
-:func:`config_to_argv` writes a configuration as flags: reading them back gives
-the same configuration (a property test checks it).
+One grammar for every entry point: ``dualpilot mission``, ``evaluate`` and
+``sweep``, the stack's launcher and its supervisor (``python -m
+services.supervisor``) add the same flags (:func:`add_config_arguments`) and
+read them with :func:`config_from_args`. The core knows flags only: the
+environment names docker compose sets (``CONTROLLER``, ``MISSION_SEED``, …) are
+the services' (services/common/mission_env.py), which turns them into these
+flags. :func:`config_to_argv` writes a configuration as flags: reading them back
+gives the same configuration (a property test checks it).
 
-The reading's named flags (``--d-t-reading``, ``--fire-scenario``, …) are
+The reading's named flags (``--d-t-reading``, ``--scenario``, …) are
 shorthands for ``--set NAME=VALUE``; the concurrent supervisor's parameters are
 ``--concurrent NAME=VALUE`` (``risk.alpha`` for the forecast's α); the fire forecast's
-grid and ensemble are ``--forecast NAME=VALUE``.
+grid and ensemble are ``--forecast NAME=VALUE``. An evaluation leaves out the
+fields it sets per task (``per_mission=False``: the controller, from its
+``--controllers``; the start, goal, area and id, drawn per mission); a sweep's
+``--set`` is a grid axis (``grid=True``).
 """
 
 from __future__ import annotations
 
 import argparse
 import dataclasses
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from typing import Any
 
 from dualpilot.mission.config import CONTROLLER_NAMES, MissionConfig, parse_controller
@@ -30,81 +34,87 @@ from dualpilot.model.risk import RiskParams
 from dualpilot.readings import PROFILES, parse_settings, settable, value_text
 from dualpilot.supervisor.concurrent import ConcurrentParams
 
-__all__ = ["add_config_arguments", "config_from_args", "config_to_argv"]
+__all__ = ["READING_FLAGS", "add_config_arguments", "config_from_args", "config_to_argv",
+           "parse_config", "reading_settings"]
 
-#: A default's source: (environment variable, default text) -> text. The core CLI's
-#: returns the default; the services' reads the environment first.
-Env = Callable[[str, str], str]
-
-#: The reading's named flags: (flag, setting name, environment variable).
+#: The reading's named flags: (flag, setting name).
 READING_FLAGS = (
-    ("--d-t-reading", "d_t_reading", "D_T_READING"),
-    ("--failure-rule", "failure_rule", "FAILURE_RULE"),
-    ("--fire-substeps-per-motion", "fire_substeps_per_motion", "FIRE_SUBSTEPS_PER_MOTION"),
-    ("--fire-life-base", "life_base", "FIRE_LIFE_BASE"),
-    ("--fire-extent", "extent", "FIRE_EXTENT"),
-    ("--redraw-clearance", "redraw_clearance", "FIRE_REDRAW_CLEARANCE"),
-    ("--attention-draw", "attention_draw", "ATTENTION_DRAW"),
-    ("--speed-limit", "speed_limit", "SPEED_LIMIT"),
-    ("--scenario", "scenario", "FIRE_SCENARIO"),
-    ("--ignition-clearance", "ignition_clearance_m", "IGNITION_CLEARANCE_M"),
-    ("--max-steps", "max_steps", "MAX_STEPS"),
+    ("--d-t-reading", "d_t_reading"),
+    ("--failure-rule", "failure_rule"),
+    ("--fire-substeps-per-motion", "fire_substeps_per_motion"),
+    ("--fire-life-base", "life_base"),
+    ("--fire-extent", "extent"),
+    ("--redraw-clearance", "redraw_clearance"),
+    ("--attention-draw", "attention_draw"),
+    ("--speed-limit", "speed_limit"),
+    ("--scenario", "scenario"),
+    ("--ignition-clearance", "ignition_clearance_m"),
+    ("--max-steps", "max_steps"),
 )
+#: The defaults the flags start from.
+_DEFAULT = MissionConfig()
 
 
-def _defaults(name: str, default: str) -> str:
-    return default
+def _goal_text(goal: Rect) -> str:
+    return ",".join(repr(v) for v in (goal.center_x, goal.center_y, goal.width, goal.height))
 
 
-def _items(text: str) -> list[str]:
-    """``"a=1;b=2"`` (an environment variable's list of settings) as ``["a=1", "b=2"]``."""
-    return [t.strip() for t in text.split(";") if t.strip()]
+def add_config_arguments(p: argparse.ArgumentParser, seed: int = 7, *, per_mission: bool = True,
+                         grid: bool = False) -> None:
+    """The mission configuration's flags on ``p``, ``seed`` the default of ``--seed``.
 
-
-def add_config_arguments(p: argparse.ArgumentParser, env: Env = _defaults,
-                         seed: int = 7) -> None:
-    """The mission configuration's flags on ``p`` (defaults through ``env``)."""
+    ``per_mission=False`` (an evaluation) leaves out the controller (its ``--controllers``
+    name each task's) and the start, goal, area and id (drawn per mission: ``--seed`` is
+    then the run's seed S, configuration i drawn from (S, i)); ``grid=True`` (a sweep)
+    makes ``--set`` and the reading's named flags grid axes.
+    """
     g = p.add_argument_group("mission configuration (dualpilot.mission.config)")
-    g.add_argument("--controller", default=env("CONTROLLER", "cc"), choices=CONTROLLER_NAMES,
-                   help="who flies: the paper's cc, s1, s2, the concurrent supervisor, each with "
-                        "+risk: with the fire forecast [CONTROLLER]")
-    g.add_argument("--supervisor", default=env("SUPERVISOR", ""),
-                   choices=["", *(k.value for k in SupervisorKind)],
-                   help="the cognitive controller's supervisor (concurrent: as --controller "
-                        "concurrent) [SUPERVISOR]")
-    g.add_argument("--seed", type=int, default=env("MISSION_SEED", str(seed)),
-                   help="[MISSION_SEED]")
-    g.add_argument("--timing", default=env("TIMING", "paper"), choices=[t.value for t in Timing],
-                   help="planning time T_s: the paper's 155 ms / 5 s or measured [TIMING]")
-    g.add_argument("--profile", default=env("READINGS_PROFILE", "today"), choices=list(PROFILES),
-                   help="named reading of the paper (dualpilot profiles) [READINGS_PROFILE]")
-    g.add_argument("--set", action="append", default=_items(env("READINGS", "")),
-                   metavar="NAME=VALUE", help="set one parameter of the reading (repeatable; "
-                   f"names: {', '.join(settable())}) [READINGS: 'a=1;b=2']")
-    for flag, name, var in READING_FLAGS:
-        g.add_argument(flag, dest=f"reading_{name}", default=env(var, ""),
-                       help=f"--set {name}=VALUE [{var}]")
-    g.add_argument("--s1-method", default=env("S1_METHOD", ""),
-                   help="System 1's method (dualpilot.planners; default: the supervisor's) "
-                        "[S1_METHOD]")
-    g.add_argument("--s2-method", default=env("S2_METHOD", "fast"),
-                   help="System 2's method (dualpilot.planners) [S2_METHOD]")
-    g.add_argument("--concurrent", action="append",
-                   default=_items(env("CONCURRENT_PARAMS", "")), metavar="NAME=VALUE",
+    if per_mission:
+        g.add_argument("--controller", default="cc", choices=CONTROLLER_NAMES,
+                       help="who flies: the paper's cc, s1, s2, the concurrent and lookahead "
+                            "supervisors, each with +risk: with the fire forecast")
+        g.add_argument("--supervisor", default="",
+                       choices=["", *(k.value for k in SupervisorKind)],
+                       help="the cognitive controller's supervisor (concurrent: as "
+                            "--controller concurrent)")
+    g.add_argument("--seed", type=int, default=seed,
+                   help="every random stream of the mission is drawn from it" if per_mission
+                   else "the run's seed S: configuration i (start, goal, streams) is drawn "
+                        "from (S, i)")
+    g.add_argument("--timing", default="paper", choices=[t.value for t in Timing],
+                   help="planning time T_s: the paper's 155 ms / 5 s or measured")
+    g.add_argument("--profile", default="today", choices=list(PROFILES),
+                   help="named reading of the paper (dualpilot profiles)")
+    g.add_argument("--set", action="append", default=[],
+                   metavar="NAME=V1,V2" if grid else "NAME=VALUE",
+                   help=("a grid axis: parameter NAME takes each value (repeat for more axes)"
+                         if grid else "set one parameter of the reading (repeatable)")
+                   + f"; names: {', '.join(settable())}")
+    for flag, name in READING_FLAGS:
+        g.add_argument(flag, dest=f"reading_{name}", default="",
+                       help=f"--set {name}=VALUE" + (" (a grid axis of one value)" if grid
+                                                     else ""))
+    g.add_argument("--s1-method", default="",
+                   help="System 1's method (dualpilot.planners; default: the supervisor's)")
+    g.add_argument("--s2-method", default="fast", help="System 2's method (dualpilot.planners)")
+    g.add_argument("--s2-time-limit-s", type=float, default=_DEFAULT.system2_time_limit_s,
+                   help="System 2's solver time limit per plan (s; the exact, fast+exact "
+                        "and certified methods)")
+    g.add_argument("--concurrent", action="append", default=[], metavar="NAME=VALUE",
                    help="a parameter of the concurrent supervisor (repeatable; names: "
-                        f"{', '.join(concurrent_names())}) [CONCURRENT_PARAMS: 'a=1;b=2']")
-    g.add_argument("--forecast", action="append",
-                   default=_items(env("FORECAST_PARAMS", "")), metavar="NAME=VALUE",
+                        f"{', '.join(concurrent_names())})")
+    g.add_argument("--forecast", action="append", default=[], metavar="NAME=VALUE",
                    help="the risk-aware controllers' fire forecast (repeatable; names: "
-                        f"{', '.join(FORECAST_NAMES)}) [FORECAST_PARAMS: 'a=1;b=2']")
-    g.add_argument("--goal", default=env("GOAL", "900,900,100,100"),
-                   help="goal rectangle 'east,north,width,height' in m [GOAL]")
-    g.add_argument("--area-size-m", type=float, default=env("AREA_SIZE_M", "1000"),
-                   help="[AREA_SIZE_M]")
-    g.add_argument("--start", default=env("MISSION_START", ""),
-                   help="'east,north' (m) where an in-process mission starts (the stack's: where "
-                        "the vehicle is) [MISSION_START]")
-    g.add_argument("--mission-id", default=env("MISSION_ID", ""), help="[MISSION_ID]")
+                        f"{', '.join(FORECAST_NAMES)})")
+    if per_mission:
+        g.add_argument("--goal", default=_goal_text(_DEFAULT.goal),
+                       help="goal rectangle 'east,north,width,height' in m")
+        g.add_argument("--area-size-m", type=float, default=_DEFAULT.area_size_m,
+                       help="the square area [0, A]² (m)")
+        g.add_argument("--start", default="",
+                       help="'east,north' (m) where an in-process mission starts (the stack's: "
+                            "where the vehicle is)")
+        g.add_argument("--mission-id", default="")
 
 
 # -- the concurrent supervisor's parameters by name ----------------------------------------------
@@ -194,10 +204,10 @@ def parse_goal(text: str) -> Rect:
     return Rect(cx, cy, w, h)
 
 
-def _settings(args: argparse.Namespace) -> dict[str, str]:
+def reading_settings(args: argparse.Namespace) -> dict[str, str]:
     """``--set`` and the named reading flags as one dict (a name given twice must agree)."""
     settings = parse_settings(args.set)
-    for _, name, _ in READING_FLAGS:
+    for _, name in READING_FLAGS:
         value = getattr(args, f"reading_{name}")
         if value == "":
             continue
@@ -207,24 +217,35 @@ def _settings(args: argparse.Namespace) -> dict[str, str]:
     return settings
 
 
-def config_from_args(args: argparse.Namespace) -> MissionConfig:
-    """The configuration the flags of :func:`add_config_arguments` say (ValueError if bad)."""
-    controller, supervisor, risk = parse_controller(args.controller)
-    if args.supervisor:
+def _controller(args: argparse.Namespace) -> tuple[Any, SupervisorKind, bool]:
+    """(controller, supervisor, risk) of ``--controller`` and ``--supervisor``."""
+    name = getattr(args, "controller", _DEFAULT.controller_name)
+    controller, supervisor, risk = parse_controller(name)
+    if getattr(args, "supervisor", ""):
         chosen = SupervisorKind(args.supervisor)
         if chosen is not supervisor and supervisor is not SupervisorKind.PAPER:
-            raise ValueError(f"--supervisor {chosen.value} contradicts --controller "
-                             f"{args.controller}")
+            raise ValueError(f"--supervisor {chosen.value} contradicts --controller {name}")
         supervisor = chosen
+    return controller, supervisor, risk
+
+
+def config_from_args(args: argparse.Namespace,
+                     settings: Mapping[str, Any] | None = None) -> MissionConfig:
+    """The configuration the flags of :func:`add_config_arguments` say (ValueError if bad);
+    ``settings`` instead of the reading's flags (a sweep's grid point gives them)."""
+    controller, supervisor, risk = _controller(args)
+    start = getattr(args, "start", "")
     return MissionConfig(
         controller=controller, supervisor=supervisor, risk=risk, timing=Timing(args.timing),
-        seed=int(args.seed), profile=args.profile, settings=tuple(_settings(args).items()),
+        seed=int(args.seed), profile=args.profile,
+        settings=tuple((reading_settings(args) if settings is None else settings).items()),
         system1_method=args.s1_method, system2_method=args.s2_method,
+        system2_time_limit_s=float(args.s2_time_limit_s),
         concurrent=concurrent_params(args.concurrent), forecast=forecast_params(args.forecast),
-        goal=parse_goal(args.goal),
-        area_size_m=float(args.area_size_m),
-        start=_pair(args.start, "--start") if args.start else None,
-        mission_id=args.mission_id)
+        goal=parse_goal(getattr(args, "goal", _goal_text(_DEFAULT.goal))),
+        area_size_m=float(getattr(args, "area_size_m", _DEFAULT.area_size_m)),
+        start=_pair(start, "--start") if start else None,
+        mission_id=getattr(args, "mission_id", ""))
 
 
 # -- config -> flags -----------------------------------------------------------------------------
@@ -234,11 +255,11 @@ def config_to_argv(config: MissionConfig) -> list[str]:
     process's own: ``--uav-id`` of the services). Each is ``--flag=value``, so a value that
     starts with "-" is still a value."""
     c = config
-    g = c.goal
     pairs = [("controller", c.controller_name), ("timing", c.timing.value),
              ("seed", str(c.seed)), ("profile", c.profile), ("s1-method", c.system1_method),
-             ("s2-method", c.system2_method), ("area-size-m", repr(c.area_size_m)),
-             ("goal", ",".join(repr(v) for v in (g.center_x, g.center_y, g.width, g.height))),
+             ("s2-method", c.system2_method),
+             ("s2-time-limit-s", repr(c.system2_time_limit_s)),
+             ("area-size-m", repr(c.area_size_m)), ("goal", _goal_text(c.goal)),
              ("mission-id", c.mission_id)]
     pairs += [("set", f"{name}={value_text(value)}") for name, value in c.settings]
     pairs += [("concurrent", item) for item in _concurrent_items(c.concurrent)]
@@ -248,30 +269,8 @@ def config_to_argv(config: MissionConfig) -> list[str]:
     return [f"--{flag}={value}" for flag, value in pairs]
 
 
-def parse_config(argv: Sequence[str], env: Env = _defaults) -> MissionConfig:
+def parse_config(argv: Sequence[str]) -> MissionConfig:
     """The configuration of ``argv`` (the flags of :func:`add_config_arguments` only)."""
     p = argparse.ArgumentParser(add_help=False)
-    add_config_arguments(p, env)
+    add_config_arguments(p)
     return config_from_args(p.parse_args(list(argv)))
-
-
-def config_env(config: MissionConfig) -> dict[str, str]:
-    """The environment that makes the flags of :func:`add_config_arguments` (defaults read
-    from the environment, as the services do) say ``config``: how a launcher or a compose
-    file hands a process its mission. Every variable is set, the unused ones empty, so none
-    is inherited from the launcher's own environment."""
-    c = config
-    g = c.goal
-    env = {var: "" for _, _, var in READING_FLAGS}
-    env.update({
-        "CONTROLLER": c.controller_name, "SUPERVISOR": "", "TIMING": c.timing.value,
-        "MISSION_SEED": str(c.seed), "READINGS_PROFILE": c.profile,
-        "READINGS": ";".join(f"{n}={value_text(v)}" for n, v in c.settings),
-        "S1_METHOD": c.system1_method, "S2_METHOD": c.system2_method,
-        "CONCURRENT_PARAMS": ";".join(_concurrent_items(c.concurrent)),
-        "FORECAST_PARAMS": ";".join(_forecast_items(c.forecast)),
-        "GOAL": ",".join(repr(v) for v in (g.center_x, g.center_y, g.width, g.height)),
-        "AREA_SIZE_M": repr(c.area_size_m), "MISSION_ID": c.mission_id,
-        "MISSION_START": "" if c.start is None else f"{c.start[0]!r},{c.start[1]!r}",
-    })
-    return env

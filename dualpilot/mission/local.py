@@ -114,12 +114,14 @@ class LocalVehicle:
 
 def local_mission(config: MissionConfig, planners: dict[int, Planner] | None = None) -> Mission:
     """The mission of ``config`` flown in this process (its planners built from the spec by
-    default: the config's methods, risk-aware with ``config.risk``)."""
+    default: the config's methods, risk-aware with ``config.risk``, System 2 with its time
+    limit)."""
     spec = config.spec()
     if planners is None:
         from dualpilot.planners import build_planners
 
-        planners = build_planners(spec, config.methods(), risk=config.risk)
+        planners = build_planners(spec, config.methods(), risk=config.risk,
+                                  system2_params=config.system2_params())
     state = hover_state(np.array(spec.start), spec.dynamics)
     fires = LocalFires(spec, config.reading().fire, config.forecast)
     ports = MissionPorts(fires, LocalPlanners(planners),

@@ -28,6 +28,8 @@ from dualpilot.evaluation.anatomy import (
     counts,
     replay,
 )
+from dualpilot.evaluation.missions import other_flags
+from dualpilot.mission.config import MissionConfig
 from dualpilot.oracle.oracle import solve
 from dualpilot.viz.mission import (
     FIRE_EDGE,
@@ -100,6 +102,9 @@ def replay_command(case: Case) -> str:
     g, start = config.goal, config.start
     assert start is not None  # an evaluation's mission has its own start
     sets = "".join(f" --set {k}={v}" for k, v in config.settings)
+    if config.system2_method != MissionConfig().system2_method:
+        sets += f" --s2-method {config.system2_method}"
+    sets += "".join(f" {flag}" for flag in other_flags(config))  # the run's other choices
     return (f"dualpilot mission --controller {case.controller} --seed {config.seed} "
             f"--start {start[0]!r},{start[1]!r} --goal {g.center_x!r},{g.center_y!r},"
             f"{g.width!r},{g.height!r} --profile {config.profile} "

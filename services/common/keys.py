@@ -16,6 +16,8 @@ supervisor/decision     pub/sub     Decision, every step
 supervisor/plans        pub/sub     StepPlans, every step (the live view, services/viewer)
 vehicle/state           pub/sub     VehicleState read over MAVLink
 mission/event           pub/sub     MissionEvent (started, step, ended)
+uavsim/mission          queryable   MissionConfig → MissionConfig: what the simulated vehicle
+                                    flies (Eq. (1), the area), from its supervisor
 operator/waypoints      pub/sub     OperatorWaypoints for System 1
 clock                   pub/sub     Clock, the simulated clock's anchor
 alive/<service>         liveliness  token while the service runs
@@ -101,6 +103,11 @@ def vehicle_state(uav: str) -> str:
 
 def mission_event(uav: str) -> str:
     return f"{ns(uav)}/mission/event"
+
+
+def sim_mission(uav: str) -> str:
+    """Queryable of the simulated vehicle's mission configuration (services/uavsim)."""
+    return f"{ns(uav)}/uavsim/mission"
 
 
 def waypoints(uav: str) -> str:

@@ -45,8 +45,10 @@ from services.msgs import common_pb2, plan_pb2, vehicle_pb2
 
 from . import bus, keys, rejections, wire
 from .convert import common as common_convert
+from .convert import config as config_convert
 from .convert import plan as plan_convert
 from .convert import vehicle as vehicle_convert
+from .effective import EFFECTIVE
 from .log import fields
 
 log = logging.getLogger(__name__)
@@ -70,6 +72,7 @@ class PlannerService:
     def __init__(self, system: int, make: PlannerMaker, uav: str, keep_missions: int = 2):
         self.system = system
         self.make = make
+        self.uav = uav
         self.stamper = wire.Stamper(f"system{system}", uav)
         self.key = keys.plan(uav, system)  # where its rejections are counted
         self.missions: OrderedDict[str, _Prepared] = OrderedDict()
@@ -85,6 +88,9 @@ class PlannerService:
         Raises ValueError for an unknown method (or one with no risk-aware variant under
         risk)."""
         planner = self.make(spec, config)
+        EFFECTIVE.record(mission_id, self.uav, config_convert.config_to_json(config),
+                         method=getattr(planner, "method", ""),
+                         params=getattr(planner, "params", None), dynamics=spec.dynamics)
         held = _Prepared(spec, config, planner)
         self.missions[mission_id] = held
         while len(self.missions) > self.keep:

@@ -4,7 +4,8 @@
 
 By job: :mod:`.compose` (the compose file onto loopback), :mod:`.processes`
 (child processes, free ports), :mod:`.stack` (one stack, one mission),
-:mod:`.fleet` (several vehicles, repeated missions), ``__main__`` (the CLI).
+:mod:`.fleet` (several vehicles, repeated missions), :mod:`.runs` (a mission's report, a
+fleet, replicas joining a stack), ``__main__`` (the CLI).
 """
 
 from services.launch.compose import (

@@ -16,7 +16,7 @@ from pathlib import Path
 from typing import Any
 
 from dualpilot.mission.config import MissionConfig
-from dualpilot.mission.config_args import config_env
+from dualpilot.mission.config_args import config_to_argv
 from services.launch.compose import COMPOSE
 from services.launch.processes import Proc, free_port, free_port_run
 from services.launch.stack import Outcome, Stack, StackConfig, client_session, next_event
@@ -105,21 +105,24 @@ class Fleet:
         port = free_port("udp")
         run_dir.mkdir(parents=True, exist_ok=True)
         mid = mission_id or re.sub(r"[^A-Za-z0-9_\-]", "-", f"{uav_id}-{run_dir.name}")[:64]
-        mission = {} if config is None else config_env(replace(config, seed=seed,
-                                                                mission_id=mid))
-        common = {**mission, "UAV_ID": uav_id, "UAV_IDS": "", "MISSION_SEED": str(seed),
-                  "RUN_DIR": str(run_dir), "MISSION_ID": mid,
+        mission = None if config is None else config_to_argv(replace(config, seed=seed,
+                                                                     mission_id=mid))
+        common = {"UAV_ID": uav_id, "UAV_IDS": "", "RUN_DIR": str(run_dir),
                   "TLOG_PATH": str(run_dir / "vehicle.tlog"),
                   "STREAM_STATS_PATH": str(run_dir / "stream.json"), **(env or {})}
         own = {"uavsim": {"MAVLINK_URL": f"udpin:127.0.0.1:{port}", "GCS_URL": ""},
-               "supervisor": {"MAVLINK_URL": f"udpout:127.0.0.1:{port}"}}
+               "supervisor": {"MAVLINK_URL": f"udpout:127.0.0.1:{port}",
+                              **({"MISSION_SEED": str(seed), "MISSION_ID": mid}
+                                 if mission is None else {})}}
         v = Vehicle(uav_id, seed, run_dir, mid, port)
         for name in VEHICLE_SERVICES:
-            penv = self.stack.service_env(name)
+            flags = mission if name == "supervisor" else None
+            penv = self.stack.service_env(name, mission_flags=flags is not None)
             penv.update(common)
             penv.update(own[name])
-            v.procs.append(self.stack.group.start(f"{name}-{uav_id}", self.stack.argv(name),
-                                                  penv, run_dir / "logs" / f"{name}.log"))
+            v.procs.append(self.stack.group.start(f"{name}-{uav_id}",
+                                                  self.stack.argv(name, flags), penv,
+                                                  run_dir / "logs" / f"{name}.log"))
         self.vehicles[uav_id] = v
         return v
 
@@ -136,15 +139,17 @@ class Fleet:
             raise ValueError("one seed per vehicle")
         base = free_port_run(len(uav_ids), "udp")
         tag = tag or out.name
-        mission = {} if config is None else config_env(config)
-        common = {**mission, "UAV_ID": uav_ids[0], "UAV_IDS": ",".join(uav_ids),
-                  "MISSION_SEEDS": ",".join(str(s) for s in seeds),
-                  "RUN_DIR": str(out / "{uav}"), "MISSION_ID": f"{{uav}}-{tag}"[:64],
+        mid = f"{{uav}}-{tag}"[:64]
+        mission = None if config is None else config_to_argv(replace(config, mission_id=mid))
+        common = {"UAV_ID": uav_ids[0], "UAV_IDS": ",".join(uav_ids),
+                  "RUN_DIR": str(out / "{uav}"),
                   "TLOG_PATH": str(out / "{uav}" / "vehicle.tlog"),
                   "STREAM_STATS_PATH": str(out / "{uav}" / "stream.json"),
                   "MAV_SYSID": "1", **(env or {})}
         own = {"uavsim": {"MAVLINK_URL": f"udpin:127.0.0.1:{base}", "GCS_URL": ""},
-               "supervisor": {"MAVLINK_URL": f"udpout:127.0.0.1:{base}"}}
+               "supervisor": {"MAVLINK_URL": f"udpout:127.0.0.1:{base}",
+                              "MISSION_SEEDS": ",".join(str(s) for s in seeds),
+                              **({"MISSION_ID": mid} if mission is None else {})}}
         for name, extra in (service_env or {}).items():
             own[name].update(extra)
         host = f"host-{uav_ids[0]}"
@@ -152,11 +157,12 @@ class Fleet:
         for uav in uav_ids:
             (out / uav).mkdir(parents=True, exist_ok=True)
         for name in VEHICLE_SERVICES:
-            penv = self.stack.service_env(name)
+            flags = mission if name == "supervisor" else None
+            penv = self.stack.service_env(name, mission_flags=flags is not None)
             penv.update(common)
             penv.update(own[name])
-            procs.append(self.stack.group.start(f"{name}-{host}", self.stack.argv(name), penv,
-                                                out / f"{host}-{name}.log"))
+            procs.append(self.stack.group.start(f"{name}-{host}", self.stack.argv(name, flags),
+                                                penv, out / f"{host}-{name}.log"))
         vehicles = []
         for k, uav in enumerate(uav_ids):
             v = Vehicle(uav, seeds[k], out / uav, f"{uav}-{tag}"[:64], base + k, procs)

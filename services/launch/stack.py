@@ -22,7 +22,8 @@ from pathlib import Path
 from typing import Any
 
 from dualpilot.mission.config import MissionConfig
-from dualpilot.mission.config_args import config_env
+from dualpilot.mission.config_args import config_to_argv
+from services.common.mission_env import without_mission_env
 from services.launch.compose import (
     COMPOSE,
     ENDPOINT_KEYS,
@@ -57,9 +58,11 @@ def next_event(events: Any, timeout_s: float = 0.2) -> Any:
 class StackConfig:
     """What to run and how (the launcher's flags): the mission, and the processes' settings.
 
-    ``mission`` is handed to the supervisor whole, as the environment of its flags
-    (dualpilot.mission.config_args.config_env); it reaches the planners and the EWS with the
-    prepare requests and the reset. Its mission id defaults to the run directory's name.
+    ``mission`` is handed to the supervisor whole, as its command line's configuration flags
+    (dualpilot.mission.config_args.config_to_argv), the only process that reads it; it
+    reaches the planners, the EWS and uavsim on the wire. No process inherits a mission
+    name of the launcher's environment (services/common/mission_env.py). Its mission id
+    defaults to the run directory's name.
     """
 
     run_dir: Path
@@ -109,10 +112,13 @@ class Stack:
         if cfg.tls or cfg.tls_dir is not None:
             self.tls_dir = (cfg.tls_dir or cfg.run_dir / "tls").resolve()
 
+    def mission_argv(self) -> list[str]:
+        """The supervisor's configuration flags: the stack's mission."""
+        return config_to_argv(replace(self.cfg.mission, mission_id=self.cfg.mission_id))
+
     def overrides(self) -> dict[str, str]:
         c = self.cfg
         return {
-            **config_env(replace(c.mission, mission_id=c.mission_id)),
             "UAV_ID": c.uav_id, "SPEED_FACTOR": str(c.speed_factor), "RUN_DIR": str(c.run_dir),
             "EXIT_AFTER_MISSION": "0", "OPERATOR_WAYPOINTS": c.waypoints,
             "LOG_FORMAT": c.log_format, "TLOG_PATH": str(c.run_dir / "vehicle.tlog"),
@@ -121,13 +127,18 @@ class Stack:
             "ZENOH_TLS_DIR": str(self.tls_dir or ""),
         }
 
-    def service_env(self, name: str) -> dict[str, str]:
+    def service_env(self, name: str, mission_flags: bool = False) -> dict[str, str]:
+        """``name``'s environment: the launcher's (no mission names), the compose file's (with
+        ``mission_flags``: without its mission names, the mission comes as flags), the
+        stack's settings."""
         svc = self.doc["services"][name]
-        env = dict(os.environ)
+        env = without_mission_env(os.environ)
         env["PYTHONPATH"] = os.pathsep.join([str(REPO), env.get("PYTHONPATH", "")]).rstrip(
             os.pathsep)
         for key, value in svc.get("environment", {}).items():
             env[key] = self.ports.rewrite(key, value) if key in ENDPOINT_KEYS else str(value)
+        if mission_flags:
+            env = without_mission_env(env)
         env.update(self.overrides())
         if self.cfg.join:  # another machine's router: everything through it (its peers'
             env["ZENOH_CONNECT"] = self.cfg.join  # loopback locators mean nothing here)
@@ -135,9 +146,11 @@ class Stack:
         env.update(self.cfg.extra_env.get(name, {}))
         return env
 
-    def argv(self, name: str) -> list[str]:
+    def argv(self, name: str, mission: list[str] | None = None) -> list[str]:
+        """``name``'s command line, with the ``mission``'s configuration flags (the
+        supervisor's)."""
         cmd = list(self.doc["services"][name]["command"])
-        return [sys.executable if cmd[0] == "python" else cmd[0], *cmd[1:]]
+        return [sys.executable if cmd[0] == "python" else cmd[0], *cmd[1:], *(mission or [])]
 
     def service_names(self) -> list[str]:
         """The services to run: those without a compose ``profiles`` key, and those of the
@@ -179,9 +192,12 @@ class Stack:
 
     def start_service(self, name: str) -> None:
         """Start ``name`` (and its replicas: system2, system2-2, …)."""
+        supervisor = name == "supervisor"
+        mission = self.mission_argv() if supervisor else None
         for k in range(self.cfg.scale.get(name, 1)):
             proc = name if k == 0 else f"{name}-{k + 1}"
-            self.group.start(proc, self.argv(name), self.service_env(name),
+            self.group.start(proc, self.argv(name, mission),
+                             self.service_env(name, mission_flags=supervisor),
                              self.logs / f"{proc}.log")
 
     def start_deferred(self) -> None:

@@ -88,7 +88,7 @@ class ForecastParams(_message.Message):
     def __init__(self, members: _Optional[int] = ..., resolution_m: _Optional[float] = ..., horizon_s: _Optional[float] = ..., interval_s: _Optional[float] = ...) -> None: ...
 
 class MissionConfig(_message.Message):
-    __slots__ = ("mission_id", "uav_id", "seed", "controller", "supervisor", "risk", "timing", "profile", "settings", "system1_method", "system2_method", "concurrent", "goal", "area_size_m", "start", "forecast")
+    __slots__ = ("mission_id", "uav_id", "seed", "controller", "supervisor", "risk", "timing", "profile", "settings", "system1_method", "system2_method", "concurrent", "goal", "area_size_m", "start", "forecast", "system2_time_limit_s")
     MISSION_ID_FIELD_NUMBER: _ClassVar[int]
     UAV_ID_FIELD_NUMBER: _ClassVar[int]
     SEED_FIELD_NUMBER: _ClassVar[int]
@@ -105,6 +105,7 @@ class MissionConfig(_message.Message):
     AREA_SIZE_M_FIELD_NUMBER: _ClassVar[int]
     START_FIELD_NUMBER: _ClassVar[int]
     FORECAST_FIELD_NUMBER: _ClassVar[int]
+    SYSTEM2_TIME_LIMIT_S_FIELD_NUMBER: _ClassVar[int]
     mission_id: str
     uav_id: str
     seed: int
@@ -121,4 +122,5 @@ class MissionConfig(_message.Message):
     area_size_m: float
     start: _common_pb2.Vec2
     forecast: ForecastParams
-    def __init__(self, mission_id: _Optional[str] = ..., uav_id: _Optional[str] = ..., seed: _Optional[int] = ..., controller: _Optional[_Union[ControllerKind, str]] = ..., supervisor: _Optional[_Union[SupervisorKind, str]] = ..., risk: _Optional[bool] = ..., timing: _Optional[_Union[Timing, str]] = ..., profile: _Optional[str] = ..., settings: _Optional[_Iterable[_Union[Setting, _Mapping]]] = ..., system1_method: _Optional[str] = ..., system2_method: _Optional[str] = ..., concurrent: _Optional[_Union[ConcurrentParams, _Mapping]] = ..., goal: _Optional[_Union[_common_pb2.Rect, _Mapping]] = ..., area_size_m: _Optional[float] = ..., start: _Optional[_Union[_common_pb2.Vec2, _Mapping]] = ..., forecast: _Optional[_Union[ForecastParams, _Mapping]] = ...) -> None: ...
+    system2_time_limit_s: float
+    def __init__(self, mission_id: _Optional[str] = ..., uav_id: _Optional[str] = ..., seed: _Optional[int] = ..., controller: _Optional[_Union[ControllerKind, str]] = ..., supervisor: _Optional[_Union[SupervisorKind, str]] = ..., risk: _Optional[bool] = ..., timing: _Optional[_Union[Timing, str]] = ..., profile: _Optional[str] = ..., settings: _Optional[_Iterable[_Union[Setting, _Mapping]]] = ..., system1_method: _Optional[str] = ..., system2_method: _Optional[str] = ..., concurrent: _Optional[_Union[ConcurrentParams, _Mapping]] = ..., goal: _Optional[_Union[_common_pb2.Rect, _Mapping]] = ..., area_size_m: _Optional[float] = ..., start: _Optional[_Union[_common_pb2.Vec2, _Mapping]] = ..., forecast: _Optional[_Union[ForecastParams, _Mapping]] = ..., system2_time_limit_s: _Optional[float] = ...) -> None: ...

@@ -1,18 +1,24 @@
 """The supervisor's settings: flags whose defaults come from the environment, read once.
 
 The mission's configuration takes the flags every entry point shares
-(:func:`dualpilot.mission.config_args.add_config_arguments`, each with its
-environment variable: ``CONTROLLER``, ``MISSION_SEED``, ``READINGS_PROFILE``, …);
-the rest say how this process talks to the stack and the vehicles (plan
-deadlines, the setpoint stream, MAVLink signing, the fleet it serves).
-:func:`parse` checks them all and returns :class:`Options`; a bad value is an
-argparse error, before anything is started.
+(:func:`dualpilot.mission.config_args.add_config_arguments`); the environment's
+mission names (``CONTROLLER``, ``MISSION_SEED``, ``READINGS_PROFILE``, …:
+services/common/mission_env.py) are read as flags before the command line's,
+so a flag wins. This is where a stack's mission configuration is built, once;
+the planners, the EWS and uavsim receive it on the wire. The rest say how this
+process talks to the stack and the vehicles (plan deadlines, the setpoint
+stream, MAVLink signing, the fleet it serves), each flag with its own
+environment variable. :func:`parse` checks them all and returns
+:class:`Options`; a bad value is an argparse error, before anything is started.
 """
 
 from __future__ import annotations
 
 import argparse
+import os
+import sys
 import time
+from collections.abc import Mapping
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -20,7 +26,7 @@ from dualpilot.mission.config import MissionConfig
 from dualpilot.mission.config_args import add_config_arguments, config_from_args
 from dualpilot.model.dynamics import Array
 from services.common import cli as common_cli
-from services.common import fleet, keys, mav
+from services.common import fleet, keys, mav, mission_env
 from services.common.clock import SimClock
 from services.common.convert.vehicle import parse_waypoints
 
@@ -129,8 +135,10 @@ def _add_stack_arguments(p: argparse.ArgumentParser) -> None:
 
 def parser(doc: str) -> argparse.ArgumentParser:
     p = common_cli.parser("supervisor", doc, mavlink_default="udpin:127.0.0.1:14540")
-    add_config_arguments(p, common_cli.env)
+    add_config_arguments(p, seed=7)
     _add_stack_arguments(p)
+    p.formatter_class = argparse.RawDescriptionHelpFormatter
+    p.epilog = mission_env.help_text()
     return p
 
 
@@ -173,10 +181,15 @@ def _fleet(args: argparse.Namespace, settings: common_cli.Settings, seed: int
     return uavs, tuple(seeds), mids
 
 
-def parse(argv: list[str] | None, doc: str) -> Options:
-    """The supervisor's options; argparse exits with the reason for a bad one."""
+def parse(argv: list[str] | None, doc: str,
+          environ: Mapping[str, str] | None = None) -> Options:
+    """The supervisor's options: the mission's flags of ``environ`` (default: this process's
+    environment), then ``argv`` (default: the command line); argparse exits with the reason
+    for a bad one."""
     p = parser(doc)
-    args = p.parse_args(argv)
+    given = sys.argv[1:] if argv is None else list(argv)
+    args = p.parse_args(mission_env.env_argv(os.environ if environ is None else environ)
+                        + given)
     try:
         settings = common_cli.settings("supervisor", args)
         mission = config_from_args(args)

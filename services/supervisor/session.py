@@ -5,7 +5,8 @@ What is about being a process lives here; the step itself is
 runs, built from the same :class:`~dualpilot.mission.config.MissionConfig`,
 with the ports of services/supervisor/ports/. The session
 
-* starts a mission: takes the vehicle (services/supervisor/watch.py, over the
+* starts a mission: hands the simulated vehicle the mission's configuration
+  (services/supervisor/simulator.py), takes the vehicle (services/supervisor/watch.py, over the
   link's take-over: setpoints, offboard mode, arm), downloads its mission as
   System 1's operator waypoints, freezes the spec with the vehicle's position
   as the start, resets the EWS and prepares the planners with the
@@ -47,6 +48,7 @@ from .pool import PlannerPool, PoolParams
 from .ports import Aborted, StackBus, StackFires, StackPlanners, StackVehicle
 from .publish import Publications
 from .record import Entries, RunRecord, StorageFault
+from .simulator import configure_vehicle
 from .watch import OffboardWatch, VehicleGone
 
 log = logging.getLogger(__name__)
@@ -168,6 +170,7 @@ class StackSession:
     def start(self) -> None:
         """Take the vehicle, then start the mission from its state or resume its record."""
         self.record.claim()
+        configure_vehicle(self.b, self.config)
         self.watch.take()
         if not self.link.mission.wait_downloaded(self.b.stack.mission_wait_s, self.b.stop):
             log.warning("the vehicle's mission was not downloaded before the start")

@@ -20,14 +20,15 @@ from services.common import bus, fleet, planning
 from services.common import cli as common_cli
 
 
+def make(spec: MissionSpec, config: MissionConfig) -> Planner:
+    """The mission's System 1, as the in-process mission builds it."""
+    return build_planner(1, spec, config.methods()[1], risk=config.risk)
+
+
 def main(argv: list[str] | None = None) -> int:
     p = common_cli.parser("system1", __doc__.splitlines()[0])
     fleet.add_argument(p)
     args = p.parse_args(argv)
-
-    def make(spec: MissionSpec, config: MissionConfig) -> Planner:
-        return build_planner(1, spec, config.system1_method, risk=config.risk)
-
     try:
         settings = common_cli.settings("system1", args)
         uavs = fleet.uav_ids(args.uav_ids, settings.uav_id)

@@ -1,7 +1,7 @@
 """The simulated vehicle's MAVLink side: its links, the frames it acts on, the wiring of its parts.
 
 One :class:`Endpoint` per simulated vehicle (a vehicle host runs several,
-services/uavsim/__main__.py). Its links are read by links.py (a UDP datagram
+services/uavsim/hosting.py). Its links are read by links.py (a UDP datagram
 is parsed on its own and judged by when it arrived; a TCP link, ArduPilot
 SITL's habit, is read as a stream); it checks every frame (target, signing,
 the setpoint codec) and hands it to the part that acts on

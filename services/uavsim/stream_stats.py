@@ -6,7 +6,7 @@ so a vehicle process that was itself kept off the CPU counts against the
 stream too). Gaps go into a 0.1 ms histogram up to :data:`MAX_MS` (longer
 ones are kept exactly), so memory stays bounded on a long flight and the
 quantiles are exact to 0.1 ms. ``--stream-stats PATH`` writes the summary
-as JSON every few seconds and at exit (services/uavsim/__main__.py).
+as JSON every few seconds and at exit (services/uavsim/hosting.py).
 """
 
 from __future__ import annotations

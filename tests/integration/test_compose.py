@@ -21,8 +21,10 @@ import pytest
 import yaml
 
 from dualpilot.mission.config import MissionConfig
+from dualpilot.mission.config_args import parse_config
 from services import launch
 from services.common import keys
+from services.common.mission_env import MISSION_ENV
 
 pytestmark = pytest.mark.timeout(30)
 
@@ -115,10 +117,16 @@ def test_launcher_maps_compose_onto_loopback(tmp_path: Path) -> None:
         run_dir=tmp_path, free_ports=True, speed_factor=0,
         mission=MissionConfig.named("s1", seed=11)))
     assert stack.service_names() == ["ews", "system1", "system2", "uavsim", "supervisor"]
-    sup, uav = stack.service_env("supervisor"), stack.service_env("uavsim")
+    sup = stack.service_env("supervisor", mission_flags=True)
+    uav = stack.service_env("uavsim")
+    mission_names = {name for name, _, _ in MISSION_ENV}
     for env in (sup, uav, stack.service_env("ews")):
         assert env["ZENOH_CONNECT"] == stack.endpoint
-        assert env["MISSION_SEED"] == "11" and env["CONTROLLER"] == "s1"
+        assert not mission_names & set(env), "the mission reaches the supervisor as flags"
+    cmd = stack.argv("supervisor", stack.mission_argv())
+    assert cmd[1:3] == ["-m", "services.supervisor"]
+    assert parse_config(cmd[3:]) == MissionConfig.named("s1", seed=11,
+                                                        mission_id=tmp_path.name)
     sup_port = sup["MAVLINK_URL"].rsplit(":", 1)[1]
     assert sup["MAVLINK_URL"] == f"udpout:127.0.0.1:{sup_port}"
     assert uav["MAVLINK_URL"] == f"udpin:127.0.0.1:{sup_port}"  # the same offboard link
@@ -145,17 +153,29 @@ def test_the_viewer_runs_only_in_its_profile(tmp_path: Path) -> None:
     assert stack.argv("viewer")[1:] == ["-m", "services.viewer"]
 
 
-def test_yaml_and_launcher_agree_on_every_variable(doc: dict[str, Any], tmp_path: Path) -> None:
-    """Every compose variable reaches the local process (endpoints rewritten, rest verbatim)."""
+def test_yaml_and_launcher_agree_on_every_variable(doc: dict[str, Any], tmp_path: Path,
+                                                   monkeypatch: pytest.MonkeyPatch) -> None:
+    """Every compose variable reaches the local process (endpoints rewritten, rest verbatim),
+    but the supervisor's mission names: the launcher hands it its mission as flags, and no
+    process inherits a mission name from the launcher's own environment."""
     raw = yaml.safe_load(launch.COMPOSE.read_text())
+    monkeypatch.setenv("READINGS", "max_steps=3")  # the launcher's shell: never inherited
     stack = launch.Stack(launch.StackConfig(run_dir=tmp_path, free_ports=True))
     overridden = set(stack.overrides())
+    mission_names = {name for name, _, _ in MISSION_ENV}
     for name in stack.service_names():
-        env = stack.service_env(name)
+        env = stack.service_env(name, mission_flags=name == "supervisor")
+        assert "READINGS" not in env, name
         for key, value in raw["services"][name]["environment"].items():
             if key in launch.ENDPOINT_KEYS or key in overridden:
                 continue
+            if name == "supervisor" and key in mission_names:
+                assert key not in env, key
+                continue
             assert env[key] == value, (name, key)
+    # compose's own supervisor (no launcher) reads them: services/common/mission_env.py
+    compose_env = raw["services"]["supervisor"]["environment"]
+    assert {"CONTROLLER", "MISSION_SEED", "TIMING"} <= set(compose_env) & mission_names
 
 
 def test_compose_v1_accepts_the_file_and_the_router_override() -> None:

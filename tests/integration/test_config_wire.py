@@ -67,7 +67,11 @@ def test_a_bad_config_is_refused_with_its_reason() -> None:
                           (lambda m: setattr(m.forecast, "members", 10**6), "at most"),
                           (lambda m: setattr(m.forecast, "resolution_m", -1.0), "resolution"),
                           (lambda m: setattr(m.forecast, "horizon_s", float("inf")),
-                           "finite")):
+                           "finite"),
+                          (lambda m: setattr(m, "system2_time_limit_s", 0.0), "must be > 0"),
+                          (lambda m: setattr(m, "system2_time_limit_s", float("nan")),
+                           "finite"),
+                          (lambda m: setattr(m, "system2_time_limit_s", 1e9), "within")):
         bad = config_pb2.MissionConfig()
         bad.CopyFrom(msg)
         change(bad)

@@ -2,8 +2,10 @@
 
 The reset carries the mission's configuration (its profile and settings: the
 reading); the advances carry the step number (a new one starts a time-step) and
-the ignition clearance as a keep-out. An EWS started with ``READINGS_PROFILE``
-runs that profile's readings when a reset carries no configuration.
+the ignition clearance as a keep-out. The EWS has no reading of its own: a
+reset that carries no configuration runs the default configuration's fire
+process, whatever the EWS's environment says (``READINGS_PROFILE`` is the
+supervisor's, services/common/mission_env.py).
 """
 
 from __future__ import annotations
@@ -97,11 +99,17 @@ def test_readings_differ_so_the_comparison_means_something(ews: Any, session: An
     assert a.snapshot().regions != b.snapshot().regions
 
 
-def test_a_reset_without_readings_runs_the_ews_profile(services: Any, session: Any) -> None:
+def test_a_reset_without_readings_runs_the_default_not_the_environment(services: Any,
+                                                                       session: Any) -> None:
+    """An EWS whose environment names the literal profile still runs today's (the default
+    configuration's) fire process for a reset without a configuration: the environment's
+    mission names are the supervisor's alone."""
     uav = "itestlit"
-    services.start("ews-literal", module="services.ews", UAV_ID=uav, READINGS_PROFILE="literal")
+    services.start("ews-literal", module="services.ews", UAV_ID=uav, READINGS_PROFILE="literal",
+                   FIRE_LIFE_BASE="step", FIRE_EXTENT="birth")
     assert bus.Liveliness(session, uav).wait_for(["ews"], 60), services.log("ews-literal")[-2000:]
-    _replay(session, uav, "no-readings", 26, None, None, get_profile("literal").fire)
+    assert get_profile("literal").fire != MissionConfig().reading().fire
+    _replay(session, uav, "no-readings", 26, None, None, MissionConfig().reading().fire)
 
 
 def test_bad_readings_get_an_error_reply(ews: Any, session: Any) -> None:

@@ -1,10 +1,11 @@
 """A fire-behaviour scenario reaches a real EWS: it runs the in-process physics fires exactly.
 
 The reset carries the mission's configuration, whose reading names the fire
-process (the setting ``scenario``); an EWS started with ``FIRE_SCENARIO`` runs
-that scenario when a reset carries no configuration; an unknown name gets an
-error reply; the occupancy forecast it publishes is the in-process one; the EWS warms the
-fire process of a mission that asks for forecasts at its reset, before its first forecast.
+process (the setting ``scenario``); a reset without a configuration runs the
+paper's process even on an EWS started with ``FIRE_SCENARIO`` (a name of the
+supervisor's); an unknown name gets an error reply; the occupancy forecast it
+publishes is the in-process one; the EWS warms the fire process of a mission that
+asks for forecasts at its reset, before its first forecast.
 """
 
 from __future__ import annotations
@@ -23,7 +24,7 @@ from dualpilot.mission.local import LocalFires
 from dualpilot.model.fire import FireParams
 from dualpilot.model.fire_field import FireField
 from dualpilot.model.forecast import LEVELS, ForecastParams
-from dualpilot.model.scenarios import SCENARIOS
+from dualpilot.model.scenarios import PAPER, SCENARIOS
 from dualpilot.spec import MissionSpec, Stream, stream_rng
 from services.common import bus, keys, rejections, wire
 from services.common.convert import config as config_convert
@@ -80,7 +81,8 @@ def _replay(session: Any, uav: str, mission: str, seed: int, sent: FireParams | 
             assert all(np.array_equal(a.vertices, b.vertices)
                        for a, b in zip(got.hulls, exp.hulls, strict=True))
             compared += 1
-    assert field.physics is not None and field.next_id > 0, "the seed should give some fires"
+    assert (field.physics is not None) == (want.scenario != PAPER), "the fire process"
+    assert field.next_id > 0, "the seed should give some fires"
     return compared
 
 
@@ -132,11 +134,14 @@ def _grid(local: LocalFires, n: int) -> bytes:
     return fire_convert.occupancy_to_msg(fc, fire_pb2.OccupancyGrid()).SerializeToString()
 
 
-def test_a_reset_naming_no_scenario_runs_the_ews_own(services: Any, session: Any) -> None:
+def test_a_reset_naming_no_scenario_runs_the_paper_process_not_the_environment(
+        services: Any, session: Any) -> None:
+    """FIRE_SCENARIO is the supervisor's (services/common/mission_env.py): an EWS started with it
+    still runs the default configuration's paper process for a reset without a configuration."""
     uav = "itestgrass"
     services.start("ews-grass", module="services.ews", UAV_ID=uav, FIRE_SCENARIO="grass-5")
     assert bus.Liveliness(session, uav).wait_for(["ews"], 60), services.log("ews-grass")[-2000:]
-    _replay(session, uav, "no-scenario", 26, None, FireParams(scenario="grass-5"))
+    _replay(session, uav, "no-scenario", 26, None, FireParams())
 
 
 def _scenario_reset(name: str) -> fire_pb2.FireCommand:
@@ -165,7 +170,7 @@ def test_the_reset_carries_the_scenario_and_the_codec_checks_it() -> None:
     assert sent(FireParams()) == "paper"
     cmd = fire_pb2.FireCommand(mission_id="m")
     cmd.reset.seed = 1
-    assert fire_convert.fire_command_from_msg(cmd).config is None  # the EWS's own
+    assert fire_convert.fire_command_from_msg(cmd).config is None  # the default
     for bad, match in (("tundra", "scenario must be one of"), ("x" * 257, "longer than 256")):
         with pytest.raises(rejections.CodecError, match=match):
             fire_convert.fire_command_from_msg(_scenario_reset(bad))

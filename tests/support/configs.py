@@ -53,7 +53,9 @@ def configs(draw: st.DrawFn) -> MissionConfig:
     return MissionConfig.named(
         name, timing=draw(st.sampled_from(list(Timing))), seed=draw(st.integers(0, 2**63)),
         profile=draw(st.sampled_from(list(PROFILES))), settings=settings_,
+        system1_method=draw(st.sampled_from(["", "rrt", "rrt+du"])),
         system2_method=draw(st.sampled_from(["fast", "exact", "thorough"])),
+        system2_time_limit_s=draw(st.floats(0.01, 3600.0)),
         concurrent=dataclasses.replace(draw(_concurrent()), threat="current"),
         forecast=draw(st.builds(ForecastParams, members=st.integers(1, 256),
                                 resolution_m=st.floats(1.0, 50.0),

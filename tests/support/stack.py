@@ -7,8 +7,10 @@ piece the real component where one can run here, behind a fake transport:
   reads it; the test puts and deletes the services' tokens.
 - :class:`InProcessStack`: the session's transport (``StackTransport``): a fire
   command is answered by the EWS's own handler (services/ews), a plan request
-  by the planner service's own handler (services/common/planning.py), both
-  through their wire form; what the supervisor publishes is kept, decoded.
+  by the planner service's own handler (services/common/planning.py), the
+  mission configuration handed to the simulated vehicle is decoded and answered
+  as uavsim does (services/uavsim/missionconfig.py), each through its wire form;
+  what the supervisor publishes is kept, decoded.
 - :class:`FakeWall`: the wall clock, moved only by the waits made on it (and by
   the test).
 - :class:`SimAutopilot` behind :class:`SimConnection`: the vehicle at the other
@@ -32,17 +34,17 @@ from google.protobuf.message import Message
 
 from dualpilot.mission.config import MissionConfig
 from dualpilot.model.dynamics import Array, hover_state
-from dualpilot.model.fire import FireParams
 from dualpilot.plan import Planner
 from dualpilot.planners import build_planner
 from dualpilot.spec import MissionSpec
 from services.common import bus, keys, mav, mavlink_codec, mavmodes, wire
 from services.common.clock import SimClock
+from services.common.convert import config as config_convert
 from services.common.convert import fire as fire_convert
 from services.common.convert import vehicle as vehicle_convert
 from services.common.planning import PlannerService
-from services.ews.__main__ import Ews
-from services.msgs import common_pb2, fire_pb2, supervisor_pb2
+from services.ews.fireprocess import Ews
+from services.msgs import common_pb2, config_pb2, fire_pb2, supervisor_pb2
 from services.supervisor.link import LinkParams, VehicleLink
 from services.supervisor.pool import NoReply, Reply
 from services.supervisor.ports import StackBus, StackParams
@@ -76,7 +78,7 @@ class EwsSession:
 
 def in_process_ews(stop: threading.Event, uav: str = UAV) -> Ews:
     """The EWS's fire process with its default parameters (a reset carries the mission's)."""
-    return Ews(EwsSession(), uav, FireParams(), 80.0, stop)  # type: ignore[arg-type]
+    return Ews(EwsSession(), uav, 80.0, stop)  # type: ignore[arg-type]
 
 
 @dataclass(frozen=True)
@@ -170,11 +172,19 @@ class InProcessStack:
     silent_planners: set[int] = field(default_factory=set)
     fire_commands: list[str] = field(default_factory=list)  # the kinds asked, in order
     published: list[tuple[str, Message]] = field(default_factory=list)
+    #: the mission configurations the simulated vehicle took, in order
+    vehicle_configs: list[MissionConfig] = field(default_factory=list)
     #: called with (key, message) after each publication
     on_publish: list[Callable[[str, Message], None]] = field(default_factory=list)
 
     def query(self, key: str, msg: Message, timeout_s: float, stop: threading.Event,
               trusted: bus.Trusted) -> tuple[bytes, str]:
+        if key == keys.sim_mission(self.uav):  # uavsim takes the mission's configuration
+            config = config_convert.config_from_msg(wire.parse(
+                msg.SerializeToString(), config_pb2.MissionConfig, wire.encoding_name(msg)))
+            self.vehicle_configs.append(config)
+            back = config_convert.config_to_msg(config, config_pb2.MissionConfig())
+            return back.SerializeToString(), wire.encoding_name(back)
         assert key == keys.fire_command(self.uav), key
         cmd = fire_convert.fire_command_from_msg(
             wire.parse(msg.SerializeToString(), fire_pb2.FireCommand, wire.encoding_name(msg)))

@@ -2,10 +2,13 @@
 
 A configuration written as flags (:func:`config_to_argv`) reads back as itself,
 for random configurations (hypothesis); its wire form is
-tests/integration/test_config_wire.py's.
+tests/integration/test_config_wire.py's, its environment names the services'
+(tests/unit/test_mission_env.py).
 """
 
 from __future__ import annotations
+
+import dataclasses
 
 import pytest
 from hypothesis import given, settings
@@ -13,13 +16,13 @@ from hypothesis import given, settings
 from dualpilot.mission.config import CONTROLLER_NAMES, MissionConfig, parse_controller
 from dualpilot.mission.config_args import (
     concurrent_names,
-    config_env,
     config_to_argv,
     parse_config,
 )
 from dualpilot.mission.local import local_mission
 from dualpilot.mission.params import Controller
 from dualpilot.mission.supervisors import SUPERVISORS, SupervisorKind
+from dualpilot.model.forecast import ForecastParams
 from dualpilot.model.geometry import Rect
 from dualpilot.supervisor.concurrent import ConcurrentParams
 from tests.support.configs import configs
@@ -40,6 +43,10 @@ def test_every_controller_name_is_three_typed_fields_and_back() -> None:
 def test_the_supervisor_gives_system1_its_method_and_risk_the_threat_rule() -> None:
     assert MissionConfig.named("cc").methods() == {1: "rrt", 2: "fast"}
     assert MissionConfig.named("concurrent").methods() == {1: "rrt+du", 2: "fast"}
+    # a method left to the supervisor follows it; one chosen stays whoever supervises
+    assert MissionConfig.named("cc").system1_method == ""
+    chosen = MissionConfig.named("cc", system1_method="rrt")
+    assert dataclasses.replace(chosen, supervisor=SupervisorKind.CONCURRENT).methods()[1] == "rrt"
     assert SUPERVISORS[SupervisorKind.CONCURRENT].system1_method == "rrt+du"
     assert MissionConfig.named("concurrent").concurrent.threat == "current"
     assert MissionConfig.named("concurrent+risk").concurrent.threat == "forecast"
@@ -88,28 +95,30 @@ def test_a_config_written_as_flags_reads_back_as_itself(config: MissionConfig) -
     assert parse_config(config_to_argv(config)) == config
 
 
-@settings(max_examples=100, derandomize=True)
-@given(configs())
-def test_a_config_handed_over_as_environment_reads_back_as_itself(config: MissionConfig) -> None:
-    env = config_env(config)
-    assert parse_config([], lambda name, default: env.get(name, default)) == config
-
-
-def test_the_environment_gives_the_defaults_and_a_flag_overrides_it() -> None:
-    env = {"CONTROLLER": "concurrent+risk", "MISSION_SEED": "26", "READINGS_PROFILE": "fig-r5",
-           "FIRE_SCENARIO": "shrub", "MAX_STEPS": "60", "CONCURRENT_PARAMS": "check_steps=5",
-           "S2_METHOD": "thorough"}
-    config = parse_config([], lambda name, default: env.get(name, default))
-    assert config == MissionConfig.named(
-        "concurrent+risk", seed=26, profile="fig-r5", system2_method="thorough",
-        settings=(("max_steps", 60), ("scenario", "shrub")),
-        concurrent=ConcurrentParams(check_steps=5))
-    assert parse_config(["--controller", "s1"], lambda n, d: env.get(n, d)).controller_name == "s1"
+def test_every_field_has_a_flag_and_its_default() -> None:
+    """A field no flag sets could not be chosen from any command line (nor, through the
+    services' table of environment names, from compose)."""
+    flags = {f.split("=", 1)[0] for f in config_to_argv(MissionConfig.named(
+        "concurrent+risk", settings=(("max_steps", 3),), concurrent=ConcurrentParams(
+            check_steps=5), forecast=ForecastParams(members=8), start=(1.0, 2.0)))}
+    by_field = {"controller": "--controller", "supervisor": "--controller",
+                "risk": "--controller", "timing": "--timing", "seed": "--seed",
+                "profile": "--profile", "settings": "--set", "system1_method": "--s1-method",
+                "system2_method": "--s2-method", "system2_time_limit_s": "--s2-time-limit-s",
+                "concurrent": "--concurrent", "forecast": "--forecast", "goal": "--goal",
+                "area_size_m": "--area-size-m", "start": "--start",
+                "mission_id": "--mission-id"}
+    fields = {f.name for f in dataclasses.fields(MissionConfig)} - {"uav_id"}  # the process's
+    assert fields == set(by_field) and set(by_field.values()) <= flags
+    assert parse_config([]) == MissionConfig(seed=7)
+    assert parse_config(["--s2-time-limit-s", "7.5"]).system2_params().time_limit_s == 7.5
     assert parse_config(["--controller", "cc", "--supervisor", "concurrent"]).controller_name == (
         "concurrent")
 
 
 def test_bad_flags_are_clear_errors() -> None:
+    with pytest.raises(ValueError, match="system2_time_limit_s must be a positive"):
+        parse_config(["--s2-time-limit-s", "0"])
     with pytest.raises(ValueError, match="max_steps is set twice"):
         parse_config(["--set", "max_steps=5", "--max-steps", "6"])
     with pytest.raises(ValueError, match="--concurrent takes NAME=VALUE"):

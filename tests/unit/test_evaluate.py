@@ -8,6 +8,11 @@ import pytest
 from dualpilot.evaluation.evaluate import evaluate
 from dualpilot.evaluation.missions import mission_spec
 from dualpilot.evaluation.stats import mean_interval, wilson_interval
+from dualpilot.mission.config import MissionConfig
+from dualpilot.mission.params import Timing
+from dualpilot.viz.evaluation import plot_fig_r5
+
+SEED3 = MissionConfig(seed=3)
 
 
 def rows(path):
@@ -18,7 +23,7 @@ def rows(path):
 @pytest.fixture(scope="module")
 def small_run(tmp_path_factory):
     out = tmp_path_factory.mktemp("eval")
-    summary = evaluate(2, out, seed=3, timing="paper", jobs=2, progress=False)
+    summary = evaluate(2, out, SEED3, jobs=2, progress=False, figure=plot_fig_r5)
     return out, summary
 
 
@@ -50,9 +55,9 @@ def test_three_controllers_see_identical_configurations(small_run):
 def test_rerun_skips_recorded_missions(small_run):
     out, _ = small_run
     before = rows(out)
-    evaluate(2, out, seed=3, timing="paper", jobs=1, progress=False)
+    evaluate(2, out, SEED3, jobs=1, progress=False)
     assert rows(out) == before
-    evaluate(3, out, seed=3, timing="paper", jobs=1, controllers=["s1"], progress=False)
+    evaluate(3, out, SEED3, jobs=1, controllers=["s1"], progress=False)
     after = rows(out)
     assert len(after) == 7 and after[:6] == before and after[6]["mission"] == "2"
 
@@ -61,11 +66,9 @@ def test_a_mission_that_raises_becomes_an_error_row(tmp_path):
     evaluate(
         1,
         tmp_path,
-        seed=1,
-        timing="paper",
+        MissionConfig(seed=1, system2_method="no-such-method"),
         jobs=1,
         controllers=["s2"],
-        s2_method="no-such-method",
         progress=False,
     )
     (row,) = rows(tmp_path)
@@ -76,7 +79,7 @@ def test_a_mission_that_raises_becomes_an_error_row(tmp_path):
 def test_timing_mismatch_is_refused(small_run):
     out, _ = small_run
     with pytest.raises(ValueError, match="timing"):
-        evaluate(2, out, seed=3, timing="measured", jobs=1, progress=False)
+        evaluate(2, out, MissionConfig(seed=3, timing=Timing.MEASURED), jobs=1, progress=False)
 
 
 def test_intervals_by_hand():
@@ -92,8 +95,8 @@ def test_ignition_clearance_reaches_the_mission(tmp_path):
     # UAV; with no ignition within 200 m of it the same configuration is flown on.
     from dualpilot.evaluation.missions import Task, run_task
 
-    strict = run_task(Task.of(0, 0, "s2", "paper", "fast"))
-    clear = run_task(Task.of(0, 0, "s2", "paper", "fast",
-                             settings=(("ignition_clearance_m", 200.0),)))
+    strict = run_task(Task.of(0, 0, "s2"))
+    clear = run_task(Task.of(0, 0, "s2",
+                             MissionConfig(settings=(("ignition_clearance_m", 200.0),))))
     assert strict["failure_cause"] == "fire_while_planning" and strict["steps"] == 1
     assert int(str(clear["steps"])) > 1

@@ -151,7 +151,7 @@ def test_on_the_missions_own_fires_the_witness_flies_and_is_not_called_impossibl
 
     settings_ = (("scenario", scenario),) if scenario else ()
     for i in range(3):
-        cfg = Task.of(i, 0, "s1", "paper", "fast", settings=settings_).mission()
+        cfg = Task.of(i, 0, "s1", MissionConfig(settings=settings_)).mission()
         verdict = solve(cfg)
         assert verdict.verdict == FEASIBLE, (i, verdict.reason)
         assert verdict.flight is not None and verdict.flight.success

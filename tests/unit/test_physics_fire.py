@@ -262,7 +262,7 @@ def test_the_command_line_selects_a_scenario(tmp_path, capsys):
     assert all(name in listing for name in scenario_names())
     parser = build_parser()
     for command in ("evaluate", "sweep"):
-        assert parser.parse_args([command, "--scenario", "shrub"]).scenario == "shrub"
+        assert parser.parse_args([command, "--scenario", "shrub"]).reading_scenario == "shrub"
     mission = parser.parse_args(["mission", "--scenario", "shrub"])
     assert config_from_args(mission).reading().fire.scenario == "shrub"
     with pytest.raises(ValueError, match="scenario must be one of"):

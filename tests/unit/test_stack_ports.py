@@ -18,7 +18,6 @@ import pytest
 
 from dualpilot.mission.config import MissionConfig
 from dualpilot.mission.local import LocalFires
-from dualpilot.model.fire import FireParams
 from services.common import mavmodes, wire
 from services.common.clock import SimClock
 from services.supervisor.ports import Aborted, StackBus, StackFires, StackParams, StackVehicle
@@ -97,7 +96,6 @@ def test_without_the_ews_the_data_ages_and_an_ews_back_is_replayed() -> None:
 
 def test_an_ews_on_another_t_f_is_refused() -> None:
     port, b, _ = fires_port(MissionConfig(seed=3, settings=(("substep_s", 0.25),)))
-    b.ews.own = FireParams(substep_s=0.5)
     port.config = MissionConfig(seed=3)  # the reset carries the default T_f: 0.5 s
     with pytest.raises(Aborted, match="the EWS runs T_f = 0.5 s, the mission 0.25 s"):
         port.reset()

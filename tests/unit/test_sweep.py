@@ -16,6 +16,8 @@ import pytest
 from dualpilot.evaluation.evaluate import evaluate
 from dualpilot.evaluation.missions import COLUMNS, MEASURED_COLUMNS
 from dualpilot.evaluation.sweep import SWEEP_COLUMNS, grid_points, parse_axes, sweep
+from dualpilot.mission.config import MissionConfig
+from dualpilot.viz.sweep import plot_sweep
 
 pytestmark = pytest.mark.timeout(120)
 
@@ -50,8 +52,8 @@ def test_small_sweep_on_an_in_process_local_cluster(tmp_path: Path) -> None:
     points = [type(p)(p.index, p.profile, (*p.settings, ("max_steps", 4))) for p in points]
     with LocalCluster(n_workers=1, threads_per_worker=1, processes=False,
                       dashboard_address=":0") as cluster:
-        summary = sweep(points, 2, tmp_path, seed=3, scheduler=cluster.scheduler_address,
-                        progress=False)
+        summary = sweep(points, 2, tmp_path, MissionConfig(seed=3),
+                        scheduler=cluster.scheduler_address, progress=False, figure=plot_sweep)
     got = rows(tmp_path)
     assert len(got) == 2 * 2 * 3 and list(got[0]) == SWEEP_COLUMNS
     assert {r["life_base"] for r in got} == {"substep", "step"}
@@ -71,10 +73,11 @@ def test_small_sweep_on_an_in_process_local_cluster(tmp_path: Path) -> None:
 
 
 def test_sweep_and_evaluate_give_identical_rows(tmp_path: Path) -> None:
-    evaluate(2, tmp_path / "e", seed=5, jobs=1, progress=False, profile="fig-r5",
-             settings=SHORT)
+    evaluate(2, tmp_path / "e", MissionConfig(seed=5, profile="fig-r5",
+                                              settings=tuple(SHORT.items())),
+             jobs=1, progress=False)
     pts = grid_points({}, points=[{"profile": "fig-r5", **SHORT}])
-    sweep(pts, 2, tmp_path / "s", seed=5, jobs=1, progress=False, figures=False)
+    sweep(pts, 2, tmp_path / "s", MissionConfig(seed=5), jobs=1, progress=False)
     ev, sw = rows(tmp_path / "e"), rows(tmp_path / "s")
     assert sorted(map(same, ev)) == sorted(map(same, sw)) and len(ev) == 6
 

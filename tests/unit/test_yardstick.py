@@ -90,7 +90,7 @@ def test_an_evaluation_and_a_sweep_with_the_oracle_carry_the_yardstick(tmp_path:
     assert ys["controllers"]["s1"]["successes"] <= ys["achievable"]
     assert (out / "eval" / "yardstick.md").read_text().count("| s1 |") == 1
     swept = sweep(grid_points({}), 2, out / "sweep", jobs=1, controllers=("s1", "oracle"),
-                  progress=False, figures=False)
+                  progress=False)
     assert swept["points"][0]["yardstick"]["controllers"]["oracle"]["n"] == 2
 
 
@@ -99,7 +99,7 @@ def test_one_anatomy_figure_per_class_the_first_controller_first() -> None:
     from dualpilot.viz.anatomy import figure_cases
 
     def case(controller: str, index: int) -> Case:
-        return Case(index, 0, controller, "paper", "fast", "today", ())
+        return Case(index, 0, controller, MissionConfig())
 
     todo = [case("cc", 1), case("cc", 4), case("lookahead+risk", 7), case("s2", 2)]
     rows = [{"class": "deliberating"}, {"class": "ignition"}, {"class": "ignition"},

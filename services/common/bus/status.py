@@ -1,4 +1,5 @@
-"""Every service's status queryable ``<ns>/status/<service>``: who it is and what it rejected."""
+"""Every service's status queryable ``<ns>/status/<service>``: who it is, what it rejected and
+the missions it runs (services/common/effective.py)."""
 
 from __future__ import annotations
 
@@ -16,6 +17,7 @@ from services.common import keys, rejections, wire
 from services.common.bus.inbox import Inbox
 from services.common.bus.query import Trusted, first_reply
 from services.common.cli import Settings
+from services.common.effective import EFFECTIVE
 
 log = logging.getLogger("services.common.bus")
 
@@ -23,7 +25,8 @@ STATUS_ENCODING = "application/json"
 
 
 def status(settings: Settings, started: float) -> dict[str, Any]:
-    """The service's status: who it is and what it rejected (per key and reason)."""
+    """The service's status: who it is, what it rejected (per key and reason) and each
+    mission's effective configuration (mission id → uav, config, what it made of it)."""
     rejected = rejections.REJECTED.snapshot()
     return {
         "service": settings.service, "uav": settings.uav_id, "pid": os.getpid(),
@@ -33,6 +36,7 @@ def status(settings: Settings, started: float) -> dict[str, Any]:
         "rejected": rejected,
         "reasons": [r.value for r in rejections.Reason],
         "log_lines_suppressed": rejections.REJECTED.suppressed_total,
+        "missions": EFFECTIVE.snapshot(),
     }
 
 

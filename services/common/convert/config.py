@@ -1,7 +1,8 @@
 """config.proto ↔ :class:`~dualpilot.mission.config.MissionConfig`: the one wire form of it.
 
-The configuration travels whole, with the plan request that prepares a mission
-and with the EWS's reset. Decoding checks every field (known enums, short texts,
+The configuration travels whole, with the plan request that prepares a mission,
+with the EWS's reset and to the simulated vehicle (uavsim's ``uavsim/mission``).
+Decoding checks every field (known enums, short texts,
 the reading's names and values, the concurrent supervisor's ranges, a goal inside
 the area) and raises :class:`~services.common.rejections.CodecError` for a bad
 one: a configuration that decodes is one the core accepts.
@@ -12,6 +13,8 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Mapping
 from typing import Any
+
+from google.protobuf import json_format
 
 from dualpilot.mission.config import MissionConfig
 from dualpilot.mission.params import Controller, Timing
@@ -55,6 +58,7 @@ def config_to_msg(config: MissionConfig, out: config_pb2.MissionConfig
     for name, value in c.settings:
         out.settings.add(name=name, value=value_text(value))
     out.system1_method, out.system2_method = c.system1_method, c.system2_method
+    out.system2_time_limit_s = c.system2_time_limit_s
     p = c.concurrent
     if p.threat_margin_m is not None:
         out.concurrent.threat_margin_m = p.threat_margin_m
@@ -69,6 +73,23 @@ def config_to_msg(config: MissionConfig, out: config_pb2.MissionConfig
     if c.start is not None:
         out.start.east_m, out.start.north_m = c.start
     return out
+
+
+def config_to_json(config: MissionConfig) -> dict[str, Any]:
+    """``config``'s wire form as JSON data (protobuf's JSON mapping, the field names of
+    config.proto): what a status reply says a process runs."""
+    msg = config_to_msg(config, config_pb2.MissionConfig())
+    doc: dict[str, Any] = json_format.MessageToDict(msg, preserving_proto_field_name=True)
+    return doc
+
+
+def config_from_json(doc: dict[str, Any]) -> MissionConfig:
+    """The configuration of :func:`config_to_json`'s data, checked as off the wire."""
+    try:
+        msg = json_format.ParseDict(doc, config_pb2.MissionConfig())
+    except json_format.ParseError as err:
+        raise invalid(f"mission config: {err}") from err
+    return config_from_msg(msg)
 
 
 def _enum(value: int, table: Mapping[Any, Any], what: str) -> Any:
@@ -97,6 +118,8 @@ def _concurrent_from_msg(m: config_pb2.ConcurrentParams, risk: bool) -> Concurre
 #: the most ensemble members and the longest forecast horizon (s) a configuration may ask for
 MAX_FORECAST_MEMBERS = 4096
 MAX_FORECAST_HORIZON_S = 3600.0
+#: the longest System 2 time limit a configuration may ask for (s)
+MAX_TIME_LIMIT_S = 3600.0
 
 
 def _forecast_from_msg(m: config_pb2.ForecastParams) -> ForecastParams:
@@ -128,6 +151,13 @@ def _settings_from_msg(m: config_pb2.MissionConfig) -> tuple[tuple[str, Any], ..
     return tuple(out)
 
 
+def _time_limit_from_msg(m: config_pb2.MissionConfig) -> float:
+    limit = check_floats([m.system2_time_limit_s], "system2_time_limit_s", MAX_TIME_LIMIT_S)[0]
+    if not limit > 0:
+        raise invalid(f"system2_time_limit_s must be > 0, got {limit:g}", Reason.OUT_OF_RANGE)
+    return float(limit)
+
+
 def config_from_msg(m: config_pb2.MissionConfig) -> MissionConfig:
     """The configuration of ``m``; every field checked (CodecError for a bad one)."""
     start = None
@@ -145,6 +175,7 @@ def config_from_msg(m: config_pb2.MissionConfig) -> MissionConfig:
             profile=check_text(m.profile, "profile", 64), settings=_settings_from_msg(m),
             system1_method=check_text(m.system1_method, "system1_method", 64),
             system2_method=check_text(m.system2_method, "system2_method", 64),
+            system2_time_limit_s=_time_limit_from_msg(m),
             concurrent=_concurrent_from_msg(m.concurrent, bool(m.risk)),
             forecast=_forecast_from_msg(m.forecast) if m.HasField("forecast")
             else ForecastParams(),

@@ -1,0 +1,113 @@
+"""The mission configuration a simulated vehicle flies: Eq. (1) of its reading, its area.
+
+The supervisor builds a mission's :class:`~dualpilot.mission.config.MissionConfig`
+once and, before it takes the vehicle, sends it to uavsim on
+``<ns>/uavsim/mission`` (a query; services/supervisor/simulator.py), as it sends
+it to the planners and the EWS. uavsim then flies in lockstep the dynamics of
+the mission's spec (Eq. (1): ΔT, ζ, m, the force and speed limits and the
+speed-limit reading, ``config.spec().dynamics``) and checks setpoints and
+uploaded waypoints against its area, exactly as the in-process mission does:
+the vehicle reads no reading of its own. Until a configuration arrives it flies
+the default configuration's (a vehicle on its own: a ground station, MAVSDK).
+
+The callback only enqueues; the vehicle's loop takes the configuration between
+two passes (:meth:`MissionConfigs.poll`, so no step runs half on the old
+dynamics), decodes and checks it (services/common/convert/config.py), applies
+it and answers with the configuration it now flies. Only the session that holds
+the vehicle's ``alive/supervisor`` token may configure it; anything else gets an
+error reply, counted per key and reason.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import replace
+
+import zenoh
+
+from dualpilot.mission.config import MissionConfig
+from services.common import bus, keys, rejections, wire
+from services.common.convert import common as common_convert
+from services.common.convert import config as config_convert
+from services.common.effective import EFFECTIVE
+from services.common.log import fields
+from services.msgs import config_pb2
+
+from .endpoint import Endpoint
+from .mission import PlanningBounds
+
+log = logging.getLogger("services.uavsim")
+
+
+def apply(endpoint: Endpoint, config: MissionConfig) -> None:
+    """Fly ``config``'s Eq. (1) and, in lockstep, check against its area (ValueError: a
+    vehicle on its own clock cannot change its ΔT)."""
+    dyn = config.spec().dynamics
+    v = endpoint.vehicle
+    if endpoint.realtime is not None and dyn.dt_s != v.dyn.dt_s:
+        raise ValueError(f"a vehicle on its own clock steps every {v.dyn.dt_s:g} s; the "
+                         f"mission's ΔT is {dyn.dt_s:g} s")
+    v.dyn = dyn
+    if endpoint.realtime is None:
+        endpoint.setup = replace(endpoint.setup, area_size_m=config.area_size_m)
+        endpoint.ap.mission.bounds = PlanningBounds(endpoint.setup.home, config.area_size_m)
+    endpoint.repeat = None  # a setpoint accepted under the old limits is checked again
+
+
+class MissionConfigs:
+    """The ``uavsim/mission`` queryable of one vehicle and the configurations it takes."""
+
+    def __init__(self, session: zenoh.Session, uav: str, endpoint: Endpoint):
+        self.uav = uav
+        self.endpoint = endpoint
+        self.key = keys.sim_mission(uav)
+        self.stamper = wire.Stamper("uavsim", uav)
+        self.live = bus.Liveliness(session, uav)
+        self.inbox = bus.Inbox(self.key, max_items=16, max_bytes=1024 * 1024)
+        self.queryable = session.declare_queryable(self.key, self.inbox.on_query)
+
+    def poll(self, _now: float = 0.0) -> None:
+        """Take what arrived (the vehicle loop's tick, between two passes)."""
+        while (item := self.inbox.get(timeout=0)) is not None:
+            if item.query is None:
+                continue
+            try:
+                config = self._check(item)
+                try:
+                    apply(self.endpoint, config)
+                except ValueError as bad:
+                    raise rejections.invalid(str(bad), rejections.Reason.OUT_OF_RANGE) from bad
+            except rejections.CodecError as err:
+                rejections.rejected("MissionConfig", err, log, key=self.key)
+                bus.reply_error(item.query, common_convert.error_msg(self.stamper, err.code,
+                                                                     str(err)))
+                continue
+            self._took(config)
+            bus.reply(item.query, config_convert.config_to_msg(config,
+                                                               config_pb2.MissionConfig()))
+
+    def _check(self, item: bus.Received) -> MissionConfig:
+        """The configuration of ``item`` from the vehicle's supervisor (CodecError else)."""
+        who = item.attachment.decode("ascii", "replace")
+        holders = self.live.holders.get("supervisor", [])
+        if who not in holders:
+            raise rejections.invalid(f"a mission configuration from {who or '?'}, not from this "
+                                     f"vehicle's supervisor ({', '.join(holders) or 'none'})")
+        config = config_convert.config_from_msg(
+            wire.parse(item.payload, config_pb2.MissionConfig, item.encoding))
+        if config.uav_id and config.uav_id != self.uav:
+            raise rejections.invalid(f"a mission configuration of vehicle {config.uav_id!r} "
+                                     f"sent to {self.uav!r}")
+        return config
+
+    def _took(self, config: MissionConfig) -> None:
+        dyn = self.endpoint.vehicle.dyn
+        EFFECTIVE.record(config.mission_id, self.uav, config_convert.config_to_json(config),
+                         dynamics=dyn, area_size_m=self.endpoint.setup.area_size_m)
+        log.info("mission configuration", extra=fields(
+            mission=config.mission_id, profile=config.profile, dt_s=dyn.dt_s, zeta=dyn.zeta,
+            mass_kg=dyn.mass_kg, u_max_n=dyn.u_max_n, v_max_mps=dyn.v_max_mps,
+            speed_limit=dyn.speed_limit, area_size_m=self.endpoint.setup.area_size_m))
+
+    def close(self) -> None:
+        self.queryable.undeclare()
