@@ -46,7 +46,7 @@ def flown_plans(missions: int, controller: str) -> list[tuple[int, list[tuple[Ar
     """(seed, [(x_t, u_t) per step]) of in-process missions with the ideal plant."""
     out = []
     for i in range(missions):
-        result = local_mission(Task.of(i, 0, controller, "paper", "fast").mission()).run()
+        result = local_mission(Task.of(i, 0, controller).mission()).run()
         out.append((result.seed, [(r.state, r.control) for r in result.records]))
     return out
 
