@@ -20,8 +20,9 @@ from typing import Any
 
 __all__ = ["EFFECTIVE", "Effective", "plain"]
 
-#: the missions a process keeps on its status (the newest)
-KEEP_MISSIONS = 32
+#: the missions a process keeps on its status (the newest): two for each vehicle of the largest
+#: fleet a process serves (services/common/fleet.py, 64)
+KEEP_MISSIONS = 128
 
 
 def plain(value: Any) -> Any:
