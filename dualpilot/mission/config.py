@@ -84,8 +84,8 @@ class MissionConfig:
     :meth:`reading` resolves them. ``system1_method`` "" is the supervisor's
     (:data:`dualpilot.mission.supervisors.SUPERVISORS`; :meth:`methods` resolves it, so a
     configuration flown by another controller keeps its choice). ``system2_time_limit_s``
-    bounds each System 2 solve (the exact, anytime and certified methods;
-    :class:`~dualpilot.system2.problem.System2Params`). With ``risk``
+    is System 2's solver time limit per plan (:class:`~dualpilot.system2.problem.System2Params`:
+    the exact method's; fast+exact and certified keep budgets of their own). With ``risk``
     both planners take the fire forecast (their risk-aware variants) and the
     concurrent supervisor judges threats on it (``concurrent.threat`` is then "forecast");
     ``forecast`` is that forecast's grid and ensemble (the in-process fire port's and the

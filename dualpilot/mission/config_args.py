@@ -98,8 +98,8 @@ def add_config_arguments(p: argparse.ArgumentParser, seed: int = 7, *, per_missi
                    help="System 1's method (dualpilot.planners; default: the supervisor's)")
     g.add_argument("--s2-method", default="fast", help="System 2's method (dualpilot.planners)")
     g.add_argument("--s2-time-limit-s", type=float, default=_DEFAULT.system2_time_limit_s,
-                   help="System 2's solver time limit per plan (s; the exact, fast+exact "
-                        "and certified methods)")
+                   help="System 2's solver time limit per plan (s; the exact method's: "
+                        "System2Params.time_limit_s)")
     g.add_argument("--concurrent", action="append", default=[], metavar="NAME=VALUE",
                    help="a parameter of the concurrent supervisor (repeatable; names: "
                         f"{', '.join(concurrent_names())})")
