@@ -43,7 +43,7 @@ from dualpilot.model.forecast import LEVELS, OccupancyForecast, occupancy
 from dualpilot.model.geometry import Rect
 from dualpilot.model.scenarios import PAPER, scenario_names
 from dualpilot.readings import get_profile
-from dualpilot.supervisor.decision import Decision
+from dualpilot.supervisor.paper.decision import Decision
 
 HORIZONS_S = (5.0, 10.0, 30.0)
 #: reliability bins of the forecast probability: finer near 0, where most cells are

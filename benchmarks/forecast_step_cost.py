@@ -36,7 +36,7 @@ from dualpilot.mission.local import LocalFires, local_mission
 from dualpilot.mission.result import Ending, StepRecord
 from dualpilot.model.physics_forecast import RunAhead
 from dualpilot.model.scenarios import PAPER, scenario_names
-from dualpilot.supervisor.decision import Decision
+from dualpilot.supervisor.paper.decision import Decision
 
 
 class Forecaster:

@@ -9,7 +9,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-from dualpilot.mission.config import CONTROLLER_NAMES
+from dualpilot.mission.config import controller_names
 from dualpilot.mission.config_args import (
     READING_FLAGS,
     add_config_arguments,
@@ -177,7 +177,7 @@ def _add_evaluate(sub: Any) -> None:
                    help="fly configurations I .. I + missions − 1 of --seed (held-out sets)")
     e.add_argument("--jobs", type=int, default=0, help="worker processes (default: all cores)")
     e.add_argument("--controllers", default="cc,s1,s2",
-                   help=f"any of {','.join(CONTROLLER_NAMES)} (concurrent: cc with the "
+                   help=f"any of {','.join(controller_names())} (concurrent: cc with the "
                         "concurrent supervisor; +risk: with the fire forecast), and oracle: "
                         "the clairvoyant yardstick (docs/yardstick.md)")
     e.add_argument("--out", default="runs/eval")

@@ -1,20 +1,27 @@
 """The planners of a mission, built by name from its :class:`dualpilot.spec.MissionSpec`.
 
 One registry, like python-control's ``trajectory_method=``: System 1's "rrt"
-(Alg. 1 + LQR) and System 2's "fast" (the default), "exact" (the cvxpy
-MIQP, solved in a killable worker process), "fast+exact", "thorough" and "certified"
-(the fast plan with a lower bound on (P2) proven by branch and bound).
-With ``risk`` a method's risk-aware variant (:data:`RISK_AWARE`: System 1's
-"rrt" and "rrt+du", System 2's "fast") also takes the fire forecast as a
-chance constraint (dualpilot/model/risk.py).
-Every planner implements :class:`dualpilot.plan.Planner`.
+(Alg. 1 + LQR) and "rrt+du" (its LQR with the Δu penalty), System 2's "fast" (the
+default), "exact" (the cvxpy MIQP, solved in a killable worker process), "fast+exact",
+"thorough" and "certified" (the fast plan with a lower bound on (P2) proven by branch and
+bound). With ``risk`` a method's risk-aware variant (System 1's "rrt" and "rrt+du",
+System 2's "fast") also takes the fire forecast as a chance constraint
+(dualpilot/model/risk.py). Every planner implements :class:`dualpilot.plan.Planner`.
+
+The registry is the public extension point of entry-point group ``dualpilot.planners``
+(:mod:`dualpilot.extensions`): each name is a :class:`PlannerMethod`; the built-ins are the
+entry points of :data:`BUILTIN`, and a separately installed package adds a method of
+System 1 or System 2 by naming its own (docs/extending.md). The first method of a system
+(the built-ins come first) is its default.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping
-from typing import TYPE_CHECKING
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
 
+from dualpilot.extensions import ExtensionError, Registry
 from dualpilot.plan import Planner
 from dualpilot.spec import MissionSpec
 from dualpilot.system2.problem import System2Params
@@ -22,11 +29,35 @@ from dualpilot.system2.problem import System2Params
 if TYPE_CHECKING:
     from dualpilot.system1.planner import System1Params
 
-__all__ = ["METHODS", "Planner", "build_planner", "build_planners"]
+__all__ = ["PlannerMethod", "Planner", "build_planner", "build_planners", "default_method",
+           "method_names", "planner_method", "risk_aware_names"]
 
-#: A constructor of the registry: (spec, params or None for the defaults) -> Planner.
-System1Constructor = Callable[[MissionSpec, "System1Params | None"], Planner]
-System2Constructor = Callable[[MissionSpec, "System2Params | None"], Planner]
+#: A constructor of the registry: (spec, that system's parameters or None for the defaults)
+#: -> Planner.
+Constructor = Callable[[MissionSpec, Any], Planner]
+
+
+@dataclass(frozen=True)
+class PlannerMethod:
+    """One planning method of the registry: the system it plans for (1 or 2), how it is
+    built, and how its risk-aware variant is built (None: it has none).
+
+    Each constructor gets the mission's spec and that system's parameters
+    (:class:`~dualpilot.system1.planner.System1Params` or
+    :class:`~dualpilot.system2.problem.System2Params`; None: the defaults) and returns a
+    :class:`~dualpilot.plan.Planner` of ``system``; a risk-aware one is a
+    :class:`~dualpilot.plan.ForecastPlanner`.
+    """
+
+    system: int
+    build: Constructor
+    build_risk: Constructor | None = None
+    #: one line for listings
+    summary: str = ""
+
+    def __post_init__(self) -> None:
+        if self.system not in (1, 2):
+            raise ValueError(f"a planning method plans for System 1 or 2, not {self.system!r}")
 
 
 def _rrt(spec: MissionSpec, params: System1Params | None) -> Planner:
@@ -95,54 +126,96 @@ def _rrt_du_risk(spec: MissionSpec, params: System1Params | None) -> Planner:
     return RiskSystem1(spec, replace(params or System1Params(), tracker="lqr_du"))
 
 
-SYSTEM1: Mapping[str, System1Constructor] = {"rrt": _rrt, "rrt+du": _rrt_du}
-SYSTEM2: Mapping[str, System2Constructor] = {
-    "fast": _fast, "exact": _exact, "fast+exact": _anytime, "thorough": _thorough,
-    "certified": _certified,
+RRT = PlannerMethod(1, _rrt, _rrt_risk, "Alg. 1 (RRT, or the operator's waypoints) with LQR "
+                    "tracking")
+RRT_DU = PlannerMethod(1, _rrt_du, _rrt_du_risk, "Alg. 1 with LQR tracking under a Δu penalty")
+FAST = PlannerMethod(2, _fast, _fast_risk, "(P2) by homotopy-seeded convex restrictions")
+EXACT = PlannerMethod(2, _exact, None, "(P2) as the cvxpy MIQP, in a killable worker process")
+ANYTIME = PlannerMethod(2, _anytime, None, "the fast plan, then SCIP seeded with it")
+THOROUGH = PlannerMethod(2, _thorough, None, "the fast method, every homotopy to convergence")
+CERTIFIED = PlannerMethod(2, _certified, None, "the fast plan with a lower bound on (P2) "
+                          "proven by branch and bound")
+
+#: The built-in methods: entry points of ``dualpilot.planners`` (name -> "module:attribute"),
+#: each system's default first.
+BUILTIN: Mapping[str, str] = {
+    "rrt": "dualpilot.planners:RRT", "rrt+du": "dualpilot.planners:RRT_DU",
+    "fast": "dualpilot.planners:FAST", "exact": "dualpilot.planners:EXACT",
+    "fast+exact": "dualpilot.planners:ANYTIME", "thorough": "dualpilot.planners:THOROUGH",
+    "certified": "dualpilot.planners:CERTIFIED",
 }
-#: The risk-aware variant of a method (it also takes the fire forecast, dualpilot/model/risk.py);
-#: a method without one cannot fly a risk-aware controller.
-RISK_AWARE: Mapping[int, Mapping[str, System1Constructor | System2Constructor]] = {
-    1: {"rrt": _rrt_risk, "rrt+du": _rrt_du_risk},
-    2: {"fast": _fast_risk},
-}
-#: Method names per system, the default first.
-METHODS: Mapping[int, tuple[str, ...]] = {1: tuple(SYSTEM1), 2: tuple(SYSTEM2)}
+#: The registry of planning methods (built-in and installed).
+REGISTRY: Registry[PlannerMethod] = Registry(
+    "dualpilot.planners", PlannerMethod, BUILTIN, what="planning method",
+    name_pattern=r"[a-z][a-z0-9_.+-]{0,63}")
+
+
+def planner_method(name: str) -> PlannerMethod:
+    """The method registered as ``name`` (ValueError: none is)."""
+    return REGISTRY.get(name)
+
+
+def method_names(system: int) -> tuple[str, ...]:
+    """The names of ``system``'s methods, its default first (loads every installed method)."""
+    return tuple(n for n in REGISTRY.names() if REGISTRY.get(n).system == system)
+
+
+def risk_aware_names(system: int) -> tuple[str, ...]:
+    """The names of ``system``'s methods that have a risk-aware variant."""
+    return tuple(n for n in method_names(system) if REGISTRY.get(n).build_risk is not None)
+
+
+def default_method(system: int) -> str:
+    """``system``'s default method: its first (a built-in; no installed method is loaded)."""
+    return next(n for n in REGISTRY.names() if REGISTRY.get(n).system == system)
+
+
+def _method_of(system: int, name: str) -> PlannerMethod:
+    """The method ``name`` of ``system`` (ValueError: unknown, or another system's)."""
+    if name not in REGISTRY.names():
+        raise ValueError(f"unknown System {system} method {name!r}; "
+                         f"choose from {method_names(system)}")
+    entry = REGISTRY.get(name)
+    if entry.system != system:
+        raise ValueError(f"{name!r} is a System {entry.system} method, not System {system}'s; "
+                         f"choose from {method_names(system)}")
+    return entry
 
 
 def build_planner(system: int, spec: MissionSpec, method: str | None = None,
                   params: System1Params | System2Params | None = None,
                   risk: bool = False) -> Planner:
     """The planner of ``system`` (1 or 2) by method name (default: the system's first); with
-    ``risk``, the method's risk-aware variant (:data:`RISK_AWARE`).
+    ``risk``, the method's risk-aware variant.
 
     ``params`` are that system's parameters (System1Params / System2Params).
     Raises ValueError for an unknown system or method, or a method with no risk-aware
-    variant, TypeError for the other system's parameters.
+    variant, TypeError for the other system's parameters; ExtensionError for an installed
+    method that does not load or builds a planner of another system.
     """
-    if system not in METHODS:
+    if system not in (1, 2):
         raise ValueError(f"unknown system {system!r}; choose 1 or 2")
     from dualpilot.warmup import warm_up
 
     warm_up()  # the compiled kernels, once a process, before any plan is timed
-    method = METHODS[system][0] if method is None else method
-    if method not in METHODS[system]:
-        raise ValueError(f"unknown System {system} method {method!r}; "
-                         f"choose from {METHODS[system]}")
-    if risk and method not in RISK_AWARE[system]:
+    method = default_method(system) if method is None else method
+    entry = _method_of(system, method)
+    if risk and entry.build_risk is None:
         raise ValueError(f"System {system} method {method!r} has no risk-aware variant; "
-                         f"those that have: {tuple(RISK_AWARE[system])}")
+                         f"those that have: {risk_aware_names(system)}")
     if system == 1:
         from dualpilot.system1.planner import System1Params
 
         if params is not None and not isinstance(params, System1Params):
             raise TypeError(f"System 1 takes System1Params, got {type(params).__name__}")
-        make1 = RISK_AWARE[1][method] if risk else SYSTEM1[method]
-        return make1(spec, params)  # type: ignore[arg-type]
-    if params is not None and not isinstance(params, System2Params):
+    elif params is not None and not isinstance(params, System2Params):
         raise TypeError(f"System 2 takes System2Params, got {type(params).__name__}")
-    make2 = RISK_AWARE[2][method] if risk else SYSTEM2[method]
-    return make2(spec, params)  # type: ignore[arg-type]
+    make = entry.build_risk if risk and entry.build_risk is not None else entry.build
+    planner = make(spec, params)
+    if getattr(planner, "system", None) != system:
+        raise ExtensionError(f"the {method!r} method built a planner of system "
+                             f"{getattr(planner, 'system', None)!r}, not {system}")
+    return planner
 
 
 def build_planners(spec: MissionSpec, methods: Mapping[int, str] | None = None,
@@ -150,6 +223,6 @@ def build_planners(spec: MissionSpec, methods: Mapping[int, str] | None = None,
                    system2_params: System2Params | None = None) -> dict[int, Planner]:
     """Both planners of a mission: {system: the planner of ``methods[system]`` (default: each
     system's first method)}, each its risk-aware variant with ``risk``."""
-    methods = methods or {1: METHODS[1][0], 2: METHODS[2][0]}
+    methods = methods or {1: default_method(1), 2: default_method(2)}
     return {1: build_planner(1, spec, methods[1], system1_params, risk),
             2: build_planner(2, spec, methods[2], system2_params, risk)}

@@ -2,7 +2,7 @@
 
 A *reading* is a field of :class:`~dualpilot.model.fire.FireParams`,
 :class:`~dualpilot.mission.params.MissionParams`,
-:class:`~dualpilot.supervisor.decision.SupervisorParams` or
+:class:`~dualpilot.supervisor.paper.decision.SupervisorParams` or
 :class:`~dualpilot.model.dynamics.DynamicsParams` where the paper can
 reasonably be read two ways. A :class:`Profile` is a frozen set of the four,
 with the sentences of the paper it rests on; its dynamics go into the mission
@@ -23,7 +23,7 @@ from dualpilot.mission.params import MissionParams
 from dualpilot.model.dynamics import DynamicsParams
 from dualpilot.model.fire import FireParams
 from dualpilot.spec import MissionSpec
-from dualpilot.supervisor.decision import SupervisorParams
+from dualpilot.supervisor.paper.decision import SupervisorParams
 
 #: The fields that are readings of the paper (the rest are its Sec. IV-A numbers).
 READINGS = ("life_base", "extent", "redraw_clearance", "keep_extinct_hulls",

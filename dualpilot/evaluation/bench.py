@@ -459,11 +459,11 @@ def add_bench_parser(subparsers: Any) -> None:
 
 def _cli_system2(args: argparse.Namespace) -> int:
     methods = [m.strip() for m in args.methods.split(",") if m.strip()]
-    from dualpilot.planners import METHODS
+    from dualpilot.planners import method_names
 
-    bad = [m for m in methods if m not in METHODS[2]]
+    bad = [m for m in methods if m not in method_names(2)]
     if bad or not methods:
-        raise ValueError(f"unknown methods {bad}; choose from {METHODS[2]}")
+        raise ValueError(f"unknown methods {bad}; choose from {method_names(2)}")
     if args.instances < 1 or args.reference_timeout <= 0:
         raise ValueError("--instances >= 1 and --reference-timeout > 0 are required")
     cache = Path(args.reference_cache) if args.reference_cache else None

@@ -33,8 +33,8 @@ from fractions import Fraction
 import numpy as np
 
 from dualpilot.model.dynamics import Array
-from dualpilot.supervisor.attention import xi
-from dualpilot.supervisor.decision import B_MATRIX, SupervisorParams
+from dualpilot.supervisor.paper.attention import xi
+from dualpilot.supervisor.paper.decision import B_MATRIX, SupervisorParams
 
 METHODS = ("auto", "lattice", "enumerate", "grid")
 _DIFF = np.array([1.0, -1.0])  # x = Ψ(1) − Ψ(2): S_t = 1 ⇔ x_t ≥ 0

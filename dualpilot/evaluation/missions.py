@@ -49,7 +49,7 @@ NAMED_FLAGS = ("--controller", "--seed", "--timing", "--profile", "--set", "--s2
 
 
 def flown_by(base: MissionConfig, controller: str) -> MissionConfig:
-    """``base`` flown by ``controller`` (a name of CONTROLLER_NAMES): only the controller fields
+    """``base`` flown by ``controller`` (a name of controller_names()): only the controller fields
     change (controller, supervisor, risk; the concurrent supervisor's threat rule follows
     risk, a System 1 method left "" the supervisor)."""
     kind, supervisor, risk = parse_controller(controller)

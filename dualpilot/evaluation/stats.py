@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 
-from dualpilot.mission.config import CONTROLLER_NAMES
+from dualpilot.mission.config import controller_names
 
 
 def wilson_interval(successes: int, n: int, z: float = 1.96) -> tuple[float, float]:
@@ -36,7 +36,7 @@ def summarize(
     """summary.json: per controller success rate, mission time, energy, planning time, with CIs."""
     result: dict[str, object] = {"missions": missions, "timing": timing, "wall_s": wall_s}
     ctrl: dict[str, object] = {}
-    for c in dict.fromkeys([*CONTROLLER_NAMES, *(r["controller"] for r in rows)]):
+    for c in dict.fromkeys([*controller_names(), *(r["controller"] for r in rows)]):
         rs = [r for r in rows if r["controller"] == c]
         if not rs:
             continue

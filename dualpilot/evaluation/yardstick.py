@@ -28,7 +28,7 @@ import numpy as np
 
 from dualpilot.evaluation.missions import ORACLE
 from dualpilot.evaluation.stats import mean_interval, wilson_interval
-from dualpilot.mission.config import CONTROLLER_NAMES, MissionConfig
+from dualpilot.mission.config import MissionConfig, controller_names
 from dualpilot.oracle.certificate import CertificateParams, Scope, scope_of
 from dualpilot.oracle.oracle import FEASIBLE, IMPOSSIBLE, UNKNOWN
 
@@ -98,7 +98,7 @@ def yardstick(rows: Sequence[Row], config: MissionConfig,
         "controllers": {},
     }
     present = {r["controller"] for r in rows}
-    names = [c for c in (*CONTROLLER_NAMES, *sorted(present)) if c in present and c != ORACLE]
+    names = [c for c in (*controller_names(), *sorted(present)) if c in present and c != ORACLE]
     names = list(dict.fromkeys(names)) + ([ORACLE] if ORACLE in present else [])
     for name in names:
         mine = [r for r in rows if r["controller"] == name and int(r["mission"]) in v.oracle]

@@ -35,7 +35,8 @@ class SystemStatus(enum.Enum):
     ERROR = PlanStatus.ERROR.value
     #: the system was not asked: its planner is not available (service gone, demoted)
     UNAVAILABLE = "unavailable"
-    #: the concurrent supervisor's System 2 deliberation (dualpilot/mission/concurrent.py)
+    #: the concurrent supervisor's System 2 deliberation
+    #: (dualpilot/supervisor/concurrent/planning.py)
     LAUNCHED = "launched"
     ADOPTED = "adopted"
     DECLINED = "declined"

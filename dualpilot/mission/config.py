@@ -1,8 +1,8 @@
 """The one mission configuration: every setting of a mission, built once and passed whole.
 
 A :class:`MissionConfig` is what a user chooses for one mission: which
-controller flies (the paper's three, the concurrent supervisor, each with or
-without the fire forecast), the reading of the paper (a profile and its
+controller flies (the paper's three, or the cognitive controller under another
+supervisor, each with or without the fire forecast), the reading of the paper (a profile and its
 overrides, the fire scenario among them), the planners' methods, the timing,
 the seed and the ids. It is built once (``dualpilot mission``, ``evaluate`` and
 ``sweep`` from their flags, dualpilot/mission/config_args.py; the stack's
@@ -11,10 +11,11 @@ and the in-process mission, the stack's supervisor, the planner services, the
 EWS and uavsim all read their settings from it: none re-lists them. Its wire
 form is written once, in ``services/common/convert/config.py``.
 
-The controller names of ``dualpilot evaluate`` (:data:`CONTROLLER_NAMES`:
-``cc``, ``s1``, ``s2``, ``concurrent`` and each with ``+risk``) are spellings of
-three typed fields (:func:`parse_controller`): the controller, the supervisor
-and ``risk``.
+The controller names of ``dualpilot evaluate`` (:func:`controller_names`: ``cc``,
+``s1``, ``s2``, the name of every other installed supervisor, ``concurrent`` and
+``lookahead`` among them, and each with ``+risk``) are spellings of three typed fields
+(:func:`parse_controller`): the controller, the supervisor (by its registry name,
+:mod:`dualpilot.supervisor.registry`) and ``risk``.
 """
 
 from __future__ import annotations
@@ -24,43 +25,52 @@ from dataclasses import dataclass, field, replace
 from typing import Any, Literal
 
 from dualpilot.mission.params import Controller, Timing
-from dualpilot.mission.supervisors import SUPERVISORS, SupervisorKind
 from dualpilot.model.forecast import ForecastParams
 from dualpilot.model.geometry import Rect
 from dualpilot.readings import Profile, get_profile, parse_value, part_of
 from dualpilot.spec import MissionSpec
-from dualpilot.supervisor.concurrent import ConcurrentParams
+from dualpilot.supervisor.concurrent.rule import ConcurrentParams
+from dualpilot.supervisor.registry import PAPER, supervisor_entry, supervisor_names
 from dualpilot.system2.problem import System2Params
 
-__all__ = ["CONTROLLER_NAMES", "MissionConfig", "SupervisorKind", "controller_name",
-           "parse_controller"]
+__all__ = ["MissionConfig", "controller_name", "controller_names", "parse_controller"]
 
 
 #: The spelling of ``risk`` in a controller name.
 RISK_SPELLING = "+risk"
-#: The controllers an evaluation compares, by name: the paper's three, the cognitive
-#: controller with the concurrent supervisor, and each flown with the fire forecast.
-CONTROLLER_NAMES = ("cc", "s1", "s2", "concurrent", "cc+risk", "s1+risk", "s2+risk",
-                    "concurrent+risk", "lookahead", "lookahead+risk")
+#: The order in which tables list the built-in controllers (the order they were added);
+#: the installed supervisors' follow, by name.
+LISTED = ("cc", "s1", "s2", "concurrent", "cc+risk", "s1+risk", "s2+risk",
+          "concurrent+risk", "lookahead", "lookahead+risk")
 
 #: one reading override: (field name of the profile's parameters, its value)
 Setting = tuple[str, Any]
 
 
-def parse_controller(name: str) -> tuple[Controller, SupervisorKind, bool]:
-    """(controller, supervisor, risk) of a controller name of :data:`CONTROLLER_NAMES`."""
-    if name not in CONTROLLER_NAMES:
-        raise ValueError(f"unknown controller {name!r}; choose from {', '.join(CONTROLLER_NAMES)}")
+def controller_names() -> tuple[str, ...]:
+    """The controllers an evaluation compares, by name: the paper's supervisor's three
+    (cc, s1, s2), the cognitive controller of every other installed supervisor by the
+    supervisor's name, and each flown with the fire forecast (``+risk``)."""
+    bases = [c.value for c in Controller] + [s for s in supervisor_names() if s != PAPER]
+    names = [base + suffix for base in bases for suffix in ("", RISK_SPELLING)]
+    order = {name: k for k, name in enumerate(LISTED)}
+    return tuple(sorted(names, key=lambda n: order.get(n, len(order))))
+
+
+def parse_controller(name: str) -> tuple[Controller, str, bool]:
+    """(controller, supervisor, risk) of a controller name of :func:`controller_names`."""
     base = name.removesuffix(RISK_SPELLING)
     risk = base != name
-    if base in ("concurrent", "lookahead"):
-        return Controller.CC, SupervisorKind(base), risk
-    return Controller(base), SupervisorKind.PAPER, risk
+    if base in {c.value for c in Controller}:
+        return Controller(base), PAPER, risk
+    if base != PAPER and base in supervisor_names():
+        return Controller.CC, base, risk
+    raise ValueError(f"unknown controller {name!r}; choose from {', '.join(controller_names())}")
 
 
-def controller_name(controller: Controller, supervisor: SupervisorKind, risk: bool) -> str:
-    """The name of :data:`CONTROLLER_NAMES` that spells the three fields."""
-    base = controller.value if supervisor is SupervisorKind.PAPER else supervisor.value
+def controller_name(controller: Controller, supervisor: str, risk: bool) -> str:
+    """The name of :func:`controller_names` that spells the three fields."""
+    base = controller.value if supervisor == PAPER else supervisor
     return base + (RISK_SPELLING if risk else "")
 
 
@@ -81,9 +91,10 @@ class MissionConfig:
     ``profile`` and ``settings`` are the reading of the paper
     (:mod:`dualpilot.readings`; the fire scenario is the setting ``scenario``,
     the step limit ``max_steps``, the ignition clearance ``ignition_clearance_m``);
-    :meth:`reading` resolves them. ``system1_method`` "" is the supervisor's
-    (:data:`dualpilot.mission.supervisors.SUPERVISORS`; :meth:`methods` resolves it, so a
-    configuration flown by another controller keeps its choice). ``system2_time_limit_s``
+    :meth:`reading` resolves them. ``supervisor`` is a name of the supervisors' registry
+    (:mod:`dualpilot.supervisor.registry`). ``system1_method`` "" is the supervisor's
+    (:meth:`methods` resolves it, so a configuration flown by another controller keeps its
+    choice). ``system2_time_limit_s``
     is System 2's solver time limit per plan (:class:`~dualpilot.system2.problem.System2Params`:
     the exact method's; fast+exact and certified keep budgets of their own). With ``risk``
     both planners take the fire forecast (their risk-aware variants) and the
@@ -94,7 +105,7 @@ class MissionConfig:
     """
 
     controller: Controller = Controller.CC
-    supervisor: SupervisorKind = SupervisorKind.PAPER
+    supervisor: str = PAPER
     risk: bool = False
     timing: Timing = Timing.PAPER
     seed: int = 0
@@ -112,9 +123,9 @@ class MissionConfig:
     uav_id: str = ""
 
     def __post_init__(self) -> None:
-        entry = SUPERVISORS[self.supervisor]
+        entry = supervisor_entry(self.supervisor)  # ValueError: not installed here
         if self.controller not in entry.controllers:
-            raise ValueError(f"the {self.supervisor.value} supervisor does not run "
+            raise ValueError(f"the {self.supervisor} supervisor does not run "
                              f"{self.controller.value} (it runs "
                              f"{', '.join(sorted(c.value for c in entry.controllers))})")
         if self.mission_id.startswith("-"):  # "--" would read as the end of the flags
@@ -139,13 +150,14 @@ class MissionConfig:
     # -- the controller by name --------------------------------------------------------------
     @classmethod
     def named(cls, name: str, **fields: Any) -> MissionConfig:
-        """The configuration of controller ``name`` (:data:`CONTROLLER_NAMES`) with ``fields``."""
+        """The configuration of controller ``name`` (:func:`controller_names`) with
+        ``fields``."""
         controller, supervisor, risk = parse_controller(name)
         return cls(controller=controller, supervisor=supervisor, risk=risk, **fields)
 
     @property
     def controller_name(self) -> str:
-        """This configuration's controller as a name of :data:`CONTROLLER_NAMES`."""
+        """This configuration's controller as a name of :func:`controller_names`."""
         return controller_name(self.controller, self.supervisor, self.risk)
 
     # -- what the parts read -----------------------------------------------------------------
@@ -165,7 +177,7 @@ class MissionConfig:
     def methods(self) -> dict[int, str]:
         """The planners' registry names by system (:mod:`dualpilot.planners`); System 1's
         "" is the supervisor's."""
-        system1 = self.system1_method or SUPERVISORS[self.supervisor].system1_method
+        system1 = self.system1_method or supervisor_entry(self.supervisor).system1_method
         return {1: system1, 2: self.system2_method}
 
     def system2_params(self) -> System2Params:

@@ -25,14 +25,14 @@ import dataclasses
 from collections.abc import Iterable, Mapping, Sequence
 from typing import Any
 
-from dualpilot.mission.config import CONTROLLER_NAMES, MissionConfig, parse_controller
+from dualpilot.mission.config import MissionConfig, controller_names, parse_controller
 from dualpilot.mission.params import Timing
-from dualpilot.mission.supervisors import SupervisorKind
 from dualpilot.model.forecast import ForecastParams
 from dualpilot.model.geometry import Rect
 from dualpilot.model.risk import RiskParams
 from dualpilot.readings import PROFILES, parse_settings, settable, value_text
-from dualpilot.supervisor.concurrent import ConcurrentParams
+from dualpilot.supervisor.concurrent.rule import ConcurrentParams
+from dualpilot.supervisor.registry import PAPER, supervisor_names
 
 __all__ = ["READING_FLAGS", "add_config_arguments", "config_from_args", "config_to_argv",
            "parse_config", "reading_settings"]
@@ -70,11 +70,11 @@ def add_config_arguments(p: argparse.ArgumentParser, seed: int = 7, *, per_missi
     """
     g = p.add_argument_group("mission configuration (dualpilot.mission.config)")
     if per_mission:
-        g.add_argument("--controller", default="cc", choices=CONTROLLER_NAMES,
-                       help="who flies: the paper's cc, s1, s2, the concurrent and lookahead "
-                            "supervisors, each with +risk: with the fire forecast")
-        g.add_argument("--supervisor", default="",
-                       choices=["", *(k.value for k in SupervisorKind)],
+        g.add_argument("--controller", default="cc", choices=controller_names(),
+                       help="who flies: the paper's cc, s1, s2, or another supervisor by its "
+                            "name (concurrent, lookahead, an installed one), each with +risk: "
+                            "with the fire forecast")
+        g.add_argument("--supervisor", default="", choices=["", *supervisor_names()],
                        help="the cognitive controller's supervisor (concurrent: as "
                             "--controller concurrent)")
     g.add_argument("--seed", type=int, default=seed,
@@ -217,14 +217,14 @@ def reading_settings(args: argparse.Namespace) -> dict[str, str]:
     return settings
 
 
-def _controller(args: argparse.Namespace) -> tuple[Any, SupervisorKind, bool]:
+def _controller(args: argparse.Namespace) -> tuple[Any, str, bool]:
     """(controller, supervisor, risk) of ``--controller`` and ``--supervisor``."""
     name = getattr(args, "controller", _DEFAULT.controller_name)
     controller, supervisor, risk = parse_controller(name)
     if getattr(args, "supervisor", ""):
-        chosen = SupervisorKind(args.supervisor)
-        if chosen is not supervisor and supervisor is not SupervisorKind.PAPER:
-            raise ValueError(f"--supervisor {chosen.value} contradicts --controller {name}")
+        chosen = args.supervisor
+        if chosen != supervisor and supervisor != PAPER:
+            raise ValueError(f"--supervisor {chosen} contradicts --controller {name}")
         supervisor = chosen
     return controller, supervisor, risk
 

@@ -17,7 +17,7 @@ from dualpilot.model.forecast import OccupancyForecast
 from dualpilot.model.geometry import Polytope, Rect
 from dualpilot.model.risk import ForecastView
 from dualpilot.plan import Objective, Plan
-from dualpilot.supervisor.decision import Decision
+from dualpilot.supervisor.paper.decision import Decision
 
 #: Where no front may ignite during a fire sub-step: (position (m), radius (m)).
 KeepOut = tuple[Array, float]

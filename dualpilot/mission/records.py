@@ -35,7 +35,7 @@ from dualpilot.model.geometry import Polytope, Rect
 from dualpilot.model.risk import RiskNote
 from dualpilot.plan import Objective
 from dualpilot.spec import MissionSpec
-from dualpilot.supervisor.decision import Decision
+from dualpilot.supervisor.paper.decision import Decision
 
 STEP_COLUMNS = [
     "t",

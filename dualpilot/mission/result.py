@@ -14,7 +14,7 @@ from dualpilot.model.fire import FireSnapshot
 from dualpilot.model.risk import RiskNote
 from dualpilot.plan import certified_gap
 from dualpilot.spec import MissionSpec
-from dualpilot.supervisor.decision import Decision
+from dualpilot.supervisor.paper.decision import Decision
 
 
 class Ending(enum.Enum):

@@ -10,7 +10,7 @@ Each step t:
    the plan is not OK); while it computes, the UAV hovers and the fires
    propagate ⌈T_s / T_f⌉ sub-steps (T_s measured, or the paper's 155 ms / 5 s).
    Steps 2–3 are the supervisor's one planning call, built by name
-   (:mod:`dualpilot.mission.supervisors`: the paper's, above, or the concurrent one);
+   (:mod:`dualpilot.supervisor.registry`: the paper's, above, or another);
 4. the plan's x_{t+1|t} is commanded at once, due after the planning interval
    and ΔT; the fires advance; the mission fails if an active region came
    within d_safe of the idle UAV;
@@ -43,14 +43,14 @@ from dualpilot.mission.ports import (
     VehiclePort,
 )
 from dualpilot.mission.result import Ending, MissionResult, StepRecord
-from dualpilot.mission.supervision import Planned
-from dualpilot.mission.supervisors import build_supervisor
 from dualpilot.model.dynamics import Array, step
 from dualpilot.model.fire import FireSnapshot, substeps_for
 from dualpilot.model.geometry import Rect
 from dualpilot.model.risk import ForecastView, RiskNote, risk_note
 from dualpilot.spec import MissionSpec, Stream
-from dualpilot.supervisor.decision import Supervisor
+from dualpilot.supervisor.interface import Planned
+from dualpilot.supervisor.paper.decision import DecisionDynamics
+from dualpilot.supervisor.registry import build_supervisor
 
 
 def nearest_region_distance(position: Array, regions: tuple[Rect, ...]) -> float:
@@ -170,10 +170,12 @@ class Mission:
         self.params = reading.mission
         self.fire_params = reading.fire
         self.observer = observer
-        #: the paper's supervisor: the attention stream and Ψ, whichever supervisor plans
-        self.supervisor = Supervisor(spec.rng(Stream.SUPERVISOR), reading.supervisor)
-        #: the supervisor's planning phase (by kind: dualpilot/mission/supervisors.py)
-        self.planning = build_supervisor(config, spec)
+        #: the paper's decision dynamics: the attention stream and Ψ, whichever supervisor
+        #: plans
+        self.decision_dynamics = DecisionDynamics(spec.rng(Stream.SUPERVISOR),
+                                                  reading.supervisor)
+        #: the supervisor (by name: dualpilot/supervisor/registry.py)
+        self.supervisor = build_supervisor(config, spec)
         # the forecast is asked only by risk-aware planners and the forecast threat rule
         can = isinstance(self.fires, ForecastPort)
         self.forecast_systems = frozenset(
@@ -199,7 +201,7 @@ class Mission:
         as if the mission had never stopped.
         """
         for rec in result.records:
-            self.supervisor.decide(rec.t, rec.d_t)
+            self.decision_dynamics.decide(rec.t, rec.d_t)
         if result.records:
             last = result.records[-1]
             self.prev_control = np.asarray(last.control, dtype=float)
@@ -271,7 +273,7 @@ class Mission:
             # fire data that caught up (the stack's EWS was back) reached the UAV
             return self._finish(Ending.FIRE_WHILE_STALE, self.result.records[-1])
         d_t = attention_distance(self.state[:2], snapshot, t, self.params)
-        planned = self.planning.plan(self, t, d_t, snapshot)
+        planned = self.supervisor.plan(self, t, d_t, snapshot)
         n_sub = substeps_for(planned.planning_s, self.fire_params)
         control, target, positions, info = self._command(planned)
         # the setpoint leaves as soon as the plan is known, due after the planning
@@ -329,7 +331,7 @@ class Mission:
         self.state = np.asarray(self.vehicle.observe(), dtype=float)
         self.result.add_flight(control, self.prev_control, self.dyn.dt_s)
         self.sim_time_s += self.dyn.dt_s
-        self.planning.after_flight(flown, prev_pos, self.state[:2],
+        self.supervisor.after_flight(flown, prev_pos, self.state[:2],
                                    float(np.sum((control - self.prev_control) ** 2)))
         self.prev_control = control
         if self.observer is not None:

@@ -21,18 +21,18 @@ from dualpilot.mission.local import LocalPlanners, LocalVehicle, local_mission
 from dualpilot.mission.ports import FirePort
 from dualpilot.mission.result import MissionResult
 from dualpilot.mission.step import Mission, MissionPorts
-from dualpilot.mission.supervision import Planned, StepView
 from dualpilot.model.dynamics import Array, hover_state, rollout
 from dualpilot.model.fire import FireSnapshot
 from dualpilot.oracle.search import Witness
 from dualpilot.plan import Plan, PlanStatus
+from dualpilot.supervisor.interface import Planned, StepView
 
 #: the records' name of the oracle's plans (Plan.info["oracle"])
 ORACLE_INFO = "witness"
 
 
 class WitnessReplay:
-    """A supervisor that flies a fixed witness (dualpilot.mission.supervision protocol)."""
+    """A supervisor that flies a fixed witness (dualpilot.supervisor.interface.Supervisor)."""
 
     def __init__(self, witness: Witness):
         self.witness = witness
@@ -41,7 +41,7 @@ class WitnessReplay:
 
     def plan(self, step: StepView, t: int, d_t: float, snapshot: FireSnapshot) -> Planned:
         """Step t's plan: the witness from step t, rolled out from the vehicle's state."""
-        decision = step.supervisor.decide(t, d_t)  # the attention stream goes on as for all
+        decision = step.decision_dynamics.decide(t, d_t)  # the attention stream goes on as for all
         controls = self.witness.controls[t:]
         if len(controls) == 0:
             return Planned(decision, None, note="witness ended")
@@ -69,5 +69,5 @@ def fly_witness(config: MissionConfig, witness: Witness,
         ports = MissionPorts(fires, LocalPlanners({}), LocalVehicle(state, spec.dynamics))
         mission = Mission(config, spec, ports, state)
     replay = WitnessReplay(witness)
-    mission.planning = replay
+    mission.supervisor = replay
     return mission.run(), replay

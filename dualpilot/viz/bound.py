@@ -19,7 +19,7 @@ from dualpilot.evaluation.bound import (
     p_s1_path,
     p_s1_table,
 )
-from dualpilot.supervisor.decision import SupervisorParams
+from dualpilot.supervisor.paper.decision import SupervisorParams
 
 TABLE_STEPS = (0, 15, 30, 45)
 CURVE_DISTANCES = (0.0, 40.0, 100.0, 200.0, math.inf)

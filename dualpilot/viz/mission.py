@@ -37,7 +37,7 @@ from matplotlib.ticker import MaxNLocator
 
 from dualpilot.mission.records import read_steps_csv
 from dualpilot.model.dynamics import Array
-from dualpilot.supervisor.attention import AttentionParams, xi
+from dualpilot.supervisor.paper.attention import AttentionParams, xi
 
 DPI = 120
 #: Seed of the Dirichlet samples of Fig. r2 (combined with t, so each panel is reproducible).

@@ -25,7 +25,7 @@ from dualpilot.model.forecast import OccupancyForecast
 from dualpilot.model.geometry import Rect
 from dualpilot.model.risk import RiskNote
 from dualpilot.spec import MissionSpec
-from dualpilot.supervisor.decision import Decision
+from dualpilot.supervisor.paper.decision import Decision
 
 SYSTEMS = (1, 2)
 #: the occupancy forecast's slices shown (evenly spread over its horizons, the first and last

@@ -15,13 +15,6 @@ class ControllerKind(int, metaclass=_enum_type_wrapper.EnumTypeWrapper):
     CONTROLLER_KIND_S1: _ClassVar[ControllerKind]
     CONTROLLER_KIND_S2: _ClassVar[ControllerKind]
 
-class SupervisorKind(int, metaclass=_enum_type_wrapper.EnumTypeWrapper):
-    __slots__ = ()
-    SUPERVISOR_KIND_UNSPECIFIED: _ClassVar[SupervisorKind]
-    SUPERVISOR_KIND_PAPER: _ClassVar[SupervisorKind]
-    SUPERVISOR_KIND_CONCURRENT: _ClassVar[SupervisorKind]
-    SUPERVISOR_KIND_LOOKAHEAD: _ClassVar[SupervisorKind]
-
 class Timing(int, metaclass=_enum_type_wrapper.EnumTypeWrapper):
     __slots__ = ()
     TIMING_UNSPECIFIED: _ClassVar[Timing]
@@ -31,10 +24,6 @@ CONTROLLER_KIND_UNSPECIFIED: ControllerKind
 CONTROLLER_KIND_CC: ControllerKind
 CONTROLLER_KIND_S1: ControllerKind
 CONTROLLER_KIND_S2: ControllerKind
-SUPERVISOR_KIND_UNSPECIFIED: SupervisorKind
-SUPERVISOR_KIND_PAPER: SupervisorKind
-SUPERVISOR_KIND_CONCURRENT: SupervisorKind
-SUPERVISOR_KIND_LOOKAHEAD: SupervisorKind
 TIMING_UNSPECIFIED: Timing
 TIMING_PAPER: Timing
 TIMING_MEASURED: Timing
@@ -88,12 +77,11 @@ class ForecastParams(_message.Message):
     def __init__(self, members: _Optional[int] = ..., resolution_m: _Optional[float] = ..., horizon_s: _Optional[float] = ..., interval_s: _Optional[float] = ...) -> None: ...
 
 class MissionConfig(_message.Message):
-    __slots__ = ("mission_id", "uav_id", "seed", "controller", "supervisor", "risk", "timing", "profile", "settings", "system1_method", "system2_method", "concurrent", "goal", "area_size_m", "start", "forecast", "system2_time_limit_s")
+    __slots__ = ("mission_id", "uav_id", "seed", "controller", "risk", "timing", "profile", "settings", "system1_method", "system2_method", "concurrent", "goal", "area_size_m", "start", "forecast", "system2_time_limit_s", "supervisor")
     MISSION_ID_FIELD_NUMBER: _ClassVar[int]
     UAV_ID_FIELD_NUMBER: _ClassVar[int]
     SEED_FIELD_NUMBER: _ClassVar[int]
     CONTROLLER_FIELD_NUMBER: _ClassVar[int]
-    SUPERVISOR_FIELD_NUMBER: _ClassVar[int]
     RISK_FIELD_NUMBER: _ClassVar[int]
     TIMING_FIELD_NUMBER: _ClassVar[int]
     PROFILE_FIELD_NUMBER: _ClassVar[int]
@@ -106,11 +94,11 @@ class MissionConfig(_message.Message):
     START_FIELD_NUMBER: _ClassVar[int]
     FORECAST_FIELD_NUMBER: _ClassVar[int]
     SYSTEM2_TIME_LIMIT_S_FIELD_NUMBER: _ClassVar[int]
+    SUPERVISOR_FIELD_NUMBER: _ClassVar[int]
     mission_id: str
     uav_id: str
     seed: int
     controller: ControllerKind
-    supervisor: SupervisorKind
     risk: bool
     timing: Timing
     profile: str
@@ -123,4 +111,5 @@ class MissionConfig(_message.Message):
     start: _common_pb2.Vec2
     forecast: ForecastParams
     system2_time_limit_s: float
-    def __init__(self, mission_id: _Optional[str] = ..., uav_id: _Optional[str] = ..., seed: _Optional[int] = ..., controller: _Optional[_Union[ControllerKind, str]] = ..., supervisor: _Optional[_Union[SupervisorKind, str]] = ..., risk: _Optional[bool] = ..., timing: _Optional[_Union[Timing, str]] = ..., profile: _Optional[str] = ..., settings: _Optional[_Iterable[_Union[Setting, _Mapping]]] = ..., system1_method: _Optional[str] = ..., system2_method: _Optional[str] = ..., concurrent: _Optional[_Union[ConcurrentParams, _Mapping]] = ..., goal: _Optional[_Union[_common_pb2.Rect, _Mapping]] = ..., area_size_m: _Optional[float] = ..., start: _Optional[_Union[_common_pb2.Vec2, _Mapping]] = ..., forecast: _Optional[_Union[ForecastParams, _Mapping]] = ..., system2_time_limit_s: _Optional[float] = ...) -> None: ...
+    supervisor: str
+    def __init__(self, mission_id: _Optional[str] = ..., uav_id: _Optional[str] = ..., seed: _Optional[int] = ..., controller: _Optional[_Union[ControllerKind, str]] = ..., risk: _Optional[bool] = ..., timing: _Optional[_Union[Timing, str]] = ..., profile: _Optional[str] = ..., settings: _Optional[_Iterable[_Union[Setting, _Mapping]]] = ..., system1_method: _Optional[str] = ..., system2_method: _Optional[str] = ..., concurrent: _Optional[_Union[ConcurrentParams, _Mapping]] = ..., goal: _Optional[_Union[_common_pb2.Rect, _Mapping]] = ..., area_size_m: _Optional[float] = ..., start: _Optional[_Union[_common_pb2.Vec2, _Mapping]] = ..., forecast: _Optional[_Union[ForecastParams, _Mapping]] = ..., system2_time_limit_s: _Optional[float] = ..., supervisor: _Optional[str] = ...) -> None: ...

@@ -19,7 +19,7 @@ from dualpilot.mission.config import MissionConfig
 from dualpilot.mission.result import Ending, MissionResult, StepRecord
 from dualpilot.model.dynamics import Array
 from dualpilot.spec import MissionSpec
-from dualpilot.supervisor.decision import Decision
+from dualpilot.supervisor.paper.decision import Decision
 from services.common.convert.supervisor import DecisionNotes, EventKind, MissionEvent
 from services.common.log import fields
 

@@ -12,7 +12,7 @@ from __future__ import annotations
 from dualpilot.mission.result import StepRecord
 from dualpilot.model.dynamics import Array
 from dualpilot.spec import MissionSpec
-from dualpilot.supervisor.decision import Decision
+from dualpilot.supervisor.paper.decision import Decision
 from services.common import keys
 from services.common.convert import common as common_convert
 from services.common.convert import supervisor as supervisor_convert

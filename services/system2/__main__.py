@@ -3,7 +3,7 @@
 Answers PlanRequests on ``<ns>/plan/system2`` (services/common/planning.py)
 with :func:`dualpilot.planners.build_planner`, built once per mission from its
 spec and configuration (its System 2 method, one of
-``dualpilot.planners.METHODS[2]``, risk and time limit) and re-solved each request.
+``dualpilot.planners.method_names(2)``, risk and time limit) and re-solved each request.
 Rejected inputs are counted per key and reason in the status served on
 ``<ns>/status/system2``. ``--uav-ids`` serves a fleet
 (services/common/fleet.py): one planner loop per vehicle id.

@@ -21,7 +21,7 @@ from dualpilot.model.dynamics import Array
 from dualpilot.model.fire import FireSnapshot
 from dualpilot.model.forecast import OccupancyForecast
 from dualpilot.spec import MissionSpec
-from dualpilot.supervisor.decision import Decision
+from dualpilot.supervisor.paper.decision import Decision
 from dualpilot.viz.foxglove import VehicleChannels
 from dualpilot.viz.scene import (
     RiskView,

@@ -29,7 +29,7 @@ from dualpilot.mission.params import Timing
 from dualpilot.model.forecast import ForecastParams
 from dualpilot.model.geometry import Rect
 from dualpilot.model.risk import RiskParams
-from dualpilot.supervisor.concurrent import ConcurrentParams
+from dualpilot.supervisor.concurrent.rule import ConcurrentParams
 from services import launch
 from services.common import bus
 from services.common.convert.config import config_from_json

@@ -1,8 +1,9 @@
 """The lookahead supervisor through the stack: the in-process mission, step for step.
 
-The supervisor process runs the lookahead supervisor (dualpilot/mission/lookahead.py); its
-known future is the EWS's forecast of each step's fire state, asked over the wire, and its
-space-time plans are its own. Three seeds of each physics scenario of the yardstick's tables
+The supervisor process runs the lookahead supervisor
+(dualpilot/supervisor/lookahead/planning.py); its known future is the EWS's forecast of
+each step's fire state, asked over the wire, and its space-time plans are its own. Three
+seeds of each physics scenario of the yardstick's tables
 (grass-5, grass-15, shrub), paper timing, flown through the stack (a shared router, EWS and
 planner pair; a uavsim and a supervisor per vehicle, unpaced) and in-process given the
 vehicle's measurements (tests/e2e/test_lockstep.py's ``ReplayedStates``, as for every

@@ -21,7 +21,7 @@ from dualpilot.model.fire_field import FireField
 from dualpilot.model.geometry import Polytope
 from dualpilot.plan import Objective, Plan, PlanStatus
 from dualpilot.spec import MissionSpec
-from dualpilot.supervisor.decision import Supervisor
+from dualpilot.supervisor.paper.decision import DecisionDynamics
 from services import protogen
 from services.common import limits, mavlink_codec, rejections, wire
 from services.common.convert import common as common_convert
@@ -122,7 +122,7 @@ def test_plan_round_trip_keeps_the_trajectory() -> None:
 
 
 def test_decision_round_trip() -> None:
-    sup = Supervisor(np.random.default_rng(1))
+    sup = DecisionDynamics(np.random.default_rng(1))
     d = sup.decide(3, 120.0)
     msg = supervisor_convert.decision_to_msg(d, 2, wire.Stamper("supervisor", "uav1"), 4.5)
     back = supervisor_convert.decision_from_msg(wire.parse(msg.SerializeToString(),

@@ -13,7 +13,7 @@ from dualpilot.mission.result import StepRecord
 from dualpilot.model.fire import FireSnapshot
 from dualpilot.plan import Objective
 from dualpilot.spec import MissionSpec
-from dualpilot.supervisor.decision import Decision
+from dualpilot.supervisor.paper.decision import Decision
 from services.common import rejections, wire
 from services.common.convert import supervisor as supervisor_convert
 from services.msgs import supervisor_pb2

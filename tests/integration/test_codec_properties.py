@@ -31,7 +31,7 @@ from hypothesis import HealthCheck, assume, event, given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
-from dualpilot.mission.config import CONTROLLER_NAMES, MissionConfig
+from dualpilot.mission.config import MissionConfig, controller_names
 from dualpilot.mission.ports import PlanRequest
 from dualpilot.model.dynamics import DynamicsParams, rollout
 from dualpilot.model.fire import FireParams
@@ -39,7 +39,7 @@ from dualpilot.model.fire_field import FireField
 from dualpilot.model.geometry import Polytope, Rect
 from dualpilot.plan import Objective, Plan, PlanStatus
 from dualpilot.spec import MissionSpec
-from dualpilot.supervisor.decision import Decision, Supervisor
+from dualpilot.supervisor.paper.decision import Decision, DecisionDynamics
 from services.common import limits, mav, mavlink_codec, rejections, wire
 from services.common.clock import Anchor
 from services.common.convert import common as common_convert
@@ -224,7 +224,7 @@ def ok_anchor(a: Anchor) -> None:
 
 def ok_config(c: MissionConfig) -> None:
     assert c.reading() is not None and c.spec().goal.inside(c.spec().area)
-    assert c.controller_name in CONTROLLER_NAMES and c.concurrent.threat == (
+    assert c.controller_name in controller_names() and c.concurrent.threat == (
         "forecast" if c.risk else "current")
 
 
@@ -258,7 +258,7 @@ DECODERS: dict[str, tuple[type[Message], Callable[[Any], Any], Callable[[Any], N
                  3, 11, wire.Stamper("system2", "uav1"), 1.0)),
     "Decision": (supervisor_pb2.Decision, supervisor_convert.decision_from_msg, ok_decision,
                  lambda: supervisor_convert.decision_to_msg(
-                     Supervisor(np.random.default_rng(1)).decide(2, 80.0), 1,
+                     DecisionDynamics(np.random.default_rng(1)).decide(2, 80.0), 1,
                      wire.Stamper("supervisor", "uav1"), 2.0)),
     "VehicleState": (vehicle_pb2.VehicleState, vehicle_convert.state_from_msg, ok_state,
                      lambda: vehicle_convert.state_to_msg(np.array([50.0, 60.0, 1.0, -2.0]), 3,
@@ -516,7 +516,7 @@ def test_an_oversized_plan_info_is_replaced_not_cut() -> None:
 @PROPS
 @given(st.integers(0, 10_000), st.floats(0, 1e5) | st.just(math.inf), st.integers(0, 2**16))
 def test_decision_round_trip(t: int, d_t: float, seed: int) -> None:
-    d = Supervisor(np.random.default_rng(seed)).decide(t, d_t)
+    d = DecisionDynamics(np.random.default_rng(seed)).decide(t, d_t)
     back = decode("Decision", supervisor_convert.decision_to_msg(d, 2, wire.Stamper("s", "u"), 1.0)
                   .SerializeToString())
     assert (back.t, back.d_t, back.attention, back.system, back.objective) == (

@@ -16,7 +16,7 @@ from dualpilot.mission.config import MissionConfig
 from dualpilot.mission.config_args import config_to_argv, parse_config
 from dualpilot.model.forecast import ForecastParams
 from dualpilot.model.risk import RiskParams
-from dualpilot.supervisor.concurrent import ConcurrentParams
+from dualpilot.supervisor.concurrent.rule import ConcurrentParams
 from services.common import rejections, wire
 from services.common.convert import config as config_convert
 from services.msgs import config_pb2
@@ -57,6 +57,11 @@ def test_a_bad_config_is_refused_with_its_reason() -> None:
     msg = config_convert.config_to_msg(MissionConfig.named("concurrent"),
                                        config_pb2.MissionConfig())
     for change, match in ((lambda m: setattr(m, "controller", 2), "does not run s1"),
+                          (lambda m: setattr(m, "supervisor", "warp"),
+                           r"supervisor 'warp' is not installed here \(installed: paper, "
+                           r"concurrent, lookahead"),
+                          (lambda m: setattr(m, "supervisor", ""), "supervisor '' is not"),
+                          (lambda m: setattr(m, "supervisor", "x" * 65), "longer than 64"),
                           (lambda m: setattr(m, "timing", 7), "timing 7 is not one of"),
                           (lambda m: m.settings.add(name="p_birth", value="2"), "p_birth"),
                           (lambda m: setattr(m.concurrent, "q_rate", 0.0), "q_rate"),

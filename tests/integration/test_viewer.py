@@ -19,7 +19,7 @@ from dualpilot.model.geometry import Polytope, Rect
 from dualpilot.model.risk import RiskNote
 from dualpilot.plan import Objective
 from dualpilot.spec import MissionSpec
-from dualpilot.supervisor.decision import Decision
+from dualpilot.supervisor.paper.decision import Decision
 from services.common import bus, keys, wire
 from services.common.convert import fire as fire_convert
 from services.common.convert import supervisor as supervisor_convert

@@ -7,13 +7,13 @@ from typing import Any
 
 from hypothesis import strategies as st
 
-from dualpilot.mission.config import CONTROLLER_NAMES, MissionConfig
+from dualpilot.mission.config import MissionConfig, controller_names
 from dualpilot.mission.params import Timing
 from dualpilot.model.forecast import ForecastParams
 from dualpilot.model.geometry import Rect
 from dualpilot.model.risk import RiskParams
 from dualpilot.readings import PROFILES
-from dualpilot.supervisor.concurrent import ConcurrentParams
+from dualpilot.supervisor.concurrent.rule import ConcurrentParams
 
 
 def _concurrent() -> st.SearchStrategy[ConcurrentParams]:
@@ -42,7 +42,7 @@ SETTINGS: dict[str, st.SearchStrategy[Any]] = {
 
 @st.composite
 def configs(draw: st.DrawFn) -> MissionConfig:
-    name = draw(st.sampled_from(CONTROLLER_NAMES))
+    name = draw(st.sampled_from(controller_names()))
     names = draw(st.lists(st.sampled_from(sorted(SETTINGS)), unique=True, max_size=4))
     settings_ = tuple((n, draw(SETTINGS[n])) for n in names)
     size = draw(st.floats(400.0, 5000.0))

@@ -12,12 +12,11 @@ from typing import Any
 
 from dualpilot.mission.config import MissionConfig
 from dualpilot.mission.params import Controller, MissionParams, Timing
-from dualpilot.mission.supervisors import SupervisorKind
 from dualpilot.model.dynamics import DynamicsParams
 from dualpilot.model.fire import FireParams
 from dualpilot.readings import get_profile
 from dualpilot.spec import MissionSpec
-from dualpilot.supervisor.decision import SupervisorParams
+from dualpilot.supervisor.paper.decision import SupervisorParams
 
 Part = FireParams | MissionParams | SupervisorParams | DynamicsParams
 
@@ -38,7 +37,7 @@ def overrides(profile: str, *parts: Part | None) -> dict[str, Any]:
 
 def config_for(spec: MissionSpec, controller: Controller | str = Controller.CC, *,
                fire: FireParams | None = None, mission: MissionParams | None = None,
-               supervisor: SupervisorKind | str = SupervisorKind.PAPER,
+               supervisor: str = "paper",
                timing: Timing = Timing.PAPER, profile: str = "today",
                **fields: Any) -> MissionConfig:
     """The configuration that flies ``spec`` (start, goal, area, seed) with ``controller``
@@ -49,5 +48,5 @@ def config_for(spec: MissionSpec, controller: Controller | str = Controller.CC, 
                                     timing=timing, profile=profile, settings=settings)
     if isinstance(controller, str):
         return MissionConfig.named(controller, **geometry, **fields)
-    return MissionConfig(controller=controller, supervisor=SupervisorKind(supervisor),
+    return MissionConfig(controller=controller, supervisor=supervisor,
                          **geometry, **fields)

@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from dualpilot.plan import Objective
-from dualpilot.supervisor.attention import sample_attention, xi
-from dualpilot.supervisor.decision import Supervisor, SupervisorParams, psi_update
+from dualpilot.supervisor.paper.attention import sample_attention, xi
+from dualpilot.supervisor.paper.decision import DecisionDynamics, SupervisorParams, psi_update
 
 
 @pytest.mark.parametrize(
@@ -74,7 +74,7 @@ def test_psi_updates_by_hand():
 
 
 def test_supervisor_picks_argmax_and_objective():
-    sup = Supervisor(np.random.default_rng(3))
+    sup = DecisionDynamics(np.random.default_rng(3))
     for t in range(60):
         d = sup.decide(t, 30.0 if 15 <= t < 25 else float("inf"))
         assert d.system == int(np.argmax(d.psi)) + 1
@@ -88,7 +88,7 @@ def test_supervisor_picks_argmax_and_objective():
 def test_same_seed_same_decisions():
     runs = []
     for _ in range(2):
-        sup = Supervisor(np.random.default_rng(11))
+        sup = DecisionDynamics(np.random.default_rng(11))
         runs.append([sup.decide(t, 100.0).attention for t in range(40)])
     assert runs[0] == runs[1]
 

@@ -17,8 +17,8 @@ from dualpilot.evaluation.bound import (
     p_s1_table,
     s1_share_needed,
 )
-from dualpilot.supervisor.attention import xi
-from dualpilot.supervisor.decision import Supervisor, SupervisorParams
+from dualpilot.supervisor.paper.attention import xi
+from dualpilot.supervisor.paper.decision import DecisionDynamics, SupervisorParams
 
 Z99 = 2.5758  # two-sided 99 % normal quantile
 
@@ -32,7 +32,7 @@ def _xi_hand(t: float, d: float) -> tuple[float, float, float]:
 
 
 def test_t0_by_hand():
-    # Ψ_{−1} = (0, 0) (Supervisor.__init__), so Ψ_0 = B Q A_0:
+    # Ψ_{−1} = (0, 0) (DecisionDynamics.__init__), so Ψ_0 = B Q A_0:
     # B Q = [[0.8 − 0.4, 0.5 − 0.9, 0.3 − 0.9], [−0.4, 0.4, 0.6]] = [[0.4, −0.4, −0.6], ...]
     # A_0 = e1 → Ψ_0 = (0.4, −0.4): S1;  e2 → (−0.4, 0.4), e3 → (−0.6, 0.6): S2.
     # So P(S_0 = 1) = P(A_0 = 1) = ξ1/Σξ, with at d = 0, t = 0:
@@ -69,7 +69,7 @@ class _FixedAttention:
 
 
 def test_real_supervisor_breaks_that_tie_to_system_1():
-    sup = Supervisor(np.random.default_rng(0))
+    sup = DecisionDynamics(np.random.default_rng(0))
     sup.psi = np.array([-0.8, 0.8])  # x_1 = −1.6
     sup.rng = _FixedAttention(0)  # type: ignore[assignment]
     assert sup.decide(2, 0.0).system == 1
@@ -95,11 +95,11 @@ def test_s1_flies_only_when_attention_is_on_response_time():
 
 
 def _mc_supervisor(d_path, runs, seed, params=SupervisorParams()):
-    """Fraction of runs of the real Supervisor with S_t = 1, per step."""
+    """Fraction of runs of the real DecisionDynamics with S_t = 1, per step."""
     rng = np.random.default_rng(seed)
     s1 = np.zeros(len(d_path))
     for _ in range(runs):
-        sup = Supervisor(rng, params)
+        sup = DecisionDynamics(rng, params)
         for t, d in enumerate(d_path):
             s1[t] += sup.decide(t, d).system == 1
     return s1 / runs

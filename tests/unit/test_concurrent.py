@@ -11,7 +11,6 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from dualpilot.mission.concurrent import ConcurrentPlanning
 from dualpilot.mission.local import LocalFires, LocalPlanners, LocalVehicle
 from dualpilot.mission.params import Controller
 from dualpilot.mission.step import Mission, MissionPorts
@@ -19,7 +18,8 @@ from dualpilot.model.dynamics import hover_state
 from dualpilot.model.fire import FireParams
 from dualpilot.planners import build_planner, build_planners
 from dualpilot.spec import MissionSpec
-from dualpilot.supervisor.concurrent import ConcurrentParams, steps_until, wait_hazard
+from dualpilot.supervisor.concurrent.planning import ConcurrentSupervisor
+from dualpilot.supervisor.concurrent.rule import ConcurrentParams, steps_until, wait_hazard
 from tests.support.missions import config_for
 
 #: no random births, nothing dies out, placed fronts 60 m square
@@ -58,9 +58,9 @@ def fly(m: Mission, steps: int) -> list:
 
 def front_ahead(m: Mission, steps_ahead: int) -> None:
     """A front centred on the flown plan's position ``steps_ahead`` steps from now."""
-    assert isinstance(m.planning, ConcurrentPlanning) and m.planning.flown is not None
-    plan = m.planning.flown.plan
-    centre = plan.states[m.planning.flown.offset + steps_ahead, :2]
+    assert isinstance(m.supervisor, ConcurrentSupervisor) and m.supervisor.flown is not None
+    plan = m.supervisor.flown.plan
+    centre = plan.states[m.supervisor.flown.offset + steps_ahead, :2]
     fires = m.fires
     assert isinstance(fires, LocalFires)
     fires.field.spawn(fires.rng, m.result.steps, center=(float(centre[0]), float(centre[1])))
@@ -80,8 +80,8 @@ def test_system2_is_never_waited_for_and_its_plans_are_adopted_when_due() -> Non
 def test_a_front_near_the_uav_makes_system1_fly_from_that_step() -> None:
     m = mission()
     fly(m, 8)
-    assert isinstance(m.planning, ConcurrentPlanning) and m.planning.flown is not None
-    assert m.planning.flown.plan.system == 2
+    assert isinstance(m.supervisor, ConcurrentSupervisor) and m.supervisor.flown is not None
+    assert m.supervisor.flown.plan.system == 2
     front_ahead(m, 6)  # ≈ 90 m ahead on the System 2 plan, unknown to it
     rec = m.step()
     assert rec is not None
@@ -97,8 +97,8 @@ def test_a_front_near_the_uav_makes_system1_fly_from_that_step() -> None:
 def test_a_plan_that_became_unsafe_while_deliberated_is_refused_at_adoption() -> None:
     m = mission()
     fly(m, 8)  # at step 8 the plan launched at step 4 is due
-    assert isinstance(m.planning, ConcurrentPlanning) and m.planning.pending is not None
-    assert m.planning.pending.due_t == 8
+    assert isinstance(m.supervisor, ConcurrentSupervisor) and m.supervisor.pending is not None
+    assert m.supervisor.pending.due_t == 8
     front_ahead(m, 5)  # ignites on its path while it was being computed
     rec = m.step()
     assert rec is not None
@@ -115,7 +115,7 @@ def test_a_plan_for_a_state_the_uav_did_not_reach_is_reanchored_or_refused(
     recs = fly(m, 9)
     assert expected in recs[8].plan_status, recs[8].plan_status
     if expected == "s2:adopted":  # re-anchored: it starts where the UAV is
-        assert isinstance(m.planning, ConcurrentPlanning) and m.planning.flown is not None
+        assert isinstance(m.supervisor, ConcurrentSupervisor) and m.supervisor.flown is not None
         assert np.allclose(recs[8].state[:2], recs[8].planned_positions[0])
         assert recs[8].system == 2
     else:
@@ -154,5 +154,6 @@ def test_only_the_cognitive_controller_takes_the_concurrent_supervisor() -> None
     spec = MissionSpec()
     with pytest.raises(ValueError, match="concurrent supervisor does not run s1"):
         config_for(spec, Controller.S1, supervisor="concurrent")
-    with pytest.raises(ValueError, match="'ours' is not a valid SupervisorKind"):
+    with pytest.raises(ValueError,
+                       match="unknown supervisor 'ours'; installed: paper, concurrent, lookahead"):
         config_for(spec, Controller.CC, supervisor="ours")

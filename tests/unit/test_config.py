@@ -13,7 +13,7 @@ import dataclasses
 import pytest
 from hypothesis import given, settings
 
-from dualpilot.mission.config import CONTROLLER_NAMES, MissionConfig, parse_controller
+from dualpilot.mission.config import MissionConfig, controller_names, parse_controller
 from dualpilot.mission.config_args import (
     concurrent_names,
     config_to_argv,
@@ -21,21 +21,27 @@ from dualpilot.mission.config_args import (
 )
 from dualpilot.mission.local import local_mission
 from dualpilot.mission.params import Controller
-from dualpilot.mission.supervisors import SUPERVISORS, SupervisorKind
 from dualpilot.model.forecast import ForecastParams
 from dualpilot.model.geometry import Rect
-from dualpilot.supervisor.concurrent import ConcurrentParams
+from dualpilot.supervisor.concurrent.rule import ConcurrentParams
+from dualpilot.supervisor.registry import supervisor_entry, supervisor_names
 from tests.support.configs import configs
 
 
 def test_every_controller_name_is_three_typed_fields_and_back() -> None:
     seen = set()
-    for name in CONTROLLER_NAMES:
+    names = controller_names()
+    for name in names:
         controller, supervisor, risk = parse_controller(name)
         config = MissionConfig(controller=controller, supervisor=supervisor, risk=risk)
         assert config.controller_name == name and MissionConfig.named(name) == config
         seen.add((controller, supervisor, risk))
-    assert len(seen) == len(CONTROLLER_NAMES) == 10
+    # the built-ins, in the order tables list them; then two per installed supervisor
+    assert names[:10] == ("cc", "s1", "s2", "concurrent", "cc+risk", "s1+risk", "s2+risk",
+                          "concurrent+risk", "lookahead", "lookahead+risk")
+    installed = supervisor_names()[3:]
+    assert names[10:] == tuple(n + r for n in installed for r in ("", "+risk"))
+    assert len(seen) == len(names) == 10 + 2 * len(installed)
     with pytest.raises(ValueError, match=r"unknown controller 'cc\+fast'"):
         parse_controller("cc+fast")
 
@@ -46,14 +52,14 @@ def test_the_supervisor_gives_system1_its_method_and_risk_the_threat_rule() -> N
     # a method left to the supervisor follows it; one chosen stays whoever supervises
     assert MissionConfig.named("cc").system1_method == ""
     chosen = MissionConfig.named("cc", system1_method="rrt")
-    assert dataclasses.replace(chosen, supervisor=SupervisorKind.CONCURRENT).methods()[1] == "rrt"
-    assert SUPERVISORS[SupervisorKind.CONCURRENT].system1_method == "rrt+du"
+    assert dataclasses.replace(chosen, supervisor="concurrent").methods()[1] == "rrt"
+    assert supervisor_entry("concurrent").system1_method == "rrt+du"
     assert MissionConfig.named("concurrent").concurrent.threat == "current"
     assert MissionConfig.named("concurrent+risk").concurrent.threat == "forecast"
     with pytest.raises(ValueError, match="forecast threats are the risk-aware"):
         MissionConfig(concurrent=ConcurrentParams(threat="forecast"))
     with pytest.raises(ValueError, match="concurrent supervisor does not run s2"):
-        MissionConfig(controller=Controller.S2, supervisor=SupervisorKind.CONCURRENT)
+        MissionConfig(controller=Controller.S2, supervisor="concurrent")
 
 
 def test_settings_are_typed_sorted_and_checked_by_the_reading() -> None:

@@ -1,10 +1,11 @@
 """No import cycles among the modules of ``dualpilot/`` and ``services/`` (ARCHITECTURE §2).
 
 The graph has an edge a → b for every ``import`` / ``from … import`` in module a that
-names module b, at any depth (inside functions too: a lazy import still ties the two
-modules together), except under ``if TYPE_CHECKING:``. ``from p import x`` names the
-module ``p.x`` when there is one, else ``p``; an import of a module outside the two
-packages is no edge. A package's ``__init__`` is the module named after it.
+names module b, at any depth: inside functions too (a lazy import still ties the two
+modules together) and under ``if TYPE_CHECKING:`` too (an import for the type checker
+alone still makes a circle the reader has to follow: ARCHITECTURE §2). ``from p import
+x`` names the module ``p.x`` when there is one, else ``p``; an import of a module outside
+the two packages is no edge. A package's ``__init__`` is the module named after it.
 """
 
 from __future__ import annotations
@@ -32,13 +33,15 @@ def _type_checking(test: ast.expr) -> bool:
         isinstance(test, ast.Attribute) and test.attr == "TYPE_CHECKING")
 
 
-def imported_names(tree: ast.Module, name: str, is_package: bool) -> Iterator[str]:
+def imported_names(tree: ast.Module, name: str, is_package: bool,
+                   type_checking: bool = True) -> Iterator[str]:
     """The dotted names each import statement of a module names (``p`` and ``p.x`` for
-    ``from p import x``), relative imports resolved; ``if TYPE_CHECKING:`` bodies skipped."""
+    ``from p import x``), relative imports resolved; ``if TYPE_CHECKING:`` bodies included
+    unless ``type_checking`` is False."""
     stack: list[ast.AST] = [tree]
     while stack:
         node = stack.pop()
-        if isinstance(node, ast.If) and _type_checking(node.test):
+        if not type_checking and isinstance(node, ast.If) and _type_checking(node.test):
             stack.extend(node.orelse)
             continue
         if isinstance(node, ast.Import):
@@ -94,12 +97,25 @@ def find_cycle(graph: dict[str, set[str]]) -> list[str] | None:
     return None
 
 
-def test_the_graph_sees_lazy_imports_and_skips_type_checking_blocks() -> None:
+def test_the_graph_sees_lazy_imports_and_type_checking_blocks() -> None:
     src = ("from typing import TYPE_CHECKING\nif TYPE_CHECKING:\n    import dualpilot.cli\n"
+           "else:\n    import dualpilot.spec\n"
            "def f():\n    from dualpilot.model import fire\n    from . import spec\n")
     names = set(imported_names(ast.parse(src), "dualpilot.mission.step", False))
-    assert {"dualpilot.model.fire", "dualpilot.mission.spec"} <= names
-    assert "dualpilot.cli" not in names
+    assert {"dualpilot.model.fire", "dualpilot.mission.spec", "dualpilot.cli",
+            "dualpilot.spec"} <= names
+    runtime = set(imported_names(ast.parse(src), "dualpilot.mission.step", False, False))
+    assert "dualpilot.cli" not in runtime and "dualpilot.spec" in runtime
+
+
+def test_a_circle_through_a_type_checking_import_is_a_cycle() -> None:
+    # a.py imports b for the type checker only, b.py imports a: the graph has the circle
+    a = "from typing import TYPE_CHECKING\nif TYPE_CHECKING:\n    from dualpilot.b import B\n"
+    b = "from dualpilot.a import A\n"
+    graph = {m: {t for t in imported_names(ast.parse(src), m, False) if t in ("dualpilot.a",
+                                                                             "dualpilot.b")}
+             for m, src in (("dualpilot.a", a), ("dualpilot.b", b))}
+    assert find_cycle(graph) == ["dualpilot.a", "dualpilot.b", "dualpilot.a"]
 
 
 def test_find_cycle_reports_the_modules_of_a_cycle() -> None:

@@ -8,13 +8,13 @@ import pytest
 
 from dualpilot.mission.config import MissionConfig
 from dualpilot.mission.local import LocalPlanners, LocalVehicle
-from dualpilot.mission.lookahead import SPACE_TIME, LookaheadPlanning
 from dualpilot.mission.step import Mission, MissionPorts
 from dualpilot.model.dynamics import hover_state, rollout
 from dualpilot.model.geometry import Rect
 from dualpilot.plan import Plan, PlanStatus
 from dualpilot.planners import build_planners
 from dualpilot.spacetime.plan import FutureBoxes
+from dualpilot.supervisor.lookahead.planning import SPACE_TIME, LookaheadSupervisor
 from tests.support.scripted_fires import ScriptedFire, ScriptedFront, moving_box
 
 START, GOAL = (50.0, 500.0), Rect(900.0, 500.0, 100.0, 100.0)
@@ -24,12 +24,12 @@ def config(name: str) -> MissionConfig:
     return MissionConfig.named(name, start=START, goal=GOAL)
 
 
-def planning() -> LookaheadPlanning:
-    from dualpilot.mission.supervisors import build_supervisor
+def planning() -> LookaheadSupervisor:
+    from dualpilot.supervisor.registry import build_supervisor
 
     cfg = config("lookahead")
     got = build_supervisor(cfg, cfg.spec())
-    assert isinstance(got, LookaheadPlanning)
+    assert isinstance(got, LookaheadSupervisor)
     return got
 
 

@@ -115,9 +115,9 @@ def test_single_system_controllers_never_switch():
 
 
 def test_flight_outcome_rules_and_planning_order():
-    from dualpilot.mission.paper import planning_order
     from dualpilot.mission.step import flight_outcome
     from dualpilot.model.geometry import Rect
+    from dualpilot.supervisor.paper.planning import planning_order
 
     cfg, params = MissionSpec(), MissionParams(max_steps=10)
     fire = (Rect(100.0, 0.0, 20.0, 20.0),)  # x in [90, 110]

@@ -19,7 +19,7 @@ from hypothesis import given, settings
 
 from dualpilot.mission.config import MissionConfig
 from dualpilot.mission.config_args import add_config_arguments, config_to_argv, parse_config
-from dualpilot.supervisor.concurrent import ConcurrentParams
+from dualpilot.supervisor.concurrent.rule import ConcurrentParams
 from services.common.mission_env import (
     MISSION_ENV,
     env_argv,

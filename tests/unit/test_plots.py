@@ -19,8 +19,8 @@ from dualpilot.model.fire import FireParams, FireSnapshot
 from dualpilot.model.geometry import Polytope, Rect
 from dualpilot.plan import Objective, Plan, Planner, PlanStatus
 from dualpilot.spec import MissionSpec
-from dualpilot.supervisor.attention import AttentionParams, Logistic, xi
-from dualpilot.supervisor.decision import Decision
+from dualpilot.supervisor.paper.attention import AttentionParams, Logistic, xi
+from dualpilot.supervisor.paper.decision import Decision
 from dualpilot.viz import mission as plots
 from tests.support.missions import config_for
 

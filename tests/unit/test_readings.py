@@ -17,7 +17,7 @@ from dualpilot.model.fire_field import FireField
 from dualpilot.model.geometry import Rect
 from dualpilot.readings import PROFILES, READINGS, get_profile, parse_settings, parse_value
 from dualpilot.spec import MissionSpec
-from dualpilot.supervisor.decision import Supervisor, SupervisorParams
+from dualpilot.supervisor.paper.decision import DecisionDynamics, SupervisorParams
 from tests.support.missions import config_for
 
 QUIET = FireParams(p_birth=0.0, p_survive=1.0)
@@ -186,7 +186,7 @@ def test_bad_readings_are_refused() -> None:
 # -- the attention draw -----------------------------------------------------------------------
 def test_argmax_attention_is_deterministic_and_leaves_the_stream() -> None:
     rng = np.random.default_rng(0)
-    sup = Supervisor(rng, SupervisorParams(attention_draw="argmax"))
+    sup = DecisionDynamics(rng, SupervisorParams(attention_draw="argmax"))
     d = sup.decide(0, float("inf"))
     assert d.attention == int(np.argmax(d.xi)) + 1
     assert d.p == pytest.approx(d.xi / d.xi.sum())
@@ -194,9 +194,9 @@ def test_argmax_attention_is_deterministic_and_leaves_the_stream() -> None:
 
 
 def test_sampled_attention_is_unchanged_by_default() -> None:
-    a = Supervisor(np.random.default_rng(4)).decide(3, 50.0)
-    b = Supervisor(np.random.default_rng(4), SupervisorParams(attention_draw="sample")).decide(
-        3, 50.0)
+    a = DecisionDynamics(np.random.default_rng(4)).decide(3, 50.0)
+    b = DecisionDynamics(np.random.default_rng(4),
+                         SupervisorParams(attention_draw="sample")).decide(3, 50.0)
     assert a.attention == b.attention and np.array_equal(a.p, b.p)
 
 

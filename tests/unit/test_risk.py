@@ -16,7 +16,6 @@ from dualpilot.mission import monitor
 from dualpilot.mission.config import MissionConfig, parse_controller
 from dualpilot.mission.local import LocalFires, local_mission
 from dualpilot.mission.params import Controller
-from dualpilot.mission.supervisors import SupervisorKind
 from dualpilot.model.dynamics import hover_state
 from dualpilot.model.fire import FireParams
 from dualpilot.model.forecast import LEVELS, OccupancyForecast
@@ -25,7 +24,7 @@ from dualpilot.model.risk import ArcRisk, ForecastView, RiskMap, RiskParams, cel
 from dualpilot.plan import Objective
 from dualpilot.planners import build_planner
 from dualpilot.spec import MissionSpec
-from dualpilot.supervisor.concurrent import forecast_threatened
+from dualpilot.supervisor.concurrent.rule import forecast_threatened
 from tests.support.missions import config_for
 
 pytestmark = pytest.mark.timeout(120)
@@ -206,10 +205,10 @@ def test_the_forecast_threat_rule() -> None:
 
 
 def test_controller_names() -> None:
-    assert parse_controller("concurrent+risk") == (Controller.CC, SupervisorKind.CONCURRENT,
+    assert parse_controller("concurrent+risk") == (Controller.CC, "concurrent",
                                                    True)
-    assert parse_controller("s2+risk") == (Controller.S2, SupervisorKind.PAPER, True)
-    assert parse_controller("cc") == (Controller.CC, SupervisorKind.PAPER, False)
+    assert parse_controller("s2+risk") == (Controller.S2, "paper", True)
+    assert parse_controller("cc") == (Controller.CC, "paper", False)
     assert MissionConfig.named("concurrent+risk").concurrent.threat == "forecast"
 
 

@@ -14,7 +14,7 @@ from dualpilot.model.forecast import OccupancyForecast
 from dualpilot.model.geometry import Polytope, Rect
 from dualpilot.plan import Objective
 from dualpilot.spec import MissionSpec
-from dualpilot.supervisor.decision import Decision
+from dualpilot.supervisor.paper.decision import Decision
 from dualpilot.viz import scene
 
 

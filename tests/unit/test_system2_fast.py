@@ -13,7 +13,13 @@ from dualpilot.evaluation.instances import GOAL, SPEC, make_instance
 from dualpilot.model.dynamics import DynamicsParams, rollout, transition_matrices
 from dualpilot.model.geometry import Polytope, Rect
 from dualpilot.plan import Objective, Plan, PlanStatus
-from dualpilot.planners import METHODS, RISK_AWARE, build_planner, build_planners
+from dualpilot.planners import (
+    BUILTIN,
+    build_planner,
+    build_planners,
+    method_names,
+    risk_aware_names,
+)
 from dualpilot.system2.anytime import AnytimeSystem2
 from dualpilot.system2.fast.cfs import KeepOuts
 from dualpilot.system2.fast.geometry import Inflated, homotopy_paths
@@ -152,9 +158,15 @@ def test_transition_matrices_reading():
 
 
 def test_planners_by_name_from_the_registry():
-    assert METHODS == {1: ("rrt", "rrt+du"),
-                       2: ("fast", "exact", "fast+exact", "thorough", "certified")}
-    assert {k: tuple(v) for k, v in RISK_AWARE.items()} == {1: ("rrt", "rrt+du"), 2: ("fast",)}
+    # the built-ins, each system's default first (an installed package may add more after)
+    def builtin(names: tuple[str, ...]) -> tuple[str, ...]:
+        return tuple(n for n in names if n in BUILTIN)
+
+    assert {s: builtin(method_names(s)) for s in (1, 2)} == {
+        1: ("rrt", "rrt+du"), 2: ("fast", "exact", "fast+exact", "thorough", "certified")}
+    assert {s: builtin(risk_aware_names(s)) for s in (1, 2)} == {1: ("rrt", "rrt+du"),
+                                                                 2: ("fast",)}
+    assert method_names(1)[:2] == ("rrt", "rrt+du") and method_names(2)[0] == "fast"
     with pytest.raises(ValueError, match="'exact' has no risk-aware variant"):
         build_planner(2, SPEC, "exact", risk=True)
     fast = build_planner(2, SPEC, "fast", SMALL)
@@ -165,6 +177,8 @@ def test_planners_by_name_from_the_registry():
     assert [(k, p.system, p.method) for k, p in both.items()] == [(1, 1, "rrt"), (2, 2, "fast")]
     with pytest.raises(ValueError, match="unknown System 2 method"):
         build_planner(2, SPEC, "magic")
+    with pytest.raises(ValueError, match="'rrt' is a System 1 method, not System 2's"):
+        build_planner(2, SPEC, "rrt")
     with pytest.raises(ValueError, match="unknown system"):
         build_planner(3, SPEC, "fast")
     with pytest.raises(TypeError, match="System2Params"):

@@ -2,10 +2,10 @@
 
 The configuration travels whole, with the plan request that prepares a mission,
 with the EWS's reset and to the simulated vehicle (uavsim's ``uavsim/mission``).
-Decoding checks every field (known enums, short texts,
-the reading's names and values, the concurrent supervisor's ranges, a goal inside
-the area) and raises :class:`~services.common.rejections.CodecError` for a bad
-one: a configuration that decodes is one the core accepts.
+Decoding checks every field (known enums, short texts, a supervisor installed in
+this process, the reading's names and values, the concurrent supervisor's ranges, a
+goal inside the area) and raises :class:`~services.common.rejections.CodecError` for a
+bad one: a configuration that decodes is one the core accepts.
 """
 
 from __future__ import annotations
@@ -18,11 +18,11 @@ from google.protobuf import json_format
 
 from dualpilot.mission.config import MissionConfig
 from dualpilot.mission.params import Controller, Timing
-from dualpilot.mission.supervisors import SupervisorKind
 from dualpilot.model.forecast import ForecastParams
 from dualpilot.model.risk import RiskParams
 from dualpilot.readings import parse_value, value_text
-from dualpilot.supervisor.concurrent import ConcurrentParams
+from dualpilot.supervisor.concurrent.rule import ConcurrentParams
+from dualpilot.supervisor.registry import supervisor_names
 from services.common.convert.common import rect_from_msg, rect_to_msg
 from services.common.limits import MAX_ABS_M, check_count, check_floats, check_text, finite
 from services.common.rejections import CodecError, Reason, invalid
@@ -34,9 +34,6 @@ MAX_SETTINGS = 64
 _CONTROLLERS = {Controller.CC: config_pb2.CONTROLLER_KIND_CC,
                 Controller.S1: config_pb2.CONTROLLER_KIND_S1,
                 Controller.S2: config_pb2.CONTROLLER_KIND_S2}
-_SUPERVISORS = {SupervisorKind.PAPER: config_pb2.SUPERVISOR_KIND_PAPER,
-                SupervisorKind.CONCURRENT: config_pb2.SUPERVISOR_KIND_CONCURRENT,
-                SupervisorKind.LOOKAHEAD: config_pb2.SUPERVISOR_KIND_LOOKAHEAD}
 _TIMINGS = {Timing.PAPER: config_pb2.TIMING_PAPER, Timing.MEASURED: config_pb2.TIMING_MEASURED}
 #: ConcurrentParams' fields on the wire (its ``threat`` follows ``MissionConfig.risk``)
 CONCURRENT_WIRE = tuple(f.name for f in dataclasses.fields(ConcurrentParams)
@@ -52,7 +49,7 @@ def config_to_msg(config: MissionConfig, out: config_pb2.MissionConfig
     c = config
     out.mission_id, out.uav_id, out.seed = c.mission_id, c.uav_id, c.seed
     out.controller = _CONTROLLERS[c.controller]
-    out.supervisor = _SUPERVISORS[c.supervisor]
+    out.supervisor = c.supervisor
     out.timing = _TIMINGS[c.timing]
     out.risk, out.profile = c.risk, c.profile
     for name, value in c.settings:
@@ -97,6 +94,16 @@ def _enum(value: int, table: Mapping[Any, Any], what: str) -> Any:
     if value not in back:
         raise invalid(f"{what} {value} is not one of {sorted(back)}", Reason.OUT_OF_RANGE)
     return back[value]
+
+
+def _supervisor_from_msg(m: config_pb2.MissionConfig) -> str:
+    """The supervisor's name, if a supervisor of that name is installed in this process."""
+    name = check_text(m.supervisor, "supervisor", 64)
+    installed = supervisor_names()
+    if name not in installed:
+        raise invalid(f"supervisor {name!r} is not installed here (installed: "
+                      f"{', '.join(installed)})", Reason.OUT_OF_RANGE)
+    return name
 
 
 def _concurrent_from_msg(m: config_pb2.ConcurrentParams, risk: bool) -> ConcurrentParams:
@@ -170,7 +177,7 @@ def config_from_msg(m: config_pb2.MissionConfig) -> MissionConfig:
     try:
         return MissionConfig(
             controller=_enum(m.controller, _CONTROLLERS, "controller"),
-            supervisor=_enum(m.supervisor, _SUPERVISORS, "supervisor"),
+            supervisor=_supervisor_from_msg(m),
             risk=bool(m.risk), timing=_enum(m.timing, _TIMINGS, "timing"), seed=int(m.seed),
             profile=check_text(m.profile, "profile", 64), settings=_settings_from_msg(m),
             system1_method=check_text(m.system1_method, "system1_method", 64),

@@ -17,7 +17,7 @@ from dualpilot.mission.answers import PlanView, statuses_by_system
 from dualpilot.mission.result import StepRecord
 from dualpilot.model.dynamics import Array
 from dualpilot.spec import MissionSpec
-from dualpilot.supervisor.decision import Decision
+from dualpilot.supervisor.paper.decision import Decision
 from services.common.convert.common import (
     packed_from_msg,
     packed_to_msg,

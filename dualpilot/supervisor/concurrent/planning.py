@@ -1,10 +1,10 @@
-"""The mission step's planning phase under the concurrent supervisor.
+"""The concurrent supervisor in the mission step: its state over a mission.
 
-The rule is in :mod:`dualpilot.supervisor.concurrent`; this is its state over
+The rule is in :mod:`dualpilot.supervisor.concurrent.rule`; this is its state over
 a mission: the plan being flown, the System 2 plan being deliberated, the
 online Q. Times are simulated seconds of the mission (the step's clock).
-:class:`ConcurrentPlanning` is the registry's "concurrent" supervisor
-(:mod:`dualpilot.mission.supervisors`); it runs the cognitive controller only.
+:class:`ConcurrentSupervisor` is the registry's "concurrent" supervisor (:data:`ENTRY`,
+:mod:`dualpilot.supervisor.registry`); it runs the cognitive controller only.
 """
 
 from __future__ import annotations
@@ -18,9 +18,8 @@ from dualpilot.mission import monitor
 from dualpilot.mission.answers import Answer
 from dualpilot.mission.answers import SystemStatus as S
 from dualpilot.mission.braking import braking_plan
-from dualpilot.mission.params import MissionParams, Timing
+from dualpilot.mission.params import Controller, MissionParams, Timing
 from dualpilot.mission.ports import ForecastPort, PlannerPort, PlanRequest
-from dualpilot.mission.supervision import Planned, StepView
 from dualpilot.model.dynamics import Array
 from dualpilot.model.fire import FireParams, FireSnapshot, substeps_for
 from dualpilot.model.forecast import OccupancyForecast
@@ -29,8 +28,7 @@ from dualpilot.model.risk import ForecastView, RiskMap
 from dualpilot.model.stale_fire import grown_snapshot
 from dualpilot.plan import Objective, Plan
 from dualpilot.spec import MissionSpec
-from dualpilot.supervisor.attention import xi
-from dualpilot.supervisor.concurrent import (
+from dualpilot.supervisor.concurrent.rule import (
     Choice,
     ConcurrentParams,
     Deliberation,
@@ -43,10 +41,18 @@ from dualpilot.supervisor.concurrent import (
     threatened,
     wait_hazard,
 )
-from dualpilot.supervisor.decision import Decision, SupervisorParams
+from dualpilot.supervisor.interface import (
+    Planned,
+    StepView,
+    Supervisor,
+    SupervisorEntry,
+    SupervisorSettings,
+)
+from dualpilot.supervisor.paper.attention import xi
+from dualpilot.supervisor.paper.decision import Decision, SupervisorParams
 
 
-class ConcurrentPlanning:
+class ConcurrentSupervisor:
     """Chooses, each step, what the UAV flies; keeps System 2 deliberating in the background."""
 
     def __init__(self, spec: MissionSpec, timing: Timing, mission: MissionParams,
@@ -75,7 +81,7 @@ class ConcurrentPlanning:
         by the run-time monitor as the paper's plans are; the planning interval is the time
         the UAV waited for answers this step."""
         flying = 0 if self.flown is None else self.flown.plan.system
-        paper = step.supervisor.decide(t, d_t)  # the attention stream: S2's objective
+        paper = step.decision_dynamics.decide(t, d_t)  # the attention stream: S2's objective
         decision = self.decide(t, d_t, flying, paper.objective)
         seen = grown_snapshot(snapshot, step.fires.margin_m())  # stale data: grown
         # the forecast: for the forecast threat rule and the risk-aware planners
@@ -326,3 +332,15 @@ class ConcurrentPlanning:
             self.q.flown(system, progress, du2)
         if self.flown is not None:
             self.flown.offset += 1
+
+
+def _build(config: SupervisorSettings, spec: MissionSpec) -> Supervisor:
+    reading = config.reading()
+    return ConcurrentSupervisor(spec, config.timing, reading.mission, reading.fire,
+                                reading.supervisor, config.concurrent)
+
+
+#: The registry's "concurrent" supervisor. It hands over between the systems every few
+#: steps, so its System 1 tracks with the Δu penalty (dualpilot/system1/lqr.py: "rrt+du").
+ENTRY = SupervisorEntry(_build, frozenset({Controller.CC}), "rrt+du",
+                        "System 2 deliberates while the UAV flies; System 1 answers at once")

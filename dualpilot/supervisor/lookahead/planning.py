@@ -1,10 +1,11 @@
-"""The mission step's planning phase under the lookahead supervisor.
+"""The lookahead supervisor in the mission step: its state over a mission.
 
-The rule is in :mod:`dualpilot.supervisor.lookahead`: the concurrent supervisor
-(:class:`~dualpilot.mission.concurrent.ConcurrentPlanning`) chooses, and its choice is
-flown only if it is sound on the known future; else the supervisor's space-time plan is
-flown, kept while it stays clear, for at most ``guard_steps`` steps. It runs the
-cognitive controller only (the registry's "lookahead", :mod:`dualpilot.mission.supervisors`).
+The rule is in :mod:`dualpilot.supervisor.lookahead.rule`: the concurrent supervisor
+(:class:`~dualpilot.supervisor.concurrent.planning.ConcurrentSupervisor`) chooses, and its
+choice is flown only if it is sound on the known future; else the supervisor's space-time
+plan is flown, kept while it stays clear, for at most ``guard_steps`` steps. It runs the
+cognitive controller only (the registry's "lookahead", :data:`ENTRY`,
+:mod:`dualpilot.supervisor.registry`).
 """
 
 from __future__ import annotations
@@ -17,10 +18,8 @@ import numpy as np
 
 from dualpilot.mission.answers import Answer
 from dualpilot.mission.answers import SystemStatus as S
-from dualpilot.mission.concurrent import ConcurrentPlanning
-from dualpilot.mission.params import MissionParams, Timing
+from dualpilot.mission.params import Controller, MissionParams, Timing
 from dualpilot.mission.ports import FirePort, ForecastPort, PlannerPort
-from dualpilot.mission.supervision import Planned, StepView
 from dualpilot.model.dynamics import Array
 from dualpilot.model.fire import FireParams, FireSnapshot
 from dualpilot.model.forecast import OccupancyForecast
@@ -30,15 +29,23 @@ from dualpilot.spacetime.known import growing, growth_per_substep, known_future
 from dualpilot.spacetime.plan import FutureBoxes, arrival, lattice_plan, plan_clear
 from dualpilot.spacetime.smooth import smooth
 from dualpilot.spec import MissionSpec
-from dualpilot.supervisor.concurrent import Choice, ConcurrentParams, Flown, check_near
-from dualpilot.supervisor.decision import SupervisorParams
-from dualpilot.supervisor.lookahead import LookaheadParams
+from dualpilot.supervisor.concurrent.planning import ConcurrentSupervisor
+from dualpilot.supervisor.concurrent.rule import Choice, ConcurrentParams, Flown, check_near
+from dualpilot.supervisor.interface import (
+    Planned,
+    StepView,
+    Supervisor,
+    SupervisorEntry,
+    SupervisorSettings,
+)
+from dualpilot.supervisor.lookahead.rule import LookaheadParams
+from dualpilot.supervisor.paper.decision import SupervisorParams
 
 #: the notes of the supervisor's own plans' answers in the records ("s1:ok[space-time]")
 SPACE_TIME, ESCAPE = "[space-time]", "[escape]"
 
 
-class LookaheadPlanning(ConcurrentPlanning):
+class LookaheadSupervisor(ConcurrentSupervisor):
     """The concurrent supervisor's choice, guarded by the known future (module docstring)."""
 
     def __init__(self, spec: MissionSpec, timing: Timing, mission: MissionParams,
@@ -194,3 +201,15 @@ class LookaheadPlanning(ConcurrentPlanning):
         if self.guard is not None:
             self.guard.offset += 1
             self.guarded += 1
+
+
+def _build(config: SupervisorSettings, spec: MissionSpec) -> Supervisor:
+    reading = config.reading()
+    return LookaheadSupervisor(spec, config.timing, reading.mission, reading.fire,
+                               reading.supervisor, config.concurrent)
+
+
+#: The registry's "lookahead" supervisor (System 1 tracking under the Δu penalty, as the
+#: concurrent supervisor's).
+ENTRY = SupervisorEntry(_build, frozenset({Controller.CC}), "rrt+du",
+                        "the concurrent choice, guarded by the known future")

@@ -1,6 +1,6 @@
 """A concurrent supervisor: System 2 deliberates while the UAV flies; System 1 answers at once.
 
-The paper's supervisor (:mod:`dualpilot.supervisor.decision`) waits for the
+The paper's supervisor (:mod:`dualpilot.supervisor.paper`) waits for the
 plan of the system it picks: System 2's 5 s are ten fire sub-steps with the
 UAV hovering, and the fronts that end missions ignite in that wait. This
 supervisor never waits for System 2:

@@ -5,7 +5,9 @@ Each step the supervisor draws A_t, updates Ψ_t (Eq. Psi) and picks S_t (Eq. ma
 see the same attention stream. The chosen system plans from the current state while
 the UAV hovers (``cc`` with ``fallback``: the other one if the plan is not OK); the
 step's planning interval is the sum of the answers' T_s. Every plan is checked by the
-run-time monitor before it can be flown.
+run-time monitor before it can be flown. The rule is the decision dynamics of
+:mod:`dualpilot.supervisor.paper.decision`; :class:`PaperSupervisor` is the registry's
+"paper" supervisor (:data:`ENTRY`), the default.
 """
 
 from __future__ import annotations
@@ -14,11 +16,18 @@ from dualpilot.mission import monitor
 from dualpilot.mission.answers import Answer, SystemStatus
 from dualpilot.mission.params import Controller, MissionParams, Timing
 from dualpilot.mission.ports import PlanRequest
-from dualpilot.mission.supervision import Planned, StepView
 from dualpilot.model.dynamics import Array
 from dualpilot.model.fire import FireSnapshot
 from dualpilot.model.stale_fire import grown_snapshot
 from dualpilot.plan import Plan
+from dualpilot.spec import MissionSpec
+from dualpilot.supervisor.interface import (
+    Planned,
+    StepView,
+    Supervisor,
+    SupervisorEntry,
+    SupervisorSettings,
+)
 
 
 def planning_time(plan: Plan, timing: Timing, params: MissionParams) -> float:
@@ -35,13 +44,13 @@ def planning_order(controller: Controller, chosen: int, params: MissionParams) -
     return [wanted, 3 - wanted] if fallback else [wanted]
 
 
-class PaperPlanning:
+class PaperSupervisor:
     """The paper's supervisor: the system in control plans, the UAV waits for it."""
 
     def plan(self, step: StepView, t: int, d_t: float, snapshot: FireSnapshot) -> Planned:
         """Decide S_t, then ask the systems in :func:`planning_order` for the first OK,
         verified plan."""
-        decision = step.supervisor.decide(t, d_t)
+        decision = step.decision_dynamics.decide(t, d_t)
         order = planning_order(step.controller, decision.system, step.params)
         if step.observer is not None:
             step.observer.decided(t, decision, order[0])
@@ -74,3 +83,12 @@ class PaperPlanning:
 
     def after_flight(self, system: int, p0: Array, p1: Array, du2: float) -> None:
         """Nothing: the paper's supervisor keeps no state across flights but Ψ."""
+
+
+def _build(config: SupervisorSettings, spec: MissionSpec) -> Supervisor:
+    return PaperSupervisor()
+
+
+#: The registry's "paper" supervisor: every controller, System 1 by Alg. 1 ("rrt").
+ENTRY = SupervisorEntry(_build, frozenset(Controller), "rrt",
+                        "Sec. III-C: the system in control plans, the UAV waits for it")

@@ -1,4 +1,4 @@
-"""Supervisory controller, Sec. III-C: attention → decision dynamics Ψ → system in control.
+"""The paper's decision dynamics, Sec. III-C: attention → Ψ → the system in control.
 
 Ψ_t = H Ψ_{t−1} + B Q A_t   (Eq. Psi),   S_t = argmax_i Ψ_t(i)   (Eq. maxPsi),
 
@@ -18,7 +18,7 @@ import numpy as np
 
 from dualpilot.model.dynamics import Array
 from dualpilot.plan import Objective
-from dualpilot.supervisor.attention import AttentionParams, sample_attention, xi
+from dualpilot.supervisor.paper.attention import AttentionParams, sample_attention, xi
 
 B_MATRIX = np.array([[1.0, -1.0], [-1.0, 1.0]])
 
@@ -49,7 +49,8 @@ class SupervisorParams:
 
 @dataclass(frozen=True)
 class Decision:
-    """One supervisor step. ``attention`` is 1-based (1..3), ``system`` is 1 or 2."""
+    """What a supervisor decided at one step, as the records keep it (every supervisor
+    writes one). ``attention`` is 1-based (1..3), ``system`` is 1 or 2."""
 
     t: int
     d_t: float
@@ -68,8 +69,10 @@ def psi_update(psi_prev: Array, attention_index: int, params: SupervisorParams) 
     return np.asarray(params.h * np.asarray(psi_prev) + B_MATRIX @ params.q_matrix @ a)
 
 
-class Supervisor:
-    """Holds Ψ and S2's objective between steps; ``decide`` is its one step method."""
+class DecisionDynamics:
+    """The paper's decision dynamics over a mission: draws the attention (Eqs. KSI, dir,
+    categorical), holds Ψ (Eq. Psi) and System 2's objective between steps; ``decide`` is
+    its one step method (Eq. maxPsi)."""
 
     def __init__(self, rng: np.random.Generator, params: SupervisorParams = SupervisorParams()):
         self.params = params
