@@ -30,10 +30,13 @@ setup: $(STAMP)
 browser:
 	sh scripts/install_browser.sh
 
-$(STAMP): pyproject.toml scripts/pyretechnics-requirements.txt
+$(STAMP): pyproject.toml scripts/pyretechnics-requirements.txt examples/dualpilot-example/pyproject.toml
 	test -x $(BIN)/python || $(PY) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
 	$(BIN)/python -m pip install --quiet -e '.[dev]'
+	# the example plug-in (a System 1 method and a supervisor found through entry points:
+	# docs/extending.md), tested in-process and through the stack
+	$(BIN)/python -m pip install --quiet --no-deps -e examples/dualpilot-example
 	# MAVSDK's native 4.x binding in a directory of its own: it is the module mavsdk too, as
 	# mavsdk<4 in dev (pyproject.toml, extra mavsdk4; tests/e2e/test_mavsdk_examples.py)
 	$(BIN)/python -m pip install --quiet --no-deps --upgrade --target $(VENV)/mavsdk4 \
@@ -79,7 +82,7 @@ flake-hunt: setup
 
 lint: setup
 	$(BIN)/ruff check .
-	$(BIN)/mypy dualpilot services tests benchmarks
+	$(BIN)/mypy dualpilot services tests benchmarks examples/dualpilot-example/src
 
 bench: setup
 	$(BIN)/dualpilot bench system1 --out runs/bench

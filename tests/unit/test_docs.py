@@ -24,7 +24,7 @@ PAGES = sorted((ROOT / "docs").glob("*.md"))
 MANUALS = [ROOT / "README.md", *PAGES]
 
 # top-level parts of the tree that prose names by path
-TOP = ("dualpilot", "services", "tests", "benchmarks", "docs", "scripts", "proto")
+TOP = ("dualpilot", "services", "tests", "benchmarks", "docs", "scripts", "proto", "examples")
 PATH = re.compile(r"(?<![\w./<-])((?:" + "|".join(TOP) + r")/[\w./-]*)")
 LINK = re.compile(r"\]\(([^)\s]+)\)")
 
