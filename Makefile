@@ -9,7 +9,8 @@ OUT ?= runs/latest
 SPEED ?= 20
 PROFILE ?= today
 SUPERVISOR ?=
-# who flies: cc, s1, s2, concurrent, each also with +risk (dualpilot evaluate's names)
+# who flies: cc, s1, s2, concurrent, lookahead or an installed supervisor (docs/extending.md),
+# each also with +risk (dualpilot evaluate's names)
 CONTROLLER ?= cc
 # VIEWER=1: also the live view (services/viewer): the web page on http://127.0.0.1:8766/ and
 # Foxglove WebSocket on ws://127.0.0.1:8765 (free ports when taken; the launcher prints them)
