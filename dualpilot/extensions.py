@@ -114,8 +114,8 @@ class Registry(Generic[T]):
             part = self._parts.get(name)
         if part is None:
             part = self._load(points[name])
-            with self._lock:
-                self._parts.setdefault(name, part)
+            with self._lock:  # a part loaded twice at once: the first one stored counts
+                part = self._parts.setdefault(name, part)
         return part
 
     def _load(self, point: EntryPoint) -> T:
