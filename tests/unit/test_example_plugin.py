@@ -17,8 +17,7 @@ import numpy as np
 import pytest
 
 from dualpilot.cli import main
-from dualpilot.evaluation.evaluate import evaluate
-from dualpilot.evaluation.missions import Task, run_task
+from dualpilot.evaluation.missions import Task
 from dualpilot.extensions import origin
 from dualpilot.mission.config import MissionConfig, controller_names, parse_controller
 from dualpilot.mission.local import local_mission
@@ -117,22 +116,36 @@ def test_dualpilot_mission_flies_the_plugins(tmp_path: Path, flags: tuple[str, .
 
 @pytest.mark.slow  # the oracle's search: about a minute
 def test_dualpilot_evaluate_flies_the_plugins_against_the_oracle(tmp_path: Path) -> None:
-    summary = evaluate(2, tmp_path, seed=0, jobs=1, controllers=("proximity", "oracle"),
-                       progress=False)
+    out = tmp_path / "ext"
+    assert main(["evaluate", "--missions", "2", "--seed", "0", "--jobs", "1",
+                 "--controllers", "proximity,oracle", "--out", str(out)]) == 0
+    summary = json.loads((out / "summary.json").read_text())
     ys = summary["yardstick"]
-    assert isinstance(ys, dict) and list(ys["controllers"]) == ["proximity", "oracle"]
+    assert list(ys["controllers"]) == ["proximity", "oracle"]
     assert ys["controllers"]["proximity"]["n"] == 2
     assert ys["controllers"]["proximity"]["successes"] <= ys["achievable"]
-    assert (tmp_path / "yardstick.md").read_text().count("| proximity |") == 1
-    rows = (tmp_path / "results.csv").read_text().splitlines()
+    assert (out / "yardstick.md").read_text().count("| proximity |") == 1
+    rows = (out / "results.csv").read_text().splitlines()
     assert sum(",proximity,paper," in r for r in rows) == 2 and sum(",oracle," in r for r in rows)
     for index in (0, 1):  # each row is the in-process mission's
-        task = Task.of(index, 0, "proximity", "paper", "fast")
-        twin = local_mission(task.mission()).run()
+        twin = local_mission(Task.of(index, 0, "proximity").mission()).run()
         row = next(r for r in rows if r.startswith(f"{index},") and ",proximity," in r)
         assert f",proximity,paper,{int(twin.success)},{twin.failure_cause},{twin.steps}," in row
-    # a built-in supervisor with the example's System 1 (the configuration names it)
-    task = Task(1, 0, MissionConfig.named("cc", system1_method="straight"))
-    cc, twin = run_task(task), local_mission(task.mission()).run()
-    assert cc["controller"] == "cc" and cc["error"] == "" and int(str(cc["s1_plans"])) > 0
-    assert (cc["success"], cc["steps"]) == (int(twin.success), twin.steps)
+
+
+def test_dualpilot_evaluate_flies_a_builtin_supervisor_with_the_plugins_system1(
+        tmp_path: Path) -> None:
+    out = tmp_path / "cc"
+    assert main(["evaluate", "--missions", "2", "--first-mission", "1", "--seed", "0",
+                 "--jobs", "1", "--controllers", "cc", "--s1-method", "straight",
+                 "--out", str(out)]) == 0
+    rows = (out / "results.csv").read_text().splitlines()
+    header = rows[0].split(",")
+    for index in (1, 2):
+        row = dict(zip(header, next(r for r in rows if r.startswith(f"{index},")).split(","),
+                       strict=True))
+        twin = local_mission(Task.of(index, 0, "cc", MissionConfig(
+            system1_method="straight")).mission()).run()
+        assert (row["controller"], row["error"]) == ("cc", "")
+        assert (int(row["success"]), int(row["steps"])) == (int(twin.success), twin.steps)
+        assert int(row["s1_plans"]) == len(twin.planning_time_s["s1"]) > 0  # it flew
