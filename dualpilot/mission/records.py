@@ -1,5 +1,9 @@
 """Mission records on disk: summary.json, steps.csv, trace.json and mission.mcap, and steps.jsonl.
 
+``summary.json`` is the mission's outcome: ``ending`` (how it ended, a value of
+:class:`~dualpilot.mission.result.Ending`: ``goal``, or the failure's name; null if it did not
+end) and ``success``, then its steps, time, energy and planning times; records of the older
+form (``failure_cause``, ``""`` at the goal) read back through :meth:`Ending.read`.
 ``steps.csv`` has one row per step (``system`` and ``attention`` 1-based as in
 the paper; ``system`` 0 means no plan was flown and the UAV braked); ``plan_cost``,
 ``plan_bound`` and ``certified_gap`` are the flown plan's Eq. (S2) cost, the lower bound
@@ -154,8 +158,7 @@ def write_trace(result: MissionResult, out: Path) -> Path:
     doc = {
         "controller": result.controller,
         "seed": result.seed,
-        "success": result.success,
-        "failure_cause": result.failure_cause,
+        **Ending.fields(result.ending),
         "start": list(cfg.start),
         "goal": [cfg.goal.center_x, cfg.goal.center_y, cfg.goal.width, cfg.goal.height],
         "area_size_m": cfg.area_size_m,
@@ -407,7 +410,8 @@ def result_from_log(entries: list[dict[str, Any]], dt_s: float = 1.0) -> Mission
                            spec=spec)
     steps = [e for e in entries if e.get("kind") == "step"]
     end = next((e for e in reversed(entries) if e.get("kind") == "end"), None)
-    caught = end is not None and end.get("failure_cause") == Ending.FIRE_WHILE_PLANNING.value
+    ending = None if end is None else Ending.read(end)
+    caught = ending is Ending.FIRE_WHILE_PLANNING
     prev = np.zeros(2)
     for i, e in enumerate(steps):
         rec = record_from_json(e)
@@ -416,7 +420,7 @@ def result_from_log(entries: list[dict[str, Any]], dt_s: float = 1.0) -> Mission
             result.add_flight(rec.control, prev, dt_s)
             prev = rec.control
     if end is not None:
-        result.ending = Ending.of_record(bool(end["success"]), str(end["failure_cause"]))
+        result.ending = ending
         if end.get("final_state") is not None:
             result.final_state = _back(end["final_state"])
     return result

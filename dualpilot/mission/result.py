@@ -1,10 +1,18 @@
 """What a mission produced: one :class:`StepRecord` per step, the :class:`MissionResult` and
-how the mission ended (:class:`Ending`)."""
+how the mission ended (:class:`Ending`).
+
+A record on disk (summary.json, trace.json) writes the end as ``"ending"``, the value of
+:class:`Ending` (``null`` for a mission that did not end, e.g. an aborted stack run), beside
+``"success"`` (``ending == "goal"``); a success has no cause. Records written before the end
+was typed say ``"failure_cause"`` instead (``""`` at the goal): :meth:`Ending.read` reads both.
+"""
 
 from __future__ import annotations
 
 import enum
+from collections.abc import Mapping
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -42,13 +50,34 @@ class Ending(enum.Enum):
 
     @property
     def failure_cause(self) -> str:
-        """The records' ``failure_cause`` column: the failure's name, "" at the goal."""
+        """The failure's name, "" at the goal: the evaluation's ``failure_cause`` column
+        (results.csv), a mission event's and a steps.jsonl ``end`` line's (summary.json and
+        trace.json write :meth:`fields` instead)."""
         return "" if self.success else self.value
 
+    @staticmethod
+    def fields(ending: Ending | None) -> dict[str, object]:
+        """How summary.json and trace.json write ``ending``: ``{"success": …, "ending": …}``
+        (``"ending"`` is None while the mission has not ended; no cause at the goal)."""
+        return {"success": ending is Ending.GOAL,
+                "ending": None if ending is None else ending.value}
+
     @classmethod
-    def of_record(cls, success: bool, failure_cause: str) -> Ending:
-        """The ending a record's (success, failure_cause) columns say."""
-        return cls.GOAL if success else cls(failure_cause)
+    def read(cls, record: Mapping[str, Any]) -> Ending | None:
+        """The ending a record says (summary.json, trace.json, a steps.jsonl ``end`` line), in
+        either form: ``"ending"`` (:meth:`fields`), or the older ``"success"`` with
+        ``"failure_cause"`` (``""`` at the goal). None: the mission did not end. ValueError
+        for a value that is no ending, or a record with neither form."""
+        if "ending" in record:
+            value = record["ending"]
+            return None if value is None else cls(value)
+        if "success" not in record:
+            raise ValueError("the record says nothing of how the mission ended "
+                             "(no 'ending', no 'success')")
+        if record["success"]:
+            return cls.GOAL
+        cause = record.get("failure_cause") or ""
+        return cls(cause) if cause else None
 
 
 @dataclass(frozen=True)
@@ -123,7 +152,8 @@ class MissionResult:
 
     @property
     def failure_cause(self) -> str:
-        """The records' column: "" at the goal or while flying, else the failure's name."""
+        """:attr:`Ending.failure_cause`: "" at the goal or while flying, else the failure's
+        name."""
         return "" if self.ending is None else self.ending.failure_cause
 
     def add_flight(self, control: Array, prev_control: Array, dt_s: float) -> None:
@@ -148,8 +178,7 @@ class MissionResult:
             "controller": self.controller,
             "seed": self.seed,
             "timing": self.timing,
-            "success": self.success,
-            "failure_cause": self.failure_cause,
+            **Ending.fields(self.ending),
             "steps": self.steps,
             "mission_time_s": self.mission_time_s,
             "energy": self.energy,

@@ -36,6 +36,7 @@ from matplotlib.patches import Patch, Polygon, Rectangle
 from matplotlib.ticker import MaxNLocator
 
 from dualpilot.mission.records import read_steps_csv
+from dualpilot.mission.result import Ending
 from dualpilot.model.dynamics import Array
 from dualpilot.supervisor.paper.attention import AttentionParams, xi
 
@@ -94,14 +95,22 @@ class RunData:
     def area_m(self) -> float:
         return float(self.trace.get("area_size_m", 1000.0))
 
+    @property
+    def ending(self) -> Ending | None:
+        """How the mission ended (summary.json, else trace.json; either record form:
+        :meth:`Ending.read`); None if it did not end."""
+        said = self.summary if {"ending", "success"} & self.summary.keys() else self.trace
+        return Ending.read(said) if {"ending", "success"} & said.keys() else None
+
     def title(self) -> str:
         info = {**self.trace, **self.summary}
         head = f"{str(info.get('controller', '?')).upper()} mission, seed {info.get('seed', '?')}"
         steps = int(info.get("steps", self.n_steps))  # steps flown (a caught last step is not)
         n = f"{steps} step{'s' if steps != 1 else ''}"
-        if info.get("success"):
+        ending = self.ending
+        if ending is Ending.GOAL:
             return f"{head}: reached G after {n}"
-        cause = str(info.get("failure_cause") or "not finished").replace("_", " ")
+        cause = ("not finished" if ending is None else ending.value).replace("_", " ")
         return f"{head}: {cause} after {n}"
 
 

@@ -29,6 +29,9 @@ def test_launch_runs_a_mission_and_leaves_a_run_directory(tmp_path: Path) -> Non
           proc.stdout[-3000:] + proc.stderr[-3000:])
     assert "t=  0 S1" in proc.stdout  # progress
     assert '"controller": "s1"' in proc.stdout and "services stopped (all cleanly)" in proc.stdout
+    # the end as summary.json types it: a cause only in the ending ("goal" or the failure's)
+    assert re.search(r'"success": (true|false), "ending": "[a-z_]+"', proc.stdout), proc.stdout
+    assert "failure_cause" not in proc.stdout
     for name in ("summary.json", "steps.csv", "trace.json", "latency.csv"):
         assert (out / name).is_file(), name
     assert sorted(p.name for p in (out / "logs").iterdir()) == [

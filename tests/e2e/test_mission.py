@@ -25,7 +25,8 @@ def test_mission_reaches_the_goal(mission: Any) -> None:
     check(mission.outcome.ended, "the mission to end (launch.follow)", logs, mission.outcome)
     check(mission.outcome.success, "the mission to reach the goal", logs, mission.outcome)
     summary = json.loads((mission.run_dir / "summary.json").read_text())
-    assert summary["success"] and summary["controller"] == "cc" and summary["seed"] == mission.seed
+    assert summary["success"] and summary["ending"] == "goal" and "failure_cause" not in summary
+    assert summary["controller"] == "cc" and summary["seed"] == mission.seed
     final = mission.states[-1]
     assert Rect(900, 900, 100, 100).contains(np.array([final.east_m, final.north_m]))
     assert summary["steps"] == final.step == mission.outcome.steps

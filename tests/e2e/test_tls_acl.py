@@ -202,7 +202,7 @@ def test_mission_through_launch_tls(tmp_path: Path) -> None:
     check(proc.returncode == 0, "services.launch --tls to exit with 0", logs_in(out),
           proc.stdout[-3000:] + proc.stderr[-3000:])
     summary = json.loads((out / "summary.json").read_text())
-    assert summary["steps"] == 5 and summary["failure_cause"] == "step_limit", summary
+    assert summary["steps"] == 5 and summary["ending"] == "step_limit", summary
     assert certs.is_complete(out / "tls")
     assert "all cleanly" in proc.stdout
     assert "tls=" in (out / "logs" / "system2.log").read_text()
