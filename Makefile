@@ -4,14 +4,21 @@ PY ?= python3
 VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
-SEED ?= 26
 OUT ?= runs/latest
 SPEED ?= 20
-PROFILE ?= today
-SUPERVISOR ?=
-# who flies: cc, s1, s2, concurrent, lookahead or an installed supervisor (docs/extending.md),
+# The mission: empty flies the default mission, the one `docker compose up` and `dualpilot
+# mission` fly too (DEFAULT_MISSION in dualpilot/mission/config.py: lookahead+risk, seed 7,
+# paper timing, today's reading; tests/integration/test_compose.py checks they agree).
+# CONTROLLER: cc, s1, s2, concurrent, lookahead or an installed supervisor (docs/extending.md),
 # each also with +risk (dualpilot evaluate's names)
-CONTROLLER ?= cc
+CONTROLLER ?=
+SEED ?=
+TIMING ?=
+PROFILE ?=
+SUPERVISOR ?=
+MISSION_FLAGS = $(strip $(if $(CONTROLLER),--controller $(CONTROLLER)) $(if $(SEED),--seed $(SEED)) \
+	$(if $(TIMING),--timing $(TIMING)) $(if $(PROFILE),--profile $(PROFILE)) \
+	$(if $(SUPERVISOR),--supervisor $(SUPERVISOR)))
 # VIEWER=1: also the live view (services/viewer): the web page on http://127.0.0.1:8766/ and
 # Foxglove WebSocket on ws://127.0.0.1:8765 (free ports when taken; the launcher prints them)
 VIEWER ?=
@@ -50,8 +57,7 @@ $(STAMP): pyproject.toml scripts/pyretechnics-requirements.txt examples/dualpilo
 # the distributed stack: a Zenoh router and the five services as processes on loopback
 # (services/launch/ reads docker-compose.yml, the one description of the services)
 run: setup
-	$(BIN)/python -m services.launch --controller $(CONTROLLER) --seed $(SEED) --timing paper \
-		--speed-factor $(SPEED) --profile $(PROFILE) $(if $(SUPERVISOR),--supervisor $(SUPERVISOR)) --out $(OUT) \
+	$(BIN)/python -m services.launch $(MISSION_FLAGS) --speed-factor $(SPEED) --out $(OUT) \
 		$(TLS_FLAGS) $(if $(VIEWER),--viewer)
 
 # a local CA and a key and certificate per service (ZENOH_TLS_DIR; docker-compose.yml)
@@ -60,7 +66,7 @@ certs: setup
 
 # the same mission in one process (no Zenoh, no MAVLink)
 mission: setup
-	$(BIN)/dualpilot mission --controller $(CONTROLLER) --seed $(SEED) --timing paper --out $(OUT)
+	$(BIN)/dualpilot mission $(MISSION_FLAGS) --out $(OUT)
 
 # regenerate services/msgs from proto/ (a test fails when they differ)
 proto: setup

@@ -50,7 +50,7 @@ def _mission(args: argparse.Namespace) -> int:
                     "seed",
                     "timing",
                     "success",
-                    "failure_cause",
+                    "ending",
                     "steps",
                     "mission_time_s",
                     "energy",
@@ -155,7 +155,7 @@ def _scenarios(args: argparse.Namespace) -> int:
 
 def _add_mission(sub: Any) -> None:
     m = sub.add_parser("mission", help="fly one mission in-process")
-    add_config_arguments(m, seed=7)
+    add_config_arguments(m)
     m.add_argument("--out", default="runs/latest")
     m.add_argument("--no-figures", action="store_true")
     m.add_argument("--quiet", action="store_true")

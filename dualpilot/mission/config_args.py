@@ -25,7 +25,12 @@ import dataclasses
 from collections.abc import Iterable, Mapping, Sequence
 from typing import Any
 
-from dualpilot.mission.config import MissionConfig, controller_names, parse_controller
+from dualpilot.mission.config import (
+    DEFAULT_MISSION,
+    MissionConfig,
+    controller_names,
+    parse_controller,
+)
 from dualpilot.mission.params import Timing
 from dualpilot.model.forecast import ForecastParams
 from dualpilot.model.geometry import Rect
@@ -59,31 +64,37 @@ def _goal_text(goal: Rect) -> str:
     return ",".join(repr(v) for v in (goal.center_x, goal.center_y, goal.width, goal.height))
 
 
-def add_config_arguments(p: argparse.ArgumentParser, seed: int = 7, *, per_mission: bool = True,
-                         grid: bool = False) -> None:
+def add_config_arguments(p: argparse.ArgumentParser, seed: int | None = None, *,
+                         per_mission: bool = True, grid: bool = False) -> None:
     """The mission configuration's flags on ``p``, ``seed`` the default of ``--seed``.
 
-    ``per_mission=False`` (an evaluation) leaves out the controller (its ``--controllers``
-    name each task's) and the start, goal, area and id (drawn per mission: ``--seed`` is
-    then the run's seed S, configuration i drawn from (S, i)); ``grid=True`` (a sweep)
-    makes ``--set`` and the reading's named flags grid axes.
+    A mission's flags default to the default mission
+    (:data:`~dualpilot.mission.config.DEFAULT_MISSION`: its controller, seed, timing and
+    reading), so ``dualpilot mission``, the launcher (``make run``) and the supervisor
+    (``docker compose up``) fly it when nothing is given. ``per_mission=False`` (an
+    evaluation) leaves out the controller (its ``--controllers`` name each task's) and the
+    start, goal, area and id (drawn per mission: ``--seed`` is then the run's seed S,
+    configuration i drawn from (S, i)); ``grid=True`` (a sweep) makes ``--set`` and the
+    reading's named flags grid axes.
     """
+    d = DEFAULT_MISSION if per_mission else _DEFAULT
     g = p.add_argument_group("mission configuration (dualpilot.mission.config)")
     if per_mission:
-        g.add_argument("--controller", default="cc", choices=controller_names(),
+        g.add_argument("--controller", default=d.controller_name, choices=controller_names(),
                        help="who flies: the paper's cc, s1, s2, or another supervisor by its "
                             "name (concurrent, lookahead, an installed one), each with +risk: "
-                            "with the fire forecast")
+                            "with the fire forecast (default %(default)s)")
         g.add_argument("--supervisor", default="", choices=["", *supervisor_names()],
                        help="the cognitive controller's supervisor (concurrent: as "
                             "--controller concurrent)")
-    g.add_argument("--seed", type=int, default=seed,
-                   help="every random stream of the mission is drawn from it" if per_mission
+    g.add_argument("--seed", type=int, default=d.seed if seed is None else seed,
+                   help="every random stream of the mission is drawn from it (default "
+                        "%(default)s)" if per_mission
                    else "the run's seed S: configuration i (start, goal, streams) is drawn "
                         "from (S, i)")
-    g.add_argument("--timing", default="paper", choices=[t.value for t in Timing],
+    g.add_argument("--timing", default=d.timing.value, choices=[t.value for t in Timing],
                    help="planning time T_s: the paper's 155 ms / 5 s or measured")
-    g.add_argument("--profile", default="today", choices=list(PROFILES),
+    g.add_argument("--profile", default=d.profile, choices=list(PROFILES),
                    help="named reading of the paper (dualpilot profiles)")
     g.add_argument("--set", action="append", default=[],
                    metavar="NAME=V1,V2" if grid else "NAME=VALUE",

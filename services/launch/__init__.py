@@ -1,6 +1,7 @@
 """Run the whole stack locally: a Zenoh router and every service of docker-compose.yml as processes.
 
-``python -m services.launch --seed 7 --speed-factor 20 --controller cc --timing paper``
+``python -m services.launch`` flies the default mission (``make run``;
+dualpilot.mission.config.DEFAULT_MISSION), ``--seed 3 --controller cc`` another.
 
 By job: :mod:`.compose` (the compose file onto loopback), :mod:`.processes`
 (child processes, free ports), :mod:`.stack` (one stack, one mission),

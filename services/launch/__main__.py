@@ -1,7 +1,8 @@
 """Run the whole stack locally: a Zenoh router and every service of docker-compose.yml as processes.
 
-``python -m services.launch --seed 7 --speed-factor 20 --controller cc --timing paper``
-flies one mission (every controller of dualpilot evaluate by its name: cc, s1, s2,
+``python -m services.launch`` flies the default mission (``make run``;
+dualpilot.mission.config.DEFAULT_MISSION), ``--seed 3 --controller cc --timing paper`` another
+(every controller of dualpilot evaluate by its name: cc, s1, s2,
 concurrent, lookahead, each with +risk; the mission's flags are those of ``dualpilot mission``);
 ``--vehicles 10 --scale system2=2`` a fleet of ten on a planner pool.
 """
@@ -27,7 +28,7 @@ def parser() -> argparse.ArgumentParser:
     dualpilot.mission.config_args) and how to run the stack."""
     p = argparse.ArgumentParser(prog="python -m services.launch",
                                 description=__doc__.splitlines()[0])
-    add_config_arguments(p, seed=7)
+    add_config_arguments(p)
     g = p.add_argument_group("the stack")
     g.add_argument("--speed-factor", type=float, default=20.0,
                    help="simulated s per wall s (0 or inf: unpaced)")

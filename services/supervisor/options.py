@@ -135,7 +135,7 @@ def _add_stack_arguments(p: argparse.ArgumentParser) -> None:
 
 def parser(doc: str) -> argparse.ArgumentParser:
     p = common_cli.parser("supervisor", doc, mavlink_default="udpin:127.0.0.1:14540")
-    add_config_arguments(p, seed=7)
+    add_config_arguments(p)
     _add_stack_arguments(p)
     p.formatter_class = argparse.RawDescriptionHelpFormatter
     p.epilog = mission_env.help_text()

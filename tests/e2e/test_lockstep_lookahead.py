@@ -10,6 +10,9 @@ vehicle's measurements (tests/e2e/test_lockstep.py's ``ReplayedStates``, as for 
 risk-aware controller on physics fires: a float32 step of the measured state decides
 near-ties between plans): identical records (tests/e2e/test_lockstep.py's comparison), a
 forecast received at every step that asked for one, and no forecast_stale fault.
+
+The default mission (``make run``, ``docker compose up``: lookahead+risk, seed 7, today's
+reading) flies the same way, and reaches the goal.
 """
 
 from __future__ import annotations
@@ -18,8 +21,11 @@ from typing import Any
 
 import pytest
 
+from dualpilot.mission.config import DEFAULT_MISSION
+from dualpilot.mission.result import Ending
 from tests.e2e.test_lockstep import (
     assert_same_mission,
+    config_of,
     fly,
     forecasts_in,
     replaying_states,
@@ -48,3 +54,17 @@ def test_the_lookahead_supervisor_flies_the_in_process_mission_through_the_stack
         received, stale = forecasts_in(got.run_dir)
         assert received > 0 and stale == 0, (run, received, stale)
         assert_same_mission(got.result, twin_of(got), str(run))
+
+
+def test_the_default_mission_reaches_the_goal_through_the_stack(fleet: Any) -> None:
+    """The README's first run (DEFAULT_MISSION: what make run and docker compose up fly)
+    reaches G through the stack, step for step its in-process twin (dualpilot mission)."""
+    f, out = fleet
+    run = (DEFAULT_MISSION.seed, DEFAULT_MISSION.controller_name, DEFAULT_MISSION.timing.value,
+           None)
+    assert config_of(*run) == DEFAULT_MISSION  # today's reading, no other setting
+    got = fly(f, [run], out, replaying_states)[run]
+    received, stale = forecasts_in(got.run_dir)
+    assert received > 0 and stale == 0, (received, stale)
+    assert got.result.ending is Ending.GOAL, got.result.ending
+    assert_same_mission(got.result, twin_of(got), str(run))

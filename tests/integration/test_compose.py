@@ -14,13 +14,18 @@ from __future__ import annotations
 
 import copy
 import json
+import os
+import shlex
+import shutil
+import subprocess
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
 import pytest
 import yaml
 
-from dualpilot.mission.config import MissionConfig
+from dualpilot.mission.config import DEFAULT_MISSION, MissionConfig
 from dualpilot.mission.config_args import parse_config
 from services import launch
 from services.common import keys
@@ -202,5 +207,78 @@ def test_variables_are_filled_in_as_compose_does() -> None:
         "a": ["concurrent+risk", "x", "", "$HOME", "n1m", 7]}
     chosen = launch.load_compose(COMPOSE, env)["services"]["supervisor"]["environment"]
     assert chosen["CONTROLLER"] == "concurrent+risk"
-    assert launch.load_compose(COMPOSE, {})["services"]["supervisor"]["environment"][
-        "CONTROLLER"] == "cc"
+    # unset, the mission's names are empty: the flags' defaults, the default mission's
+    unset = launch.load_compose(COMPOSE, {})["services"]["supervisor"]["environment"]
+    assert (unset["CONTROLLER"], unset["MISSION_SEED"], unset["TIMING"]) == ("", "", "")
+
+
+# -- the default mission: make run, make mission and docker compose up fly the same one ---------
+#: the Makefile's variables a user sets (`make run SEED=3`); a newcomer's make has none
+MAKE_VARIABLES = ("CONTROLLER", "SEED", "TIMING", "PROFILE", "SUPERVISOR", "SPEED", "OUT", "TLS",
+                  "CERTS", "VIEWER")
+
+
+def make_arguments(target: str, program: str, **variables: str) -> list[str]:
+    """The arguments ``make <target>`` runs ``program`` with (``make -n``: printed, not run),
+    as a newcomer's make runs it: none of the Makefile's variables in the environment (nor a
+    calling make's), only ``variables`` on the command line."""
+    make = shutil.which("make")
+    assert make is not None, "make is needed: the README's commands are make targets"
+    env = {k: v for k, v in os.environ.items()
+           if k not in MAKE_VARIABLES and k not in ("MAKEFLAGS", "MFLAGS", "MAKELEVEL")}
+    out = subprocess.run([make, "-n", "--no-print-directory", target,
+                          *(f"{k}={v}" for k, v in variables.items())],
+                         cwd=launch.REPO, env=env, capture_output=True, text=True, timeout=20,
+                         check=True).stdout
+    for line in out.replace("\\\n", " ").splitlines():
+        words = shlex.split(line) if f" {program} " in f"{line} " else []
+        if program in words:
+            return words[words.index(program) + 1:]
+    raise AssertionError(f"make -n {target} runs no {program}:\n{out}")
+
+
+def make_run_mission(**variables: str) -> MissionConfig:
+    """The mission ``make run`` flies through the stack (services.launch's flags)."""
+    from dualpilot.mission.config_args import config_from_args
+    from services.launch.__main__ import parser
+
+    return config_from_args(parser().parse_args(make_arguments("run", "services.launch",
+                                                               **variables)))
+
+
+def make_mission_mission() -> MissionConfig:
+    """The mission ``make mission`` flies in-process (``dualpilot mission``'s flags)."""
+    from dualpilot.cli import build_parser
+    from dualpilot.mission.config_args import config_from_args
+
+    argv = make_arguments("mission", "mission")
+    return config_from_args(build_parser().parse_args(["mission", *argv]))
+
+
+def compose_up_mission(**shell: str) -> MissionConfig:
+    """The mission ``docker compose up`` flies: the supervisor's own options, parsed in the
+    environment compose gives its container when the shell sets ``shell`` (none: a
+    newcomer's shell)."""
+    from services.supervisor import options
+
+    env = launch.load_compose(launch.COMPOSE, shell)["services"]["supervisor"]["environment"]
+    return options.parse([], "supervisor", environ=env).mission
+
+
+def test_make_run_and_compose_up_fly_the_same_default_mission() -> None:
+    """One default mission (DEFAULT_MISSION): ``make run``, its in-process twin ``make
+    mission`` and ``docker compose up`` fly the same controller, seed, timing and reading."""
+    def same(c: MissionConfig) -> MissionConfig:
+        return replace(c, mission_id="", uav_id="")
+
+    run, twin, up = make_run_mission(), make_mission_mission(), compose_up_mission()
+    assert same(run) == same(up), (run, up)
+    assert same(twin) == same(run)
+    assert same(run) == DEFAULT_MISSION
+    assert (run.controller_name, run.seed, run.timing.value, run.profile) == (
+        "lookahead+risk", 7, "paper", "today")
+    # the comparison sees a difference: a seed of make run's own is not compose's
+    assert make_run_mission(SEED="26").seed == 26 != up.seed
+    # and the shell's variables reach both
+    assert same(compose_up_mission(CONTROLLER="cc", MISSION_SEED="26")) == same(
+        make_run_mission(CONTROLLER="cc", SEED="26")) == MissionConfig.named("cc", seed=26)

@@ -13,14 +13,20 @@ import dataclasses
 import pytest
 from hypothesis import given, settings
 
-from dualpilot.mission.config import MissionConfig, controller_names, parse_controller
+from dualpilot.mission.config import (
+    DEFAULT_MISSION,
+    MissionConfig,
+    controller_names,
+    parse_controller,
+)
 from dualpilot.mission.config_args import (
     concurrent_names,
     config_to_argv,
     parse_config,
 )
 from dualpilot.mission.local import local_mission
-from dualpilot.mission.params import Controller
+from dualpilot.mission.params import Controller, Timing
+from dualpilot.mission.result import Ending
 from dualpilot.model.forecast import ForecastParams
 from dualpilot.model.geometry import Rect
 from dualpilot.supervisor.concurrent.rule import ConcurrentParams
@@ -141,3 +147,24 @@ def test_a_mission_id_that_reads_as_a_flag_is_refused() -> None:
         with pytest.raises(ValueError, match="mission_id must not start with '-'"):
             MissionConfig.named("cc", mission_id=bad)
     assert parse_config(["--mission-id=a--"]).mission_id == "a--"
+
+
+# -- the default mission ---------------------------------------------------------------------------
+def test_the_flags_default_to_the_default_mission() -> None:
+    """No flag and nothing in the environment: the default mission (make run, docker compose
+    up and dualpilot mission fly it; tests/integration/test_compose.py)."""
+    assert parse_config([]) == DEFAULT_MISSION
+    assert (DEFAULT_MISSION.controller_name, DEFAULT_MISSION.seed, DEFAULT_MISSION.timing,
+            DEFAULT_MISSION.profile) == ("lookahead+risk", 7, Timing.PAPER, "today")
+    env = {"CONTROLLER": "cc", "MISSION_SEED": "26"}
+    assert parse_config([], lambda n, d: env.get(n, d)) == MissionConfig.named("cc", seed=26)
+
+
+@pytest.mark.slow
+def test_the_default_mission_reaches_the_goal() -> None:
+    """The README's first run, in-process (through the stack, step for step the same:
+    tests/e2e/test_lockstep_lookahead.py): the lookahead supervisor with the forecast flies
+    seed 7 to G in 65 steps."""
+    result = local_mission(DEFAULT_MISSION).run()
+    assert (result.ending, result.steps) == (Ending.GOAL, 65)
+
