@@ -42,9 +42,14 @@ COPY dualpilot ./dualpilot
 COPY services ./services
 # runs as root so the supervisor can write to the ./runs bind mount of any host user
 RUN pip install --no-deps . && mkdir -p /app/runs
-# the Numba kernels compiled once into the image (each service would otherwise compile them)
+# the Numba kernels compiled once into the image (each service would otherwise compile them);
+# the default mission's first 12 steps add its own (the forecast's, the risk zones', the
+# lookahead supervisor's lattice): compiled at mission time in a fresh container they made
+# System 2's first risk-aware plan miss its 5 s deadline, and the mission another flight
 ENV NUMBA_CACHE_DIR=/app/.numba
-RUN python -m dualpilot.warmup
+RUN python -m dualpilot.warmup \
+    && python -m dualpilot.cli mission --max-steps 12 --no-figures --quiet --out /tmp/warm \
+    && rm -rf /tmp/warm
 
 # MAVLink: offboard link (supervisor → uavsim) and ground station
 EXPOSE 14540/udp 14550/udp

@@ -52,6 +52,8 @@ $(STAMP): pyproject.toml scripts/pyretechnics-requirements.txt examples/dualpilo
 	# the physics fire process's library, built against our numpy/scipy pins (~4 min once)
 	sh scripts/install_pyretechnics.sh $(BIN)/python
 	$(BIN)/python -m dualpilot.warmup  # compiles the Numba kernels into their disk cache
+	# and the default mission's own (forecast, risk zones, lattice), from its first 12 steps
+	$(BIN)/python -m dualpilot.cli mission --max-steps 12 --no-figures --quiet --out $(VENV)/warm-mission
 	touch $(STAMP)
 
 # the distributed stack: a Zenoh router and the five services as processes on loopback

@@ -219,8 +219,9 @@ MAKE_VARIABLES = ("CONTROLLER", "SEED", "TIMING", "PROFILE", "SUPERVISOR", "SPEE
 
 
 def make_arguments(target: str, program: str, **variables: str) -> list[str]:
-    """The arguments ``make <target>`` runs ``program`` with (``make -n``: printed, not run),
-    as a newcomer's make runs it: none of the Makefile's variables in the environment (nor a
+    """The arguments ``make <target>`` runs ``program`` with (``make -n``: printed, not run;
+    the target's own recipe, the last line, after its prerequisites' such as ``setup``'s), as
+    a newcomer's make runs it: none of the Makefile's variables in the environment (nor a
     calling make's), only ``variables`` on the command line."""
     make = shutil.which("make")
     assert make is not None, "make is needed: the README's commands are make targets"
@@ -230,7 +231,7 @@ def make_arguments(target: str, program: str, **variables: str) -> list[str]:
                           *(f"{k}={v}" for k, v in variables.items())],
                          cwd=launch.REPO, env=env, capture_output=True, text=True, timeout=20,
                          check=True).stdout
-    for line in out.replace("\\\n", " ").splitlines():
+    for line in reversed(out.replace("\\\n", " ").splitlines()):
         words = shlex.split(line) if f" {program} " in f"{line} " else []
         if program in words:
             return words[words.index(program) + 1:]
