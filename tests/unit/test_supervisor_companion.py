@@ -160,7 +160,7 @@ def test_a_mission_that_fails_exits_3(tmp_path: Path) -> None:
     ctx, stack = stack_for(opts, "ews", "uavsim", "system1")
     assert fly(ctx, opts, stack) == EXIT_FAILED
     summary = json.loads((tmp_path / "summary.json").read_text())
-    assert not summary["success"] and summary["failure_cause"] == "fire_while_planning"
+    assert not summary["success"] and summary["ending"] == "fire_while_planning"
     end = stack.transport_.events()[-1]
     assert not end.success and end.failure_cause == "fire_while_planning"
 
