@@ -7,7 +7,7 @@
 #    bookworm (python3, venv, pip) piped through tar into `docker import` (the host's CA bundle
 #    goes in, so pip inside the build trusts the same TLS roots as the host's pip);
 # 4. builds the project's image on it (ARG BASE_IMAGE), flies the default mission (the one
-#    `make run` flies; CONTROLLER and MISSION_SEED are unset for it) with
+#    `make run` flies; CONTROLLER, MISSION_SEED and TIMING are unset for it) with
 #    docker-compose.yml + docker-compose.router.yml (the project's own router: eclipse/zenoh
 #    cannot be pulled) and the viewer profile, `--exit-code-from supervisor`, fetches the live
 #    view's web page and its scripts through the published port 8766 while the mission flies,
@@ -112,7 +112,7 @@ B0=$(date +%s)
     >"$WORK/build.log" 2>&1 || { tail -30 "$WORK/build.log" >&2; exit 1; }
 say "image built in $(( $(date +%s) - B0 )) s: $("$DOCKER" image inspect dualpilot:0.1.0 --format '{{.Size}}') bytes"
 
-unset CONTROLLER MISSION_SEED  # the default mission: a newcomer's first `up`
+unset CONTROLLER MISSION_SEED TIMING  # the default mission: a newcomer's first `up`
 COMPOSE_CMD="${COMPOSE:-docker-compose} -p $PROJECT -f docker-compose.yml -f docker-compose.router.yml"
 SUMMARY=runs/compose/summary.json
 rm -f "$SUMMARY"

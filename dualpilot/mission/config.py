@@ -198,10 +198,10 @@ class MissionConfig:
 
 #: The default mission: what ``make run``, ``docker compose up`` and ``dualpilot mission`` fly
 #: when nothing says otherwise (the mission flags' defaults, dualpilot.mission.config_args;
-#: the Makefile passes none, docker-compose.yml repeats the controller and the seed, and
-#: tests/integration/test_compose.py fails when they differ). The lookahead supervisor with
-#: the forecast flies the most missions with the concurrent one (docs/yardstick.md: 69.0 % of
-#: today's held-out missions, 71.1 % of the achievable); seed 7 is one it flies to G (65 steps,
-#: in-process and through the stack), not every seed is.
+#: the Makefile passes none, docker-compose.yml leaves their environment names empty, and
+#: tests/integration/test_compose.py fails when they fly different missions). The lookahead
+#: supervisor with the forecast is never significantly below the best other controller
+#: (docs/yardstick.md; 69.0 % of today's held-out missions, 71.1 % of the achievable); seed 7
+#: is one it flies to G (65 steps, in-process and through the stack), not every seed is.
 DEFAULT_MISSION = MissionConfig.named("lookahead+risk", seed=7, timing=Timing.PAPER,
                                       profile="today")

@@ -122,7 +122,7 @@ def test_every_field_has_a_flag_and_its_default() -> None:
                 "mission_id": "--mission-id"}
     fields = {f.name for f in dataclasses.fields(MissionConfig)} - {"uav_id"}  # the process's
     assert fields == set(by_field) and set(by_field.values()) <= flags
-    assert parse_config([]) == MissionConfig(seed=7)
+    assert parse_config([]) == DEFAULT_MISSION
     assert parse_config(["--s2-time-limit-s", "7.5"]).system2_params().time_limit_s == 7.5
     assert parse_config(["--controller", "cc", "--supervisor", "concurrent"]).controller_name == (
         "concurrent")
@@ -156,8 +156,8 @@ def test_the_flags_default_to_the_default_mission() -> None:
     assert parse_config([]) == DEFAULT_MISSION
     assert (DEFAULT_MISSION.controller_name, DEFAULT_MISSION.seed, DEFAULT_MISSION.timing,
             DEFAULT_MISSION.profile) == ("lookahead+risk", 7, Timing.PAPER, "today")
-    env = {"CONTROLLER": "cc", "MISSION_SEED": "26"}
-    assert parse_config([], lambda n, d: env.get(n, d)) == MissionConfig.named("cc", seed=26)
+    assert parse_config(["--controller", "cc", "--seed", "26"]) == MissionConfig.named(
+        "cc", seed=26)
 
 
 @pytest.mark.slow
