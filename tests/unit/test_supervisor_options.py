@@ -12,12 +12,13 @@ from __future__ import annotations
 import hashlib
 import re
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-from dualpilot.mission.config import MissionConfig
+from dualpilot.mission.config import DEFAULT_MISSION, MissionConfig
 from dualpilot.model.forecast import ForecastParams
 from services.supervisor.options import Options, StackParams, parse
 
@@ -47,16 +48,18 @@ def refused(argv: list[str], capsys: pytest.CaptureFixture[str],
     return capsys.readouterr().err
 
 
-def test_the_defaults_are_one_vehicle_flying_seed_7_of_the_default_configuration() -> None:
+def test_the_defaults_are_one_vehicle_flying_the_default_mission() -> None:
+    """Nothing given: the default mission (lookahead+risk, seed 7), as docker compose up
+    flies it when the shell sets none of the mission's names."""
     before = int(time.time())
     opts = parse([], DOC, {})
     assert isinstance(opts, Options)
-    assert opts.mission == MissionConfig(seed=7)
+    assert opts.mission == DEFAULT_MISSION and opts.mission.seed == 7
     assert (opts.uavs, opts.seeds, opts.out, opts.waypoints) == (("uav1",), (7,), "", None)
     assert (opts.stagger_s, opts.exit_after_mission, opts.wait_services_s) == (0.0, False, 120.0)
     (mid,) = opts.mission_ids
     assert re.fullmatch(r"uav1-7-\d+", mid) and int(mid.rsplit("-", 1)[1]) >= before
-    assert opts.config(0) == MissionConfig(seed=7, mission_id=mid, uav_id="uav1")
+    assert opts.config(0) == replace(DEFAULT_MISSION, mission_id=mid, uav_id="uav1")
     assert opts.stack == StackParams() and opts.link.key is None
     assert (opts.link.rate_hz, opts.link.stream, opts.link.sysid) == (20.0, "process", 1)
     assert opts.run_dir(0) is None and opts.mavlink_url(0) == "udpin:127.0.0.1:14540"
@@ -86,7 +89,7 @@ def test_a_fleet_flies_one_seed_id_directory_and_instance_per_vehicle(tmp_path: 
                   "--mavlink-url", "udpout:127.0.0.1:14600", "--sysid", "10"], DOC, {})
     assert opts.uavs == ("a", "b", "c") and opts.seeds == (5, 6, 7)
     assert opts.mission_ids == ("m-a", "m-b", "m-c")
-    assert opts.config(1) == MissionConfig(seed=6, mission_id="m-b", uav_id="b")
+    assert opts.config(1) == replace(DEFAULT_MISSION, seed=6, mission_id="m-b", uav_id="b")
     assert opts.run_dir(2) == tmp_path / "c"
     assert opts.mavlink_url(2) == "udpout:127.0.0.1:14602" and opts.link.sysid == 10
     given = parse(["--uav-ids", "a,b", "--seeds", "3,9", "--out", out,
