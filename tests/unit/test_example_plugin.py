@@ -23,6 +23,7 @@ from dualpilot.mission.config import MissionConfig, controller_names, parse_cont
 from dualpilot.mission.local import local_mission
 from dualpilot.mission.params import Controller
 from dualpilot.mission.records import read_steps_csv
+from dualpilot.mission.result import Ending
 from dualpilot.model.dynamics import hover_state
 from dualpilot.model.geometry import Rect, path_clearance
 from dualpilot.plan import PlanStatus
@@ -107,8 +108,8 @@ def test_dualpilot_mission_flies_the_plugins(tmp_path: Path, flags: tuple[str, .
                                             config: MissionConfig) -> None:
     summary, steps = _mission_cli(tmp_path, *flags)
     twin = local_mission(config).run()
-    assert (summary["success"], summary["steps"], summary["failure_cause"]) == (
-        twin.success, twin.steps, twin.failure_cause)
+    assert (summary["success"], summary["steps"], Ending.read(summary)) == (
+        twin.success, twin.steps, twin.ending)
     assert summary["energy"] == pytest.approx(twin.energy)
     assert list(steps["system"]) == [float(r.system) for r in twin.records]
     assert 1.0 in steps["system"]  # the straight line flew
