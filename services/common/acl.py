@@ -41,10 +41,10 @@ OWNED: dict[str, dict[str, tuple[str, ...]]] = {
     "system2": {"put": (), "answer": ("plan/system2", "plan/system2/*")},
     "supervisor": {"put": ("supervisor/decision", "vehicle/state", "mission/event", "clock",
                            "operator/waypoints"), "answer": ()},
-    "uavsim": {"put": (), "answer": ()},
+    "uavsim": {"put": (), "answer": ("uavsim/mission",)},
 }
 #: what the supervisor asks
-QUERIES = ("plan/*", "plan/*/*", "ews/command", "status/*")
+QUERIES = ("plan/*", "plan/*/*", "ews/command", "status/*", "uavsim/mission")
 
 
 def _rule(rid: str, messages: list[str], keys: list[str], flows: list[str]) -> dict[str, Any]:
