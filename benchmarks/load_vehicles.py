@@ -22,16 +22,18 @@ import json
 import sys
 import tempfile
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
 import harness  # the repository on the path: before its packages
 import numpy as np
 
+from dualpilot.mission.config import MissionConfig, Timing
 from services import launch
 
 SUCCESS_SEEDS = harness.SUCCESS_SEEDS
+MISSION = MissionConfig.named("cc", timing=Timing.PAPER)  # each vehicle's, with its own seed
 
 
 @dataclass
@@ -93,7 +95,7 @@ def run_load(n_vehicles: int, out: Path, speed_factor: float = 200.0,
     with launch.Fleet(cfg, uavs) as fleet:
         mids = {}
         for k, uav in enumerate(uavs):
-            v = fleet.start_vehicle(uav, seeds[k], out / uav)
+            v = fleet.start_vehicle(uav, seeds[k], out / uav, config=MISSION)
             mids[uav] = v.mission_id
         if not quiet:
             print(f"{n_vehicles} vehicles started; router {fleet.endpoint}", flush=True)
@@ -121,10 +123,9 @@ def run_load(n_vehicles: int, out: Path, speed_factor: float = 200.0,
 
 
 def in_process(seed: int) -> Any:
-    from dualpilot.mission.config import MissionConfig
     from dualpilot.mission.local import local_mission
 
-    return local_mission(MissionConfig(seed=seed)).run()
+    return local_mission(replace(MISSION, seed=seed)).run()
 
 
 def main(argv: list[str] | None = None) -> int:

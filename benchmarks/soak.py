@@ -38,9 +38,11 @@ from typing import Any
 
 import harness  # the repository on the path: before its packages
 
+from dualpilot.mission.config import MissionConfig, Timing
 from services import launch
 
 SUCCESS_SEEDS = harness.SUCCESS_SEEDS
+MISSION = MissionConfig.named("cc", timing=Timing.PAPER)  # each mission's, with its own seed
 
 UAV = "soak"
 LONG_LIVED = ("router", "ews", "system1", "system2")
@@ -168,7 +170,8 @@ def run_soak(n: int, out: Path, speed_factor: float = 1000.0, seed0: int | None 
                 break
             run_dir = out / f"m{k:04d}"
             seed = SUCCESS_SEEDS[k % len(SUCCESS_SEEDS)] if seed0 is None else seed0 + k
-            v = fleet.start_vehicle(UAV, seed, run_dir, mission_id=f"soak-{k:04d}")
+            v = fleet.start_vehicle(UAV, seed, run_dir, mission_id=f"soak-{k:04d}",
+                                    config=MISSION)
             pids = [p.popen.pid for p in v.procs]
             sessions.update(pids)
             o = fleet.wait_end({UAV: v.mission_id}, timeout_s)[UAV]

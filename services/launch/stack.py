@@ -190,15 +190,16 @@ class Stack:
             if name not in self.cfg.deferred:
                 self.start_service(name)
 
-    def start_service(self, name: str) -> None:
-        """Start ``name`` (and its replicas: system2, system2-2, …)."""
+    def start_service(self, name: str, log_tag: str = "") -> None:
+        """Start ``name`` (and its replicas: system2, system2-2, …), each process logging to
+        ``<proc>[-log_tag].log`` (a tag keeps a restarted process's log apart)."""
         supervisor = name == "supervisor"
         mission = self.mission_argv() if supervisor else None
         for k in range(self.cfg.scale.get(name, 1)):
             proc = name if k == 0 else f"{name}-{k + 1}"
+            log = f"{proc}-{log_tag}.log" if log_tag else f"{proc}.log"
             self.group.start(proc, self.argv(name, mission),
-                             self.service_env(name, mission_flags=supervisor),
-                             self.logs / f"{proc}.log")
+                             self.service_env(name, mission_flags=supervisor), self.logs / log)
 
     def start_deferred(self) -> None:
         """Start the services :attr:`StackConfig.deferred` held back."""

@@ -74,8 +74,7 @@ class Run:
 
     def restart(self, name: str) -> None:
         self.restarts += 1
-        self.stack.group.start(name, self.stack.argv(name), self.stack.service_env(name),
-                               self.stack.logs / f"{name}-{self.restarts}.log")
+        self.stack.start_service(name, log_tag=str(self.restarts))  # as first started
 
     def logs(self) -> Logs:
         """Every process's log of this run (the restarted ones' too)."""

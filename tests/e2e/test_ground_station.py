@@ -219,8 +219,7 @@ def test_waypoints_upload_and_download_unchanged(run: Run, tmp_path: Path) -> No
 
 
 def test_system1_flies_the_operator_waypoints_while_safe(run: Run) -> None:
-    run.stack.group.start("supervisor", run.stack.argv("supervisor"),
-                          run.stack.service_env("supervisor"), run.stack.logs / "supervisor.log")
+    run.stack.start_service("supervisor")
     run.observer.recv("HEARTBEAT", 60, lambda h: h.custom_mode == mav.MODE_GUIDED
                       and h.base_mode & m.MAV_MODE_FLAG_SAFETY_ARMED, "GUIDED and armed")
     # the first waypoint is reached (MISSION_ITEM_REACHED within MIS_ACC_RAD)
