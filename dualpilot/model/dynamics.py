@@ -186,18 +186,23 @@ def reach_boxes(x0: Array, horizon: int, dyn: DynamicsParams) -> tuple[Array, Ar
 
     Valid under both speed limits (‖v‖ ≤ v_max implies |v_i| ≤ v_max). Eq. (1)
     per axis with the force and speed at their limits (compiled: it runs for
-    every QP of a plan). Returns (lo, hi), each (T, 2).
+    every QP of a plan); the axes are independent, so the planar axes of a 3-D
+    state get the planar numbers. ``x0`` is [p, v] of ``dyn.dim`` each. Returns (lo, hi),
+    each (T, dim).
     """
-    return _reach(np.asarray(x0, dtype=float), int(horizon), 1.0 - dyn.zeta,
+    x = np.asarray(x0, dtype=float)
+    if x.shape != (dyn.state_dim,):
+        raise ValueError(f"state must have shape ({dyn.state_dim},), got {x.shape}")
+    return _reach(x, int(horizon), dyn.dim, 1.0 - dyn.zeta,
                   dyn.dt_s / dyn.mass_kg * dyn.u_max_n, float(dyn.v_max_mps), float(dyn.dt_s))
 
 
 @njit(cache=True)
-def _reach(x0: Array, horizon: int, keep: float, acc: float, vmax: float,
+def _reach(x0: Array, horizon: int, dim: int, keep: float, acc: float, vmax: float,
            dt: float) -> tuple[Array, Array]:
-    lo, hi = np.empty((horizon, 2)), np.empty((horizon, 2))
-    for a in range(2):
-        v_hi = v_lo = x0[2 + a]
+    lo, hi = np.empty((horizon, dim)), np.empty((horizon, dim))
+    for a in range(dim):
+        v_hi = v_lo = x0[dim + a]
         p_hi = p_lo = x0[a] + dt * v_hi
         lo[0, a], hi[0, a] = p_lo, p_hi
         for k in range(1, horizon):
