@@ -2,13 +2,15 @@
 
 A *reading* is a field of :class:`~dualpilot.model.fire.FireParams`,
 :class:`~dualpilot.mission.params.MissionParams`,
-:class:`~dualpilot.supervisor.paper.decision.SupervisorParams` or
-:class:`~dualpilot.model.dynamics.DynamicsParams` where the paper can
-reasonably be read two ways. A :class:`Profile` is a frozen set of the four,
-with the sentences of the paper it rests on; its dynamics go into the mission
-spec (:meth:`Profile.spec`). Every field is addressed by its bare name (the four
-classes share none), so ``--set life_base=step`` works on ``mission``,
-``evaluate`` and ``sweep`` alike.
+:class:`~dualpilot.supervisor.paper.decision.SupervisorParams`,
+:class:`~dualpilot.model.dynamics.DynamicsParams` or, for the third dimension,
+:class:`~dualpilot.model.vertical.VerticalParams` where the paper can
+reasonably be read two ways. A :class:`Profile` is a frozen set of the five,
+with the sentences of the paper it rests on; its dynamics, altitude band and goal
+reading go into the mission spec (:meth:`Profile.spec`). Every field is addressed by
+its bare name (the classes share none; the altitude part's nested band, heights and
+plume are addressed by their fields' names too), so ``--set life_base=step`` and
+``--set ceiling_m=100`` work on ``mission``, ``evaluate`` and ``sweep`` alike.
 """
 
 from __future__ import annotations
@@ -17,45 +19,87 @@ import dataclasses
 import types
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field, replace
+from functools import cache
 from typing import Any, Literal, Union, get_args, get_origin, get_type_hints
 
 from dualpilot.mission.params import MissionParams
 from dualpilot.model.dynamics import DynamicsParams
 from dualpilot.model.fire import FireParams
+from dualpilot.model.vertical import VerticalParams
 from dualpilot.spec import MissionSpec
 from dualpilot.supervisor.paper.decision import SupervisorParams
 
 #: The fields that are readings of the paper (the rest are its Sec. IV-A numbers).
 READINGS = ("life_base", "extent", "redraw_clearance", "keep_extinct_hulls",
             "ignition_clearance_m", "d_t_reading", "failure_rule", "fire_substeps_per_motion",
-            "attention_draw", "speed_limit")
+            "attention_draw", "speed_limit", "dim", "ceiling_m", "floor_m", "start_altitude_m",
+            "goal_altitude_m", "goal_vertical", "fire_height", "plume_intensity", "uav_limit_c")
 
 _PARTS = {"fire": FireParams, "mission": MissionParams, "supervisor": SupervisorParams,
-          "dynamics": DynamicsParams}
+          "dynamics": DynamicsParams, "altitude": VerticalParams}
+#: The parts whose nested parameter objects' fields are addressed by their bare names too.
+_NESTED = frozenset({"altitude"})
+
+
+@cache
+def _leaves(part: str) -> dict[str, tuple[tuple[str, ...], type]]:
+    """Each field ``part`` holds by its bare name: (its path within the part, the class that
+    declares it). A nested parameter object of a :data:`_NESTED` part is walked into."""
+    cls = _PARTS[part]
+    hints = get_type_hints(cls)
+    out: dict[str, tuple[tuple[str, ...], type]] = {}
+    for f in dataclasses.fields(cls):
+        inner = hints[f.name]
+        if part in _NESTED and dataclasses.is_dataclass(inner) and isinstance(inner, type):
+            for g in dataclasses.fields(inner):
+                out[g.name] = ((f.name, g.name), inner)
+        else:
+            out[f.name] = ((f.name,), cls)
+    return out
+
+
+def _replaced(obj: Any, changes: Mapping[tuple[str, ...], Any]) -> Any:
+    """``obj`` with each path of ``changes`` set (a nested object replaced once, whole)."""
+    direct = {path[0]: v for path, v in changes.items() if len(path) == 1}
+    nested: dict[str, dict[tuple[str, ...], Any]] = {}
+    for path, v in changes.items():
+        if len(path) > 1:
+            nested.setdefault(path[0], {})[path[1:]] = v
+    for name, sub in nested.items():
+        direct[name] = _replaced(getattr(obj, name), sub)
+    return replace(obj, **direct) if direct else obj
 
 
 @dataclass(frozen=True)
 class Profile:
-    """One reading of the paper: fire, mission, supervisor and dynamics parameters, and its
-    sources."""
+    """One reading of the paper: fire, mission, supervisor, dynamics and altitude parameters,
+    and its sources."""
 
     name: str
     fire: FireParams = field(default_factory=FireParams)
     mission: MissionParams = field(default_factory=MissionParams)
     supervisor: SupervisorParams = field(default_factory=SupervisorParams)
     dynamics: DynamicsParams = field(default_factory=DynamicsParams)
+    altitude: VerticalParams = field(default_factory=VerticalParams)
     summary: str = ""
     #: the sentences of the paper (or the reason) each reading rests on
     sources: tuple[str, ...] = ()
 
+    def __post_init__(self) -> None:
+        self.altitude.heights.resolved(self.fire.scenario)  # a height reading of this process
+
     def values(self) -> dict[str, Any]:
-        """Every scalar parameter by name (nested and tuple fields left out)."""
+        """Every scalar parameter by name (nested and tuple fields left out; the altitude
+        part's nested band, heights and plume by their fields)."""
         out: dict[str, Any] = {}
-        for part in (self.fire, self.mission, self.supervisor, self.dynamics):
-            for f in dataclasses.fields(part):
-                v = getattr(part, f.name)
+        for part in _PARTS:
+            obj = getattr(self, part)
+            for name, (path, _) in _leaves(part).items():
+                v = obj
+                for step in path:
+                    v = getattr(v, step)
                 if v is None or isinstance(v, (bool, int, float, str)):
-                    out[f.name] = v
+                    out[name] = v
         return out
 
     def readings(self) -> dict[str, Any]:
@@ -65,28 +109,29 @@ class Profile:
 
     def with_settings(self, settings: Mapping[str, Any], name: str | None = None) -> Profile:
         """This profile with ``settings`` (field name → value, or its text) applied."""
-        changes: dict[str, dict[str, Any]] = {k: {} for k in _PARTS}
+        changes: dict[str, dict[tuple[str, ...], Any]] = {k: {} for k in _PARTS}
         for key, value in settings.items():
             part = part_of(key)
-            changes[part][key] = parse_value(key, value) if isinstance(value, str) else value
-        return replace(
-            self,
-            name=name or self.name,
-            fire=replace(self.fire, **changes["fire"]),
-            mission=replace(self.mission, **changes["mission"]),
-            supervisor=replace(self.supervisor, **changes["supervisor"]),
-            dynamics=replace(self.dynamics, **changes["dynamics"]),
-        )
+            path = _leaves(part)[key][0]
+            changes[part][path] = parse_value(key, value) if isinstance(value, str) else value
+        parts = {part: _replaced(getattr(self, part), changes[part]) for part in _PARTS}
+        return replace(self, name=name or self.name, **parts)
 
     def spec(self, base: MissionSpec) -> MissionSpec:
-        """``base`` flown with this profile's dynamics (Eq. (1) and its limits)."""
-        return base if base.dynamics == self.dynamics else replace(base, dynamics=self.dynamics)
+        """``base`` flown with this profile's dynamics (Eq. (1) and its limits), altitude band
+        and goal reading (read in 3-D only)."""
+        a = self.altitude
+        if (base.dynamics, base.band, base.goal_vertical) == (self.dynamics, a.band,
+                                                               a.goal_vertical):
+            return base
+        return replace(base, dynamics=self.dynamics, band=a.band, goal_vertical=a.goal_vertical)
 
 
 def part_of(name: str) -> str:
-    """Which parameter class ("fire", "mission", "supervisor", "dynamics") holds ``name``."""
-    for part, cls in _PARTS.items():
-        if name in {f.name for f in dataclasses.fields(cls)}:
+    """Which parameter class ("fire", "mission", "supervisor", "dynamics", "altitude") holds
+    ``name``."""
+    for part in _PARTS:
+        if name in _leaves(part):
             return part
     raise ValueError(f"unknown parameter {name!r}; known: {', '.join(sorted(settable()))}")
 
@@ -97,7 +142,7 @@ def settable() -> list[str]:
 
 
 def _field_type(name: str) -> Any:
-    cls = _PARTS[part_of(name)]
+    _, cls = _leaves(part_of(name))[name]
     return get_type_hints(cls)[name]
 
 
@@ -222,7 +267,36 @@ _FIG_R5 = Profile(
     ),
 )
 
-PROFILES: dict[str, Profile] = {p.name: p for p in (_TODAY, _LITERAL, _FIG_R5)}
+_TODAY_3D = replace(
+    _TODAY,
+    name="today-3d",
+    dynamics=DynamicsParams(dim=3),
+    summary="today's readings in the paper's three dimensions: Eq. (1) with 3×3 blocks, an "
+            "altitude band of 20-120 m above ground, start and G_o at 50 m, the goal box over "
+            "the whole band, each front a cuboid taller than the ceiling on the paper's "
+            "process (the top-down evaluation's numbers) and as tall as its fire's plume on "
+            "a fire-behaviour scenario",
+    sources=_TODAY.sources + (
+        "Sec. II-A: 'a UAV agent ... is operating within a bounded 3D stochastic disaster "
+        "environment E ⊂ R³' and 'x_t ∈ X ⊂ R⁶' → dim = 3.",
+        "Sec. IV: 'we demonstrate our results in a top-down view (i.e., 2-dimensional "
+        "settings)' and 'the UAV agent evolves (assuming a fixed altitude)' → the start and "
+        "G_o at one altitude, 50 m, the altitude of the stack's 2-D missions.",
+        "Sec. II-B: 'a time-varying rectangular cuboid C_t, characterized by its dynamically "
+        "changing dimensions', whose height Sec. IV-A never draws ('a rectangle with "
+        "dimensions uniformly sampled from the range [100,250]m') → fire_height = auto: "
+        "taller than the ceiling on the paper's process, so that a 3-D mission is the "
+        "top-down one; the plume's height on a fire-behaviour scenario.",
+        "The paper gives 𝓔 no height → the band: the EU open category's ceiling, '120 m "
+        "from the closest point of the surface of the earth' (Regulation (EU) 2019/947, "
+        "UAS.OPEN.010), and a floor of d_safe = 20 m above the ground.",
+        "Sec. IV: 'the goal region G is represented as a rectangular region centered at "
+        "G_o' → goal_vertical = band: every altitude of the band above the rectangle is in "
+        "G.",
+    ),
+)
+
+PROFILES: dict[str, Profile] = {p.name: p for p in (_TODAY, _LITERAL, _FIG_R5, _TODAY_3D)}
 
 
 def get_profile(name: str) -> Profile:

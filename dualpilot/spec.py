@@ -4,6 +4,12 @@ Every part of a mission reads its geometry and margins from one
 :class:`MissionSpec`: the loop, both planners, every verifier, the EWS and the
 records. d_safe and the planners' clearance are written here and nowhere
 else; the random streams are derived from the seed here and nowhere else.
+
+In 3-D (``dynamics.dim == 3``, docs/three_d.md) the spec also says the altitude band, the
+start and goal altitudes (:class:`~dualpilot.model.altitude.AltitudeBand`) and the goal's
+vertical extent: positions are [x, y, z] with z up, m above flat ground (NED's down axis
+is the MAVLink boundary's alone). ``start`` and ``goal`` stay planar; :attr:`start_position`,
+:attr:`goal_center` and :meth:`in_goal` are the dimension's.
 """
 
 from __future__ import annotations
@@ -13,6 +19,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from dualpilot.arrays import Array
+from dualpilot.model.altitude import AltitudeBand, GoalBox, GoalVertical
 from dualpilot.model.dynamics import DynamicsParams
 from dualpilot.model.geometry import Rect
 
@@ -30,18 +38,25 @@ class Stream(enum.Enum):
     FIRE = "fire"
     SUPERVISOR = "supervisor"
     SYSTEM1 = "system1"
+    #: the fronts' heights (3-D, ``fire_height = "uniform"``): apart from the fire stream, so
+    #: a 3-D mission's rectangles are the 2-D mission's, seed for seed
+    FIRE_HEIGHT = "fire_height"
 
 
 #: Seed-sequence key of System 1's stream, apart from the fire and supervisor streams.
 _SYSTEM1_KEY = 7
 #: Seed-sequence key of the fire forecast's streams (dualpilot/model/front_forecast.py).
 _FORECAST_KEY = 11
+#: Seed-sequence key of the fronts' heights (:attr:`Stream.FIRE_HEIGHT`).
+_FIRE_HEIGHT_KEY = 13
 
 
 def stream_rng(seed: int, stream: Stream) -> np.random.Generator:
     """The generator of one stream of the mission seeded with ``seed``."""
     if stream is Stream.SYSTEM1:
         return np.random.default_rng(np.random.SeedSequence([seed, _SYSTEM1_KEY]))
+    if stream is Stream.FIRE_HEIGHT:
+        return np.random.default_rng(np.random.SeedSequence([seed, _FIRE_HEIGHT_KEY]))
     fire, supervisor = np.random.SeedSequence(seed).spawn(2)
     return np.random.default_rng(fire if stream is Stream.FIRE else supervisor)
 
@@ -56,8 +71,11 @@ def forecast_rng(seed: int, issued_substep: int) -> np.random.Generator:
 class MissionSpec:
     """Where a mission flies and with what margins; frozen, shared by every part.
 
-    Lengths in m (local frame, x east, y north), the area is the square
-    [0, area_size_m]²; ``dynamics`` holds ΔT, ζ, m and the limits of Eq. (1).
+    Lengths in m (local frame, x east, y north, z up), the area is the square
+    [0, area_size_m]²; ``dynamics`` holds ΔT, ζ, m and the limits of Eq. (1). ``band`` and
+    ``goal_vertical`` are read only in 3-D (``dynamics.dim == 3``): the altitudes the UAV
+    keeps, its start and G_o's altitudes, and the goal box's vertical reading
+    (:meth:`~dualpilot.model.altitude.GoalBox.over`).
     """
 
     start: tuple[float, float] = (50.0, 50.0)
@@ -67,6 +85,8 @@ class MissionSpec:
     clearance_m: float = CLEARANCE_M
     seed: int = 0
     dynamics: DynamicsParams = field(default_factory=DynamicsParams)
+    band: AltitudeBand = field(default_factory=AltitudeBand)
+    goal_vertical: GoalVertical = "band"
 
     def __post_init__(self) -> None:
         if not (np.isfinite(self.area_size_m) and self.area_size_m > 0):
@@ -78,6 +98,45 @@ class MissionSpec:
             raise ValueError(f"goal {self.goal} lies outside the {self.area_size_m} m area")
         if not self.area.contains(np.array(self.start)):
             raise ValueError(f"start {self.start} lies outside the area")
+        GoalBox.over(self.goal, self.band, self.goal_vertical)  # ValueError: unknown reading
+
+    @property
+    def dim(self) -> int:
+        """The dimension of positions (2: the top-down evaluation, 3: Sec. II's 𝓔 ⊂ ℝ³)."""
+        return self.dynamics.dim
+
+    @property
+    def goal_box(self) -> GoalBox:
+        """G in 3-D: the goal rectangle over the altitudes of ``goal_vertical``."""
+        return GoalBox.over(self.goal, self.band, self.goal_vertical)
+
+    @property
+    def start_position(self) -> Array:
+        """Where the UAV starts (m), shape (dim,): ``start``, at the band's start altitude in
+        3-D."""
+        if self.dim == 3:
+            return np.array([*self.start, self.band.start_altitude_m])
+        return np.array(self.start, dtype=float)
+
+    @property
+    def goal_center(self) -> Array:
+        """G_o of Eq. (S2) (m), shape (dim,): the goal's centre, at G_o's altitude in 3-D."""
+        if self.dim == 3:
+            return self.goal_box.center
+        return self.goal.center
+
+    def in_goal(self, position: Array) -> bool:
+        """Whether ``position`` (dim,) lies in G: the rectangle (2-D), the goal box (3-D)."""
+        if self.dim == 3:
+            return self.goal_box.contains(position)
+        return self.goal.contains(position)
+
+    @property
+    def above_ceiling_m(self) -> float:
+        """The top (m) of a cuboid taller than the band: the ceiling plus the planners'
+        clearance ε (:meth:`~dualpilot.model.altitude.AltitudeBand.above_ceiling_m`), what a
+        front without a height of its own is (the top-down evaluation's fire)."""
+        return self.band.above_ceiling_m(self.clearance_m)
 
     @property
     def area(self) -> Rect:

@@ -1,0 +1,50 @@
+"""The third dimension's readings (docs/three_d.md): one parameter object for the readings.
+
+Sec. II's UAV moves in 𝓔 ⊂ ℝ³; Sec. IV-A's evaluation flies "a top-down view (i.e.,
+2-dimensional settings)", "assuming a fixed altitude". A 3-D mission (``dim = 3`` of
+:class:`~dualpilot.model.dynamics.DynamicsParams`) needs what the paper leaves open, each a
+named reading with its source in the module that defines it:
+
+* the altitude band, the start and G_o's altitudes (:class:`AltitudeBand`,
+  dualpilot/model/altitude.py) and the goal box's vertical extent (``goal_vertical``);
+* the fronts' heights (:class:`FireHeightParams`, dualpilot/model/fire_height.py) and, on
+  a fire-behaviour scenario, the air the UAV must not enter above a fire
+  (:class:`PlumeParams`, dualpilot/model/plume.py).
+
+:mod:`dualpilot.readings` addresses every field of the three by its bare name
+(``--set ceiling_m=100 --set fire_height=uniform``); a 2-D mission reads none of them.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import get_args
+
+from dualpilot.model.altitude import AltitudeBand, GoalVertical
+from dualpilot.model.fire_height import FireHeightParams, FireHeights
+from dualpilot.model.plume import PlumeParams
+from dualpilot.spec import MissionSpec, Stream
+
+
+@dataclass(frozen=True)
+class VerticalParams:
+    """The band, the goal's vertical reading, the fronts' heights and the plume (3-D only)."""
+
+    band: AltitudeBand = field(default_factory=AltitudeBand)
+    goal_vertical: GoalVertical = "band"
+    heights: FireHeightParams = field(default_factory=FireHeightParams)
+    plume: PlumeParams = field(default_factory=PlumeParams)
+
+    def __post_init__(self) -> None:
+        if self.goal_vertical not in get_args(GoalVertical):
+            raise ValueError(f"goal_vertical must be one of {get_args(GoalVertical)}, "
+                             f"not {self.goal_vertical!r}")
+
+    def fire_heights(self, spec: MissionSpec, scenario: str) -> FireHeights | None:
+        """The fire process's heights for the mission of ``spec`` on ``scenario`` (None in
+        2-D: its fronts have no heights); the height stream is the spec's seed's."""
+        if spec.dim != 3:
+            return None
+        return FireHeights(self.heights, spec.band, spec.clearance_m,
+                           spec.rng(Stream.FIRE_HEIGHT), self.heights.resolved(scenario),
+                           self.plume)
