@@ -184,6 +184,58 @@ class Prism:
         return math.sqrt(min(d2, self.distance(a) ** 2, self.distance(c) ** 2))
 
 
+@dataclass(frozen=True)
+class Cuboid:
+    """A front's region C_t in 3-D: the rectangle ``rect`` over [``bottom_m``, ``top_m``] (m;
+    fires stand on the ground, bottom 0), Sec. II-B's cuboid.
+
+    What the mission step measures d_t and d_safe to (dualpilot/mission/step.py). Its
+    distances are the planar ones of :class:`~dualpilot.model.geometry.Rect` bit for bit
+    when the altitudes lie within [bottom, top] (so a cuboid taller than the band gives a
+    UAV in the band the top-down evaluation's numbers); :attr:`prism` is its H-form.
+    """
+
+    rect: Rect
+    top_m: float
+    bottom_m: float = 0.0
+
+    def __post_init__(self) -> None:
+        if not (math.isfinite(self.top_m) and math.isfinite(self.bottom_m)
+                and self.bottom_m < self.top_m):
+            raise ValueError(f"a cuboid needs finite bottom_m < top_m, got {self.bottom_m}, "
+                             f"{self.top_m}")
+
+    @property
+    def prism(self) -> Prism:
+        """The six faces of Sec. II-B (made on each call; :meth:`Rect.polytope` is kept)."""
+        return Prism(self.rect.polytope(), self.bottom_m, self.top_m)
+
+    @property
+    def bounds3(self) -> tuple[float, float, float, float, float, float]:
+        """(x_lo, y_lo, z_lo, x_hi, y_hi, z_hi) (m)."""
+        x0, y0, x1, y1 = self.rect.bounds
+        return (x0, y0, self.bottom_m, x1, y1, self.top_m)
+
+    def z_gap(self, z: float) -> float:
+        """How far (m) altitude ``z`` lies below the bottom or above the top (0 within)."""
+        return max(0.0, self.bottom_m - z, z - self.top_m)
+
+    def distance(self, p: ArrayLike) -> float:
+        """Euclidean distance (m) from the 3-D point p (0 inside): the rectangle's planar
+        distance exactly when p's altitude lies within the cuboid's."""
+        q = np.asarray(p, dtype=float)
+        d_xy = self.rect.distance(q[:2])
+        d_z = self.z_gap(float(q[2]))
+        if d_z == 0.0:
+            return d_xy
+        return d_z if d_xy == 0.0 else math.hypot(d_xy, d_z)
+
+    def segment_distance(self, p0: ArrayLike, p1: ArrayLike) -> float:
+        """Exact distance (m) from the 3-D segment p0–p1 (0 if they meet): the rectangle's
+        planar segment distance exactly when both altitudes lie within the cuboid's."""
+        return self.prism.segment_distance(p0, p1)
+
+
 def segment_meets(a_mat: Array, b: Array, p0: Array, d: Array) -> bool:
     """Whether p0 + t·d, t ∈ [0, 1], meets the closed H-polytope {p : A p ≤ b} (Cyrus–Beck
     clipping, any dimension)."""
