@@ -18,6 +18,13 @@ A time-step starts at the first sub-step run with a new mission step number.
 Each front remembers the convex hull of every rectangle it has occupied,
 △(C^i_{1:t}), the region planners must avoid (constraint P1_4).
 
+In 3-D (docs/three_d.md) each front's region is a cuboid C_t standing on the ground: its
+rectangle over [0, ``top_m``], the top drawn with the rectangle from the heights' own
+stream (:class:`dualpilot.model.fire_height.FireHeights`), so the fire stream's draws
+are the 2-D process's; its △ is the prism of the planar hull up to the highest top so far
+(``hull_top_m``), which contains every cuboid the front occupied. In 2-D the tops are
+None and nothing is drawn.
+
 The process over the area is :class:`dualpilot.model.fire_field.FireField`;
 this module holds its parameters, fronts and snapshots. ``FireParams.scenario``
 other than "paper" names a fire-behaviour scenario (dualpilot/model/scenarios.py):
@@ -29,13 +36,15 @@ snapshots.
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from math import ceil, cos, sin, sqrt
 from typing import Literal, get_args
 
 import numpy as np
 
+from dualpilot.model.fire_height import FireHeights
 from dualpilot.model.geometry import Polytope, Rect
+from dualpilot.model.prism import Cuboid, Prism
 from dualpilot.model.scenarios import PAPER, scenario_names
 
 #: Time base of birth and survival: every sub-step T_f, or once per time-step ΔT.
@@ -44,6 +53,10 @@ LifeBase = Literal["substep", "step"]
 Extent = Literal["substep", "step", "birth"]
 #: Draws of a birth (or a redraw) that must keep clear of a keep-out before giving up.
 MAX_DRAWS = 1000
+#: A front's region: its rectangle (2-D), or its cuboid (3-D).
+Region = Rect | Cuboid
+#: Where no front may ignite: (the UAV's position (2,) or (3,) (m), radius (m)).
+KeepOutZone = tuple[np.ndarray, float]
 
 
 @dataclass(frozen=True)
@@ -105,7 +118,8 @@ def substeps_for(planning_time_s: float, params: FireParams = FireParams()) -> i
 
 @dataclass(frozen=True)
 class FireFront:
-    """One active front: its state y = (speed, direction), current region and path hull."""
+    """One active front: its state y = (speed, direction), current region and path hull; in
+    3-D its cuboid's top and the highest top so far, its hull prism's (m; None in 2-D)."""
 
     front_id: int
     born_step: int
@@ -113,15 +127,30 @@ class FireFront:
     direction_rad: float
     region: Rect
     hull: Polytope
+    top_m: float | None = None
+    hull_top_m: float | None = None
+
+    @property
+    def cuboid(self) -> Cuboid:
+        """C_t in 3-D: the region over [0, top_m] (ValueError for a 2-D front)."""
+        if self.top_m is None:
+            raise ValueError(f"front {self.front_id} has no height (a 2-D front)")
+        return Cuboid(self.region, self.top_m)
+
+    @property
+    def current(self) -> Region:
+        """The region the step measures d_t and d_safe to: the rectangle, or the cuboid."""
+        return self.region if self.top_m is None else self.cuboid
 
     def advance(self, rng: np.random.Generator, params: FireParams, redraw: bool = True,
-                keep_out: tuple[np.ndarray, float] | None = None) -> FireFront:
+                keep_out: KeepOutZone | None = None,
+                heights: FireHeights | None = None) -> FireFront:
         """One Gauss–Markov propagation sub-step (Eq. in Sec. II-B)."""
-        return self.advance_clear(rng, params, redraw, keep_out)[0]
+        return self.advance_clear(rng, params, redraw, keep_out, heights)[0]
 
     def advance_clear(
         self, rng: np.random.Generator, params: FireParams, redraw: bool = True,
-        keep_out: tuple[np.ndarray, float] | None = None,
+        keep_out: KeepOutZone | None = None, heights: FireHeights | None = None,
     ) -> tuple[FireFront, bool]:
         """:meth:`advance`; also whether the region keeps clear of ``keep_out``.
 
@@ -129,6 +158,8 @@ class FireFront:
         (position, radius_m)`` redraws the sides until the region stays
         ``radius_m`` from ``position``. When even the smallest rectangle cannot
         (the front moved there), the previous sides are kept and False returned.
+        With ``heights`` (3-D) a redrawn rectangle gets a new top from the heights'
+        stream and the keep-out is measured to the cuboid; kept sides keep their top.
         """
         g = params.gamma
         noise = sqrt(1.0 - g * g)
@@ -146,18 +177,25 @@ class FireFront:
         cx = self.region.center_x + dist * cos(direction)
         cy = self.region.center_y + dist * sin(direction)
         clear = True
-        region: Rect | None = None
+        drawn: Region | None = None
         if redraw and keep_out is None:
-            region = draw_rect(cx, cy, rng, params)
+            drawn = draw_region(cx, cy, rng, params, heights)
         elif redraw and keep_out is not None:
-            smallest = Rect(cx, cy, params.side_min_m, params.side_min_m)
+            smallest = lowest(Rect(cx, cy, params.side_min_m, params.side_min_m), heights)
             if clear_of(smallest, keep_out):  # else every draw contains a violating one
-                region = draw_clear(lambda: draw_rect(cx, cy, rng, params), keep_out)
-            clear = region is not None
-        if region is None:  # the sides kept, the centre moved
+                drawn = draw_clear(lambda: draw_region(cx, cy, rng, params, heights), keep_out)
+            clear = drawn is not None
+        top = self.top_m
+        if drawn is None:  # the sides kept, the centre moved
             region = Rect(cx, cy, self.region.width, self.region.height)
+        elif isinstance(drawn, Cuboid):
+            region, top = drawn.rect, drawn.top_m
+        else:
+            region = drawn
         hull = Polytope.from_vertices(np.vstack([self.hull.vertices, region.corners()]))
-        moved = FireFront(self.front_id, self.born_step, speed, direction, region, hull)
+        hull_top = top if top is None or self.hull_top_m is None else max(top, self.hull_top_m)
+        moved = FireFront(self.front_id, self.born_step, speed, direction, region, hull, top,
+                          hull_top)
         return moved, clear
 
 
@@ -166,11 +204,38 @@ def draw_rect(cx: float, cy: float, rng: np.random.Generator, params: FireParams
     return Rect(cx, cy, float(w), float(h))
 
 
-def clear_of(region: Rect, keep_out: tuple[np.ndarray, float]) -> bool:
-    return bool(region.polytope().distance(keep_out[0]) >= keep_out[1])
+def draw_region(cx: float, cy: float, rng: np.random.Generator, params: FireParams,
+                heights: FireHeights | None) -> Region:
+    """A rectangle centred at (cx, cy) from the fire stream; with ``heights`` (3-D) its
+    cuboid, the top from the heights (their own stream)."""
+    rect = draw_rect(cx, cy, rng, params)
+    return rect if heights is None else Cuboid(rect, heights.draw())
 
 
-def draw_clear(draw: Callable[[], Rect], keep_out: tuple[np.ndarray, float]) -> Rect | None:
+def lowest(rect: Rect, heights: FireHeights | None) -> Region:
+    """``rect`` as the lowest cuboid ``heights`` can draw over it (``rect`` in 2-D): the one a
+    keep-out is easiest to keep from."""
+    if heights is None:
+        return rect
+    if heights.reading == "uniform":
+        return Cuboid(rect, heights.params.fire_height_min_m)
+    return Cuboid(rect, heights.above_ceiling_m)
+
+
+def clear_of(region: Region, keep_out: KeepOutZone) -> bool:
+    """Whether ``region`` keeps ``keep_out``'s radius from its position: in the plane (a
+    rectangle, or a 2-D position), else to the cuboid (its planar part the polygon's
+    distance, as in 2-D)."""
+    pos, radius = keep_out
+    if isinstance(region, Rect):
+        return bool(region.polytope().distance(pos) >= radius)
+    d_xy = region.rect.polytope().distance(pos)
+    d_z = region.z_gap(float(pos[2])) if len(pos) == 3 else 0.0
+    d = d_xy if d_z == 0.0 else float(np.hypot(d_xy, d_z))
+    return bool(d >= radius)
+
+
+def draw_clear(draw: Callable[[], Region], keep_out: KeepOutZone) -> Region | None:
     """The first of :data:`MAX_DRAWS` draws that keeps clear of ``keep_out``; None if none."""
     for _ in range(MAX_DRAWS):
         region = draw()
@@ -181,22 +246,78 @@ def draw_clear(draw: Callable[[], Rect], keep_out: tuple[np.ndarray, float]) -> 
 
 @dataclass(frozen=True)
 class FireSnapshot:
-    """What the EWS reports at one instant: active regions and the hulls to avoid."""
+    """What the EWS reports at one instant: active regions and the hulls to avoid.
+
+    In 3-D the tops (m above ground) too: ``tops_m`` one per region (its cuboid C_t's),
+    ``hull_tops_m`` one per hull (its prism's: the highest top of the front so far). Both
+    empty in 2-D; an empty pair read by a 3-D mission means every cuboid is taller than the
+    band (:meth:`with_tops`), so a snapshot, record or message without tops keeps its meaning.
+    """
 
     regions: tuple[Rect, ...]
     hulls: tuple[Polytope, ...]
     front_ids: tuple[int, ...] = ()
     born_steps: tuple[int, ...] = ()
+    tops_m: tuple[float, ...] = ()
+    hull_tops_m: tuple[float, ...] = ()
 
+    def __post_init__(self) -> None:
+        if self.tops_m and len(self.tops_m) != len(self.regions):
+            raise ValueError(f"{len(self.tops_m)} tops for {len(self.regions)} regions")
+        if self.hull_tops_m and len(self.hull_tops_m) != len(self.hulls):
+            raise ValueError(f"{len(self.hull_tops_m)} hull tops for {len(self.hulls)} hulls")
+        if bool(self.tops_m) != bool(self.hull_tops_m) and self.regions:
+            raise ValueError("a snapshot has tops for its regions and its hulls, or none")
+
+    @property
+    def has_tops(self) -> bool:
+        """Whether the tops are given (a 3-D snapshot with at least one hull)."""
+        return bool(self.hull_tops_m)
+
+    def with_tops(self, top_m: float) -> FireSnapshot:
+        """This snapshot with every region and hull ``top_m`` tall when it carries no tops (a
+        3-D mission reads a snapshot without tops as fires taller than its band:
+        :attr:`dualpilot.spec.MissionSpec.above_ceiling_m`)."""
+        if self.has_tops or not self.hulls:
+            return self
+        return replace(self, tops_m=(top_m,) * len(self.regions),
+                       hull_tops_m=(top_m,) * len(self.hulls))
+
+    def _need_tops(self) -> None:
+        if self.hulls and not self.has_tops:
+            raise ValueError("a 2-D snapshot has no cuboids: give it tops (with_tops)")
+
+    def cuboids(self) -> tuple[Cuboid, ...]:
+        """The active fronts' cuboids C_t (3-D), in the order of ``regions``."""
+        self._need_tops()
+        return tuple(Cuboid(r, t) for r, t in zip(self.regions, self.tops_m, strict=True))
+
+    def hull_prisms(self) -> tuple[Prism, ...]:
+        """The hulls △(C^i_{1:t}) as prisms over [0, hull top] (3-D), in the order of
+        ``hulls``."""
+        self._need_tops()
+        return tuple(Prism(h, 0.0, t) for h, t in zip(self.hulls, self.hull_tops_m,
+                                                       strict=True))
+
+    def obstacles(self, position: np.ndarray,
+                  clearance_m: float) -> tuple[Polytope, ...] | tuple[Prism, ...]:
+        """What a planner at ``position`` must avoid (m): :meth:`obstacles_for` for a 2-D
+        position, :meth:`prisms_for` for a 3-D one."""
+        if len(position) == 3:
+            return self.prisms_for(position, clearance_m)
+        return self.obstacles_for(position, clearance_m)
 
     def obstacles_for(self, position: np.ndarray, clearance_m: float) -> tuple[Polytope, ...]:
-        """The regions a planner at ``position`` must avoid, one per front (m).
+        """The regions a planner at the 2-D ``position`` must avoid, one per front (m).
 
         Normally the hull △(C^i_{1:t}) of the front's path. Rectangles are
         redrawn every sub-step, so a hull can grow around a UAV that is far
         from the fire itself; a UAV cannot be asked to avoid a region it is
         already in, so such a front is represented by its current region.
         """
+        if len(position) != 2:
+            raise ValueError("obstacles_for takes a planar position; a 3-D one's are "
+                             "prisms_for (or obstacles)")
         out: list[Polytope] = []
         n_active = len(self.regions)
         for k, hull in enumerate(self.hulls):
@@ -205,3 +326,21 @@ class FireSnapshot:
             else:
                 out.append(self.regions[k].polytope())
         return tuple(out)
+
+    def prisms_for(self, position: np.ndarray, clearance_m: float) -> tuple[Prism, ...]:
+        """:meth:`obstacles_for` in 3-D: each front's hull prism (:meth:`hull_prisms`), or its
+        cuboid when the UAV at the 3-D ``position`` is within ``clearance_m`` of the hull
+        (distances in 3-D: a UAV above a low hull's top is not in it)."""
+        position = np.asarray(position, dtype=float)
+        out: list[Prism] = []
+        n_active = len(self.regions)
+        for k, prism in enumerate(self.hull_prisms()):
+            if prism.distance(position) >= clearance_m or k >= n_active:
+                out.append(prism)
+            else:
+                out.append(Prism(self.regions[k].polytope(), 0.0, self.tops_m[k]))
+        return tuple(out)
+
+    def current(self) -> tuple[Region, ...]:
+        """The active regions as the step measures them: rectangles, or cuboids with tops."""
+        return self.cuboids() if self.has_tops else self.regions

@@ -34,7 +34,9 @@ import numpy as np
 from scipy import ndimage
 
 from dualpilot.model.fire import MAX_DRAWS, FireFront, FireParams
+from dualpilot.model.fire_height import FireHeights
 from dualpilot.model.geometry import Polytope, Rect
+from dualpilot.model.physics_heights import PhysicsTops
 from dualpilot.model.scenarios import (
     FuelMoisture,
     LwRatioModel,
@@ -73,6 +75,23 @@ def midflame_wind_m_min(fuel_model: int, wind_speed_10m_mps: float) -> float:
     return float(sf.calc_midflame_wind_speed(conv.km_hr_to_m_min(wind_20ft), delta, 0.0, 0.0))
 
 
+def _surface_fire(fuel_model: int, moisture: FuelMoisture, midflame_wind_m_min: float,
+                  upwind_deg: float, slope: float, aspect_deg: float,
+                  lw_ratio_model: LwRatioModel,
+                  use_wind_limit: bool) -> tuple[dict[str, float], dict[str, float]]:
+    """pyretechnics' no-wind-no-slope and maximum surface fire behaviour of the fuel bed."""
+    import pyretechnics.fuel_models as fm
+    import pyretechnics.surface_fire as sf
+
+    m = moisture
+    moist = fm.moisturize(fm.get_fuel_model(fuel_model), (
+        m.dead_1h, m.dead_10h, m.dead_100h, 0.0, m.live_herbaceous, m.live_woody))
+    base = sf.calc_surface_fire_behavior_no_wind_no_slope(moist)
+    head = sf.calc_surface_fire_behavior_max(base, midflame_wind_m_min, upwind_deg, slope,
+                                             aspect_deg, use_wind_limit, lw_ratio_model)
+    return base, head
+
+
 def rothermel_spread(fuel_model: int, moisture: FuelMoisture, midflame_wind_m_min: float = 0.0,
                      upwind_deg: float = 0.0, slope: float = 0.0, aspect_deg: float = 0.0,
                      lw_ratio_model: LwRatioModel = "behave",
@@ -83,25 +102,29 @@ def rothermel_spread(fuel_model: int, moisture: FuelMoisture, midflame_wind_m_mi
     rate is in the direction of maximum spread, the effective wind speed limited unless
     ``use_wind_limit`` is False.
     """
-    import pyretechnics.fuel_models as fm
-    import pyretechnics.surface_fire as sf
-
-    m = moisture
-    moist = fm.moisturize(fm.get_fuel_model(fuel_model), (
-        m.dead_1h, m.dead_10h, m.dead_100h, 0.0, m.live_herbaceous, m.live_woody))
-    base = sf.calc_surface_fire_behavior_no_wind_no_slope(moist)
-    head = sf.calc_surface_fire_behavior_max(base, midflame_wind_m_min, upwind_deg, slope,
-                                             aspect_deg, use_wind_limit, lw_ratio_model)
+    base, head = _surface_fire(fuel_model, moisture, midflame_wind_m_min, upwind_deg, slope,
+                               aspect_deg, lw_ratio_model, use_wind_limit)
     return float(base["base_spread_rate"]), float(head["max_spread_rate"])
+
+
+def _flat_fire(params: PhysicsFireParams) -> tuple[dict[str, float], dict[str, float]]:
+    """The scenario's surface fire on flat ground under its wind (no-wind-no-slope, head)."""
+    return _surface_fire(
+        params.fuel_model, params.moisture,
+        midflame_wind_m_min(params.fuel_model, params.wind_speed_mps),
+        upwind_azimuth_deg(params.wind_direction_rad), 0.0, 0.0, params.lw_ratio_model, True)
 
 
 def head_spread_rate_mps(params: PhysicsFireParams) -> float:
     """The head fire's Rothermel spread rate (m/s) on flat ground under the scenario's wind."""
-    _, head = rothermel_spread(
-        params.fuel_model, params.moisture,
-        midflame_wind_m_min(params.fuel_model, params.wind_speed_mps),
-        upwind_azimuth_deg(params.wind_direction_rad), lw_ratio_model=params.lw_ratio_model)
-    return head / 60.0
+    return float(_flat_fire(params)[1]["max_spread_rate"]) / 60.0
+
+
+def fireline_intensities_kw_m(params: PhysicsFireParams) -> tuple[float, float]:
+    """(no-wind-no-slope, head) Byram fireline intensities (kW/m) of the scenario's fuel bed
+    on flat ground under its wind."""
+    base, head = _flat_fire(params)
+    return float(base["base_fireline_intensity"]), float(head["max_fireline_intensity"])
 
 
 def clip_to_box(vertices: np.ndarray, lo: float, hi: float) -> np.ndarray:
@@ -132,10 +155,13 @@ class PhysicsFire:
     """The burned area on the grid, its fronts and their hulls (the EWS's ground truth).
 
     ``fire`` gives T_f, p_b, the birth time base and whether extinct hulls are
-    kept; ``physics`` everything else.
+    kept; ``physics`` everything else; ``heights`` (3-D) the fronts' tops
+    (dualpilot/model/physics_heights.py). The keep-out of a birth is kept in the plane
+    (a cell's top is not known before it burns; the planar test is the stricter one).
     """
 
-    def __init__(self, physics: PhysicsFireParams, fire: FireParams, area_size_m: float):
+    def __init__(self, physics: PhysicsFireParams, fire: FireParams, area_size_m: float,
+                 heights: FireHeights | None = None):
         import pyretechnics.eulerian_level_set as els
         import pyretechnics.fuel_models as fm
         from pyretechnics.space_time_cube import SpaceTimeCube
@@ -184,6 +210,12 @@ class PhysicsFire:
         self.next_id = 0
         self.fronts: list[FireFront] = []
         self.extinct_hulls: list[Polytope] = []
+        self.extinct_tops: list[float] = []  # their tops (3-D)
+        self.tops: PhysicsTops | None = None
+        if heights is not None:
+            base, head = fireline_intensities_kw_m(physics)
+            self.tops = PhysicsTops(heights, base, head, midflame_wind_m_min(
+                physics.fuel_model, physics.wind_speed_mps) / 60.0)
         self.births_skipped = 0
         #: the forecast's copy of the level set run ahead, kept between issues
         #: (dualpilot/model/physics_forecast.py); it never touches this process
@@ -344,6 +376,9 @@ class PhysicsFire:
         self._burned_seen = count
         labels, _ = ndimage.label(burned, structure=_EIGHT)
         active = burned & ndimage.binary_dilation(~burned, structure=_FOUR, border_value=0)
+        intensity = None if self.tops is None else np.asarray(
+            self.state.get_full_matrices(["fireline_intensity"])[  # type: ignore[attr-defined]
+                "fireline_intensity"])
         owners: dict[int, list[int]] = {}
         for fid, row, col, _ in self._ignitions:
             if fid not in self._retired and labels[row, col]:
@@ -388,8 +423,12 @@ class PhysicsFire:
             for merged in ids[1:]:  # merged into the oldest: its hull lives on in this one
                 self._retired.add(merged)
                 self._hulls.pop(merged, None)
+            top = hull_top = None
+            if self.tops is not None and intensity is not None:
+                top = self.tops.top(intensity[sl], act)
+                hull_top = self.tops.hull_top(fid, ids[1:], top)
             front = FireFront(fid, born_at[fid], self.head_rate_mps,
-                              self.physics.wind_direction_rad, region, hull)
+                              self.physics.wind_direction_rad, region, hull, top, hull_top)
             cache[fid] = (int(sizes[k]), tuple(ids), front)
             fronts.append(front)
         self._cache = cache
@@ -398,8 +437,11 @@ class PhysicsFire:
     def _retire(self, fid: int) -> None:
         self._retired.add(fid)
         hull = self._hulls.pop(fid, None)
+        top = None if self.tops is None else self.tops.retire(fid)
         if hull is not None and self.fire.keep_extinct_hulls:
             self.extinct_hulls.append(Polytope.from_vertices(hull))
+            if top is not None:
+                self.extinct_tops.append(top)
 
     def _cell_corners(self, mine: np.ndarray, row0: int, col0: int) -> np.ndarray:
         """Corners of each row's first and last cell of a burned area, grown by pad_m (m)."""

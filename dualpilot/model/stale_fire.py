@@ -59,11 +59,14 @@ def grow_polygon(poly: Polytope, margin_m: float) -> Polytope:
 
 
 def grown_snapshot(snapshot: FireSnapshot, margin_m: float) -> FireSnapshot:
-    """``snapshot`` with every region and hull grown by ``margin_m`` on every side (m)."""
+    """``snapshot`` with every region and hull grown by ``margin_m`` on every side (m), and
+    upwards: its tops (3-D) raised by ``margin_m``."""
     if margin_m <= 0:
         return snapshot
     return replace(
         snapshot,
         regions=tuple(replace(r, width=r.width + 2 * margin_m, height=r.height + 2 * margin_m)
                       for r in snapshot.regions),
-        hulls=tuple(grow_polygon(h, margin_m) for h in snapshot.hulls))
+        hulls=tuple(grow_polygon(h, margin_m) for h in snapshot.hulls),
+        tops_m=tuple(t + margin_m for t in snapshot.tops_m),
+        hull_tops_m=tuple(t + margin_m for t in snapshot.hull_tops_m))
