@@ -5,6 +5,11 @@ state under its controls, (ii) controls and velocities respect U and X (the spee
 as a norm, :attr:`DynamicsParams.speed_limit`), and
 (iii) the polyline through its positions keeps at least ``clearance_m``
 from every hull, every segment checked exactly (no corner clipping).
+
+In 3-D (``dynamics.dim == 3``) the hulls are prisms (the fires' cuboids and swept hulls,
+:class:`~dualpilot.model.prism.Prism`), the clearance is the 3-D distance of every segment
+(:class:`~dualpilot.model.segment3.SegmentChecker3`), and with a ``band`` (iv) every planned
+altitude lies in [floor, ceiling].
 """
 
 from __future__ import annotations
@@ -14,8 +19,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from dualpilot.model.altitude import AltitudeBand
 from dualpilot.model.dynamics import Array, DynamicsParams, rollout
 from dualpilot.model.geometry import Polytope, SegmentChecker, path_clearance
+from dualpilot.model.prism import Prism
+from dualpilot.model.segment3 import SegmentChecker3, prism_path_clearance
 
 
 @dataclass(frozen=True)
@@ -28,18 +36,21 @@ class Verdict:
 def verify_trajectory(
     states: Array,
     controls: Array,
-    hulls: Sequence[Polytope],
+    hulls: Sequence[Polytope] | Sequence[Prism],
     dynamics: DynamicsParams,
     clearance_m: float,
     tol: float = 1e-3,
-    checker: SegmentChecker | None = None,
+    checker: SegmentChecker | SegmentChecker3 | None = None,
     rolled_out: bool = False,
+    band: AltitudeBand | None = None,
 ) -> Verdict:
     """Check dynamics, bounds and exact clearance of a planned trajectory.
 
-    ``checker`` may carry a :class:`SegmentChecker` already built for ``hulls``;
-    ``rolled_out`` says the caller made ``states`` with :func:`rollout` from
-    ``states[0]`` and ``controls`` (Eq. (1) then holds exactly and is not redone).
+    ``checker`` may carry a :class:`SegmentChecker` (a :class:`SegmentChecker3` in 3-D)
+    already built for ``hulls``; ``rolled_out`` says the caller made ``states`` with
+    :func:`rollout` from ``states[0]`` and ``controls`` (Eq. (1) then holds exactly and is
+    not redone). ``band`` (3-D): every planned altitude p_z of rows 1.. within [floor,
+    ceiling] ± ``tol``.
     """
     states = np.asarray(states, dtype=float)
     controls = np.asarray(controls, dtype=float)
@@ -61,8 +72,21 @@ def verify_trajectory(
             return Verdict(False, f"speed exceeds {dynamics.v_max_mps} m/s", float("nan"))
     elif (np.abs(states[1:, n:]) > dynamics.v_max_mps + tol).any():
         return Verdict(False, f"velocity exceeds {dynamics.v_max_mps} m/s", float("nan"))
-    clearance = (path_clearance(states[:, :2], hulls) if checker is None
-                 else checker.path_clearance(states[:, :2]))
+    if n == 3:
+        if band is not None:
+            z = states[1:, 2]
+            if len(z) and (z.min() < band.floor_m - tol or z.max() > band.ceiling_m + tol):
+                worst = float(z.min() if z.min() < band.floor_m - tol else z.max())
+                return Verdict(False, f"altitude {worst:.2f} m leaves the band "
+                                      f"[{band.floor_m:g}, {band.ceiling_m:g}] m", float("nan"))
+        if not all(isinstance(h, Prism) for h in hulls):
+            return Verdict(False, "a 3-D plan is checked against prisms, not planar hulls",
+                           float("nan"))
+        clearance = (prism_path_clearance(states[:, :3], hulls)  # type: ignore[arg-type]
+                     if checker is None else checker.path_clearance(states[:, :3]))
+    else:
+        clearance = (path_clearance(states[:, :2], hulls)  # type: ignore[arg-type]
+                     if checker is None else checker.path_clearance(states[:, :2]))
     if clearance < clearance_m - tol:
         return Verdict(False, f"clearance {clearance:.2f} m < {clearance_m} m", clearance)
     return Verdict(True, "ok", clearance)

@@ -11,16 +11,20 @@ setpoint leaves (:func:`check_plan`). A plan is accepted only if
    autopilot's clip is not the plan that will be flown);
 4. it keeps **|u| ≤ u_max** per axis and **|v| ≤ v_max** per axis, or ‖v‖ ≤ v_max
    under ``DynamicsParams.speed_limit = "norm"`` (+ ``limit_tol``);
-5. every planned position lies **in the area** [0, area]² (± ``area_tol_m``);
+5. every planned position lies **in the area** [0, area]² (± ``area_tol_m``), and in 3-D
+   every planned altitude **in the band** [floor, ceiling] (± ``area_tol_m``);
 6. **every segment** of the planned polyline keeps at least d_safe from each
    obstacle the step itself sent (the fire regions and hulls △(C^i_{1:t}) of
-   :meth:`dualpilot.model.fire.FireSnapshot.obstacles_for`), checked exactly.
+   :meth:`dualpilot.model.fire.FireSnapshot.obstacles_for`: polygons in 2-D, prisms in
+   3-D, :class:`~dualpilot.model.segment3.SegmentChecker3`), checked exactly.
 
 A risk-aware plan that says it met the fire forecast's chance constraint
 (``info["risk"] == "met"``, dualpilot/model/risk.py) is also checked against the
 zones of the forecast the step sent with its request (:func:`check_risk`): System
 2's positions p_τ (τ ≥ 2) keep ε from the zones of their steps, and System 1's
-trajectory keeps from the zones of its steps the distance it reports.
+trajectory keeps from the zones of its steps the distance it reports. The zones are
+planar (the forecast's footprints); in 3-D they are checked against the plan's planar
+positions, as zones taller than any altitude (the stricter check).
 
 The honest planners verify their own plans with stricter checks (the
 planners' clearance, dualpilot/verify.py), so the monitor rejects none of
@@ -40,7 +44,9 @@ import numpy as np
 from dualpilot.mission.answers import MONITOR_TAG, Answer, SystemStatus
 from dualpilot.model.dynamics import Array, DynamicsParams, transition_matrices
 from dualpilot.model.geometry import Polytope, path_clearance
+from dualpilot.model.prism import Prism
 from dualpilot.model.risk import ForecastView, RiskMap, RiskParams, path_risk_clearance
+from dualpilot.model.segment3 import prism_path_clearance
 from dualpilot.plan import Plan
 from dualpilot.spec import MissionSpec
 
@@ -82,7 +88,7 @@ def check_plan(
     states: Array,
     controls: Array,
     measured: Array,
-    obstacles: Sequence[Polytope],
+    obstacles: Sequence[Polytope] | Sequence[Prism],
     spec: MissionSpec,
     params: MonitorParams = MonitorParams(),
 ) -> MonitorVerdict:
@@ -111,17 +117,38 @@ def check_plan(
         return MonitorVerdict(False, f"violates Eq. (1) by {resid:.3g}")
     pos = states[:, :n]
     lo, hi = -params.area_tol_m, spec.area_size_m + params.area_tol_m
-    if (pos[1:] < lo).any() or (pos[1:] > hi).any():
+    if (pos[1:, :2] < lo).any() or (pos[1:, :2] > hi).any():
         return MonitorVerdict(False, "leaves the area")
-    clearance = path_clearance(pos[:, :2], list(obstacles))
+    if n == 3:
+        verdict = _in_band(pos[1:, 2], spec, params)
+        if verdict is not None:
+            return verdict
+        if not all(isinstance(o, Prism) for o in obstacles):
+            return MonitorVerdict(False, "a 3-D plan checked against planar obstacles")
+        clearance = prism_path_clearance(pos, list(obstacles))  # type: ignore[arg-type]
+    else:
+        clearance = path_clearance(pos[:, :2], list(obstacles))  # type: ignore[arg-type]
     if clearance < spec.d_safe_m - params.clearance_tol_m:
         return MonitorVerdict(False, f"passes {clearance:.2f} m from a fire region or hull "
                                      f"(d_safe {spec.d_safe_m:g} m)", clearance)
     return MonitorVerdict(True, "ok", clearance)
 
 
-def check(plan: Plan, measured: Array, obstacles: Sequence[Polytope], spec: MissionSpec,
-          params: MonitorParams = MonitorParams()) -> MonitorVerdict:
+def _in_band(z: Array, spec: MissionSpec, params: MonitorParams) -> MonitorVerdict | None:
+    """None when every planned altitude ``z`` (m) lies in the spec's band (± the area's
+    allowance), else the refusal."""
+    band, tol = spec.band, params.area_tol_m
+    if len(z) and float(z.min()) < band.floor_m - tol:
+        return MonitorVerdict(False, f"leaves the altitude band: {float(z.min()):.2f} m below "
+                                     f"the floor {band.floor_m:g} m")
+    if len(z) and float(z.max()) > band.ceiling_m + tol:
+        return MonitorVerdict(False, f"leaves the altitude band: {float(z.max()):.2f} m above "
+                                     f"the ceiling {band.ceiling_m:g} m")
+    return None
+
+
+def check(plan: Plan, measured: Array, obstacles: Sequence[Polytope] | Sequence[Prism],
+          spec: MissionSpec, params: MonitorParams = MonitorParams()) -> MonitorVerdict:
     """:func:`check_plan` of an OK plan's states and controls."""
     return check_plan(plan.states, plan.controls, measured, obstacles, spec, params)
 

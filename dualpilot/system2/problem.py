@@ -6,20 +6,30 @@ with u_{t|t} the control applied at the previous step, subject to Eq. (1)
 (P2_1)-(P2_2), U and X, and the avoidance disjunction (P2_3)-(P2_4) with ε =
 ``MissionSpec.clearance_m``. Every System 2 method is scored with
 :func:`p2_cost` and checked with :func:`verify_p2_plan`. Lengths in m.
+
+In 3-D (docs/three_d.md) the obstacles are prisms (:class:`~dualpilot.model.prism.Prism`:
+a cuboid's six faces, as Sec. II-B writes them, or a swept hull's k + 2), positions
+[x, y, z], and the check adds the altitude band.
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Literal, overload
 
 import numpy as np
 
 from dualpilot.arrays import Array
+from dualpilot.model.altitude import AltitudeBand
 from dualpilot.model.dynamics import DynamicsParams
 from dualpilot.model.geometry import Polytope, hull_boxes
+from dualpilot.model.prism import Prism
 from dualpilot.plan import Objective
 from dualpilot.verify import Verdict, verify_trajectory
+
+#: An obstacle of (P2): a planar polygon (2-D) or a prism (3-D), {p : α_l·p ≤ β_l}.
+Obstacle = Polytope | Prism
 
 
 @dataclass(frozen=True)
@@ -74,27 +84,46 @@ def p2_cost(
     return float(kappa[0] * np.sum((pos - g) ** 2) + kappa[1] * np.sum(du**2))
 
 
+@overload
 def check_request(state: Array, hulls: Sequence[Polytope], objective: Objective,
-                  prev_control: Array | None) -> tuple[Array, Array, tuple[Polytope, ...]] | str:
-    """(x_t, u_{t|t}, hulls) as arrays and a tuple, or why the request is invalid."""
+                  prev_control: Array | None,
+                  dim: Literal[2] = 2) -> tuple[Array, Array, tuple[Polytope, ...]] | str: ...
+
+
+@overload
+def check_request(state: Array, hulls: Sequence[Prism], objective: Objective,
+                  prev_control: Array | None,
+                  dim: Literal[3]) -> tuple[Array, Array, tuple[Prism, ...]] | str: ...
+
+
+def check_request(state: Array, hulls: Sequence[Obstacle], objective: Objective,
+                  prev_control: Array | None,
+                  dim: int = 2) -> tuple[Array, Array, tuple[Obstacle, ...]] | str:
+    """(x_t, u_{t|t}, hulls) as arrays and a tuple, or why the request is invalid: x_t of
+    2·``dim`` numbers, u_{t|t} of ``dim``, polygons in 2-D and prisms in 3-D."""
     x0 = np.asarray(state, dtype=float)
-    if x0.shape != (4,) or not np.all(np.isfinite(x0)):
-        return f"state must be 4 finite numbers, got {state}"
-    u_prev = np.zeros(2) if prev_control is None else np.asarray(prev_control, dtype=float)
-    if u_prev.shape != (2,) or not np.all(np.isfinite(u_prev)):
-        return f"prev_control must be 2 finite numbers, got {prev_control}"
+    if x0.shape != (2 * dim,) or not np.all(np.isfinite(x0)):
+        return f"state must be {2 * dim} finite numbers, got {state}"
+    u_prev = np.zeros(dim) if prev_control is None else np.asarray(prev_control, dtype=float)
+    if u_prev.shape != (dim,) or not np.all(np.isfinite(u_prev)):
+        return f"prev_control must be {dim} finite numbers, got {prev_control}"
     if not isinstance(objective, Objective):
         return f"unknown objective {objective!r}"
     hull_t = tuple(hulls)
-    if not all(isinstance(h, Polytope) for h in hull_t):
-        return "hulls must be Polytope instances"
+    kind = Polytope if dim == 2 else Prism
+    if not all(isinstance(h, kind) for h in hull_t):
+        return f"hulls must be {kind.__name__} instances"
     return x0, u_prev, hull_t
 
 
-def disjunction_margin(points: Array, hulls: Sequence[Polytope], eps: float) -> float:
-    """min over points and hulls of max_l (α_l·p − β_l) − ε: ≥ 0 iff Eq. (P2_3)-(P2_4) hold (m)."""
-    pts = np.asarray(points, dtype=float).reshape(-1, 2)
-    if not hulls or not len(pts):
+def disjunction_margin(points: Array, hulls: Sequence[Obstacle], eps: float) -> float:
+    """min over points and hulls of max_l (α_l·p − β_l) − ε: ≥ 0 iff Eq. (P2_3)-(P2_4) hold (m);
+    every face of each hull, the six of a cuboid in 3-D (points (n, 2) or (n, 3), as the
+    hulls' normals)."""
+    if not hulls:
+        return float("inf")
+    pts = np.asarray(points, dtype=float).reshape(-1, hulls[0].A.shape[1])
+    if not len(pts):
         return float("inf")
     a = np.vstack([h.A for h in hulls])
     b = np.concatenate([h.b for h in hulls])
@@ -102,45 +131,57 @@ def disjunction_margin(points: Array, hulls: Sequence[Polytope], eps: float) -> 
     return float(np.min(np.maximum.reduceat(pts @ a.T - b, starts, axis=1))) - eps
 
 
-def verify_p2_plan(states: Array, controls: Array, hulls: Sequence[Polytope],
+def _boxes(hulls: Sequence[Obstacle], dim: int) -> tuple[Array, Array]:
+    """The hulls' bounding boxes (lo, hi), (H, dim) each (m)."""
+    if dim == 2:
+        return hull_boxes(hulls)  # type: ignore[arg-type]
+    boxes = [h.box for h in hulls if isinstance(h, Prism)]
+    return (np.array([b[0] for b in boxes]).reshape(-1, 3),
+            np.array([b[1] for b in boxes]).reshape(-1, 3))
+
+
+def verify_p2_plan(states: Array, controls: Array, hulls: Sequence[Obstacle],
                    dynamics: DynamicsParams, epsilon_m: float, d_safe_m: float,
                    area_size_m: float | None, tol: float = 1e-6,
-                   rolled_out: bool = False) -> Verdict:
+                   rolled_out: bool = False, band: AltitudeBand | None = None) -> Verdict:
     """Every check a System 2 plan must pass before it is returned as OK.
 
     :func:`dualpilot.verify.verify_trajectory` (Eq. (1), U and X, exact
-    segment clearance ≥ ``d_safe_m``), then Eq. (P2_3)-(P2_4) at every
+    segment clearance ≥ ``d_safe_m``; in 3-D the ``band``), then Eq. (P2_3)-(P2_4) at every
     planned position p_{t+1|t}..p_{t+T|t} against the true hull faces
-    (max_l α·p − β ≥ ε − tol), then the area bounds unless ``area_size_m`` is None.
-    Hulls provably clear of every segment (by a bounding-box lower bound) are
+    (max_l α·p − β ≥ ε − tol), then the area bounds (the plane) unless ``area_size_m`` is
+    None. Hulls provably clear of every segment (by a bounding-box lower bound) are
     skipped by the segment check only. ``rolled_out``: the caller made ``states`` by
     :func:`dualpilot.model.dynamics.rollout` of ``controls`` (Eq. (1) holds exactly).
     """
-    pts = np.asarray(states, dtype=float).reshape(-1, 4)[:, :2]
+    dim = dynamics.dim
+    pts = np.asarray(states, dtype=float).reshape(-1, 2 * dim)[:, :dim]
     if len(pts) > 1 and np.all(np.isfinite(pts)):
         # skip hulls that provably keep the clearance: every point of segment k lies
         # within L_k / 2 of an end, so dist(segment, hull) ≥ min(d_k, d_k+1) − L_k / 2
         # with d the (smaller) distance of each sample to the hull's bounding box
         half = 0.5 * np.linalg.norm(np.diff(pts, axis=0), axis=1)
-        kept: list[Polytope] = []
+        kept: list[Obstacle] = []
         if hulls:
-            lo, hi = hull_boxes(hulls)  # (H, 2) each
+            lo, hi = _boxes(hulls, dim)  # (H, dim) each
             gap = np.maximum(0.0, np.maximum(lo[:, None, :] - pts[None],
                                              pts[None] - hi[:, None, :]))
-            d = np.hypot(gap[..., 0], gap[..., 1])  # (H, points)
+            d = (np.hypot(gap[..., 0], gap[..., 1]) if dim == 2
+                 else np.sqrt(np.sum(gap * gap, axis=-1)))  # (H, points)
             near = np.min(np.minimum(d[:, :-1], d[:, 1:]) - half, axis=1) < d_safe_m + 1.0
             kept = [h for h, k in zip(hulls, near.tolist(), strict=True) if k]
     else:
         kept = list(hulls)
-    verdict = verify_trajectory(states, controls, kept, dynamics, clearance_m=d_safe_m,
-                                rolled_out=rolled_out)
+    verdict = verify_trajectory(states, controls, kept, dynamics,  # type: ignore[arg-type]
+                                clearance_m=d_safe_m, rolled_out=rolled_out, band=band)
     if not verdict.ok:
         return verdict
-    pos = np.asarray(states, dtype=float)[1:, :2]
+    pos = np.asarray(states, dtype=float)[1:, :dim]
     margin = disjunction_margin(pos, hulls, epsilon_m)
     if margin < -tol:
         return Verdict(False, f"ε-disjunction of (P2) violated by {-margin:.3g} m",
                        verdict.clearance_m)
-    if area_size_m is not None and (np.any(pos < -tol) or np.any(pos > area_size_m + tol)):
+    flat = pos[:, :2]
+    if area_size_m is not None and (np.any(flat < -tol) or np.any(flat > area_size_m + tol)):
         return Verdict(False, "a planned position leaves the area", verdict.clearance_m)
     return verdict
