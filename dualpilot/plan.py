@@ -16,6 +16,22 @@ import numpy as np
 
 from dualpilot.arrays import Array
 from dualpilot.model.geometry import Polytope
+from dualpilot.model.prism import Prism
+
+#: What a planner avoids, one per front (:meth:`~dualpilot.model.fire.FireSnapshot.obstacles`):
+#: planar polygons in 2-D, prisms (a cuboid's six faces, a swept hull's k + 2) in 3-D. A
+#: planner is built for one spec's dimension (:func:`dualpilot.planners.build_planner`
+#: refuses a method that does not plan in it), so it is handed obstacles of its kind only;
+#: :class:`Planner` names the planar kind until a planner plans in 3-D.
+Obstacles = tuple[Polytope, ...] | tuple[Prism, ...]
+
+
+def planar_obstacles(obstacles: Obstacles) -> tuple[Polytope, ...]:
+    """``obstacles`` as the planar kind a 2-D planner or message takes (ValueError for
+    prisms: they need a planner, or a wire form, of the third dimension)."""
+    if not all(isinstance(o, Polytope) for o in obstacles):
+        raise ValueError("3-D obstacles (prisms) given where planar ones are taken")
+    return obstacles  # type: ignore[return-value]
 
 if TYPE_CHECKING:
     from dualpilot.model.risk import ForecastView

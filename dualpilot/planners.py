@@ -54,10 +54,15 @@ class PlannerMethod:
     build_risk: Constructor | None = None
     #: one line for listings
     summary: str = ""
+    #: the dimensions (``DynamicsParams.dim``) it plans in: 2 (the top-down evaluation)
+    #: unless it says 3 too (docs/three_d.md)
+    dims: frozenset[int] = frozenset({2})
 
     def __post_init__(self) -> None:
         if self.system not in (1, 2):
             raise ValueError(f"a planning method plans for System 1 or 2, not {self.system!r}")
+        if not self.dims or not self.dims <= {2, 3}:
+            raise ValueError(f"a planning method plans in 2-D, 3-D or both, not {self.dims}")
 
 
 def _rrt(spec: MissionSpec, params: System1Params | None) -> Planner:
@@ -203,6 +208,10 @@ def build_planner(system: int, spec: MissionSpec, method: str | None = None,
     if risk and entry.build_risk is None:
         raise ValueError(f"System {system} method {method!r} has no risk-aware variant; "
                          f"those that have: {risk_aware_names(system)}")
+    if spec.dim not in entry.dims:
+        raise ValueError(f"System {system} method {method!r} plans in "
+                         f"{' and '.join(f'{d}-D' for d in sorted(entry.dims))} only, not "
+                         f"dim={spec.dim}")
     if system == 1:
         from dualpilot.system1.planner import System1Params
 

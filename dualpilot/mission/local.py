@@ -12,20 +12,22 @@ from dualpilot.mission.ports import KeepOut, PlanRequest
 from dualpilot.mission.step import Mission, MissionPorts
 from dualpilot.model.dynamics import Array, DynamicsParams, hover_state, step
 from dualpilot.model.field_forecast import field_forecast, forecast_step_substeps
-from dualpilot.model.fire import FireParams, FireSnapshot
+from dualpilot.model.fire import FireParams, FireSnapshot, Region
 from dualpilot.model.fire_field import FireField
+from dualpilot.model.fire_height import FireHeights
 from dualpilot.model.forecast import ForecastParams, OccupancyForecast
-from dualpilot.model.geometry import Rect
-from dualpilot.plan import ForecastPlanner, Plan, Planner, PlanStatus
+from dualpilot.plan import ForecastPlanner, Plan, Planner, PlanStatus, planar_obstacles
 from dualpilot.spec import MissionSpec, Stream
 
 
 class LocalFires:
-    """The fire process of Sec. II-B in this process, on the spec's fire stream."""
+    """The fire process of Sec. II-B in this process, on the spec's fire stream (and, in 3-D,
+    its fronts' tops from ``heights``)."""
 
     def __init__(self, spec: MissionSpec, params: FireParams = FireParams(),
-                 forecast_params: ForecastParams | None = None):
-        self.field = FireField(params=params, area_size_m=spec.area_size_m)
+                 forecast_params: ForecastParams | None = None,
+                 heights: FireHeights | None = None):
+        self.field = FireField(params=params, area_size_m=spec.area_size_m, heights=heights)
         self.rng = spec.rng(Stream.FIRE)
         self.seed = spec.seed
         self.forecast_params = forecast_params or ForecastParams()
@@ -51,11 +53,11 @@ class LocalFires:
             self._forecasts[key] = got
         return got
 
-    def advance(self, t: int, n: int, keep_out: KeepOut | None) -> list[tuple[Rect, ...]]:
+    def advance(self, t: int, n: int, keep_out: KeepOut | None) -> list[tuple[Region, ...]]:
         out = []
         for _ in range(n):
             self.field.substep(self.rng, t, keep_out=keep_out)
-            out.append(tuple(f.region for f in self.field.fronts))
+            out.append(self.field.current())
         return out
 
 
@@ -75,12 +77,14 @@ class LocalPlanners:
         t0 = time.perf_counter()
         try:
             planner = self.planners[request.system]
+            # the planners are built for the spec's dimension; Planner names the planar kind
+            obstacles = planar_obstacles(request.obstacles)
             if request.forecast is not None and self.uses_forecast(request.system):
                 return cast(ForecastPlanner, planner).plan(
-                    request.state, request.obstacles, request.objective, request.prev_control,
+                    request.state, obstacles, request.objective, request.prev_control,
                     forecast=request.forecast)
             return planner.plan(
-                request.state, request.obstacles, request.objective, request.prev_control)
+                request.state, obstacles, request.objective, request.prev_control)
         except ValueError as err:  # bad input to the planner: not flyable, not fatal
             return Plan.failed(request.system, PlanStatus.INVALID_INPUT,
                                time.perf_counter() - t0, str(err))
@@ -113,17 +117,20 @@ class LocalVehicle:
 
 
 def local_mission(config: MissionConfig, planners: dict[int, Planner] | None = None) -> Mission:
-    """The mission of ``config`` flown in this process (its planners built from the spec by
-    default: the config's methods, risk-aware with ``config.risk``, System 2 with its time
-    limit)."""
+    """The mission of ``config`` flown in this process (by default the planners of the systems
+    its controller asks, built from the spec: the config's methods, risk-aware with
+    ``config.risk``, System 2 with its time limit)."""
     spec = config.spec()
     if planners is None:
-        from dualpilot.planners import build_planners
+        from dualpilot.planners import build_planner
 
-        planners = build_planners(spec, config.methods(), risk=config.risk,
-                                  system2_params=config.system2_params())
-    state = hover_state(np.array(spec.start), spec.dynamics)
-    fires = LocalFires(spec, config.reading().fire, config.forecast)
+        methods = config.methods()
+        planners = {s: build_planner(s, spec, methods[s], config.system2_params() if s == 2
+                                     else None, config.risk) for s in config.systems()}
+    state = hover_state(spec.start_position, spec.dynamics)
+    reading = config.reading()
+    heights = reading.altitude.fire_heights(spec, reading.fire.scenario)
+    fires = LocalFires(spec, reading.fire, config.forecast, heights)
     ports = MissionPorts(fires, LocalPlanners(planners),
                          LocalVehicle(state, spec.dynamics))
     return Mission(config, spec, ports, state)

@@ -7,19 +7,19 @@ simulated seconds of the mission.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Protocol, runtime_checkable
 
 from dualpilot.mission.result import Ending, StepRecord
 from dualpilot.model.dynamics import Array
-from dualpilot.model.fire import FireSnapshot
+from dualpilot.model.fire import FireSnapshot, Region
 from dualpilot.model.forecast import OccupancyForecast
-from dualpilot.model.geometry import Polytope, Rect
 from dualpilot.model.risk import ForecastView
-from dualpilot.plan import Objective, Plan
+from dualpilot.plan import Objective, Obstacles, Plan
 from dualpilot.supervisor.paper.decision import Decision
 
-#: Where no front may ignite during a fire sub-step: (position (m), radius (m)).
+#: Where no front may ignite during a fire sub-step: (position (m), (dim,), radius (m)).
 KeepOut = tuple[Array, float]
 
 
@@ -29,9 +29,10 @@ class PlanRequest:
 
     t: int
     system: int
-    state: Array
-    prev_control: Array  # u_{t|t}, the control applied at the previous step (N)
-    obstacles: tuple[Polytope, ...]  # FireSnapshot.obstacles_for the UAV's position
+    state: Array  # x_t, (2·dim,)
+    prev_control: Array  # u_{t|t}, the control applied at the previous step (N), (dim,)
+    #: FireSnapshot.obstacles of the UAV's position: polygons in 2-D, prisms in 3-D
+    obstacles: Obstacles
     objective: Objective
     #: the fire forecast for a risk-aware planner (None: the paper's planners, or no forecast)
     forecast: ForecastView | None = None
@@ -46,8 +47,10 @@ class FirePort(Protocol):
         """How far (m) the fire data must be grown before planning (0 while it is fresh)."""
         ...
 
-    def advance(self, t: int, n: int, keep_out: KeepOut | None) -> list[tuple[Rect, ...]]:
-        """Propagate ``n`` sub-steps of T_f; the active regions after each one.
+    def advance(self, t: int, n: int,
+                keep_out: KeepOut | None) -> Sequence[tuple[Region, ...]]:
+        """Propagate ``n`` sub-steps of T_f; the active regions after each one (rectangles;
+        in 3-D cuboids, a rectangle without a top being taller than the band).
 
         Fewer than ``n`` entries (none) when the fire service could not run them.
         """

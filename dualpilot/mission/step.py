@@ -20,6 +20,15 @@ Each step t:
 A plan that is not OK is never flown: with no OK plan the UAV brakes.
 The step is written once; :mod:`dualpilot.mission.local` runs it in one process,
 ``services/supervisor`` over Zenoh and MAVLink.
+
+In 3-D (``spec.dim == 3``, docs/three_d.md) positions are [x, y, z] (z up) and every
+region is its front's cuboid C_t (:class:`~dualpilot.model.prism.Cuboid`): d_t of
+Eq. (KSI) is the Euclidean distance to the nearest cuboid, as the paper writes it
+(d_t = ‖x_t^p − ŷ_t^p‖₂), d_safe and the failure rules are measured to the cuboids, and G
+is the goal box (:attr:`~dualpilot.spec.MissionSpec.goal_box`). A snapshot or region
+without a top (the stack's until its wire carries them) is a cuboid taller than the band
+(:attr:`~dualpilot.spec.MissionSpec.above_ceiling_m`). With every cuboid taller than the
+band, a UAV in the band gets the planar distances bit for bit: the 2-D mission.
 """
 
 from __future__ import annotations
@@ -44,8 +53,9 @@ from dualpilot.mission.ports import (
 )
 from dualpilot.mission.result import Ending, MissionResult, StepRecord
 from dualpilot.model.dynamics import Array, step
-from dualpilot.model.fire import FireSnapshot, substeps_for
+from dualpilot.model.fire import FireSnapshot, Region, substeps_for
 from dualpilot.model.geometry import Rect
+from dualpilot.model.prism import Cuboid
 from dualpilot.model.risk import ForecastView, RiskNote, risk_note
 from dualpilot.spec import MissionSpec, Stream
 from dualpilot.supervisor.interface import Planned
@@ -53,54 +63,69 @@ from dualpilot.supervisor.paper.decision import DecisionDynamics
 from dualpilot.supervisor.registry import build_supervisor
 
 
-def nearest_region_distance(position: Array, regions: tuple[Rect, ...]) -> float:
-    """Distance (m) from ``position`` to the nearest region; inf when there is none."""
+def nearest_region_distance(position: Array, regions: tuple[Region, ...]) -> float:
+    """Distance (m) from ``position`` to the nearest region (rectangles in the plane, cuboids
+    in 3-D); inf when there is none."""
     return min((r.distance(position) for r in regions), default=float("inf"))
 
 
-def segment_region_distance(p0: Array, p1: Array, regions: tuple[Rect, ...]) -> float:
+def _segment_distance(region: Region, p0: Array, p1: Array) -> float:
+    if isinstance(region, Cuboid):
+        return region.segment_distance(p0, p1)
+    return region.polytope().segment_distance(p0, p1)
+
+
+def segment_region_distance(p0: Array, p1: Array, regions: tuple[Region, ...]) -> float:
     """Distance (m) from the flown segment p0–p1 to the nearest region; inf when there is none."""
-    return min((r.polytope().segment_distance(p0, p1) for r in regions), default=float("inf"))
+    return min((_segment_distance(r, p0, p1) for r in regions), default=float("inf"))
 
 
-def segment_within(p0: Array, p1: Array, regions: tuple[Rect, ...], d_m: float) -> bool:
+def _box_gap2(region: Region, lo: list[float], hi: list[float]) -> float:
+    """The squared gap (m²) between the segment's box [lo, hi] and the region's box."""
+    bounds = region.bounds3 if isinstance(region, Cuboid) else region.bounds
+    n = len(bounds) // 2
+    gap2 = 0.0
+    for a in range(n):
+        g = max(0.0, bounds[a] - hi[a], lo[a] - bounds[n + a])
+        gap2 += g * g
+    return gap2
+
+
+def segment_within(p0: Array, p1: Array, regions: tuple[Region, ...], d_m: float) -> bool:
     """Whether the segment p0–p1 passes within ``d_m`` (m) of a region: the exact distance
-    (:func:`segment_region_distance`) of the regions whose box gap to the segment's box,
-    a lower bound on it, is below ``d_m``."""
-    x0, y0, x1, y1 = float(p0[0]), float(p0[1]), float(p1[0]), float(p1[1])
-    lox, hix = min(x0, x1), max(x0, x1)
-    loy, hiy = min(y0, y1), max(y0, y1)
-    near = []
-    for r in regions:
-        bx0, by0, bx1, by1 = r.bounds
-        gx = max(0.0, bx0 - hix, lox - bx1)
-        gy = max(0.0, by0 - hiy, loy - by1)
-        if gx * gx + gy * gy < d_m * d_m:
-            near.append(r)
-    return segment_region_distance(p0, p1, tuple(near)) < d_m
+    (:func:`segment_region_distance`) of the regions whose box gap to the segment's box (the
+    altitude gap too, for a cuboid), a lower bound on it, is below ``d_m``."""
+    a = [float(v) for v in p0]
+    b = [float(v) for v in p1]
+    lo = [min(u, v) for u, v in zip(a, b, strict=True)]
+    hi = [max(u, v) for u, v in zip(a, b, strict=True)]
+    near = tuple(r for r in regions if _box_gap2(r, lo, hi) < d_m * d_m)
+    return segment_region_distance(p0, p1, near) < d_m
 
 
 def attention_distance(
     position: Array, snapshot: FireSnapshot, t: int, params: MissionParams
 ) -> float:
-    """d_t of Eq. (KSI) under ``params.d_t_reading`` (m; inf when no region counts).
+    """d_t of Eq. (KSI) under ``params.d_t_reading`` (m; inf when no region counts): to the
+    nearest region, rectangle or (3-D, a snapshot with tops) cuboid.
 
     Fronts are stamped with the step during whose sub-steps they ignited, so
     at step t's decision the fronts that emerged since the last one ("newborn")
     carry ``born_step == t - 1``.
     """
     if params.d_t_reading == "hull":
-        return min((h.distance(position) for h in snapshot.hulls), default=float("inf"))
-    regions = snapshot.regions
+        hulls = snapshot.hull_prisms() if snapshot.has_tops else snapshot.hulls
+        return min((h.distance(position) for h in hulls), default=float("inf"))
+    regions = snapshot.current()
     if params.d_t_reading == "newborn":
         regions = tuple(
-            r for r, b in zip(snapshot.regions, snapshot.born_steps, strict=True) if b == t - 1
+            r for r, b in zip(regions, snapshot.born_steps, strict=True) if b == t - 1
         )
     return nearest_region_distance(position, regions)
 
 
 def counted_regions(snapshot: FireSnapshot, t: int, params: MissionParams, d_safe_m: float,
-                    previous: dict[int, float]) -> tuple[Rect, ...]:
+                    previous: dict[int, float]) -> tuple[Region, ...]:
     """The regions whose coming within d_safe fails the mission at step t (``failure_rule``).
 
     "any": every active region; "newborn": those born during step t; "become":
@@ -108,9 +133,10 @@ def counted_regions(snapshot: FireSnapshot, t: int, params: MissionParams, d_saf
     (``previous``: front id → distance (m), see :func:`remember_distances`).
     """
     rule = params.failure_rule
+    regions = snapshot.current()
     if rule == "any":
-        return snapshot.regions
-    fronts = zip(snapshot.regions, snapshot.front_ids, snapshot.born_steps, strict=True)
+        return regions
+    fronts = zip(regions, snapshot.front_ids, snapshot.born_steps, strict=True)
     if rule == "newborn":
         return tuple(r for r, _, b in fronts if b == t)
     return tuple(r for r, i, _ in fronts if previous.get(i, 0.0) >= d_safe_m)
@@ -121,18 +147,18 @@ def remember_distances(position: Array, snapshot: FireSnapshot,
     """Each active front's distance (m) from ``position``, for the "become" rule's next check."""
     previous.clear()
     previous.update((i, r.distance(position))
-                    for r, i in zip(snapshot.regions, snapshot.front_ids, strict=True))
+                    for r, i in zip(snapshot.current(), snapshot.front_ids, strict=True))
 
 
 def flight_outcome(
-    p0: Array, p1: Array, regions: tuple[Rect, ...], steps: int, spec: MissionSpec,
+    p0: Array, p1: Array, regions: tuple[Region, ...], steps: int, spec: MissionSpec,
     params: MissionParams,
 ) -> Ending | None:
     """After flying p0 → p1: how the mission ended (in G, fire contact, the step limit), or
     None to go on."""
     if segment_within(p0, p1, regions, spec.d_safe_m):
         return Ending.FIRE_CONTACT
-    if spec.goal.contains(p1):
+    if spec.in_goal(p1):
         return Ending.GOAL
     if steps >= params.max_steps:
         return Ending.STEP_LIMIT
@@ -165,6 +191,7 @@ class Mission:
         self.controller = config.controller
         self.spec = spec
         self.dyn = spec.dynamics
+        self.dim = spec.dim
         self.fires, self.planners, self.vehicle = ports.fires, ports.planners, ports.vehicle
         self.timing = config.timing
         self.params = reading.mission
@@ -189,10 +216,10 @@ class Mission:
         self.done = False
         #: front id → distance (m) at the last fire check (the "become" failure rule)
         self.front_distances: dict[int, float] = {}
-        first = self.fires.snapshot()
-        if self._within_d_safe(first.regions):
+        first = self._snapshot()
+        if self._within_d_safe(first.current()):
             raise ValueError("the start lies within d_safe of a fire")
-        remember_distances(self.state[:2], first, self.front_distances)
+        remember_distances(self._position(), first, self.front_distances)
 
     def resume(self, result: MissionResult) -> None:
         """Continue a mission whose steps are in ``result`` (a restarted supervisor).
@@ -211,21 +238,37 @@ class Mission:
         self.result = result
 
     # -- one tick -------------------------------------------------------------------
-    def _within_d_safe(self, regions: tuple[Rect, ...]) -> bool:
-        return nearest_region_distance(self.state[:2], regions) < self.spec.d_safe_m
+    def _position(self) -> Array:
+        """The UAV's position (m), shape (dim,)."""
+        return self.state[: self.dim]
+
+    def _snapshot(self) -> FireSnapshot:
+        """The fire port's snapshot; in 3-D one without tops has fires taller than the band."""
+        snap = self.fires.snapshot()
+        return snap.with_tops(self.spec.above_ceiling_m) if self.dim == 3 else snap
+
+    def _regions(self, regions: tuple[Region, ...]) -> tuple[Region, ...]:
+        """A sub-step's regions; in 3-D a rectangle without a top is taller than the band."""
+        if self.dim != 3:
+            return regions
+        top = self.spec.above_ceiling_m
+        return tuple(Cuboid(r, top) if isinstance(r, Rect) else r for r in regions)
+
+    def _within_d_safe(self, regions: tuple[Region, ...]) -> bool:
+        return nearest_region_distance(self._position(), regions) < self.spec.d_safe_m
 
     def _keep_out(self) -> KeepOut | None:
         clear = self.params.ignition_clearance_m
-        return None if clear is None else (self.state[:2].copy(), clear)
+        return None if clear is None else (self._position().copy(), clear)
 
-    def _counted(self, t: int, snapshot: FireSnapshot) -> tuple[Rect, ...]:
+    def _counted(self, t: int, snapshot: FireSnapshot) -> tuple[Region, ...]:
         return counted_regions(snapshot, t, self.params, self.spec.d_safe_m,
                                self.front_distances)
 
     def _fire_fails(self, t: int, snapshot: FireSnapshot) -> bool:
         """The failure rule at the idle UAV; remembers the distances for the next check."""
         failed = self._within_d_safe(self._counted(t, snapshot))
-        remember_distances(self.state[:2], snapshot, self.front_distances)
+        remember_distances(self._position(), snapshot, self.front_distances)
         return failed
 
     def _caught(self, t: int, n: int) -> bool:
@@ -235,11 +278,12 @@ class Mission:
         steps), so the fires then advance one sub-step at a time.
         """
         if self.params.failure_rule == "any":
-            return any(self._within_d_safe(r) for r in self.fires.advance(t, n, self._keep_out()))
+            return any(self._within_d_safe(self._regions(r))
+                       for r in self.fires.advance(t, n, self._keep_out()))
         caught = False
         for _ in range(n):
             if self.fires.advance(t, 1, self._keep_out()):
-                caught = self._fire_fails(t, self.fires.snapshot()) or caught
+                caught = self._fire_fails(t, self._snapshot()) or caught
         return caught
 
     def substeps_per_step(self, system: int) -> int:
@@ -268,11 +312,11 @@ class Mission:
             return None
         t = self.result.steps
         started_s = self.sim_time_s
-        snapshot = self.fires.snapshot()
+        snapshot = self._snapshot()
         if self.result.records and self._within_d_safe(self._counted(t, snapshot)):
             # fire data that caught up (the stack's EWS was back) reached the UAV
             return self._finish(Ending.FIRE_WHILE_STALE, self.result.records[-1])
-        d_t = attention_distance(self.state[:2], snapshot, t, self.params)
+        d_t = attention_distance(self._position(), snapshot, t, self.params)
         planned = self.supervisor.plan(self, t, d_t, snapshot)
         n_sub = substeps_for(planned.planning_s, self.fire_params)
         control, target, positions, info = self._command(planned)
@@ -327,12 +371,12 @@ class Mission:
 
     def _fly(self, t: int, control: Array, flown: int, record: StepRecord) -> StepRecord:
         """The vehicle's step of Eq. (1) towards the setpoint, then the flight's outcome."""
-        prev_pos = self.state[:2].copy()
+        prev_pos = self._position().copy()
         self.state = np.asarray(self.vehicle.observe(), dtype=float)
         self.result.add_flight(control, self.prev_control, self.dyn.dt_s)
         self.sim_time_s += self.dyn.dt_s
-        self.supervisor.after_flight(flown, prev_pos, self.state[:2],
-                                   float(np.sum((control - self.prev_control) ** 2)))
+        self.supervisor.after_flight(flown, prev_pos, self._position(),
+                                     float(np.sum((control - self.prev_control) ** 2)))
         self.prev_control = control
         if self.observer is not None:
             self.observer.recorded(record, True)
@@ -340,10 +384,10 @@ class Mission:
         self.sim_time_s += motion * self.fire_params.substep_s
         if motion and self._caught(t, motion):
             return self._finish(Ending.FIRE_IN_FLIGHT, record)
-        after = self.fires.snapshot()
-        outcome = flight_outcome(prev_pos, self.state[:2], self._counted(t, after),
+        after = self._snapshot()
+        outcome = flight_outcome(prev_pos, self._position(), self._counted(t, after),
                                  self.result.steps, self.spec, self.params)
-        remember_distances(self.state[:2], after, self.front_distances)
+        remember_distances(self._position(), after, self.front_distances)
         return record if outcome is None else self._finish(outcome, record)
 
     def _finish(self, ending: Ending, record: StepRecord) -> StepRecord:

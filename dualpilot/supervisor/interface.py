@@ -122,3 +122,6 @@ class SupervisorEntry:
     system1_method: str = "rrt"
     #: one line for listings
     summary: str = ""
+    #: the dimensions (``DynamicsParams.dim``) it supervises missions in: 2 (the top-down
+    #: evaluation) unless it says 3 too (docs/three_d.md)
+    dims: frozenset[int] = frozenset({2})

@@ -70,5 +70,14 @@ def supervisor_entry(name: str) -> SupervisorEntry:
 
 
 def build_supervisor(config: SupervisorSettings, spec: MissionSpec) -> Supervisor:
-    """``config``'s supervisor for the mission of ``spec``."""
-    return supervisor_entry(config.supervisor).build(config, spec)
+    """``config``'s supervisor for the mission of ``spec`` (ValueError: it does not supervise
+    missions of the spec's dimension)."""
+    entry = supervisor_entry(config.supervisor)
+    if spec.dim not in entry.dims:
+        raise ValueError(f"the {config.supervisor} supervisor supervises missions in "
+                         f"{_dims_text(entry.dims)} only, not dim={spec.dim}")
+    return entry.build(config, spec)
+
+
+def _dims_text(dims: frozenset[int]) -> str:
+    return " and ".join(f"{d}-D" for d in sorted(dims))

@@ -38,7 +38,7 @@ import zenoh
 
 from dualpilot.mission.config import MissionConfig
 from dualpilot.model.risk import ForecastView
-from dualpilot.plan import ForecastPlanner, Plan, Planner, PlanStatus
+from dualpilot.plan import ForecastPlanner, Plan, Planner, PlanStatus, planar_obstacles
 from dualpilot.spec import MissionSpec
 from dualpilot.warmup import warm_up
 from services.msgs import common_pb2, plan_pb2, vehicle_pb2
@@ -163,11 +163,12 @@ class PlannerService:
         view = self.check_forecast(query)
         t0 = time.perf_counter()
         try:
+            obstacles = planar_obstacles(req.obstacles)  # the wire's are planar
             if view is not None:
                 plan = cast(ForecastPlanner, planner).plan(
-                    req.state, req.obstacles, req.objective, req.prev_control, forecast=view)
+                    req.state, obstacles, req.objective, req.prev_control, forecast=view)
             else:
-                plan = planner.plan(req.state, req.obstacles, req.objective, req.prev_control)
+                plan = planner.plan(req.state, obstacles, req.objective, req.prev_control)
         except ValueError as err:  # bad input to the planner: not flyable, not fatal
             plan = Plan.failed(self.system, PlanStatus.INVALID_INPUT, time.perf_counter() - t0,
                                str(err))

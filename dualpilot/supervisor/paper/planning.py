@@ -55,7 +55,7 @@ class PaperSupervisor:
         if step.observer is not None:
             step.observer.decided(t, decision, order[0])
         seen = grown_snapshot(snapshot, step.fires.margin_m())  # stale data: grown
-        obstacles = seen.obstacles_for(step.state[:2], step.spec.clearance_m)
+        obstacles = seen.obstacles(step.state[: step.spec.dim], step.spec.clearance_m)
         got = Planned(decision, None)
         for system in order:
             if not step.planners.available(system):
@@ -89,6 +89,9 @@ def _build(config: SupervisorSettings, spec: MissionSpec) -> Supervisor:
     return PaperSupervisor()
 
 
-#: The registry's "paper" supervisor: every controller, System 1 by Alg. 1 ("rrt").
+#: The registry's "paper" supervisor: every controller, System 1 by Alg. 1 ("rrt"), in 2-D
+#: and 3-D (its rule takes d_t as a number; its obstacles are the snapshot's of the
+#: dimension, and the monitor checks the plans of either).
 ENTRY = SupervisorEntry(_build, frozenset(Controller), "rrt",
-                        "Sec. III-C: the system in control plans, the UAV waits for it")
+                        "Sec. III-C: the system in control plans, the UAV waits for it",
+                        dims=frozenset({2, 3}))

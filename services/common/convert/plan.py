@@ -20,7 +20,7 @@ from dualpilot.mission.config import MissionConfig
 from dualpilot.mission.ports import PlanRequest
 from dualpilot.model.dynamics import DynamicsParams, SpeedLimit
 from dualpilot.model.risk import ForecastView
-from dualpilot.plan import Objective, Plan, PlanStatus, certified_gap
+from dualpilot.plan import Objective, Plan, PlanStatus, certified_gap, planar_obstacles
 from dualpilot.spec import MissionSpec
 from services.common.convert.common import (
     force_from_msg,
@@ -182,7 +182,7 @@ def plan_query_msg(query: PlanQuery, stamper: Stamper, sim_time_s: float) -> pla
     stamper.stamp(m.state.header, sim_time_s)
     state_to_msg(req.state, req.t, m.state)
     m.prev_control.east_n, m.prev_control.north_n = (float(v) for v in req.prev_control)
-    for poly in req.obstacles:
+    for poly in planar_obstacles(req.obstacles):  # the wire carries no tops yet
         polygon_to_msg(poly, m.obstacles.add())
     if req.forecast is not None:
         forecast_to_msg(req.forecast, req.t, m.forecast)
@@ -274,7 +274,7 @@ def check_in_area(req: PlanRequest, spec: MissionSpec) -> None:
     area = spec.area_size_m
     lo, hi = -AREA_MARGIN * area, (1 + AREA_MARGIN) * area
     check_in_box(req.state[None, :2], lo, hi, "the vehicle state")
-    for i, h in enumerate(req.obstacles):
+    for i, h in enumerate(planar_obstacles(req.obstacles)):
         check_in_box(h.vertices, lo, hi, f"obstacle {i}")
 
 
