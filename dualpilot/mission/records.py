@@ -15,6 +15,13 @@ channels (dualpilot/viz/foxglove.py). Those four are written when a mission ends
 line per step, flushed at once, so it survives a crash of the writer (at
 most the line being written is lost) and a mission can be rebuilt from it
 (:func:`result_from_log`).
+
+A 3-D mission (``spec.dim == 3``) writes its altitude too, and only it: steps.csv's
+state and control columns are x, y, z, vx, vy, vz, ux, uy, uz (:func:`step_columns`);
+trace.json's positions are [x, y, z], its steps carry the cuboids' ``tops`` and the hulls'
+``hull_tops`` (m) and the document the band and the goal box's altitudes (``altitude``);
+steps.jsonl's steps carry ``tops`` and ``hull_tops``. A 2-D record is unchanged, byte for
+byte; a record without tops reads back as a snapshot without tops.
 """
 
 from __future__ import annotations
@@ -70,6 +77,23 @@ STEP_COLUMNS = [
     "plan_bound",
     "certified_gap",
 ]
+#: steps.csv's state and control columns of a 3-D mission, in place of the planar ones
+_COLUMNS_3D = {"x": ("x", "y", "z"), "vx": ("vx", "vy", "vz"), "ux": ("ux", "uy", "uz")}
+_PLANAR_ONLY = frozenset({"y", "vy", "uy"})
+
+
+def step_columns(dim: int) -> list[str]:
+    """steps.csv's columns for a mission of dimension ``dim``: :data:`STEP_COLUMNS` in 2-D;
+    in 3-D each position, velocity and force column triple gains its z."""
+    if dim == 2:
+        return list(STEP_COLUMNS)
+    out: list[str] = []
+    for name in STEP_COLUMNS:
+        if name in _COLUMNS_3D:
+            out += _COLUMNS_3D[name]
+        elif name not in _PLANAR_ONLY:
+            out.append(name)
+    return out
 
 
 def _num(v: float) -> float | str:
@@ -112,7 +136,7 @@ def write_steps_csv(result: MissionResult, out: Path) -> Path:
     path = out / "steps.csv"
     with io.StringIO(newline="") as fh:
         writer = csv.writer(fh)
-        writer.writerow(STEP_COLUMNS)
+        writer.writerow(step_columns(result.spec.dim))
         for r in result.records:
             d = r.decision
             writer.writerow(
@@ -138,23 +162,45 @@ def write_steps_csv(result: MissionResult, out: Path) -> Path:
         return atomic_write(path, fh.getvalue())
 
 
+def _tops(snapshot: FireSnapshot) -> dict[str, list[float]]:
+    """The snapshot's tops as a record's keys (none for a snapshot without tops)."""
+    if not snapshot.has_tops:
+        return {}
+    return {"tops": [float(v) for v in snapshot.tops_m],
+            "hull_tops": [float(v) for v in snapshot.hull_tops_m]}
+
+
+def _altitude(spec: MissionSpec) -> dict[str, object]:
+    """trace.json's ``altitude`` key of a 3-D mission (none in 2-D): the band, the start and
+    G_o's altitudes and the goal box's (m)."""
+    if spec.dim != 3:
+        return {}
+    b, g = spec.band, spec.goal_box
+    return {"altitude": {"floor_m": b.floor_m, "ceiling_m": b.ceiling_m,
+                         "start_m": b.start_altitude_m, "goal_m": g.center_z,
+                         "goal_box_m": [g.z_lo, g.z_hi]}}
+
+
 def write_trace(result: MissionResult, out: Path) -> Path:
     cfg = result.spec
+    dim = cfg.dim
     steps = []
     for r in result.records:
         steps.append(
             {
                 "t": r.t,
                 "system": r.system,
-                "position": [round(float(v), 3) for v in r.state[:2]],
+                "position": [round(float(v), 3) for v in r.state[:dim]],
                 "plan": np.round(r.planned_positions, 2).tolist(),
                 "regions": [
                     [rc.center_x, rc.center_y, rc.width, rc.height] for rc in r.snapshot.regions
                 ],
                 "hulls": [np.round(h.vertices, 2).tolist() for h in r.snapshot.hulls],
+                **_tops(r.snapshot),
             }
         )
-    final = result.final_state if result.final_state is not None else np.full(4, np.nan)
+    final = (result.final_state if result.final_state is not None
+             else np.full(2 * dim, np.nan))
     doc = {
         "controller": result.controller,
         "seed": result.seed,
@@ -162,7 +208,8 @@ def write_trace(result: MissionResult, out: Path) -> Path:
         "start": list(cfg.start),
         "goal": [cfg.goal.center_x, cfg.goal.center_y, cfg.goal.width, cfg.goal.height],
         "area_size_m": cfg.area_size_m,
-        "final_position": [float(v) for v in final[:2]],
+        **_altitude(cfg),
+        "final_position": [float(v) for v in final[:dim]],
         "steps": steps,
     }
     return atomic_write(out / "trace.json", json.dumps(doc) + "\n")
@@ -179,11 +226,14 @@ def write_all(result: MissionResult, out: Path, uav: str = "uav1") -> list[Path]
 
 
 def read_steps_csv(path: Path) -> dict[str, np.ndarray]:
-    """Numeric columns of steps.csv as float arrays (text columns as object arrays)."""
+    """Numeric columns of steps.csv as float arrays (text columns as object arrays); a 3-D
+    mission's z, vz and uz too."""
     with Path(path).open() as fh:
-        rows = list(csv.DictReader(fh))
+        reader = csv.DictReader(fh)
+        rows = list(reader)
+        header = reader.fieldnames or []
     cols: dict[str, np.ndarray] = {}
-    for name in STEP_COLUMNS:
+    for name in STEP_COLUMNS + [c for c in ("z", "vz", "uz") if c in header]:
         vals = [row.get(name, "") for row in rows]
         try:  # an empty cell of a numeric column (no bound, say) reads as nan
             cols[name] = np.array([float(v) if v != "" else np.nan for v in vals])
@@ -221,6 +271,7 @@ def record_to_json(r: StepRecord) -> dict[str, object]:
         "plan": np.round(np.asarray(r.planned_positions, dtype=float), 3).tolist(),
         "regions": [[rc.center_x, rc.center_y, rc.width, rc.height] for rc in r.snapshot.regions],
         "hulls": [np.round(h.vertices, 3).tolist() for h in r.snapshot.hulls],
+        **_tops(r.snapshot),
         "front_ids": list(r.snapshot.front_ids), "born_steps": list(r.snapshot.born_steps),
         "info": json.loads(json.dumps(r.info, default=str)),
         "cost": None if r.cost is None else _num(r.cost),
@@ -243,14 +294,18 @@ def record_from_json(doc: dict[str, Any]) -> StepRecord:
         regions=tuple(Rect(*(float(v) for v in rc)) for rc in doc["regions"]),
         hulls=tuple(Polytope.from_vertices(np.asarray(h, dtype=float)) for h in doc["hulls"]),
         front_ids=tuple(int(v) for v in doc.get("front_ids", [])),
-        born_steps=tuple(int(v) for v in doc.get("born_steps", [])))
+        born_steps=tuple(int(v) for v in doc.get("born_steps", [])),
+        tops_m=tuple(float(v) for v in doc.get("tops", [])),
+        hull_tops_m=tuple(float(v) for v in doc.get("hull_tops", [])))
+    control = _back(doc["control"])
     return StepRecord(
-        t=int(doc["t"]), state=_back(doc["state"]), control=_back(doc["control"]),
+        t=int(doc["t"]), state=_back(doc["state"]), control=control,
         decision=decision, system=int(doc["system"]),
         answers=parse_answers(str(doc["plan_status"])),
         planning_time_s=float(doc["planning_time_s"]), fire_substeps=int(doc["fire_substeps"]),
         d_t=float(doc["d_t"]), fires_active=int(doc["fires_active"]),
-        planned_positions=plan if plan.size else np.empty((0, 2)), snapshot=snapshot,
+        planned_positions=plan if plan.size else np.empty((0, len(control))),
+        snapshot=snapshot,
         info=dict(doc.get("info", {})), time_s=float(doc.get("time_s", 0.0)),
         risk=_risk_from_json(doc.get("risk")), cost=_maybe(doc.get("cost")),
         bound=_maybe(doc.get("bound")))
@@ -412,10 +467,12 @@ def result_from_log(entries: list[dict[str, Any]], dt_s: float = 1.0) -> Mission
     end = next((e for e in reversed(entries) if e.get("kind") == "end"), None)
     ending = None if end is None else Ending.read(end)
     caught = ending is Ending.FIRE_WHILE_PLANNING
-    prev = np.zeros(2)
+    prev: Array | None = None
     for i, e in enumerate(steps):
         rec = record_from_json(e)
         result.records.append(rec)
+        if prev is None:
+            prev = np.zeros(len(rec.control))
         if e.get("flown", not (caught and i == len(steps) - 1)):
             result.add_flight(rec.control, prev, dt_s)
             prev = rec.control
