@@ -60,6 +60,9 @@ def solve(config: MissionConfig, params: OracleParams = OracleParams(),
     G, or a certificate that gives up, leaves the answer to the search.
     """
     t0 = time.perf_counter()
+    if config.spec().dim != 2:
+        raise ValueError(f"the oracle (its lattice search and impossibility certificate) "
+                         f"judges planar missions only (dim=2), not dim={config.spec().dim}")
     future = FireFuture(config) if future is None else future
     reach = ReachableSet(config, future, params.certificate)
     cert = reach.run(config.reading().mission.max_steps * future.substeps_per_step)
