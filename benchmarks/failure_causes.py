@@ -12,13 +12,14 @@ from __future__ import annotations
 
 import collections
 import sys
+from collections.abc import Sequence
 
 import numpy as np
 
 from dualpilot.evaluation.missions import Task, mission_spec
 from dualpilot.mission.local import LocalFires, local_mission
 from dualpilot.mission.ports import KeepOut
-from dualpilot.model.geometry import Rect
+from dualpilot.model.fire import Region
 from dualpilot.spec import MissionSpec
 
 
@@ -31,7 +32,8 @@ class ProbedFires(LocalFires):
         self.position = np.array(spec.start)
         self.cause: tuple[str, float | None] | None = None
 
-    def advance(self, t: int, n: int, keep_out: KeepOut | None) -> list[tuple[Rect, ...]]:
+    def advance(self, t: int, n: int,
+                keep_out: KeepOut | None) -> Sequence[tuple[Region, ...]]:
         position = self.position
         before = {f.front_id: f.region.polytope().distance(position) for f in self.field.fronts}
         out = super().advance(t, n, keep_out)

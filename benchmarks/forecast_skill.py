@@ -39,6 +39,7 @@ from dualpilot.evaluation.missions import Task
 from dualpilot.mission.config import MissionConfig
 from dualpilot.mission.local import LocalFires, local_mission
 from dualpilot.mission.result import Ending, StepRecord
+from dualpilot.model.fire import Region
 from dualpilot.model.forecast import LEVELS, OccupancyForecast, occupancy
 from dualpilot.model.geometry import Rect
 from dualpilot.model.scenarios import PAPER, scenario_names
@@ -73,8 +74,8 @@ class Recorder:
         regions: list[Rect] = [fr.region for fr in f.fronts]
         self.truth[f.substeps_done] = occupancy(regions, self.res, self.shape)
 
-    def advance(self, t: int, n: int, keep_out: Any) -> list[tuple[Rect, ...]]:
-        out = []
+    def advance(self, t: int, n: int, keep_out: Any) -> list[tuple[Region, ...]]:
+        out: list[tuple[Region, ...]] = []
         for _ in range(n):
             out += LocalFires.advance(self.fires, t, 1, keep_out)
             self._record()

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import time
+from collections.abc import Sequence
 from typing import cast
 
 import numpy as np
@@ -16,7 +17,8 @@ from dualpilot.model.fire import FireParams, FireSnapshot, Region
 from dualpilot.model.fire_field import FireField
 from dualpilot.model.fire_height import FireHeights
 from dualpilot.model.forecast import ForecastParams, OccupancyForecast
-from dualpilot.plan import ForecastPlanner, Plan, Planner, PlanStatus, planar_obstacles
+from dualpilot.model.geometry import Polytope
+from dualpilot.plan import ForecastPlanner, Plan, Planner, PlanStatus
 from dualpilot.spec import MissionSpec, Stream
 
 
@@ -53,7 +55,8 @@ class LocalFires:
             self._forecasts[key] = got
         return got
 
-    def advance(self, t: int, n: int, keep_out: KeepOut | None) -> list[tuple[Region, ...]]:
+    def advance(self, t: int, n: int,
+                keep_out: KeepOut | None) -> Sequence[tuple[Region, ...]]:
         out = []
         for _ in range(n):
             self.field.substep(self.rng, t, keep_out=keep_out)
@@ -77,8 +80,10 @@ class LocalPlanners:
         t0 = time.perf_counter()
         try:
             planner = self.planners[request.system]
-            # the planners are built for the spec's dimension; Planner names the planar kind
-            obstacles = planar_obstacles(request.obstacles)
+            # a planner is built for the spec's dimension and takes obstacles of its kind
+            # (prisms in 3-D); the Planner protocol names the planar kind until a planner
+            # plans in 3-D
+            obstacles = cast(tuple[Polytope, ...], request.obstacles)
             if request.forecast is not None and self.uses_forecast(request.system):
                 return cast(ForecastPlanner, planner).plan(
                     request.state, obstacles, request.objective, request.prev_control,

@@ -37,7 +37,7 @@ from dualpilot.model.dynamics import DynamicsParams, rollout
 from dualpilot.model.fire import FireParams
 from dualpilot.model.fire_field import FireField
 from dualpilot.model.geometry import Polytope, Rect
-from dualpilot.plan import Objective, Plan, PlanStatus
+from dualpilot.plan import Objective, Plan, PlanStatus, planar_obstacles
 from dualpilot.spec import MissionSpec
 from dualpilot.supervisor.paper.decision import Decision, DecisionDynamics
 from services.common import limits, mav, mavlink_codec, rejections, wire
@@ -183,7 +183,7 @@ def ok_plan_request(q: plan_convert.PlanQuery | plan_convert.Prepare) -> None:
     ok_state(r.state)
     assert r.prev_control.shape == (2,) and np.all(np.isfinite(r.prev_control))
     assert len(r.obstacles) <= 2 * limits.MAX_FRONTS
-    for h in r.obstacles:
+    for h in planar_obstacles(r.obstacles):  # the wire's obstacles are planar
         _ok_polytope(h)
 
 

@@ -37,6 +37,13 @@ SETTINGS: dict[str, st.SearchStrategy[Any]] = {
     "d_t_reading": st.sampled_from(["active", "newborn", "hull"]),
     "keep_extinct_hulls": st.booleans(),
     "speed_limit": st.sampled_from(["axis", "norm"]),
+    "dim": st.sampled_from([2, 3]),
+    "ceiling_m": st.floats(60.0, 300.0),
+    "goal_altitude_m": st.none() | st.floats(20.0, 60.0),
+    "goal_vertical": st.sampled_from(["band", "cube"]),
+    "fire_height": st.sampled_from(["auto", "above-ceiling"]),
+    "plume_intensity": st.sampled_from(["front", "head"]),
+    "uav_limit_c": st.floats(31.0, 80.0),
 }
 
 

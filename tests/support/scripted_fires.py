@@ -6,7 +6,8 @@ sub-step, the fronts new at each) and, through :meth:`ScriptedFire.port`, a fire
 the mission step flies against (:class:`dualpilot.mission.ports.FirePort`, with the
 fires' exact forecast): the same boxes at the same sub-steps, so a witness is checked
 against the very fires it was planned on. The fires do not depend on the UAV or on the
-step length.
+step length. A front may have a height (``top_m``, m): the port then reports the cuboids of
+a 3-D fire (every front of a fire with a top, or none).
 """
 
 from __future__ import annotations
@@ -18,9 +19,10 @@ import numpy as np
 
 from dualpilot.arrays import AnyArray, Array
 from dualpilot.mission.ports import KeepOut
-from dualpilot.model.fire import FireSnapshot
+from dualpilot.model.fire import FireSnapshot, Region
 from dualpilot.model.forecast import OccupancyForecast
 from dualpilot.model.geometry import Rect
+from dualpilot.model.prism import Cuboid
 
 Box = Callable[[int], Rect]
 
@@ -33,6 +35,7 @@ class ScriptedFront:
     box: Box
     born: int = 0
     dies: int | None = None
+    top_m: float | None = None
 
     def active(self, s: int) -> bool:
         return self.born <= s and (self.dies is None or s < self.dies)
@@ -52,6 +55,9 @@ class ScriptedFire:
     def __init__(self, fronts: Sequence[ScriptedFront], substeps_per_step: int = 1):
         self.fronts = tuple(fronts)
         self.substeps_per_step = substeps_per_step
+        tall = {f.top_m is None for f in self.fronts}
+        if len(tall) > 1:
+            raise ValueError("every front of a scripted fire has a top, or none")
 
     def active(self, s: int) -> list[tuple[ScriptedFront, Rect]]:
         return [(f, f.box(s)) for f in self.fronts if f.active(s)]
@@ -83,10 +89,12 @@ class ScriptedFirePort:
 
     def snapshot(self) -> FireSnapshot:
         active = self.fire.active(self.s)
+        tops = tuple(float(f.top_m) for f, _ in active if f.top_m is not None)
         return FireSnapshot(regions=tuple(r for _, r in active),
                             hulls=tuple(r.polytope() for _, r in active),
                             front_ids=tuple(f.front_id for f, _ in active),
-                            born_steps=tuple(f.born for f, _ in active))
+                            born_steps=tuple(f.born for f, _ in active),
+                            tops_m=tops, hull_tops_m=tops)
 
     def margin_m(self) -> float:
         return 0.0
@@ -95,11 +103,12 @@ class ScriptedFirePort:
         """The exact forecast of these fires from now, 40 s ahead in slices of 1 s."""
         return rasterised(self.fire, self.s, tuple(range(0, 81, 2)))
 
-    def advance(self, t: int, n: int, keep_out: KeepOut | None) -> list[tuple[Rect, ...]]:
+    def advance(self, t: int, n: int, keep_out: KeepOut | None) -> list[tuple[Region, ...]]:
         out = []
         for _ in range(n):
             self.s += 1
-            out.append(tuple(r for _, r in self.fire.active(self.s)))
+            out.append(tuple(r if f.top_m is None else Cuboid(r, f.top_m)
+                             for f, r in self.fire.active(self.s)))
         return out
 
 
