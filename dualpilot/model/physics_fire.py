@@ -127,6 +127,13 @@ def fireline_intensities_kw_m(params: PhysicsFireParams) -> tuple[float, float]:
     return float(base["base_fireline_intensity"]), float(head["max_fireline_intensity"])
 
 
+def scenario_tops(physics: PhysicsFireParams, heights: FireHeights) -> PhysicsTops:
+    """The tops of the scenario's fronts (3-D): its intensities and midflame wind."""
+    base, head = fireline_intensities_kw_m(physics)
+    wind = midflame_wind_m_min(physics.fuel_model, physics.wind_speed_mps) / 60.0
+    return PhysicsTops(heights, base, head, wind)
+
+
 def clip_to_box(vertices: np.ndarray, lo: float, hi: float) -> np.ndarray:
     """A convex polygon (counter-clockwise vertices) cut to the square [lo, hi]²
     (Sutherland–Hodgman, one half-plane per side)."""
@@ -211,11 +218,7 @@ class PhysicsFire:
         self.fronts: list[FireFront] = []
         self.extinct_hulls: list[Polytope] = []
         self.extinct_tops: list[float] = []  # their tops (3-D)
-        self.tops: PhysicsTops | None = None
-        if heights is not None:
-            base, head = fireline_intensities_kw_m(physics)
-            self.tops = PhysicsTops(heights, base, head, midflame_wind_m_min(
-                physics.fuel_model, physics.wind_speed_mps) / 60.0)
+        self.tops = None if heights is None else scenario_tops(physics, heights)
         self.births_skipped = 0
         #: the forecast's copy of the level set run ahead, kept between issues
         #: (dualpilot/model/physics_forecast.py); it never touches this process
@@ -376,9 +379,6 @@ class PhysicsFire:
         self._burned_seen = count
         labels, _ = ndimage.label(burned, structure=_EIGHT)
         active = burned & ndimage.binary_dilation(~burned, structure=_FOUR, border_value=0)
-        intensity = None if self.tops is None else np.asarray(
-            self.state.get_full_matrices(["fireline_intensity"])[  # type: ignore[attr-defined]
-                "fireline_intensity"])
         owners: dict[int, list[int]] = {}
         for fid, row, col, _ in self._ignitions:
             if fid not in self._retired and labels[row, col]:
@@ -423,10 +423,7 @@ class PhysicsFire:
             for merged in ids[1:]:  # merged into the oldest: its hull lives on in this one
                 self._retired.add(merged)
                 self._hulls.pop(merged, None)
-            top = hull_top = None
-            if self.tops is not None and intensity is not None:
-                top = self.tops.top(intensity[sl], act)
-                hull_top = self.tops.hull_top(fid, ids[1:], top)
+            top, hull_top = _front_tops(self.tops, self.state, sl, act, fid, ids[1:])
             front = FireFront(fid, born_at[fid], self.head_rate_mps,
                               self.physics.wind_direction_rad, region, hull, top, hull_top)
             cache[fid] = (int(sizes[k]), tuple(ids), front)
@@ -455,6 +452,16 @@ class PhysicsFire:
         return np.column_stack([np.concatenate([xl, xl, xr, xr]),
                                 np.concatenate([yb, yt, yb, yt])])
 
+
+
+def _front_tops(tops: PhysicsTops | None, state: object, window: tuple[slice, ...],
+                active: np.ndarray, fid: int,
+                merged: list[int]) -> tuple[float | None, float | None]:
+    """(top, hull top) (m) of front ``fid``, whose burning cells are ``active`` within
+    ``window`` of the grid; (None, None) in 2-D."""
+    if tops is None:
+        return None, None
+    return tops.of_front(tops.layer(state)[window], active, fid, merged)
 
 
 def covered_area_m2(fire: PhysicsFire, resolution_m: float = 2.5) -> tuple[float, float]:

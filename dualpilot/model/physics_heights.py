@@ -49,6 +49,19 @@ class PhysicsTops:
         burning = max(front_intensity_kw_m(intensity_kw_m, active), self.base_kw_m)
         return fire_top_m(burning, self.wind_mps, h.plume)
 
+    @staticmethod
+    def layer(state: object) -> np.ndarray:
+        """pyretechnics' ``fireline_intensity`` layer (kW/m) of a level-set state."""
+        layers = state.get_full_matrices(["fireline_intensity"])  # type: ignore[attr-defined]
+        return np.asarray(layers["fireline_intensity"])
+
+    def of_front(self, intensity_kw_m: np.ndarray, active: np.ndarray, fid: int,
+                 merged: list[int]) -> tuple[float, float]:
+        """(top, hull top) (m) of front ``fid`` (the fronts ``merged`` into it), its burning
+        perimeter cells ``active`` over ``intensity_kw_m``."""
+        top = self.top(intensity_kw_m, active)
+        return top, self.hull_top(fid, merged, top)
+
     def hull_top(self, fid: int, merged: list[int], top: float) -> float:
         """The highest top (m) of front ``fid`` (and the fronts ``merged`` into it) so far,
         ``top`` its current one; remembered for the next update."""
