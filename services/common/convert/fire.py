@@ -241,7 +241,9 @@ def fire_advance_msg(mission_id: str, step: int, substeps: int, keep_out: KeepOu
     m = fire_pb2.FireCommand(mission_id=mission_id)
     m.advance.step, m.advance.substeps = step, substeps
     if keep_out is not None:
-        m.advance.keep_out.east_m, m.advance.keep_out.north_m = (float(v) for v in keep_out[0])
+        # the wire's keep-out is planar (a 3-D mission's altitude is not on it yet)
+        m.advance.keep_out.east_m, m.advance.keep_out.north_m = (float(v)
+                                                                  for v in keep_out[0][:2])
         m.advance.keep_out_m = float(keep_out[1])
     if clock is not None:
         sim_clock_to_msg(clock, m.advance.clock)
