@@ -211,7 +211,9 @@ def build_planner(system: int, spec: MissionSpec, method: str | None = None,
     if spec.dim not in entry.dims:
         raise ValueError(f"System {system} method {method!r} plans in "
                          f"{' and '.join(f'{d}-D' for d in sorted(entry.dims))} only, not "
-                         f"dim={spec.dim}")
+                         f"dim={spec.dim}" + (f": {spec.dim}-D planning for it is not built "
+                                              "yet (docs/three_d.md, Status)"
+                                              if method in BUILTIN else ""))
     if system == 1:
         from dualpilot.system1.planner import System1Params
 

@@ -16,7 +16,14 @@ from collections.abc import Callable, Iterable
 from pathlib import Path
 from typing import Any
 
-from dualpilot.evaluation.missions import COLUMNS, CONTROLLERS, ORACLE, Task, run_config
+from dualpilot.evaluation.missions import (
+    COLUMNS,
+    CONTROLLERS,
+    ORACLE,
+    Task,
+    check_dimensions,
+    run_config,
+)
 from dualpilot.evaluation.results import check_config, read_results
 from dualpilot.evaluation.runner import run
 from dualpilot.evaluation.stats import summarize
@@ -48,9 +55,10 @@ def evaluate(
     written to ``yardstick.md``; with ``figure``, Fig. r5 is drawn to ``fig_r5.png``.
     """
     base = base or MissionConfig()
+    controllers = tuple(controllers)
+    check_dimensions(base, controllers)
     out.mkdir(parents=True, exist_ok=True)
     path = out / "results.csv"
-    controllers = tuple(controllers)
     timing = base.timing.value
     for row in read_results(path):
         if row.get("timing") != timing:
@@ -78,3 +86,4 @@ def evaluate(
     if figure is not None:
         figure(summary, out / "fig_r5.png")
     return summary
+

@@ -14,6 +14,7 @@ from __future__ import annotations
 import sys
 import time
 import traceback
+from collections.abc import Sequence
 from dataclasses import dataclass, replace
 from typing import Any
 
@@ -22,6 +23,7 @@ import numpy as np
 from dualpilot.evaluation.columns import flight_columns, oracle_columns
 from dualpilot.mission.config import MissionConfig, parse_controller
 from dualpilot.mission.config_args import config_to_argv, parse_config
+from dualpilot.mission.dimension import flying_text, reason
 from dualpilot.mission.params import Timing
 from dualpilot.mission.result import Ending
 from dualpilot.spec import MissionSpec
@@ -154,3 +156,23 @@ def run_task(task: Task) -> dict[str, object]:
         traceback.print_exc(file=sys.stderr)
     row["wall_s"] = round(time.perf_counter() - t0, 3)
     return row
+
+
+def check_dimensions(base: MissionConfig, controllers: Sequence[str]) -> None:
+    """Nothing if every controller of ``controllers`` (names, or the oracle) flies ``base``'s
+    dimension; else ValueError naming each that does not and why, before any mission."""
+    from dualpilot.oracle.oracle import check_dimension as oracle_check
+
+    refused = []
+    for name in controllers:
+        config = Task.of(0, base.seed, name, base).config
+        if name == ORACLE:
+            try:
+                oracle_check(config)
+            except ValueError as err:
+                refused.append(f"  {name}: {err}")
+        elif why := reason(config):
+            refused.append(f"  {name}: {why}")
+    if refused:
+        raise ValueError(f"dim={base.spec().dim}: these controllers do not fly it\n"
+                         + "\n".join(refused) + f"\n{flying_text(base)}")

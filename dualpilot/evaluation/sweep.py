@@ -23,6 +23,7 @@ from dualpilot.evaluation.missions import (
     ORACLE,
     Settings,
     Task,
+    check_dimensions,
     other_flags,
 )
 from dualpilot.evaluation.results import check_config, read_results, write_parquet
@@ -122,6 +123,8 @@ def sweep(points: Sequence[Point], missions: int, out: Path, base: MissionConfig
     reading, flown by one of ``controllers``."""
     base = base or MissionConfig()
     seed, timing = base.seed, base.timing.value
+    for p in points:
+        check_dimensions(p.config(base), controllers)
     out.mkdir(parents=True, exist_ok=True)
     config: dict[str, Any] = {"seed": seed, "timing": timing, "s2_method": base.system2_method,
                               "points": [p.label for p in points]}

@@ -9,6 +9,7 @@ from typing import cast
 import numpy as np
 
 from dualpilot.mission.config import MissionConfig
+from dualpilot.mission.dimension import check_dimension
 from dualpilot.mission.ports import KeepOut, PlanRequest
 from dualpilot.mission.step import Mission, MissionPorts
 from dualpilot.model.dynamics import Array, DynamicsParams, hover_state, step
@@ -128,6 +129,8 @@ def local_mission(config: MissionConfig, planners: dict[int, Planner] | None = N
     spec = config.spec()
     if planners is None:
         from dualpilot.planners import build_planner
+
+        check_dimension(config)  # before anything is built: the controller, by name
 
         methods = config.methods()
         planners = {s: build_planner(s, spec, methods[s], config.system2_params() if s == 2

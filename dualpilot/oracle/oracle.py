@@ -50,6 +50,19 @@ class Verdict:
     seconds: float = 0.0
 
 
+#: the dimensions (``DynamicsParams.dim``) of the missions the oracle judges
+DIMS = frozenset({2})
+
+
+def check_dimension(config: MissionConfig) -> None:
+    """Nothing if the oracle judges ``config``'s mission; else ValueError naming it."""
+    dim = config.spec().dim
+    if dim not in DIMS:
+        raise ValueError(f"the oracle (its lattice search and impossibility certificate) "
+                         f"judges planar missions only (dim=2), not dim={dim}: its "
+                         f"{dim}-D search is not built yet (docs/three_d.md, Status)")
+
+
 def solve(config: MissionConfig, params: OracleParams = OracleParams(),
           future: Future | None = None, fires: FirePort | None = None) -> Verdict:
     """The verdict on ``config``'s mission (its seed, start, goal and reading); ``future`` and
@@ -60,9 +73,7 @@ def solve(config: MissionConfig, params: OracleParams = OracleParams(),
     G, or a certificate that gives up, leaves the answer to the search.
     """
     t0 = time.perf_counter()
-    if config.spec().dim != 2:
-        raise ValueError(f"the oracle (its lattice search and impossibility certificate) "
-                         f"judges planar missions only (dim=2), not dim={config.spec().dim}")
+    check_dimension(config)
     future = FireFuture(config) if future is None else future
     reach = ReachableSet(config, future, params.certificate)
     cert = reach.run(config.reading().mission.max_steps * future.substeps_per_step)

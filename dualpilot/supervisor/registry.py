@@ -75,7 +75,9 @@ def build_supervisor(config: SupervisorSettings, spec: MissionSpec) -> Superviso
     entry = supervisor_entry(config.supervisor)
     if spec.dim not in entry.dims:
         raise ValueError(f"the {config.supervisor} supervisor supervises missions in "
-                         f"{_dims_text(entry.dims)} only, not dim={spec.dim}")
+                         f"{_dims_text(entry.dims)} only, not dim={spec.dim}"
+                         + (f": {spec.dim}-D supervision for it is not built yet "
+                            "(docs/three_d.md, Status)" if config.supervisor in BUILTIN else ""))
     return entry.build(config, spec)
 
 

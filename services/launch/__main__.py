@@ -18,6 +18,7 @@ from dataclasses import replace
 from pathlib import Path
 
 from dualpilot.mission.config_args import add_config_arguments, config_from_args
+from services.common.stack_dims import check_stack_dimension
 from services.launch.compose import COMPOSE, REPO
 from services.launch.runs import report, run_fleet, run_replicas
 from services.launch.stack import StackConfig, parse_scale, run_mission
@@ -73,6 +74,7 @@ def parser() -> argparse.ArgumentParser:
 def stack_config(args: argparse.Namespace) -> StackConfig:
     """The stack to run (ValueError for a bad flag)."""
     mission = config_from_args(args)
+    check_stack_dimension(mission)
     scale = parse_scale(args.scale)
     if not 1 <= args.vehicles <= 64:
         raise ValueError("--vehicles must be in 1..64")

@@ -29,6 +29,7 @@ from services.common import cli as common_cli
 from services.common import fleet, keys, mav, mission_env
 from services.common.clock import SimClock
 from services.common.convert.vehicle import parse_waypoints
+from services.common.stack_dims import check_stack_dimension
 
 from .ports import StackParams
 
@@ -193,6 +194,7 @@ def parse(argv: list[str] | None, doc: str,
     try:
         settings = common_cli.settings("supervisor", args)
         mission = config_from_args(args)
+        check_stack_dimension(mission)
         SimClock(settings.speed_factor)
         if not args.vehicle_lost_s > 0:
             raise ValueError("--vehicle-lost-s must be > 0")
