@@ -54,8 +54,9 @@ def flying_controllers(config: MissionConfig) -> tuple[str, ...]:
     names = []
     for name in controller_names():
         controller, supervisor, risk = parse_controller(name)
-        if not refusals(replace(config, controller=controller, supervisor=supervisor,
-                                risk=risk)):
+        flown = replace(config, controller=controller, supervisor=supervisor, risk=risk,
+                        concurrent=replace(config.concurrent, threat="current"))  # risk's
+        if not refusals(flown):
             names.append(name)
     return tuple(names)
 

@@ -11,7 +11,6 @@ for first (tests/support/lifted.py), on the paper's process and two scenarios.
 
 from __future__ import annotations
 
-import numpy as np
 import pytest
 
 from dualpilot.mission.config import MissionConfig
@@ -22,7 +21,7 @@ from dualpilot.model.altitude import lift_state, planar_state
 from dualpilot.model.dynamics import hover_state
 from dualpilot.plan import Planner
 from dualpilot.planners import build_planner
-from tests.support.lifted import LiftedPlanner
+from tests.support.lifted import LiftedPlanner, assert_same_mission
 
 SCENARIOS = ("paper", "grass-5", "shrub")
 THREE_D = {"dim": 3, "fire_height": "above-ceiling"}
@@ -33,36 +32,6 @@ def _pair(name: str, seed: int, scenario: str, max_steps: int = 150) -> tuple[
     flat = MissionConfig.named(name, seed=seed, settings=(("scenario", scenario),
                                                           ("max_steps", max_steps)))
     return flat, flat.with_settings(THREE_D)
-
-
-def assert_same_mission(flat: MissionResult, tall: MissionResult) -> None:
-    """The 3-D mission is the 2-D one at 50 m, row for row."""
-    assert tall.spec.dim == 3 and flat.spec.dim == 2
-    assert (flat.ending, flat.steps, flat.energy, flat.mission_time_s, flat.switches,
-            flat.sim_time_s) == (tall.ending, tall.steps, tall.energy, tall.mission_time_s,
-                                 tall.switches, tall.sim_time_s)
-    assert len(flat.records) == len(tall.records)
-    for a, b in zip(flat.records, tall.records, strict=True):
-        assert (a.t, a.system, a.plan_status, a.d_t, a.fire_substeps, a.planning_time_s,
-                a.fires_active, a.time_s) == (b.t, b.system, b.plan_status, b.d_t,
-                                              b.fire_substeps, b.planning_time_s,
-                                              b.fires_active, b.time_s)
-        assert np.array_equal(a.state, planar_state(b.state))
-        assert b.state[2] == 50.0 and b.state[5] == 0.0
-        assert np.array_equal(a.control, b.control[:2]) and b.control[2] == 0.0
-        assert np.array_equal(a.planned_positions, b.planned_positions[:, :2])
-        assert np.all(b.planned_positions[:, 2] == 50.0)
-        da, db = a.decision, b.decision
-        assert (da.attention, da.system, da.objective, da.d_t) == (db.attention, db.system,
-                                                                   db.objective, db.d_t)
-        assert all(np.array_equal(u, v) for u, v in ((da.xi, db.xi), (da.p, db.p),
-                                                     (da.psi, db.psi)))
-        assert a.snapshot.regions == b.snapshot.regions
-        assert all(np.array_equal(h.vertices, g.vertices)
-                   for h, g in zip(a.snapshot.hulls, b.snapshot.hulls, strict=True))
-        assert set(b.snapshot.tops_m) <= {145.0} and set(b.snapshot.hull_tops_m) <= {145.0}
-    assert flat.final_state is not None and tall.final_state is not None
-    assert np.array_equal(flat.final_state, planar_state(tall.final_state))
 
 
 def _braking(config: MissionConfig, velocity: tuple[float, float]) -> MissionResult:

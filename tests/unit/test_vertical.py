@@ -188,7 +188,7 @@ def test_a_planar_method_refuses_a_3d_mission_by_name(system: int, method: str) 
         build_planner(system, spec, method)
 
 
-def test_a_mission_fails_at_the_first_planner_it_asks_that_refuses_3d() -> None:
+def test_a_mission_names_each_planner_that_refuses_3d() -> None:
     from dualpilot.mission.local import local_mission
 
     with pytest.raises(ValueError, match="System 2 method 'fast' plans in 2-D only"):

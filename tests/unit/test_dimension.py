@@ -1,0 +1,151 @@
+"""What a user gets with ``--set dim=3`` (dualpilot/mission/dimension.py, docs/three_d.md).
+
+A controller flies a 3-D mission when its supervisor and the planning method of every
+system it asks say they plan in 3-D; no built-in method does yet, so every controller
+name is refused before its mission starts, by name, with every part that plans in 2-D
+only and that its 3-D planning is not built yet; an evaluation, a sweep and the stack
+refuse before any mission. A method that says it plans in 3-D (here System 1's rrt under
+the reduction, a real registry's entry point) flies, and the refusals then name it among
+the controllers that fly.
+"""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import pytest
+
+import dualpilot.planners as planners
+from dualpilot.cli import main
+from dualpilot.evaluation.evaluate import evaluate
+from dualpilot.evaluation.sweep import Point, sweep
+from dualpilot.extensions import Registry
+from dualpilot.mission.config import MissionConfig, controller_names
+from dualpilot.mission.dimension import check_dimension, flying_controllers, refusals
+from dualpilot.mission.local import local_mission
+from services.common.stack_dims import check_stack_dimension
+from services.supervisor.options import parse
+from tests.support.lifted import assert_same_mission
+
+NOT_BUILT = r"3-D planning for (it|these) is not built yet \(docs/three_d.md, Status\)"
+#: the parts of each built-in controller that plan in 2-D only, worked out from its
+#: supervisor (docs/concurrent.md: the concurrent and lookahead supervisors fly System 1
+#: under the Δu penalty, "rrt+du") and the systems it asks (cc both, s1 and s2 one)
+PARTS = {
+    "cc": ["System 1 method 'rrt'", "System 2 method 'fast'"],
+    "s1": ["System 1 method 'rrt'"],
+    "s2": ["System 2 method 'fast'"],
+    "concurrent": ["the concurrent supervisor", "System 1 method 'rrt+du'",
+                   "System 2 method 'fast'"],
+    "lookahead": ["the lookahead supervisor", "System 1 method 'rrt+du'",
+                  "System 2 method 'fast'"],
+}
+
+
+@pytest.mark.parametrize("name", sorted(PARTS))
+@pytest.mark.parametrize("risk", ["", "+risk"])
+def test_every_built_in_controller_refuses_a_3d_mission_by_name(name: str, risk: str) -> None:
+    config = MissionConfig.named(name + risk, profile="today-3d")
+    assert [r.split(" plans in")[0].split(" supervises")[0] for r in refusals(config)] == \
+        PARTS[name]
+    with pytest.raises(ValueError) as err:
+        local_mission(config)
+    text = str(err.value)
+    assert text.startswith(f"controller '{name + risk}' does not fly dim=3: ")
+    assert all(f"{part} plans in 2-D only" in text or f"{part} supervises missions in 2-D only"
+               in text for part in PARTS[name])
+    assert text.endswith("Controllers that fly dim=3: none yet")
+    assert re.search(NOT_BUILT, text)
+
+
+def test_the_2d_mission_is_not_refused() -> None:
+    for name in controller_names():
+        config = MissionConfig.named(name)
+        assert refusals(config) == ()
+        check_dimension(config)
+    assert flying_controllers(MissionConfig()) == controller_names()
+    assert flying_controllers(MissionConfig(profile="today-3d")) == ()
+
+
+def test_an_installed_part_is_named_as_one() -> None:
+    """The example package's supervisor "proximity" (System 1 "straight") says neither 3-D:
+    the message tells the installed parts from the built-in ones."""
+    assert "proximity" in controller_names(), "the example package is not installed"
+    with pytest.raises(ValueError) as err:
+        check_dimension(MissionConfig.named("proximity", profile="today-3d"))
+    text = str(err.value)
+    assert ("the proximity supervisor supervises missions in 2-D only; System 1 method "
+            "'straight' plans in 2-D only: installed as a plug-in, they do not declare dim 3 "
+            "(dims)") in text
+    assert "System 2 method 'fast' plans in 2-D only: 3-D planning for it is not built yet" \
+        in text
+
+
+def test_the_command_line_refuses_with_a_message_not_a_traceback(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    out = tmp_path / "m"
+    code = main(["mission", "--controller", "cc", "--seed", "26", "--timing", "paper",
+                 "--set", "dim=3", "--out", str(out), "--quiet"])
+    err = capsys.readouterr().err
+    assert code == 2 and not out.exists()
+    assert err.startswith("dualpilot: error: controller 'cc' does not fly dim=3: System 1 "
+                          "method 'rrt' plans in 2-D only; System 2 method 'fast' plans in "
+                          "2-D only: 3-D planning for these is not built yet")
+    assert "Traceback" not in err
+
+
+def test_an_evaluation_and_a_sweep_refuse_before_any_mission(tmp_path: Path) -> None:
+    base = MissionConfig(profile="today-3d")
+    with pytest.raises(ValueError) as err:
+        evaluate(2, tmp_path / "e", base, controllers=["cc", "s2", "oracle"], progress=False)
+    lines = str(err.value).splitlines()
+    assert lines[0] == "dim=3: these controllers do not fly it"
+    assert [line.split(":")[0] for line in lines[1:4]] == ["  cc", "  s2", "  oracle"]
+    assert "the oracle (its lattice search and impossibility certificate) judges planar " \
+        "missions only (dim=2), not dim=3: its 3-D search is not built yet" in lines[3]
+    assert lines[4] == "Controllers that fly dim=3: none yet"
+    assert not (tmp_path / "e").exists()
+    with pytest.raises(ValueError, match="dim=3: these controllers do not fly it"):
+        sweep([Point(0, "today", (("dim", 3),))], 1, tmp_path / "s",
+              controllers=["s1"], progress=False)
+    assert not (tmp_path / "s").exists()
+
+
+def test_the_stack_refuses_a_3d_mission_where_it_enters(
+        capsys: pytest.CaptureFixture[str]) -> None:
+    with pytest.raises(SystemExit) as exited:
+        parse(["--controller", "s2", "--set", "dim=3"], "supervisor", environ={})
+    assert exited.value.code == 2
+    assert "controller 's2' does not fly dim=3: System 2 method 'fast'" in capsys.readouterr().err
+
+
+@pytest.fixture
+def lifted_rrt(monkeypatch: pytest.MonkeyPatch) -> str:
+    """The planners' registry with one more method, "lifted-rrt" (tests/support/lifted.py),
+    registered by a real entry point beside the built-ins and the installed ones."""
+    registry = Registry("dualpilot.planners", planners.PlannerMethod,
+                        {**planners.BUILTIN, "lifted-rrt": "tests.support.lifted:LIFTED_RRT"},
+                        what="planning method", name_pattern=planners.REGISTRY.pattern.pattern)
+    monkeypatch.setattr(planners, "REGISTRY", registry)
+    return "lifted-rrt"
+
+
+def test_a_method_that_says_3d_flies_and_is_listed(lifted_rrt: str) -> None:
+    settings = (("scenario", "grass-5"), ("max_steps", 150))
+    flat = MissionConfig.named("s1", seed=1, settings=settings)
+    tall = MissionConfig.named("s1", seed=1, system1_method=lifted_rrt, settings=settings
+                               ).with_settings({"dim": 3, "fire_height": "above-ceiling"})
+    assert refusals(tall) == ()
+    # s1 asks System 1 only; cc asks System 2's fast too, the supervisors' own rrt+du
+    assert flying_controllers(tall) == ("s1", "s1+risk")
+    with pytest.raises(ValueError, match=r"Controllers that fly dim=3: s1, s1\+risk$"):
+        check_dimension(MissionConfig.named("cc", system1_method=lifted_rrt,
+                                            profile="today-3d"))
+    a = local_mission(flat).run()
+    assert a.success and a.steps == 97
+    assert_same_mission(a, local_mission(tall).run())
+    # the stack still flies planar missions only
+    with pytest.raises(ValueError, match=r"the stack flies planar missions only \(dim=2\), "
+                                         r"not dim=3"):
+        check_stack_dimension(tall)
