@@ -26,7 +26,8 @@ def _only(dims: frozenset[int]) -> str:
 
 def _parts(config: MissionConfig) -> list[tuple[str, bool]]:
     """(sentence, built in) for each part of ``config``'s controller that does not plan in
-    its spec's dimension."""
+    its spec's dimension (a method that is not installed, or does not load, is left to
+    :func:`~dualpilot.planners.build_planner`, which names it as before)."""
     dim = config.spec().dim
     out = []
     entry = supervisor_entry(config.supervisor)
@@ -35,7 +36,10 @@ def _parts(config: MissionConfig) -> list[tuple[str, bool]]:
                     f"{_only(entry.dims)}", config.supervisor in BUILTIN_SUPERVISORS))
     methods = config.methods()
     for system in config.systems():
-        method = planner_method(methods[system])
+        try:
+            method = planner_method(methods[system])
+        except ValueError:  # unknown, or does not load: the mission's planner says so
+            continue
         if dim not in method.dims:
             out.append((f"System {system} method {methods[system]!r} plans in "
                         f"{_only(method.dims)}", methods[system] in BUILTIN_METHODS))
