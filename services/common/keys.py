@@ -10,6 +10,9 @@ key                     kind        payload (dualpilot.v1)
 ews/fires               pub/sub     FireState, every T_f of simulated time
 ews/forecast            pub/sub     FireForecast
 ews/command             queryable   FireCommand → FireUpdate
+ews/forecasts           queryable   FireCommand (a forecast query with its digest) →
+                                    FireUpdate: a forecast the EWS already answered its
+                                    supervisor (a planner's forecast by reference)
 plan/system1, …/system2 queryable   PlanRequest → Plan (errors: Error), any replica
 plan/system<k>/<zid>    queryable   the same, answered by the replica whose session is <zid>
 supervisor/decision     pub/sub     Decision, every step
@@ -60,6 +63,11 @@ def forecast(uav: str) -> str:
 
 def fire_command(uav: str) -> str:
     return f"{ns(uav)}/ews/command"
+
+
+def forecasts(uav: str) -> str:
+    """Queryable of the forecasts the EWS answered, by digest (a planner's, by reference)."""
+    return f"{ns(uav)}/ews/forecasts"
 
 
 def plan(uav: str, system: int) -> str:

@@ -34,6 +34,8 @@ class Reason(StrEnum):
     INVALID = "invalid"                # anything else: missing field, unknown enum, geometry...
     OVERFLOW = "overflow"              # dropped: the service's inbox was full
     STALE = "stale"                    # about another revision than the one held (a forecast)
+    UNAVAILABLE = "unavailable"        # names by reference what cannot be had here (a
+                                       # forecast the EWS nearby does not give)
     # MAVLink links of the vehicle (services/uavsim): frames that are not usable MAVLink 2
     BAD_CRC = "bad_crc"                # a frame whose checksum does not match
     UNKNOWN_MESSAGE = "unknown_message"  # a message id the dialect does not define

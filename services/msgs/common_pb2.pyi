@@ -14,11 +14,13 @@ class ErrorCode(int, metaclass=_enum_type_wrapper.EnumTypeWrapper):
     ERROR_CODE_INVALID: _ClassVar[ErrorCode]
     ERROR_CODE_INTERNAL: _ClassVar[ErrorCode]
     ERROR_CODE_UNPREPARED: _ClassVar[ErrorCode]
+    ERROR_CODE_UNAVAILABLE: _ClassVar[ErrorCode]
 ERROR_CODE_UNSPECIFIED: ErrorCode
 ERROR_CODE_MALFORMED: ErrorCode
 ERROR_CODE_INVALID: ErrorCode
 ERROR_CODE_INTERNAL: ErrorCode
 ERROR_CODE_UNPREPARED: ErrorCode
+ERROR_CODE_UNAVAILABLE: ErrorCode
 
 class Header(_message.Message):
     __slots__ = ("schema_version", "seq", "source", "vehicle_id", "sim_time_s", "wall_time_ns")

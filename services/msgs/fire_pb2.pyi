@@ -125,14 +125,16 @@ class FireAdvance(_message.Message):
     def __init__(self, step: _Optional[int] = ..., substeps: _Optional[int] = ..., clock: _Optional[_Union[_common_pb2.Clock, _Mapping]] = ..., keep_out: _Optional[_Union[_common_pb2.Vec2, _Mapping]] = ..., keep_out_m: _Optional[float] = ...) -> None: ...
 
 class FireForecastQuery(_message.Message):
-    __slots__ = ("step", "substeps_done", "substeps_per_step")
+    __slots__ = ("step", "substeps_done", "substeps_per_step", "digest")
     STEP_FIELD_NUMBER: _ClassVar[int]
     SUBSTEPS_DONE_FIELD_NUMBER: _ClassVar[int]
     SUBSTEPS_PER_STEP_FIELD_NUMBER: _ClassVar[int]
+    DIGEST_FIELD_NUMBER: _ClassVar[int]
     step: int
     substeps_done: int
     substeps_per_step: int
-    def __init__(self, step: _Optional[int] = ..., substeps_done: _Optional[int] = ..., substeps_per_step: _Optional[int] = ...) -> None: ...
+    digest: bytes
+    def __init__(self, step: _Optional[int] = ..., substeps_done: _Optional[int] = ..., substeps_per_step: _Optional[int] = ..., digest: _Optional[bytes] = ...) -> None: ...
 
 class FireCommand(_message.Message):
     __slots__ = ("header", "mission_id", "reset", "advance", "forecast")

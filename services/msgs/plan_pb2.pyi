@@ -85,20 +85,22 @@ class MissionSpec(_message.Message):
     def __init__(self, mission_id: _Optional[str] = ..., seed: _Optional[int] = ..., goal: _Optional[_Union[_common_pb2.Rect, _Mapping]] = ..., area_size_m: _Optional[float] = ..., start: _Optional[_Union[_common_pb2.Vec2, _Mapping]] = ..., d_safe_m: _Optional[float] = ..., clearance_m: _Optional[float] = ..., dynamics: _Optional[_Union[Dynamics, _Mapping]] = ...) -> None: ...
 
 class PlanForecast(_message.Message):
-    __slots__ = ("step", "substeps_done", "substep_s", "substeps_per_step", "offset_substeps", "occupancy")
+    __slots__ = ("step", "substeps_done", "substep_s", "substeps_per_step", "offset_substeps", "occupancy", "digest")
     STEP_FIELD_NUMBER: _ClassVar[int]
     SUBSTEPS_DONE_FIELD_NUMBER: _ClassVar[int]
     SUBSTEP_S_FIELD_NUMBER: _ClassVar[int]
     SUBSTEPS_PER_STEP_FIELD_NUMBER: _ClassVar[int]
     OFFSET_SUBSTEPS_FIELD_NUMBER: _ClassVar[int]
     OCCUPANCY_FIELD_NUMBER: _ClassVar[int]
+    DIGEST_FIELD_NUMBER: _ClassVar[int]
     step: int
     substeps_done: int
     substep_s: float
     substeps_per_step: int
     offset_substeps: int
     occupancy: _fire_pb2.OccupancyGrid
-    def __init__(self, step: _Optional[int] = ..., substeps_done: _Optional[int] = ..., substep_s: _Optional[float] = ..., substeps_per_step: _Optional[int] = ..., offset_substeps: _Optional[int] = ..., occupancy: _Optional[_Union[_fire_pb2.OccupancyGrid, _Mapping]] = ...) -> None: ...
+    digest: bytes
+    def __init__(self, step: _Optional[int] = ..., substeps_done: _Optional[int] = ..., substep_s: _Optional[float] = ..., substeps_per_step: _Optional[int] = ..., offset_substeps: _Optional[int] = ..., occupancy: _Optional[_Union[_fire_pb2.OccupancyGrid, _Mapping]] = ..., digest: _Optional[bytes] = ...) -> None: ...
 
 class PlanRequest(_message.Message):
     __slots__ = ("header", "mission", "step", "system", "objective", "state", "prev_control", "deadline_s", "prepare", "mission_id", "obstacles", "waypoints_revision", "config", "forecast")

@@ -7,6 +7,7 @@ mission configuration is decoded by services/common/convert/config.py.
 
 from __future__ import annotations
 
+import hashlib
 import math
 import zlib
 from collections.abc import Sequence
@@ -107,6 +108,17 @@ def occupancy_to_msg(fc: OccupancyForecast, out: fire_pb2.OccupancyGrid,
     out.horizon_s = fc.max_substeps * fc.substep_s
     out.substeps_per_step = fc.substeps_per_step
     return out
+
+
+#: a forecast grid's digest (bytes: BLAKE2b-128 of its deterministic serialized form)
+DIGEST_BYTES = 16
+
+
+def grid_digest(grid: fire_pb2.OccupancyGrid) -> bytes:
+    """BLAKE2b-128 of ``grid``'s deterministic serialized form: the same grid, the same
+    digest, whoever decoded it (a plan request names a forecast by it)."""
+    return hashlib.blake2b(grid.SerializeToString(deterministic=True),
+                           digest_size=DIGEST_BYTES).digest()
 
 
 #: where a forecast keeps its wire form (OccupancyForecast.memo): encoded once a forecast,
@@ -221,6 +233,8 @@ class FireCommand:
     #: reset: the mission's configuration, whose reading the EWS runs (None: the EWS's own)
     config: MissionConfig | None = None
     substeps_done: int = 0  # forecast: the fire state (revision) it must start from
+    #: a planner's forecast by reference (``ews/forecasts``): the digest of the grid asked for
+    digest: bytes = b""
 
 
 def fire_reset_msg(mission_id: str, seed: int, area_size_m: float, config: MissionConfig | None,
@@ -253,12 +267,14 @@ def fire_advance_msg(mission_id: str, step: int, substeps: int, keep_out: KeepOu
 
 def fire_forecast_query_msg(mission_id: str, step: int, substeps_done: int,
                             substeps_per_step: int, stamper: Stamper,
-                            sim_time_s: float) -> fire_pb2.FireCommand:
+                            sim_time_s: float, digest: bytes = b"") -> fire_pb2.FireCommand:
     """The supervisor's question: the occupancy forecast from the fire state after
-    ``substeps_done`` sub-steps, for time-steps of ``substeps_per_step`` sub-steps."""
+    ``substeps_done`` sub-steps, for time-steps of ``substeps_per_step`` sub-steps; with
+    ``digest``, a planner's: the answer already given whose grid has that digest."""
     m = fire_pb2.FireCommand(mission_id=mission_id)
     q = m.forecast
     q.step, q.substeps_done, q.substeps_per_step = step, substeps_done, substeps_per_step
+    q.digest = digest
     stamper.stamp(m.header, sim_time_s)
     return m
 
@@ -298,6 +314,10 @@ def fire_command_from_msg(m: fire_pb2.FireCommand) -> FireCommand:
     if kind == "forecast":
         q = m.forecast
         check_int(q.substeps_per_step, "substeps_per_step", 1, MAX_SUBSTEPS)
+        if len(q.digest) not in (0, DIGEST_BYTES):
+            raise invalid(f"a forecast digest has {DIGEST_BYTES} bytes, got {len(q.digest)}",
+                          Reason.SIZE)
         return FireCommand(mission_id, "forecast", step=int(q.step),
-                           substeps=int(q.substeps_per_step), substeps_done=int(q.substeps_done))
+                           substeps=int(q.substeps_per_step), substeps_done=int(q.substeps_done),
+                           digest=bytes(q.digest))
     raise invalid("FireCommand carries no reset, advance or forecast")

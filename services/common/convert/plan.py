@@ -2,7 +2,9 @@
 
 A plan request decodes to the core's :class:`~dualpilot.mission.ports.PlanRequest`
 inside a :class:`PlanQuery` (its mission, sequence number, deadline and waypoint
-revision), or to a :class:`Prepare` (the mission's spec and configuration). Every
+revision), or to a :class:`Prepare` (the mission's spec and configuration). A risk-aware
+request's forecast travels whole or by reference (:class:`ForecastRef`: the planner takes it
+from the EWS on its own side of the link, checked against the digest). Every
 decoder checks counts, finiteness and ranges (services/common/limits.py) and raises
 :class:`~services.common.rejections.CodecError` for a bad message.
 """
@@ -32,7 +34,7 @@ from services.common.convert.common import (
     rect_to_msg,
 )
 from services.common.convert.config import config_from_msg, config_to_msg
-from services.common.convert.fire import grid_from_msg, wire_grid
+from services.common.convert.fire import DIGEST_BYTES, grid_digest, grid_from_msg, wire_grid
 from services.common.convert.vehicle import state_from_msg, state_to_msg
 from services.common.limits import (
     AREA_MARGIN,
@@ -40,6 +42,7 @@ from services.common.limits import (
     MAX_FORCE_N,
     MAX_FRONTS,
     MAX_HORIZON,
+    MAX_SUBSTEP_S,
     MAX_SUBSTEPS,
     MAX_TEXT,
     check_count,
@@ -51,7 +54,7 @@ from services.common.limits import (
 )
 from services.common.rejections import Reason, invalid
 from services.common.wire import Stamper, check_header
-from services.msgs import plan_pb2
+from services.msgs import fire_pb2, plan_pb2
 
 _OBJECTIVES = {
     Objective.MISSION_TIME: plan_pb2.OBJECTIVE_MISSION_TIME,
@@ -142,16 +145,36 @@ def spec_from_msg(m: plan_pb2.MissionSpec) -> tuple[str, MissionSpec]:
 
 
 @dataclass(frozen=True)
+class ForecastRef:
+    """A plan request's forecast by reference: the EWS's answer for the request's mission,
+    fire revision ``substeps_done`` and step length ``substeps_per_step`` (its grid's
+    ``digest``), seen through ``offset_substeps`` as :class:`ForecastView` does."""
+
+    step: int
+    substeps_done: int
+    substep_s: float
+    substeps_per_step: int
+    offset_substeps: int
+    digest: bytes
+
+
+#: where a forecast keeps its wire grid's digest (OccupancyForecast.memo)
+WIRE_DIGEST = "wire_digest"
+
+
+@dataclass(frozen=True)
 class PlanQuery:
     """A validated plan request: the core's request (step t, system, state, obstacles, …) and
     what it travels with (the mission it is for, its sequence number, the wall time the
-    requester waits, the operator-waypoint revision it needs)."""
+    requester waits, the operator-waypoint revision it needs, and a forecast named by
+    reference, which the planner resolves into the request's)."""
 
     request: PlanRequest
     mission_id: str
     seq: int
     deadline_s: float
     waypoints_revision: int = 0
+    forecast_ref: ForecastRef | None = None
 
 
 @dataclass(frozen=True)
@@ -173,8 +196,10 @@ def _envelope(m: plan_pb2.PlanRequest, system: int, mission_id: str, deadline_s:
     stamper.stamp(m.header, sim_time_s)
 
 
-def plan_query_msg(query: PlanQuery, stamper: Stamper, sim_time_s: float) -> plan_pb2.PlanRequest:
-    """A plan request on the wire: the core request, its mission, deadline and revision."""
+def plan_query_msg(query: PlanQuery, stamper: Stamper, sim_time_s: float,
+                   by_reference: bool = False) -> plan_pb2.PlanRequest:
+    """A plan request on the wire: the core request, its mission, deadline and revision; its
+    forecast whole, or with ``by_reference`` named by its revision and digest."""
     req = query.request
     m = plan_pb2.PlanRequest(step=req.t, objective=objective_to_msg(req.objective),
                              waypoints_revision=query.waypoints_revision)
@@ -185,32 +210,78 @@ def plan_query_msg(query: PlanQuery, stamper: Stamper, sim_time_s: float) -> pla
     for poly in planar_obstacles(req.obstacles):  # the wire carries no tops yet
         polygon_to_msg(poly, m.obstacles.add())
     if req.forecast is not None:
-        forecast_to_msg(req.forecast, req.t, m.forecast)
+        forecast_to_msg(req.forecast, req.t, m.forecast, by_reference)
     return m
 
 
-def forecast_to_msg(view: ForecastView, step: int, out: plan_pb2.PlanForecast) -> None:
-    """The forecast a plan of ``step`` is made on (its grid's slices zlib-compressed)."""
+def forecast_to_msg(view: ForecastView, step: int, out: plan_pb2.PlanForecast,
+                    by_reference: bool = False) -> None:
+    """The forecast a plan of ``step`` is made on: its grid (slices zlib-compressed), or with
+    ``by_reference`` only its grid's digest."""
     fc = view.forecast
     out.step, out.substeps_done, out.substep_s = step, fc.issued_substep, fc.substep_s
     out.substeps_per_step, out.offset_substeps = view.substeps_per_step, view.offset_substeps
-    out.occupancy.CopyFrom(wire_grid(fc))
+    grid = wire_grid(fc)
+    if not by_reference:
+        out.occupancy.CopyFrom(grid)
+        return
+    digest = fc.memo.get(WIRE_DIGEST)
+    if digest is None:
+        digest = fc.memo[WIRE_DIGEST] = grid_digest(grid)
+    out.digest = digest
 
 
-def forecast_from_msg(m: plan_pb2.PlanForecast, step: int) -> ForecastView:
-    """A plan request's forecast as the core's ForecastView; refused (CodecError): one made
-    for another step than the request's, a bad grid (:func:`grid_from_msg`), a time-step
-    length outside 1..MAX_SUBSTEPS, an offset past MAX_SUBSTEPS (an offset past the
-    forecast's horizon is a plan with no zones, as in-process)."""
+def _forecast_header(m: plan_pb2.PlanForecast, step: int) -> None:
+    """The checks a forecast's fields pass whole or by reference (CodecError)."""
     if m.step != step:
         raise invalid(f"the forecast was made for step {m.step}, the request is for step "
                       f"{step}", Reason.STALE)
-    if not m.HasField("occupancy"):
-        raise invalid("a plan forecast without its occupancy grid")
     check_int(m.substeps_per_step, "substeps_per_step", 1, MAX_SUBSTEPS)
     check_int(m.offset_substeps, "offset_substeps", 0, MAX_SUBSTEPS)
+
+
+def forecast_from_msg(m: plan_pb2.PlanForecast, step: int) -> ForecastView:
+    """A plan request's forecast, whole, as the core's ForecastView; refused (CodecError): one
+    made for another step than the request's, a bad grid (:func:`grid_from_msg`), a time-step
+    length outside 1..MAX_SUBSTEPS, an offset past MAX_SUBSTEPS (an offset past the
+    forecast's horizon is a plan with no zones, as in-process)."""
+    _forecast_header(m, step)
+    if not m.HasField("occupancy"):
+        raise invalid("a plan forecast without its occupancy grid")
     fc = grid_from_msg(m.occupancy, m.substep_s, int(m.substeps_done))
     return ForecastView(fc, int(m.substeps_per_step), int(m.offset_substeps))
+
+
+def forecast_ref_from_msg(m: plan_pb2.PlanForecast, step: int) -> ForecastRef:
+    """A plan request's forecast by reference (no grid, a digest): the checks of
+    :func:`forecast_from_msg`, a digest of :data:`DIGEST_BYTES` and a positive, finite T_f."""
+    _forecast_header(m, step)
+    if len(m.digest) != DIGEST_BYTES:
+        raise invalid(f"a plan forecast without its occupancy grid needs a digest of "
+                      f"{DIGEST_BYTES} bytes, got {len(m.digest)}", Reason.SIZE)
+    check_floats([m.substep_s], "substep_s", MAX_SUBSTEP_S)
+    if m.substep_s <= 0:
+        raise invalid(f"substep_s must be positive, got {m.substep_s}", Reason.OUT_OF_RANGE)
+    return ForecastRef(int(m.step), int(m.substeps_done), float(m.substep_s),
+                       int(m.substeps_per_step), int(m.offset_substeps), bytes(m.digest))
+
+
+def resolved_view(ref: ForecastRef, forecast: fire_pb2.FireForecast) -> ForecastView:
+    """The view ``ref`` names, from the EWS's answer ``forecast``; refused (CodecError):
+    another revision or T_f, no grid, a grid whose digest is not the reference's."""
+    if forecast.substeps_done != ref.substeps_done or not math.isclose(
+            forecast.substep_s, ref.substep_s, rel_tol=1e-12, abs_tol=0.0):
+        raise invalid(f"the EWS answered revision {forecast.substeps_done} at T_f "
+                      f"{forecast.substep_s:g} s for revision {ref.substeps_done} at "
+                      f"{ref.substep_s:g} s", Reason.STALE)
+    if not forecast.HasField("occupancy"):
+        raise invalid("the EWS's forecast carries no occupancy grid")
+    if grid_digest(forecast.occupancy) != ref.digest:
+        raise invalid("the EWS's forecast is not the one the request names (digest differs)",
+                      Reason.STALE)
+    fc = grid_from_msg(forecast.occupancy, ref.substep_s, ref.substeps_done)
+    fc.memo[WIRE_DIGEST] = ref.digest
+    return ForecastView(fc, ref.substeps_per_step, ref.offset_substeps)
 
 
 def prepare_msg(prep: Prepare, stamper: Stamper, sim_time_s: float) -> plan_pb2.PlanRequest:
@@ -260,12 +331,18 @@ def plan_request_from_msg(m: plan_pb2.PlanRequest) -> PlanQuery | Prepare:
     assert objective is not None
     check_count(len(m.obstacles), "obstacles", MAX_FRONTS * 2)
     obstacles = tuple(polygon_from_msg(p, f"obstacle {i}") for i, p in enumerate(m.obstacles))
-    forecast = forecast_from_msg(m.forecast, int(m.step)) if m.HasField("forecast") else None
+    forecast: ForecastView | None = None
+    ref: ForecastRef | None = None
+    if m.HasField("forecast"):  # whole, or named by reference (no grid: a digest)
+        if m.forecast.HasField("occupancy") or not m.forecast.digest:
+            forecast = forecast_from_msg(m.forecast, int(m.step))
+        else:
+            ref = forecast_ref_from_msg(m.forecast, int(m.step))
     request = PlanRequest(t=int(m.step), system=int(m.system), state=state_from_msg(m.state),
                           prev_control=force_from_msg(m.prev_control, "prev_control"),
                           obstacles=obstacles, objective=objective, forecast=forecast)
     return PlanQuery(request, mission_id, int(m.header.seq), deadline,
-                     int(m.waypoints_revision))
+                     int(m.waypoints_revision), ref)
 
 
 def check_in_area(req: PlanRequest, spec: MissionSpec) -> None:
