@@ -11,7 +11,8 @@ by the common name of the certificate it presented (mutual TLS, the CA of
   ``plan/system<k>/<zid>``), the EWS ``ews/*``, the
   supervisor its decision, state, event, clock and operator waypoints, and
   every service its ``status/<service>`` and ``alive/<service>`` tokens;
-  only the supervisor may query (plans, the EWS, statuses).
+  only the supervisor may query (plans, the EWS, statuses), and the planners the forecasts
+  the EWS answered it (``ews/forecasts``: a plan request's forecast by reference).
 - **ingress**, for every identity of the CA (the services and ``monitor``,
   the launcher's read-only observer): declaring subscribers, liveliness
   subscribers and liveliness queries under ``dualpilot/**``.
@@ -36,7 +37,7 @@ _NS = "dualpilot/*"
 
 #: the keys (under ``dualpilot/<uav>/``) each service publishes on or answers
 OWNED: dict[str, dict[str, tuple[str, ...]]] = {
-    "ews": {"put": ("ews/fires", "ews/forecast"), "answer": ("ews/command",)},
+    "ews": {"put": ("ews/fires", "ews/forecast"), "answer": ("ews/command", "ews/forecasts")},
     "system1": {"put": (), "answer": ("plan/system1", "plan/system1/*")},
     "system2": {"put": (), "answer": ("plan/system2", "plan/system2/*")},
     "supervisor": {"put": ("supervisor/decision", "vehicle/state", "mission/event", "clock",
@@ -45,6 +46,9 @@ OWNED: dict[str, dict[str, tuple[str, ...]]] = {
 }
 #: what the supervisor asks
 QUERIES = ("plan/*", "plan/*/*", "ews/command", "status/*", "uavsim/mission")
+#: what the planners ask: the forecasts a plan request names by reference
+PLANNER_QUERIES = ("ews/forecasts",)
+PLANNERS = ("system1", "system2")
 
 
 def _rule(rid: str, messages: list[str], keys: list[str], flows: list[str]) -> dict[str, Any]:
@@ -62,11 +66,13 @@ def config() -> dict[str, Any]:
         _rule("listen", ["declare_subscriber", "declare_liveliness_subscriber",
                          "liveliness_query"], ["dualpilot/**"], ["ingress"]),
         _rule("supervisor-asks", ["query"], [f"{_NS}/{k}" for k in QUERIES], ["ingress"]),
+        _rule("planners-ask", ["query"], [f"{_NS}/{k}" for k in PLANNER_QUERIES], ["ingress"]),
     ]
     subjects = [{"id": "everyone", "cert_common_names": list(EVERYONE)}]
     policies = [{"id": "everyone", "rules": ["egress", "listen"], "subjects": ["everyone"]},
                 {"id": "supervisor-asks", "rules": ["supervisor-asks"],
-                 "subjects": ["supervisor"]}]
+                 "subjects": ["supervisor"]},
+                {"id": "planners-ask", "rules": ["planners-ask"], "subjects": list(PLANNERS)}]
     for name, owned in OWNED.items():
         subjects.append({"id": name, "cert_common_names": [name]})
         alive = [f"{_NS}/alive/{name}", f"{_NS}/alive/{name}/*"]

@@ -11,7 +11,8 @@ problem once), seeded from the spec as in-process. A plan request then names
 the mission and carries only what changes per step: the vehicle state, the
 obstacles the step chose (one per front), the objective, u_{t|t}, the
 operator-waypoint revision it needs and, for a risk-aware method, the fire
-forecast the step planned on (its grid and windows; checked here against the
+forecast the step planned on (its grid and windows, or the grid named by reference, taken
+from the EWS nearby: services/common/plan_forecasts.py; checked here against the
 prepared mission: its T_f, and no older fire revision than one already seen).
 Operator waypoints travel on their own key (``operator/waypoints``) with a
 revision number.
@@ -50,6 +51,7 @@ from .convert import plan as plan_convert
 from .convert import vehicle as vehicle_convert
 from .effective import EFFECTIVE
 from .log import fields
+from .plan_forecasts import ForecastSource, ResolvedForecasts, ZenohForecasts
 
 log = logging.getLogger(__name__)
 
@@ -69,8 +71,11 @@ class _Prepared:
 class PlannerService:
     """Answers plan requests for one system with planners made per mission."""
 
-    def __init__(self, system: int, make: PlannerMaker, uav: str, keep_missions: int = 2):
+    def __init__(self, system: int, make: PlannerMaker, uav: str, keep_missions: int = 2,
+                 forecasts: ForecastSource | None = None):
         self.system = system
+        #: forecasts named by reference, taken from the EWS (``forecasts``) and kept
+        self.resolved = ResolvedForecasts(forecasts)
         self.make = make
         self.uav = uav
         self.stamper = wire.Stamper(f"system{system}", uav)
@@ -160,6 +165,7 @@ class PlannerService:
             raise rejections.invalid(
                 f"request for system {req.system} sent to system {self.system}")
         planner = self.planner_for(query)
+        query = self.resolved.resolve(query)
         view = self.check_forecast(query)
         t0 = time.perf_counter()
         try:
@@ -188,8 +194,8 @@ class PlannerService:
         try:
             plan = self.plan(req)
         except rejections.CodecError as err:
-            if err.code != common_pb2.ERROR_CODE_UNPREPARED:
-                rejections.rejected("PlanRequest", err, log, key=self.key)
+            if err.code != common_pb2.ERROR_CODE_UNPREPARED:  # a forecast it cannot have too:
+                rejections.rejected("PlanRequest", err, log, key=self.key)  # refused, counted
             else:
                 log.info("plan request for what is not here", extra=fields(error=str(err)))
             return common_convert.error_msg(self.stamper, err.code, str(err))
@@ -232,7 +238,8 @@ def run(ctx: bus.Context, system: int, make: PlannerMaker) -> None:
     warm_up()  # before the token: alive means ready to answer in time (once a process)
     session: zenoh.Session = ctx.session
     uav = ctx.settings.uav_id
-    service = PlannerService(system, make, uav)
+    service = PlannerService(system, make, uav,
+                             forecasts=ZenohForecasts(session, uav, ctx.stop))
     queries = bus.Inbox(keys.plan(uav, system))
     operator = bus.Inbox()
     zid = str(session.info.zid())

@@ -1,4 +1,5 @@
-"""The EWS's loop: FireCommands on ``<ns>/ews/command`` answered by one vehicle's fire process.
+"""The EWS's loop: FireCommands on ``<ns>/ews/command`` answered by one vehicle's fire process;
+the forecasts it answered kept for the planners on ``<ns>/ews/forecasts`` (services/ews/answers.py).
 
 The fire process belongs to the supervisor session that reset it
 (:class:`Binding`); a bad command gets an error reply (dualpilot.v1.Error),
@@ -15,6 +16,7 @@ from services.common.convert import fire as fire_convert
 from services.common.log import fields
 from services.msgs import common_pb2, fire_pb2
 
+from .answers import AnsweredForecasts, serve
 from .fireprocess import Ews
 from .warm import Warmer
 
@@ -58,6 +60,8 @@ def body(ctx: bus.Context, forecast_horizon_s: float, warmer: Warmer | None = No
     inbox = bus.Inbox(key)
     queryable = ctx.session.declare_queryable(key, inbox.on_query)
     binding = Binding(bus.Liveliness(ctx.session, uav))
+    answers = AnsweredForecasts()  # the planners' forecasts by reference (ews/forecasts)
+    close_answers = serve(ctx.session, uav, answers, ctx.stop)
     ctx.announce()
     while not ctx.stop.is_set():
         item = inbox.get(timeout=0.2)
@@ -72,6 +76,8 @@ def body(ctx: bus.Context, forecast_horizon_s: float, warmer: Warmer | None = No
             # and a forecast computed then would take the CPU its plan request needs.
             if cmd.kind != "forecast":
                 ews.publish_forecast()
+            if cmd.kind == "forecast":  # kept before the reply: a plan request may name it
+                answers.put(cmd.mission_id, update)
             bus.reply(item.query, update)
             if cmd.kind == "forecast":  # after the reply: the plan request goes first
                 ews.publish_answer(update.forecast)
@@ -83,3 +89,4 @@ def body(ctx: bus.Context, forecast_horizon_s: float, warmer: Warmer | None = No
             bus.reply_error(item.query, common_convert.error_msg(
                 ews.stamper, common_pb2.ERROR_CODE_INTERNAL, f"{type(err).__name__}: {err}"))
     queryable.undeclare()
+    close_answers()

@@ -170,6 +170,8 @@ def stack_summary(mission: StackSession, extra: dict[str, object]) -> dict[str, 
         "untrusted": _untrusted_counts(), "faults": dict(mission.observer.faults.totals),
         "planner_failovers": pool.failovers if pool is not None else 0,
         "forecast": mission.fires.forecasts.summary() if mission.fires is not None else {},
+        "forecast_resends": (mission.planners.forecast_resends
+                             if mission.planners is not None else 0),
         "stream": link.setpoints.stats(),
         "vehicle_modes": [{"mode": c.mode, "armed": c.armed, "text": c.text}
                           for c in link.status.mode_changes], **extra,

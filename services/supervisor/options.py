@@ -114,6 +114,11 @@ def _add_stack_arguments(p: argparse.ArgumentParser) -> None:
                    help="at a speed factor > 0, a step waits for the forecast at most this many "
                         "control periods ΔT of wall time, as the plan deadlines (and at most "
                         "--forecast-timeout-s) [FORECAST_DEADLINE_PERIODS]")
+    g.add_argument("--forecast-by-reference", default=env("FORECAST_BY_REFERENCE", "system2"),
+                   help="the planners whose risk-aware plan requests name their forecast (its "
+                        "fire revision and digest) instead of carrying it: they take it from "
+                        "the EWS on their own side of the link; comma-separated system1, "
+                        "system2, or none [FORECAST_BY_REFERENCE]")
     g.add_argument("--setpoint-rate-hz", type=float, default=env("SETPOINT_RATE_HZ", "20"),
                    help="setpoint stream rate, >= 10 [SETPOINT_RATE_HZ]")
     g.add_argument("--setpoint-stream", default=env("SETPOINT_STREAM", "process"),
@@ -150,13 +155,24 @@ def _stack_params(args: argparse.Namespace) -> StackParams:
                          "--forecast-deadline-periods must be positive")
     base = StackParams(altitude_m=args.altitude_m, fire_timeout_s=args.fire_timeout_s,
                        forecast_timeout_s=args.forecast_timeout_s,
-                       forecast_deadline_periods=args.forecast_deadline_periods)
+                       forecast_deadline_periods=args.forecast_deadline_periods,
+                       forecast_by_reference=systems_of(args.forecast_by_reference,
+                                                        "--forecast-by-reference"))
     if not args.plan_deadline_s:  # default: tied to the control period (plan_deadline_periods)
         return base
     deadlines = tuple(float(v) for v in args.plan_deadline_s.split(","))
     if len(deadlines) != 2 or min(deadlines) <= 0:
         raise ValueError("--plan-deadline-s must be two positive numbers 's1,s2'")
     return replace(base, plan_deadline_s=(deadlines[0], deadlines[1]))
+
+
+def systems_of(text: str, flag: str) -> frozenset[int]:
+    """``"system1,system2"`` → {1, 2}; ``"none"`` or "" → {} (ValueError for anything else)."""
+    names = [n.strip() for n in text.split(",") if n.strip() and n.strip() != "none"]
+    bad = [n for n in names if n not in ("system1", "system2")]
+    if bad:
+        raise ValueError(f"{flag} takes system1, system2 or none, got {', '.join(bad)}")
+    return frozenset(int(n[-1]) for n in names)
 
 
 def _fleet(args: argparse.Namespace, settings: common_cli.Settings, seed: int

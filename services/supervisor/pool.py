@@ -317,6 +317,8 @@ class PlannerPool:
             plan = Plan.failed(system, status, self.clock() - job.t0, f"system{system}: {err}")
             if err.code == common_pb2.ERROR_CODE_UNPREPARED:
                 plan.info["unprepared"] = True
+            elif err.code == common_pb2.ERROR_CODE_UNAVAILABLE:  # a forecast by reference
+                plan.info["forecast_unavailable"] = True
         except rejections.CodecError as err:
             rejections.rejected("Plan", err, log, key=keys.plan(self.uav, system))
             plan = Plan.failed(system, PlanStatus.ERROR, self.clock() - job.t0, str(err))

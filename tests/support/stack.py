@@ -7,7 +7,8 @@ piece the real component where one can run here, behind a fake transport:
   reads it; the test puts and deletes the services' tokens.
 - :class:`InProcessStack`: the session's transport (``StackTransport``): a fire
   command is answered by the EWS's own handler (services/ews), a plan request
-  by the planner service's own handler (services/common/planning.py), the
+  by the planner service's own handler (services/common/planning.py; a forecast
+  named by reference is taken from the EWS's answers, services/ews/answers.py), the
   mission configuration handed to the simulated vehicle is decoded and answered
   as uavsim does (services/uavsim/missionconfig.py), each through its wire form;
   what the supervisor publishes is kept, decoded.
@@ -41,8 +42,10 @@ from services.common import bus, keys, mav, mavlink_codec, mavmodes, wire
 from services.common.clock import SimClock
 from services.common.convert import config as config_convert
 from services.common.convert import fire as fire_convert
+from services.common.convert import plan as plan_convert
 from services.common.convert import vehicle as vehicle_convert
 from services.common.planning import PlannerService
+from services.ews.answers import AnsweredForecasts, answer
 from services.ews.fireprocess import Ews
 from services.msgs import common_pb2, config_pb2, fire_pb2, supervisor_pb2
 from services.supervisor.link import LinkParams, VehicleLink
@@ -176,6 +179,32 @@ class InProcessStack:
     vehicle_configs: list[MissionConfig] = field(default_factory=list)
     #: called with (key, message) after each publication
     on_publish: list[Callable[[str, Message], None]] = field(default_factory=list)
+    #: the forecasts the EWS answered (``ews/forecasts``: the planners' by reference)
+    answers: AnsweredForecasts = field(default_factory=AnsweredForecasts)
+    #: forecasts the planners took by reference, and the failed attempts
+    fetched: list[str] = field(default_factory=list)
+
+    def __post_init__(self) -> None:
+        for service in self.services.values():  # the planners' EWS nearby is this one
+            service.resolved.source = self
+
+    def fetch(self, mission_id: str, ref: plan_convert.ForecastRef,
+              timeout_s: float) -> fire_pb2.FireForecast:
+        """A planner's forecast by reference, as ``ews/forecasts`` answers it."""
+        if self.ews_down:
+            self.fetched.append("late")
+            raise TimeoutError(f"no reply on ews/forecasts within {timeout_s:.3g} s")
+        cmd = fire_convert.fire_forecast_query_msg(mission_id, ref.step, ref.substeps_done,
+                                                   ref.substeps_per_step,
+                                                   wire.Stamper("planner", self.uav), 0.0,
+                                                   digest=ref.digest)
+        out = answer(self.answers, cmd.SerializeToString(), wire.encoding_name(cmd),
+                     self.ews.stamper)
+        if isinstance(out, common_pb2.Error):
+            self.fetched.append("unavailable")
+            raise bus.QueryError(out.code, out.message)
+        self.fetched.append("ok")
+        return wire.parse(out[0], fire_pb2.FireUpdate, out[1]).forecast
 
     def query(self, key: str, msg: Message, timeout_s: float, stop: threading.Event,
               trusted: bus.Trusted) -> tuple[bytes, str]:
@@ -192,6 +221,8 @@ class InProcessStack:
         if self.ews_down:
             raise TimeoutError(f"no reply on {key} within {timeout_s:.3g} s")
         update = self.ews.handle(cmd)
+        if cmd.kind == "forecast":  # kept for the planners, as services/ews/service.py does
+            self.answers.put(cmd.mission_id, update)
         return update.SerializeToString(), wire.encoding_name(update)
 
     def publisher(self, key: str) -> Callable[[Message], None]:

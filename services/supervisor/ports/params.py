@@ -43,6 +43,10 @@ class StackParams:
     #: (wall s, as the plan deadlines; never longer than ``forecast_timeout_s``): the step keeps
     #: its beat and flies without a forecast that comes later (forecast_stale)
     forecast_deadline_periods: float = 0.5
+    #: the systems whose plan requests name their forecast by reference instead of carrying
+    #: it (services/common/convert/plan.py: the planner takes it from the EWS on its own side
+    #: of the link); System 2, which runs beside the EWS on the ground (docs/deployment.md)
+    forecast_by_reference: frozenset[int] = frozenset({2})
 
     def forecast_wait_s(self, dt_s: float, speed_factor: float) -> float:
         """How long a forecast query waits (wall s): ``forecast_timeout_s`` in lockstep

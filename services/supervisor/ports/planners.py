@@ -29,7 +29,10 @@ class StackPlanners:
     not demoted it. Each request goes to the mission's replica and comes back
     checked (the pool's rules). A planner that was not prepared for this mission
     (it was restarted) is prepared again and asked once more. Operator waypoints
-    travel on their own key, with a revision the requests name.
+    travel on their own key, with a revision the requests name. A risk-aware request
+    of a system in ``forecast_by_reference`` names its forecast (the planner takes it from
+    the EWS beside it); when the planner cannot have it, the request is sent again with
+    the forecast whole (``forecast_resends``).
     """
 
     def __init__(self, b: StackBus, spec: MissionSpec, config: MissionConfig, pool: PlannerPool):
@@ -41,6 +44,8 @@ class StackPlanners:
         self.last_info: dict[int, dict[str, object]] = {}
         self.compute = 0.0  # this step's planners' compute time (s)
         self._background: ThreadPoolExecutor | None = None  # launch/collect
+        #: requests sent again with their forecast whole (the planner could not have it)
+        self.forecast_resends = 0
 
     def begin_step(self) -> None:
         self.compute = 0.0
@@ -55,11 +60,12 @@ class StackPlanners:
         return self.config.risk
 
     # -- messages ---------------------------------------------------------------------------------
-    def _query_msg(self, request: PlanRequest) -> plan_pb2.PlanRequest:
+    def _query_msg(self, request: PlanRequest, by_reference: bool) -> plan_pb2.PlanRequest:
         query = plan_convert.PlanQuery(request, self.b.mission_id, 0,
                                        self.b.deadline_s(request.system),
                                        self.waypoints.revision)
-        return plan_convert.plan_query_msg(query, self.b.stamper, self.b.clock.now_s)
+        return plan_convert.plan_query_msg(query, self.b.stamper, self.b.clock.now_s,
+                                           by_reference)
 
     def prepare(self, systems: list[int]) -> None:
         """Warm-up: every replica of each planner builds this mission's planner from the spec
@@ -122,7 +128,17 @@ class StackPlanners:
         return plan
 
     def _ask(self, request: PlanRequest, account: bool = True) -> Plan:
-        plan = self.pool.ask(request.system, request.t, self._query_msg(request), account)
+        by_ref = (request.forecast is not None
+                  and request.system in self.b.stack.forecast_by_reference)
+        plan = self.pool.ask(request.system, request.t, self._query_msg(request, by_ref),
+                             account)
+        if by_ref and plan.info.get("forecast_unavailable") and not self.b.stop.is_set():
+            self.forecast_resends += 1
+            log.warning("planner could not take the forecast by reference: sent whole",
+                        extra=fields(system=request.system, step=request.t,
+                                     reason=plan.message))
+            plan = self.pool.ask(request.system, request.t, self._query_msg(request, False),
+                                 account)
         if self.b.stop.is_set():
             raise Aborted("stopped")
         return plan
