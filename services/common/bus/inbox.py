@@ -19,6 +19,7 @@ import zenoh
 from google.protobuf.message import Message
 
 from services.common import rejections, wire
+from services.common.traffic import TRAFFIC
 
 log = logging.getLogger("services.common.bus")
 
@@ -45,8 +46,10 @@ def put(target: zenoh.Session | zenoh.Publisher, key: str, msg: Message) -> None
     payload = msg.SerializeToString()
     if isinstance(target, zenoh.Publisher):
         target.put(payload, encoding=encoding(msg))
+        TRAFFIC.sent(str(target.key_expr), "put", len(payload))
     else:
         target.put(key, payload, encoding=encoding(msg))
+        TRAFFIC.sent(key, "put", len(payload))
 
 
 @dataclass(frozen=True)
@@ -94,13 +97,16 @@ class Inbox:
                 log, key=self.key or item.key)
 
     def on_sample(self, sample: zenoh.Sample) -> None:
-        self._push(Received(str(sample.key_expr), sample.payload.to_bytes(),
-                            str(sample.encoding), None, time.perf_counter_ns()))
+        payload = sample.payload.to_bytes()
+        TRAFFIC.received(str(sample.key_expr), "put", len(payload))
+        self._push(Received(str(sample.key_expr), payload, str(sample.encoding), None,
+                            time.perf_counter_ns()))
 
     def on_query(self, query: zenoh.Query) -> None:
         payload = query.payload.to_bytes() if query.payload is not None else b""
         enc = str(query.encoding) if query.encoding is not None else ""
         att = query.attachment.to_bytes()[:64] if query.attachment is not None else b""
+        TRAFFIC.received(str(query.key_expr), "query", len(payload))
         self._push(Received(str(query.key_expr), payload, enc, query, time.perf_counter_ns(),
                             att))
 
@@ -132,14 +138,18 @@ def accept(item: Received, cls: type[M], convert: Callable[[M], T], key: str | N
 
 def reply(query: zenoh.Query, msg: Message) -> None:
     """Reply to a query with a message and finalize it."""
+    payload = msg.SerializeToString()
     try:
-        query.reply(query.key_expr, msg.SerializeToString(), encoding=encoding(msg))
+        query.reply(query.key_expr, payload, encoding=encoding(msg))
+        TRAFFIC.sent(str(query.key_expr), "reply", len(payload))
     finally:
         query.drop()
 
 
 def reply_error(query: zenoh.Query, err: Message) -> None:
+    payload = err.SerializeToString()
     try:
-        query.reply_err(err.SerializeToString(), encoding=encoding(err))
+        query.reply_err(payload, encoding=encoding(err))
+        TRAFFIC.sent(str(query.key_expr), "reply", len(payload))
     finally:
         query.drop()

@@ -17,6 +17,7 @@ from google.protobuf.message import Message
 
 from services.common import rejections, wire
 from services.common.bus.inbox import encoding
+from services.common.traffic import TRAFFIC
 from services.msgs import common_pb2
 
 log = logging.getLogger("services.common.bus")
@@ -114,6 +115,7 @@ def first_reply(session: zenoh.Session, key: str, timeout_s: float,
     try:
         replies = session.get(key, timeout=timeout_s, consolidation=zenoh.ConsolidationMode.NONE,
                               cancellation_token=token, **get)
+        TRAFFIC.sent(key, "query", len(get.get("payload", b"") or b""))
         untrusted = 0
         while True:
             try:
@@ -141,6 +143,8 @@ def first_reply(session: zenoh.Session, key: str, timeout_s: float,
             stop.forget(token)
     if _is_local_timeout(reply):
         raise TimeoutError(f"no reply on {key} within {timeout_s:.3g} s")  # Zenoh's own reply
+    sample = reply.ok if reply.ok is not None else reply.err
+    TRAFFIC.received(key, "reply", 0 if sample is None else len(sample.payload.to_bytes()))
     return reply
 
 

@@ -22,7 +22,7 @@ from types import FrameType
 
 import zenoh
 
-from services.common import keys, rejections
+from services.common import keys, rejections, traffic
 from services.common import log as logsetup
 from services.common.bus.config import zenoh_config
 from services.common.bus.query import Stop
@@ -192,9 +192,10 @@ def run_service(settings: Settings, body: Body, zenoh_session: bool = True) -> i
     code = ctx.exit_code
     if thread.is_alive():
         log.warning("body still busy after the stop grace period; exiting anyway")
+    written = traffic.write_from_env(settings.service)
     log.info("stopped", extra=logsetup.fields(
         signal=signals[0] if signals else 0, exit_code=code,
-        rejections=rejections.REJECTED.total()))
+        rejections=rejections.REJECTED.total(), traffic=str(written or "")))
     logging.shutdown()
     sys.stdout.flush()
     sys.stderr.flush()

@@ -18,6 +18,7 @@ from services.common.bus.inbox import Inbox
 from services.common.bus.query import Trusted, first_reply
 from services.common.cli import Settings
 from services.common.effective import EFFECTIVE
+from services.common.traffic import TRAFFIC
 
 log = logging.getLogger("services.common.bus")
 
@@ -37,6 +38,7 @@ def status(settings: Settings, started: float) -> dict[str, Any]:
         "reasons": [r.value for r in rejections.Reason],
         "log_lines_suppressed": rejections.REJECTED.suppressed_total,
         "missions": EFFECTIVE.snapshot(),
+        "traffic": TRAFFIC.snapshot(),
     }
 
 
@@ -60,6 +62,7 @@ def serve_status(session: zenoh.Session, settings: Settings, stop: threading.Eve
             try:
                 body = json.dumps(status(settings, started)).encode()
                 item.query.reply(key, body, encoding=zenoh.Encoding(STATUS_ENCODING))
+                TRAFFIC.sent(key, "reply", len(body))
             except Exception:  # a status reply must never take the service down
                 log.exception("status reply failed")
             finally:
