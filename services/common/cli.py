@@ -16,6 +16,8 @@ flag               environment         default
 --log-format       LOG_FORMAT          json
 --nice             NICE                0 (a simulator beside the system under test:
                                        10, so it never takes the planners' CPU)
+--zenoh-lease-ms   ZENOH_LEASE_MS      0: Zenoh's own (10 s); how long a silent link
+                                       keeps a session (docs/deployment.md)
 =================  ==================  =========================================
 """
 
@@ -48,6 +50,9 @@ class Settings:
     log_format: str
     tls_dir: str = ""  # ZENOH_TLS_DIR: certificates of services.certs; "" is plain TCP
     nice: int = 0  # added to the process's nice value at start (0..19: lower priority only)
+    #: the lease (ms) this session announces: a link silent for that long closes the session
+    #: (0: Zenoh's default, 10 s; keep-alives go four times a lease)
+    zenoh_lease_ms: int = 0
 
 
 def _endpoints(text: str) -> tuple[str, ...]:
@@ -76,6 +81,10 @@ def parser(service: str, description: str, mavlink_default: str = "") -> argpars
     g.add_argument("--log-level", default=env("LOG_LEVEL", "INFO"), help="[LOG_LEVEL]")
     g.add_argument("--log-format", default=env("LOG_FORMAT", "json"), choices=["json", "text"],
                    help="[LOG_FORMAT]")
+    g.add_argument("--zenoh-lease-ms", type=int, default=env("ZENOH_LEASE_MS", "0"),
+                   help="the Zenoh lease this session announces, ms: a link silent this long "
+                        "closes the session, which then reconnects; 0: Zenoh's own, 10 s "
+                        "[ZENOH_LEASE_MS]")
     g.add_argument("--nice", type=int, default=env("NICE", "0"),
                    help="lower this process's priority by this much, 0..19 (a simulated vehicle "
                         "sharing a machine with the planners it tests) [NICE]")
@@ -90,6 +99,9 @@ def settings(service: str, args: argparse.Namespace) -> Settings:
         raise ValueError("a Zenoh client needs --zenoh-connect")
     if not 0 <= args.nice <= 19:
         raise ValueError(f"--nice must be in 0..19, got {args.nice}")
+    lease = getattr(args, "zenoh_lease_ms", 0)
+    if lease and not 500 <= lease <= 600_000:
+        raise ValueError(f"--zenoh-lease-ms must be 0 or in 500..600000, got {lease}")
     return Settings(
         service=service,
         uav_id=keys.check_id(args.uav_id),
@@ -102,4 +114,5 @@ def settings(service: str, args: argparse.Namespace) -> Settings:
         log_format=args.log_format,
         tls_dir=getattr(args, "zenoh_tls_dir", ""),
         nice=args.nice,
+        zenoh_lease_ms=lease,
     )

@@ -49,6 +49,8 @@ def zenoh_config(s: Settings) -> zenoh.Config:
     conf.insert_json5("connect/exit_on_failure", "false")
     conf.insert_json5("connect/retry",
                       "{period_init_ms: 100, period_max_ms: 1000, period_increase_factor: 2}")
+    if s.zenoh_lease_ms:  # a deployment setting (docs/deployment.md); keep-alives: 4 a lease
+        conf.insert_json5("transport/link/tx/lease", str(int(s.zenoh_lease_ms)))
     return conf
 
 
