@@ -5,6 +5,10 @@ dualpilot.mission.config.DEFAULT_MISSION), ``--seed 3 --controller cc --timing p
 (every controller of dualpilot evaluate by its name: cc, s1, s2,
 concurrent, lookahead, each with +risk; the mission's flags are those of ``dualpilot mission``);
 ``--vehicles 10 --scale system2=2`` a fleet of ten on a planner pool.
+A split deployment runs each host's part (docs/deployment.md): ``--role ground --listen
+tcp/0.0.0.0:7447`` on the ground server (the router, the EWS, System 2, until stopped),
+``--role air --join tcp/GROUND:7447 --seed 7`` on the UAV's companion computer (its router,
+uavsim, the supervisor and System 1; one mission).
 """
 
 from __future__ import annotations
@@ -20,8 +24,11 @@ from pathlib import Path
 from dualpilot.mission.config_args import add_config_arguments, config_from_args
 from services.common.stack_dims import check_stack_dimension
 from services.launch.compose import COMPOSE, REPO
+from services.launch.roles import ROLES
 from services.launch.runs import report, run_fleet, run_replicas
 from services.launch.stack import StackConfig, parse_scale, run_mission
+
+_ENDPOINT = r"tcp/[^\s:/]+:\d{1,5}"
 
 
 def parser() -> argparse.ArgumentParser:
@@ -58,12 +65,22 @@ def parser() -> argparse.ArgumentParser:
     g.add_argument("--join", default="", metavar="ENDPOINT",
                    help="join the router of a stack that runs elsewhere (tcp/HOST:7447) and run "
                         "only --services there, e.g. more planner replicas on another machine, "
-                        "until stopped (Ctrl-C, SIGTERM)")
+                        "until stopped (Ctrl-C, SIGTERM); with --role air: the ground's router, "
+                        "which the air host's router joins")
+    g.add_argument("--role", default="", choices=["", *ROLES],
+                   help="run this host's part of a split deployment (docker-compose.<role>.yml): "
+                        "air (uavsim, the supervisor, System 1 and a router joining --join; one "
+                        "mission) or ground (the router on --listen, the EWS, System 2, the "
+                        "viewer with --viewer; until stopped)")
+    g.add_argument("--listen", default="", metavar="ENDPOINT",
+                   help="with --role ground: where the router listens (default "
+                        "tcp/0.0.0.0:7447, or a free port with --free-ports)")
     g.add_argument("--services", default="",
-                   help="with --join: the services to run, comma-separated (default system2)")
+                   help="with --join or --role ground: the services to run, comma-separated "
+                        "(default: --join's system2, the ground's all)")
     g.add_argument("--uav-ids", default="",
-                   help="with --join: the vehicle ids the services serve, comma-separated "
-                        "(a fleet's: uav1,…,uavN; default --uav-id's, uav1)")
+                   help="with --join or --role ground: the vehicle ids the services serve, "
+                        "comma-separated (a fleet's: uav1,…,uavN; default --uav-id's, uav1)")
     g.add_argument("--timeout-s", type=float, default=600.0)
     g.add_argument("--log-format", choices=["json", "text"], default="json")
     g.add_argument("--no-figures", action="store_true")
@@ -79,9 +96,8 @@ def stack_config(args: argparse.Namespace) -> StackConfig:
     if not 1 <= args.vehicles <= 64:
         raise ValueError("--vehicles must be in 1..64")
     services = tuple(n.strip() for n in args.services.split(",") if n.strip())
-    if (services or args.uav_ids) and not args.join:
-        raise ValueError("--services and --uav-ids go with --join")
-    if args.join and not re.fullmatch(r"tcp/[^\s:/]+:\d{1,5}", args.join):
+    _check_role(args, services)
+    if args.join and not re.fullmatch(_ENDPOINT, args.join):
         raise ValueError(f"--join takes a Zenoh TCP endpoint tcp/HOST:PORT, got {args.join!r}")
     run_id = f"{time.strftime('%Y%m%d-%H%M%S')}-{mission.controller_name}-s{mission.seed}"
     run_dir = (Path(args.out) if args.out else REPO / "runs" / run_id).resolve()
@@ -92,7 +108,28 @@ def stack_config(args: argparse.Namespace) -> StackConfig:
                        tls=args.tls or args.tls_dir is not None,
                        tls_dir=args.tls_dir.resolve() if args.tls_dir else None,
                        scale=scale, profiles=("viewer",) if args.viewer else (),
-                       join=args.join, services=services or (("system2",) if args.join else ()))
+                       join=args.join, role=args.role, listen=args.listen,
+                       services=services or (("system2",) if args.join and not args.role
+                                             else ()))
+
+
+def _check_role(args: argparse.Namespace, services: tuple[str, ...]) -> None:
+    """The flags that go with ``--role`` and ``--join`` (ValueError)."""
+    hosts = bool(args.join and not args.role) or args.role == "ground"
+    if (services or args.uav_ids) and not hosts:
+        raise ValueError("--services and --uav-ids go with --join or --role ground")
+    if args.role == "air" and not args.join:
+        raise ValueError("--role air needs --join tcp/GROUND:PORT, the ground's router")
+    if args.role == "ground" and args.join:
+        raise ValueError("--role ground runs the router the air host joins: no --join")
+    if args.listen and args.role != "ground":
+        raise ValueError("--listen goes with --role ground")
+    if args.listen and not re.fullmatch(_ENDPOINT, args.listen):
+        raise ValueError(f"--listen takes tcp/HOST:PORT, got {args.listen!r}")
+    if args.role == "air" and args.viewer:
+        raise ValueError("the live view runs on the ground host: --role ground --viewer")
+    if args.role and args.vehicles > 1:
+        raise ValueError("--vehicles goes with the whole stack on one host, not --role")
 
 
 def _terminated(signum: int, frame: object) -> None:
@@ -108,7 +145,7 @@ def main(argv: list[str] | None = None) -> int:
         cfg = stack_config(args)
     except ValueError as err:
         p.error(str(err))
-    if cfg.join:
+    if cfg.role == "ground" or (cfg.join and not cfg.role):
         try:
             return run_replicas(cfg, args.uav_ids)
         except ValueError as err:

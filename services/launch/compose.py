@@ -8,12 +8,16 @@ interpreter) with its ``environment``. Compose host names (``zenoh``,
 published port (7447, 14550, 8765, 8766) when it is free, else a free one (``--free-ports``:
 always a free one). The ``eclipse/zenoh`` router is replaced by ``python -m services.router``
 (a zenoh-python session in router mode).
+
+A host's part of a split deployment (``--role air|ground``, services/launch/roles.py) is the
+file with its role's override merged in (``docker-compose.<role>.yml``), by compose's own
+rules (:func:`merge`).
 """
 
 from __future__ import annotations
 
 import re
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -24,6 +28,10 @@ COMPOSE = REPO / "docker-compose.yml"
 ROUTER_IMAGE = "eclipse/zenoh"
 ENDPOINT_KEYS = ("ZENOH_CONNECT", "ZENOH_LISTEN", "MAVLINK_URL", "GCS_URL", "VIEWER_LISTEN",
                  "WEB_LISTEN")
+#: endpoints other hosts reach (a ground station, a browser): a host's part of a split
+#: deployment (``--role``) keeps their ``0.0.0.0``, the whole stack on one host maps it to
+#: loopback
+EXPOSED_KEYS = ("GCS_URL", "VIEWER_LISTEN", "WEB_LISTEN")
 #: ``udpin:host:port`` (pymavlink) or ``tcp/host:port`` (Zenoh endpoint)
 _ENDPOINT = re.compile(r"^(?P<scheme>[a-z]+[:/])(?P<host>[^:/,]+|\[[^\]]+\]):(?P<port>\d{1,5})$")
 
@@ -33,16 +41,39 @@ _VARIABLE = re.compile(r"\$\{(?P<name>[A-Za-z_][A-Za-z0-9_]*)(?::-(?P<default>[^
 
 
 # -- the compose file -----------------------------------------------------------------------------
-def load_compose(path: Path = COMPOSE, env: Mapping[str, str] | None = None) -> dict[str, Any]:
-    """Parse the compose file, fill in its variables from ``env`` (default: this process's
-    environment) as ``docker compose`` does, and check it (see :func:`check_compose`)."""
+def load_compose(path: Path = COMPOSE, env: Mapping[str, str] | None = None,
+                 overrides: Sequence[Path] = ()) -> dict[str, Any]:
+    """Parse the compose file and its ``overrides`` (``docker compose -f path -f …``, merged
+    by :func:`merge`), fill in their variables from ``env`` (default: this process's
+    environment) as ``docker compose`` does, and check the result (:func:`check_compose`)."""
     import os
 
     import yaml
 
-    doc = interpolate(yaml.safe_load(Path(path).read_text()), os.environ if env is None else env)
+    values = os.environ if env is None else env
+    doc = interpolate(yaml.safe_load(Path(path).read_text()), values)
+    for extra in overrides:
+        doc = merge(doc, interpolate(yaml.safe_load(Path(extra).read_text()), values))
     check_compose(doc)
     return doc  # type: ignore[no-any-return]
+
+
+#: service keys an override replaces instead of appending to (compose's merge rules)
+REPLACED = ("command", "entrypoint")
+
+
+def merge(base: Any, override: Any, key: str = "") -> Any:
+    """``override`` merged into ``base`` as ``docker compose -f base -f override`` does:
+    mappings merge key by key, ``command`` and ``entrypoint`` are replaced, other sequences
+    are appended to (an item already there is not repeated), scalars are replaced."""
+    if isinstance(base, dict) and isinstance(override, dict):
+        out = dict(base)
+        for k, v in override.items():
+            out[k] = merge(base[k], v, k) if k in base else v
+        return out
+    if isinstance(base, list) and isinstance(override, list) and key not in REPLACED:
+        return base + [v for v in override if v not in base]
+    return override
 
 
 def interpolate(node: Any, env: Mapping[str, str]) -> Any:
@@ -167,8 +198,10 @@ class PortMap:
             self.ports[port] = port if keep else free_port(proto)
         return self.ports[port]
 
-    def rewrite(self, key: str, value: str) -> str:
-        """``scheme:host:port`` / ``proto/host:port`` → loopback and a local port (or a list)."""
+    def rewrite(self, key: str, value: str, exposed: bool = False) -> str:
+        """``scheme:host:port`` / ``proto/host:port`` → loopback and a local port (or a list);
+        with ``exposed``, an endpoint of :data:`EXPOSED_KEYS` on ``0.0.0.0`` stays on every
+        address (its port mapped as the others)."""
         proto = _proto_of(key, value)
         out = []
         for item in filter(None, (v.strip() for v in value.split(","))):
@@ -176,5 +209,7 @@ class PortMap:
             if m is None:
                 raise ValueError(f"{key}: cannot map endpoint {item!r} to loopback")
             port = int(m.group("port"))  # 0: the system picks one (each process its own)
-            out.append(f"{m.group('scheme')}127.0.0.1:{self.local(port, proto) if port else 0}")
+            keep = exposed and key in EXPOSED_KEYS and m.group("host") == "0.0.0.0"
+            host = "0.0.0.0" if keep else "127.0.0.1"
+            out.append(f"{m.group('scheme')}{host}:{self.local(port, proto) if port else 0}")
         return ",".join(out)

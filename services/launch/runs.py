@@ -40,16 +40,20 @@ def report(cfg: StackConfig, outcome: Outcome, codes: dict[str, int], wall: floa
 
 
 def run_replicas(cfg: StackConfig, uav_ids: str) -> int:
-    """Services of a stack that runs elsewhere, on its router only (``--join``): they serve
-    ``uav_ids`` until Ctrl-C or SIGTERM (0), or until one of them exits (1)."""
+    """Services of a stack that runs elsewhere, on its router only (``--join``), or the
+    ground host's part (``--role ground``: its router too): they serve ``uav_ids`` until
+    Ctrl-C or SIGTERM (0), or until one of them exits (1)."""
     from services.common.fleet import uav_ids as checked_ids
 
     ids = ",".join(checked_ids(uav_ids, cfg.uav_id))
-    cfg = replace(cfg, extra_env={name: {"UAV_IDS": ids} for name in cfg.services})
+    names = cfg.services or tuple(Stack(cfg).service_names())
+    cfg = replace(cfg, extra_env={name: {"UAV_IDS": ids} for name in names})
     cfg.run_dir.mkdir(parents=True, exist_ok=True)
     with Stack(cfg) as stack:
-        names = ", ".join(p.name for p in stack.group.procs)
-        print(f"joined {cfg.join}: {names} serving {ids}; logs in {stack.logs}/", flush=True)
+        names_up = ", ".join(p.name for p in stack.group.procs)
+        where = (f"ground: router on {stack.router_listen}" if cfg.role == "ground"
+                 else f"joined {cfg.join}")
+        print(f"{where}: {names_up} serving {ids}; logs in {stack.logs}/", flush=True)
         try:
             while not (dead := stack.group.dead()):
                 time.sleep(0.5)

@@ -34,6 +34,7 @@ from services.launch.compose import (
     published_ports,
 )
 from services.launch.processes import ProcessGroup
+from services.launch.roles import role_file, router_connect, router_env
 
 
 def next_event(events: Any, timeout_s: float = 0.2) -> Any:
@@ -86,8 +87,15 @@ class StackConfig:
     #: compose profiles to run besides the default services (``("viewer",)``: the live view)
     profiles: tuple[str, ...] = ()
     #: join the router at this Zenoh endpoint instead of starting one: a host of more
-    #: replicas (``services``) for a stack that runs elsewhere; they share only the router
+    #: replicas (``services``) for a stack that runs elsewhere; they share only the router.
+    #: With ``role`` "air": the ground's router, which this host's own router joins
     join: str = ""
+    #: this host's placement (services/launch/roles.py): "" the whole stack, "air" or
+    #: "ground" that host's part of docker-compose.yml (its docker-compose.<role>.yml merged
+    #: in), each service a client of this host's router
+    role: str = ""
+    #: the ground router's endpoint (``role`` "ground"; default tcp/0.0.0.0:<7447 or free>)
+    listen: str = ""
 
     @property
     def mission_id(self) -> str:
@@ -99,13 +107,25 @@ class Stack:
 
     def __init__(self, cfg: StackConfig, compose: Path = COMPOSE):
         self.cfg = cfg
-        self.doc = load_compose(compose)
+        values = dict(os.environ)
+        if cfg.role == "air" and cfg.join:  # the ground router the air router joins
+            values["GROUND_ZENOH"] = cfg.join
+        self.doc = load_compose(compose, values,
+                                overrides=[role_file(cfg.role, compose)] if cfg.role else [])
         services = self.doc["services"]
         self.router_name = next(n for n, s in services.items()
                                 if str(s.get("image", "")).startswith(ROUTER_IMAGE))
         self.ports = PortMap(published_ports(self.doc), cfg.free_ports)
         self.zenoh_port = self.ports.local(7447, "tcp")
-        self.endpoint = cfg.join or f"tcp/127.0.0.1:{self.zenoh_port}"
+        #: where this host's router listens ("" none: ``join`` without a role)
+        self.router_listen = f"tcp/127.0.0.1:{self.zenoh_port}"
+        if cfg.role == "ground":
+            self.router_listen = cfg.listen or f"tcp/0.0.0.0:{self.zenoh_port}"
+        elif cfg.join and not cfg.role:
+            self.router_listen = ""
+        #: where this host's services (and the launcher) connect
+        self.endpoint = (cfg.join if not self.router_listen
+                         else self.router_listen.replace("/0.0.0.0:", "/127.0.0.1:"))
         self.group = ProcessGroup()
         self.logs = cfg.run_dir / "logs"
         self.tls_dir: Path | None = None
@@ -136,15 +156,26 @@ class Stack:
         env["PYTHONPATH"] = os.pathsep.join([str(REPO), env.get("PYTHONPATH", "")]).rstrip(
             os.pathsep)
         for key, value in svc.get("environment", {}).items():
-            env[key] = self.ports.rewrite(key, value) if key in ENDPOINT_KEYS else str(value)
+            env[key] = (self.ports.rewrite(key, value, exposed=bool(self.cfg.role))
+                        if key in ENDPOINT_KEYS else str(value))
         if mission_flags:
             env = without_mission_env(env)
         env.update(self.overrides())
-        if self.cfg.join:  # another machine's router: everything through it (its peers'
+        if self.cfg.role:  # this host's router; the run's traffic, per process
+            env["ZENOH_CONNECT"] = self.endpoint
+            env["TRAFFIC_PATH"] = str(self.cfg.run_dir / "traffic" / "{service}-{pid}.json")
+        elif self.cfg.join:  # another machine's router: everything through it (its peers'
             env["ZENOH_CONNECT"] = self.cfg.join  # loopback locators mean nothing here)
             env["ZENOH_MODE"] = "client"
         env.update(self.cfg.extra_env.get(name, {}))
         return env
+
+    def router_argv(self) -> list[str]:
+        """This host's router: listening on :attr:`router_listen`, joining the routers the
+        file's router command connects to (an air host's: the ground's)."""
+        argv = [sys.executable, "-m", "services.router", "--zenoh-listen", self.router_listen]
+        connect = router_connect(self.doc, self.router_name) if self.cfg.role else []
+        return argv + (["--zenoh-connect", ",".join(connect)] if connect else [])
 
     def argv(self, name: str, mission: list[str] | None = None) -> list[str]:
         """``name``'s command line, with the ``mission``'s configuration flags (the
@@ -182,10 +213,11 @@ class Stack:
         env = dict(os.environ, PYTHONPATH=str(REPO), PYTHONUNBUFFERED="1",
                    LOG_FORMAT=self.cfg.log_format, UAV_ID=self.cfg.uav_id,
                    ZENOH_TLS_DIR=str(self.tls_dir or ""))
-        if not self.cfg.join:
-            self.group.start("router", [sys.executable, "-m", "services.router",
-                                        "--zenoh-listen", self.endpoint], env,
-                             self.logs / "router.log")
+        if self.cfg.role:
+            env.update(router_env(self.doc, self.router_name), PLACEMENT=self.cfg.role)
+            env.pop("ROUTER_CONNECT", None)  # its --zenoh-connect says it
+        if self.router_listen:
+            self.group.start("router", self.router_argv(), env, self.logs / "router.log")
         for name in self.service_names():
             if name not in self.cfg.deferred:
                 self.start_service(name)
