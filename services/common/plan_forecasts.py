@@ -66,12 +66,13 @@ def unavailable(message: str) -> rejections.CodecError:
 
 
 class ResolvedForecasts:
-    """The forecasts named by reference this planner resolved, by (mission, digest)."""
+    """The forecasts named by reference this planner resolved, by (mission, revision,
+    digest)."""
 
     def __init__(self, source: ForecastSource | None, keep: int = 8):
         self.source = source
         self.keep = keep
-        self._held: OrderedDict[tuple[str, bytes], ForecastView] = OrderedDict()
+        self._held: OrderedDict[tuple[str, int, bytes], ForecastView] = OrderedDict()
 
     def resolve(self, query: plan_convert.PlanQuery) -> plan_convert.PlanQuery:
         """``query`` with its named forecast in its request (as if it had come whole); a query
@@ -79,7 +80,8 @@ class ResolvedForecasts:
         ref = query.forecast_ref
         if ref is None:
             return query
-        key = (query.mission_id, ref.digest)
+        key = (query.mission_id, ref.substeps_done, ref.digest)  # an empty grid's digest
+        # is the same at every revision: the revision is part of the name
         held = self._held.get(key)
         if held is None:
             held = self._fetch(query, ref)

@@ -33,20 +33,21 @@ KEEP = 64
 
 
 class AnsweredForecasts:
-    """The latest :data:`KEEP` forecast answers, by (mission id, grid digest); thread-safe."""
+    """The latest :data:`KEEP` forecast answers, by (mission id, revision, grid digest);
+    thread-safe."""
 
     def __init__(self, keep: int = KEEP):
         self.keep = keep
         self._lock = threading.Lock()
-        self._answers: OrderedDict[tuple[str, bytes], tuple[int, bytes]] = OrderedDict()
+        self._answers: OrderedDict[tuple[str, int, bytes], bytes] = OrderedDict()
 
     def put(self, mission_id: str, update: fire_pb2.FireUpdate) -> bytes:
         """Keep ``update`` (a forecast answer, as sent); its grid's digest."""
         digest = fire_convert.grid_digest(update.forecast.occupancy)
-        with self._lock:
-            self._answers[(mission_id, digest)] = (int(update.forecast.substeps_done),
-                                                   update.SerializeToString())
-            self._answers.move_to_end((mission_id, digest))
+        key = (mission_id, int(update.forecast.substeps_done), digest)  # an empty grid's
+        with self._lock:  # digest is the same at every revision
+            self._answers[key] = update.SerializeToString()
+            self._answers.move_to_end(key)
             while len(self._answers) > self.keep:
                 self._answers.popitem(last=False)
         return digest
@@ -57,13 +58,13 @@ class AnsweredForecasts:
         if not cmd.digest:
             raise rejections.invalid("a forecast by reference needs its digest")
         with self._lock:
-            held = self._answers.get((cmd.mission_id, cmd.digest))
-        if held is None or held[0] != cmd.substeps_done:
+            held = self._answers.get((cmd.mission_id, cmd.substeps_done, cmd.digest))
+        if held is None:
             raise rejections.CodecError(
                 common_pb2.ERROR_CODE_UNAVAILABLE,
                 f"no forecast of mission {cmd.mission_id!r} from revision {cmd.substeps_done} "
                 f"with digest {cmd.digest.hex()[:12]}… is held here", rejections.Reason.UNAVAILABLE)
-        return held[1]
+        return held
 
 
 def answer(answers: AnsweredForecasts, payload: bytes, encoding: str,
