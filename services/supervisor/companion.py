@@ -24,6 +24,7 @@ from services.common import bus, keys, rejections, wire
 from services.common.clock import SimClock
 from services.common.log import fields
 
+from .airlink import LinkWatch, WatchedTransport
 from .link import LinkParams, VehicleLink
 from .options import EXIT_ABORTED, EXIT_FAILED, EXIT_SUCCESS, Options
 from .ports import StackBus, StackTransport, ZenohStackTransport
@@ -173,6 +174,8 @@ def stack_summary(mission: StackSession, extra: dict[str, object]) -> dict[str, 
         "forecast_resends": (mission.planners.forecast_resends
                              if mission.planners is not None else 0),
         "stream": link.setpoints.stats(),
+        "link": (mission.observer.airlink.summary() if mission.observer.airlink is not None
+                 else {}),
         "vehicle_modes": [{"mode": c.mode, "armed": c.armed, "text": c.text}
                           for c in link.status.mode_changes], **extra,
     }
@@ -213,11 +216,15 @@ def fly(ctx: bus.Context, opts: Options, stack: Stack | None = None) -> int:
         if code is not None:
             return code
         config = opts.config(k)
-        b = StackBus(stack.transport(), uav, config.mission_id,
+        transport = stack.transport()
+        airlink = LinkWatch(opts.stack.link) if opts.stack.link.services else None
+        if airlink is not None:  # the services behind the air–ground link: every wait timed
+            transport = WatchedTransport(transport, airlink)
+        b = StackBus(transport, uav, config.mission_id,
                      wire.Stamper("supervisor", uav), SimClock(opts.settings.speed_factor),
                      ctx.stop, opts.stack, live, dt_s=config.spec().dynamics.dt_s)
         record = RunRecord(opts.run_dir(k), config.mission_id, opts.stack.record_flush_s)
-        mission = StackSession(b, link, config, record, opts.waypoints)
+        mission = StackSession(b, link, config, record, opts.waypoints, airlink)
         aborted, wall = _fly_session(ctx, opts, mission)
         _write_records(mission, aborted, wall)
         mission.announce_end(str(opts.run_dir(k) or ""), aborted)

@@ -22,6 +22,11 @@ twin, and one with faults says which:
                      EWS gone, late, refusing, or answering for another
                      revision): that step's plans and threat rule went without
                      it, as the paper's (the detail says why)
+``link_degraded``    in a split deployment, the air–ground link carried some of
+                     the step's exchanges but not all, or slowly
+                     (services/supervisor/airlink.py)
+``link_lost``        nothing from behind the air–ground link answered during the
+                     step: System 1 flies it onboard, the fires age
 ===================  ===========================================================
 """
 
@@ -36,7 +41,10 @@ VEHICLE_LOST = "vehicle_lost"
 PLAN_DEADLINE = "plan_deadline"
 FIRE_STALE = "fire_stale"
 FORECAST_STALE = "forecast_stale"
-NAMES = (VEHICLE_HOLD, VEHICLE_MOVED, VEHICLE_LOST, PLAN_DEADLINE, FIRE_STALE, FORECAST_STALE)
+LINK_DEGRADED = "link_degraded"
+LINK_LOST = "link_lost"
+NAMES = (VEHICLE_HOLD, VEHICLE_MOVED, VEHICLE_LOST, PLAN_DEADLINE, FIRE_STALE, FORECAST_STALE,
+         LINK_DEGRADED, LINK_LOST)
 
 
 @dataclass

@@ -24,6 +24,7 @@ from services.common.convert.supervisor import DecisionNotes, EventKind, Mission
 from services.common.log import fields
 
 from . import faults as fault_names
+from .airlink import LinkWatch
 from .faults import FaultLog
 from .link import VehicleLink
 from .ports import StackBus, StackFires, StackPlanners, StackVehicle
@@ -62,6 +63,8 @@ class StackObserver:
     record: RunRecord
     pubs: Publications
     mission: MissionView
+    #: the air–ground link's watch (a split deployment; None: every service on this host)
+    airlink: LinkWatch | None = None
     faults: FaultLog = field(default_factory=FaultLog, init=False)
     #: plans the run-time monitor refused (dualpilot/mission/monitor)
     monitor_rejected: int = field(default=0, init=False)
@@ -129,7 +132,7 @@ class StackObserver:
         alive = any(self.b.alive(f"system{k}") for k in self.mission.config.systems())
         return "no OK plan" if alive else "no planner alive"
 
-    def _step_faults(self) -> list[str]:
+    def _step_faults(self, t: int) -> list[str]:
         """The named faults since the last step record (services/supervisor/faults.py)."""
         status = self.link.status
         for reason in status.hold_reasons[self._holds_seen:status.holds]:
@@ -144,6 +147,11 @@ class StackObserver:
         fires = self.mission.fires
         for why in fires.forecasts.take_faults() if fires is not None else ():
             self.faults.note(fault_names.FORECAST_STALE, why)
+        if self.airlink is not None:  # what the air–ground link did during the step
+            behind = self.airlink.params.services
+            state, why = self.airlink.step(t, [s for s in behind if not self.b.alive(s)])
+            if state in (fault_names.LINK_DEGRADED, fault_names.LINK_LOST):
+                self.faults.note(state, why)
         found = self.faults.take()
         if found:
             log.warning("step touched by a fault", extra=fields(faults="; ".join(found)))
@@ -169,7 +177,7 @@ class StackObserver:
             log.warning("plan refused by the run-time monitor", extra=fields(
                 step=record.t, plan_status=record.plan_status, total=self.monitor_rejected))
         why = dict(self._why)
-        why["faults"] = self._step_faults()
+        why["faults"] = self._step_faults(record.t)
         fires = self.mission.fires
         costs = fires.forecasts.take_costs() if fires is not None else []
         if costs:

@@ -32,6 +32,7 @@ from services.common.convert.vehicle import parse_waypoints
 from services.common.stack_dims import check_stack_dimension
 
 from .ports import StackParams
+from .ports.params import AirLinkParams
 
 #: exit codes with ``--exit-after-mission`` (``docker compose up --exit-code-from supervisor``)
 EXIT_SUCCESS, EXIT_ABORTED, EXIT_FAILED = 0, 1, 3
@@ -119,6 +120,24 @@ def _add_stack_arguments(p: argparse.ArgumentParser) -> None:
                         "fire revision and digest) instead of carrying it: they take it from "
                         "the EWS on their own side of the link; comma-separated system1, "
                         "system2, or none [FORECAST_BY_REFERENCE]")
+    g.add_argument("--link-services", default=env("LINK_SERVICES", ""),
+                   help="the services behind the air–ground link, comma-separated (a split "
+                        "deployment, docs/deployment.md: ews,system2): their exchanges name "
+                        "link_degraded and link_lost in the record; empty: all on this host "
+                        "[LINK_SERVICES]")
+    g.add_argument("--link-rtt-s", type=float, default=env("LINK_RTT_S", "0"),
+                   help="the round trip the air–ground link adds (wall s): added to every "
+                        "wait for a service behind it (plan deadlines, forecast and paced fire "
+                        "waits) [LINK_RTT_S]")
+    g.add_argument("--link-degraded-rtt-s", type=float,
+                   default=env("LINK_DEGRADED_RTT_S", "1"),
+                   help="a round trip across the link longer than this (wall s) is "
+                        "link_degraded [LINK_DEGRADED_RTT_S]")
+    g.add_argument("--fire-deadline-periods", type=float,
+                   default=env("FIRE_DEADLINE_PERIODS", "0"),
+                   help="at a speed factor > 0, a fire advance waits its pacing plus this many "
+                        "control periods ΔT (and at most --fire-timeout-s); 0: "
+                        "--fire-timeout-s alone [FIRE_DEADLINE_PERIODS]")
     g.add_argument("--setpoint-rate-hz", type=float, default=env("SETPOINT_RATE_HZ", "20"),
                    help="setpoint stream rate, >= 10 [SETPOINT_RATE_HZ]")
     g.add_argument("--setpoint-stream", default=env("SETPOINT_STREAM", "process"),
@@ -154,6 +173,8 @@ def _stack_params(args: argparse.Namespace) -> StackParams:
         raise ValueError("--fire-timeout-s, --forecast-timeout-s and "
                          "--forecast-deadline-periods must be positive")
     base = StackParams(altitude_m=args.altitude_m, fire_timeout_s=args.fire_timeout_s,
+                       fire_deadline_periods=args.fire_deadline_periods,
+                       link=_link_params(args),
                        forecast_timeout_s=args.forecast_timeout_s,
                        forecast_deadline_periods=args.forecast_deadline_periods,
                        forecast_by_reference=systems_of(args.forecast_by_reference,
@@ -164,6 +185,19 @@ def _stack_params(args: argparse.Namespace) -> StackParams:
     if len(deadlines) != 2 or min(deadlines) <= 0:
         raise ValueError("--plan-deadline-s must be two positive numbers 's1,s2'")
     return replace(base, plan_deadline_s=(deadlines[0], deadlines[1]))
+
+
+def _link_params(args: argparse.Namespace) -> AirLinkParams:
+    """The air–ground link's flags (ValueError: an unknown service, a negative time)."""
+    names = frozenset(n.strip() for n in args.link_services.split(",") if n.strip())
+    bad = sorted(names - {"ews", "system1", "system2"})
+    if bad:
+        raise ValueError(f"--link-services takes ews, system1, system2, got {', '.join(bad)}")
+    if not (args.link_rtt_s >= 0 and args.link_degraded_rtt_s > 0
+            and args.fire_deadline_periods >= 0):
+        raise ValueError("--link-rtt-s and --fire-deadline-periods must be >= 0, "
+                         "--link-degraded-rtt-s positive")
+    return AirLinkParams(names, args.link_rtt_s, args.link_degraded_rtt_s)
 
 
 def systems_of(text: str, flag: str) -> frozenset[int]:

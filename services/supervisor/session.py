@@ -41,6 +41,7 @@ from services.common import bus
 from services.common.convert.supervisor import EventKind
 from services.common.log import fields
 
+from .airlink import LinkWatch
 from .link import VehicleLink
 from .observer import StackObserver
 from .pause import PausePolicy
@@ -60,7 +61,7 @@ class StackSession:
     """One mission of ``config`` flown through the services; ``run()`` flies it."""
 
     def __init__(self, b: StackBus, link: VehicleLink, config: MissionConfig, record: RunRecord,
-                 waypoints: Array | None = None):
+                 waypoints: Array | None = None, airlink: LinkWatch | None = None):
         self.b = b
         self.link = link
         self.config = config
@@ -72,7 +73,7 @@ class StackSession:
         self.fires: StackFires | None = None
         self.planners: StackPlanners | None = None
         self.pubs = Publications(b, b.stack.altitude_m)
-        self.observer = StackObserver(b, link, record, self.pubs, self)
+        self.observer = StackObserver(b, link, record, self.pubs, self, airlink)
         self.pause = PausePolicy(b.stop, b.stack.pause_limit_s, self._announce_pause,
                                  b.wall.now, b.wait)
         self.watch = OffboardWatch(b, link, self.pause, self.observer.faults)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import logging
+import time
 from collections.abc import Callable
 
 import numpy as np
@@ -60,11 +61,12 @@ class StackFires:
         self.forecasts = StackForecasts(b, self.params)
 
     # -- messages ---------------------------------------------------------------------------------
-    def _command(self, cmd: fire_pb2.FireCommand) -> fire_pb2.FireUpdate:
+    def _command(self, cmd: fire_pb2.FireCommand,
+                 timeout_s: float | None = None) -> fire_pb2.FireUpdate:
         key = keys.fire_command(self.b.uav)
+        wait = self.b.stack.fire_timeout_s if timeout_s is None else timeout_s
         try:
-            payload, enc = self.b.query(key, cmd, self.b.stack.fire_timeout_s,
-                                        trusted=self.b.trusted("ews"))
+            payload, enc = self.b.query(key, cmd, wait, trusted=self.b.trusted("ews"))
             update = wire.parse(payload, fire_pb2.FireUpdate, enc)
         except rejections.CodecError as err:
             rejections.rejected("FireUpdate", err, log, key=key)
@@ -163,7 +165,7 @@ class StackFires:
             return []
         cmd = self._advance_msg(t, n, keep_out, paced=True)  # sub-step k due at τ_t + k·T_f
         try:
-            update = self._command(cmd)
+            update = self._command(cmd, self._advance_wait_s(n))
         except Aborted as err:
             if self.b.stop.is_set():
                 raise
@@ -183,6 +185,13 @@ class StackFires:
                 rejections.rejected("FireState", err, log)
                 raise Aborted(f"EWS sent an invalid fire state: {err}") from err
         return out
+
+    def _advance_wait_s(self, n: int) -> float:
+        """How long the advance of ``n`` sub-steps from now waits (StackParams.fire_wait_s)."""
+        clock = self.b.clock
+        pacing = (clock.anchor.wall_at(clock.now_s + n * self.params.substep_s) - time.time()
+                  if clock.speed_factor > 0 else 0.0)
+        return self.b.stack.fire_wait_s(pacing, self.b.dt_s, clock.speed_factor)
 
     def _pace(self, n: int) -> None:
         """The planning interval's n sub-steps pass on the clock without the EWS."""

@@ -8,6 +8,24 @@ from dualpilot.model.stale_fire import StaleFireParams
 
 
 @dataclass(frozen=True)
+class AirLinkParams:
+    """The air–ground link as the supervisor on the UAV sees it (docs/deployment.md)."""
+
+    #: the services behind the link (``ews``, ``system2``); empty: every service is on this
+    #: host (the whole stack on one machine), no link faults are named, no allowance is added
+    services: frozenset[str] = frozenset()
+    #: the round trip the link adds (wall s): added to every wait for a service behind it
+    #: (plan deadlines, the forecast's wait, a paced fire advance's)
+    rtt_s: float = 0.0
+    #: a round trip longer than this (wall s) makes the step's link ``link_degraded``
+    degraded_rtt_s: float = 1.0
+
+    def allowance_s(self, service: str) -> float:
+        """What a wait for ``service`` adds for the link (wall s)."""
+        return self.rtt_s if service in self.services else 0.0
+
+
+@dataclass(frozen=True)
 class StackParams:
     """How the supervisor talks to the stack."""
 
@@ -47,10 +65,27 @@ class StackParams:
     #: it (services/common/convert/plan.py: the planner takes it from the EWS on its own side
     #: of the link); System 2, which runs beside the EWS on the ground (docs/deployment.md)
     forecast_by_reference: frozenset[int] = frozenset({2})
+    #: a paced mission (speed factor > 0) waits for a fire advance its pacing plus this many
+    #: control periods ΔT (wall s, at most ``fire_timeout_s``); 0: ``fire_timeout_s`` alone.
+    #: Behind a dead link the step then flies on with ageing fire data within the period
+    fire_deadline_periods: float = 0.0
+    #: the air–ground link (a split deployment): the services behind it and its allowance
+    link: AirLinkParams = AirLinkParams()
 
     def forecast_wait_s(self, dt_s: float, speed_factor: float) -> float:
         """How long a forecast query waits (wall s): ``forecast_timeout_s`` in lockstep
-        (speed factor 0), else ``forecast_deadline_periods`` × ΔT at most."""
+        (speed factor 0), else ``forecast_deadline_periods`` × ΔT at most; plus the link's
+        allowance when the EWS is behind it."""
         if speed_factor <= 0:
             return self.forecast_timeout_s
-        return min(self.forecast_timeout_s, self.forecast_deadline_periods * dt_s)
+        return (min(self.forecast_timeout_s, self.forecast_deadline_periods * dt_s)
+                + self.link.allowance_s("ews"))
+
+    def fire_wait_s(self, pacing_s: float, dt_s: float, speed_factor: float) -> float:
+        """How long a fire advance waits (wall s): ``fire_timeout_s``; in a paced mission with
+        ``fire_deadline_periods``, its pacing (``pacing_s``: until its last sub-step is due)
+        plus that many ΔT and the link's allowance, at most ``fire_timeout_s``."""
+        if speed_factor <= 0 or self.fire_deadline_periods <= 0:
+            return self.fire_timeout_s
+        return min(self.fire_timeout_s, max(0.0, pacing_s) + self.fire_deadline_periods * dt_s
+                   + self.link.allowance_s("ews"))

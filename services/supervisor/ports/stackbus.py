@@ -117,11 +117,13 @@ class StackBus:
     wall: WallClock = field(default_factory=MonotonicClock)  # pauses, losses, timeouts
 
     def deadline_s(self, system: int) -> float:
-        """The plan deadline of ``system`` (wall s): the explicit one, or periods × ΔT."""
+        """The plan deadline of ``system`` (wall s): the explicit one, or periods × ΔT; plus
+        the link's round trip when the system is behind the air–ground link."""
         st = self.stack
+        allowance = st.link.allowance_s(f"system{system}")  # behind the air–ground link
         if st.plan_deadline_s is not None:
-            return st.plan_deadline_s[system - 1]
-        return st.plan_deadline_periods[system - 1] * self.dt_s
+            return st.plan_deadline_s[system - 1] + allowance
+        return st.plan_deadline_periods[system - 1] * self.dt_s + allowance
 
     def alive(self, service: str) -> bool:
         """The service's liveliness token is up (always True without a tracker)."""
