@@ -114,6 +114,17 @@ testbed: setup
 testbed-down: setup
 	$(BIN)/python -m services.testbed down
 
+# one whole mission across the test bed's hosts with a 10 s outage of the air–ground link
+# mid-mission (tests/e2e/test_testbed.py, the first test), its run directory under runs/
+.PHONY: testbed-check
+ifeq ($(origin TESTBED_RUN_DIR), undefined)
+TESTBED_RUN_DIR := runs/$(shell date +%Y%m%d-%H%M%S)-testbed-check
+endif
+testbed-check: setup
+	TESTBED_RUN_DIR=$(TESTBED_RUN_DIR) $(BIN)/python -m pytest -q -p no:cacheprovider \
+		tests/e2e/test_testbed.py -k outage -rs; rc=$$?; \
+		echo "run directory: $(TESTBED_RUN_DIR)"; exit $$rc
+
 # `docker compose up` for real (root; installs docker.io/docker-compose/debootstrap, starts and
 # stops its own dockerd, builds a debootstrap base, flies one mission): scripts/compose_check.sh
 compose-check:

@@ -79,6 +79,30 @@ class Options:
         return fleet.instance_url(self.settings.mavlink_url, k)
 
 
+def _add_link_arguments(p: argparse.ArgumentParser) -> None:
+    """The air–ground link's flags (a split deployment, docs/deployment.md)."""
+    env = common_cli.env
+    g = p.add_argument_group("the air–ground link (the supervisor on the UAV)")
+    g.add_argument("--link-services", default=env("LINK_SERVICES", ""),
+                   help="the services behind the air–ground link, comma-separated (a split "
+                        "deployment, docs/deployment.md: ews,system2): their exchanges name "
+                        "link_degraded and link_lost in the record; empty: all on this host "
+                        "[LINK_SERVICES]")
+    g.add_argument("--link-rtt-s", type=float, default=env("LINK_RTT_S", "0"),
+                   help="the round trip the air–ground link adds (wall s): added to every "
+                        "wait for a service behind it (plan deadlines, forecast and paced fire "
+                        "waits) [LINK_RTT_S]")
+    g.add_argument("--link-degraded-rtt-s", type=float,
+                   default=env("LINK_DEGRADED_RTT_S", "1"),
+                   help="a round trip across the link longer than this (wall s) is "
+                        "link_degraded [LINK_DEGRADED_RTT_S]")
+    g.add_argument("--fire-deadline-periods", type=float,
+                   default=env("FIRE_DEADLINE_PERIODS", "0"),
+                   help="at a speed factor > 0, a fire advance waits its pacing plus this many "
+                        "control periods ΔT (and at most --fire-timeout-s); 0: "
+                        "--fire-timeout-s alone [FIRE_DEADLINE_PERIODS]")
+
+
 def _add_stack_arguments(p: argparse.ArgumentParser) -> None:
     env = common_cli.env
     g = p.add_argument_group("the supervisor process")
@@ -120,24 +144,6 @@ def _add_stack_arguments(p: argparse.ArgumentParser) -> None:
                         "fire revision and digest) instead of carrying it: they take it from "
                         "the EWS on their own side of the link; comma-separated system1, "
                         "system2, or none [FORECAST_BY_REFERENCE]")
-    g.add_argument("--link-services", default=env("LINK_SERVICES", ""),
-                   help="the services behind the air–ground link, comma-separated (a split "
-                        "deployment, docs/deployment.md: ews,system2): their exchanges name "
-                        "link_degraded and link_lost in the record; empty: all on this host "
-                        "[LINK_SERVICES]")
-    g.add_argument("--link-rtt-s", type=float, default=env("LINK_RTT_S", "0"),
-                   help="the round trip the air–ground link adds (wall s): added to every "
-                        "wait for a service behind it (plan deadlines, forecast and paced fire "
-                        "waits) [LINK_RTT_S]")
-    g.add_argument("--link-degraded-rtt-s", type=float,
-                   default=env("LINK_DEGRADED_RTT_S", "1"),
-                   help="a round trip across the link longer than this (wall s) is "
-                        "link_degraded [LINK_DEGRADED_RTT_S]")
-    g.add_argument("--fire-deadline-periods", type=float,
-                   default=env("FIRE_DEADLINE_PERIODS", "0"),
-                   help="at a speed factor > 0, a fire advance waits its pacing plus this many "
-                        "control periods ΔT (and at most --fire-timeout-s); 0: "
-                        "--fire-timeout-s alone [FIRE_DEADLINE_PERIODS]")
     g.add_argument("--setpoint-rate-hz", type=float, default=env("SETPOINT_RATE_HZ", "20"),
                    help="setpoint stream rate, >= 10 [SETPOINT_RATE_HZ]")
     g.add_argument("--setpoint-stream", default=env("SETPOINT_STREAM", "process"),
@@ -162,6 +168,7 @@ def parser(doc: str) -> argparse.ArgumentParser:
     p = common_cli.parser("supervisor", doc, mavlink_default="udpin:127.0.0.1:14540")
     add_config_arguments(p)
     _add_stack_arguments(p)
+    _add_link_arguments(p)
     p.formatter_class = argparse.RawDescriptionHelpFormatter
     p.epilog = mission_env.help_text()
     return p
