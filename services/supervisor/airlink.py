@@ -153,8 +153,9 @@ class LinkWatch:
                                  "wall_s": round(self.clock() - since, 3)})
             self._lost_since = None
 
-    def summary(self) -> dict[str, Any]:
-        """``summary.json``'s ``stack.link``."""
+    def summary(self, traffic: Iterable[dict[str, Any]] = ()) -> dict[str, Any]:
+        """``summary.json``'s ``stack.link`` (with the supervisor's ``traffic`` rows: the
+        payload it exchanged with the services behind the link, per step)."""
         rtts = sorted(self._rtts_s)
         outages = list(self.outages)
         if self._lost_since is not None:  # lost to the end
@@ -162,13 +163,33 @@ class LinkWatch:
                             "wall_s": round(self.clock() - self._lost_since[1], 3)})
         out: dict[str, Any] = {"services": sorted(self.params.services),
                                "rtt_allowance_s": self.params.rtt_s, "steps": dict(self.steps),
-                               "outages": outages, "exchanges": len(rtts)}
+                               "outages": outages, "exchanges": len(rtts),
+                               "payload": payload_across(traffic, self.params.services,
+                                                         sum(self.steps.values()))}
         if rtts:
             out["rtt_ms"] = {"median": round(1e3 * statistics.median(rtts), 2),
                              "p95": round(1e3 * rtts[min(len(rtts) - 1,
                                                          int(0.95 * len(rtts)))], 2),
                              "max": round(1e3 * rtts[-1], 2)}
         return out
+
+
+def payload_across(rows: Iterable[dict[str, Any]], services: frozenset[str],
+                   steps: int) -> dict[str, Any]:
+    """The supervisor's payload bytes to and from the services behind the link
+    (``rows``: its traffic table, services/common/traffic.py), in all and per step."""
+    up = down = 0
+    for r in rows:
+        if service_of(r["key"]) not in services:
+            continue
+        if r["direction"] == "sent":
+            up += int(r["bytes"])
+        else:
+            down += int(r["bytes"])
+    n = max(1, steps)
+    return {"air_to_ground_bytes": up, "ground_to_air_bytes": down,
+            "air_to_ground_per_step": round(up / n, 1),
+            "ground_to_air_per_step": round(down / n, 1)}
 
 
 class WatchedTransport:

@@ -23,6 +23,7 @@ import zenoh
 from services.common import bus, keys, rejections, wire
 from services.common.clock import SimClock
 from services.common.log import fields
+from services.common.traffic import TRAFFIC
 
 from .airlink import LinkWatch, WatchedTransport
 from .link import LinkParams, VehicleLink
@@ -174,8 +175,8 @@ def stack_summary(mission: StackSession, extra: dict[str, object]) -> dict[str, 
         "forecast_resends": (mission.planners.forecast_resends
                              if mission.planners is not None else 0),
         "stream": link.setpoints.stats(),
-        "link": (mission.observer.airlink.summary() if mission.observer.airlink is not None
-                 else {}),
+        "link": (mission.observer.airlink.summary(TRAFFIC.snapshot())
+                 if mission.observer.airlink is not None else {}),
         "vehicle_modes": [{"mode": c.mode, "armed": c.armed, "text": c.text}
                           for c in link.status.mode_changes], **extra,
     }

@@ -178,3 +178,25 @@ def test_the_plan_deadline_of_a_system_behind_the_link_allows_its_round_trip() -
                                   link=AirLinkParams(BEHIND, rtt_s=0.25)))
     assert explicit.deadline_s(2) == 3.25 and explicit.deadline_s(1) == 1.0
     assert bus_of(StackParams()).deadline_s(2) == 5.0  # loopback: the paper's 5 s
+
+
+def test_the_supervisors_payload_across_the_link_per_step() -> None:
+    from services.supervisor.airlink import payload_across
+
+    rows = [
+        {"key": "dualpilot/*/ews/command", "kind": "query", "direction": "sent", "bytes": 800},
+        {"key": "dualpilot/*/ews/command", "kind": "reply", "direction": "received",
+         "bytes": 90_000},
+        {"key": "dualpilot/*/plan/system2/*", "kind": "query", "direction": "sent",
+         "bytes": 1_200},
+        {"key": "dualpilot/*/plan/system1/*", "kind": "query", "direction": "sent",
+         "bytes": 50_000},  # System 1 is on the air host
+        {"key": "dualpilot/*/vehicle/state", "kind": "put", "direction": "sent", "bytes": 7},
+    ]
+    assert payload_across(rows, BEHIND, 10) == {
+        "air_to_ground_bytes": 2_000, "ground_to_air_bytes": 90_000,
+        "air_to_ground_per_step": 200.0, "ground_to_air_per_step": 9000.0}
+    w = watch()
+    w.step(0, [])
+    w.step(1, [])
+    assert w.summary(rows)["payload"]["ground_to_air_per_step"] == 45_000.0
