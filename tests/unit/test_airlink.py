@@ -200,3 +200,20 @@ def test_the_supervisors_payload_across_the_link_per_step() -> None:
     w.step(0, [])
     w.step(1, [])
     assert w.summary(rows)["payload"]["ground_to_air_per_step"] == 45_000.0
+
+
+def test_a_plan_from_behind_the_link_took_the_requests_whole_wall_time() -> None:
+    import numpy as np
+
+    from dualpilot.plan import Plan, PlanStatus
+    from services.supervisor.ports.planners import across_link
+
+    def plan(system: int, status: PlanStatus = PlanStatus.OK) -> Plan:
+        return Plan(system, status, np.zeros((1, 4)), np.zeros((0, 2)), compute_time_s=0.8)
+
+    link = AirLinkParams(BEHIND, rtt_s=0.6)
+    got = across_link(plan(2), 1.1, link)  # 0.8 s of compute, 0.3 s of link
+    assert got.compute_time_s == 1.1 and got.info["planner_compute_s"] == 0.8
+    assert across_link(plan(1), 1.1, link).compute_time_s == 0.8  # System 1: onboard
+    assert across_link(plan(2), 1.1, AirLinkParams()).compute_time_s == 0.8  # one host
+    assert across_link(plan(2, PlanStatus.TIMEOUT), 6.0, link).compute_time_s == 0.8

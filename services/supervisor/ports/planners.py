@@ -4,11 +4,12 @@ from __future__ import annotations
 
 import logging
 from concurrent.futures import Future, ThreadPoolExecutor
+from dataclasses import replace
 
 from dualpilot.mission.config import MissionConfig
 from dualpilot.mission.ports import PlanRequest
 from dualpilot.model.dynamics import Array
-from dualpilot.plan import Plan
+from dualpilot.plan import Plan, PlanStatus
 from dualpilot.spec import MissionSpec
 from services.common import keys
 from services.common.convert import plan as plan_convert
@@ -17,9 +18,22 @@ from services.common.log import fields, vehicle_thread
 from services.msgs import plan_pb2
 
 from ..pool import PlannerPool
+from .params import AirLinkParams
 from .stackbus import Aborted, StackBus
 
 log = logging.getLogger("services.supervisor.ports")
+
+
+def across_link(plan: Plan, wall_s: float, link: AirLinkParams) -> Plan:
+    """A plan of a system behind the air–ground link took its request's whole wall time
+    (``wall_s``: the link's round trip, the planner's compute): that is its planning time, as
+    in flight (``--timing measured``), the planner's own kept in ``info``. Any other plan as
+    it is."""
+    if (f"system{plan.system}" not in link.services or plan.status is not PlanStatus.OK
+            or wall_s <= plan.compute_time_s):
+        return plan
+    plan.info["planner_compute_s"] = round(plan.compute_time_s, 6)
+    return replace(plan, compute_time_s=wall_s)
 
 
 class StackPlanners:
@@ -128,6 +142,13 @@ class StackPlanners:
         return plan
 
     def _ask(self, request: PlanRequest, account: bool = True) -> Plan:
+        t0 = self.b.wall.now()
+        plan = self._ask_once(request, account)
+        if self.b.stop.is_set():
+            raise Aborted("stopped")
+        return across_link(plan, self.b.wall.now() - t0, self.b.stack.link)
+
+    def _ask_once(self, request: PlanRequest, account: bool) -> Plan:
         by_ref = (request.forecast is not None
                   and request.system in self.b.stack.forecast_by_reference)
         plan = self.pool.ask(request.system, request.t, self._query_msg(request, by_ref),
@@ -139,6 +160,4 @@ class StackPlanners:
                                      reason=plan.message))
             plan = self.pool.ask(request.system, request.t, self._query_msg(request, False),
                                  account)
-        if self.b.stop.is_set():
-            raise Aborted("stopped")
         return plan
