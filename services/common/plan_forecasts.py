@@ -41,10 +41,13 @@ class ForecastSource(Protocol):
 
 
 class ZenohForecasts:
-    """The EWS's ``ews/forecasts`` queryable over the planner's session."""
+    """The EWS's ``ews/forecasts`` queryable over the planner's session; with ``live``, only
+    the reply of the session holding the EWS's token counts (and the digest is checked
+    whoever answers)."""
 
-    def __init__(self, session: zenoh.Session, uav: str, stop: threading.Event | None = None):
-        self.session, self.uav, self.stop = session, uav, stop
+    def __init__(self, session: zenoh.Session, uav: str, stop: threading.Event | None = None,
+                 live: bus.Liveliness | None = None):
+        self.session, self.uav, self.stop, self.live = session, uav, stop, live
         self.stamper = wire.Stamper("planner", uav)
 
     def fetch(self, mission_id: str, ref: plan_convert.ForecastRef,
@@ -52,8 +55,9 @@ class ZenohForecasts:
         msg = fire_convert.fire_forecast_query_msg(mission_id, ref.step, ref.substeps_done,
                                                    ref.substeps_per_step, self.stamper, 0.0,
                                                    digest=ref.digest)
+        trusted = None if self.live is None else self.live.holder("ews")
         payload, enc = bus.request(self.session, keys.forecasts(self.uav), msg, timeout_s,
-                                   self.stop)
+                                   self.stop, trusted=trusted)
         update = wire.parse(payload, fire_pb2.FireUpdate, enc)
         if not update.HasField("forecast"):
             raise rejections.invalid("the EWS answered without a forecast")

@@ -238,8 +238,9 @@ def run(ctx: bus.Context, system: int, make: PlannerMaker) -> None:
     warm_up()  # before the token: alive means ready to answer in time (once a process)
     session: zenoh.Session = ctx.session
     uav = ctx.settings.uav_id
+    live = bus.Liveliness(session, uav)  # whose forecasts count: the EWS token holder's
     service = PlannerService(system, make, uav,
-                             forecasts=ZenohForecasts(session, uav, ctx.stop))
+                             forecasts=ZenohForecasts(session, uav, ctx.stop, live))
     queries = bus.Inbox(keys.plan(uav, system))
     operator = bus.Inbox()
     zid = str(session.info.zid())
@@ -267,4 +268,5 @@ def run(ctx: bus.Context, system: int, make: PlannerMaker) -> None:
     for queryable in queryables:
         queryable.undeclare()
     sub.undeclare()
+    live.sub.undeclare()
 
