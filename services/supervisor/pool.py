@@ -88,6 +88,9 @@ class PoolParams:
     health_timeout_s: float = 0.5
     #: a prepare (a planner's warm-up, not a flight plan) may take this long
     prepare_timeout_s: float = 60.0
+    #: what System 1's and System 2's health queries wait beyond ``health_timeout_s``: the
+    #: air–ground link's round trip for a system behind it (StackParams.link)
+    health_extra_s: tuple[float, float] = (0.0, 0.0)
 
 
 def rendezvous(mission_id: str, replicas: list[str]) -> list[str]:
@@ -177,7 +180,8 @@ class PlannerPool:
             return False
         self.demoted[system] = now
         try:
-            self.transport.health(system, self.params.health_timeout_s)
+            self.transport.health(system, self.params.health_timeout_s
+                                  + self.params.health_extra_s[system - 1])
         except (TimeoutError, ValueError) as err:
             log.info("planner still unavailable", extra=fields(system=system, error=str(err)))
             return False

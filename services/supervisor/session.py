@@ -213,7 +213,9 @@ class StackSession:
         pool = PlannerPool(b.transport.planners(b.uav, b.stop, b.live), b.uav,
                            b.mission_id, b.deadline_s,
                            PoolParams(st.deadline_misses, st.health_every_s,
-                                      st.health_timeout_s, st.prepare_timeout_s))
+                                      st.health_timeout_s, st.prepare_timeout_s,
+                                      (st.link.allowance_s("system1"),
+                                       st.link.allowance_s("system2"))))
         self.planners = StackPlanners(b, self.spec, self.config, pool)
         if self.waypoints is not None:
             self.planners.set_waypoints(self.waypoints, publish=False)

@@ -217,3 +217,36 @@ def test_a_plan_from_behind_the_link_took_the_requests_whole_wall_time() -> None
     assert across_link(plan(1), 1.1, link).compute_time_s == 0.8  # System 1: onboard
     assert across_link(plan(2), 1.1, AirLinkParams()).compute_time_s == 0.8  # one host
     assert across_link(plan(2, PlanStatus.TIMEOUT), 6.0, link).compute_time_s == 0.8
+
+
+class Silent:
+    """System 2 behind a dead link: every request times out; its health query's wait kept."""
+
+    def __init__(self) -> None:
+        self.now = 0.0
+        self.health_waits: list[float] = []
+
+    def replicas(self, system: int) -> list[str] | None:
+        return ["z2"]
+
+    def ask(self, system: int, replica: str, msg: object, timeout_s: float) -> object:
+        self.now += timeout_s
+        raise TimeoutError("no reply")
+
+    def health(self, system: int, timeout_s: float) -> None:
+        self.health_waits.append(timeout_s)
+
+
+def test_a_demoted_system_behind_the_link_gets_its_health_query_the_round_trip_longer() -> None:
+    from services.msgs import plan_pb2
+    from services.supervisor.pool import PlannerPool, PoolParams
+
+    t = Silent()
+    params = PoolParams(deadline_misses=1, health_timeout_s=0.5, health_extra_s=(0.0, 0.6))
+    pool = PlannerPool(t, "u1", "m1", lambda system: 5.0, params, clock=lambda: t.now)  # type: ignore[arg-type]
+    req = plan_pb2.PlanRequest(step=3, system=2)
+    req.header.seq = 1
+    pool.count(2, pool.ask(2, 3, req))
+    assert not pool.available(2)  # demoted
+    t.now += 2.0
+    assert pool.available(2) and t.health_waits == [pytest.approx(1.1)]
