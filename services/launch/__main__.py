@@ -139,6 +139,9 @@ def _terminated(signum: int, frame: object) -> None:
 
 def main(argv: list[str] | None = None) -> int:
     signal.signal(signal.SIGTERM, _terminated)
+    # SIGINT too, explicitly: a launcher started by a background job of a shell inherits
+    # SIGINT ignored, and Python then installs no handler (it would not stop, nor its services)
+    signal.signal(signal.SIGINT, _terminated)
     p = parser()
     args = p.parse_args(argv)
     try:
