@@ -133,7 +133,7 @@ def test_every_line_written_survives_sigkill(tmp_path: Path) -> None:
             i += 1
     """)
     proc = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE,
-                            cwd=Path(__file__).resolve().parents[2])
+                            cwd=Path(__file__).resolve().parents[4])
     try:
         assert proc.stdout is not None and proc.stdout.readline().strip() == b"written"
     finally:

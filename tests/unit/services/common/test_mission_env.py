@@ -28,7 +28,7 @@ from services.common.mission_env import (
 )
 from tests.support.configs import configs
 
-ROOT = Path(__file__).resolve().parents[2]
+ROOT = Path(__file__).resolve().parents[4]
 NAMES = [name for name, _, _ in MISSION_ENV]
 
 

@@ -1,6 +1,7 @@
 """A mission's end, typed in its records: ``"ending"`` (a value of :class:`Ending`) beside
 ``"success"``, no cause at the goal; records of the older form (``"failure_cause"``, ``""`` at
-the goal; tests/unit/data/old_records/, written before the end was typed) still read."""
+the goal; tests/unit/dualpilot/mission/data/old_records/, written before the end was typed)
+still read."""
 
 from __future__ import annotations
 

@@ -111,8 +111,8 @@ def test_a_broken_part_is_an_error_when_it_is_used_and_names_its_entry_point() -
 
 
 def test_a_supervisor_the_registry_refuses() -> None:
-    refused = supervisors({"solo": "tests.unit.test_extensions:SOLO",
-                           "wrongs1": "tests.unit.test_extensions:WRONG_S1"})
+    refused = supervisors({"solo": "tests.unit.dualpilot.test_extensions:SOLO",
+                           "wrongs1": "tests.unit.dualpilot.test_extensions:WRONG_S1"})
     with pytest.raises(ExtensionError, match=r"'solo' .* is refused: a supervisor other than "
                                              r"the paper's runs the cognitive controller only"):
         refused.get("solo")

@@ -3,7 +3,7 @@
 A configuration written as flags (:func:`config_to_argv`) reads back as itself,
 for random configurations (hypothesis); its wire form is
 tests/integration/test_config_wire.py's, its environment names the services'
-(tests/unit/test_mission_env.py).
+(tests/unit/services/common/test_mission_env.py).
 """
 
 from __future__ import annotations
