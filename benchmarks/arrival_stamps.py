@@ -8,7 +8,7 @@ time just before the send. Reported: the lag's quantiles (p50, p99, p99.9,
 p99.99, max, in ms), how many came without a kernel stamp (the arrival then
 being the read time), and how long after ``setsockopt`` the kernel first
 stamped (it turns stamping on in deferred work). ``--load N`` runs N busy
-processes beside it; tests/unit/test_arrivals.py's tolerance is set from these
+processes beside it; tests/unit/services/uavsim/test_arrivals.py's tolerance is set from these
 figures (docs/testing.md).
 
     .venv/bin/python benchmarks/arrival_stamps.py --datagrams 20000 --load 4

@@ -41,7 +41,7 @@ class ForecastParams:
     about 10 m. Against 2048 paths, redrawn sides (a 75 m ramp of f) leave an
     error under 2/255; kept sides (``extent = "birth"``, a sharp edge) 0.016 rms
     over the cells with 0.02 < P < 0.98 at 10 s, at most 0.12 at a corner cell
-    (tests/unit/test_forecast.py checks the forecast against the process itself).
+    (tests/unit/dualpilot/model/test_forecast.py checks the forecast against the process itself).
     """
 
     members: int = 32

@@ -10,7 +10,7 @@ trailing zero bytes cut (as MAVLink 2 sends it), CRC-16/MCRF4XX over
 everything after the magic plus the message's CRC_EXTRA, and, when signed,
 link id, a 48-bit timestamp (10 µs units since 2015-01-01, +1 a frame) and
 the first 6 bytes of sha256(key + frame up to the timestamp).
-tests/unit/test_mavframe.py checks every byte against pymavlink.
+tests/unit/services/common/test_mavframe.py checks every byte against pymavlink.
 """
 
 from __future__ import annotations

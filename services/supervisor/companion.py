@@ -9,7 +9,7 @@ returns is :data:`~services.supervisor.options.EXIT_SUCCESS`,
 ``EXIT_ABORTED`` or ``EXIT_FAILED``. What it opens — the liveliness tracker,
 the transport to the services and the vehicle's link — comes from a
 :class:`Stack` (the process's: :class:`ZenohStack`), the seam a unit test
-replaces (tests/unit/test_supervisor_companion.py).
+replaces (tests/unit/services/supervisor/test_companion.py).
 """
 
 from __future__ import annotations

@@ -8,7 +8,7 @@ need is met (RESUMED) and aborts the mission when it lasts longer than
 ``limit_s`` or the supervisor is stopped. What to do while waiting (take the
 vehicle again when it is back, notice it is gone for good) is the caller's
 ``tick``; time comes from an injected clock, so the policy is unit-tested
-without a process (tests/unit/test_pause.py).
+without a process (tests/unit/services/supervisor/test_pause.py).
 """
 
 from __future__ import annotations

@@ -19,7 +19,7 @@ unavailable until it answers a health query (at most every
 
 The pool speaks to the replicas through a :class:`Transport` (the stack's:
 :class:`ZenohTransport`) and keeps time on an injected clock, so every rule
-above is unit-tested with a fake transport (tests/unit/test_pool.py).
+above is unit-tested with a fake transport (tests/unit/services/supervisor/test_pool.py).
 """
 
 from __future__ import annotations

@@ -22,7 +22,7 @@ with the ports of services/supervisor/ports/. The session
 
 It reaches the services only through its :class:`~services.supervisor.ports.StackBus`
 (transport and wall clock) and the vehicle only through its link, so a unit test
-flies it in-process (tests/unit/test_supervisor_session.py).
+flies it in-process (tests/unit/services/supervisor/test_session.py).
 """
 
 from __future__ import annotations

@@ -90,7 +90,8 @@ def test_offboard_start_and_a_vehicle_that_disappears(vehicle: Any, link: Vehicl
         t0 = time.monotonic()
         assert until(lambda: not link.status.alive(), 30), "the link never counted the vehicle lost"
         # not before lost_after_s (3 s) less one heartbeat period (1 s) since the last one heard:
-        # a lower bound (the rule itself, on injected times: tests/unit/test_link_liveness.py)
+        # a lower bound (the rule itself, on injected times:
+        # tests/unit/services/supervisor/link/test_liveness.py)
         assert time.monotonic() - t0 >= 3.0 - 1.0 - 0.05 and not link.status.offboard()
     finally:
         os.kill(pid, signal.SIGCONT)

@@ -132,7 +132,7 @@ def test_boots_disarmed_holding_guided_needs_no_stream_takeoff_needs_arming(vehi
     _, x = position(conn)
     assert np.allclose(x, [100.0, 200.0, 0.0, 0.0])
     # ArduPilot's GUIDED holds until a setpoint comes: no stream needed (PX4's OFFBOARD: the
-    # px4 flavour refuses it, tests/unit/test_commander.py)
+    # px4 flavour refuses it, tests/unit/services/uavsim/test_commander.py)
     assert command(conn, m.MAV_CMD_DO_SET_MODE, m.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED,
                    mav.MODE_GUIDED) == m.MAV_RESULT_ACCEPTED
     assert command_said(conn, m.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, 0, 0, 0, 10) == (
@@ -178,7 +178,8 @@ def test_offboard_sequence_then_setpoints_fly_one_step_of_eq1_each(vehicle: Any)
     assert status.onboard_control_sensors_health & m.MAV_SYS_STATUS_PREARM_CHECK  # armable
 
     # the failsafe: no setpoint for COM_OF_LOSS_T = 1 s → LOITER (hold; its timing is
-    # tests/unit/test_failsafe.py's, on injected arrival times: here a wait, not a bound);
+    # tests/unit/services/uavsim/test_failsafe.py's, on injected arrival times: here a wait,
+    # not a bound);
     # lockstep: no simulated time passes without a new stamp, so it holds as it is (x: the
     # state after the last step, still moving), its clock where it was
     recv(conn, "HEARTBEAT", 10, lambda h: h.get_srcComponent() == 1

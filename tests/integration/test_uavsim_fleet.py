@@ -108,7 +108,8 @@ def test_two_vehicles_in_one_process_fly_apart_and_the_realtime_failsafe_brakes(
     _, xb = position(b)
     assert np.allclose(xb, xb0) and mode(b) == (5, False)  # b: untouched, disarmed, LOITER
     # the stream stops: realtime failsafe, LOITER, braked to a stop (the failsafe's timing is
-    # tests/unit/test_failsafe.py's, on injected arrival times: here a wait, not a bound)
+    # tests/unit/services/uavsim/test_failsafe.py's, on injected arrival times: here a wait,
+    # not a bound)
     recv(a, "HEARTBEAT", 10, lambda h: h.get_srcComponent() == 1 and h.custom_mode == 5)
     t_hold, _ = position(a)
     _, held = position(a, t_hold + 1)

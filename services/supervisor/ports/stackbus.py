@@ -5,7 +5,7 @@ planners, vehicle) and to the session's publishers. It reaches the services
 through a :class:`StackTransport` (the stack's: :class:`ZenohStackTransport`,
 queries and publishers on one Zenoh session) and keeps wall time on a
 :class:`WallClock` (the stack's: :class:`MonotonicClock`): the two seams an
-in-process test replaces (tests/unit/test_supervisor_session.py), so the
+in-process test replaces (tests/unit/services/supervisor/test_session.py), so the
 session and its ports run without a process, a socket or a sleep.
 """
 
