@@ -74,9 +74,14 @@ mission: setup
 proto: setup
 	$(BIN)/python -m services.protogen --clean
 
-# every tier (unit, integration, e2e; tests/conftest.py), the slowest 25 listed at the end
+# every tier (unit, integration, e2e; tests/conftest.py) on pytest-xdist's workers, the slowest
+# 25 listed at the end. The e2e tier mostly waits on processes, so its modules run beside each
+# other and beside the unit and integration tiers: one worker takes one module at a time, the
+# longest first (tests/support/parallel.py; docs/testing.md)
+TEST_WORKERS ?= 4
+PARALLEL = -n $(TEST_WORKERS) --dist loadgroup --no-loadscope-reorder
 test: setup browser
-	$(BIN)/python -m pytest -q --durations=25
+	$(BIN)/python -m pytest -q --durations=25 $(PARALLEL)
 
 # the inner loop: the unit tier without its slow tests (under 2 min)
 test-fast: setup
@@ -87,7 +92,7 @@ RUNS ?= 10
 LOAD ?= 0
 TIER ?= fast
 flake-hunt: setup
-	scripts/flake_hunt.sh -n $(RUNS) -l $(LOAD) -t $(TIER)
+	scripts/flake_hunt.sh -n $(RUNS) -l $(LOAD) -t $(TIER) $(if $(filter all,$(TIER)),-- $(PARALLEL))
 
 lint: setup
 	$(BIN)/ruff check .

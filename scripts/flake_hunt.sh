@@ -10,7 +10,8 @@
 #             a Python loop that never sleeps, killed when the hunt ends and bounded by
 #             timeout(1) to the hunt's budget in any case
 #   -t TIER   fast (make test-fast: unit and not slow, the default) or all (make test: every
-#             test); or a pytest marker expression, e.g. "integration"
+#             test; `make flake-hunt TIER=all` passes make test's xdist workers after --);
+#             or a pytest marker expression, e.g. "integration"
 #   -o OUT    where each run's JUnit XML and log go (default runs/flake-hunt/<date>)
 #
 # Exit status: 0 when no test failed in any run, 1 otherwise. The summary is printed and
@@ -25,7 +26,7 @@ while getopts "n:l:t:o:h" opt; do
     l) LOAD=$OPTARG ;;
     t) TIER=$OPTARG ;;
     o) OUT=$OPTARG ;;
-    h) sed -n '2,17p' "$0"; exit 0 ;;
+    h) sed -n '2,18p' "$0"; exit 0 ;;
     *) exit 2 ;;
   esac
 done

@@ -7,6 +7,10 @@ through the stack, ground stations and SDKs as real clients. ``slow`` marks the
 long suites of any tier. ``make test-fast`` runs ``unit and not slow``; ``make test``
 runs everything.
 
+``make test`` runs the tiers side by side on pytest-xdist's workers: each test gets the xdist
+group of its module when it shares a module's fixture, and the longest modules go first
+(tests/support/parallel.py).
+
 Hypothesis runs with no deadline: a property is a statement about values, never
 about how long an example took (a loaded machine must not fail it).
 """
@@ -18,6 +22,8 @@ from pathlib import Path
 import pytest
 from hypothesis import settings
 
+from tests.support import parallel
+
 TIERS = ("unit", "integration", "e2e")
 
 # the ``testbed`` fixture: the deployment test bed's hosts, or a skip saying why not
@@ -27,12 +33,17 @@ settings.register_profile("dualpilot", deadline=None)
 settings.load_profile("dualpilot")
 
 
+@pytest.hookimpl(tryfirst=True)  # before -m selects and before xdist reads the groups
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
     root = Path(__file__).parent
     for item in items:
         try:
-            tier = Path(item.path).relative_to(root).parts[0]
+            rel = Path(item.path).relative_to(root)
         except ValueError:
             continue
-        if tier in TIERS:
-            item.add_marker(getattr(pytest.mark, tier))
+        if rel.parts[0] in TIERS:
+            item.add_marker(getattr(pytest.mark, rel.parts[0]))
+        group = parallel.group(item, rel)
+        if group is not None:
+            item.add_marker(pytest.mark.xdist_group(group))
+    items[:] = parallel.ordered(items, root)
