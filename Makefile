@@ -76,10 +76,10 @@ proto: setup
 
 # every tier (unit, integration, e2e; tests/conftest.py) on pytest-xdist's workers, the slowest
 # 25 listed at the end. The e2e tier mostly waits on processes, so its modules run beside each
-# other and beside the unit and integration tiers: one worker takes one module at a time, the
-# longest first (tests/support/parallel.py; docs/testing.md)
+# other and beside the unit and integration tiers: a worker takes a test (or a module whose
+# tests share a stack) at a time, the e2e tier first (tests/support/parallel.py; testing.md)
 TEST_WORKERS ?= 4
-PARALLEL = -n $(TEST_WORKERS) --dist loadgroup --no-loadscope-reorder
+PARALLEL = -n $(TEST_WORKERS) --dist loadgroup
 test: setup browser
 	$(BIN)/python -m pytest -q --durations=25 $(PARALLEL)
 

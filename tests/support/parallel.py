@@ -3,10 +3,12 @@
 A worker runs one unit of work at a time and asks for the next when it is nearly done.
 A test is a unit of its own, unless it shares a fixture wider than itself: then its whole
 module is one unit (:func:`group`), so a module-scoped fixture, such as the stack that
-several e2e tests fly on, starts once, on one worker. :func:`ordered` puts the units that
-take longest first (longest processing time first): the long e2e modules start at once,
-the unit and integration tests fill the gaps beside them, and no long test is left for
-the end. The order of the tests within a module is kept.
+several e2e tests fly on, starts once, on one worker. xdist hands out the units with the
+most tests first (those modules run their tests one after another, on one worker: the
+lockstep missions, the MAVSDK examples on UDP 14540, …), then the single tests in the
+order :func:`ordered` gives them: the e2e tier, which mostly waits on processes, first,
+and the unit and integration tests filling the gaps beside it, so that no long test is
+left for the end. The order of the tests within a module is kept.
 """
 
 from __future__ import annotations
@@ -17,9 +19,6 @@ import pytest
 
 #: fixture scopes wider than a test and narrower than a worker's session
 SHARED_SCOPES = frozenset({"class", "module", "package"})
-
-#: the modules that take longest (``make test``'s ``--durations``), longest first
-SLOW_FIRST: tuple[str, ...] = ()
 
 
 def group(item: pytest.Item, rel: Path) -> str | None:
@@ -35,16 +34,13 @@ def group(item: pytest.Item, rel: Path) -> str | None:
 
 
 def rank(module: str) -> int:
-    """Where ``module`` (a path under tests/) starts: the slow ones first, in order, then
-    the e2e tier, the integration tier and the unit tier."""
-    if module in SLOW_FIRST:
-        return SLOW_FIRST.index(module)
-    tier = module.split("/")[0]
-    return len(SLOW_FIRST) + {"e2e": 0, "integration": 1}.get(tier, 2)
+    """Where ``module`` (a path under tests/) starts: the e2e tier first, then the
+    integration tier, then the unit tier."""
+    return {"e2e": 0, "integration": 1}.get(module.split("/")[0], 2)
 
 
 def ordered(items: list[pytest.Item], root: Path) -> list[pytest.Item]:
-    """``items`` with the slow modules first (a stable sort: the rest keep their order)."""
+    """``items`` tier by tier (a stable sort: within a tier, the collection's order)."""
     def key(item: pytest.Item) -> int:
         try:
             return rank(Path(item.path).relative_to(root).as_posix())
