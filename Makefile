@@ -77,9 +77,9 @@ proto: setup
 # every tier (unit, integration, e2e; tests/conftest.py) on pytest-xdist's workers, the slowest
 # 25 listed at the end. The e2e tier mostly waits on processes, so its modules run beside each
 # other and beside the unit and integration tiers: a worker takes a test (or a module whose
-# tests share a stack) at a time, the e2e tier first (tests/support/parallel.py; testing.md)
+# tests share a stack) at a time, the longest first (tests/support/parallel.py; testing.md)
 TEST_WORKERS ?= 4
-PARALLEL = -n $(TEST_WORKERS) --dist loadgroup
+PARALLEL = -n $(TEST_WORKERS) --dist loadgroup --no-loadscope-reorder
 test: setup browser
 	$(BIN)/python -m pytest -q --durations=25 $(PARALLEL)
 

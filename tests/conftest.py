@@ -8,7 +8,7 @@ long suites of any tier. ``make test-fast`` runs ``unit and not slow``; ``make t
 runs everything.
 
 ``make test`` runs the tiers side by side on pytest-xdist's workers: each test gets the xdist
-group of its module when it shares a module's fixture, and the e2e tier goes first
+group of its module when it shares a module's fixture, and the longest go first
 (tests/support/parallel.py).
 
 Hypothesis runs with no deadline: a property is a statement about values, never
