@@ -75,10 +75,10 @@ proto: setup
 	$(BIN)/python -m services.protogen --clean
 
 # every tier (unit, integration, e2e; tests/conftest.py) on pytest-xdist's workers, the slowest
-# 25 listed at the end. The e2e tier mostly waits on processes, so its modules run beside each
-# other and beside the unit and integration tiers: a worker takes a test (or a module whose
-# tests share a stack) at a time, the longest first (tests/support/parallel.py; testing.md)
-TEST_WORKERS ?= 4
+# 25 listed at the end: the e2e tests in two lanes of one test at a time (their stacks are
+# CPU-bound and their wall-clock checks need the cores), the unit and integration tests on
+# the third worker beside them (tests/support/parallel.py; docs/testing.md)
+TEST_WORKERS ?= 3
 PARALLEL = -n $(TEST_WORKERS) --dist loadgroup --no-loadscope-reorder
 test: setup browser
 	$(BIN)/python -m pytest -q --durations=25 $(PARALLEL)

@@ -7,9 +7,8 @@ through the stack, ground stations and SDKs as real clients. ``slow`` marks the
 long suites of any tier. ``make test-fast`` runs ``unit and not slow``; ``make test``
 runs everything.
 
-``make test`` runs the tiers side by side on pytest-xdist's workers: each test gets the xdist
-group of its module when it shares a module's fixture, and the longest go first
-(tests/support/parallel.py).
+``make test`` runs the tiers side by side on pytest-xdist's workers: the e2e tests in two lanes
+of one test at a time, the others beside them (tests/support/parallel.py).
 
 Hypothesis runs with no deadline: a property is a statement about values, never
 about how long an example took (a loaded machine must not fail it).
@@ -43,7 +42,4 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
             continue
         if rel.parts[0] in TIERS:
             item.add_marker(getattr(pytest.mark, rel.parts[0]))
-        group = parallel.group(item, rel)
-        if group is not None:
-            item.add_marker(pytest.mark.xdist_group(group))
-    items[:] = parallel.ordered(items, root)
+    items[:] = parallel.assign(items, root)

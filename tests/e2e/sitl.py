@@ -41,8 +41,6 @@ m = mav.mavlink
 #: PX4 SITL's API (offboard) port, where MAVSDK's examples listen
 PX4_API_PORT = 14540
 LOCK = Path(tempfile.gettempdir()) / "dualpilot-udp-14540.lock"
-#: the xdist group of the tests that fly on it (tests/support/parallel.py)
-API_PORT_GROUP = "udp-14540"
 
 
 def udp_free(port: int) -> bool:

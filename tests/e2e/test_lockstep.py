@@ -340,9 +340,6 @@ def forecasts_in(run_dir: Path) -> tuple[int, int]:
                                                                               0))
 
 
-# make test: these six (half the module's time) on an xdist worker of their own, with a fleet
-# of their own, beside the rest of the module (tests/support/parallel.py)
-@pytest.mark.xdist_group("e2e/test_lockstep.py:risk")
 @pytest.mark.parametrize("scenario", ["grass-15", "shrub"])
 @pytest.mark.parametrize("controller", ["s2+risk", "s1+risk", "concurrent+risk"])
 def test_risk_aware_controllers_fly_the_in_process_mission_through_the_stack(

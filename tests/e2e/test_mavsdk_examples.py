@@ -33,15 +33,12 @@ from services.launch import REPO
 from services.uavsim import flavour as fl
 from services.uavsim.params import PARAMS
 from tests.e2e.examples_common import plain
-from tests.e2e.sitl import API_PORT_GROUP, Sitl, px4_sitl
+from tests.e2e.sitl import Sitl, px4_sitl
 from tests.support.waits import check
 
 grpc = pytest.importorskip("tests.e2e.examples_grpc")  # needs mavsdk<4
 
-# every test here flies on 14540 (sitl.api_port takes it one test at a time): one xdist worker
-# runs them all, instead of several workers waiting on the port in turn
-pytestmark = [pytest.mark.slow, pytest.mark.timeout(240),
-              pytest.mark.xdist_group(API_PORT_GROUP)]
+pytestmark = [pytest.mark.slow, pytest.mark.timeout(240)]
 m = mav.mavlink
 SPEED = 10.0  # simulated s per wall s
 HOME = fl.PX4_SITL.home  # PX4 SITL's: 47.397742, 8.545594, 488 m
