@@ -75,9 +75,11 @@ proto: setup
 	$(BIN)/python -m services.protogen --clean
 
 # every tier (unit, integration, e2e; tests/conftest.py) on pytest-xdist's workers, the slowest
-# 25 listed at the end: the e2e tests in two lanes of one test at a time (their stacks are
-# CPU-bound and their wall-clock checks need the cores), the unit and integration tests on
-# the third worker beside them (tests/support/parallel.py; docs/testing.md)
+# 25 listed at the end: the e2e tests in E2E_LANES lanes of one test at a time (their stacks
+# are CPU-bound and their wall-clock checks need the cores), the unit and integration tests on
+# the other worker beside them (tests/support/parallel.py; docs/testing.md)
+E2E_LANES ?= 2
+export E2E_LANES
 TEST_WORKERS ?= 3
 PARALLEL = -n $(TEST_WORKERS) --dist loadgroup --no-loadscope-reorder
 test: setup browser

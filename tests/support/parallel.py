@@ -14,6 +14,7 @@ its own (:data:`SPLIT`), with a fleet of its own.
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import pytest
@@ -21,9 +22,9 @@ import pytest
 #: fixture scopes wider than a test and narrower than a worker's session
 SHARED_SCOPES = frozenset({"class", "module", "package"})
 
-#: how many e2e tests run at once (make test's TEST_WORKERS is this plus the workers of the
-#: other tiers)
-E2E_LANES = 2
+#: how many e2e tests run at once (environment ``E2E_LANES``, from make test; its TEST_WORKERS
+#: is this plus the workers of the other tiers)
+E2E_LANES = max(1, int(os.environ.get("E2E_LANES", "2")))
 
 #: seconds of each e2e unit (a module, or a group a test names) in one serial run of the
 #: integration and e2e tiers (``pytest tests/integration tests/e2e --durations=120``, 2 cores,
