@@ -24,8 +24,8 @@ from services.ews.answers import AnsweredForecasts
 from services.msgs import fire_pb2, plan_pb2
 from services.supervisor.ports import StackParams
 from tests.support.stack import InProcessStack, in_process_ews, planner_services, rig
-from tests.unit.test_forecast_wire import forecast
-from tests.unit.test_supervisor_session import assert_same_mission, twin
+from tests.unit.services.common.convert.test_forecast_wire import forecast
+from tests.unit.services.supervisor.test_session import assert_same_mission, twin
 
 #: System 2 risk-aware for 12 steps: a forecast every step
 CONFIG = MissionConfig.named("s2+risk", seed=26, settings=(("max_steps", 12),))

@@ -21,7 +21,7 @@ from dualpilot.mission.records import (
     write_trace,
 )
 from dualpilot.mission.result import MissionResult
-from tests.unit.test_consistency3d import _lifted, _pair
+from tests.unit.dualpilot.mission.test_consistency3d import _lifted, _pair
 
 
 def _missions() -> tuple[MissionResult, MissionResult]:
