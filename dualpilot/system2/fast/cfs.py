@@ -21,6 +21,7 @@ from dualpilot.arrays import AnyArray, Array
 from dualpilot.system2.fast.geometry import FaceStack, HullStack, Inflated
 from dualpilot.system2.fast.params import FastParams
 from dualpilot.system2.fast.qp import P2Qp, QpResult
+from dualpilot.system2.fast.split import SplitQp
 
 
 @dataclass
@@ -35,9 +36,10 @@ class Candidate:
 
 
 class CountedSolve:
-    """``P2Qp.solve`` of one plan (state, u_{t|t}, goal, κ), counting the QPs in ``n``."""
+    """``P2Qp.solve`` (``SplitQp.solve`` in 3-D) of one plan (state, u_{t|t}, goal, κ),
+    counting the QPs in ``n``."""
 
-    def __init__(self, qp: P2Qp, x0: Array, u_prev: Array, goal: Array,
+    def __init__(self, qp: P2Qp | SplitQp, x0: Array, u_prev: Array, goal: Array,
                  kappa: tuple[float, float]) -> None:
         self.qp, self.x0, self.u_prev, self.goal, self.kappa = qp, x0, u_prev, goal, kappa
         self.n = 0
@@ -80,6 +82,15 @@ class KeepOuts:
         T = self.horizon
         hull, tt = np.nonzero(self.faces.below(pos[1:T], 0.0, self.steps()))  # hull-major
         return np.column_stack([tt + 2, hull]).astype(np.int64).reshape(-1, 2)
+
+    def below(self, pos: Array, threshold: float) -> AnyArray:
+        """(keep-outs, points p_2..p_T): keep-out i's margin at the point is below
+        ``threshold`` (m), at its steps."""
+        return self.faces.below(pos, threshold, self.steps())
+
+    def clip(self, pos: Array) -> Array:
+        """Positions clipped to the area (unchanged without one)."""
+        return pos if self.area is None else np.clip(pos, 0.0, self.area)
 
     def in_area(self, pos: Array) -> bool:
         """Whether p_2..p_T lie in the area (1 µm of slack)."""
@@ -150,8 +161,7 @@ class Cfs:
 
     def _activate(self, pos: Array) -> None:
         T = self.T
-        self.active[:, 2:T + 1] |= self.keepouts.faces.below(pos[1:T], self.plan.fast.near_m,
-                                                             self.keepouts.steps())
+        self.active[:, 2:T + 1] |= self.keepouts.below(pos[1:T], self.plan.fast.near_m)
 
     def _rows(self) -> tuple[Array, Array, Array]:
         """Half-planes (τ, normal, rhs) of the active (τ, i) pairs, hull-major, vectorised."""
@@ -192,7 +202,7 @@ class Cfs:
         hid = self.last_hull_ids
         pts = self.cur[tau - 1]
         slack = np.einsum("ij,ij->i", nrm, pts) - rhs
-        ks = np.flatnonzero(slack < 1e-3)
+        ks = np.flatnonzero((slack < 1e-3) & self._around(nrm))
         if not len(ks):
             return None
         hs, eps_m = self.keepouts.stack, self.plan.fast.eps_margin_m
@@ -200,15 +210,19 @@ class Cfs:
         face = np.argmax(margins, axis=1)
         best = margins[np.arange(len(ks)), face]
         a_face = hs.A[hid[ks], face]
-        swap = ~np.all(np.abs(a_face - nrm[ks]) < 1e-9, axis=1) & ~(best < 0.25 * eps_m)
+        swap = ~np.all(np.abs(a_face - nrm[ks, :2]) < 1e-9, axis=1) & ~(best < 0.25 * eps_m)
         if not np.any(swap):
             return None
         nrm, rhs = nrm.copy(), rhs.copy()
         k = ks[swap]
-        nrm[k] = a_face[swap]
+        nrm[k, :2] = a_face[swap]
         # keep the current position feasible (it may sit a hair inside the margin)
         rhs[k] = hs.b[hid[k], face[swap]] + np.minimum(eps_m, best[swap])
         return tau, nrm, rhs
+
+    def _around(self, nrm: Array) -> AnyArray:
+        """Which rows pass a keep-out around (a half-plane of its footprint): all in 2-D."""
+        return np.ones(len(nrm), dtype=bool)
 
     def _unchanged(self, rows: tuple[Array, Array, Array]) -> bool:
         """True if the active half-planes at the current solution are those it solved."""
@@ -284,9 +298,8 @@ class Cfs:
         elif self.elastic and self.n_elastic >= self.max_elastic:
             self.done = True
         self._activate(pos)
-        area = self.keepouts.area
         if feasible or not self.feasible_seen:
-            self.cur = pos if area is None else np.clip(pos, 0.0, area)
+            self.cur = self.keepouts.clip(pos)
         # else: the solution broke a (τ, i) pair that was not in the QP; keep the last
         # feasible iterate, whose supports of the newly added pairs keep the QP feasible
 

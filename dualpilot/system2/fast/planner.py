@@ -7,7 +7,9 @@ paths and the previous plan (:mod:`dualpilot.system2.fast.references`), and
 improved by convex-feasible-set iteration (:mod:`dualpilot.system2.fast.cfs`);
 the cheapest candidate that passes :func:`verify_p2_plan` is returned, else
 UNSAFE. Keep-outs of some plan steps only (``zones``: the risk zones of
-:class:`dualpilot.system2.fast.risk.RiskSystem2`) are avoided at their steps.
+:class:`dualpilot.system2.fast.risk.RiskSystem2`) are avoided at their steps. In 3-D
+(``spec.dim == 3``, prisms for hulls) each prism is passed around or over
+(:mod:`dualpilot.system2.fast.planner3`).
 
 The other methods built on it: "thorough" (:mod:`dualpilot.system2.fast.thorough`),
 "fast+risk" (:mod:`dualpilot.system2.fast.risk`), "fast+exact"
@@ -32,6 +34,7 @@ from dualpilot.spec import MissionSpec
 from dualpilot.system2.fast.cfs import Candidate, Cfs, CfsPlan, CountedSolve, KeepOuts, race
 from dualpilot.system2.fast.geometry import FaceStack, Inflated
 from dualpilot.system2.fast.params import FastParams
+from dualpilot.system2.fast.planner3 import Fast3, planar_spec
 from dualpilot.system2.fast.qp import P2Qp, QpResult
 from dualpilot.system2.fast.references import References, braking
 from dualpilot.system2.problem import (
@@ -70,10 +73,15 @@ class FastSystem2:
         fast: FastParams = FastParams(),
     ) -> None:
         dynamics = spec.dynamics
-        if dynamics.dim != 2:
-            raise ValueError(f"FastSystem2 plans in 2-D (Sec. IV); got dim={dynamics.dim}")
         if params.horizon < 2:
             raise ValueError("FastSystem2 needs a horizon of at least 2 steps")
+        #: the 3-D method (None in 2-D); it plans a request that reduces to the plane with
+        #: this planner's 2-D sibling
+        self.three: Fast3 | None = None
+        flat = spec
+        if dynamics.dim == 3:
+            flat = planar_spec(spec)
+            self.three = Fast3(spec, params, fast, FastSystem2(flat, params, fast))
         self.spec = spec
         self.goal = spec.goal
         self.params = params
@@ -82,15 +90,21 @@ class FastSystem2:
         self.clearance_m = spec.d_safe_m  # every returned plan keeps d_safe
         self.epsilon_m = spec.clearance_m  # ε of Eq. (P2_3)
         self.area = spec.area_size_m if params.keep_in_area else None
-        self.qp = P2Qp(params.horizon, dynamics, self.area,
+        self.qp = P2Qp(params.horizon, flat.dynamics, self.area,
                        speed_sides=params.speed_polygon_sides)
-        self.references = References(fast, params, dynamics, spec.goal, self.area)
+        self.references = References(fast, params, flat.dynamics, spec.goal, self.area)
         self._last: Plan | None = None
 
     # ---------------------------------------------------------------- public
     def reset(self) -> None:
         """Forget the previous plan (its shifted copy seeds the next call)."""
         self._last = None
+        if self.three is not None:
+            self.three.reset()
+
+    def seed_previous(self, plan: Plan | None) -> None:
+        """Start the next plan from ``plan`` (2-D) as if this planner had made it."""
+        self._last = plan if plan is not None and plan.ok else None
 
     def plan(
         self,
@@ -105,6 +119,13 @@ class FastSystem2:
     def plan_with_zones(self, state: Array, hulls: Sequence[Polytope], objective: Objective,
                         prev_control: Array | None, zones: Sequence[Zone]) -> Plan:
         """:meth:`plan`, each of ``zones`` also kept out (by ε, as the hulls) at its steps."""
+        if self.three is not None:
+            if zones:
+                return _failed(PlanStatus.INVALID_INPUT, "risk zones are planar: the fast "
+                               "method keeps them out in 2-D only", time.perf_counter(),
+                               objective)
+            return self.three.plan(state, tuple(hulls), objective,  # type: ignore[arg-type]
+                                   prev_control)
         t0 = time.perf_counter()
         checked = check_request(state, hulls, objective, prev_control)
         if isinstance(checked, str):

@@ -86,6 +86,16 @@ def _control_steps(u_prev: AnyArray, controls: AnyArray) -> AnyArray:
     return du
 
 
+def _reach(x0: AnyArray, T: int, dyn: DynamicsParams, axes: int
+           ) -> tuple[AnyArray, AnyArray]:
+    """:func:`reach_boxes` of a plane's state (``axes`` 2) or of one axis's [p, v] (``axes``
+    1: that axis, as each axis of a planar state; the axes are independent)."""
+    if axes == 2:
+        return reach_boxes(x0, T, dyn)
+    lo, hi = reach_boxes(np.array([x0[0], x0[0], x0[1], x0[1]]), T, dyn)
+    return lo[:, :1], hi[:, :1]
+
+
 def _mv(mat: sp.csr_matrix, x: AnyArray) -> AnyArray:
     """``mat @ x`` for a CSR matrix, compiled (the sums of scipy's, term for term)."""
     return csr_matvec(mat.indptr, mat.indices, mat.data, np.ascontiguousarray(x, dtype=float))
@@ -106,19 +116,29 @@ class P2Qp:
         The margins, the scale and the solver.
     speed_sides : int
         K of the speed polygon under ``speed_limit = "norm"`` (unused per axis).
+    axes : int
+        2: the plane's QP (positions (x, y), the area [0, area]²); 1: the altitude's QP of a
+        3-D plan (:mod:`dualpilot.system2.fast.split`), positions z in
+        [``floor_m``, ``area_size_m``] (the band), whose "half-planes" are z_τ ≥ rhs
+        (normals (m, 1) of ones); ``dynamics`` then gives ΔT, ζ, m and the per-axis limits.
+    floor_m : float
+        The lower bound of every coordinate (m; 0: the area's side).
     """
 
     def __init__(self, horizon: int, dynamics: DynamicsParams, area_size_m: float | None,
-                 params: QpParams = QpParams(), *, speed_sides: int = 16) -> None:
+                 params: QpParams = QpParams(), *, speed_sides: int = 16, axes: int = 2,
+                 floor_m: float = 0.0) -> None:
         if dynamics.dim != 2:
             raise ValueError(f"the P2 QP is planar, got dim={dynamics.dim}")
         if horizon < 2:
             raise ValueError(f"horizon must be >= 2, got {horizon}")
         self.params = params
+        self.axes = int(axes)
         # the matrices and the memo tables of this shape, built once a process
         self.shape = qp_shape(int(horizon), dynamics, area_size_m, float(params.v_margin),
                               float(params.u_margin), float(params.area_margin),
-                              float(params.scale), int(speed_sides))
+                              float(params.scale), int(speed_sides), self.axes,
+                              float(floor_m))
         self.clarabel = ClarabelQp(self.shape, params.tol)
         self.backend = params.backend
         # the last plan's offsets and interior-point context (every QP of one plan shares them)
@@ -143,17 +163,17 @@ class P2Qp:
         key = (x0.tobytes(), u_prev.tobytes())
         if self._off_key == key and self._off is not None:
             return self._off
-        T = sh.T
+        T, k = sh.T, sh.axes
         dt, a, mass = sh.dyn.dt_s, 1.0 - sh.dyn.zeta, sh.dyn.mass_kg
-        p1 = x0[:2] + dt * x0[2:]
-        e = np.zeros(2 * (T + 1))
-        e[:2] = p1
+        p1 = x0[:k] + dt * x0[k:]
+        e = np.zeros(k * (T + 1))
+        e[:k] = p1
         vc = _mv(sh.dv, e)
         vprev = _mv(sh.shift, vc)
-        vprev[:2] += x0[2:]
+        vprev[:k] += x0[k:]
         uc = (mass / dt) * (vc - a * vprev)
         duc = _mv(sh.diff, uc)
-        duc[:2] -= u_prev
+        duc[:k] -= u_prev
         out = (vc, uc, duc, p1)
         for arr in out:
             arr.setflags(write=False)
@@ -179,10 +199,10 @@ class P2Qp:
         if sh.area is not None:
             # a side of the area that p_τ cannot reach (per-axis reach at the limits) is
             # left out: its bound is infinite, so it adds no inequality
-            r_lo, r_hi = reach_boxes(x0, T, sh.dyn)
+            r_lo, r_hi = _reach(x0, T, sh.dyn, sh.axes)
             na = sh.fixed_norm[2]
-            a_lo = np.where(r_lo[1:].ravel() < sh.area_margin + 1.0, sh.area_margin,
-                            -np.inf)
+            floor = sh.floor + sh.area_margin  # the area's: 0 + margin, the margin exactly
+            a_lo = np.where(r_lo[1:].ravel() < floor + 1.0, floor, -np.inf)
             a_hi = np.where(r_hi[1:].ravel() > sh.area - sh.area_margin - 1.0,
                             sh.area - sh.area_margin, np.inf)
             lo.append(a_lo / na)
@@ -216,11 +236,13 @@ class P2Qp:
         m = len(tau)
         extra = None
         if m:
-            j = 2 * (np.asarray(tau, dtype=np.int64) - 2)
-            nrm = np.asarray(normals, dtype=float)
+            k = self.axes
+            j = k * (np.asarray(tau, dtype=np.int64) - 2)
+            nrm = np.asarray(normals, dtype=float).reshape(m, k)
             scale_n = np.linalg.norm(nrm, axis=1)
-            cols = np.column_stack([j, j + 1, j])
-            vals = np.column_stack([nrm[:, 0], nrm[:, 1], np.zeros(m)]) / scale_n[:, None]
+            cols = np.column_stack([j, j + k - 1, j])
+            vals = np.column_stack([nrm[:, 0], nrm[:, k - 1] if k == 2 else np.zeros(m),
+                                    np.zeros(m)]) / scale_n[:, None]
             rhs_n = np.asarray(rhs, dtype=float) / (self.shape.scale * scale_n)
             extra = Rows(cols, vals, rhs_n, np.full(m, np.inf))
         res = ctx.solve(extra, z0=z0, detect_infeasible=detect_infeasible)
@@ -228,12 +250,13 @@ class P2Qp:
 
     def positions(self, z: AnyArray, x0: AnyArray) -> AnyArray:
         """p_1..p_{T+1} (m) from the scaled variables."""
-        p1 = x0[:2] + self.shape.dyn.dt_s * x0[2:]
-        return np.vstack([p1, self.shape.scale * z.reshape(-1, 2)])
+        k = self.axes
+        p1 = x0[:k] + self.shape.dyn.dt_s * x0[k:]
+        return np.vstack([p1, self.shape.scale * z.reshape(-1, k)])
 
     def controls(self, z: AnyArray, x0: AnyArray, u_prev: AnyArray) -> AnyArray:
         _, uc, _, _ = self.offsets(x0, u_prev)
-        return np.asarray(_mv(self.shape.U, z) + uc).reshape(-1, 2)
+        return np.asarray(_mv(self.shape.U, z) + uc).reshape(-1, self.axes)
 
     def cost(self, positions: AnyArray, controls: AnyArray, goal: AnyArray,
              kappa: tuple[float, float], u_prev: AnyArray) -> float:
@@ -290,7 +313,7 @@ class P2Qp:
         ok = status in ("Solved", "AlmostSolved")
         z = np.asarray(sol.x, dtype=float)[: sh.n]
         if not ok or not np.all(np.isfinite(z)):
-            empty = np.empty((0, 2))
+            empty = np.empty((0, self.axes))
             return QpResult(False, status, empty, empty, float("inf"), int(sol.iterations),
                             float(sol.solve_time))
         pos, ctrl, cost = self._outputs(z, x0, u_prev, uc, goal, kappa)
@@ -310,7 +333,7 @@ class P2Qp:
         ok, status, z, iters = self._solve_ipm(x0, u_prev, q, kappa, tau, normals, rhs, zs,
                                                detect_infeasible=not confirm)
         if not ok and not confirm:
-            empty = np.empty((0, 2))
+            empty = np.empty((0, self.axes))
             return QpResult(False, status, empty, empty, float("inf"), iters,
                             time.perf_counter() - t_start)
         if ok:
@@ -322,5 +345,5 @@ class P2Qp:
                  goal: AnyArray, kappa: tuple[float, float]) -> tuple[AnyArray, AnyArray, float]:
         """Positions p_1..p_{T+1} (m), controls u_1..u_T (N) and Eq. (S2) of a solution z."""
         pos = self.positions(z, x0)
-        ctrl = np.asarray(_mv(self.shape.U, z) + uc).reshape(-1, 2)
+        ctrl = np.asarray(_mv(self.shape.U, z) + uc).reshape(-1, self.axes)
         return pos, ctrl, self.cost(pos, ctrl, goal, kappa, u_prev)

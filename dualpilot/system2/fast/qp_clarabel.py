@@ -69,11 +69,12 @@ class ClarabelQp:
         if sh.area is not None:
             ar = self._area_rows(area_rows)
             if len(ar):
-                col = 2 * (ar[:, 0] - 2) + ar[:, 1]
+                col = sh.axes * (ar[:, 0] - 2) + ar[:, 1]
                 sign = np.where(ar[:, 2] == 0, -1.0, 1.0)
                 blocks.append(sp.csr_matrix((sign * sh.scale, (np.arange(len(ar)), col)),
                                             shape=(len(ar), n)))
-                bs.append(np.where(ar[:, 2] == 0, -sh.area_margin,
+                # the area's lower side is 0 (−(0 + margin) = −margin exactly)
+                bs.append(np.where(ar[:, 2] == 0, -(sh.floor + sh.area_margin),
                                    sh.area - sh.area_margin))
         A = sp.vstack(blocks, format="csc")
         b = np.concatenate(bs)
@@ -88,9 +89,10 @@ class ClarabelQp:
         tau = np.asarray(tau, dtype=int)
         if np.any(tau < 2) or np.any(tau > sh.T):
             raise ValueError("half-planes apply to p_2..p_T")
-        cols = np.column_stack([2 * (tau - 2), 2 * (tau - 2) + 1]).ravel()
-        rows = np.repeat(np.arange(m), 2)
-        vals = (-s * np.asarray(normals, dtype=float)).ravel()
+        k = sh.axes
+        cols = (k * (tau - 2)[:, None] + np.arange(k)[None, :]).ravel()
+        rows = np.repeat(np.arange(m), k)
+        vals = (-s * np.asarray(normals, dtype=float).reshape(m, k)).ravel()
         if n_sl:
             cols = np.concatenate([cols, sh.n + np.arange(m)])
             rows = np.concatenate([rows, np.arange(m)])
@@ -105,6 +107,7 @@ class ClarabelQp:
         """(τ, axis, side) rows of the area (None: every side of every p_2..p_T)."""
         if area_rows is None:
             tau = np.arange(2, self.shape.T + 1)
-            grid = np.array(np.meshgrid(tau, [0, 1], [0, 1], indexing="ij")).reshape(3, -1).T
+            axes = list(range(self.shape.axes))
+            grid = np.array(np.meshgrid(tau, axes, [0, 1], indexing="ij")).reshape(3, -1).T
             return grid.astype(int)
         return np.asarray(area_rows, dtype=int).reshape(-1, 3)

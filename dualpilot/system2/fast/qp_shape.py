@@ -1,6 +1,8 @@
 """What every fast-method QP of one shape shares: Eq. (1)'s maps, fixed rows and memo tables.
 
-A shape is (T, dynamics, area, margins, scale, K) (:class:`dualpilot.system2.fast.qp.P2Qp`).
+A shape is (T, dynamics, area, margins, scale, K, axes, floor)
+(:class:`dualpilot.system2.fast.qp.P2Qp`): ``axes`` = 2 is the plane's QP (n = 2T, bandwidth
+6), ``axes`` = 1 the altitude's of a 3-D plan (n = T, bandwidth 3; its bounds the band).
 Its sparse maps write v, u and Δu of Eq. (1) in the scaled positions z; its fixed rows
 (U, X and the area, padded to three or four entries a row) are those of the banded
 interior-point solver (:mod:`dualpilot.system2.fast.ipm`); its memo tables keep the
@@ -25,39 +27,47 @@ from dualpilot.system2.fast.ipm import BandedQp, Rows, band_pairs
 class QpShape:
     """The matrices and memo tables of one shape (see the module docstring).
 
-    ``T`` is the horizon, ``area`` the area's side (m; None: no bounds), ``scale``
-    the unit of z (m); ``vmax``, ``umax`` and ``area_margin`` the bounds tightened by
-    the margins (m/s, N, m); ``speed_sides`` K of the speed polygon (``"norm"``).
+    ``T`` is the horizon, ``area`` the upper bound of every coordinate (m: the area's
+    side; the ceiling for the altitude; None: no bounds) and ``floor`` the lower (m: 0 in
+    the plane), ``scale`` the unit of z (m); ``vmax``, ``umax`` and ``area_margin`` the
+    bounds tightened by the margins (m/s, N, m); ``speed_sides`` K of the speed polygon
+    (``"norm"``, planar only); ``axes`` the coordinates a position has here (2 or 1).
     """
 
     def __init__(self, T: int, dynamics: DynamicsParams, area_size_m: float | None,
                  v_margin: float, u_margin: float, area_margin: float, s: float,
-                 speed_sides: int) -> None:
-        self.T, self.dyn, self.area, self.scale, self.n = T, dynamics, area_size_m, s, 2 * T
+                 speed_sides: int, axes: int = 2, floor: float = 0.0) -> None:
+        if axes not in (1, 2):
+            raise ValueError(f"a QP shape has 1 or 2 axes, got {axes}")
+        self.T, self.dyn, self.area, self.scale, self.n = T, dynamics, area_size_m, s, axes * T
+        self.axes, self.floor = axes, float(floor)
         n = self.n
-        self.bw = 6
+        self.bw = 3 * axes
         self.vmax = dynamics.v_max_mps - v_margin
         self.umax = dynamics.u_max_n - u_margin
         self.area_margin = area_margin
         dt, a, mass = dynamics.dt_s, 1.0 - dynamics.zeta, dynamics.mass_kg
-        eye2 = sp.identity(2, format="csr")
+        eye = sp.identity(axes, format="csr")
         # P = [p_1; p_2..p_{T+1}] = M z + e, e = [p_1; 0]
-        m_pos = sp.vstack([sp.csr_matrix((2, n)), s * sp.identity(n, format="csr")]).tocsr()
-        d_v = sp.kron(sp.diags([-np.ones(T), np.ones(T)], [0, 1], shape=(T, T + 1)), eye2) / dt
+        m_pos = sp.vstack([sp.csr_matrix((axes, n)), s * sp.identity(n, format="csr")]).tocsr()
+        d_v = sp.kron(sp.diags([-np.ones(T), np.ones(T)], [0, 1], shape=(T, T + 1)), eye) / dt
         self.V = (d_v @ m_pos).tocsr()  # v_1..v_T (without the p_1 offset)
         self.dv = d_v.tocsr()
-        self.shift = sp.kron(sp.diags([np.ones(T - 1)], [-1], shape=(T, T)), eye2).tocsr()
+        self.shift = sp.kron(sp.diags([np.ones(T - 1)], [-1], shape=(T, T)), eye).tocsr()
         self.U = ((mass / dt) * (self.V - a * (self.shift @ self.V))).tocsr()
         self.diff = sp.kron(sp.diags([np.ones(T), -np.ones(T - 1)], [0, -1], shape=(T, T)),
-                            eye2).tocsr()
+                            eye).tocsr()
         self.dU = (self.diff @ self.U).tocsr()
         self.dUT = self.dU.T.tocsr()
         # costed positions p_1..p_T: p_1 constant, p_2..p_T = s z[:2(T-1)]
-        sel = sp.hstack([s * sp.identity(2 * (T - 1)), sp.csr_matrix((2 * (T - 1), 2))]).tocsr()
+        k = axes * (T - 1)
+        sel = sp.hstack([s * sp.identity(k), sp.csr_matrix((k, axes))]).tocsr()
         self.selT = sel.T.tocsr()
         self.H_pos = (sel.T @ sel).tocsc()
         self.H_du = (self.dU.T @ self.dU).tocsc()
         self.norm = dynamics.speed_limit == "norm"
+        if self.norm and axes != 2:
+            raise ValueError("the speed polygon (speed_limit = 'norm') couples the plane's axes")
         if self.norm:  # n_k·v_τ ≤ v_max cos(π/K): one row per (τ, k), τ-major
             normals, cos_k = speed_polygon(speed_sides)
             self.vpoly = dynamics.v_max_mps * cos_k - v_margin
@@ -80,7 +90,7 @@ class QpShape:
         width = 4 if self.norm else 3
         fixed_rows = [_padded(self.U, width), _padded(self.P if self.norm else self.V, width)]
         if area_size_m is not None:
-            j = np.arange(2 * (T - 1))
+            j = np.arange(self.axes * (T - 1))
             cols = np.column_stack([j] * width)
             vals = np.column_stack([np.full(len(j), s)] + [np.zeros(len(j))] * (width - 1))
             fixed_rows.append((cols, vals))
@@ -119,9 +129,11 @@ class QpShape:
 
 @lru_cache(maxsize=8)
 def qp_shape(T: int, dynamics: DynamicsParams, area_size_m: float | None, v_margin: float,
-             u_margin: float, area_margin: float, s: float, speed_sides: int) -> QpShape:
+             u_margin: float, area_margin: float, s: float, speed_sides: int, axes: int = 2,
+             floor: float = 0.0) -> QpShape:
     """The one :class:`QpShape` of these arguments in this process."""
-    return QpShape(T, dynamics, area_size_m, v_margin, u_margin, area_margin, s, speed_sides)
+    return QpShape(T, dynamics, area_size_m, v_margin, u_margin, area_margin, s, speed_sides,
+                   axes, floor)
 
 
 def _padded(mat: sp.csr_matrix, width: int = 3) -> tuple[AnyArray, AnyArray]:

@@ -200,10 +200,12 @@ def all_candidates(polys: list[Inflated], g: Array) -> tuple[Array, Array]:
 
 
 def braking(x0: Array, horizon: int, dyn: DynamicsParams) -> Array:
-    """Positions p_1..p_{T+1} (m) when braking to a hover as hard as U allows."""
+    """Positions p_1..p_{T+1} (m) when braking to a hover as hard as U allows (per axis, in
+    the state's dimension; the altitude of a 3-D plan then changes by what v_z carries it)."""
     keep = 1.0 - dyn.zeta
-    v = x0[2:].copy()
-    p = x0[:2] + dyn.dt_s * v
+    d = len(x0) // 2
+    v = x0[d:].copy()
+    p = x0[:d] + dyn.dt_s * v
     out = [p.copy()]
     for _ in range(horizon):
         u = np.clip(-keep * v * dyn.mass_kg / dyn.dt_s, -dyn.u_max_n, dyn.u_max_n)
