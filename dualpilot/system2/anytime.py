@@ -50,6 +50,9 @@ class AnytimeSystem2:
     def __init__(self, spec: MissionSpec, params: System2Params = System2Params(), *,
                  exact_budget_s: float = 2.0, worker: Worker | None = None,
                  fast: FastParams = FastParams()) -> None:
+        if spec.dim != 2:
+            raise ValueError(f"System 2 method 'fast+exact' plans in 2-D only, not "
+                             f"dim={spec.dim}: its exact worker solves the planar (P2)")
         if exact_budget_s <= 0:
             raise ValueError("exact_budget_s must be positive")
         self.spec, self.params, self.dynamics = spec, params, spec.dynamics

@@ -62,7 +62,7 @@ class KeepOuts3(KeepOuts):
         return np.maximum(xy, np.maximum(z - self.top[None, :], self.bottom[None, :] - z))
 
     def below(self, pos: Array, threshold: float) -> AnyArray:
-        out = self.margins3(pos).T < threshold
+        out = threshold > self.margins3(pos).T
         steps = self.steps()
         return out if steps is None else out & steps
 

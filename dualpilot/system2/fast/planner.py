@@ -23,12 +23,14 @@ from __future__ import annotations
 import dataclasses
 import time
 from collections.abc import Sequence
+from typing import cast
 
 import numpy as np
 
 from dualpilot.arrays import AnyArray, Array
 from dualpilot.model.dynamics import DynamicsParams, reach_radius, rollout
 from dualpilot.model.geometry import Polytope, SegmentChecker, hull_boxes
+from dualpilot.model.prism import Prism
 from dualpilot.plan import Objective, Plan, PlanStatus
 from dualpilot.spec import MissionSpec
 from dualpilot.system2.fast.cfs import Candidate, Cfs, CfsPlan, CountedSolve, KeepOuts, race
@@ -109,14 +111,16 @@ class FastSystem2:
     def plan(
         self,
         state: Array,
-        hulls: Sequence[Polytope],
+        hulls: Sequence[Polytope] | Sequence[Prism],
         objective: Objective = Objective.MISSION_TIME,
         prev_control: Array | None = None,
     ) -> Plan:
-        """Plan from ``state`` avoiding ``hulls``; ``prev_control`` is u_{t|t} (N)."""
+        """Plan from ``state`` avoiding ``hulls`` (prisms in 3-D); ``prev_control`` is
+        u_{t|t} (N)."""
         return self.plan_with_zones(state, hulls, objective, prev_control, ())
 
-    def plan_with_zones(self, state: Array, hulls: Sequence[Polytope], objective: Objective,
+    def plan_with_zones(self, state: Array, hulls: Sequence[Polytope] | Sequence[Prism],
+                        objective: Objective,
                         prev_control: Array | None, zones: Sequence[Zone]) -> Plan:
         """:meth:`plan`, each of ``zones`` also kept out (by ε, as the hulls) at its steps."""
         if self.three is not None:
@@ -124,10 +128,10 @@ class FastSystem2:
                 return _failed(PlanStatus.INVALID_INPUT, "risk zones are planar: the fast "
                                "method keeps them out in 2-D only", time.perf_counter(),
                                objective)
-            return self.three.plan(state, tuple(hulls), objective,  # type: ignore[arg-type]
+            return self.three.plan(state, cast(tuple[Prism, ...], tuple(hulls)), objective,
                                    prev_control)
         t0 = time.perf_counter()
-        checked = check_request(state, hulls, objective, prev_control)
+        checked = check_request(state, cast(Sequence[Polytope], hulls), objective, prev_control)
         if isinstance(checked, str):
             return _failed(PlanStatus.INVALID_INPUT, checked, t0, objective)
         x0, u_prev, hull_t = checked

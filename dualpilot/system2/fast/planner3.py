@@ -41,6 +41,7 @@ from dualpilot.system2.problem import (
     verify_p2_plan,
 )
 
+
 class PlanarFast(Protocol):
     """The plane's fast planner, as :class:`Fast3` uses it."""
 

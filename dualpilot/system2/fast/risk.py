@@ -15,6 +15,7 @@ from collections.abc import Sequence
 
 from dualpilot.arrays import Array
 from dualpilot.model.geometry import Polytope
+from dualpilot.model.prism import Prism
 from dualpilot.model.risk import ForecastView, RiskMap, RiskParams
 from dualpilot.plan import Objective, Plan
 from dualpilot.spec import MissionSpec
@@ -37,10 +38,13 @@ class RiskSystem2(FastSystem2):
 
     def __init__(self, spec: MissionSpec, params: System2Params = System2Params(),
                  fast: FastParams = FastParams(), risk: RiskParams | None = None) -> None:
+        if spec.dim != 2:
+            raise ValueError(f"System 2 method 'fast+risk' plans in 2-D only, not dim={spec.dim}: "
+                             "its risk zones are planar (docs/three_d.md, 7)")
         super().__init__(spec, params, fast)
         self.risk = risk or RiskParams()
 
-    def plan(self, state: Array, hulls: Sequence[Polytope],
+    def plan(self, state: Array, hulls: Sequence[Polytope] | Sequence[Prism],
              objective: Objective = Objective.MISSION_TIME, prev_control: Array | None = None,
              forecast: ForecastView | None = None) -> Plan:
         """Plan from ``state`` avoiding ``hulls`` and, at their steps, ``forecast``'s risk zones."""
