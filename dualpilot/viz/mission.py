@@ -245,7 +245,9 @@ def _time_axis(ax: Axes, t: Array) -> None:
 
 def _plan_array(step: dict[str, Any]) -> Array:
     """The step's planned positions, (T+1, 2) m ((0, 2) when no plan was flown)."""
-    return np.asarray(step.get("plan", []), dtype=float).reshape(-1, 2)
+    plan = np.asarray(step.get("plan", []), dtype=float)
+    # the top-down figures draw a 3-D plan's positions in the plane
+    return plan[:, :2] if plan.ndim == 2 and plan.shape[1] == 3 else plan.reshape(-1, 2)
 
 
 # -- Fig. r1 (a)-(f) ---------------------------------------------------------------------------
