@@ -211,6 +211,14 @@ def test_plan_passes_over_a_low_wall():
                              SPEC3.d_safe_m, SPEC3.area_size_m, band=BAND)
     assert verdict.ok, verdict.reason
     assert np.all(plan.states[:, 2] <= BAND.ceiling_m) and np.all(plan.states[:, 2] >= 20.0)
+    homotopies = plan.info["homotopies"]
+    assert isinstance(homotopies, list) and "over0" in homotopies
+    # the method built on it, every homotopy to convergence: no dearer
+    thorough = build_planner(2, SPEC3, "thorough").plan(x0, (wall,))
+    assert thorough.ok and thorough.cost is not None and plan.cost is not None
+    assert thorough.cost <= plan.cost * (1 + 1e-9)
+    assert verify_p2_plan(thorough.states, thorough.controls, (wall,), DYN3, SPEC3.clearance_m,
+                          SPEC3.d_safe_m, SPEC3.area_size_m, band=BAND).ok
     # a wall whose top + ε (125 m) is above the ceiling: no plan crosses it
     tall = Prism.cuboid(Rect(500.0, 450.0, 1000.0, 120.0), 0.0, 100.0)
     blocked = FastSystem2(SPEC3).plan(x0, (tall,))
