@@ -21,6 +21,7 @@ from dualpilot.system2.fast.planner import FastSystem2
 from dualpilot.system2.fast.qp import QpParams
 from dualpilot.system2.fast.risk import RiskSystem2
 from dualpilot.system2.fast.split import OVER, SplitQp
+from dualpilot.system2.fast.thorough import ThoroughSystem2
 from dualpilot.system2.problem import System2Params, verify_p2_plan
 
 DYN3 = DynamicsParams(dim=3)
@@ -214,7 +215,9 @@ def test_plan_passes_over_a_low_wall():
     homotopies = plan.info["homotopies"]
     assert isinstance(homotopies, list) and "over0" in homotopies
     # the method built on it, every homotopy to convergence: no dearer
-    thorough = build_planner(2, SPEC3, "thorough").plan(x0, (wall,))
+    built = build_planner(2, SPEC3, "thorough")
+    assert isinstance(built, ThoroughSystem2)
+    thorough = built.plan(x0, (wall,))
     assert thorough.ok and thorough.cost is not None and plan.cost is not None
     assert thorough.cost <= plan.cost * (1 + 1e-9)
     assert verify_p2_plan(thorough.states, thorough.controls, (wall,), DYN3, SPEC3.clearance_m,
