@@ -268,7 +268,9 @@ class VehicleChannels:
 
     def path(self, positions: Array, t_ns: int) -> None:
         """The flown path: the UAV's positions so far."""
-        pts = np.asarray(positions, dtype=float).reshape(-1, 2)
+        pts = np.asarray(positions, dtype=float)
+        # a 3-D mission's path in the plane of the scene
+        pts = pts[:, :2] if pts.ndim == 2 and pts.shape[1] == 3 else pts.reshape(-1, 2)
         self.path_ch.log(self._update([self._entity(
             t_ns, "path", lines=[_line(pts, Z_PATH, _color(0.95, 0.95, 0.95), False)],
             metadata=_meta(points=len(pts)))]), log_time=t_ns)

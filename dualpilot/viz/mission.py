@@ -88,8 +88,10 @@ class RunData:
 
     @property
     def positions(self) -> Array:
-        """Positions (m) before each step's control, shape (n_steps, 2)."""
-        return np.array([s["position"] for s in self.trace["steps"]], dtype=float).reshape(-1, 2)
+        """Positions (m) before each step's control, shape (n_steps, 2) (a 3-D mission's in the
+        plane)."""
+        pos = [s["position"][:2] for s in self.trace["steps"]]
+        return np.array(pos, dtype=float).reshape(-1, 2)
 
     @property
     def area_m(self) -> float:
