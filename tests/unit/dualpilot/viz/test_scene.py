@@ -116,3 +116,10 @@ def test_event_lines() -> None:
         "mission ended after 9 steps: failed (fire_contact)")
     assert scene.start_text("cc", 7, "timing=paper") == (
         "mission started: controller cc, seed 7; timing=paper")
+
+
+def test_plan_views_draw_a_3d_plan_in_the_plane() -> None:
+    """A 3-D plan's positions (T+1, 3) are drawn top-down: their (x, y), whatever T."""
+    pts = np.array([[1.0, 2.0, 50.0], [3.0, 4.0, 55.0], [5.0, 6.0, 60.0]])
+    s1, _ = scene.plan_views(parse_answers("s1:ok"), 1, pts)
+    assert s1.positions.tolist() == [[1.0, 2.0], [3.0, 4.0], [5.0, 6.0]]
