@@ -10,7 +10,7 @@ import pytest
 
 from dualpilot.model.altitude import AltitudeBand, lift_state
 from dualpilot.model.dynamics import DynamicsParams, transition_matrices
-from dualpilot.model.geometry import Rect
+from dualpilot.model.geometry import Polytope, Rect
 from dualpilot.model.prism import Prism
 from dualpilot.model.segment3 import SegmentChecker3
 from dualpilot.plan import Objective, PlanStatus
@@ -282,10 +282,7 @@ def test_tall_fires_give_the_2d_plans_200():
 def test_registry_and_refusals_by_name():
     assert isinstance(build_planner(2, SPEC3, "fast"), FastSystem2)
     assert build_planner(2, SPEC3, "thorough").method == "thorough"
-    with pytest.raises(ValueError, match="'fast\\+risk' plans in 2-D only"):
-        RiskSystem2(SPEC3)
-    with pytest.raises(ValueError, match="'fast\\+risk' plans in 2-D only"):
-        build_planner(2, SPEC3, "fast", risk=True)
+    assert isinstance(build_planner(2, SPEC3, "fast", risk=True), RiskSystem2)
     with pytest.raises(ValueError, match="'fast\\+exact' plans in 2-D only"):
         AnytimeSystem2(SPEC3)
     with pytest.raises(ValueError, match="'fast\\+exact' plans in 2-D only"):
@@ -307,3 +304,60 @@ def test_3d_request_checks():
     assert near.status is PlanStatus.INVALID_INPUT and "prism 0" in near.message
     above = planner.plan(np.array([100.0, 100.0, 80.0, 0.0, 0.0, 0.0]), (fire,))
     assert above.ok and above.states.shape == (21, 6)
+
+
+# ------------------------------------------------------------------ risk zones in 3-D
+def _zones(T: int) -> list[tuple[Polytope, np.ndarray]]:
+    """Two zones of the ground, each at some plan steps (bool masks over τ = 0..T)."""
+    out = []
+    for rect, steps in ((Rect(330.0, 300.0, 120.0, 120.0), range(5, 40)),
+                        (Rect(520.0, 560.0, 150.0, 90.0), range(20, T + 1))):
+        mask = np.zeros(T + 1, dtype=bool)
+        mask[list(steps)] = True
+        out.append((rect.polytope(), mask))
+    return out
+
+
+def _zone_margin(plan_states: np.ndarray, zones: list[tuple[Polytope, np.ndarray]]) -> float:
+    """The least planar margin max_l(α·p − β) of a plan's positions at each zone's steps (m)."""
+    worst = np.inf
+    for poly, mask in zones:
+        pts = plan_states[:, :2][mask[: len(plan_states)]]
+        if len(pts):
+            worst = min(worst, float(np.min(np.max(pts @ poly.A.T - poly.b, axis=1))))
+    return float(worst)
+
+
+def test_zones_under_the_reduction_give_the_2d_plan():
+    """Zones with fires taller than the band, at G_o's altitude at rest: the 2-D plan of
+    ``plan_with_zones``, bit for bit."""
+    T = System2Params().horizon
+    zones = _zones(T)
+    rect = Rect(450.0, 420.0, 200.0, 160.0)
+    x3 = np.array([200.0, 180.0, 50.0, 6.0, 5.0, 0.0])
+    a = FastSystem2(SPEC3).plan_with_zones(
+        x3, (Prism.cuboid(rect, 0.0, SPEC3.above_ceiling_m),), Objective.MISSION_TIME, None,
+        zones)
+    b = FastSystem2(SPEC2).plan_with_zones(np.array([200.0, 180.0, 6.0, 5.0]),
+                                           [rect.polytope()], Objective.MISSION_TIME, None,
+                                           zones)
+    assert a.status == b.status and b.ok
+    assert np.array_equal(a.states, np.array([lift_state(s, 50.0) for s in b.states]))
+    assert a.info.get("reduction") is True and a.info.get("n_zones") == b.info.get("n_zones")
+
+
+def test_zones_are_kept_out_at_every_altitude_over_a_low_fire():
+    """A low fire on the way and two zones: the plan (3-D method) passes verify_p2_plan and
+    keeps ε from each zone in the plane at the zone's steps, whatever its altitude."""
+    T = System2Params().horizon
+    zones = _zones(T)
+    fire = Prism.cuboid(Rect(450.0, 420.0, 200.0, 160.0), 0.0, 30.8)
+    x3 = np.array([200.0, 180.0, 50.0, 6.0, 5.0, 0.0])
+    plan = FastSystem2(SPEC3).plan_with_zones(x3, (fire,), Objective.MISSION_TIME, None, zones)
+    assert plan.ok, plan.message
+    assert "reduction" not in plan.info and plan.info.get("n_zones") == 2
+    assert verify_p2_plan(plan.states, plan.controls, (fire,), DYN3, SPEC3.clearance_m,
+                          SPEC3.d_safe_m, SPEC3.area_size_m, band=BAND).ok
+    assert _zone_margin(plan.states, zones) >= SPEC3.clearance_m - 1e-6
+    free = FastSystem2(SPEC3).plan(x3, (fire,))
+    assert free.ok and _zone_margin(free.states, zones) < SPEC3.clearance_m  # they bite

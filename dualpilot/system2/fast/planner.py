@@ -27,7 +27,7 @@ from typing import cast
 
 import numpy as np
 
-from dualpilot.arrays import AnyArray, Array
+from dualpilot.arrays import Array
 from dualpilot.model.dynamics import DynamicsParams, reach_radius, rollout
 from dualpilot.model.geometry import Polytope, SegmentChecker, hull_boxes
 from dualpilot.model.prism import Prism
@@ -36,7 +36,7 @@ from dualpilot.spec import MissionSpec
 from dualpilot.system2.fast.cfs import Candidate, Cfs, CfsPlan, CountedSolve, KeepOuts, race
 from dualpilot.system2.fast.geometry import FaceStack, Inflated
 from dualpilot.system2.fast.params import FastParams
-from dualpilot.system2.fast.planner3 import Fast3, planar_spec
+from dualpilot.system2.fast.planner3 import Fast3, Zone, planar_spec
 from dualpilot.system2.fast.qp import P2Qp, QpResult
 from dualpilot.system2.fast.references import References, braking
 from dualpilot.system2.problem import (
@@ -46,9 +46,6 @@ from dualpilot.system2.problem import (
     p2_cost,
     verify_p2_plan,
 )
-
-Zone = tuple[Polytope, AnyArray]
-"""A keep-out of some plan steps only: (polytope, bool mask over τ = 0..T)."""
 
 
 class FastSystem2:
@@ -124,12 +121,8 @@ class FastSystem2:
                         prev_control: Array | None, zones: Sequence[Zone]) -> Plan:
         """:meth:`plan`, each of ``zones`` also kept out (by ε, as the hulls) at its steps."""
         if self.three is not None:
-            if zones:
-                return _failed(PlanStatus.INVALID_INPUT, "risk zones are planar: the fast "
-                               "method keeps them out in 2-D only", time.perf_counter(),
-                               objective)
             return self.three.plan(state, cast(tuple[Prism, ...], tuple(hulls)), objective,
-                                   prev_control)
+                                   prev_control, zones)
         t0 = time.perf_counter()
         checked = check_request(state, cast(Sequence[Polytope], hulls), objective, prev_control)
         if isinstance(checked, str):

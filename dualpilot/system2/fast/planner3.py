@@ -8,6 +8,9 @@ footprints and its plan is lifted (the 2-D plan bit for bit). Otherwise the rela
 the references (:mod:`dualpilot.system2.fast.references3`) and their CFS runs
 (:mod:`dualpilot.system2.fast.cfs3`) over the split QP (:mod:`dualpilot.system2.fast.split`),
 and the cheapest candidate that passes :func:`verify_p2_plan` with the band and the prisms.
+Risk zones (:class:`dualpilot.system2.fast.risk.RiskSystem2`'s, planar) are kept out at
+their steps as prisms taller than the band (around only), the reading of the run-time
+monitor's ``check_risk``: a zone is as tall as any altitude, the stricter test.
 """
 
 from __future__ import annotations
@@ -19,7 +22,7 @@ from typing import Protocol
 
 import numpy as np
 
-from dualpilot.arrays import Array
+from dualpilot.arrays import AnyArray, Array
 from dualpilot.model.altitude import lift_controls, lift_state
 from dualpilot.model.dynamics import reach_radius, rollout
 from dualpilot.model.geometry import Polytope
@@ -29,6 +32,7 @@ from dualpilot.plan import Objective, Plan, PlanStatus
 from dualpilot.spec import MissionSpec
 from dualpilot.system2.fast.cfs import Candidate, CfsPlan, CountedSolve, race
 from dualpilot.system2.fast.cfs3 import Cfs3, KeepOuts3
+from dualpilot.system2.fast.geometry import FaceStack
 from dualpilot.system2.fast.params import FastParams
 from dualpilot.system2.fast.qp import QpParams
 from dualpilot.system2.fast.references3 import References3
@@ -41,12 +45,18 @@ from dualpilot.system2.problem import (
     verify_p2_plan,
 )
 
+Zone = tuple[Polytope, AnyArray]
+"""A keep-out of some plan steps only: (polygon, bool mask over τ = 0..T)."""
+
 
 class PlanarFast(Protocol):
     """The plane's fast planner, as :class:`Fast3` uses it."""
 
     def plan(self, state: Array, hulls: Sequence[Polytope], objective: Objective,
              prev_control: Array | None) -> Plan: ...
+
+    def plan_with_zones(self, state: Array, hulls: Sequence[Polytope], objective: Objective,
+                        prev_control: Array | None, zones: Sequence[Zone]) -> Plan: ...
 
     def seed_previous(self, plan: Plan | None) -> None: ...
 
@@ -73,22 +83,23 @@ class Fast3:
 
     # ---------------------------------------------------------------- public
     def plan(self, state: Array, hulls: tuple[Prism, ...], objective: Objective,
-             prev_control: Array | None) -> Plan:
-        """A plan from the 3-D ``state`` around or over ``hulls`` (prisms)."""
+             prev_control: Array | None, zones: Sequence[Zone] = ()) -> Plan:
+        """A plan from the 3-D ``state`` around or over ``hulls`` (prisms), ``zones`` kept
+        out at their steps (module docstring)."""
         t0 = time.perf_counter()
         checked = check_request(state, hulls, objective, prev_control, dim=3)
         if isinstance(checked, str):
             return _failed(PlanStatus.INVALID_INPUT, checked, t0, objective)
         x0, u_prev, prisms = checked
         if self._reduces(x0, u_prev, prisms):
-            plan = self._planar_plan(x0, u_prev, prisms, objective, t0)
+            plan = self._planar_plan(x0, u_prev, prisms, objective, t0, zones)
         else:
             early = self._start_checks(x0, prisms)
             if early is not None:
                 plan = _failed(early[0], early[1], t0, objective)
             else:
                 try:
-                    plan = self._plan(x0, prisms, objective, u_prev, t0)
+                    plan = self._plan(x0, prisms, objective, u_prev, t0, zones)
                 except Exception as exc:  # noqa: BLE001 - a crash is an ERROR plan, never a raise
                     plan = _failed(PlanStatus.ERROR, f"{type(exc).__name__}: {exc}", t0,
                                    objective)
@@ -115,10 +126,12 @@ class Fast3:
                 and all(self.over_level(p) == float("inf") for p in prisms))
 
     def _planar_plan(self, x0: Array, u_prev: Array, prisms: tuple[Prism, ...],
-                     objective: Objective, t0: float) -> Plan:
+                     objective: Objective, t0: float, zones: Sequence[Zone]) -> Plan:
         """The plane's plan on the footprints, lifted to the UAV's altitude."""
         xy0 = np.array([x0[0], x0[1], x0[3], x0[4]])
-        flat = self.planar.plan(xy0, [p.base for p in prisms], objective, u_prev[:2])
+        bases = [p.base for p in prisms]
+        flat = (self.planar.plan_with_zones(xy0, bases, objective, u_prev[:2], zones) if zones
+                else self.planar.plan(xy0, bases, objective, u_prev[:2]))
         if not flat.ok:
             failed = Plan.failed(2, flat.status, time.perf_counter() - t0, flat.message, dim=3)
             return dataclasses.replace(failed, objective=objective,
@@ -165,20 +178,35 @@ class Fast3:
                         f"from a prism (< {d_safe} m)")
         return None
 
-    def _keepouts(self, x0: Array, prisms: tuple[Prism, ...]) -> KeepOuts3:
-        """The prisms within reach of this plan, as keep-outs."""
+    def _keepouts(self, x0: Array, prisms: tuple[Prism, ...], zones: Sequence[Zone]
+                  ) -> tuple[KeepOuts3, KeepOuts3, list[Zone]]:
+        """The prisms within reach of this plan as keep-outs, with the zones within reach
+        (as prisms taller than the band, at their steps); the prisms' alone (what the
+        references avoid); the zones kept."""
         T = self.params.horizon
         reach = reach_radius(x0[3:], T, self.dynamics)
         near = [p for p in prisms if float(p.margins(x0[:3])[0]) - self.epsilon_m <= reach]
-        return KeepOuts3.of_prisms(near, self.epsilon_m, T, self.area, self.band,
+        keep = KeepOuts3.of_prisms(near, self.epsilon_m, T, self.area, self.band,
                                    self.level_margin)
+        kept = [(z, m) for z, m in zones if z.distance(x0[:2]) - self.epsilon_m <= reach]
+        if not kept:
+            return keep, keep, []
+        tall = self.band.above_ceiling_m(self.epsilon_m + self.level_margin)
+        walls = [Prism(z, -tall, tall) for z, _ in kept]
+        mask = np.vstack([np.ones((len(near), T + 1), dtype=bool)]
+                         + [m[None, : T + 1] for _, m in kept])
+        both = KeepOuts3.of_prisms(near + walls, self.epsilon_m, T, self.area, self.band,
+                                   self.level_margin)
+        return dataclasses.replace(both, mask=mask), keep, kept
 
     def _plan(self, x0: Array, prisms: tuple[Prism, ...], objective: Objective, u_prev: Array,
-              t0: float) -> Plan:
+              t0: float, zones: Sequence[Zone]) -> Plan:
         kappa = self.params.kappa(objective)
-        keep = self._keepouts(x0, prisms)
+        both, keep, kept = self._keepouts(x0, prisms, zones)
         info: dict[str, object] = {"n_hulls": len(keep.polys), "n_hulls_input": len(prisms),
                                    "n_over": int(np.isfinite(keep.level).sum())}
+        if zones:
+            info["n_zones"] = len(kept)
         solve = CountedSolve(self.qp, x0, u_prev, self.goal, kappa)
         free = solve(np.zeros(0, int), np.zeros((0, 3)), np.zeros(0), confirm=True)
         if not free.ok:
@@ -186,11 +214,11 @@ class Fast3:
                            info)
         info["lower_bound"] = free.objective
         candidates: list[Candidate] = []
-        if keep.feasible(free.positions):
+        if both.feasible(free.positions):
             candidates.append(Candidate("relaxation", free.positions, free.controls,
                                         free.objective, 0))
         else:
-            shared = CfsPlan(self.fast, keep, free.positions, solve)
+            shared = CfsPlan(self.fast, both, free.positions, solve)
             refs = self.references(x0, free.positions, keep, kappa, self.last)
             info["homotopies"] = [name for name, _, _ in refs]
             runs = [Cfs3(shared, name, ref, retime) for name, ref, retime in refs]
@@ -205,7 +233,8 @@ class Fast3:
         candidates.sort(key=lambda c: c.cost)
         reasons: list[str] = []
         for cand in candidates:
-            plan = self._finish(cand, x0, prisms, objective, kappa, u_prev, t0, info, reasons)
+            plan = self._finish(cand, x0, prisms, objective, kappa, u_prev, t0, info, reasons,
+                                kept)
             if plan is not None:
                 return plan
         msg = "no verified candidate" + (f": {'; '.join(reasons[:3])}" if reasons else "")
@@ -213,8 +242,10 @@ class Fast3:
 
     def _finish(self, cand: Candidate, x0: Array, prisms: tuple[Prism, ...],
                 objective: Objective, kappa: tuple[float, float], u_prev: Array, t0: float,
-                info: dict[str, object], reasons: list[str]) -> Plan | None:
-        """Roll out, verify (band and prisms) and package one candidate; None if it fails."""
+                info: dict[str, object], reasons: list[str], zones: Sequence[Zone] = ()
+                ) -> Plan | None:
+        """Roll out, verify (band and prisms; each zone at its steps, in the plane) and
+        package one candidate; None if it fails."""
         d = self.dynamics
         controls = np.clip(cand.controls, -d.u_max_n, d.u_max_n)
         states = rollout(x0, controls, d)
@@ -223,6 +254,13 @@ class Fast3:
         if not verdict.ok:
             reasons.append(f"{cand.name}: {verdict.reason}")
             return None
+        if zones:  # each zone at its own steps, ε as for the hulls, at every altitude
+            faces = FaceStack.of([z for z, _ in zones]).margins(states[:, :2])
+            steps = np.stack([m for _, m in zones], axis=1)
+            worst = float(np.min(np.where(steps, faces, np.inf))) - self.epsilon_m
+            if worst < -1e-6:
+                reasons.append(f"{cand.name}: {-worst:.3g} m inside a risk zone's ε")
+                return None
         margin = disjunction_margin(states[1:, :3], prisms, self.epsilon_m)
         cost = p2_cost(states, controls, self.goal, kappa, u_prev)
         out = dict(info)

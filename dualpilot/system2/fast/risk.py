@@ -4,7 +4,9 @@ Each planned position p_τ (τ = 2..T) also keeps ε from the risk zones of its
 step (:mod:`dualpilot.model.risk`: the cells whose forecast occupancy exceeds
 α while the UAV is there), as keep-outs of that step only in the same convex
 restrictions (:meth:`dualpilot.system2.fast.planner.FastSystem2.plan_with_zones`);
-homotopies and the target still come from the hulls.
+homotopies and the target still come from the hulls. In 3-D the zones stay planar (the
+forecast is a map of the ground) and are kept out as prisms taller than the band, the
+run-time monitor's reading (:mod:`dualpilot.system2.fast.planner3`).
 """
 
 from __future__ import annotations
@@ -38,9 +40,6 @@ class RiskSystem2(FastSystem2):
 
     def __init__(self, spec: MissionSpec, params: System2Params = System2Params(),
                  fast: FastParams = FastParams(), risk: RiskParams | None = None) -> None:
-        if spec.dim != 2:
-            raise ValueError(f"System 2 method 'fast+risk' plans in 2-D only, not dim={spec.dim}: "
-                             "its risk zones are planar (docs/three_d.md, 7)")
         super().__init__(spec, params, fast)
         self.risk = risk or RiskParams()
 
