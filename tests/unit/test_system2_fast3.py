@@ -87,7 +87,7 @@ def _random_restriction(rng: np.random.Generator, T: int, area: float):
 def _check_split(n: int, seed: int) -> None:
     """The split solved tightly (Clarabel, 1e-12) equals the whole QP to 1e-9 (relative);
     the fast method's own solver (the banded interior point, 1e-9 in its scaled units) to
-    1e-7."""
+    1e-5."""
     rng = np.random.default_rng(seed)
     T, area = 30, 1000.0
     tight = SplitQp(T, DYN3, area, BAND, QpParams(backend="clarabel", tol=1e-12))
@@ -101,7 +101,7 @@ def _check_split(n: int, seed: int) -> None:
         np.testing.assert_allclose(res.positions[:T], pos, rtol=0, atol=1e-3)
         quick = fast.solve(x0, u_prev, goal, kappa, *rows, confirm=True)
         assert quick.ok, quick.status
-        assert quick.objective == pytest.approx(whole, rel=1e-7)
+        assert quick.objective == pytest.approx(whole, rel=1e-5)
 
 
 def test_split_qp_equals_the_whole_qp():
