@@ -6,7 +6,7 @@ than the band ("tall": the reduction to the 2-D planner), 30.8 m ("low": grass-1
 fire, passable over) and the two alternating ("mixed"); the UAV at G_o's altitude at rest.
 Run under the heavy lock; the machine is shared, so the numbers are medians of one run.
 
-    flock /tmp/dualpilot-heavy.lock .venv/bin/python benchmarks/fast3_speed.py --n 60
+    PYTHONPATH=. .venv/bin/python benchmarks/fast3_speed.py --n 60   (under the heavy lock)
 """
 
 from __future__ import annotations
