@@ -1,8 +1,9 @@
 """What a user gets with ``--set dim=3`` (dualpilot/mission/dimension.py, docs/three_d.md).
 
 A controller flies a 3-D mission when its supervisor and the planning method of every
-system it asks say they plan in 3-D; no built-in method does yet, so every controller
-name is refused before its mission starts, by name, with every part that plans in 2-D
+system it asks say they plan in 3-D; of the built-in methods System 2's "fast" does (and
+so ``s2`` and ``s2+risk`` fly), so every other controller name is refused before its
+mission starts, by name, with every part that plans in 2-D
 only and that its 3-D planning is not built yet; an evaluation, a sweep and the stack
 refuse before any mission. A method that says it plans in 3-D (here System 1's rrt under
 the reduction, a real registry's entry point) flies, and the refusals then name it among
@@ -32,15 +33,14 @@ NOT_BUILT = r"3-D planning for (it|these) is not built yet \(docs/three_d.md, St
 #: the parts of each built-in controller that plan in 2-D only, worked out from its
 #: supervisor (docs/concurrent.md: the concurrent and lookahead supervisors fly System 1
 #: under the Δu penalty, "rrt+du") and the systems it asks (cc both, s1 and s2 one)
+#: (System 2's fast plans in both dimensions: s2 asks nothing that plans in 2-D only)
 PARTS = {
-    "cc": ["System 1 method 'rrt'", "System 2 method 'fast'"],
+    "cc": ["System 1 method 'rrt'"],
     "s1": ["System 1 method 'rrt'"],
-    "s2": ["System 2 method 'fast'"],
-    "concurrent": ["the concurrent supervisor", "System 1 method 'rrt+du'",
-                   "System 2 method 'fast'"],
-    "lookahead": ["the lookahead supervisor", "System 1 method 'rrt+du'",
-                  "System 2 method 'fast'"],
+    "concurrent": ["the concurrent supervisor", "System 1 method 'rrt+du'"],
+    "lookahead": ["the lookahead supervisor", "System 1 method 'rrt+du'"],
 }
+FLY = "Controllers that fly dim=3: s2, s2+risk"
 
 
 @pytest.mark.parametrize("name", sorted(PARTS))
@@ -55,8 +55,15 @@ def test_every_built_in_controller_refuses_a_3d_mission_by_name(name: str, risk:
     assert text.startswith(f"controller '{name + risk}' does not fly dim=3: ")
     assert all(f"{part} plans in 2-D only" in text or f"{part} supervises missions in 2-D only"
                in text for part in PARTS[name])
-    assert text.endswith("Controllers that fly dim=3: none yet")
+    assert text.endswith(FLY)
     assert re.search(NOT_BUILT, text)
+
+
+@pytest.mark.parametrize("risk", ["", "+risk"])
+def test_s2_is_not_refused_a_3d_mission(risk: str) -> None:
+    config = MissionConfig.named("s2" + risk, profile="today-3d")
+    assert refusals(config) == ()
+    check_dimension(config)
 
 
 def test_the_2d_mission_is_not_refused() -> None:
@@ -65,7 +72,7 @@ def test_the_2d_mission_is_not_refused() -> None:
         assert refusals(config) == ()
         check_dimension(config)
     assert flying_controllers(MissionConfig()) == controller_names()
-    assert flying_controllers(MissionConfig(profile="today-3d")) == ()
+    assert flying_controllers(MissionConfig(profile="today-3d")) == ("s2", "s2+risk")
 
 
 def test_an_installed_part_is_named_as_one() -> None:
@@ -78,8 +85,7 @@ def test_an_installed_part_is_named_as_one() -> None:
     assert ("the proximity supervisor supervises missions in 2-D only; System 1 method "
             "'straight' plans in 2-D only: installed as a plug-in, they do not declare dim 3 "
             "(dims)") in text
-    assert "System 2 method 'fast' plans in 2-D only: 3-D planning for it is not built yet" \
-        in text
+    assert "System 2 method 'fast'" not in text
 
 
 def test_the_command_line_refuses_with_a_message_not_a_traceback(
@@ -90,8 +96,8 @@ def test_the_command_line_refuses_with_a_message_not_a_traceback(
     err = capsys.readouterr().err
     assert code == 2 and not out.exists()
     assert err.startswith("dualpilot: error: controller 'cc' does not fly dim=3: System 1 "
-                          "method 'rrt' plans in 2-D only; System 2 method 'fast' plans in "
-                          "2-D only: 3-D planning for these is not built yet")
+                          "method 'rrt' plans in 2-D only: 3-D planning for it is not built "
+                          "yet")
     assert "Traceback" not in err
 
 
@@ -101,10 +107,10 @@ def test_an_evaluation_and_a_sweep_refuse_before_any_mission(tmp_path: Path) -> 
         evaluate(2, tmp_path / "e", base, controllers=["cc", "s2", "oracle"], progress=False)
     lines = str(err.value).splitlines()
     assert lines[0] == "dim=3: these controllers do not fly it"
-    assert [line.split(":")[0] for line in lines[1:4]] == ["  cc", "  s2", "  oracle"]
+    assert [line.split(":")[0] for line in lines[1:3]] == ["  cc", "  oracle"]
     assert "the oracle (its lattice search and impossibility certificate) judges planar " \
-        "missions only (dim=2), not dim=3: its 3-D search is not built yet" in lines[3]
-    assert lines[4] == "Controllers that fly dim=3: none yet"
+        "missions only (dim=2), not dim=3: its 3-D search is not built yet" in lines[2]
+    assert lines[3] == FLY
     assert not (tmp_path / "e").exists()
     with pytest.raises(ValueError, match="dim=3: these controllers do not fly it"):
         sweep([Point(0, "today", (("dim", 3),))], 1, tmp_path / "s",
@@ -117,7 +123,7 @@ def test_the_stack_refuses_a_3d_mission_where_it_enters(
     with pytest.raises(SystemExit) as exited:
         parse(["--controller", "s2", "--set", "dim=3"], "supervisor", environ={})
     assert exited.value.code == 2
-    assert "controller 's2' does not fly dim=3: System 2 method 'fast'" in capsys.readouterr().err
+    assert "the stack flies planar missions only (dim=2), not dim=3" in capsys.readouterr().err
 
 
 @pytest.fixture
@@ -137,10 +143,12 @@ def test_a_method_that_says_3d_flies_and_is_listed(lifted_rrt: str) -> None:
     tall = MissionConfig.named("s1", seed=1, system1_method=lifted_rrt, settings=settings
                                ).with_settings({"dim": 3, "fire_height": "above-ceiling"})
     assert refusals(tall) == ()
-    # s1 asks System 1 only; cc asks System 2's fast too, the supervisors' own rrt+du
-    assert flying_controllers(tall) == ("s1", "s1+risk")
-    with pytest.raises(ValueError, match=r"Controllers that fly dim=3: s1, s1\+risk$"):
-        check_dimension(MissionConfig.named("cc", system1_method=lifted_rrt,
+    # s1 asks System 1 only, s2 System 2's fast (3-D), cc both (and each has a risk-aware
+    # variant); the concurrent and lookahead supervisors plan in 2-D, with their own rrt+du
+    assert flying_controllers(tall) == ("cc", "s1", "s2", "cc+risk", "s1+risk", "s2+risk")
+    with pytest.raises(ValueError, match=r"Controllers that fly dim=3: cc, s1, s2, cc\+risk, "
+                                         r"s1\+risk, s2\+risk$"):
+        check_dimension(MissionConfig.named("concurrent", system1_method=lifted_rrt,
                                             profile="today-3d"))
     a = local_mission(flat).run()
     assert a.success and a.steps == 97
