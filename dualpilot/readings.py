@@ -10,7 +10,10 @@ with the sentences of the paper it rests on; its dynamics, altitude band and goa
 reading go into the mission spec (:meth:`Profile.spec`). Every field is addressed by
 its bare name (the classes share none; the altitude part's nested band, heights and
 plume are addressed by their fields' names too), so ``--set life_base=step`` and
-``--set ceiling_m=100`` work on ``mission``, ``evaluate`` and ``sweep`` alike.
+``--set ceiling_m=100`` work on ``mission``, ``evaluate`` and ``sweep`` alike. The
+plant's readings (:class:`~dualpilot.plant.reading.PlantReading`: which vehicle flies, in
+what air; not readings of the paper, which flies Eq. (1) itself) are a part too, and its
+tube margin goes into the mission spec (``--set plant=multirotor``).
 """
 
 from __future__ import annotations
@@ -26,6 +29,8 @@ from dualpilot.mission.params import MissionParams
 from dualpilot.model.dynamics import DynamicsParams
 from dualpilot.model.fire import FireParams
 from dualpilot.model.vertical import VerticalParams
+from dualpilot.plant.plant import PlantParams
+from dualpilot.plant.reading import PlantReading, plant_params
 from dualpilot.spec import MissionSpec
 from dualpilot.supervisor.paper.decision import SupervisorParams
 
@@ -35,8 +40,12 @@ READINGS = ("life_base", "extent", "redraw_clearance", "keep_extinct_hulls",
             "attention_draw", "speed_limit", "dim", "ceiling_m", "floor_m", "start_altitude_m",
             "goal_altitude_m", "goal_vertical", "fire_height", "plume_intensity", "uav_limit_c")
 
+#: The plant's readings (not the paper's: dualpilot/plant/reading.py), in field order.
+PLANT_READINGS = tuple(f.name for f in dataclasses.fields(PlantReading))
+
 _PARTS = {"fire": FireParams, "mission": MissionParams, "supervisor": SupervisorParams,
-          "dynamics": DynamicsParams, "altitude": VerticalParams}
+          "dynamics": DynamicsParams, "altitude": VerticalParams,
+          "plant": PlantReading}
 #: The parts whose nested parameter objects' fields are addressed by their bare names too.
 _NESTED = frozenset({"altitude"})
 
@@ -81,6 +90,7 @@ class Profile:
     supervisor: SupervisorParams = field(default_factory=SupervisorParams)
     dynamics: DynamicsParams = field(default_factory=DynamicsParams)
     altitude: VerticalParams = field(default_factory=VerticalParams)
+    plant: PlantReading = field(default_factory=PlantReading)
     summary: str = ""
     #: the sentences of the paper (or the reason) each reading rests on
     sources: tuple[str, ...] = ()
@@ -107,6 +117,15 @@ class Profile:
         values = self.values()
         return {k: values[k] for k in READINGS}
 
+    def plant_readings(self) -> dict[str, Any]:
+        """The plant's readings, in :data:`PLANT_READINGS` order."""
+        return {k: getattr(self.plant, k) for k in PLANT_READINGS}
+
+    def plant_params(self) -> PlantParams:
+        """The plant the mission flies (the fire scenario's wind on a fire-behaviour
+        scenario)."""
+        return plant_params(self.plant, self.fire.scenario)
+
     def with_settings(self, settings: Mapping[str, Any], name: str | None = None) -> Profile:
         """This profile with ``settings`` (field name → value, or its text) applied."""
         changes: dict[str, dict[tuple[str, ...], Any]] = {k: {} for k in _PARTS}
@@ -119,17 +138,21 @@ class Profile:
 
     def spec(self, base: MissionSpec) -> MissionSpec:
         """``base`` flown with this profile's dynamics (Eq. (1) and its limits), altitude band
-        and goal reading (read in 3-D only)."""
+        and goal reading (read in 3-D only), its plans keeping the plant's tube margin
+        (``tracking_margin_m``; 0 for the ideal plant)."""
+        self.plant_params()  # ValueError: a wind that is not the fire scenario's
         a = self.altitude
-        if (base.dynamics, base.band, base.goal_vertical) == (self.dynamics, a.band,
+        spec = base
+        if (base.dynamics, base.band, base.goal_vertical) != (self.dynamics, a.band,
                                                                a.goal_vertical):
-            return base
-        return replace(base, dynamics=self.dynamics, band=a.band, goal_vertical=a.goal_vertical)
+            spec = replace(base, dynamics=self.dynamics, band=a.band,
+                           goal_vertical=a.goal_vertical)
+        return spec.with_tracking_margin(self.plant.margin_m())
 
 
 def part_of(name: str) -> str:
-    """Which parameter class ("fire", "mission", "supervisor", "dynamics", "altitude") holds
-    ``name``."""
+    """Which parameter class ("fire", "mission", "supervisor", "dynamics", "altitude",
+    "plant") holds ``name``."""
     for part in _PARTS:
         if name in _leaves(part):
             return part
@@ -159,7 +182,14 @@ def parse_value(name: str, text: str) -> Any:
     """The value of field ``name`` written as ``text`` ("none" for None, "true"/"false")."""
     tp = _field_type(name)
     args = get_args(tp)
-    optional = get_origin(tp) in (Union, types.UnionType) and type(None) in args
+    union = get_origin(tp) in (Union, types.UnionType)
+    words = [w for a in args if get_origin(a) is Literal for w in get_args(a)] if union else []
+    if words:  # a number or a word ("auto")
+        if text.strip() in words:
+            return text.strip()
+        tp = next(a for a in args if get_origin(a) is not Literal)
+        args = ()
+    optional = union and type(None) in args
     if optional:
         if text.strip().lower() in ("none", "", "null"):
             return None

@@ -15,7 +15,8 @@ is the MAVLink boundary's alone). ``start`` and ``goal`` stay planar; :attr:`sta
 from __future__ import annotations
 
 import enum
-from dataclasses import dataclass, field
+import math
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -41,10 +42,18 @@ class Stream(enum.Enum):
     #: the fronts' heights (3-D, ``fire_height = "uniform"``): apart from the fire stream, so
     #: a 3-D mission's rectangles are the 2-D mission's, seed for seed
     FIRE_HEIGHT = "fire_height"
+    #: the plant's wind and measurement errors (dualpilot/plant)
+    PLANT = "plant"
 
+
+#: The tube margin's resolution: steps of 2⁻²⁰ m (:meth:`MissionSpec.with_tracking_margin`).
+_MARGIN_STEPS = 2.0 ** 20
 
 #: Seed-sequence key of System 1's stream, apart from the fire and supervisor streams.
 _SYSTEM1_KEY = 7
+#: Seed-sequence key of the plant's stream: its own entropy, so flying a plant moves no draw of
+#: the other streams.
+_PLANT_KEY = 17
 #: Seed-sequence key of the fire forecast's streams (dualpilot/model/front_forecast.py).
 _FORECAST_KEY = 11
 #: Seed-sequence key of the fronts' heights (:attr:`Stream.FIRE_HEIGHT`).
@@ -57,6 +66,8 @@ def stream_rng(seed: int, stream: Stream) -> np.random.Generator:
         return np.random.default_rng(np.random.SeedSequence([seed, _SYSTEM1_KEY]))
     if stream is Stream.FIRE_HEIGHT:
         return np.random.default_rng(np.random.SeedSequence([seed, _FIRE_HEIGHT_KEY]))
+    if stream is Stream.PLANT:
+        return np.random.default_rng(np.random.SeedSequence([seed, _PLANT_KEY]))
     fire, supervisor = np.random.SeedSequence(seed).spawn(2)
     return np.random.default_rng(fire if stream is Stream.FIRE else supervisor)
 
@@ -75,7 +86,10 @@ class MissionSpec:
     [0, area_size_m]²; ``dynamics`` holds ΔT, ζ, m and the limits of Eq. (1). ``band`` and
     ``goal_vertical`` are read only in 3-D (``dynamics.dim == 3``): the altitudes the UAV
     keeps, its start and G_o's altitudes, and the goal box's vertical reading
-    (:meth:`~dualpilot.model.altitude.GoalBox.over`).
+    (:meth:`~dualpilot.model.altitude.GoalBox.over`). ``d_safe_m`` and ``clearance_m`` are
+    what plans keep: the paper's d_safe and ε plus ``tracking_margin_m``, the tube a flying
+    plant's error needs (0: the ideal plant); the flight itself is judged against
+    :attr:`flight_d_safe_m`, the paper's d_safe.
     """
 
     start: tuple[float, float] = (50.0, 50.0)
@@ -87,6 +101,7 @@ class MissionSpec:
     dynamics: DynamicsParams = field(default_factory=DynamicsParams)
     band: AltitudeBand = field(default_factory=AltitudeBand)
     goal_vertical: GoalVertical = "band"
+    tracking_margin_m: float = 0.0
 
     def __post_init__(self) -> None:
         if not (np.isfinite(self.area_size_m) and self.area_size_m > 0):
@@ -94,6 +109,10 @@ class MissionSpec:
         if not (0 <= self.d_safe_m <= self.clearance_m):
             raise ValueError(f"need 0 <= d_safe_m <= clearance_m, got {self.d_safe_m}, "
                              f"{self.clearance_m}")
+        if not 0.0 <= 2.0 * self.tracking_margin_m <= self.d_safe_m:
+            raise ValueError(f"need 0 <= tracking_margin_m <= d_safe_m / 2 (the tube is at "
+                             f"most the paper's d_safe), got {self.tracking_margin_m}, "
+                             f"{self.d_safe_m}")
         if not self.goal.inside(self.area):
             raise ValueError(f"goal {self.goal} lies outside the {self.area_size_m} m area")
         if not self.area.contains(np.array(self.start)):
@@ -137,6 +156,27 @@ class MissionSpec:
         clearance ε (:meth:`~dualpilot.model.altitude.AltitudeBand.above_ceiling_m`), what a
         front without a height of its own is (the top-down evaluation's fire)."""
         return self.band.above_ceiling_m(self.clearance_m)
+
+    @property
+    def flight_d_safe_m(self) -> float:
+        """The distance (m) the flight must keep from the fires: d_safe without the tube."""
+        return self.d_safe_m - self.tracking_margin_m
+
+    def with_tracking_margin(self, margin_m: float) -> MissionSpec:
+        """This spec with its plans keeping ``margin_m`` (m) more than the paper's d_safe and
+        ε (the tube around a flying plant's path); the flight is still judged against the
+        paper's d_safe (:attr:`flight_d_safe_m`). The margin is kept in steps of 2⁻²⁰ m
+        (about 1 µm), so that adding and removing it is exact."""
+        base = self.flight_d_safe_m
+        if not 0.0 <= margin_m <= base:
+            raise ValueError(f"need 0 <= tracking_margin_m <= d_safe ({base:g} m), "
+                             f"got {margin_m}")
+        kept = math.ceil(margin_m * _MARGIN_STEPS) / _MARGIN_STEPS
+        if kept == self.tracking_margin_m:
+            return self
+        return replace(self, d_safe_m=base + kept,
+                       clearance_m=self.clearance_m - self.tracking_margin_m + kept,
+                       tracking_margin_m=kept)
 
     @property
     def area(self) -> Rect:

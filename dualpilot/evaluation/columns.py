@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from dualpilot.mission.config import MissionConfig
-from dualpilot.mission.result import MissionResult
+from dualpilot.mission.result import Ending, MissionResult
 from dualpilot.oracle.oracle import FEASIBLE, OracleParams, solve
 from dualpilot.readings import Profile
 
@@ -25,7 +25,22 @@ def flight_columns(result: MissionResult, reading: Profile) -> dict[str, object]
         planning_time_s_median=float(np.median(times)) if times else "",
         planning_time_s_p95=float(np.percentile(times, 95)) if times else "",
         planning_time_s_total=float(np.sum(times)),
+        **tracking_columns(result, reading),
     )
+
+
+def tracking_columns(result: MissionResult, reading: Profile) -> dict[str, object]:
+    """Whether the flight breached d_safe where its plan did not (``tracking_breach``), and
+    the p50 / p99 of its horizontal tracking error (m) over every integration step: 0 for
+    the ideal plant (the flight is the plan), "" when nothing was flown."""
+    breach = int(result.ending is Ending.TRACKING_BREACH)
+    if reading.plant.plant == "ideal":
+        return dict(tracking_breach=breach, tracking_error_p50_m=0.0, tracking_error_p99_m=0.0)
+    if not result.tracking_error_m:
+        return dict(tracking_breach=breach, tracking_error_p50_m="", tracking_error_p99_m="")
+    p50, p99 = np.percentile(np.concatenate(result.tracking_error_m), [50, 99])
+    return dict(tracking_breach=breach, tracking_error_p50_m=round(float(p50), 4),
+                tracking_error_p99_m=round(float(p99), 4))
 
 
 def oracle_columns(config: MissionConfig, params: OracleParams = OracleParams()
@@ -39,7 +54,8 @@ def oracle_columns(config: MissionConfig, params: OracleParams = OracleParams()
         cols = dict(success=0, steps=0, mission_time_s="", energy="", switches=0,
                     switch_energy=0, fire_substeps=cert.substeps if cert else 0, s1_plans=0,
                     s2_plans=0, planning_time_s_median="", planning_time_s_p95="",
-                    planning_time_s_total=0.0)
+                    planning_time_s_total=0.0, tracking_breach=0, tracking_error_p50_m="",
+                    tracking_error_p99_m="")
     cols["failure_cause"] = "" if verdict.verdict == FEASIBLE else verdict.verdict
     if verdict.problem:
         cols["error"] = verdict.problem

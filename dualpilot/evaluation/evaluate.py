@@ -76,6 +76,8 @@ def evaluate(
     summary["s2_method"] = base.system2_method
     summary["profile"] = base.profile
     summary["readings"] = reading.readings()
+    summary["plant"] = {**reading.plant_readings(),
+                        "tracking_margin_m_used": base.spec().tracking_margin_m}
     if ORACLE in controllers:
         ys = yardstick(rows, tasks[0].config)
         summary["yardstick"] = ys

@@ -39,6 +39,8 @@ COLUMNS = [
     "planning_time_s_median", "planning_time_s_p95", "planning_time_s_total", "start_x",
     "start_y", "goal_x", "goal_y",
     "wall_s", "error",
+    # appended (old readers keep their columns): the plant's flight (dualpilot/mission/flight.py)
+    "tracking_breach", "tracking_error_p50_m", "tracking_error_p99_m",
 ]
 #: the columns that are measured, not computed: they differ between any two runs
 MEASURED_COLUMNS = frozenset({"wall_s", "planning_time_s_median", "planning_time_s_p95",

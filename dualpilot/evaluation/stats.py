@@ -66,6 +66,22 @@ def summarize(
                                                  for r in ok])) if ok else 0.0,
             "errors": sum(1 for r in rs if r["error"]),
             "failure_causes": causes,
+            **tracking_summary(rs),
         }
     result["controllers"] = ctrl
     return result
+
+
+def tracking_summary(rows: list[dict[str, str]]) -> dict[str, object]:
+    """The plant's flights: missions lost to a ``tracking_breach`` (d_safe kept by the plan,
+    not by the flight), and the median over missions of their tracking error's p50 and p99
+    (m; nan when no row has one: rows written before the columns existed)."""
+    p50 = [float(v) for r in rows if (v := r.get("tracking_error_p50_m"))]
+    p99 = [float(v) for r in rows if (v := r.get("tracking_error_p99_m"))]
+    return {
+        "tracking_breaches": sum(1 for r in rows if r.get("tracking_breach") == "1"
+                                 or r.get("failure_cause") == "tracking_breach"),
+        "tracking_error_p50_m_median": float(np.median(p50)) if p50 else float("nan"),
+        "tracking_error_p99_m_median": float(np.median(p99)) if p99 else float("nan"),
+        "tracking_error_p99_m_max": float(np.max(p99)) if p99 else float("nan"),
+    }

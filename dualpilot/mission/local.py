@@ -1,4 +1,5 @@
-"""In-process adapters of the mission step's ports: the fire process, the planners, Eq. (1)."""
+"""In-process adapters of the mission step's ports: the fire process, the planners, Eq. (1);
+the vehicle of an in-process mission is its plant (dualpilot/mission/flight.py)."""
 
 from __future__ import annotations
 
@@ -10,6 +11,7 @@ import numpy as np
 
 from dualpilot.mission.config import MissionConfig
 from dualpilot.mission.dimension import check_dimension
+from dualpilot.mission.flight import PlantVehicle
 from dualpilot.mission.ports import KeepOut, PlanRequest
 from dualpilot.mission.step import Mission, MissionPorts
 from dualpilot.model.dynamics import Array, DynamicsParams, hover_state, step
@@ -20,6 +22,7 @@ from dualpilot.model.fire_height import FireHeights
 from dualpilot.model.forecast import ForecastParams, OccupancyForecast
 from dualpilot.model.geometry import Polytope
 from dualpilot.plan import ForecastPlanner, Plan, Planner, PlanStatus
+from dualpilot.plant import make_plant
 from dualpilot.spec import MissionSpec, Stream
 
 
@@ -122,10 +125,23 @@ class LocalVehicle:
         return self.state.copy()
 
 
+def local_vehicle(config: MissionConfig, spec: MissionSpec,
+                  state: Array) -> LocalVehicle | PlantVehicle:
+    """The vehicle of an in-process mission at ``state``: Eq. (1) itself for the ideal plant
+    (:class:`LocalVehicle`, today's), else the reading's plant on the spec's plant stream."""
+    params = config.reading().plant_params()
+    if params.kind == "ideal":
+        return LocalVehicle(state, spec.dynamics)
+    if spec.dim != 2:
+        raise ValueError(f"plant={params.kind} flies the 2-D missions only so far (dim=2)")
+    return PlantVehicle(make_plant(params, state, spec.dynamics, spec.rng(Stream.PLANT)))
+
+
 def local_mission(config: MissionConfig, planners: dict[int, Planner] | None = None) -> Mission:
     """The mission of ``config`` flown in this process (by default the planners of the systems
     its controller asks, built from the spec: the config's methods, risk-aware with
-    ``config.risk``, System 2 with its time limit)."""
+    ``config.risk``, System 2 with its time limit), its vehicle the reading's plant
+    (:func:`local_vehicle`)."""
     spec = config.spec()
     if planners is None:
         from dualpilot.planners import build_planner
@@ -139,6 +155,5 @@ def local_mission(config: MissionConfig, planners: dict[int, Planner] | None = N
     reading = config.reading()
     heights = reading.altitude.fire_heights(spec, reading.fire.scenario)
     fires = LocalFires(spec, reading.fire, config.forecast, heights)
-    ports = MissionPorts(fires, LocalPlanners(planners),
-                         LocalVehicle(state, spec.dynamics))
-    return Mission(config, spec, ports, state)
+    ports = MissionPorts(fires, LocalPlanners(planners), local_vehicle(config, spec, state))
+    return Mission(config, spec, ports, ports.vehicle.observe())

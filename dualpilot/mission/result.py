@@ -31,6 +31,9 @@ class Ending(enum.Enum):
     GOAL = "goal"
     #: the flown segment passed within d_safe of an active region
     FIRE_CONTACT = "fire_contact"
+    #: the plant's flown path passed within d_safe of an active region, the planned segment
+    #: did not (dualpilot/mission/flight.py)
+    TRACKING_BREACH = "tracking_breach"
     #: the idle UAV came within d_safe of a region while the fires advanced (planning)
     FIRE_WHILE_PLANNING = "fire_while_planning"
     #: within d_safe while the fires advanced in flight (``fire_substeps_per_motion``)
@@ -141,6 +144,9 @@ class MissionResult:
     final_state: Array | None = None
     #: the mission's simulated time (s) when it ended (0 while it flies)
     sim_time_s: float = 0.0
+    #: each flown step's horizontal distance (m) between the plant's path and the planned
+    #: segment at every integration step (dualpilot/mission/flight.py; empty: not recorded)
+    tracking_error_m: list[Array] = field(default_factory=list)
 
     @property
     def seed(self) -> int:

@@ -15,7 +15,11 @@ Each step t:
    and ΔT; the fires advance; the mission fails if an active region came
    within d_safe of the idle UAV;
 5. the vehicle flies one step of Eq. (1): failure if its motion passes within
-   d_safe of an active region, success on entering G.
+   d_safe of an active region, success on entering G. In-process the vehicle is a
+   plant (:mod:`dualpilot.mission.flight`): Eq. (1) exactly by default, or a
+   multirotor whose true path is judged at every integration step (a breach its
+   plan did not make is a ``tracking_breach``); the planners plan from its
+   measured state, the failure rules judge its true position.
 
 A plan that is not OK is never flown: with no OK plan the UAV brakes.
 The step is written once; :mod:`dualpilot.mission.local` runs it in one process,
@@ -40,6 +44,7 @@ import numpy as np
 
 from dualpilot.mission.braking import brake_control
 from dualpilot.mission.config import MissionConfig
+from dualpilot.mission.flight import judge_flight, tracking_errors, true_position
 from dualpilot.mission.monitor import PLANNER_RISK
 from dualpilot.mission.params import MissionParams, Timing
 from dualpilot.mission.ports import (
@@ -156,7 +161,7 @@ def flight_outcome(
 ) -> Ending | None:
     """After flying p0 → p1: how the mission ended (in G, fire contact, the step limit), or
     None to go on."""
-    if segment_within(p0, p1, regions, spec.d_safe_m):
+    if segment_within(p0, p1, regions, spec.flight_d_safe_m):
         return Ending.FIRE_CONTACT
     if spec.in_goal(p1):
         return Ending.GOAL
@@ -239,8 +244,9 @@ class Mission:
 
     # -- one tick -------------------------------------------------------------------
     def _position(self) -> Array:
-        """The UAV's position (m), shape (dim,)."""
-        return self.state[: self.dim]
+        """Where the UAV truly is (m), shape (dim,): what the failure rules judge (a plant's
+        true position; the measured state plans)."""
+        return true_position(self.vehicle, self.state[: self.dim])
 
     def _snapshot(self) -> FireSnapshot:
         """The fire port's snapshot; in 3-D one without tops has fires taller than the band."""
@@ -255,14 +261,14 @@ class Mission:
         return tuple(Cuboid(r, top) if isinstance(r, Rect) else r for r in regions)
 
     def _within_d_safe(self, regions: tuple[Region, ...]) -> bool:
-        return nearest_region_distance(self._position(), regions) < self.spec.d_safe_m
+        return nearest_region_distance(self._position(), regions) < self.spec.flight_d_safe_m
 
     def _keep_out(self) -> KeepOut | None:
         clear = self.params.ignition_clearance_m
         return None if clear is None else (self._position().copy(), clear)
 
     def _counted(self, t: int, snapshot: FireSnapshot) -> tuple[Region, ...]:
-        return counted_regions(snapshot, t, self.params, self.spec.d_safe_m,
+        return counted_regions(snapshot, t, self.params, self.spec.flight_d_safe_m,
                                self.front_distances)
 
     def _fire_fails(self, t: int, snapshot: FireSnapshot) -> bool:
@@ -385,8 +391,10 @@ class Mission:
         if motion and self._caught(t, motion):
             return self._finish(Ending.FIRE_IN_FLIGHT, record)
         after = self._snapshot()
-        outcome = flight_outcome(prev_pos, self._position(), self._counted(t, after),
-                                 self.result.steps, self.spec, self.params)
+        contact, left = judge_flight(self.vehicle, self._counted(t, after),
+                                     self.spec.flight_d_safe_m)
+        outcome = contact or flight_outcome(prev_pos, self._position(), left,
+                                            self.result.steps, self.spec, self.params)
         remember_distances(self._position(), after, self.front_distances)
         return record if outcome is None else self._finish(outcome, record)
 
@@ -395,6 +403,7 @@ class Mission:
         self.result.ending = ending
         self.result.final_state = self.state.copy()
         self.result.sim_time_s = self.sim_time_s
+        self.result.tracking_error_m = tracking_errors(self.vehicle)
         if self.observer is not None:
             self.observer.ended(record, ending)
         return record

@@ -1,0 +1,133 @@
+"""The plant's readings: which plant flies, in what air, measured how, with what margin.
+
+These are not readings of the paper: the paper's vehicle *is* Eq. (1) (Sec. II-A,
+"x_t = Φ x_{t−1} + Γ u_t"; Sec. IV flies it in one-second jumps), with no wind
+and exact measurements. They say how far the world departs from that model, in
+the terms the SITLs use: PX4's ``SIH``/Gazebo wind and ArduPilot SITL's
+``SIM_WIND_SPD``, ``SIM_WIND_DIR`` and ``SIM_WIND_TURB``; turbulence levels are
+those of the Dryden model of MIL-F-8785C / MIL-HDBK-1797 (:mod:`dualpilot.plant.wind`),
+the GPS error that of Beard & McLain (2012), Sec. 7.5 (:mod:`dualpilot.plant.sensors`).
+The defaults are today's vehicle: ``plant = "ideal"``, calm air, exact measurements,
+no margin.
+
+The tube margin (``tracking_margin_m = "auto"``, :func:`auto_margin_m`) is what a
+plan keeps beyond d_safe (and ε) so that the flight keeps d_safe: the horizontal
+GPS error's 99.9th percentile (its distance is Rayleigh-distributed with the per-axis
+σ = ``gps_sigma_m``: σ·√(2 ln 1000) = 3.717 σ) plus the flight's own tracking error's
+99.9th percentile at the turbulence level (:data:`TRACKING_P999_M`, measured in the
+mission loop, docs/plant.md) plus, with gusts, the gust's peak
+times one second (the velocity loop's settling, a reading: gusts are not measured).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Literal, get_args
+
+from dualpilot.model.scenarios import PAPER, get_scenario
+from dualpilot.plant.plant import PlantKind, PlantParams
+from dualpilot.plant.sensors import GpsParams
+from dualpilot.plant.wind import GustParams, Turbulence, WindParams
+
+#: the Rayleigh quantile factor of the 99.9th percentile: σ·√(2 ln 1000)
+RAYLEIGH_P999 = math.sqrt(2.0 * math.log(1000.0))
+#: the multirotor's horizontal tracking error's 99.9th percentile (m) with exact
+#: measurements, per turbulence level: its path against the planned straight segment in
+#: the mission loop, which flies the plan's velocities (dualpilot/mission/flight.py), so
+#: the tail is the vehicle accelerating and turning ahead of Eq. (1)'s positions, not the
+#: air. Measured over 8 missions per level (cc and lookahead+risk, missions 0–3 of seed 0)
+#: at winds 0 and 10 m/s: 2.62–2.87 m (largest 3.78 m); rounded up (docs/plant.md)
+TRACKING_P999_M: dict[str, float] = {"none": 3.0, "light": 3.0, "moderate": 3.0,
+                                     "severe": 3.0}
+#: how long (s) a gust's peak is taken to push the vehicle before its velocity loop holds it
+GUST_SETTLE_S = 1.0
+
+Margin = float | Literal["auto"]
+
+
+@dataclass(frozen=True)
+class PlantReading:
+    """The plant readings of a mission (see module docstring); every field is a setting.
+
+    ``wind_speed_mps`` and ``wind_dir_rad`` None: the fire scenario's own 10-m wind on
+    a fire-behaviour scenario (``FireParams.scenario``), calm air on the paper's
+    rectangles; a value differing from a scenario's own is refused (one world, one
+    wind). ``wind_dir_rad`` is the direction the wind blows towards, counter-clockwise
+    from east, as the scenarios write it.
+    """
+
+    #: "ideal" (Eq. (1) exactly: today's vehicle) or "multirotor" (dualpilot/plant)
+    plant: PlantKind = "ideal"
+    #: the mean wind (m/s) at the vehicle (ArduPilot SITL SIM_WIND_SPD); None: the scenario's
+    wind_speed_mps: float | None = None
+    #: where the mean wind blows towards (rad, from east); None: the scenario's
+    wind_dir_rad: float | None = None
+    #: MIL-F-8785C Dryden turbulence level (ArduPilot SITL SIM_WIND_TURB)
+    turbulence: Turbulence = "none"
+    #: discrete 1-cosine gusts per minute (MIL-F-8785C), Poisson arrivals
+    gust_rate_per_min: float = 0.0
+    #: a gust's peak (m/s)
+    gust_peak_mps: float = GustParams().peak_mps
+    #: the stationary σ (m) of the horizontal position error per axis (GPS/EKF)
+    gps_sigma_m: float = 0.0
+    #: the tube (m) plans keep beyond d_safe and ε; "auto": :func:`auto_margin_m`
+    tracking_margin_m: Margin = "auto"
+
+    def __post_init__(self) -> None:
+        if self.plant not in get_args(PlantKind):
+            raise ValueError(f"plant must be one of {get_args(PlantKind)}, not {self.plant!r}")
+        if self.turbulence not in get_args(Turbulence):
+            raise ValueError(f"turbulence must be one of {get_args(Turbulence)}, "
+                             f"not {self.turbulence!r}")
+        for name in ("wind_speed_mps", "gust_rate_per_min", "gust_peak_mps", "gps_sigma_m"):
+            v = getattr(self, name)
+            if v is not None and not (math.isfinite(v) and v >= 0.0):
+                raise ValueError(f"{name} must be a number >= 0, got {v!r}")
+        if self.wind_dir_rad is not None and not math.isfinite(self.wind_dir_rad):
+            raise ValueError(f"wind_dir_rad must be finite, got {self.wind_dir_rad!r}")
+        m = self.tracking_margin_m
+        if m != "auto" and not (isinstance(m, (int, float)) and math.isfinite(m) and m >= 0):
+            raise ValueError(f"tracking_margin_m must be 'auto' or a number >= 0, got {m!r}")
+
+    def margin_m(self) -> float:
+        """The tube (m): the set value, or :func:`auto_margin_m`."""
+        if self.tracking_margin_m == "auto":
+            return auto_margin_m(self)
+        return float(self.tracking_margin_m)
+
+
+def auto_margin_m(reading: PlantReading) -> float:
+    """The tube (m) of the ``"auto"`` margin: 0 for the ideal plant; for the multirotor
+    3.717·``gps_sigma_m`` + :data:`TRACKING_P999_M` [turbulence] + ``gust_peak_mps`` ×
+    :data:`GUST_SETTLE_S` when gusts blow (module docstring)."""
+    if reading.plant == "ideal":
+        return 0.0
+    gusts = reading.gust_peak_mps * GUST_SETTLE_S if reading.gust_rate_per_min > 0 else 0.0
+    return RAYLEIGH_P999 * reading.gps_sigma_m + TRACKING_P999_M[reading.turbulence] + gusts
+
+
+def mean_wind(reading: PlantReading, scenario: str) -> tuple[float, float]:
+    """(speed m/s, direction rad) of the mean wind: the scenario's own on a fire-behaviour
+    scenario, else the reading's (calm by default). ValueError for a set value that is not
+    the scenario's."""
+    if scenario == PAPER:
+        return (reading.wind_speed_mps or 0.0, reading.wind_dir_rad or 0.0)
+    own = get_scenario(scenario).params
+    for name, mine, theirs in (("wind_speed_mps", reading.wind_speed_mps, own.wind_speed_mps),
+                               ("wind_dir_rad", reading.wind_dir_rad, own.wind_direction_rad)):
+        if mine is not None and mine != theirs:
+            raise ValueError(f"{name} = {mine:g} is not the wind of fire scenario {scenario!r} "
+                             f"({theirs:g}): on a fire-behaviour scenario the mean wind is its "
+                             "own; leave it unset")
+    return (own.wind_speed_mps, own.wind_direction_rad)
+
+
+def plant_params(reading: PlantReading, scenario: str = PAPER) -> PlantParams:
+    """The :class:`PlantParams` the mission flies under ``reading`` on fire ``scenario``."""
+    speed, direction = mean_wind(reading, scenario)
+    gusts = GustParams(rate_per_min=reading.gust_rate_per_min, peak_mps=reading.gust_peak_mps)
+    wind = WindParams(wind_speed_mps=speed, wind_dir_rad=direction,
+                      turbulence=reading.turbulence, gusts=gusts)
+    return PlantParams(kind=reading.plant, wind=wind,
+                       gps=GpsParams(gps_sigma_m=reading.gps_sigma_m))
