@@ -30,7 +30,7 @@ from dualpilot.model.dynamics import DynamicsParams
 from dualpilot.model.fire import FireParams
 from dualpilot.model.vertical import VerticalParams
 from dualpilot.plant.plant import PlantParams
-from dualpilot.plant.reading import PlantReading, plant_params
+from dualpilot.plant.reading import PlantReading, measurement_tol, plant_params
 from dualpilot.spec import MissionSpec
 from dualpilot.supervisor.paper.decision import SupervisorParams
 
@@ -139,7 +139,8 @@ class Profile:
     def spec(self, base: MissionSpec) -> MissionSpec:
         """``base`` flown with this profile's dynamics (Eq. (1) and its limits), altitude band
         and goal reading (read in 3-D only), its plans keeping the plant's tube margin
-        (``tracking_margin_m``; 0 for the ideal plant)."""
+        (``tracking_margin_m``; 0 for the ideal plant) and checked with its measurements'
+        tolerance (``measurement_tol``; 0 when exact)."""
         self.plant_params()  # ValueError: a wind that is not the fire scenario's
         a = self.altitude
         spec = base
@@ -147,6 +148,9 @@ class Profile:
                                                                a.goal_vertical):
             spec = replace(base, dynamics=self.dynamics, band=a.band,
                            goal_vertical=a.goal_vertical)
+        tol = measurement_tol(self.plant, self.dynamics.dt_s)
+        if tol != spec.measurement_tol:
+            spec = replace(spec, measurement_tol=tol)
         return spec.with_tracking_margin(self.plant.margin_m())
 
 

@@ -102,6 +102,9 @@ class MissionSpec:
     band: AltitudeBand = field(default_factory=AltitudeBand)
     goal_vertical: GoalVertical = "band"
     tracking_margin_m: float = 0.0
+    #: how far (m and m/s, ∞-norm) two measurements of one state may differ: the run-time
+    #: monitor's "starts at the measured state" tolerance grows by it (0: exact measurements)
+    measurement_tol: float = 0.0
 
     def __post_init__(self) -> None:
         if not (np.isfinite(self.area_size_m) and self.area_size_m > 0):
@@ -113,6 +116,8 @@ class MissionSpec:
             raise ValueError(f"need 0 <= tracking_margin_m <= d_safe_m / 2 (the tube is at "
                              f"most the paper's d_safe), got {self.tracking_margin_m}, "
                              f"{self.d_safe_m}")
+        if not (math.isfinite(self.measurement_tol) and self.measurement_tol >= 0.0):
+            raise ValueError(f"measurement_tol must be >= 0, got {self.measurement_tol}")
         if not self.goal.inside(self.area):
             raise ValueError(f"goal {self.goal} lies outside the {self.area_size_m} m area")
         if not self.area.contains(np.array(self.start)):

@@ -5,7 +5,10 @@ the network, an impostor on the bus), the step checks it itself before a
 setpoint leaves (:func:`check_plan`). A plan is accepted only if
 
 1. its shapes are (T+1, 2·dim) states and (T, dim) controls, T ≥ 1, all finite;
-2. it **starts at the measured state**: ‖x_{t|t} − x_t‖_∞ ≤ ``start_tol``;
+2. it **starts at the measured state**: ‖x_{t|t} − x_t‖_∞ ≤ ``start_tol`` plus the
+   spec's ``measurement_tol`` (what the plant's measurement noise lets two measurements
+   of one state differ by, :func:`dualpilot.plant.reading.measurement_tol`; 0 for exact
+   measurements);
 3. it **follows Eq. (1)** step by step: ‖x_{k+1} − (Φ x_k + Γ u_k)‖_∞ ≤
    ``dynamics_tol`` for every k (no clipping: a plan that needs the
    autopilot's clip is not the plan that will be flown);
@@ -104,7 +107,7 @@ def check_plan(
     if not (np.isfinite(states).all() and np.isfinite(controls).all()):
         return MonitorVerdict(False, "non-finite values")
     off = float(np.abs(states[0] - measured).max())
-    if off > params.start_tol:
+    if off > params.start_tol + spec.measurement_tol:
         return MonitorVerdict(False, f"starts {off:.3g} from the measured state")
     u = float(np.abs(controls).max())
     if u > dyn.u_max_n + params.limit_tol:

@@ -107,6 +107,24 @@ def auto_margin_m(reading: PlantReading) -> float:
     return RAYLEIGH_P999 * reading.gps_sigma_m + TRACKING_P999_M[reading.turbulence] + gusts
 
 
+#: how many standard deviations of the difference of two measurements the monitor allows
+MEASUREMENT_SIGMAS = 4.0
+
+
+def measurement_tol(reading: PlantReading, interval_s: float) -> float:
+    """How far (m and m/s, ∞-norm) two measurements of one state ``interval_s`` (s) apart may
+    differ: :data:`MEASUREMENT_SIGMAS` standard deviations of the difference, per axis, of
+    the position error (Gauss–Markov: σ√(2(1 − e^{−Δt/τ}))) or of the velocity error (white:
+    √2 σ_v), whichever is larger (:mod:`dualpilot.plant.sensors`); 0 for exact measurements
+    (``gps_sigma_m`` = 0, and the ideal plant, which measures exactly)."""
+    if reading.plant == "ideal" or reading.gps_sigma_m == 0.0:
+        return 0.0
+    gps = GpsParams(gps_sigma_m=reading.gps_sigma_m)
+    pos = gps.gps_sigma_m * math.sqrt(2.0 * (1.0 - math.exp(-interval_s / gps.tau_s)))
+    vel = math.sqrt(2.0) * gps.vel_sigma_mps
+    return MEASUREMENT_SIGMAS * max(pos, vel)
+
+
 def mean_wind(reading: PlantReading, scenario: str) -> tuple[float, float]:
     """(speed m/s, direction rad) of the mean wind: the scenario's own on a fire-behaviour
     scenario, else the reading's (calm by default). ValueError for a set value that is not
