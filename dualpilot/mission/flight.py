@@ -37,6 +37,7 @@ from typing import Protocol, runtime_checkable
 
 import numpy as np
 
+from dualpilot.mission.config import MissionConfig
 from dualpilot.mission.result import Ending
 from dualpilot.model.dynamics import Array, DynamicsParams, step
 from dualpilot.model.fire import Region
@@ -170,3 +171,14 @@ def judge_flight(vehicle: object, regions: tuple[Region, ...], d_safe_m: float
 def tracking_errors(vehicle: object) -> list[Array]:
     """The flights' tracking errors a :class:`PlantVehicle` collected (else none)."""
     return vehicle.tracking_error_m if isinstance(vehicle, PlantVehicle) else []
+
+
+def stack_refusal(config: MissionConfig) -> str:
+    """Why the stack cannot fly ``config``'s plant ("" when it can): its vehicle, uavsim,
+    flies Eq. (1) in one-second jumps, the ideal plant only (the multirotor flies in-process
+    so far)."""
+    kind = config.reading().plant.plant
+    if kind == "ideal":
+        return ""
+    return (f"plant={kind}: the stack's vehicle flies the ideal plant (Eq. (1)) only; fly "
+            "this mission in-process (dualpilot mission, dualpilot evaluate)")

@@ -33,6 +33,7 @@ from typing import cast
 import numpy as np
 
 from dualpilot.mission.config import MissionConfig
+from dualpilot.mission.flight import stack_refusal
 from dualpilot.mission.records import result_from_log
 from dualpilot.mission.result import Ending, MissionResult, StepRecord
 from dualpilot.mission.step import Mission, MissionPorts
@@ -170,6 +171,8 @@ class StackSession:
     # -- start ------------------------------------------------------------------------------------
     def start(self) -> None:
         """Take the vehicle, then start the mission from its state or resume its record."""
+        if refused := stack_refusal(self.config):
+            raise Aborted(refused)
         self.record.claim()
         configure_vehicle(self.b, self.config)
         self.watch.take()

@@ -312,3 +312,15 @@ def test_a_vehicle_that_refuses_to_arm_aborts_the_start_before_any_record(
     r.session.announce_end(str(tmp_path), "vehicle: arm: UNSUPPORTED")
     (aborted,) = r.stack.events()
     assert r.stack.event_kinds() == ["ABORTED"] and aborted.message == "vehicle: arm: UNSUPPORTED"
+
+
+def test_a_mission_of_another_plant_than_the_ideal_is_refused_before_the_vehicle_is_taken(
+        tmp_path: Path) -> None:
+    """uavsim flies Eq. (1) only: a multirotor mission is refused by name, nothing claimed,
+    armed or recorded (it flies in-process)."""
+    config = MissionConfig.named("cc", seed=SEED, settings=SHORT + (("plant", "multirotor"),))
+    r = rig(config, tmp_path)
+    with pytest.raises(Aborted, match="plant=multirotor: the stack's vehicle flies the ideal"):
+        r.session.run()
+    assert r.session.result is None and not (tmp_path / "steps.jsonl").exists()
+    assert r.stack.fire_commands == [] and r.stack.events() == []
