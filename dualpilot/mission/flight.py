@@ -16,13 +16,14 @@ acceleration as feed-forward. Eq. (1) moves the position by ΔT·v_t only (its
 acceleration shows in the position one step later), so a vehicle made to be at
 Eq. (1)'s p_{t+1} *and* at v_{t+1} has to back up and then accelerate beyond its
 tilt limit: replanned every step from its measured state, it never picks up speed
-(measured: from hover under u = (7.5, 7.5) N it stays within 1.4 m/s and 10 m
-in 12 s, where Eq. (1) flies 155 m). Flying the velocities, it reaches Eq. (1)'s
-speeds; its path then departs from the planned straight segment by up to
+(measured: from hover under u = (7.5, 7.5) N it stays below 1.5 m/s per axis and
+within 1 m of its start over 12 s, where Eq. (1) flies 155 m per axis). Flying the
+velocities, it reaches Eq. (1)'s speeds; its path then departs from the planned
+straight segment by up to
 ΔT·‖v_{t+1} − v_t‖/2 while it accelerates or turns, which the tube margin covers
 (:mod:`dualpilot.plant.reading`).
 
-Safety is judged on the flight (:func:`flight_contact`): d_safe along the
+Safety is judged on the flight (:func:`judge_flight`): d_safe along the
 plant's true path, every integration step's segment checked exactly against the
 regions the step's failure rule counts. A flight that passes within d_safe of a
 region whose planned segment (Eq. (1)'s straight segment from the measured start)
