@@ -198,4 +198,6 @@ class MissionResult:
             },
             "d_safe_m": s.d_safe_m,
             "clearance_m": s.clearance_m,
+            # a flying plant's tube (d_safe_m and clearance_m include it): written when used
+            **({"tracking_margin_m": s.tracking_margin_m} if s.tracking_margin_m else {}),
         }

@@ -278,6 +278,8 @@ def test_a_multirotor_mission_is_reproduced_by_its_seed() -> None:
     assert a.ending is b.ending and a.steps == b.steps > 1
     assert all(np.array_equal(x.state, y.state) for x, y in zip(a.records, b.records,
                                                                 strict=True))
+    assert a.summary()["tracking_margin_m"] == a.spec.tracking_margin_m > 8.5  # the tube
+    assert "tracking_margin_m" not in local_mission(Task.of(1, 0, "cc").mission()).result.summary()
     assert a.tracking_error_m and all(np.array_equal(x, y) for x, y in
                                       zip(a.tracking_error_m, b.tracking_error_m, strict=True))
 
