@@ -261,13 +261,14 @@ def test_the_plant_stream_is_new_and_the_others_draw_as_before() -> None:
     fire, sup = np.random.SeedSequence(seed).spawn(2)
     expected = {Stream.FIRE: fire, Stream.SUPERVISOR: sup,
                 Stream.SYSTEM1: np.random.SeedSequence([seed, 7]),
+                Stream.FIRE_HEIGHT: np.random.SeedSequence([seed, 13]),
                 Stream.PLANT: np.random.SeedSequence([seed, 17])}
     draws = {}
     for s, seq in expected.items():
         got = stream_rng(seed, s).random(4)
         assert np.array_equal(got, np.random.default_rng(seq).random(4))
         draws[s] = tuple(got)
-    assert len(set(draws.values())) == 4
+    assert len(set(draws.values())) == 5
 
 
 def test_a_multirotor_mission_is_reproduced_by_its_seed() -> None:
