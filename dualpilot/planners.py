@@ -132,8 +132,9 @@ def _rrt_du_risk(spec: MissionSpec, params: System1Params | None) -> Planner:
 
 
 RRT = PlannerMethod(1, _rrt, _rrt_risk, "Alg. 1 (RRT, or the operator's waypoints) with LQR "
-                    "tracking")
-RRT_DU = PlannerMethod(1, _rrt_du, _rrt_du_risk, "Alg. 1 with LQR tracking under a Δu penalty")
+                    "tracking", frozenset({2, 3}))
+RRT_DU = PlannerMethod(1, _rrt_du, _rrt_du_risk, "Alg. 1 with LQR tracking under a Δu penalty",
+                       frozenset({2, 3}))
 FAST = PlannerMethod(2, _fast, _fast_risk, "(P2) by homotopy-seeded convex restrictions",
                      dims=frozenset({2, 3}))
 EXACT = PlannerMethod(2, _exact, None, "(P2) as the cvxpy MIQP, in a killable worker process")

@@ -38,7 +38,8 @@ from dualpilot.supervisor.paper.decision import SupervisorParams
 READINGS = ("life_base", "extent", "redraw_clearance", "keep_extinct_hulls",
             "ignition_clearance_m", "d_t_reading", "failure_rule", "fire_substeps_per_motion",
             "attention_draw", "speed_limit", "dim", "ceiling_m", "floor_m", "start_altitude_m",
-            "goal_altitude_m", "goal_vertical", "fire_height", "plume_intensity", "uav_limit_c")
+            "goal_altitude_m", "goal_vertical", "fire_height", "plume_intensity", "uav_limit_c",
+            "s1_altitude")
 
 #: The plant's readings (not the paper's: dualpilot/plant/reading.py), in field order.
 PLANT_READINGS = tuple(f.name for f in dataclasses.fields(PlantReading))
@@ -327,6 +328,9 @@ _TODAY_3D = replace(
         "Sec. IV: 'the goal region G is represented as a rectangular region centered at "
         "G_o' → goal_vertical = band: every altitude of the band above the rectangle is in "
         "G.",
+        "Sec. III-A: System 1 'mimics human-like decision-making', and Sec. IV flies it "
+        "'assuming a fixed altitude' → s1_altitude = slice-first: System 1 plans at the "
+        "UAV's altitude and climbs only when the fires leave no path there.",
     ),
 )
 

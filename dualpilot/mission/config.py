@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field, replace
-from typing import Any, Literal
+from typing import TYPE_CHECKING, Any, Literal
 
 from dualpilot.mission.params import Controller, Timing
 from dualpilot.model.forecast import ForecastParams
@@ -32,6 +32,9 @@ from dualpilot.spec import MissionSpec
 from dualpilot.supervisor.concurrent.rule import ConcurrentParams
 from dualpilot.supervisor.registry import PAPER, supervisor_entry, supervisor_names
 from dualpilot.system2.problem import System2Params
+
+if TYPE_CHECKING:
+    from dualpilot.system1.planner import System1Params
 
 __all__ = ["DEFAULT_MISSION", "MissionConfig", "controller_name", "controller_names",
            "parse_controller"]
@@ -180,6 +183,13 @@ class MissionConfig:
         "" is the supervisor's."""
         system1 = self.system1_method or supervisor_entry(self.supervisor).system1_method
         return {1: system1, 2: self.system2_method}
+
+    def system1_params(self) -> System1Params:
+        """System 1's parameters: the paper's, with this reading's ``s1_altitude`` (where a 3-D
+        System 1 plans, dualpilot/system1/altitude.py)."""
+        from dualpilot.system1.planner import System1Params
+
+        return System1Params(altitude=self.reading().altitude.s1_altitude)
 
     def system2_params(self) -> System2Params:
         """System 2's parameters: the paper's, with this configuration's time limit."""

@@ -140,8 +140,8 @@ def local_vehicle(config: MissionConfig, spec: MissionSpec,
 def local_mission(config: MissionConfig, planners: dict[int, Planner] | None = None) -> Mission:
     """The mission of ``config`` flown in this process (by default the planners of the systems
     its controller asks, built from the spec: the config's methods, risk-aware with
-    ``config.risk``, System 2 with its time limit), its vehicle the reading's plant
-    (:func:`local_vehicle`)."""
+    ``config.risk``, System 1 with its ``s1_altitude``, System 2 with its time limit), its
+    vehicle the reading's plant (:func:`local_vehicle`)."""
     spec = config.spec()
     if planners is None:
         from dualpilot.planners import build_planner
@@ -150,7 +150,8 @@ def local_mission(config: MissionConfig, planners: dict[int, Planner] | None = N
 
         methods = config.methods()
         planners = {s: build_planner(s, spec, methods[s], config.system2_params() if s == 2
-                                     else None, config.risk) for s in config.systems()}
+                                     else config.system1_params(), config.risk)
+                    for s in config.systems()}
     state = hover_state(spec.start_position, spec.dynamics)
     reading = config.reading()
     heights = reading.altitude.fire_heights(spec, reading.fire.scenario)

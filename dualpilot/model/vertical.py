@@ -10,6 +10,8 @@ named reading with its source in the module that defines it:
 * the fronts' heights (:class:`FireHeightParams`, dualpilot/model/fire_height.py) and, on
   a fire-behaviour scenario, the air the UAV must not enter above a fire
   (:class:`PlumeParams`, dualpilot/model/plume.py).
+* where System 1 flies (``s1_altitude``, :data:`S1Altitude`,
+  dualpilot/system1/altitude.py).
 
 :mod:`dualpilot.readings` addresses every field of the three by its bare name
 (``--set ceiling_m=100 --set fire_height=uniform``); a 2-D mission reads none of them.
@@ -18,7 +20,7 @@ named reading with its source in the module that defines it:
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import get_args
+from typing import Literal, get_args
 
 from dualpilot.model.altitude import AltitudeBand, GoalVertical
 from dualpilot.model.fire_height import FireHeightParams, FireHeights
@@ -26,19 +28,32 @@ from dualpilot.model.plume import PlumeParams
 from dualpilot.spec import MissionSpec, Stream
 
 
+#: Where System 1 plans in 3-D (dualpilot/system1/altitude.py): "slice-first" (in the
+#: horizontal slice at the UAV's altitude, with the planar Alg. 1; the 3-D tree only when
+#: the slice has no path) or "volume" (the 3-D tree at once). The paper's System 1 "mimics
+#: human-like decision-making" (Sec. III-A) and its evaluation flies "assuming a fixed
+#: altitude" (Sec. IV): a pilot keeps their altitude until a fire is in the way.
+S1Altitude = Literal["slice-first", "volume"]
+
+
 @dataclass(frozen=True)
 class VerticalParams:
-    """The band, the goal's vertical reading, the fronts' heights and the plume (3-D only)."""
+    """The band, the goal's vertical reading, the fronts' heights, the plume and where System 1
+    plans (3-D only)."""
 
     band: AltitudeBand = field(default_factory=AltitudeBand)
     goal_vertical: GoalVertical = "band"
     heights: FireHeightParams = field(default_factory=FireHeightParams)
     plume: PlumeParams = field(default_factory=PlumeParams)
+    s1_altitude: S1Altitude = "slice-first"
 
     def __post_init__(self) -> None:
         if self.goal_vertical not in get_args(GoalVertical):
             raise ValueError(f"goal_vertical must be one of {get_args(GoalVertical)}, "
                              f"not {self.goal_vertical!r}")
+        if self.s1_altitude not in get_args(S1Altitude):
+            raise ValueError(f"s1_altitude must be one of {get_args(S1Altitude)}, "
+                             f"not {self.s1_altitude!r}")
 
     def fire_heights(self, spec: MissionSpec, scenario: str) -> FireHeights | None:
         """The fire process's heights for the mission of ``spec`` on ``scenario`` (None in

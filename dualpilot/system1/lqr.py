@@ -3,6 +3,8 @@
 Sec. III-A: an LQR with gain K tracks the reference x̂_{t+τ|t} from Alg. 1,
 minimising J = Σ (x − x̂)ᵀ Q (x − x̂) + ûᵀ R û with Q = 2·I₄, R = 0.1·I₂
 (Sec. IV-A). K comes from the discrete algebraic Riccati equation of (Φ, Γ).
+In 3-D (Q = 2·I₆, R = 0.1·I₃) the gain is the same scalars per axis, taken from the
+planar DARE (:func:`tracker_gain`).
 
 Our reading, each a parameter:
 
@@ -35,7 +37,7 @@ Indexing follows :class:`dualpilot.plan.Plan`: ``states[k+1] = Φ states[k] + Γ
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from functools import lru_cache
 
 import numpy as np
@@ -135,6 +137,28 @@ def _lqr_du_gain(dynamics: DynamicsParams, q: float, r: float, r_delta_u: float
     p = solve_discrete_are(a, b, qz, rz, s=s)
     k = np.linalg.solve(rz + b.T @ p @ b, b.T @ p @ a + s.T)
     return np.asarray(k, dtype=float), np.asarray(p, dtype=float)
+
+
+def tracker_gain(dynamics: DynamicsParams, q: float = 2.0, r: float = 0.1,
+                 r_delta_u: float | None = None) -> Array:
+    """System 1's gain for ``dynamics`` of any dimension, from the planar DARE.
+
+    :func:`lqr_gain` (``r_delta_u`` None) or :func:`lqr_du_gain` solved for the plane, and
+    in 3-D the same scalars on every axis: [k_p·I₃, k_v·I₃] (or [k_p·I₃, k_v·I₃, k_u·I₃]).
+    Q = q·I and R = r·I act on each axis alike, so this is the 3-D gain; but the 6×6 (9×9)
+    DARE's solution differs from the planar one in the 15th digit (docs/three_d.md), and
+    these scalars let a 3-D plan's planar axes be the 2-D plan's bit for bit.
+    """
+    planar = dynamics if dynamics.dim == 2 else replace(dynamics, dim=2)
+    if r_delta_u is None:
+        k2, _ = lqr_gain(planar, q, r)
+    else:
+        k2, _ = lqr_du_gain(planar, q, r, r_delta_u)
+    if dynamics.dim == 2:
+        return k2
+    kp, kv, ku = _gain_form(k2.tobytes(), k2.shape, 2)
+    eye = np.eye(dynamics.dim)
+    return np.hstack([kp * eye, kv * eye] + ([] if ku is None else [ku * eye]))
 
 
 def _check_path(path: Array, dim: int) -> Array:

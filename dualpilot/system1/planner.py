@@ -21,12 +21,18 @@ never as OK. The attention's objective does not change System 1 (it
 optimises response time only). ``prev_control`` (u_{t|t}) is unused by the
 paper's tracker; ``tracker="lqr_du"`` starts its Δu-penalising LQR from it
 (:func:`dualpilot.system1.lqr.lqr_du_gain`).
+
+In 3-D (``spec.dim == 3``, docs/three_d.md) the hulls are prisms, positions and paths
+carry the altitude, a fresh path comes from :func:`dualpilot.system1.altitude.plan_in_band`
+by the reading ``altitude`` (``s1_altitude``: the slice at the UAV's altitude first, or
+the 3-D tree at once), the LQR runs per axis with the planar DARE's scalars
+(:func:`dualpilot.system1.lqr.tracker_gain`) and the check keeps the altitude band.
+Operator waypoints keep their altitude; a planar list is flown at the UAV's altitude.
 """
 
 from __future__ import annotations
 
 import time
-from collections.abc import Sequence
 from dataclasses import dataclass, replace
 from typing import Literal
 
@@ -34,18 +40,14 @@ import numpy as np
 
 from dualpilot.arrays import Array
 from dualpilot.model.dynamics import check_state
-from dualpilot.model.geometry import Polytope
+from dualpilot.model.prism import Prism
 from dualpilot.model.risk import ArcRisk, ForecastView, RiskMap, RiskParams, path_risk_clearance
-from dualpilot.plan import Objective, Plan, PlanStatus
+from dualpilot.model.segment3 import SegmentChecker3
+from dualpilot.model.vertical import S1Altitude
+from dualpilot.plan import Objective, Obstacles, Plan, PlanStatus
 from dualpilot.spec import MissionSpec, Stream
-from dualpilot.system1.lqr import (
-    R_DELTA_U,
-    LqrParams,
-    lqr_du_gain,
-    lqr_gain,
-    reference_states,
-    track,
-)
+from dualpilot.system1.altitude import plan_in_band
+from dualpilot.system1.lqr import R_DELTA_U, LqrParams, reference_states, track, tracker_gain
 from dualpilot.system1.rrt import RrtParams, RrtResult, SegmentChecker, plan_path
 from dualpilot.verify import verify_trajectory
 
@@ -66,6 +68,8 @@ class System1Params:
     for a smooth handover: the LQR on x augmented with the previous control,
     weight ``r_delta_u`` on Δu, started from ``prev_control``; see
     :func:`dualpilot.system1.lqr.lqr_du_gain`); ``r_delta_u`` is unused by "lqr".
+    ``altitude`` is the reading ``s1_altitude`` of a 3-D mission
+    (:mod:`dualpilot.system1.altitude`).
     """
 
     step_size_m: float = 15.0
@@ -87,6 +91,7 @@ class System1Params:
     reach_check: bool = True
     tracker: Literal["lqr", "lqr_du"] = "lqr"
     r_delta_u: float = R_DELTA_U
+    altitude: S1Altitude = "slice-first"
 
     def __post_init__(self) -> None:
         if self.horizon < 1:
@@ -99,6 +104,8 @@ class System1Params:
             raise ValueError(f"tracker must be 'lqr' or 'lqr_du', got {self.tracker!r}")
         if not (self.r_delta_u >= 0 and np.isfinite(self.r_delta_u)):
             raise ValueError(f"r_delta_u must be finite and >= 0, got {self.r_delta_u}")
+        if self.altitude not in ("slice-first", "volume"):
+            raise ValueError(f"altitude must be 'slice-first' or 'volume', not {self.altitude!r}")
         self.rrt_params()  # validates the RRT fields
         self.lqr_params()
 
@@ -118,15 +125,15 @@ class System1Params:
 class _TrackedPath:
     """A stored polyline and the UAV's progress along it (monotone segment index)."""
 
-    def __init__(self, points: Array):
-        self.points = np.asarray(points, dtype=float).reshape(-1, 2)
+    def __init__(self, points: Array, dim: int = 2):
+        self.points = np.asarray(points, dtype=float).reshape(-1, dim)
         self.segment = 0
 
     def remaining(self, pos: Array) -> tuple[Array, float]:
         """Reference pos → nearest path point (at/after the progress) → rest, and the offset (m)."""
         pts = self.points
         if len(pts) == 1:
-            return _dedup(np.vstack([pos, pts])), float(np.hypot(*(pts[0] - pos)))
+            return _dedup(np.vstack([pos, pts])), _hypot(pts[0] - pos)
         a, c = pts[self.segment:-1], pts[self.segment + 1:]
         ac = c - a
         len2 = np.einsum("ij,ij->i", ac, ac)
@@ -137,6 +144,13 @@ class _TrackedPath:
         self.segment += j
         ref = np.vstack([pos, proj[j], pts[self.segment + 1:]])
         return _dedup(ref), float(dist[j])
+
+
+def _hypot(d: Array) -> float:
+    """‖d‖ (m) of a 2- or 3-vector: np.hypot, nested in 3-D (so a level 3-vector's is the
+    planar number bit for bit)."""
+    h = np.hypot(d[0], d[1])
+    return float(h if len(d) == 2 else np.hypot(h, d[2]))
 
 
 def _dedup(points: Array, tol: float = 1e-6) -> Array:
@@ -164,8 +178,6 @@ class System1:
     def __init__(self, spec: MissionSpec, params: System1Params = System1Params(),
                  rng: np.random.Generator | None = None):
         dynamics = spec.dynamics
-        if dynamics.dim != 2:
-            raise ValueError("System 1 plans in the plane (dynamics.dim == 2)")
         self.spec = spec
         self.area = spec.area
         self.goal = spec.goal
@@ -176,9 +188,9 @@ class System1:
         self.clearance_m = spec.clearance_m  # PathFree's margin (Alg. 1)
         self.d_safe_m = spec.d_safe_m  # what every returned trajectory keeps
         if params.tracker == "lqr":
-            self.gain, _ = lqr_gain(dynamics, params.q_lqr, params.r_lqr)
+            self.gain = tracker_gain(dynamics, params.q_lqr, params.r_lqr)
         else:
-            self.gain, _ = lqr_du_gain(dynamics, params.q_lqr, params.r_lqr, params.r_delta_u)
+            self.gain = tracker_gain(dynamics, params.q_lqr, params.r_lqr, params.r_delta_u)
             self.method = "rrt+du"
         self._rrt_params = params.rrt_params()
         self._lqr_params = params.lqr_params()
@@ -192,8 +204,11 @@ class System1:
     def set_waypoints(self, waypoints: Array | None) -> None:
         """Operator waypoints (k, 2) in the local frame (m); None clears them.
 
+        In 3-D a waypoint may carry its altitude (k, 3) (m above ground, the relative
+        frame of the mission items), within the band; a planar list (k, 2) is flown at
+        the UAV's altitude when it is anchored (the next :meth:`plan`).
         Raises ValueError for an empty list, a wrong shape, non-finite values
-        or a waypoint outside the area. Whether they are safe is judged at
+        or a waypoint outside the area (or the band). Whether they are safe is judged at
         each :meth:`plan` against the hulls of the moment.
         """
         if waypoints is None:
@@ -201,12 +216,18 @@ class System1:
             self._operator = None
             return
         wps = np.asarray(waypoints, dtype=float)
-        if wps.ndim != 2 or wps.shape[1] != 2 or len(wps) == 0:
-            raise ValueError(f"waypoints must have shape (k >= 1, 2), got {wps.shape}")
+        widths = (2,) if self.dyn.dim == 2 else (2, 3)
+        if wps.ndim != 2 or wps.shape[1] not in widths or len(wps) == 0:
+            raise ValueError(f"waypoints must have shape (k >= 1, "
+                             f"{' or '.join(map(str, widths))}), got {wps.shape}")
         if not np.all(np.isfinite(wps)):
             raise ValueError("waypoints must be finite")
         if not all(self.area.contains(w) for w in wps):
             raise ValueError(f"waypoints must lie inside the {self.area_size_m} m area")
+        band = self.spec.band
+        if wps.shape[1] == 3 and not all(band.contains(z) for z in wps[:, 2]):
+            raise ValueError(f"waypoints' altitudes must lie in the band "
+                             f"[{band.floor_m:g}, {band.ceiling_m:g}] m")
         self._waypoints = wps.copy()
         self._operator = None  # anchored at the UAV's position at the next plan()
 
@@ -218,11 +239,12 @@ class System1:
     def plan(
         self,
         state: Array,
-        hulls: tuple[Polytope, ...],
+        hulls: Obstacles,
         objective: Objective = Objective.MISSION_TIME,
         prev_control: Array | None = None,
     ) -> Plan:
-        """Plan from ``state`` [px, py, vx, vy] avoiding ``hulls`` (see the module docstring).
+        """Plan from ``state`` [p, v] avoiding ``hulls`` (see the module docstring): planar
+        hulls and [px, py, vx, vy] in 2-D, prisms and [px, py, pz, vx, vy, vz] in 3-D.
 
         Raises ValueError for a malformed or non-finite state, a position
         outside the area, or one nearer than d_safe to a hull.
@@ -232,8 +254,8 @@ class System1:
         t0 = time.perf_counter()
         x = check_state(state, self.dyn)
         u_prev = self._prev_control(prev_control)
-        pos = x[:2].copy()
-        checker = SegmentChecker(hulls)
+        pos = x[:self.dyn.dim].copy()
+        checker = self._checker(hulls)
         first_need = self._first_need(pos, checker)
         info: dict[str, object] = {"rrt_iterations": 0, "reused": False}
         candidates = self._stored_candidates(pos, checker, first_need, info)
@@ -274,7 +296,7 @@ class System1:
                              f"({self.dyn.dim},), got {prev_control}")
         return u_prev
 
-    def _first_need(self, pos: Array, checker: SegmentChecker) -> float:
+    def _first_need(self, pos: Array, checker: SegmentChecker | SegmentChecker3) -> float:
         """The clearance (m) the first reference segment keeps: ``clearance_m`` or the start's.
 
         Raises ValueError for a position outside the area or nearer than d_safe to a hull.
@@ -289,7 +311,8 @@ class System1:
             )
         return min(self.clearance_m, d_start)
 
-    def _stored_candidates(self, pos: Array, checker: SegmentChecker, first_need: float,
+    def _stored_candidates(self, pos: Array, checker: SegmentChecker | SegmentChecker3,
+                           first_need: float,
                            info: dict[str, object]) -> list[tuple[str, Array]]:
         """The operator's waypoints, else the previous RRT path, while free (sources 1-2).
 
@@ -300,7 +323,10 @@ class System1:
         candidates: list[tuple[str, Array]] = []
         if self._waypoints is not None:
             if self._operator is None:
-                self._operator = _TrackedPath(np.vstack([pos, self._waypoints]))
+                wps = self._waypoints
+                if wps.shape[1] < len(pos):  # a planar list, at the UAV's altitude
+                    wps = np.column_stack([wps, np.full(len(wps), pos[2])])
+                self._operator = _TrackedPath(np.vstack([pos, wps]), len(pos))
             ref, _ = self._operator.remaining(pos)
             if self._path_free(ref, checker, first_need):
                 candidates.append(("operator", ref))
@@ -319,7 +345,7 @@ class System1:
         """The OK plan of the verified LQR trajectory ``traj`` along ``ref`` from ``source``."""
         states, controls, speed, clearance = traj
         if source == "rrt":
-            self._rrt_path = _TrackedPath(ref)
+            self._rrt_path = _TrackedPath(ref, self.dyn.dim)
         info.update(source="operator" if source == "operator" else "rrt",
                     reused=source == "reuse", ref_speed_mps=speed,
                     clearance_m=clearance, attempts=attempts)
@@ -330,38 +356,65 @@ class System1:
         )
 
     # -- helpers --------------------------------------------------------------------
-    def _path_free(self, ref: Array, checker: SegmentChecker, first_need: float) -> bool:
+    def _checker(self, hulls: Obstacles) -> SegmentChecker | SegmentChecker3:
+        """The exact checker of ``hulls``: planar hulls in 2-D, prisms in 3-D (ValueError for
+        another kind)."""
+        if self.dyn.dim == 2:
+            return SegmentChecker(hulls)  # type: ignore[arg-type]
+        if not all(isinstance(h, Prism) for h in hulls):
+            raise ValueError("a 3-D System 1 avoids prisms, not planar hulls")
+        return SegmentChecker3(hulls)  # type: ignore[arg-type]
+
+    def _path_free(self, ref: Array, checker: SegmentChecker | SegmentChecker3,
+                   first_need: float) -> bool:
         if len(ref) < 2:
             return checker.point_distance(ref[0]) >= first_need
         need = np.full(len(ref) - 1, self.clearance_m)
         need[0] = first_need
         if not np.all(checker.distances(ref[:-1], ref[1:]) >= need):
             return False
-        return self._arc is None or self._arc.path_clear(ref)
+        if self._arc is None:
+            return True
+        if ref.shape[1] == 3:  # the planar zones, timed along level paths only
+            return bool(np.all(ref[:, 2] == ref[0, 2])) and self._arc.path_clear(ref[:, :2])
+        return self._arc.path_clear(ref)
 
-    def _run_rrt(self, pos: Array, hulls: Sequence[Polytope],
-                 checker: SegmentChecker) -> RrtResult:
-        return plan_path(pos, self.goal, hulls, self.rng, self.clearance_m, self.area_size_m,
-                         self._rrt_params, start_clearance_m=self.d_safe_m, checker=checker,
-                         risk=self._arc)
+    def _run_rrt(self, pos: Array, hulls: Obstacles,
+                 checker: SegmentChecker | SegmentChecker3) -> RrtResult:
+        if isinstance(checker, SegmentChecker3):
+            return plan_in_band(pos, hulls, self.rng, self.spec,  # type: ignore[arg-type]
+                                self._rrt_params, self.params.altitude, checker, self._arc)
+        return plan_path(pos, self.goal, hulls, self.rng,  # type: ignore[arg-type]
+                         self.clearance_m, self.area_size_m, self._rrt_params,
+                         start_clearance_m=self.d_safe_m, checker=checker, risk=self._arc)
 
-    def _track(self, x: Array, ref: Array, hulls: Sequence[Polytope], attempts: list[str],
-               source: str, checker: SegmentChecker,
+    def _along_speed(self, x: Array, ref: Array) -> float:
+        """The UAV's speed (m/s) along ``ref``, towards the point 15 m ahead on it (the first
+        segment can be a short hop back onto a reused path); in 3-D the planar numbers
+        bit for bit on a level path."""
+        seg_len = np.linalg.norm(np.diff(ref, axis=0), axis=1)
+        cum = np.concatenate([[0.0], np.cumsum(seg_len)])
+        s_ahead = min(float(cum[-1]), 15.0)
+        n = self.dyn.dim
+        ahead = np.array([np.interp(s_ahead, cum, ref[:, d]) for d in range(n)])
+        direction = ahead - ref[0]
+        if n == 2:
+            norm = float(np.hypot(*direction))
+            return float(x[2:] @ direction / norm) if norm > 0 else 0.0
+        norm = _hypot(direction)
+        along = x[3:5] @ direction[:2] + x[5] * direction[2]
+        return float(along / norm) if norm > 0 else 0.0
+
+    def _track(self, x: Array, ref: Array, hulls: Obstacles, attempts: list[str],
+               source: str, checker: SegmentChecker | SegmentChecker3,
                u_prev: Array | None = None) -> tuple[Array, Array, float, float] | None:
         """LQR-track ``ref`` at the reference speed, halving it on failed verification.
 
         ``u_prev`` (the Δu tracker's u₋₁) is None for the paper's tracker.
         """
         p = self.params
-        # current speed along the path, measured towards the point 15 m ahead on it
-        # (the first segment can be a short hop back onto a reused path)
-        seg_len = np.linalg.norm(np.diff(ref, axis=0), axis=1)
-        cum = np.concatenate([[0.0], np.cumsum(seg_len)])
-        s_ahead = min(float(cum[-1]), 15.0)
-        ahead = np.array([np.interp(s_ahead, cum, ref[:, d]) for d in range(2)])
-        direction = ahead - ref[0]
-        norm = float(np.hypot(*direction))
-        v0 = float(x[2:] @ direction / norm) if norm > 0 else 0.0
+        v0 = self._along_speed(x, ref)
+        band = self.spec.band if self.dyn.dim == 3 else None
         speed = p.ref_speed_mps
         for _ in range(p.speed_retries + 1):
             reference = reference_states(ref, p.horizon, speed, self.dyn, v0, self._lqr_params)
@@ -371,7 +424,7 @@ class System1:
                 states, controls = track(x, reference, self.gain, self.dyn, p.feedforward,
                                          prev_control=u_prev)
             verdict = verify_trajectory(states, controls, hulls, self.dyn, self.d_safe_m,
-                                        checker=checker)
+                                        checker=checker, band=band)
             if verdict.ok:
                 return states, controls, speed, verdict.clearance_m
             attempts.append(f"{source}@{speed:g}m/s: {verdict.reason}")
@@ -405,7 +458,7 @@ class RiskSystem1(System1):
         self.method = f"{self.method}+risk"
         self.risk = risk or RiskParams()
 
-    def plan(self, state: Array, hulls: tuple[Polytope, ...],
+    def plan(self, state: Array, hulls: Obstacles,
              objective: Objective = Objective.MISSION_TIME, prev_control: Array | None = None,
              forecast: ForecastView | None = None) -> Plan:
         if forecast is None:

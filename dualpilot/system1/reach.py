@@ -17,6 +17,14 @@ start's cell to a cell meeting G. No such chain means no such path.
 Near the start, edges may keep only the start's own (smaller) clearance
 (see :func:`dualpilot.system1.rrt.plan_path`); cells within ``start_radius_m`` of
 the start use that clearance instead. Lengths are metres.
+
+In 3-D (:func:`band_blockers`) the grid stays planar: it takes only the prisms that span
+the altitude band. Above such a prism's base every altitude of the band is inside it, so
+the distance of a point of the band from it is the planar distance from its base and a
+path of the band keeps the clearance from it only if its ground track does. A lower prism
+is left out (free on the grid): a path could pass over it. The cells 8-connected to the
+start then over-approximate the ground track of every 3-D path, and "G unreachable" stays
+a proof.
 """
 
 from __future__ import annotations
@@ -30,10 +38,18 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import breadth_first_order
 
 from dualpilot.arrays import Array
+from dualpilot.model.altitude import AltitudeBand
 from dualpilot.model.geometry import Polytope, Rect, point_segment_d2
+from dualpilot.model.prism import Prism
 
 _EIGHT = np.ones((3, 3), dtype=bool)
 BoolArray = NDArray[np.bool_]
+
+
+def band_blockers(prisms: Sequence[Prism], band: AltitudeBand) -> tuple[Polytope, ...]:
+    """The bases of the prisms that span ``band`` (:meth:`Prism.spans`): the planar hulls the
+    grid test of a 3-D path may take (module docstring)."""
+    return tuple(p.base for p in prisms if p.spans(band))
 
 
 def possibly_free(hulls: Sequence[Polytope], clearance_m: float, area_size_m: float,

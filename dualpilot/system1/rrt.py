@@ -27,6 +27,7 @@ from ompl import util as ou
 from dualpilot.arrays import Array
 from dualpilot.model.geometry import Polytope, Rect, SegmentChecker
 from dualpilot.model.risk import ArcRisk
+from dualpilot.model.segment3 import SegmentChecker3
 from dualpilot.system1.reach import BoolArray, coarsen, corridor, start_component
 
 
@@ -87,15 +88,19 @@ class RrtResult:
         return self.path is not None
 
 
-def shortcut(path: Array, checker: SegmentChecker, clearance_m: float,
+def shortcut(path: Array, checker: SegmentChecker | SegmentChecker3, clearance_m: float,
              first_clearance_m: float | None = None, risk: ArcRisk | None = None) -> Array:
     """Greedy shortcut: from each kept vertex jump to the farthest vertex in free line of sight.
 
     Segments leaving ``path[0]`` need only ``first_clearance_m`` (defaults to
     ``clearance_m``; see :func:`plan_path` on starts near a hull). With ``risk``
-    a jump must also keep clear of the risk zones of the steps it is flown in.
+    a jump must also keep clear of the risk zones of the steps it is flown in (planar
+    paths only). A 3-D path (k, 3) takes a :class:`SegmentChecker3`.
     """
-    pts = np.asarray(path, dtype=float).reshape(-1, 2)
+    dim = 3 if isinstance(checker, SegmentChecker3) else 2
+    if dim == 3 and risk is not None:
+        raise ValueError("the risk zones' shortcut is planar")
+    pts = np.asarray(path, dtype=float).reshape(-1, dim)
     if len(pts) <= 2:
         return pts.copy()
     first = clearance_m if first_clearance_m is None else first_clearance_m

@@ -88,10 +88,8 @@ class RunData:
 
     @property
     def positions(self) -> Array:
-        """Positions (m) before each step's control, shape (n_steps, 2) (a 3-D mission's in the
-        plane)."""
-        pos = [s["position"][:2] for s in self.trace["steps"]]
-        return np.array(pos, dtype=float).reshape(-1, 2)
+        """Positions (m) before each step's control, shape (n_steps, 2)."""
+        return _ground_track([s["position"] for s in self.trace["steps"]])
 
     @property
     def area_m(self) -> float:
@@ -245,11 +243,15 @@ def _time_axis(ax: Axes, t: Array) -> None:
     ax.set_xlabel("time-step t (ΔT = 1 s)")
 
 
+def _ground_track(rows: Any) -> Array:
+    """Positions (n, 2) m of rows of 2 or 3 coordinates (a 3-D mission's altitude dropped)."""
+    a = np.asarray(rows, dtype=float)
+    return a[:, :2] if a.ndim == 2 else a.reshape(-1, 2)
+
+
 def _plan_array(step: dict[str, Any]) -> Array:
     """The step's planned positions, (T+1, 2) m ((0, 2) when no plan was flown)."""
-    plan = np.asarray(step.get("plan", []), dtype=float)
-    # the top-down figures draw a 3-D plan's positions in the plane
-    return plan[:, :2] if plan.ndim == 2 and plan.shape[1] == 3 else plan.reshape(-1, 2)
+    return _ground_track(step.get("plan", []))
 
 
 # -- Fig. r1 (a)-(f) ---------------------------------------------------------------------------

@@ -83,8 +83,7 @@ def plan_views(answers: tuple[Answer, ...], flown: int, positions: Array
     """Both systems' :class:`PlanView` at a step (``flown``: the system flown, 0 none)."""
     statuses = statuses_by_system(answers)
     pts = np.asarray(positions, dtype=float)
-    # the top-down scene draws a 3-D plan's positions in the plane
-    pts = pts[:, :2] if pts.ndim == 2 and pts.shape[1] == 3 else pts.reshape(-1, 2)
+    pts = pts[:, :2] if pts.ndim == 2 else pts.reshape(-1, 2)  # the ground track in 3-D
     empty = np.empty((0, 2))
     return tuple(PlanView(k, statuses.get(k, ""), pts if k == flown else empty, k == flown)
                  for k in SYSTEMS)

@@ -22,7 +22,7 @@ from services.common import cli as common_cli
 
 def make(spec: MissionSpec, config: MissionConfig) -> Planner:
     """The mission's System 1, as the in-process mission builds it."""
-    return build_planner(1, spec, config.methods()[1], risk=config.risk)
+    return build_planner(1, spec, config.methods()[1], config.system1_params(), risk=config.risk)
 
 
 def main(argv: list[str] | None = None) -> int:
