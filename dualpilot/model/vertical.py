@@ -27,7 +27,6 @@ from dualpilot.model.fire_height import FireHeightParams, FireHeights
 from dualpilot.model.plume import PlumeParams
 from dualpilot.spec import MissionSpec, Stream
 
-
 #: Where System 1 plans in 3-D (dualpilot/system1/altitude.py): "slice-first" (in the
 #: horizontal slice at the UAV's altitude, with the planar Alg. 1; the 3-D tree only when
 #: the slice has no path) or "volume" (the 3-D tree at once). The paper's System 1 "mimics
