@@ -328,9 +328,10 @@ _TODAY_3D = replace(
         "Sec. IV: 'the goal region G is represented as a rectangular region centered at "
         "G_o' → goal_vertical = band: every altitude of the band above the rectangle is in "
         "G.",
-        "Sec. III-A: System 1 'mimics human-like decision-making', and Sec. IV flies it "
-        "'assuming a fixed altitude' → s1_altitude = slice-first: System 1 plans at the "
-        "UAV's altitude and climbs only when the fires leave no path there.",
+        "Sec. III-A: System 1 is 'the human process of creating a safe path', 'rooted in "
+        "human intuition', and Sec. IV flies it 'assuming a fixed altitude' → s1_altitude "
+        "= slice-first: System 1 plans at the UAV's altitude and climbs only when the "
+        "fires leave no path there.",
     ),
 )
 

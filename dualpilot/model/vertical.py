@@ -29,9 +29,9 @@ from dualpilot.spec import MissionSpec, Stream
 
 #: Where System 1 plans in 3-D (dualpilot/system1/altitude.py): "slice-first" (in the
 #: horizontal slice at the UAV's altitude, with the planar Alg. 1; the 3-D tree only when
-#: the slice has no path) or "volume" (the 3-D tree at once). The paper's System 1 "mimics
-#: human-like decision-making" (Sec. III-A) and its evaluation flies "assuming a fixed
-#: altitude" (Sec. IV): a pilot keeps their altitude until a fire is in the way.
+#: the slice has no path) or "volume" (the 3-D tree at once). The paper's System 1 is "the
+#: human process of creating a safe path" (Sec. III-A) and its evaluation flies "assuming a
+#: fixed altitude" (Sec. IV): a pilot keeps their altitude until a fire is in the way.
 S1Altitude = Literal["slice-first", "volume"]
 
 

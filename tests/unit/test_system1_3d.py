@@ -10,12 +10,17 @@ import pytest
 from scipy.linalg import solve_discrete_are
 
 from dualpilot.evaluation.instances import make_instance
+from dualpilot.mission import monitor
+from dualpilot.mission.config import MissionConfig
+from dualpilot.mission.local import local_mission
+from dualpilot.mission.params import Timing
+from dualpilot.mission.result import MissionResult
 from dualpilot.model.altitude import lift_state
 from dualpilot.model.dynamics import DynamicsParams, hover_state, transition_matrices
 from dualpilot.model.geometry import Rect
 from dualpilot.model.prism import Prism
 from dualpilot.model.segment3 import SegmentChecker3
-from dualpilot.plan import Plan
+from dualpilot.plan import Objective, Plan
 from dualpilot.planners import build_planner, planner_method
 from dualpilot.readings import get_profile
 from dualpilot.spec import MissionSpec
@@ -272,8 +277,6 @@ def test_system1_methods_plan_in_2d_and_3d() -> None:
 
 
 def test_the_reading_s1_altitude_reaches_system1() -> None:
-    from dualpilot.mission.config import MissionConfig
-
     assert get_profile("today-3d").readings()["s1_altitude"] == "slice-first"
     config = MissionConfig.named("s1", settings={"dim": "3", "s1_altitude": "volume"})
     assert config.system1_params().altitude == "volume"
@@ -292,3 +295,61 @@ def test_checker3_is_what_the_planner_verifies_with() -> None:
     v = verify_trajectory(plan.states, plan.controls, (WALL,), SPEC3.dynamics, D_SAFE,
                           checker=SegmentChecker3((WALL,)), band=BAND)
     assert v.ok and v.clearance_m >= D_SAFE
+
+
+# -- missions -------------------------------------------------------------------------------------
+class _Checked(System1):
+    """System 1 whose every plan is checked again, independently, against what it was given."""
+
+    def __init__(self, spec: MissionSpec, params: System1Params):
+        super().__init__(spec, params)
+        self.ok = 0
+        self.refused: list[str] = []
+
+    def plan(self, state, hulls, objective=Objective.MISSION_TIME,  # type: ignore[no-untyped-def]
+             prev_control=None) -> Plan:
+        plan = super().plan(state, hulls, objective, prev_control)
+        if plan.ok:
+            self.ok += 1
+            v = verify_trajectory(plan.states, plan.controls, hulls, self.spec.dynamics,
+                                  self.spec.d_safe_m, band=self.spec.band)
+            m = monitor.check(plan, state, hulls, self.spec)
+            np.testing.assert_array_equal(plan.states[0], state)
+            if not (v.ok and m.ok):
+                self.refused.append(f"{v.reason}; {m.reason}")
+        return plan
+
+
+def _fly(config: MissionConfig) -> tuple[_Checked, MissionResult]:
+    spec = config.spec()
+    planner = _Checked(spec, config.system1_params())
+    mission = local_mission(config, {1: planner})
+    return planner, mission.run()
+
+
+@pytest.mark.parametrize("profile, settings", [("today", {"dim": "3"}), ("today-3d", {}),
+                                               ("today-3d", {"s1_altitude": "volume"})])
+def test_a_3d_s1_mission_flies_to_its_end_and_every_plan_passes_the_check(
+        profile: str, settings: dict[str, str]) -> None:
+    config = MissionConfig.named("s1", seed=26, timing=Timing.PAPER, profile=profile,
+                                 settings=settings)
+    planner, result = _fly(config)
+    assert result.ending is not None and planner.ok > 10
+    assert planner.refused == []
+    if settings.get("s1_altitude") != "volume":  # tall fires: the 2-D mission, flown at 50 m
+        two_d = local_mission(MissionConfig.named("s1", seed=26, timing=Timing.PAPER)).run()
+        assert (result.ending, result.steps, result.energy) == (two_d.ending, two_d.steps,
+                                                                two_d.energy)
+        for r3, r2 in zip(result.records, two_d.records, strict=True):
+            np.testing.assert_array_equal(r3.state[[0, 1, 3, 4]], r2.state)
+            assert r3.state[2] == Z0 and r3.state[5] == 0.0
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("seed", range(6))
+def test_a_3d_s1_mission_over_low_grass_fires(seed: int) -> None:
+    config = MissionConfig.named("s1", seed=seed, timing=Timing.PAPER, profile="today-3d",
+                                 settings={"scenario": "grass-15"})
+    planner, result = _fly(config)
+    assert result.ending is not None and planner.ok > 0
+    assert planner.refused == []

@@ -176,8 +176,7 @@ def test_a_2d_mission_has_no_heights() -> None:
     assert VerticalParams().fire_heights(spec, "paper") is None
 
 
-@pytest.mark.parametrize(("system", "method"), [(1, "rrt"), (1, "rrt+du"),
-                                                (2, "exact"), (2, "fast+exact"),
+@pytest.mark.parametrize(("system", "method"), [(2, "exact"), (2, "fast+exact"),
                                                 (2, "certified")])
 def test_a_planar_method_refuses_a_3d_mission_by_name(system: int, method: str) -> None:
     from dualpilot.planners import build_planner
@@ -193,8 +192,9 @@ def test_a_mission_names_each_planner_that_refuses_3d() -> None:
 
     with pytest.raises(ValueError, match="System 2 method 'fast\\+exact' plans in 2-D only"):
         local_mission(MissionConfig.named("s2", profile="today-3d", system2_method="fast+exact"))
-    with pytest.raises(ValueError, match="System 1 method 'rrt' plans in 2-D only"):
-        local_mission(MissionConfig.named("cc", profile="today-3d"))
+    with pytest.raises(ValueError, match="System 2 method 'exact' plans in 2-D only"):
+        local_mission(MissionConfig.named("cc", profile="today-3d",  # System 1 plans in 3-D
+                                          system2_method="exact"))
 
 
 @pytest.mark.parametrize("name", ["concurrent", "lookahead"])
@@ -219,8 +219,9 @@ def test_the_oracle_refuses_a_3d_mission_by_name() -> None:
 def test_a_method_says_the_dimensions_it_plans_in() -> None:
     from dualpilot.planners import PlannerMethod, planner_method
 
-    assert planner_method("rrt").dims == frozenset({2})
-    # System 2's fast method and the one built on it plan in both (tests/unit/test_system2_fast3.py)
+    assert planner_method("rrt").dims == frozenset({2, 3})  # System 1 plans in 3-D too
+    # System 2's fast method and the one built on it plan in both
+    # (tests/unit/dualpilot/system2/fast/test_system2_fast3.py)
     assert planner_method("fast").dims == planner_method("thorough").dims == frozenset({2, 3})
     with pytest.raises(ValueError, match="2-D, 3-D or both"):
         PlannerMethod(1, lambda spec, params: None, dims=frozenset({4}))  # type: ignore
