@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Sequence
+from dataclasses import replace
 
 import numpy as np
 
@@ -78,7 +79,8 @@ def plan_in_band(start: Array, prisms: Sequence[Prism], rng: np.random.Generator
     """Alg. 1 for a 3-D mission: a path (k, 3) from ``start`` (3,) into G keeping the spec's
     clearance from every prism, by the reading ``altitude`` (module docstring).
 
-    Edges leaving the start keep d_safe at least (an escape, as in the plane). ValueError
+    Edges leaving the start keep d_safe at least (an escape, as in the plane); the slice
+    and the tree share ``params.max_wall_s``. ValueError
     as :func:`dualpilot.system1.rrt3.plan_path3` says; an unknown reading is one too.
     """
     t0 = time.perf_counter()
@@ -92,8 +94,10 @@ def plan_in_band(start: Array, prisms: Sequence[Prism], rng: np.random.Generator
             return sliced
     if risk is not None:  # the risk zones are planar: no risk-aware plan leaves the slice
         return sliced or RrtResult(None, "risk_planar", 0, time.perf_counter() - t0)
+    left = params.max_wall_s - (time.perf_counter() - t0)  # one wall cap for slice and tree
     res = plan_path3(p, spec.goal_box, prisms, rng, spec.clearance_m, spec.area_size_m,
-                     spec.band, params, start_clearance_m=spec.d_safe_m, checker=checker)
+                     spec.band, replace(params, max_wall_s=max(left, 1e-3)),
+                     start_clearance_m=spec.d_safe_m, checker=checker)
     if sliced is not None:  # the slice's samples and time count
         return RrtResult(res.path, res.status, sliced.iterations + res.iterations,
                          time.perf_counter() - t0, res.tree_path)
