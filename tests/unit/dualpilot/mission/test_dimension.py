@@ -1,13 +1,13 @@
 """What a user gets with ``--set dim=3`` (dualpilot/mission/dimension.py, docs/three_d.md).
 
 A controller flies a 3-D mission when its supervisor and the planning method of every
-system it asks say they plan in 3-D; of the built-in methods System 2's "fast" does (and
-so ``s2`` and ``s2+risk`` fly), so every other controller name is refused before its
-mission starts, by name, with every part that plans in 2-D
-only and that its 3-D planning is not built yet; an evaluation, a sweep and the stack
-refuse before any mission. A method that says it plans in 3-D (here System 1's rrt under
-the reduction, a real registry's entry point) flies, and the refusals then name it among
-the controllers that fly.
+system it asks say they plan in 3-D; of the built-in parts System 1's methods, System 2's
+"fast" and the paper's supervisor do (so cc, s1, s2 and their risk-aware forms fly), and
+the concurrent and lookahead supervisors are refused before their missions start, by name,
+with every part that plans in 2-D only and that its 3-D planning is not built yet; an
+evaluation, a sweep and the stack refuse before any mission. A method that says it plans
+in 3-D (here System 1's rrt under the reduction, a real registry's entry point) flies,
+and the refusals then name it among the controllers that fly.
 """
 
 from __future__ import annotations
@@ -33,14 +33,12 @@ NOT_BUILT = r"3-D planning for (it|these) is not built yet \(docs/three_d.md, St
 #: the parts of each built-in controller that plan in 2-D only, worked out from its
 #: supervisor (docs/concurrent.md: the concurrent and lookahead supervisors fly System 1
 #: under the Δu penalty, "rrt+du") and the systems it asks (cc both, s1 and s2 one)
-#: (System 2's fast plans in both dimensions: s2 asks nothing that plans in 2-D only)
+#: (System 1's rrt and rrt+du and System 2's fast plan in 3-D: docs/three_d.md, 5 and 6)
 PARTS = {
-    "cc": ["System 1 method 'rrt'"],
-    "s1": ["System 1 method 'rrt'"],
-    "concurrent": ["the concurrent supervisor", "System 1 method 'rrt+du'"],
-    "lookahead": ["the lookahead supervisor", "System 1 method 'rrt+du'"],
+    "concurrent": ["the concurrent supervisor"],
+    "lookahead": ["the lookahead supervisor"],
 }
-FLY = "Controllers that fly dim=3: s2, s2+risk"
+FLYING = "Controllers that fly dim=3: cc, s1, s2, cc+risk, s1+risk, s2+risk"
 
 
 @pytest.mark.parametrize("name", sorted(PARTS))
@@ -55,13 +53,14 @@ def test_every_built_in_controller_refuses_a_3d_mission_by_name(name: str, risk:
     assert text.startswith(f"controller '{name + risk}' does not fly dim=3: ")
     assert all(f"{part} plans in 2-D only" in text or f"{part} supervises missions in 2-D only"
                in text for part in PARTS[name])
-    assert text.endswith(FLY)
+    assert text.endswith(FLYING)
     assert re.search(NOT_BUILT, text)
 
 
+@pytest.mark.parametrize("name", ["cc", "s1", "s2"])
 @pytest.mark.parametrize("risk", ["", "+risk"])
-def test_s2_is_not_refused_a_3d_mission(risk: str) -> None:
-    config = MissionConfig.named("s2" + risk, profile="today-3d")
+def test_the_paper_s_controllers_fly_a_3d_mission(name: str, risk: str) -> None:
+    config = MissionConfig.named(name + risk, profile="today-3d")
     assert refusals(config) == ()
     check_dimension(config)
 
@@ -72,7 +71,8 @@ def test_the_2d_mission_is_not_refused() -> None:
         assert refusals(config) == ()
         check_dimension(config)
     assert flying_controllers(MissionConfig()) == controller_names()
-    assert flying_controllers(MissionConfig(profile="today-3d")) == ("s2", "s2+risk")
+    assert flying_controllers(MissionConfig(profile="today-3d")) == (
+        "cc", "s1", "s2", "cc+risk", "s1+risk", "s2+risk")
 
 
 def test_an_installed_part_is_named_as_one() -> None:
@@ -91,12 +91,13 @@ def test_an_installed_part_is_named_as_one() -> None:
 def test_the_command_line_refuses_with_a_message_not_a_traceback(
         tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     out = tmp_path / "m"
-    code = main(["mission", "--controller", "cc", "--seed", "26", "--timing", "paper",
+    code = main(["mission", "--controller", "concurrent", "--seed", "26", "--timing", "paper",
                  "--set", "dim=3", "--out", str(out), "--quiet"])
     err = capsys.readouterr().err
     assert code == 2 and not out.exists()
-    assert err.startswith("dualpilot: error: controller 'cc' does not fly dim=3: System 1 "
-                          "method 'rrt' plans in 2-D only: 3-D planning for it is not built "
+    assert err.startswith("dualpilot: error: controller 'concurrent' does not fly dim=3: the "
+                          "concurrent supervisor supervises missions in 2-D only: 3-D planning "
+                          "for it is not built "
                           "yet")
     assert "Traceback" not in err
 
@@ -104,17 +105,18 @@ def test_the_command_line_refuses_with_a_message_not_a_traceback(
 def test_an_evaluation_and_a_sweep_refuse_before_any_mission(tmp_path: Path) -> None:
     base = MissionConfig(profile="today-3d")
     with pytest.raises(ValueError) as err:
-        evaluate(2, tmp_path / "e", base, controllers=["cc", "s2", "oracle"], progress=False)
+        evaluate(2, tmp_path / "e", base, controllers=["concurrent", "s2", "oracle"],
+                 progress=False)
     lines = str(err.value).splitlines()
     assert lines[0] == "dim=3: these controllers do not fly it"
-    assert [line.split(":")[0] for line in lines[1:3]] == ["  cc", "  oracle"]
+    assert [line.split(":")[0] for line in lines[1:3]] == ["  concurrent", "  oracle"]
     assert "the oracle (its lattice search and impossibility certificate) judges planar " \
         "missions only (dim=2), not dim=3: its 3-D search is not built yet" in lines[2]
-    assert lines[3] == FLY
+    assert lines[3] == FLYING
     assert not (tmp_path / "e").exists()
     with pytest.raises(ValueError, match="dim=3: these controllers do not fly it"):
         sweep([Point(0, "today", (("dim", 3),))], 1, tmp_path / "s",
-              controllers=["s1"], progress=False)
+              controllers=["lookahead"], progress=False)
     assert not (tmp_path / "s").exists()
 
 
