@@ -80,13 +80,7 @@ def add_config_arguments(p: argparse.ArgumentParser, seed: int | None = None, *,
     d = DEFAULT_MISSION if per_mission else _DEFAULT
     g = p.add_argument_group("mission configuration (dualpilot.mission.config)")
     if per_mission:
-        g.add_argument("--controller", default=d.controller_name, choices=controller_names(),
-                       help="who flies: the paper's cc, s1, s2, or another supervisor by its "
-                            "name (concurrent, lookahead, an installed one), each with +risk: "
-                            "with the fire forecast (default %(default)s)")
-        g.add_argument("--supervisor", default="", choices=["", *supervisor_names()],
-                       help="the cognitive controller's supervisor (concurrent: as "
-                            "--controller concurrent)")
+        _add_who_flies(g, d)
     g.add_argument("--seed", type=int, default=d.seed if seed is None else seed,
                    help="every random stream of the mission is drawn from it (default "
                         "%(default)s)" if per_mission
@@ -118,14 +112,30 @@ def add_config_arguments(p: argparse.ArgumentParser, seed: int | None = None, *,
                    help="the risk-aware controllers' fire forecast (repeatable; names: "
                         f"{', '.join(FORECAST_NAMES)})")
     if per_mission:
-        g.add_argument("--goal", default=_goal_text(_DEFAULT.goal),
-                       help="goal rectangle 'east,north,width,height' in m")
-        g.add_argument("--area-size-m", type=float, default=_DEFAULT.area_size_m,
-                       help="the square area [0, A]² (m)")
-        g.add_argument("--start", default="",
-                       help="'east,north' (m) where an in-process mission starts (the stack's: "
-                            "where the vehicle is)")
-        g.add_argument("--mission-id", default="")
+        _add_where(g)
+
+
+def _add_who_flies(g: argparse._ArgumentGroup, d: MissionConfig) -> None:
+    """A mission's ``--controller`` and ``--supervisor`` (``d``: their defaults)."""
+    g.add_argument("--controller", default=d.controller_name, choices=controller_names(),
+                   help="who flies: the paper's cc, s1, s2, or another supervisor by its "
+                        "name (concurrent, lookahead, an installed one), each with +risk: "
+                        "with the fire forecast (default %(default)s)")
+    g.add_argument("--supervisor", default="", choices=["", *supervisor_names()],
+                   help="the cognitive controller's supervisor (concurrent: as "
+                        "--controller concurrent)")
+
+
+def _add_where(g: argparse._ArgumentGroup) -> None:
+    """A mission's goal, area, start and id (an evaluation draws them per mission)."""
+    g.add_argument("--goal", default=_goal_text(_DEFAULT.goal),
+                   help="goal rectangle 'east,north,width,height' in m")
+    g.add_argument("--area-size-m", type=float, default=_DEFAULT.area_size_m,
+                   help="the square area [0, A]² (m)")
+    g.add_argument("--start", default="",
+                   help="'east,north' (m) where an in-process mission starts (the stack's: "
+                        "where the vehicle is)")
+    g.add_argument("--mission-id", default="")
 
 
 # -- the concurrent supervisor's parameters by name ----------------------------------------------

@@ -15,6 +15,7 @@ from __future__ import annotations
 import threading
 from collections import OrderedDict
 from functools import lru_cache
+from typing import NamedTuple
 
 import numpy as np
 import scipy.sparse as sp
@@ -22,6 +23,14 @@ import scipy.sparse as sp
 from dualpilot.arrays import AnyArray
 from dualpilot.model.dynamics import DynamicsParams, speed_polygon
 from dualpilot.system2.fast.ipm import BandedQp, Rows, band_pairs
+
+
+class Margins(NamedTuple):
+    """How much the QP tightens Eq. (1)'s bounds: speed (m/s), force (N), area (m)."""
+
+    v: float
+    u: float
+    area: float
 
 
 class QpShape:
@@ -35,8 +44,9 @@ class QpShape:
     """
 
     def __init__(self, T: int, dynamics: DynamicsParams, area_size_m: float | None,
-                 v_margin: float, u_margin: float, area_margin: float, s: float,
-                 speed_sides: int, axes: int = 2, floor: float = 0.0) -> None:
+                 margins: Margins, s: float, speed_sides: int, axes: int = 2,
+                 floor: float = 0.0) -> None:
+        v_margin, u_margin, area_margin = margins
         if axes not in (1, 2):
             raise ValueError(f"a QP shape has 1 or 2 axes, got {axes}")
         self.T, self.dyn, self.area, self.scale, self.n = T, dynamics, area_size_m, s, axes * T
@@ -132,8 +142,8 @@ def qp_shape(T: int, dynamics: DynamicsParams, area_size_m: float | None, v_marg
              u_margin: float, area_margin: float, s: float, speed_sides: int, axes: int = 2,
              floor: float = 0.0) -> QpShape:
     """The one :class:`QpShape` of these arguments in this process."""
-    return QpShape(T, dynamics, area_size_m, v_margin, u_margin, area_margin, s, speed_sides,
-                   axes, floor)
+    return QpShape(T, dynamics, area_size_m, Margins(v_margin, u_margin, area_margin), s,
+                   speed_sides, axes, floor)
 
 
 def _padded(mat: sp.csr_matrix, width: int = 3) -> tuple[AnyArray, AnyArray]:
