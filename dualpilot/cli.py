@@ -226,8 +226,8 @@ def build_parser() -> argparse.ArgumentParser:
     _add_readings(sub)
     from dualpilot.evaluation.bench import add_bench_parser
     from dualpilot.viz.anatomy import add_anatomy_parser  # the yardstick's failure anatomy
-    from dualpilot.viz.bound import add_bound_parser  # the supervisor's bound (issue 13.4)
-    from dualpilot.viz.showcase import add_showcase_parser  # the Fig. r1 story (issue 13.5)
+    from dualpilot.viz.bound import add_bound_parser  # the supervisor's bound
+    from dualpilot.viz.showcase import add_showcase_parser  # the Fig. r1 story
 
     add_showcase_parser(sub)
     add_bench_parser(sub)

@@ -1,4 +1,4 @@
-"""The Fig. r1 story, searched for rather than hand-picked (issue 13.5).
+"""The Fig. r1 story, searched for rather than hand-picked.
 
 The paper's Fig. r1: CC flies System 2, a front emerges near the UAV, System 1
 takes over for about 20 steps, System 2 comes back for energy. For each seed

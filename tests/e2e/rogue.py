@@ -128,7 +128,7 @@ def main() -> int:
         tokens = []
         if args.mode in ("plan-byzantine", "plan-hung"):
             names = [keys.alive(args.uav, "system2")]
-            if hasattr(keys, "holder"):  # (the stack before issue 15 had no holder tokens)
+            if hasattr(keys, "holder"):  # (a stack without holder tokens)
                 names.insert(0, keys.holder(args.uav, "system2", zid))
             tokens = [session.liveliness().declare_token(n) for n in names]
         print("ready", flush=True)

@@ -1,4 +1,4 @@
-"""Faults and attacks on the real processes (issue 15), loopback only, one test per finding.
+"""Faults and attacks on the real processes, loopback only, one test per finding.
 
 A rogue Zenoh process (tests/e2e/rogue.py) plays a byzantine System 2, an
 impostor planner or EWS beside the real ones, or a hung planner; a second

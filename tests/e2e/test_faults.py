@@ -396,7 +396,7 @@ def test_plans_older_than_their_deadline_are_never_flown(tmp_path: Path) -> None
     asked_s2 = [e for e in steps.values() if "s2:" in e["plan_status"]]
     assert asked_s2, "System 2 was never asked"
     assert all(e["system"] != 2 for e in steps.values()), "a late System 2 plan was flown"
-    # late twice in a row: unavailable until it answers a health query (issue 15)
+    # late twice in a row: unavailable until it answers a health query
     assert all("s2:timeout" in e["plan_status"] or "s2:unavailable" in e["plan_status"]
                for e in asked_s2)
     assert any("s2:timeout" in e["plan_status"] for e in asked_s2)

@@ -1,4 +1,4 @@
-"""Mutual TLS and the router's access control (issue 15), real processes on loopback.
+"""Mutual TLS and the router's access control, real processes on loopback.
 
 The stack runs with ``ZENOH_TLS_DIR`` (certificates of ``services.certs``):
 the test process plays the supervisor with the supervisor's certificate and

@@ -1,4 +1,4 @@
-"""Every reading a parameter (issue 13.1), the named profiles (13.2) and the defects fixed."""
+"""Every reading a parameter, the named profiles and the defects fixed."""
 
 from __future__ import annotations
 
