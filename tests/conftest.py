@@ -42,4 +42,5 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
             continue
         if rel.parts[0] in TIERS:
             item.add_marker(getattr(pytest.mark, rel.parts[0]))
-    items[:] = parallel.assign(items, root)
+    if getattr(config.option, "numprocesses", None):  # on xdist's workers (TEST_WORKERS)
+        items[:] = parallel.assign(items, root)
