@@ -17,6 +17,7 @@ from __future__ import annotations
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -521,16 +522,28 @@ def plan_path(
             return q.result("unreachable", 0)
 
     tree = _OmplRrt(q, rng, component)
+    failed = grow_tree(q, q, tree, component)
+    if failed is not None:
+        return failed
+    path = tree.path()
+    return _finish(q, path, "exact", tree.sampler.count, path)
+
+
+def grow_tree(q: Any, planar: _Query, tree: _OmplRrt, component: BoolArray | None
+              ) -> RrtResult | None:
+    """Grow ``tree`` (unguided up to ``guide_after`` samples, then guided by the grid's
+    ``component``): None once it holds a path to G, else ``q``'s result of why not
+    (``planar``: the query whose plane guides the samples)."""
+    params = planar.params
     guide = component is not None and params.guide_after < params.max_iterations
     solved: bool | None = tree.grow(params.guide_after if guide else params.max_iterations)
     if (not solved and guide and component is not None
             and tree.sampler.count >= params.guide_after):
-        solved = _grow_guided(q, tree, component)
+        solved = _grow_guided(planar, tree, component)
         if solved is None:
             return q.result("unreachable", tree.sampler.count)
     iterations = tree.sampler.count
     if not solved:
         cause = "iteration_cap" if iterations >= params.max_iterations else "time_cap"
         return q.result(cause, iterations)
-    path = tree.path()
-    return _finish(q, path, "exact", iterations, path)
+    return None

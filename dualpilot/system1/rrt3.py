@@ -38,10 +38,10 @@ from dualpilot.system1.rrt import (
     ExactMotionValidator,
     RrtParams,
     RrtResult,
-    _grow_guided,
     _NumpyDrivenGoal,
     _OmplRrt,
     _Query,
+    grow_tree,
     shortcut,
 )
 
@@ -278,16 +278,8 @@ def plan_path3(start: Array, goal: GoalBox, prisms: Sequence[Prism], rng: np.ran
         if not meets_goal:
             return q.result("unreachable", 0)
     tree = _OmplRrt3(q, rng, component)
-    guide = component is not None and params.guide_after < params.max_iterations
-    solved: bool | None = tree.grow(params.guide_after if guide else params.max_iterations)
-    if (not solved and guide and component is not None
-            and tree.sampler.count >= params.guide_after):
-        solved = _grow_guided(planar, tree, component)
-        if solved is None:
-            return q.result("unreachable", tree.sampler.count)
-    iterations = tree.sampler.count
-    if not solved:
-        cause = "iteration_cap" if iterations >= params.max_iterations else "time_cap"
-        return q.result(cause, iterations)
+    failed = grow_tree(q, planar, tree, component)
+    if failed is not None:
+        return failed
     path = tree.path()
-    return _finish3(q, path, "exact", iterations, path)
+    return _finish3(q, path, "exact", tree.sampler.count, path)
