@@ -29,6 +29,7 @@ from dualpilot.arrays import AnyArray, Array
 from dualpilot.model.geometry import (
     _HullEdges,
     _point_polygon_distance2,
+    _pseg_d2,  # the planar operations, so the planar numbers are the same
     _segment_near_polygon,
 )
 from dualpilot.model.prism import Prism, segment_segment_d2
@@ -168,16 +169,6 @@ def prism_path_clearance(points: Array, prisms: Sequence[Prism]) -> float:
     if not prisms:
         return float("inf")
     return SegmentChecker3(prisms).path_clearance(points)
-
-
-@njit(cache=True)
-def _pseg_d2(px: float, py: float, ax: float, ay: float, dx: float, dy: float,
-             inv_len2: float) -> float:
-    """geometry._pseg_d2: the same operations, so the planar numbers are the same."""
-    t = min(max(((px - ax) * dx + (py - ay) * dy) * inv_len2, 0.0), 1.0)
-    ex = px - ax - t * dx
-    ey = py - ay - t * dy
-    return ex * ex + ey * ey
 
 
 @njit(cache=True)
