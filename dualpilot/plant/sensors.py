@@ -21,7 +21,6 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.signal import lfilter
 
 from dualpilot.arrays import Array
 
@@ -63,6 +62,8 @@ class GpsError:
             return np.zeros((n, 3))
         a = math.exp(-dt_s / self.params.tau_s)
         drive = self.rng.standard_normal((n, 3)) * (self.params.sigma * math.sqrt(1 - a * a))
+        from scipy.signal import lfilter  # 1 s to import: only where a noisy flight needs it
+
         out, _ = lfilter([1.0], [1.0, -a], drive, axis=0, zi=(a * self.error)[None, :])
         self.error = out[-1].copy()
         return np.asarray(out)
