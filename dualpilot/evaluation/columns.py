@@ -36,11 +36,11 @@ def tracking_columns(result: MissionResult, reading: Profile) -> dict[str, objec
     breach = int(result.ending is Ending.TRACKING_BREACH)
     if reading.plant.plant == "ideal":
         return dict(tracking_breach=breach, tracking_error_p50_m=0.0, tracking_error_p99_m=0.0)
-    if not result.tracking_error_m:
+    tracked = result.tracking_percentiles()
+    if tracked is None:
         return dict(tracking_breach=breach, tracking_error_p50_m="", tracking_error_p99_m="")
-    p50, p99 = np.percentile(np.concatenate(result.tracking_error_m), [50, 99])
-    return dict(tracking_breach=breach, tracking_error_p50_m=round(float(p50), 4),
-                tracking_error_p99_m=round(float(p99), 4))
+    return dict(tracking_breach=breach, tracking_error_p50_m=tracked[0],
+                tracking_error_p99_m=tracked[1])
 
 
 def oracle_columns(config: MissionConfig, params: OracleParams = OracleParams()

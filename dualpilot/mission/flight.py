@@ -28,8 +28,11 @@ plant's true path, every integration step's segment checked exactly against the
 regions the step's failure rule counts. A flight that passes within d_safe of a
 region whose planned segment (Eq. (1)'s straight segment from the measured start)
 kept d_safe is a ``tracking_breach``; one whose planned segment did not is a
-``fire_contact``, as it always was. A vehicle that reports no path (the stack's,
-whose uavsim flies Eq. (1) in one-second jumps) is judged on its straight segment.
+``fire_contact``, as it always was. A vehicle that reports no path (the ideal plant's,
+in-process or in the stack) is judged on its straight segment. The stack's vehicle
+flies the same plant (services/uavsim/plantsim.py: :func:`fly_ramp` towards each
+setpoint's velocity) and reports its true path on the simulator's side channel
+(services/supervisor/ports/plant.py), so the stack judges the flight as this loop does.
 """
 
 from __future__ import annotations
@@ -66,27 +69,41 @@ class FlownPath(Protocol):
         ...
 
 
+def ramp_stream(start: Array, velocity: Array, dyn: DynamicsParams,
+                params: MultirotorParams) -> Array:
+    """The setpoints (S, 9) of [p, v, a] at ``params.setpoint_hz`` of the motion from
+    ``start`` whose velocity ramps to ``velocity`` (m/s) over ΔT (module docstring; the cubic
+    Hermite curve with these ends is that parabola)."""
+    n = dyn.dim
+    v1 = np.asarray(velocity, dtype=float)
+    end = np.concatenate([start[:n] + 0.5 * dyn.dt_s * (start[n:] + v1), v1])
+    return hermite_stream(start, end, dyn.dt_s, params.setpoint_hz, n, params.altitude_m)
+
+
 def plan_stream(start: Array, control: Array, dyn: DynamicsParams,
                 params: MultirotorParams) -> Array:
-    """The setpoints (S, 9) of [p, v, a] at ``params.setpoint_hz`` of the step planned from
-    ``start`` with ``control`` (N): the motion whose velocity ramps from v_t to Eq. (1)'s
-    v_{t+1} (module docstring; the cubic Hermite curve with these ends is that parabola)."""
-    end = step(start, control, dyn)
-    n = dyn.dim
-    end[:n] = start[:n] + 0.5 * dyn.dt_s * (start[n:] + end[n:])
-    return hermite_stream(start, end, dyn.dt_s, params.setpoint_hz, n, params.altitude_m)
+    """The setpoints (S, 9) of the step planned from ``start`` with ``control`` (N): the
+    :func:`ramp_stream` to Eq. (1)'s v_{t+1}."""
+    return ramp_stream(start, step(start, control, dyn)[dyn.dim:], dyn, params)
+
+
+def fly_ramp(plant: MultirotorPlant, start: Array, velocity: Array) -> Flight:
+    """One ΔT of the multirotor under :func:`ramp_stream` from ``start`` to ``velocity``
+    (m/s), its reference Eq. (1)'s straight segment from ``start``. The stack's vehicle
+    flies this towards its setpoint's velocity v_{t+1} (services/uavsim/plantsim.py)."""
+    start = np.asarray(start, dtype=float)
+    flight = plant.fly_stream(ramp_stream(start, velocity, plant.dyn, plant.params))
+    reference = segment_path(start, flight.times_s, plant.dyn.dim, plant.params.altitude_m)
+    return Flight(flight.times_s, flight.positions, flight.velocities, reference,
+                  flight.state, flight.measured, flight.wind)
 
 
 def fly_plan(plant: IdealPlant | MultirotorPlant, start: Array, control: Array) -> Flight:
     """One ΔT of the step planned from ``start`` with ``control``: the ideal plant steps
-    Eq. (1); the multirotor flies :func:`plan_stream`, its reference Eq. (1)'s straight
-    segment from ``start``."""
+    Eq. (1); the multirotor flies :func:`plan_stream` (:func:`fly_ramp`)."""
     if isinstance(plant, IdealPlant):
         return plant.fly(start, control)
-    flight = plant.fly_stream(plan_stream(start, control, plant.dyn, plant.params))
-    reference = segment_path(start, flight.times_s, plant.dyn.dim, plant.params.altitude_m)
-    return Flight(flight.times_s, flight.positions, flight.velocities, reference,
-                  flight.state, flight.measured, flight.wind)
+    return fly_ramp(plant, start, step(start, control, plant.dyn)[plant.dyn.dim:])
 
 
 class PlantVehicle:
@@ -169,17 +186,25 @@ def judge_flight(vehicle: object, regions: tuple[Region, ...], d_safe_m: float
     return Ending.FIRE_CONTACT, ()
 
 
+@runtime_checkable
+class TrackingLog(Protocol):
+    """A vehicle port that collects each flight's tracking error (m, at every integration
+    step): :class:`PlantVehicle`, and the stack's port of a plant's vehicle."""
+
+    tracking_error_m: list[Array]
+
+
 def tracking_errors(vehicle: object) -> list[Array]:
-    """The flights' tracking errors a :class:`PlantVehicle` collected (else none)."""
-    return vehicle.tracking_error_m if isinstance(vehicle, PlantVehicle) else []
+    """The flights' tracking errors a :class:`TrackingLog` collected (else none)."""
+    return vehicle.tracking_error_m if isinstance(vehicle, TrackingLog) else []
 
 
 def stack_refusal(config: MissionConfig) -> str:
-    """Why the stack cannot fly ``config``'s plant ("" when it can): its vehicle, uavsim,
-    flies Eq. (1) in one-second jumps, the ideal plant only (the multirotor flies in-process
-    so far)."""
+    """Why the stack cannot fly ``config``'s plant ("" when it can): uavsim flies the ideal
+    plant in every dimension and the multirotor (services/uavsim/plantsim.py) in the 2-D
+    missions, as the in-process loop does (:func:`dualpilot.mission.local.local_vehicle`)."""
     kind = config.reading().plant.plant
-    if kind == "ideal":
+    if kind == "ideal" or config.spec().dim == 2:
         return ""
-    return (f"plant={kind}: the stack's vehicle flies the ideal plant (Eq. (1)) only; fly "
-            "this mission in-process (dualpilot mission, dualpilot evaluate)")
+    return (f"plant={kind} flies the 2-D missions only so far (dim=2), in the stack as "
+            "in-process")

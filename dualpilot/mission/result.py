@@ -162,6 +162,15 @@ class MissionResult:
         name."""
         return "" if self.ending is None else self.ending.failure_cause
 
+    def tracking_percentiles(self) -> tuple[float, float] | None:
+        """(p50, p99) (m, rounded to 0.1 mm) of the horizontal tracking error over every
+        integration step of the mission (results.csv's ``tracking_error_p50_m`` and ``_p99_m``);
+        None when none was recorded (the ideal plant, nothing flown)."""
+        if not self.tracking_error_m:
+            return None
+        p50, p99 = np.percentile(np.concatenate(self.tracking_error_m), [50, 99])
+        return round(float(p50), 4), round(float(p99), 4)
+
     def add_flight(self, control: Array, prev_control: Array, dt_s: float) -> None:
         """Account one flown step (its record already appended): energy, switches, time.
 
@@ -200,4 +209,7 @@ class MissionResult:
             "clearance_m": s.clearance_m,
             # a flying plant's tube (d_safe_m and clearance_m include it): written when used
             **({"tracking_margin_m": s.tracking_margin_m} if s.tracking_margin_m else {}),
+            # and its flight's tracking error, when one was recorded
+            **({"tracking_error_p50_m": tracked[0], "tracking_error_p99_m": tracked[1]}
+               if (tracked := self.tracking_percentiles()) is not None else {}),
         }

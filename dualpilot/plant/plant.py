@@ -167,11 +167,14 @@ class MultirotorPlant:
         return Flight(flight.times_s, flight.positions, flight.velocities, reference,
                       flight.state, flight.measured, flight.wind)
 
-    def fly_stream(self, setpoints: Array) -> Flight:
-        """Fly one ΔT under a stream of [p, v, a] setpoints (S, 9) at ``setpoint_hz``; the
-        reference of the returned flight is the stream's positions, held."""
+    def fly_stream(self, setpoints: Array, duration_s: float | None = None) -> Flight:
+        """Fly one ΔT (or ``duration_s``, s: a simulated vehicle on its own clock flies each
+        setpoint of its 20 Hz stream as it comes) under a stream of [p, v, a] setpoints
+        (S, 9) at ``setpoint_hz``; the reference of the returned flight is the stream's
+        positions, held."""
         mr = self.params
-        n = max(int(round(self.dyn.dt_s * mr.rate_hz)), 1)
+        span = self.dyn.dt_s if duration_s is None else duration_s
+        n = max(int(round(span * mr.rate_hz)), 1)
         dt = 1.0 / mr.rate_hz
         wind = self.air.sample(n, dt, self.x[V:V + 3])
         before = self.gps.error.copy()

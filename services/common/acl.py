@@ -42,10 +42,11 @@ OWNED: dict[str, dict[str, tuple[str, ...]]] = {
     "system2": {"put": (), "answer": ("plan/system2", "plan/system2/*")},
     "supervisor": {"put": ("supervisor/decision", "vehicle/state", "mission/event", "clock",
                            "operator/waypoints"), "answer": ()},
-    "uavsim": {"put": (), "answer": ("uavsim/mission",)},
+    "uavsim": {"put": (), "answer": ("uavsim/mission", "uavsim/flight")},
 }
 #: what the supervisor asks
-QUERIES = ("plan/*", "plan/*/*", "ews/command", "status/*", "uavsim/mission")
+QUERIES = ("plan/*", "plan/*/*", "ews/command", "status/*", "uavsim/mission",
+           "uavsim/flight")
 #: what the planners ask: the forecasts a plan request names by reference
 PLANNER_QUERIES = ("ews/forecasts",)
 PLANNERS = ("system1", "system2")

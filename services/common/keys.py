@@ -118,6 +118,11 @@ def sim_mission(uav: str) -> str:
     return f"{ns(uav)}/uavsim/mission"
 
 
+def sim_flight(uav: str) -> str:
+    """Queryable of the simulated plant's ground truth (services/uavsim/truth.py)."""
+    return f"{ns(uav)}/uavsim/flight"
+
+
 def waypoints(uav: str) -> str:
     return f"{ns(uav)}/operator/waypoints"
 

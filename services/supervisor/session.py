@@ -47,7 +47,7 @@ from .link import VehicleLink
 from .observer import StackObserver
 from .pause import PausePolicy
 from .pool import PlannerPool, PoolParams
-from .ports import Aborted, StackBus, StackFires, StackPlanners, StackVehicle
+from .ports import Aborted, StackBus, StackFires, StackPlanners, vehicle_port
 from .publish import Publications
 from .record import Entries, RunRecord, StorageFault
 from .simulator import configure_vehicle
@@ -78,7 +78,7 @@ class StackSession:
         self.pause = PausePolicy(b.stop, b.stack.pause_limit_s, self._announce_pause,
                                  b.wall.now, b.wait)
         self.watch = OffboardWatch(b, link, self.pause, self.observer.faults)
-        self.vehicle = StackVehicle(b, link, self.spec.dynamics.dt_s, self.watch.ensure)
+        self.vehicle = vehicle_port(b, link, config, self.spec.dynamics.dt_s, self.watch.ensure)
         self.resumed_at: int | None = None
         self.holding = ""
 
@@ -185,7 +185,7 @@ class StackSession:
         prior = self.record.prior()
         vehicle_ms, x0 = got
         if prior is None:  # at rest at boot: the in-process mission's hover_state(start)
-            self.spec = self.config.spec(start=(float(x0[0]), float(x0[1])))
+            self.spec = self.config.spec(start=self.vehicle.start_position(x0))
         else:
             head = next(e for e in prior if e.get("kind") == "mission")
             start = cast(list[float], head["start"])

@@ -25,6 +25,7 @@ from services.common import mav, mavlink_codec, rejections
 from services.common.log import fields
 
 from . import clock as vclock
+from . import plantclock
 from .autopilot import FREE_RANGE_M, VehicleSetup, build
 from .commands import Commands
 from .control import ControlArbiter
@@ -276,6 +277,7 @@ class Endpoint:
             for due_ms in self.realtime.due_steps(now):
                 if self.ap.fly(due_ms, now):
                     self.after_step()
+            plantclock.fly_due(self.ap, self.realtime.now_ms(now))  # a plant's 20 Hz stream
         for msg_id in self.schedule.due(now):
             self.telemetry.stream(msg_id)
         self.ap.mission.poll(now)

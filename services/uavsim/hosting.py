@@ -26,6 +26,7 @@ from .host import Host
 from .missionconfig import MissionConfigs
 from .options import VehicleOptions
 from .storage import open_tlog
+from .truth import FlightTruths
 from .vehicle import Vehicle
 
 log = logging.getLogger("services.uavsim")
@@ -89,18 +90,23 @@ class HostedVehicle:
     tlog_path: str
     stats: StatsFile | None
     configs: MissionConfigs | None = None  #: the mission configurations it takes (Zenoh)
+    truths: FlightTruths | None = None  #: its plant's ground truth (Zenoh)
 
     def tick(self, now: float) -> None:
         """Between two passes of the vehicle's loop: a new mission configuration, the
         stream statistics."""
         if self.configs is not None:
             self.configs.poll(now)
+        if self.truths is not None:
+            self.truths.poll(now)
         if self.stats is not None:
             self.stats.tick(now)
 
     def close(self) -> None:
         if self.configs is not None:
             self.configs.close()
+        if self.truths is not None:
+            self.truths.close()
         if self.stats is not None:
             self.stats.write()
         for conn in self.links.values():
@@ -139,11 +145,12 @@ def open_vehicle(ctx: bus.Context, opts: VehicleOptions, boot: float) -> HostedV
     elif tlog_path:
         endpoint.fault = "tlog not created: flying without it"
     stats = StatsFile(stats_path, endpoint) if stats_path else None
-    configs = None
+    configs = truths = None
     if ctx.session is not None:
         configs = MissionConfigs(ctx.session, uav, endpoint)
+        truths = FlightTruths(ctx.session, uav, vehicle)
         ctx.announce()
-    return HostedVehicle(uav, endpoint, links, tlog, tlog_path, stats, configs)
+    return HostedVehicle(uav, endpoint, links, tlog, tlog_path, stats, configs, truths)
 
 
 def serve(ctx: bus.Context, opts: VehicleOptions) -> None:

@@ -28,6 +28,9 @@ DEFAULT_PERIOD_S: dict[int, float] = {
     m.MAVLINK_MSG_ID_MISSION_CURRENT: 1.0,
     m.MAVLINK_MSG_ID_HOME_POSITION: 5.0,
     m.MAVLINK_MSG_ID_GPS_GLOBAL_ORIGIN: 5.0,
+    # the plant's air, the flavour's own message while a plant flies (services/uavsim/wind.py)
+    m.MAVLINK_MSG_ID_WIND_COV: 1.0,
+    m.MAVLINK_MSG_ID_WIND: 1.0,
 }
 
 

@@ -35,23 +35,38 @@ from services.msgs import config_pb2
 
 from .endpoint import Endpoint
 from .mission import PlanningBounds
+from .plantsim import PlantSim
+from .vehicle import Vehicle
 
 log = logging.getLogger("services.uavsim")
 
 
 def apply(endpoint: Endpoint, config: MissionConfig) -> None:
-    """Fly ``config``'s Eq. (1) and, in lockstep, check against its area (ValueError: a
-    vehicle on its own clock cannot change its ΔT)."""
+    """Fly ``config``'s Eq. (1), or its plant, and, in lockstep, check against its area
+    (ValueError: a vehicle on its own clock cannot change its ΔT; a plant it cannot fly)."""
     dyn = config.spec().dynamics
     v = endpoint.vehicle
     if endpoint.realtime is not None and dyn.dt_s != v.dyn.dt_s:
         raise ValueError(f"a vehicle on its own clock steps every {v.dyn.dt_s:g} s; the "
                          f"mission's ΔT is {dyn.dt_s:g} s")
+    fly_plant(v, config, own_clock=endpoint.realtime is not None)
     v.dyn = dyn
     if endpoint.realtime is None:
         endpoint.setup = replace(endpoint.setup, area_size_m=config.area_size_m)
         endpoint.ap.mission.bounds = PlanningBounds(endpoint.setup.home, config.area_size_m)
     endpoint.repeat = None  # a setpoint accepted under the old limits is checked again
+
+
+def fly_plant(v: Vehicle, config: MissionConfig, own_clock: bool) -> None:
+    """The plant of ``config`` flies ``v`` from where it is (services/uavsim/plantsim.py; the
+    ideal plant: Eq. (1), none); the same configuration again keeps the plant flying."""
+    if v.plant is not None and v.plant_config == config:
+        return
+    here = v.plant.plant.state if v.plant is not None else v.state  # the truth, not its estimate
+    v.plant = PlantSim.for_config(config, here, v.time_ms, own_clock)
+    v.plant_config = config if v.plant is not None else None
+    if v.plant is not None:
+        v.state = v.plant.measured()
 
 
 class MissionConfigs:

@@ -2,7 +2,8 @@
 
 LOCAL_POSITION_NED, GLOBAL_POSITION_INT and ATTITUDE at 10 Hz and after every
 step; SYS_STATUS, GPS_RAW_INT, EXTENDED_SYS_STATE and MISSION_CURRENT at 1 Hz;
-HOME_POSITION and GPS_GLOBAL_ORIGIN every 5 s (services/uavsim/intervals.py,
+HOME_POSITION and GPS_GLOBAL_ORIGIN every 5 s, the plant's wind (WIND_COV or WIND,
+services/uavsim/wind.py) at 1 Hz (services/uavsim/intervals.py,
 changed by SET_MESSAGE_INTERVAL); a message on request (REQUEST_MESSAGE).
 Altitudes: LOCAL_POSITION_NED ``z`` is −(height above home), GLOBAL_POSITION_INT
 ``alt`` is above mean sea level (home's AMSL altitude + the height),
@@ -19,6 +20,7 @@ from services.common import mav, mavlink_codec
 from .autopilot import Autopilot
 from .flavour import Nav
 from .outbox import Outbox
+from .wind import WIND_IDS, has_wind, send_wind
 
 m = mav.mavlink
 #: AUTOPILOT_VERSION.flight_sw_version: 0.1.0, release (major<<24 | minor<<16 | patch<<8 | type)
@@ -130,6 +132,8 @@ class Telemetry:
             self.home_position(only=msg_id, link=link)
         elif msg_id in FAST:
             self.position(only=msg_id, link=link)
+        elif msg_id in WIND_IDS:  # the plant's air (services/uavsim/wind.py)
+            send_wind(self.ap, self.outbox, msg_id, self.home_amsl_m + self.ap.nav.alt, link)
         else:
             self.status(only=msg_id, link=link)
 
@@ -142,6 +146,8 @@ class Telemetry:
                                             [0] * 8, 0, 0, self.ap.sysid)
         if msg_id == m.MAVLINK_MSG_ID_HOME_POSITION:  # and the origin with it
             return lambda: self.home_position(link=link)
-        if msg_id in (*FAST, *SLOW, *HOME, m.MAVLINK_MSG_ID_HEARTBEAT):
+        if msg_id in WIND_IDS and not has_wind(self.ap, msg_id):
+            return None
+        if msg_id in (*FAST, *SLOW, *HOME, *WIND_IDS, m.MAVLINK_MSG_ID_HEARTBEAT):
             return lambda: self.stream(msg_id, link)
         return None

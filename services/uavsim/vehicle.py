@@ -12,7 +12,8 @@ v_cmd = v* + k_p (p* − (p + ΔT v)) / ΔT and solves Eq. (1) for the force,
     u = m / ΔT · (v_cmd − (1 − ζ) v).
 
 On a planned trajectory (x* = Φ x + Γ u_plan) the correction term is 0 and u
-equals the plan's control: the vehicle flies exactly what was planned.
+equals the plan's control: the vehicle flies exactly what was planned. A mission of
+another plant (``plant=multirotor``) flies that plant instead (services/uavsim/plantsim.py).
 
 Altitude: Sec. IV is 2-D at a fixed altitude, so Eq. (1) has no vertical
 axis. On its own clock the vehicle still climbs and descends like a
@@ -40,6 +41,8 @@ import numpy as np
 
 from dualpilot.model.dynamics import Array, DynamicsParams, hover_state, step
 from services.common.mav import to_geodetic, to_local
+
+from .plantsim import PlantSim
 
 __all__ = ["Vehicle", "tracking_control", "to_geodetic", "to_local"]
 
@@ -72,6 +75,9 @@ class Vehicle:
     control: Array = field(default_factory=lambda: np.zeros(2))
     alt_m: float = 0.0  #: above home
     vz_mps: float = 0.0  #: climb rate (up is positive)
+    #: the mission's plant when it is not Eq. (1) (``plant=multirotor``; state: its estimate)
+    plant: PlantSim | None = None
+    plant_config: object = None  #: the mission configuration the plant was made for
 
     @staticmethod
     def at(east_m: float, north_m: float, dyn: DynamicsParams = DynamicsParams()) -> Vehicle:
@@ -87,7 +93,10 @@ class Vehicle:
         if due_ms <= self.time_ms:
             return False
         u = tracking_control(self.state, np.asarray(target, dtype=float), self.dyn, self.kp)
-        self.state = step(self.state, u, self.dyn)
+        if self.plant is not None:  # the mission's multirotor (services/uavsim/plantsim.py)
+            self.state = self.plant.apply(self.state, target, int(due_ms))
+        else:
+            self.state = step(self.state, u, self.dyn)
         self.control = u
         self.impulse_ns += float(np.linalg.norm(u)) * self.dyn.dt_s
         self.time_ms = int(due_ms)
@@ -104,8 +113,12 @@ class Vehicle:
         self.vz_mps = change / dt
 
     def brake(self) -> None:
-        """Hold: stop where it is (a multirotor's position hold), keeping the clock."""
-        self.state = hover_state(self.state[: self.dyn.dim], self.dyn)
+        """Hold: stop where it is (a multirotor's position hold), keeping the clock (a plant
+        brakes under its own controller, towards the position held)."""
+        if self.plant is not None:
+            self.plant.held = hover_state(self.state[: self.dyn.dim], self.dyn)
+        else:
+            self.state = hover_state(self.state[: self.dyn.dim], self.dyn)
         self.control = np.zeros(self.dyn.dim)
         self.vz_mps = 0.0
 

@@ -13,13 +13,15 @@ it.
 - ``fires.py``: the fire port over the EWS (:class:`StackFires`), and
   ``forecasts.py`` its occupancy forecasts (:class:`StackForecasts`).
 - ``planners.py``: the planner port over the planner pool (:class:`StackPlanners`).
-- ``vehicle.py``: the vehicle port over MAVLink (:class:`StackVehicle`).
+- ``vehicle.py``: the vehicle port over MAVLink (:class:`StackVehicle`), and ``plant.py``
+  that of a plant's vehicle, with the simulator's ground truth (:class:`PlantStackVehicle`).
 """
 
 from services.supervisor.ports.fires import StackFires
 from services.supervisor.ports.forecasts import StackForecasts
 from services.supervisor.ports.params import StackParams
 from services.supervisor.ports.planners import StackPlanners
+from services.supervisor.ports.plant import PlantStackVehicle, vehicle_port
 from services.supervisor.ports.stackbus import (
     Aborted,
     MonotonicClock,
@@ -30,6 +32,6 @@ from services.supervisor.ports.stackbus import (
 )
 from services.supervisor.ports.vehicle import StackVehicle
 
-__all__ = ["Aborted", "MonotonicClock", "StackBus", "StackFires", "StackForecasts",
-           "StackParams", "StackPlanners", "StackTransport", "StackVehicle", "WallClock",
-           "ZenohStackTransport"]
+__all__ = ["Aborted", "MonotonicClock", "PlantStackVehicle", "StackBus", "StackFires",
+           "StackForecasts", "StackParams", "StackPlanners", "StackTransport", "StackVehicle",
+           "WallClock", "ZenohStackTransport", "vehicle_port"]

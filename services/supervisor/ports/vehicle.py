@@ -33,6 +33,11 @@ class StackVehicle:
         self.due_ms = self.base_ms + round((self.b.clock.now_s + after_s) * 1000)
         self.sent = self.link.setpoints.send(np.asarray(target, dtype=float), self.due_ms)
 
+    def start_position(self, measured: Array) -> tuple[float, float]:
+        """Where the mission starts: the vehicle's ``measured`` position (Eq. (1)'s vehicle
+        measures exactly; a plant's port says its truth)."""
+        return float(measured[0]), float(measured[1])
+
     def observe(self) -> Array:
         """The state at or after the setpoint's due time; the flight lasts ΔT of sim time."""
         state = self.read_state(self.due_ms)

@@ -1,0 +1,78 @@
+"""The simulator's side channel: the plant's ground truth, on ``<ns>/uavsim/flight``.
+
+A vehicle flying a plant other than Eq. (1) (services/uavsim/plantsim.py) reports its
+autopilot's estimate on MAVLink; where it truly flew is what a simulator knows and an
+autopilot does not (as Gazebo's ground-truth topic beside PX4 SITL). The supervisor's
+port of a plant's vehicle (services/supervisor/ports/plant.py) asks for the latest
+flight ended at or after a time on the vehicle's clock (``PlantFlightRequest``) and
+judges it as the in-process loop judges its plant's flight (dualpilot/mission/flight.py).
+
+The callback only enqueues; the vehicle's loop answers between two passes
+(:meth:`FlightTruths.poll`), so a reply never sees half a flight. A request that does
+not decode, a vehicle flying the ideal plant (it has no truth apart from its state) and
+a flight not flown yet get an error reply (a bad request counted per key and reason).
+"""
+
+from __future__ import annotations
+
+import logging
+
+import zenoh
+
+from services.common import bus, keys, rejections, wire
+from services.common.convert import common as common_convert
+from services.common.convert import plant as plant_convert
+from services.msgs import common_pb2, plant_pb2
+
+from .vehicle import Vehicle
+
+log = logging.getLogger("services.uavsim")
+
+
+def unavailable(message: str) -> rejections.CodecError:
+    """What the vehicle cannot give (yet): an UNAVAILABLE error reply, not a bad request."""
+    return rejections.CodecError(common_pb2.ERROR_CODE_UNAVAILABLE, message,
+                                 rejections.Reason.UNAVAILABLE)
+
+
+class FlightTruths:
+    """The ``uavsim/flight`` queryable of one vehicle."""
+
+    def __init__(self, session: zenoh.Session, uav: str, vehicle: Vehicle):
+        self.vehicle = vehicle
+        self.key = keys.sim_flight(uav)
+        self.stamper = wire.Stamper("uavsim", uav)
+        self.inbox = bus.Inbox(self.key, max_items=64, max_bytes=64 * 1024)
+        self.queryable = session.declare_queryable(self.key, self.inbox.on_query)
+
+    def poll(self, _now: float = 0.0) -> None:
+        """Answer what arrived (the vehicle loop's tick, between two passes)."""
+        while (item := self.inbox.get(timeout=0)) is not None:
+            if item.query is None:
+                continue
+            try:
+                reply = self.answer(item.payload, item.encoding)
+            except rejections.CodecError as err:
+                if err.code != common_pb2.ERROR_CODE_UNAVAILABLE:  # a bad request, counted
+                    rejections.rejected("PlantFlightRequest", err, log, key=self.key)
+                bus.reply_error(item.query, common_convert.error_msg(self.stamper, err.code,
+                                                                     str(err)))
+                continue
+            bus.reply(item.query, reply)
+
+    def answer(self, payload: bytes, encoding: str) -> plant_pb2.PlantFlight:
+        """The reply to one request (CodecError: a bad request, no plant, not flown yet)."""
+        after_ms = plant_convert.request_from_msg(
+            wire.parse(payload, plant_pb2.PlantFlightRequest, encoding))
+        plant = self.vehicle.plant
+        if plant is None:
+            raise unavailable("this vehicle flies the ideal plant (Eq. (1)): its state is "
+                              "the truth")
+        truth = plant.truth()
+        if truth.time_ms < after_ms:
+            raise unavailable(f"no flight ended at or after {after_ms} ms yet (the latest: "
+                              f"{truth.time_ms} ms)")
+        return plant_convert.flight_msg(truth, self.stamper)
+
+    def close(self) -> None:
+        self.queryable.undeclare()
