@@ -35,6 +35,21 @@ def unavailable(message: str) -> rejections.CodecError:
                                  rejections.Reason.UNAVAILABLE)
 
 
+def answer(vehicle: Vehicle, stamper: wire.Stamper, payload: bytes,
+           encoding: str) -> plant_pb2.PlantFlight:
+    """The reply to one request (CodecError: a bad request; UNAVAILABLE: the ideal plant, a
+    flight not flown yet)."""
+    after_ms = plant_convert.request_from_msg(
+        wire.parse(payload, plant_pb2.PlantFlightRequest, encoding))
+    if vehicle.plant is None:
+        raise unavailable("this vehicle flies the ideal plant (Eq. (1)): its state is the truth")
+    truth = vehicle.plant.truth()
+    if truth.time_ms < after_ms:
+        raise unavailable(f"no flight ended at or after {after_ms} ms yet (the latest: "
+                          f"{truth.time_ms} ms)")
+    return plant_convert.flight_msg(truth, stamper)
+
+
 class FlightTruths:
     """The ``uavsim/flight`` queryable of one vehicle."""
 
@@ -51,7 +66,7 @@ class FlightTruths:
             if item.query is None:
                 continue
             try:
-                reply = self.answer(item.payload, item.encoding)
+                reply = answer(self.vehicle, self.stamper, item.payload, item.encoding)
             except rejections.CodecError as err:
                 if err.code != common_pb2.ERROR_CODE_UNAVAILABLE:  # a bad request, counted
                     rejections.rejected("PlantFlightRequest", err, log, key=self.key)
@@ -59,20 +74,6 @@ class FlightTruths:
                                                                      str(err)))
                 continue
             bus.reply(item.query, reply)
-
-    def answer(self, payload: bytes, encoding: str) -> plant_pb2.PlantFlight:
-        """The reply to one request (CodecError: a bad request, no plant, not flown yet)."""
-        after_ms = plant_convert.request_from_msg(
-            wire.parse(payload, plant_pb2.PlantFlightRequest, encoding))
-        plant = self.vehicle.plant
-        if plant is None:
-            raise unavailable("this vehicle flies the ideal plant (Eq. (1)): its state is "
-                              "the truth")
-        truth = plant.truth()
-        if truth.time_ms < after_ms:
-            raise unavailable(f"no flight ended at or after {after_ms} ms yet (the latest: "
-                              f"{truth.time_ms} ms)")
-        return plant_convert.flight_msg(truth, self.stamper)
 
     def close(self) -> None:
         self.queryable.undeclare()

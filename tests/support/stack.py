@@ -38,7 +38,7 @@ from dualpilot.model.dynamics import Array, hover_state
 from dualpilot.plan import Planner
 from dualpilot.planners import build_planner
 from dualpilot.spec import MissionSpec
-from services.common import bus, keys, mav, mavlink_codec, mavmodes, wire
+from services.common import bus, keys, mav, mavlink_codec, mavmodes, rejections, wire
 from services.common.clock import SimClock
 from services.common.convert import config as config_convert
 from services.common.convert import fire as fire_convert
@@ -53,6 +53,9 @@ from services.supervisor.pool import NoReply, Reply
 from services.supervisor.ports import StackBus, StackParams
 from services.supervisor.record import RunRecord
 from services.supervisor.session import StackSession
+from services.uavsim.missionconfig import fly_plant
+from services.uavsim.truth import answer as truth_answer
+from services.uavsim.vehicle import Vehicle
 
 m = mav.mavlink
 UAV = "u1"
@@ -183,6 +186,10 @@ class InProcessStack:
     answers: AnsweredForecasts = field(default_factory=AnsweredForecasts)
     #: forecasts the planners took by reference, and the failed attempts
     fetched: list[str] = field(default_factory=list)
+    #: the simulated vehicle that takes the mission configuration and answers its plant's
+    #: ground truth as uavsim does (services/uavsim/missionconfig.py, truth.py); None: the
+    #: configuration is only echoed
+    plant_autopilot: PlantAutopilot | None = None
 
     def __post_init__(self) -> None:
         for service in self.services.values():  # the planners' EWS nearby is this one
@@ -212,8 +219,12 @@ class InProcessStack:
             config = config_convert.config_from_msg(wire.parse(
                 msg.SerializeToString(), config_pb2.MissionConfig, wire.encoding_name(msg)))
             self.vehicle_configs.append(config)
+            if self.plant_autopilot is not None:
+                self.plant_autopilot.configure(config)
             back = config_convert.config_to_msg(config, config_pb2.MissionConfig())
             return back.SerializeToString(), wire.encoding_name(back)
+        if key == keys.sim_flight(self.uav) and self.plant_autopilot is not None:
+            return self.plant_autopilot.truth(msg)
         assert key == keys.fire_command(self.uav), key
         cmd = fire_convert.fire_command_from_msg(
             wire.parse(msg.SerializeToString(), fire_pb2.FireCommand, wire.encoding_name(msg)))
@@ -388,6 +399,44 @@ class SimAutopilot:
         self.deliver(self.items[seq])
 
 
+class PlantAutopilot(SimAutopilot):
+    """A :class:`SimAutopilot` that flies as uavsim's vehicle does (services/uavsim/vehicle.py):
+    Eq. (1) towards each setpoint, or the mission's plant once the mission configuration
+    says so (services/uavsim/missionconfig.py: :func:`fly_plant`), its ground truth
+    answered as services/uavsim/truth.py answers it."""
+
+    def __init__(self, vehicle: Vehicle, time_ms: int = BOOT_MS, altitude_m: float = 50.0):
+        super().__init__(vehicle.state, time_ms, altitude_m)
+        self.vehicle = vehicle
+        vehicle.time_ms = time_ms
+        self.stamper = wire.Stamper("uavsim", UAV)
+
+    def configure(self, config: MissionConfig) -> None:
+        with self.lock:
+            fly_plant(self.vehicle, config, own_clock=False)
+            self.vehicle.dyn = config.spec().dynamics
+            self.state = self.vehicle.state.copy()
+
+    def truth(self, msg: Message) -> tuple[bytes, str]:
+        """The reply to a ground-truth request (QueryError: an error reply)."""
+        with self.lock:
+            try:
+                out = truth_answer(self.vehicle, self.stamper, msg.SerializeToString(),
+                                   wire.encoding_name(msg))
+            except rejections.CodecError as err:
+                raise bus.QueryError(err.code, str(err)) from err
+        return out.SerializeToString(), wire.encoding_name(out)
+
+    def _on_set_position_target_local_ned(self, due_ms: int, _sys: int, _comp: int, _frame: int,
+                                          _mask: int, n: float, e: float, _d: float,
+                                          vn: float, ve: float, *_rest: float) -> None:
+        self.setpoints.append(([e, n, ve, vn], int(due_ms)))
+        if self.armed and self.mode == mavmodes.PX4_MODES.offboard and due_ms >= self.time_ms:
+            self.vehicle.apply(mavlink_codec.state_from_ned(n, e, vn, ve), int(due_ms))
+            self.state = self.vehicle.state.copy()
+            self.time_ms = self.vehicle.time_ms = int(due_ms)
+
+
 class SimConnection:
     """The link's connection to a :class:`SimAutopilot` (``link.connection``)."""
 
@@ -487,7 +536,11 @@ def rig(config: MissionConfig, run_dir: Path | None, params: StackParams = Stack
     tokens.up("ews", "uavsim", "system1", "system2")
     wall = FakeWall()
     spec = config.spec()
+    if autopilot is None and config.reading().plant.plant != "ideal" and spec.dim == 2:
+        autopilot = PlantAutopilot(Vehicle.at(*spec.start, dyn=spec.dynamics))
     autopilot = autopilot or SimAutopilot(hover_state(np.array(spec.start), spec.dynamics))
+    if isinstance(autopilot, PlantAutopilot):
+        stack.plant_autopilot = autopilot
     link = sim_link(autopilot, wall)
     b = StackBus(stack, UAV, config.mission_id or "m1", wire.Stamper("supervisor", UAV),
                  SimClock(0.0), stop, params, live, dt_s=spec.dynamics.dt_s, wall=wall)

@@ -24,9 +24,10 @@ import pytest
 from dualpilot.mission.config import MissionConfig
 from dualpilot.mission.local import local_mission
 from dualpilot.mission.result import Ending, MissionResult
+from dualpilot.model.dynamics import DynamicsParams, hover_state
 from services.common import keys, mav, mavmodes
 from services.supervisor.session import Aborted, VehicleGone
-from tests.support.stack import BOOT_MS, UAV, Rig, rig, serve_link
+from tests.support.stack import BOOT_MS, UAV, Rig, SimAutopilot, rig, serve_link
 
 m = mav.mavlink
 SEED = 26  # cc reaches the goal in 56 steps, System 2 flying all but one
@@ -314,13 +315,45 @@ def test_a_vehicle_that_refuses_to_arm_aborts_the_start_before_any_record(
     assert r.stack.event_kinds() == ["ABORTED"] and aborted.message == "vehicle: arm: UNSUPPORTED"
 
 
-def test_a_mission_of_another_plant_than_the_ideal_is_refused_before_the_vehicle_is_taken(
+#: the multirotor in a 5 m/s wind, moderate turbulence, GPS σ 1.5 m (docs/plant.md)
+MULTIROTOR = (("plant", "multirotor"), ("wind_speed_mps", 5.0), ("turbulence", "moderate"),
+              ("gps_sigma_m", 1.5))
+
+
+def test_a_multirotor_mission_is_the_in_process_one_judged_on_the_true_flight(
         tmp_path: Path) -> None:
-    """uavsim flies Eq. (1) only: a multirotor mission is refused by name, nothing claimed,
-    armed or recorded (it flies in-process)."""
-    config = MissionConfig.named("cc", seed=SEED, settings=SHORT + (("plant", "multirotor"),))
+    """uavsim's vehicle flying the mission's multirotor (tests/support/stack.py's
+    PlantAutopilot): the session plans from the measured state the vehicle reports and
+    judges on the truth it answers on uavsim/flight, so its mission is the in-process one bit
+    for bit: the noisy states, the controls, the ending, every flight's tracking error."""
+    config = MissionConfig.named("cc", seed=SEED, settings=SHORT + MULTIROTOR)
     r = rig(config, tmp_path)
-    with pytest.raises(Aborted, match="plant=multirotor: the stack's vehicle flies the ideal"):
+    result = r.session.run()
+    r.session.close()
+    want = twin(config)
+    assert_same_mission(result, want)
+    assert result.steps == 16 and result.ending is Ending.STEP_LIMIT
+    assert len(result.tracking_error_m) == 16
+    for got, expected in zip(result.tracking_error_m, want.tracking_error_m, strict=True):
+        assert np.array_equal(got, expected)
+    # the start is the plant's true position (the spec's), planned from its estimate
+    assert list(result.spec.start) == [50.0, 50.0]
+    assert not np.array_equal(result.records[0].state[:2], [50.0, 50.0])
+    r.record.write(result, UAV, {})  # the companion's end of the run (companion.py)
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    assert (summary["tracking_error_p50_m"], summary["tracking_error_p99_m"]) == (
+        want.tracking_percentiles())
+
+
+def test_a_3d_mission_of_another_plant_than_the_ideal_is_refused_before_the_vehicle_is_taken(
+        tmp_path: Path) -> None:
+    """The multirotor flies the 2-D missions only, in the stack as in-process: a 3-D one is
+    refused by name, nothing claimed, armed or recorded."""
+    config = MissionConfig.named("cc", seed=SEED, profile="today-3d",
+                                 settings=SHORT + (("plant", "multirotor"),))
+    r = rig(config, tmp_path, autopilot=SimAutopilot(hover_state(np.array([50.0, 50.0]),
+                                                                 DynamicsParams())))
+    with pytest.raises(Aborted, match="plant=multirotor flies the 2-D missions only"):
         r.session.run()
     assert r.session.result is None and not (tmp_path / "steps.jsonl").exists()
     assert r.stack.fire_commands == [] and r.stack.events() == []
