@@ -104,12 +104,13 @@ def test_the_stack_flies_the_in_process_multirotor_mission(fleet: Any) -> None:
         assert summary["d_safe_m"] == pytest.approx(20.0 + 3.717 * 1.5 + 3.0, abs=1e-3)
 
 
-def watch_wind(fleet: Any, flavour: str, seed: int, kind: str) -> list[Any]:
-    """A plant mission of ``seed`` on a vehicle claiming ``flavour``, a pymavlink ground
-    station on its ground-station link: the ``kind`` messages it received."""
+def watch_wind(fleet: Any, flavour: str, seed: int, kind: str, k: int) -> list[Any]:
+    """A plant mission of ``seed`` on the fleet's vehicle ``k`` claiming ``flavour``, a
+    pymavlink ground station on its ground-station link: the ``kind`` messages it received
+    (the first, and one sent after the mission ended)."""
     f, out = fleet
     gcs_port = free_port("udp")
-    uav = f"w{flavour[:2]}"
+    uav = f.uav_ids[k]
     v, = f.start_hosted([uav], [seed], out / f"wind-{flavour}", env={"SPEED_FACTOR": "0"},
                         config=plant_config(seed), service_env={"uavsim": {
                             "UAV_AUTOPILOT": flavour,
@@ -120,7 +121,9 @@ def watch_wind(fleet: Any, flavour: str, seed: int, kind: str) -> list[Any]:
         wait_for(lambda: kind in gcs.newest, 60.0, f"{kind} from the {flavour} vehicle")
         got.append(gcs.newest[kind])
         outcome = f.wait_end({uav: v.mission_id}, 300.0)[uav]
-        got.append(gcs.newest[kind])
+        ended = gcs.newest[kind]
+        wait_for(lambda: gcs.newest[kind] is not ended, 10.0, f"a {kind} after the mission")
+        got.append(gcs.newest[kind])  # sent after the last flight: its last second of air
     logs = [*logs_in(v.run_dir), *logs_in(out / f"wind-{flavour}")]
     check(outcome.ended, f"the {flavour} plant mission to end", logs, outcome)
     f.stop_vehicle(uav)
@@ -128,15 +131,19 @@ def watch_wind(fleet: Any, flavour: str, seed: int, kind: str) -> list[Any]:
 
 
 def test_a_px4_ground_station_sees_wind_cov(fleet: Any) -> None:
-    for msg in watch_wind(fleet, "px4", SEEDS[0], "WIND_COV"):
-        # 5 m/s towards the east (NED: wind_y), moderate turbulence (σ_u = 2.46 m/s)
-        assert abs(msg.wind_y - 5.0) < 4.0 and abs(msg.wind_x) < 4.0, msg
-        assert abs(msg.wind_z) < 3.0 and msg.var_horiz > 0.0 and msg.var_vert > 0.0, msg
-        assert math.isnan(msg.horiz_accuracy), msg
+    """5 m/s towards the east: NED wind_y (σ_u = 2.46, σ_w = 1.54 m/s at 50 m, moderate);
+    the report after the mission carries the turbulence of its last second of flight."""
+    for msg in watch_wind(fleet, "px4", SEEDS[0], "WIND_COV", 0):
+        assert abs(msg.wind_y - 5.0) < 3 * 2.46 and abs(msg.wind_x) < 3 * 2.46, msg
+        assert abs(msg.wind_z) < 3 * 1.54, msg
+        assert math.isnan(msg.horiz_accuracy) and math.isnan(msg.vert_accuracy), msg
+    assert msg.var_horiz > 0.0 and msg.var_vert > 0.0, msg
 
 
 def test_an_ardupilot_ground_station_sees_wind(fleet: Any) -> None:
-    for msg in watch_wind(fleet, "ardupilot", SEEDS[0], "WIND"):
-        # blowing towards the east comes from the west: −90° as ArduPilot writes it
-        assert abs(msg.direction + 90.0) < 45.0 and 1.0 < msg.speed < 9.0, msg
-        assert abs(msg.speed_z) < 3.0, msg
+    """Blowing towards the east, the wind comes from the west: −90° as ArduPilot writes it,
+    5 m/s and no vertical wind in the mean; turbulent after the mission."""
+    for msg in watch_wind(fleet, "ardupilot", SEEDS[0], "WIND", 1):
+        assert abs(msg.direction + 90.0) < 60.0 and 0.0 < msg.speed < 5.0 + 3 * 2.46, msg
+        assert abs(msg.speed_z) < 3 * 1.54, msg
+    assert msg.speed_z != 0.0 and msg.speed != 5.0, msg

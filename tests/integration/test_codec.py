@@ -29,7 +29,7 @@ from services.common.convert import fire as fire_convert
 from services.common.convert import plan as plan_convert
 from services.common.convert import supervisor as supervisor_convert
 from services.common.convert import vehicle as vehicle_convert
-from services.msgs import common_pb2, fire_pb2, plan_pb2, supervisor_pb2
+from services.msgs import common_pb2, fire_pb2, plan_pb2, plant_pb2, supervisor_pb2
 from tests.support.missions import config_for
 
 pytestmark = pytest.mark.timeout(60)
@@ -53,7 +53,7 @@ def test_every_message_has_a_header_and_enums_start_unspecified() -> None:
                     fire_pb2.FireUpdate, plan_pb2.PlanRequest, plan_pb2.Plan,
                     supervisor_pb2.Decision, supervisor_pb2.MissionEvent,
                     vehicle_pb2.VehicleState, vehicle_pb2.OperatorWaypoints, common_pb2.Clock,
-                    common_pb2.Error]
+                    common_pb2.Error, plant_pb2.PlantFlightRequest, plant_pb2.PlantFlight]
     for cls in bus_messages:
         assert "header" in cls.DESCRIPTOR.fields_by_name, cls.DESCRIPTOR.full_name
     for module in (common_pb2, plan_pb2, supervisor_pb2):
