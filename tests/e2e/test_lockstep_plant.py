@@ -90,7 +90,8 @@ def test_the_stack_flies_the_in_process_multirotor_mission(fleet: Any) -> None:
         local = local_mission(plant_config(seed)).run()
         what = f"multirotor cc seed {seed}"
         assert_same_mission(stack, local, what)
-        assert summary["ending"] == local.ending.value, (what, summary["ending"])
+        assert local.ending is not None and summary["ending"] == local.ending.value, (
+            what, summary["ending"])
         tracked = local.tracking_percentiles()
         assert tracked is not None and len(local.tracking_error_m) == local.steps, what
         assert np.allclose([summary["tracking_error_p50_m"], summary["tracking_error_p99_m"]],

@@ -18,7 +18,10 @@ piece the real component where one can run here, behind a fake transport:
   end of a real :class:`~services.supervisor.link.VehicleLink`, answering each
   MAVLink message at once as a PX4 autopilot in lockstep would (a setpoint due
   at t ms is the state at t ms: the stack's lockstep contract,
-  tests/e2e/test_lockstep.py).
+  tests/e2e/test_lockstep.py); for a mission of another plant than Eq. (1),
+  :class:`PlantAutopilot`, which flies as uavsim's vehicle does (its plant,
+  services/uavsim/plantsim.py) and answers its ground truth as uavsim does
+  (services/uavsim/truth.py).
 """
 
 from __future__ import annotations
@@ -537,7 +540,8 @@ def rig(config: MissionConfig, run_dir: Path | None, params: StackParams = Stack
     wall = FakeWall()
     spec = config.spec()
     if autopilot is None and config.reading().plant.plant != "ideal" and spec.dim == 2:
-        autopilot = PlantAutopilot(Vehicle.at(*spec.start, dyn=spec.dynamics))
+        autopilot = PlantAutopilot(Vehicle.at(float(spec.start[0]), float(spec.start[1]),
+                                              dyn=spec.dynamics))
     autopilot = autopilot or SimAutopilot(hover_state(np.array(spec.start), spec.dynamics))
     if isinstance(autopilot, PlantAutopilot):
         stack.plant_autopilot = autopilot

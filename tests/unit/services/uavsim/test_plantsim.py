@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 
 from dualpilot.mission.config import MissionConfig
+from dualpilot.mission.flight import PlantVehicle
 from dualpilot.mission.local import local_vehicle
 from dualpilot.model.dynamics import DynamicsParams, hover_state, step
 from services.common import mav, rejections, wire
@@ -45,7 +46,9 @@ def test_lockstep_flights_are_the_in_process_plant_vehicles_bit_for_bit() -> Non
     cfg = config(*PLANT)
     spec = cfg.spec()
     inproc = local_vehicle(cfg, spec, hover_state(np.array(spec.start_position), spec.dynamics))
-    v = Vehicle.at(*spec.start_position, dyn=spec.dynamics)
+    assert isinstance(inproc, PlantVehicle)
+    east, north = (float(c) for c in spec.start_position)
+    v = Vehicle.at(east, north, dyn=spec.dynamics)
     fly_plant(v, cfg, own_clock=False)
     assert v.plant is not None
     assert np.array_equal(inproc.observe(), v.state)
