@@ -14,14 +14,16 @@ among them) and on the tracking error's p50 and p99 (results.csv's columns, from
 summary.json).
 
 A ground station (pymavlink on the ground-station link) of a PX4-flavoured vehicle sees
-WIND_COV, one of an ArduPilot-flavoured vehicle WIND (ardupilotmega dialect), both saying
-the mission's mean wind of 5 m/s towards the east within the turbulence's spread.
+WIND_COV, one of an ArduPilot-flavoured vehicle WIND (ardupilotmega dialect; MAVProxy's
+``status WIND`` shows it too), both saying the mission's mean wind of 5 m/s towards the
+east within the turbulence's spread.
 """
 
 from __future__ import annotations
 
 import json
 import math
+import re
 from pathlib import Path
 from typing import Any
 
@@ -32,10 +34,12 @@ from dualpilot.mission.config import MissionConfig
 from dualpilot.mission.local import local_mission
 from dualpilot.mission.params import Timing
 from dualpilot.mission.records import read_step_log, result_from_log
+from dualpilot.mission.result import Ending, MissionResult
 from dualpilot.model.dynamics import step
 from services.common import mav
 from services.launch.processes import free_port
 from tests.e2e.sitl import Watch
+from tests.e2e.test_ground_station import MavProxy
 from tests.e2e.test_lockstep import ATOL, assert_same_mission, unpaced_fleet
 from tests.support.waits import check, logs_in, wait_for
 
@@ -49,8 +53,14 @@ PLANT = (("plant", "multirotor"), ("wind_speed_mps", 5.0), ("turbulence", "moder
 SEEDS = (2, 4)
 
 
-def plant_config(seed: int, controller: str = "cc") -> MissionConfig:
-    return MissionConfig.named(controller, seed=seed, timing=Timing.PAPER, settings=PLANT)
+#: a rougher air and no tube (10 m/s, severe turbulence, GPS σ 6 m, tracking_margin_m 0): cc on
+#: seed 3 plans a segment that keeps d_safe and flies one that does not, at step 3
+BREACH = (("plant", "multirotor"), ("wind_speed_mps", 10.0), ("turbulence", "severe"),
+          ("gps_sigma_m", 6.0), ("tracking_margin_m", 0.0))
+
+
+def plant_config(seed: int, settings: tuple[tuple[str, object], ...] = PLANT) -> MissionConfig:
+    return MissionConfig.named("cc", seed=seed, timing=Timing.PAPER, settings=settings)
 
 
 @pytest.fixture(scope="module")
@@ -59,14 +69,17 @@ def fleet(tmp_path_factory: pytest.TempPathFactory) -> Any:
         yield f
 
 
-def fly_plant_missions(fleet: Any, seeds: tuple[int, ...]) -> list[tuple[int, Path]]:
-    """The plant missions of ``seeds`` through the stack, one vehicle each: (seed, run dir)."""
+def fly_plant_missions(fleet: Any, seeds: tuple[int, ...],
+                       settings: tuple[tuple[str, object], ...] = PLANT, tag: str = "plant"
+                       ) -> list[tuple[int, Path]]:
+    """The cc missions of ``seeds`` under ``settings`` through the stack, one vehicle each:
+    (seed, run dir)."""
     f, out = fleet
     mission_ids = {}
     for k, seed in enumerate(seeds):
         uav = f.uav_ids[k]
-        v = f.start_vehicle(uav, seed, out / f"plant-s{seed}", env={"SPEED_FACTOR": "0"},
-                            config=plant_config(seed))
+        v = f.start_vehicle(uav, seed, out / f"{tag}-s{seed}", env={"SPEED_FACTOR": "0"},
+                            config=plant_config(seed, settings))
         mission_ids[uav] = v.mission_id
     outcomes = f.wait_end(mission_ids, 300.0)
     flown = []
@@ -83,19 +96,27 @@ def fly_plant_missions(fleet: Any, seeds: tuple[int, ...]) -> list[tuple[int, Pa
     return flown
 
 
+def assert_same_plant_mission(run_dir: Path, local: MissionResult, what: str) -> MissionResult:
+    """The stack's run in ``run_dir`` is ``local`` step for step, with its ending and its
+    tracking error's p50 and p99 (summary.json); returns the stack's records as a result."""
+    stack = result_from_log(read_step_log(run_dir / "steps.jsonl"))
+    summary = json.loads((run_dir / "summary.json").read_text())
+    assert_same_mission(stack, local, what)
+    assert local.ending is not None and summary["ending"] == local.ending.value, (
+        what, summary["ending"])
+    tracked = local.tracking_percentiles()
+    assert tracked is not None and len(local.tracking_error_m) == local.steps, what
+    assert np.allclose([summary["tracking_error_p50_m"], summary["tracking_error_p99_m"]],
+                       tracked, atol=ATOL), (what, summary, tracked)
+    return stack
+
+
 def test_the_stack_flies_the_in_process_multirotor_mission(fleet: Any) -> None:
     for seed, run_dir in fly_plant_missions(fleet, SEEDS):
-        stack = result_from_log(read_step_log(run_dir / "steps.jsonl"))
-        summary = json.loads((run_dir / "summary.json").read_text())
         local = local_mission(plant_config(seed)).run()
         what = f"multirotor cc seed {seed}"
-        assert_same_mission(stack, local, what)
-        assert local.ending is not None and summary["ending"] == local.ending.value, (
-            what, summary["ending"])
-        tracked = local.tracking_percentiles()
-        assert tracked is not None and len(local.tracking_error_m) == local.steps, what
-        assert np.allclose([summary["tracking_error_p50_m"], summary["tracking_error_p99_m"]],
-                           tracked, atol=ATOL), (what, summary, tracked)
+        stack = assert_same_plant_mission(run_dir, local, what)
+        summary = json.loads((run_dir / "summary.json").read_text())
         # the plant is not Eq. (1): the measured states depart from Eq. (1)'s prediction
         # (the GPS error and the tracking), by more than the float32 of the wire
         gaps = [float(np.abs(b.state - step(a.state, a.control, stack.spec.dynamics)).max())
@@ -105,36 +126,62 @@ def test_the_stack_flies_the_in_process_multirotor_mission(fleet: Any) -> None:
         assert summary["d_safe_m"] == pytest.approx(20.0 + 3.717 * 1.5 + 3.0, abs=1e-3)
 
 
-def watch_wind(fleet: Any, flavour: str, seed: int, kind: str, k: int) -> list[Any]:
+def test_a_flight_that_breaches_where_its_plan_did_not_is_a_tracking_breach_in_the_stack(
+        fleet: Any) -> None:
+    """Without the tube in rough air the flight of cc on seed 3 comes within d_safe of a fire
+    its planned segment kept clear of: ``tracking_breach`` in-process and through the stack,
+    judged on the true path the vehicle reports on its side channel."""
+    (seed, run_dir), = fly_plant_missions(fleet, (3,), BREACH, "breach")
+    local = local_mission(plant_config(seed, BREACH)).run()
+    assert local.ending is Ending.TRACKING_BREACH and local.steps == 3, local.ending
+    assert_same_plant_mission(run_dir, local, "multirotor cc seed 3, no tube")
+
+
+def watch_wind(fleet: Any, flavour: str, seed: int, kind: str, k: int,
+               mavproxy: bool = False) -> tuple[list[Any], str]:
     """A plant mission of ``seed`` on the fleet's vehicle ``k`` claiming ``flavour``, a
-    pymavlink ground station on its ground-station link: the ``kind`` messages it received
-    (the first, and one sent after the mission ended)."""
+    pymavlink ground station on its ground-station link (and, with ``mavproxy``, MAVProxy
+    beside it): the ``kind`` messages pymavlink received (the first, and one sent after the
+    mission ended) and what MAVProxy's ``status <kind>`` printed then ("" without it)."""
     f, out = fleet
     gcs_port = free_port("udp")
     uav = f.uav_ids[k]
-    v, = f.start_hosted([uav], [seed], out / f"wind-{flavour}", env={"SPEED_FACTOR": "0"},
+    work = out / f"wind-{flavour}"
+    v, = f.start_hosted([uav], [seed], work, env={"SPEED_FACTOR": "0"},
                         config=plant_config(seed), service_env={"uavsim": {
                             "UAV_AUTOPILOT": flavour,
                             "GCS_URL": f"udpin:127.0.0.1:{gcs_port}"}})
+    proxy = MavProxy(f"udpout:127.0.0.1:{gcs_port}", free_port("udp"), work) if mavproxy \
+        else None
     conn = mav.connect(f"udpout:127.0.0.1:{gcs_port}", 255, 190)  # pymavlink, ardupilotmega
     got: list[Any] = []
-    with Watch(conn, speak=True).running() as gcs:
-        wait_for(lambda: kind in gcs.newest, 60.0, f"{kind} from the {flavour} vehicle")
-        got.append(gcs.newest[kind])
-        outcome = f.wait_end({uav: v.mission_id}, 300.0)[uav]
-        ended = gcs.newest[kind]
-        wait_for(lambda: gcs.newest[kind] is not ended, 10.0, f"a {kind} after the mission")
-        got.append(gcs.newest[kind])  # sent after the last flight: its last second of air
-    logs = [*logs_in(v.run_dir), *logs_in(out / f"wind-{flavour}")]
+    printed = ""
+    try:
+        with Watch(conn, speak=True).running() as gcs:
+            wait_for(lambda: kind in gcs.newest, 60.0, f"{kind} from the {flavour} vehicle")
+            got.append(gcs.newest[kind])
+            outcome = f.wait_end({uav: v.mission_id}, 300.0)[uav]
+            ended = gcs.newest[kind]
+            wait_for(lambda: gcs.newest[kind] is not ended, 10.0, f"a {kind} after the mission")
+            got.append(gcs.newest[kind])  # sent after the last flight: its last second of air
+            if proxy is not None:
+                mark = len(proxy.output())
+                proxy.send(f"status {kind}")
+                printed = proxy.wait_for(rf"{kind} {{[^}}]*}}", 20.0, after=mark).group(0)
+    finally:
+        if proxy is not None:
+            proxy.stop()
+    logs = [*logs_in(v.run_dir), *logs_in(work)]
     check(outcome.ended, f"the {flavour} plant mission to end", logs, outcome)
     f.stop_vehicle(uav)
-    return got
+    return got, printed
 
 
 def test_a_px4_ground_station_sees_wind_cov(fleet: Any) -> None:
     """5 m/s towards the east: NED wind_y (σ_u = 2.46, σ_w = 1.54 m/s at 50 m, moderate);
     the report after the mission carries the turbulence of its last second of flight."""
-    for msg in watch_wind(fleet, "px4", SEEDS[0], "WIND_COV", 0):
+    msgs, _ = watch_wind(fleet, "px4", SEEDS[0], "WIND_COV", 0)
+    for msg in msgs:
         assert abs(msg.wind_y - 5.0) < 3 * 2.46 and abs(msg.wind_x) < 3 * 2.46, msg
         assert abs(msg.wind_z) < 3 * 1.54, msg
         assert math.isnan(msg.horiz_accuracy) and math.isnan(msg.vert_accuracy), msg
@@ -143,8 +190,14 @@ def test_a_px4_ground_station_sees_wind_cov(fleet: Any) -> None:
 
 def test_an_ardupilot_ground_station_sees_wind(fleet: Any) -> None:
     """Blowing towards the east, the wind comes from the west: −90° as ArduPilot writes it,
-    5 m/s and no vertical wind in the mean; turbulent after the mission."""
-    for msg in watch_wind(fleet, "ardupilot", SEEDS[0], "WIND", 1):
+    5 m/s and no vertical wind in the mean; turbulent after the mission. MAVProxy on the
+    same link shows it (``status WIND``)."""
+    msgs, printed = watch_wind(fleet, "ardupilot", SEEDS[0], "WIND", 1, mavproxy=True)
+    for msg in msgs:
         assert abs(msg.direction + 90.0) < 60.0 and 0.0 < msg.speed < 5.0 + 3 * 2.46, msg
         assert abs(msg.speed_z) < 3 * 1.54, msg
     assert msg.speed_z != 0.0 and msg.speed != 5.0, msg
+    shown = re.search(r"direction : (-?[0-9.]+), speed : ([0-9.]+)", printed)
+    assert shown is not None, printed
+    assert abs(float(shown.group(1)) + 90.0) < 60.0, printed
+    assert 0.0 < float(shown.group(2)) < 5.0 + 3 * 2.46, printed
