@@ -40,13 +40,13 @@ def fly_due(ap: Autopilot, now_ms: int) -> int:
     period_ms = max(int(round(1000.0 / plant.plant.params.setpoint_hz)), 1)
     behind = (now_ms - plant.time_ms) // period_ms
     if behind > MAX_PERIODS:
-        plant.time_ms += (behind - MAX_PERIODS) * period_ms
+        plant.idle(plant.time_ms + (behind - MAX_PERIODS) * period_ms)
     flown = 0
     while plant.time_ms + period_ms <= now_ms:
         end_ms = plant.time_ms + period_ms
         target = target_now(ap)
         if target is None or not ap.commander.armed or ap.nav.landed:
-            plant.time_ms = end_ms  # on the ground: the clock runs, nothing flies
+            plant.idle(end_ms)  # on the ground: the clock runs, nothing flies
             continue
         v.state = plant.fly_held(target, period_ms / 1000.0, end_ms)
         flown += 1

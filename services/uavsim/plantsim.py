@@ -16,7 +16,10 @@ loop makes it (:func:`dualpilot.mission.local.local_vehicle`):
   so with the same plant, wind and seed the stack flies the in-process flight;
 * **real time** (the vehicle's own clock): the newest setpoint flies for each period
   of the 20 Hz setpoint stream (``MultirotorParams.setpoint_hz``) as it comes due
-  (services/uavsim/plantclock.py), like a SITL's flight controller.
+  (services/uavsim/plantclock.py), like a SITL's flight controller. The truth is then
+  the path of the last ΔT and the setpoint positions held along it: its tracking error
+  is the distance to the setpoint, which runs ahead of the vehicle (the setpoint of a
+  step is the state due at its end), not lockstep's distance to Eq. (1)'s segment.
 
 The vehicle's reported state (LOCAL_POSITION_NED, services/uavsim/telemetry.py) is
 then the plant's measurement, the autopilot's estimate; the truth of the latest
@@ -34,7 +37,7 @@ import numpy as np
 from dualpilot.mission.config import MissionConfig
 from dualpilot.mission.flight import fly_ramp
 from dualpilot.model.dynamics import Array
-from dualpilot.plant import Flight, MultirotorPlant
+from dualpilot.plant import MultirotorPlant
 from dualpilot.plant.setpoints import to_plant
 from dualpilot.spec import Stream
 from services.common.convert.plant import FlightTruth
@@ -103,23 +106,32 @@ class PlantSim:
             self.held = target
             return self.measured()
         flight = fly_ramp(self.plant, np.asarray(state, dtype=float), target[self.dim:])
-        self._took(flight, flight.reference, due_ms)
+        self._took(flight.positions[:, :2], flight.reference[:, :2], flight.wind, due_ms)
         return flight.measured.copy()
 
     def fly_held(self, target: Array, duration_s: float, end_ms: int) -> Array:
         """Own clock: ``duration_s`` (s) towards ``target`` [p*, v*] held (its velocity as
         feed-forward, no acceleration: SET_POSITION_TARGET_LOCAL_NED's position and velocity),
-        ending at ``end_ms``; the measured state after it."""
+        ending at ``end_ms``; the measured state after it. The truth then holds the path of
+        the last ΔT (the periods flown, joined) and the setpoint positions held along it."""
         mr = self.plant.params
         p, v = to_plant(np.asarray(target, dtype=float), self.dim, mr.altitude_m)
         setpoint = np.concatenate([p, v, np.zeros(3)])[None, :]
         flight = self.plant.fly_stream(setpoint, duration_s)
-        self._took(flight, flight.reference, end_ms)
+        path, held = flight.positions[:, :2], flight.reference[:, :2]
+        if len(self.path):  # the last ΔT of the path, the periods joined end to start
+            path, held = np.vstack([self.path, path[1:]]), np.vstack([self.planned, held[1:]])
+        keep = int(round(self.plant.dyn.dt_s * mr.rate_hz)) + 1
+        self._took(path[-keep:], held[-keep:], flight.wind, end_ms)
         return flight.measured.copy()
 
-    def _took(self, flight: Flight, reference: Array, end_ms: int) -> None:
+    def idle(self, end_ms: int) -> None:
+        """Own clock: a period not flown (on the ground, disarmed), ending at ``end_ms``."""
+        self.time_ms = int(end_ms)
+        self.path, self.planned = np.empty((0, 2)), np.empty((0, 2))
+
+    def _took(self, path: Array, planned: Array, wind: Array, end_ms: int) -> None:
         self.flights += 1
         self.time_ms = int(end_ms)
-        self.path = np.asarray(flight.positions[:, :2])
-        self.planned = np.asarray(reference[:, :2])
-        self.air_samples = np.vstack([self.air_samples, flight.wind])[-self.air_keep:]
+        self.path, self.planned = np.asarray(path), np.asarray(planned)
+        self.air_samples = np.vstack([self.air_samples, wind])[-self.air_keep:]

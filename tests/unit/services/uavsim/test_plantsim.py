@@ -134,6 +134,11 @@ def test_on_its_own_clock_the_plant_flies_the_20_hz_stream_as_it_comes() -> None
         assert np.array_equal(plant.truth().planned[-1], east[:2])  # flown towards it
         path.append(plant.plant.state[:2].copy())
     assert plant.flights == 201 and plant.time_ms == start_ms + 10_000
+    # the truth: the path of the last ΔT (20 periods of 5 integration steps, joined) and the
+    # setpoint held along it, what the supervisor's port judges
+    truth = plant.truth()
+    assert truth.path.shape == (101, 2) and np.array_equal(truth.path[-1], path[-1])
+    assert np.array_equal(truth.path[0], path[-21]) and (truth.planned == east[:2]).all()
     # a position step under PX4's controller (docs/plant.md: a 10 m step overshoots 7.9 %
     # and is inside ±0.5 m after 3.8 s): on its way after 1 s, there after 10 s
     assert 100.5 < path[19][0] < 119.5 and abs(path[-1][0] - 120.0) < 0.5
@@ -142,6 +147,13 @@ def test_on_its_own_clock_the_plant_flies_the_20_hz_stream_as_it_comes() -> None
     # a stalled loop skips ahead: at most MAX_PERIODS periods in one pass
     assert plantclock.fly_due(ap, plant.time_ms + 10_000) == plantclock.MAX_PERIODS
     assert plant.time_ms == start_ms + 20_000
+    assert plant.truth().path.shape == (101, 2)  # only what was flown after the skip
+    # on the ground nothing flies and the path is forgotten
+    assert r.command(m.MAV_CMD_COMPONENT_ARM_DISARM, 0, 21196, link="offboard",
+                     peer=COMPANION, now=20.0) == m.MAV_RESULT_ACCEPTED
+    held = plant.plant.state.copy()
+    assert plantclock.fly_due(ap, plant.time_ms + 1000) == 0
+    assert np.array_equal(plant.plant.state, held) and plant.truth().path.shape == (0, 2)
 
 
 def test_the_truth_crosses_the_side_channel_checked() -> None:
