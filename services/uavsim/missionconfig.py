@@ -122,7 +122,8 @@ class MissionConfigs:
         log.info("mission configuration", extra=fields(
             mission=config.mission_id, profile=config.profile, dt_s=dyn.dt_s, zeta=dyn.zeta,
             mass_kg=dyn.mass_kg, u_max_n=dyn.u_max_n, v_max_mps=dyn.v_max_mps,
-            speed_limit=dyn.speed_limit, area_size_m=self.endpoint.setup.area_size_m))
+            speed_limit=dyn.speed_limit, area_size_m=self.endpoint.setup.area_size_m,
+            plant=config.reading().plant.plant))
 
     def close(self) -> None:
         self.queryable.undeclare()
