@@ -27,7 +27,15 @@ from dualpilot.mission.result import Ending, MissionResult
 from dualpilot.model.dynamics import DynamicsParams, hover_state
 from services.common import keys, mav, mavmodes
 from services.supervisor.session import Aborted, VehicleGone
-from tests.support.stack import BOOT_MS, UAV, Rig, SimAutopilot, rig, serve_link
+from tests.support.stack import (
+    BOOT_MS,
+    UAV,
+    PlantAutopilot,
+    Rig,
+    SimAutopilot,
+    rig,
+    serve_link,
+)
 
 m = mav.mavlink
 SEED = 26  # cc reaches the goal in 56 steps, System 2 flying all but one
@@ -343,6 +351,24 @@ def test_a_multirotor_mission_is_the_in_process_one_judged_on_the_true_flight(
     summary = json.loads((tmp_path / "summary.json").read_text())
     assert (summary["tracking_error_p50_m"], summary["tracking_error_p99_m"]) == (
         want.tracking_percentiles())
+
+
+def test_a_plant_vehicle_that_stops_giving_its_truth_ends_the_mission_after_its_timeout(
+        tmp_path: Path) -> None:
+    """The truth is asked after every state; a vehicle that answers "unavailable" (here: its
+    plant gone after step 4, a vehicle flying Eq. (1)) is asked again until the vehicle
+    timeout (10 s of wall time), then the mission aborts saying why: never judged on a
+    guess."""
+    config = MissionConfig.named("cc", seed=SEED, settings=SHORT + MULTIROTOR)
+    r = rig(config, tmp_path)
+    assert isinstance(r.autopilot, PlantAutopilot)
+    autopilot = r.autopilot
+    on_state(r, 5, lambda: setattr(autopilot.vehicle, "plant", None))
+    began = r.wall.now()
+    with pytest.raises(Aborted, match="the vehicle's ground truth: this vehicle flies the ideal"):
+        r.session.run()
+    assert r.wall.now() - began >= r.bus.stack.vehicle_timeout_s
+    assert r.session.result is not None and r.session.result.steps == 5
 
 
 def test_a_3d_mission_of_another_plant_than_the_ideal_is_refused_before_the_vehicle_is_taken(
