@@ -48,7 +48,7 @@ def main() -> None:
         for name, scenario, seed, diff, secs in pool.map(compare, cases):
             rows.setdefault((name, scenario), []).append((seed, diff, secs))
     print(f"seeds 0..{args.seeds - 1} of each case, {args.jobs} processes\n")
-    print("| controller | scenario | identical | differ | first differing seed | s (CPU) |")
+    print("| controller | scenario | identical | differ | first differing seed | s (wall) |")
     print("|---|---|---|---|---|---|")
     total = same = 0
     for (name, scenario), got in rows.items():
