@@ -1,10 +1,12 @@
 """The ranges and sizes every decoder enforces, and the checks that raise on them.
 
 Positions within ``MAX_ABS_M`` of the origin (m), speeds (m/s), forces (N), sizes
-(fronts, hull vertices, horizon, text). A failed check raises
+(fronts, hull vertices, horizon, text), altitudes and the tops of fires (m above ground,
+within [0, ``MAX_ALTITUDE_M``]). A failed check raises
 :class:`~services.common.rejections.CodecError` with the reason ``not_finite``,
 ``out_of_range`` or ``size``. The core's state is x = [p_east, p_north, v_east,
-v_north] (Sec. IV, 2-D at fixed altitude).
+v_north] (Sec. IV, 2-D at fixed altitude), or in 3-D x = [p_east, p_north, p_up, v_east,
+v_north, v_up] (docs/three_d.md).
 """
 
 from __future__ import annotations
@@ -18,6 +20,8 @@ from dualpilot.model.dynamics import Array
 from services.common.rejections import Reason, invalid
 
 MAX_ABS_M = 1.0e5  # positions and fire geometry (m)
+#: altitudes and the tops of fires (m above ground): [0, MAX_ALTITUDE_M]
+MAX_ALTITUDE_M = 10_000.0
 #: A plan request's positions, goal, waypoints and fires lie within the mission's area
 #: [0, A]² grown by this many A on every side: "far outside the area" is rejected.
 AREA_MARGIN = 1.0
@@ -82,11 +86,29 @@ def check_in_box(points: Array, lo: float, hi: float, what: str) -> None:
                       Reason.OUT_OF_RANGE)
 
 
+def check_altitudes(vals: list[float], what: str) -> list[float]:
+    """``vals`` when each is finite and within [0, MAX_ALTITUDE_M] (m above ground); raises
+    CodecError else."""
+    check_floats(vals, what, MAX_ALTITUDE_M)
+    if any(v < 0.0 for v in vals):
+        raise invalid(f"{what} must lie within [0, {MAX_ALTITUDE_M:g}] m, got {vals[:8]}",
+                      Reason.OUT_OF_RANGE)
+    return vals
+
+
 def check_state_values(x: Array, what: str = "state") -> Array:
-    """A core state [p_e, p_n, v_e, v_n]: within ±MAX_ABS_M (m), ±MAX_SPEED_MPS (m/s)."""
+    """A core state [p_e, p_n, v_e, v_n], or in 3-D [p_e, p_n, p_up, v_e, v_n, v_up]: within
+    ±MAX_ABS_M (m) east and north, [0, MAX_ALTITUDE_M] up, ±MAX_SPEED_MPS (m/s)."""
     x = np.asarray(x, dtype=float)
+    if x.shape == (6,):
+        e, n, up, ve, vn, vu = x.tolist()
+        check_floats([e, n], f"{what} position", MAX_ABS_M)
+        check_altitudes([up], f"{what} altitude")
+        check_floats([ve, vn, vu], f"{what} velocity", MAX_SPEED_MPS)
+        return x
     if x.shape != (4,):
-        raise invalid(f"{what} must have 4 entries, got shape {x.shape}", Reason.SIZE)
+        raise invalid(f"{what} must have 4 entries (6 in 3-D), got shape {x.shape}",
+                      Reason.SIZE)
     e, n, ve, vn = x.tolist()  # plain floats: checked at 10 Hz per vehicle, both ways
     check_floats([e, n], f"{what} position", MAX_ABS_M)
     check_floats([ve, vn], f"{what} velocity", MAX_SPEED_MPS)

@@ -1,9 +1,11 @@
 """MAVLink messages ↔ core types, validated: the LOCAL_NED frame, setpoints, bad frames.
 
 The core's local frame is (east, north) in metres, state x = [p_east, p_north,
-v_east, v_north] (Sec. IV, 2-D at fixed altitude). MAVLink's LOCAL_NED is (north,
-east, down): :func:`state_to_ned` and :func:`state_from_ned` are the only
-conversions between the two. Its constants are in services/common/mav.py, the
+v_east, v_north] (Sec. IV, 2-D at fixed altitude), or in 3-D (docs/three_d.md)
+x = [p_east, p_north, p_up, v_east, v_north, v_up] (z up, m above flat ground).
+MAVLink's LOCAL_NED is (north, east, down): z = −p_up, vz = −v_up.
+:func:`state_to_ned` and :func:`state_from_ned` are the only conversions between the
+two. Its constants are in services/common/mav.py, the
 stdlib framing in services/common/mavframe.py.
 """
 
@@ -34,19 +36,33 @@ MAX_MAVLINK_DATAGRAM = 4096
 
 
 def state_to_ned(x: Array, altitude_m: float) -> tuple[float, float, float, float, float, float]:
-    """Core state (east, north, v_east, v_north) → NED (x, y, z, vx, vy, vz)."""
+    """Core state → NED (x, y, z, vx, vy, vz): a planar one (east, north, v_east, v_north) at
+    the fixed ``altitude_m`` and vz = 0, a 3-D one (6 entries) at its own altitude and climb
+    (``altitude_m`` unused)."""
     x = check_state_values(x)
+    if len(x) == 6:
+        return (float(x[1]), float(x[0]), -float(x[2]), float(x[4]), float(x[3]),
+                -float(x[5]))
     return (float(x[1]), float(x[0]), -float(altitude_m), float(x[3]), float(x[2]), 0.0)
 
 
-def state_from_ned(n: float, e: float, vn: float, ve: float) -> Array:
-    """NED north/east position and velocity → core state; raises CodecError if out of range."""
+def state_from_ned(n: float, e: float, vn: float, ve: float,
+                   d: float | None = None, vd: float | None = None) -> Array:
+    """NED north/east position and velocity → core state (with ``d`` and ``vd``, down
+    positive, the 3-D state: p_up = −d, v_up = −vd); raises CodecError if out of range."""
+    if d is not None and vd is not None:
+        return check_state_values(np.array([e, n, -d, ve, vn, -vd], dtype=float),
+                                  "MAVLink state")
     return check_state_values(np.array([e, n, ve, vn], dtype=float), "MAVLink state")
 
 
 def setpoint_from_mavlink(msg: Any, area_size_m: float | None = None,
-                          lead_ms: int | None = None, range_m: float | None = None) -> Array:
-    """A SET_POSITION_TARGET_LOCAL_NED as the core target state [p_e, p_n, v_e, v_n].
+                          lead_ms: int | None = None, range_m: float | None = None,
+                          dim: int = 2) -> Array:
+    """A SET_POSITION_TARGET_LOCAL_NED as the core target state [p_e, p_n, v_e, v_n] (with
+    ``dim`` 3: [p_e, p_n, p_up, v_e, v_n, v_up], p_up = −z, v_up = −vz, the altitude within
+    [0, :data:`MAX_SETPOINT_ALT_M`] and the climb within :data:`MAX_SETPOINT_SPEED_MPS`
+    whatever the other checks).
 
     Accepts LOCAL_NED with type_mask 3520 (position + velocity) or 3576
     (position only; velocity target 0). With ``area_size_m`` the position must
@@ -69,6 +85,9 @@ def setpoint_from_mavlink(msg: Any, area_size_m: float | None = None,
     else:
         raise invalid(f"setpoint type_mask {msg.type_mask}: only {mav.TYPE_MASK_POS_VEL} and "
                       f"{mav.TYPE_MASK_POS} are supported")
+    if dim == 3:
+        return _setpoint3(msg, msg.vz if msg.type_mask == mav.TYPE_MASK_POS_VEL else 0.0,
+                          area_size_m, lead_ms, range_m)
     if area_size_m is not None or range_m is not None:
         finite([msg.z], "setpoint z", MAX_SETPOINT_ALT_M)
         if area_size_m is not None:
@@ -88,6 +107,20 @@ def setpoint_from_mavlink(msg: Any, area_size_m: float | None = None,
                       f"(at most {MAX_SETPOINT_LEAD_S:g} s)", Reason.OUT_OF_RANGE)
     return x
 
+
+def _setpoint3(msg: Any, vz: float, area_size_m: float | None, lead_ms: int | None,
+               range_m: float | None) -> Array:
+    """The 3-D target of a setpoint: the planar checks on its horizontal part, then its
+    altitude and climb (CodecError ``not_finite`` or ``out_of_range``)."""
+    horizontal = setpoint_from_mavlink(msg, area_size_m, lead_ms, range_m)
+    finite([msg.z], "setpoint z", MAX_SETPOINT_ALT_M)
+    finite([vz], "setpoint vz", MAX_SETPOINT_SPEED_MPS)
+    if not -msg.z >= 0.0:
+        raise invalid(f"setpoint altitude {-msg.z:.6g} m (z = {msg.z:.6g}) is below the "
+                      f"ground", Reason.OUT_OF_RANGE)
+    return check_state_values(np.array([horizontal[0], horizontal[1], -float(msg.z),
+                                        horizontal[2], horizontal[3], -float(vz)]),
+                              "setpoint")
 
 
 def mavlink_frame_reason(bad_data_reason: str) -> Reason:

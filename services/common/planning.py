@@ -38,8 +38,9 @@ from typing import cast
 import zenoh
 
 from dualpilot.mission.config import MissionConfig
+from dualpilot.model.geometry import Polytope
 from dualpilot.model.risk import ForecastView
-from dualpilot.plan import ForecastPlanner, Plan, Planner, PlanStatus, planar_obstacles
+from dualpilot.plan import ForecastPlanner, Plan, Planner, PlanStatus
 from dualpilot.spec import MissionSpec
 from dualpilot.warmup import warm_up
 from services.msgs import common_pb2, plan_pb2, vehicle_pb2
@@ -169,7 +170,8 @@ class PlannerService:
         view = self.check_forecast(query)
         t0 = time.perf_counter()
         try:
-            obstacles = planar_obstacles(req.obstacles)  # the wire's are planar
+            # the mission's kind (check_in_area): polygons in 2-D, prisms in 3-D
+            obstacles = cast(tuple[Polytope, ...], req.obstacles)
             if view is not None:
                 plan = cast(ForecastPlanner, planner).plan(
                     req.state, obstacles, req.objective, req.prev_control, forecast=view)

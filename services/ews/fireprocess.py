@@ -83,7 +83,8 @@ class Ews:
         assert self.field is not None
         f = self.field
         return fire_convert.fire_state_msg(f.fronts, f.extinct_hulls, self.step, f.substeps_done,
-                                             self.params.substep_s, self.stamper, self.sim_time_s)
+                                             self.params.substep_s, self.stamper, self.sim_time_s,
+                                             f.extinct_tops if f.heights is not None else ())
 
     def handle(self, cmd: fire_convert.FireCommand) -> fire_pb2.FireUpdate:
         update = fire_pb2.FireUpdate()
@@ -94,8 +95,11 @@ class Ews:
             config = DEFAULT_CONFIG if cmd.config is None else cmd.config
             params = self.params = config.reading().fire
             self.occupancy = config.forecast
-            self.field = (FireField(params=params, area_size_m=cmd.area_size_m)
-                          if cmd.area_size_m > 0 else FireField(params=params))
+            # 3-D: the fronts' tops, from the mission's spec (its band, clearance, seed) as
+            # in-process (dualpilot/mission/local.py); None in 2-D
+            heights = config.reading().altitude.fire_heights(config.spec(), params.scenario)
+            self.field = (FireField(params=params, area_size_m=cmd.area_size_m, heights=heights)
+                          if cmd.area_size_m > 0 else FireField(params=params, heights=heights))
             self.rng = stream_rng(cmd.seed, Stream.FIRE)
             self.mission_id, self.step, self.sim_time_s = cmd.mission_id, 0, 0.0
             self.seed, self.step_substeps = cmd.seed, 0

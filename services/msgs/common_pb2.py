@@ -24,27 +24,27 @@ _sym_db = _symbol_database.Default()
 
 
 
-DESCRIPTOR = _descriptor_pool.Default().AddSerializedFile(b'\n\x19\x64ualpilot/v1/common.proto\x12\x0c\x64ualpilot.v1\"{\n\x06Header\x12\x16\n\x0eschema_version\x18\x01 \x01(\r\x12\x0b\n\x03seq\x18\x02 \x01(\x04\x12\x0e\n\x06source\x18\x03 \x01(\t\x12\x12\n\nvehicle_id\x18\x04 \x01(\t\x12\x12\n\nsim_time_s\x18\x05 \x01(\x01\x12\x14\n\x0cwall_time_ns\x18\x06 \x01(\x03\"\'\n\x04Vec2\x12\x0e\n\x06\x65\x61st_m\x18\x01 \x01(\x01\x12\x0f\n\x07north_m\x18\x02 \x01(\x01\")\n\x06\x46orce2\x12\x0e\n\x06\x65\x61st_n\x18\x01 \x01(\x01\x12\x0f\n\x07north_n\x18\x02 \x01(\x01\"X\n\x04Rect\x12\x15\n\rcenter_east_m\x18\x01 \x01(\x01\x12\x16\n\x0e\x63\x65nter_north_m\x18\x02 \x01(\x01\x12\x0f\n\x07width_m\x18\x03 \x01(\x01\x12\x10\n\x08height_m\x18\x04 \x01(\x01\"\x1d\n\x07Polygon\x12\x12\n\nvertices_m\x18\x01 \x03(\x01\"o\n\x05\x43lock\x12$\n\x06header\x18\x01 \x01(\x0b\x32\x14.dualpilot.v1.Header\x12\x12\n\nsim_time_s\x18\x02 \x01(\x01\x12\x14\n\x0cspeed_factor\x18\x03 \x01(\x01\x12\x16\n\x0e\x61nchor_wall_ns\x18\x04 \x01(\x03\"e\n\x05\x45rror\x12$\n\x06header\x18\x01 \x01(\x0b\x32\x14.dualpilot.v1.Header\x12%\n\x04\x63ode\x18\x02 \x01(\x0e\x32\x17.dualpilot.v1.ErrorCode\x12\x0f\n\x07message\x18\x03 \x01(\t*\xa9\x01\n\tErrorCode\x12\x1a\n\x16\x45RROR_CODE_UNSPECIFIED\x10\x00\x12\x18\n\x14\x45RROR_CODE_MALFORMED\x10\x01\x12\x16\n\x12\x45RROR_CODE_INVALID\x10\x02\x12\x17\n\x13\x45RROR_CODE_INTERNAL\x10\x03\x12\x19\n\x15\x45RROR_CODE_UNPREPARED\x10\x04\x12\x1a\n\x16\x45RROR_CODE_UNAVAILABLE\x10\x05\x62\x06proto3')
+DESCRIPTOR = _descriptor_pool.Default().AddSerializedFile(b'\n\x19\x64ualpilot/v1/common.proto\x12\x0c\x64ualpilot.v1\"{\n\x06Header\x12\x16\n\x0eschema_version\x18\x01 \x01(\r\x12\x0b\n\x03seq\x18\x02 \x01(\x04\x12\x0e\n\x06source\x18\x03 \x01(\t\x12\x12\n\nvehicle_id\x18\x04 \x01(\t\x12\x12\n\nsim_time_s\x18\x05 \x01(\x01\x12\x14\n\x0cwall_time_ns\x18\x06 \x01(\x03\"\'\n\x04Vec2\x12\x0e\n\x06\x65\x61st_m\x18\x01 \x01(\x01\x12\x0f\n\x07north_m\x18\x02 \x01(\x01\"7\n\x06\x46orce2\x12\x0e\n\x06\x65\x61st_n\x18\x01 \x01(\x01\x12\x0f\n\x07north_n\x18\x02 \x01(\x01\x12\x0c\n\x04up_n\x18\x03 \x01(\x01\"X\n\x04Rect\x12\x15\n\rcenter_east_m\x18\x01 \x01(\x01\x12\x16\n\x0e\x63\x65nter_north_m\x18\x02 \x01(\x01\x12\x0f\n\x07width_m\x18\x03 \x01(\x01\x12\x10\n\x08height_m\x18\x04 \x01(\x01\"\x1d\n\x07Polygon\x12\x12\n\nvertices_m\x18\x01 \x03(\x01\"o\n\x05\x43lock\x12$\n\x06header\x18\x01 \x01(\x0b\x32\x14.dualpilot.v1.Header\x12\x12\n\nsim_time_s\x18\x02 \x01(\x01\x12\x14\n\x0cspeed_factor\x18\x03 \x01(\x01\x12\x16\n\x0e\x61nchor_wall_ns\x18\x04 \x01(\x03\"e\n\x05\x45rror\x12$\n\x06header\x18\x01 \x01(\x0b\x32\x14.dualpilot.v1.Header\x12%\n\x04\x63ode\x18\x02 \x01(\x0e\x32\x17.dualpilot.v1.ErrorCode\x12\x0f\n\x07message\x18\x03 \x01(\t*\xa9\x01\n\tErrorCode\x12\x1a\n\x16\x45RROR_CODE_UNSPECIFIED\x10\x00\x12\x18\n\x14\x45RROR_CODE_MALFORMED\x10\x01\x12\x16\n\x12\x45RROR_CODE_INVALID\x10\x02\x12\x17\n\x13\x45RROR_CODE_INTERNAL\x10\x03\x12\x19\n\x15\x45RROR_CODE_UNPREPARED\x10\x04\x12\x1a\n\x16\x45RROR_CODE_UNAVAILABLE\x10\x05\x62\x06proto3')
 
 _globals = globals()
 _builder.BuildMessageAndEnumDescriptors(DESCRIPTOR, _globals)
 _builder.BuildTopDescriptorsAndMessages(DESCRIPTOR, 'dualpilot.v1.common_pb2', _globals)
 if not _descriptor._USE_C_DESCRIPTORS:
   DESCRIPTOR._loaded_options = None
-  _globals['_ERRORCODE']._serialized_start=590
-  _globals['_ERRORCODE']._serialized_end=759
+  _globals['_ERRORCODE']._serialized_start=604
+  _globals['_ERRORCODE']._serialized_end=773
   _globals['_HEADER']._serialized_start=43
   _globals['_HEADER']._serialized_end=166
   _globals['_VEC2']._serialized_start=168
   _globals['_VEC2']._serialized_end=207
   _globals['_FORCE2']._serialized_start=209
-  _globals['_FORCE2']._serialized_end=250
-  _globals['_RECT']._serialized_start=252
-  _globals['_RECT']._serialized_end=340
-  _globals['_POLYGON']._serialized_start=342
-  _globals['_POLYGON']._serialized_end=371
-  _globals['_CLOCK']._serialized_start=373
-  _globals['_CLOCK']._serialized_end=484
-  _globals['_ERROR']._serialized_start=486
-  _globals['_ERROR']._serialized_end=587
+  _globals['_FORCE2']._serialized_end=264
+  _globals['_RECT']._serialized_start=266
+  _globals['_RECT']._serialized_end=354
+  _globals['_POLYGON']._serialized_start=356
+  _globals['_POLYGON']._serialized_end=385
+  _globals['_CLOCK']._serialized_start=387
+  _globals['_CLOCK']._serialized_end=498
+  _globals['_ERROR']._serialized_start=500
+  _globals['_ERROR']._serialized_end=601
 # @@protoc_insertion_point(module_scope)

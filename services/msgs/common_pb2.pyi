@@ -47,12 +47,14 @@ class Vec2(_message.Message):
     def __init__(self, east_m: _Optional[float] = ..., north_m: _Optional[float] = ...) -> None: ...
 
 class Force2(_message.Message):
-    __slots__ = ("east_n", "north_n")
+    __slots__ = ("east_n", "north_n", "up_n")
     EAST_N_FIELD_NUMBER: _ClassVar[int]
     NORTH_N_FIELD_NUMBER: _ClassVar[int]
+    UP_N_FIELD_NUMBER: _ClassVar[int]
     east_n: float
     north_n: float
-    def __init__(self, east_n: _Optional[float] = ..., north_n: _Optional[float] = ...) -> None: ...
+    up_n: float
+    def __init__(self, east_n: _Optional[float] = ..., north_n: _Optional[float] = ..., up_n: _Optional[float] = ...) -> None: ...
 
 class Rect(_message.Message):
     __slots__ = ("center_east_m", "center_north_m", "width_m", "height_m")

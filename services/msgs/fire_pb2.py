@@ -26,33 +26,33 @@ from services.msgs import common_pb2 as dualpilot_dot_v1_dot_common__pb2
 from services.msgs import config_pb2 as dualpilot_dot_v1_dot_config__pb2
 
 
-DESCRIPTOR = _descriptor_pool.Default().AddSerializedFile(b'\n\x17\x64ualpilot/v1/fire.proto\x12\x0c\x64ualpilot.v1\x1a\x19\x64ualpilot/v1/common.proto\x1a\x19\x64ualpilot/v1/config.proto\"\xa3\x01\n\tFireFront\x12\x10\n\x08\x66ront_id\x18\x01 \x01(\r\x12\x11\n\tborn_step\x18\x02 \x01(\r\x12\x11\n\tspeed_mps\x18\x03 \x01(\x01\x12\x15\n\rdirection_rad\x18\x04 \x01(\x01\x12\"\n\x06region\x18\x05 \x01(\x0b\x32\x12.dualpilot.v1.Rect\x12#\n\x04hull\x18\x06 \x01(\x0b\x32\x15.dualpilot.v1.Polygon\"\xc0\x01\n\tFireState\x12$\n\x06header\x18\x01 \x01(\x0b\x32\x14.dualpilot.v1.Header\x12\x0c\n\x04step\x18\x02 \x01(\r\x12\x15\n\rsubsteps_done\x18\x03 \x01(\r\x12\x11\n\tsubstep_s\x18\x04 \x01(\x01\x12\'\n\x06\x66ronts\x18\x05 \x03(\x0b\x32\x17.dualpilot.v1.FireFront\x12,\n\rextinct_hulls\x18\x06 \x03(\x0b\x32\x15.dualpilot.v1.Polygon\"\xef\x01\n\x0c\x46ireForecast\x12$\n\x06header\x18\x01 \x01(\x0b\x32\x14.dualpilot.v1.Header\x12\x15\n\rsubsteps_done\x18\x02 \x01(\r\x12\x11\n\tsubstep_s\x18\x03 \x01(\x01\x12\x11\n\thorizon_s\x18\x04 \x01(\x01\x12+\n\x06\x66ronts\x18\x05 \x03(\x0b\x32\x1b.dualpilot.v1.FrontForecast\x12.\n\toccupancy\x18\x06 \x01(\x0b\x32\x1b.dualpilot.v1.OccupancyGrid\x12\x0c\n\x04step\x18\x07 \x01(\r\x12\x11\n\tcompute_s\x18\x08 \x01(\x01\"\xeb\x01\n\rOccupancyGrid\x12\"\n\x06origin\x18\x01 \x01(\x0b\x32\x12.dualpilot.v1.Vec2\x12\x14\n\x0cresolution_m\x18\x02 \x01(\x01\x12\x0c\n\x04rows\x18\x03 \x01(\r\x12\x0c\n\x04\x63ols\x18\x04 \x01(\r\x12\x10\n\x08horizons\x18\x05 \x03(\r\x12\x15\n\rprobabilities\x18\x06 \x03(\x0c\x12\x11\n\thorizon_s\x18\x07 \x01(\x01\x12\x19\n\x11substeps_per_step\x18\x08 \x01(\r\x12-\n\x08\x65ncoding\x18\t \x01(\x0e\x32\x1b.dualpilot.v1.SliceEncoding\"o\n\rFrontForecast\x12\x10\n\x08\x66ront_id\x18\x01 \x01(\r\x12#\n\x07regions\x18\x02 \x03(\x0b\x32\x12.dualpilot.v1.Rect\x12\'\n\x08\x65nvelope\x18\x03 \x01(\x0b\x32\x15.dualpilot.v1.Polygon\"g\n\tFireReset\x12\x0c\n\x04seed\x18\x01 \x01(\x04\x12\x13\n\x0b\x61rea_size_m\x18\x02 \x01(\x01\x12+\n\x06\x63onfig\x18\x05 \x01(\x0b\x32\x1b.dualpilot.v1.MissionConfigJ\x04\x08\x03\x10\x04J\x04\x08\x04\x10\x05\"\x8b\x01\n\x0b\x46ireAdvance\x12\x0c\n\x04step\x18\x01 \x01(\r\x12\x10\n\x08substeps\x18\x02 \x01(\r\x12\"\n\x05\x63lock\x18\x03 \x01(\x0b\x32\x13.dualpilot.v1.Clock\x12$\n\x08keep_out\x18\x04 \x01(\x0b\x32\x12.dualpilot.v1.Vec2\x12\x12\n\nkeep_out_m\x18\x05 \x01(\x01\"c\n\x11\x46ireForecastQuery\x12\x0c\n\x04step\x18\x01 \x01(\r\x12\x15\n\rsubsteps_done\x18\x02 \x01(\r\x12\x19\n\x11substeps_per_step\x18\x03 \x01(\r\x12\x0e\n\x06\x64igest\x18\x04 \x01(\x0c\"\xdf\x01\n\x0b\x46ireCommand\x12$\n\x06header\x18\x01 \x01(\x0b\x32\x14.dualpilot.v1.Header\x12\x12\n\nmission_id\x18\x02 \x01(\t\x12(\n\x05reset\x18\x03 \x01(\x0b\x32\x17.dualpilot.v1.FireResetH\x00\x12,\n\x07\x61\x64vance\x18\x04 \x01(\x0b\x32\x19.dualpilot.v1.FireAdvanceH\x00\x12\x33\n\x08\x66orecast\x18\x05 \x01(\x0b\x32\x1f.dualpilot.v1.FireForecastQueryH\x00\x42\t\n\x07\x63ommand\"\x9f\x01\n\nFireUpdate\x12$\n\x06header\x18\x01 \x01(\x0b\x32\x14.dualpilot.v1.Header\x12\'\n\x06states\x18\x02 \x03(\x0b\x32\x17.dualpilot.v1.FireState\x12\x14\n\x0cpaced_wait_s\x18\x03 \x01(\x01\x12,\n\x08\x66orecast\x18\x04 \x01(\x0b\x32\x1a.dualpilot.v1.FireForecast*@\n\rSliceEncoding\x12\x16\n\x12SLICE_ENCODING_RAW\x10\x00\x12\x17\n\x13SLICE_ENCODING_ZLIB\x10\x01\x62\x06proto3')
+DESCRIPTOR = _descriptor_pool.Default().AddSerializedFile(b'\n\x17\x64ualpilot/v1/fire.proto\x12\x0c\x64ualpilot.v1\x1a\x19\x64ualpilot/v1/common.proto\x1a\x19\x64ualpilot/v1/config.proto\"\xe9\x01\n\tFireFront\x12\x10\n\x08\x66ront_id\x18\x01 \x01(\r\x12\x11\n\tborn_step\x18\x02 \x01(\r\x12\x11\n\tspeed_mps\x18\x03 \x01(\x01\x12\x15\n\rdirection_rad\x18\x04 \x01(\x01\x12\"\n\x06region\x18\x05 \x01(\x0b\x32\x12.dualpilot.v1.Rect\x12#\n\x04hull\x18\x06 \x01(\x0b\x32\x15.dualpilot.v1.Polygon\x12\x12\n\x05top_m\x18\x07 \x01(\x01H\x00\x88\x01\x01\x12\x17\n\nhull_top_m\x18\x08 \x01(\x01H\x01\x88\x01\x01\x42\x08\n\x06_top_mB\r\n\x0b_hull_top_m\"\xdd\x01\n\tFireState\x12$\n\x06header\x18\x01 \x01(\x0b\x32\x14.dualpilot.v1.Header\x12\x0c\n\x04step\x18\x02 \x01(\r\x12\x15\n\rsubsteps_done\x18\x03 \x01(\r\x12\x11\n\tsubstep_s\x18\x04 \x01(\x01\x12\'\n\x06\x66ronts\x18\x05 \x03(\x0b\x32\x17.dualpilot.v1.FireFront\x12,\n\rextinct_hulls\x18\x06 \x03(\x0b\x32\x15.dualpilot.v1.Polygon\x12\x1b\n\x13\x65xtinct_hull_tops_m\x18\x07 \x03(\x01\"\xef\x01\n\x0c\x46ireForecast\x12$\n\x06header\x18\x01 \x01(\x0b\x32\x14.dualpilot.v1.Header\x12\x15\n\rsubsteps_done\x18\x02 \x01(\r\x12\x11\n\tsubstep_s\x18\x03 \x01(\x01\x12\x11\n\thorizon_s\x18\x04 \x01(\x01\x12+\n\x06\x66ronts\x18\x05 \x03(\x0b\x32\x1b.dualpilot.v1.FrontForecast\x12.\n\toccupancy\x18\x06 \x01(\x0b\x32\x1b.dualpilot.v1.OccupancyGrid\x12\x0c\n\x04step\x18\x07 \x01(\r\x12\x11\n\tcompute_s\x18\x08 \x01(\x01\"\xeb\x01\n\rOccupancyGrid\x12\"\n\x06origin\x18\x01 \x01(\x0b\x32\x12.dualpilot.v1.Vec2\x12\x14\n\x0cresolution_m\x18\x02 \x01(\x01\x12\x0c\n\x04rows\x18\x03 \x01(\r\x12\x0c\n\x04\x63ols\x18\x04 \x01(\r\x12\x10\n\x08horizons\x18\x05 \x03(\r\x12\x15\n\rprobabilities\x18\x06 \x03(\x0c\x12\x11\n\thorizon_s\x18\x07 \x01(\x01\x12\x19\n\x11substeps_per_step\x18\x08 \x01(\r\x12-\n\x08\x65ncoding\x18\t \x01(\x0e\x32\x1b.dualpilot.v1.SliceEncoding\"o\n\rFrontForecast\x12\x10\n\x08\x66ront_id\x18\x01 \x01(\r\x12#\n\x07regions\x18\x02 \x03(\x0b\x32\x12.dualpilot.v1.Rect\x12\'\n\x08\x65nvelope\x18\x03 \x01(\x0b\x32\x15.dualpilot.v1.Polygon\"g\n\tFireReset\x12\x0c\n\x04seed\x18\x01 \x01(\x04\x12\x13\n\x0b\x61rea_size_m\x18\x02 \x01(\x01\x12+\n\x06\x63onfig\x18\x05 \x01(\x0b\x32\x1b.dualpilot.v1.MissionConfigJ\x04\x08\x03\x10\x04J\x04\x08\x04\x10\x05\"\x8b\x01\n\x0b\x46ireAdvance\x12\x0c\n\x04step\x18\x01 \x01(\r\x12\x10\n\x08substeps\x18\x02 \x01(\r\x12\"\n\x05\x63lock\x18\x03 \x01(\x0b\x32\x13.dualpilot.v1.Clock\x12$\n\x08keep_out\x18\x04 \x01(\x0b\x32\x12.dualpilot.v1.Vec2\x12\x12\n\nkeep_out_m\x18\x05 \x01(\x01\"c\n\x11\x46ireForecastQuery\x12\x0c\n\x04step\x18\x01 \x01(\r\x12\x15\n\rsubsteps_done\x18\x02 \x01(\r\x12\x19\n\x11substeps_per_step\x18\x03 \x01(\r\x12\x0e\n\x06\x64igest\x18\x04 \x01(\x0c\"\xdf\x01\n\x0b\x46ireCommand\x12$\n\x06header\x18\x01 \x01(\x0b\x32\x14.dualpilot.v1.Header\x12\x12\n\nmission_id\x18\x02 \x01(\t\x12(\n\x05reset\x18\x03 \x01(\x0b\x32\x17.dualpilot.v1.FireResetH\x00\x12,\n\x07\x61\x64vance\x18\x04 \x01(\x0b\x32\x19.dualpilot.v1.FireAdvanceH\x00\x12\x33\n\x08\x66orecast\x18\x05 \x01(\x0b\x32\x1f.dualpilot.v1.FireForecastQueryH\x00\x42\t\n\x07\x63ommand\"\x9f\x01\n\nFireUpdate\x12$\n\x06header\x18\x01 \x01(\x0b\x32\x14.dualpilot.v1.Header\x12\'\n\x06states\x18\x02 \x03(\x0b\x32\x17.dualpilot.v1.FireState\x12\x14\n\x0cpaced_wait_s\x18\x03 \x01(\x01\x12,\n\x08\x66orecast\x18\x04 \x01(\x0b\x32\x1a.dualpilot.v1.FireForecast*@\n\rSliceEncoding\x12\x16\n\x12SLICE_ENCODING_RAW\x10\x00\x12\x17\n\x13SLICE_ENCODING_ZLIB\x10\x01\x62\x06proto3')
 
 _globals = globals()
 _builder.BuildMessageAndEnumDescriptors(DESCRIPTOR, _globals)
 _builder.BuildTopDescriptorsAndMessages(DESCRIPTOR, 'dualpilot.v1.fire_pb2', _globals)
 if not _descriptor._USE_C_DESCRIPTORS:
   DESCRIPTOR._loaded_options = None
-  _globals['_SLICEENCODING']._serialized_start=1785
-  _globals['_SLICEENCODING']._serialized_end=1849
+  _globals['_SLICEENCODING']._serialized_start=1884
+  _globals['_SLICEENCODING']._serialized_end=1948
   _globals['_FIREFRONT']._serialized_start=96
-  _globals['_FIREFRONT']._serialized_end=259
-  _globals['_FIRESTATE']._serialized_start=262
-  _globals['_FIRESTATE']._serialized_end=454
-  _globals['_FIREFORECAST']._serialized_start=457
-  _globals['_FIREFORECAST']._serialized_end=696
-  _globals['_OCCUPANCYGRID']._serialized_start=699
-  _globals['_OCCUPANCYGRID']._serialized_end=934
-  _globals['_FRONTFORECAST']._serialized_start=936
-  _globals['_FRONTFORECAST']._serialized_end=1047
-  _globals['_FIRERESET']._serialized_start=1049
-  _globals['_FIRERESET']._serialized_end=1152
-  _globals['_FIREADVANCE']._serialized_start=1155
-  _globals['_FIREADVANCE']._serialized_end=1294
-  _globals['_FIREFORECASTQUERY']._serialized_start=1296
-  _globals['_FIREFORECASTQUERY']._serialized_end=1395
-  _globals['_FIRECOMMAND']._serialized_start=1398
-  _globals['_FIRECOMMAND']._serialized_end=1621
-  _globals['_FIREUPDATE']._serialized_start=1624
-  _globals['_FIREUPDATE']._serialized_end=1783
+  _globals['_FIREFRONT']._serialized_end=329
+  _globals['_FIRESTATE']._serialized_start=332
+  _globals['_FIRESTATE']._serialized_end=553
+  _globals['_FIREFORECAST']._serialized_start=556
+  _globals['_FIREFORECAST']._serialized_end=795
+  _globals['_OCCUPANCYGRID']._serialized_start=798
+  _globals['_OCCUPANCYGRID']._serialized_end=1033
+  _globals['_FRONTFORECAST']._serialized_start=1035
+  _globals['_FRONTFORECAST']._serialized_end=1146
+  _globals['_FIRERESET']._serialized_start=1148
+  _globals['_FIRERESET']._serialized_end=1251
+  _globals['_FIREADVANCE']._serialized_start=1254
+  _globals['_FIREADVANCE']._serialized_end=1393
+  _globals['_FIREFORECASTQUERY']._serialized_start=1395
+  _globals['_FIREFORECASTQUERY']._serialized_end=1494
+  _globals['_FIRECOMMAND']._serialized_start=1497
+  _globals['_FIRECOMMAND']._serialized_end=1720
+  _globals['_FIREUPDATE']._serialized_start=1723
+  _globals['_FIREUPDATE']._serialized_end=1882
 # @@protoc_insertion_point(module_scope)

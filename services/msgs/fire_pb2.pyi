@@ -17,36 +17,42 @@ SLICE_ENCODING_RAW: SliceEncoding
 SLICE_ENCODING_ZLIB: SliceEncoding
 
 class FireFront(_message.Message):
-    __slots__ = ("front_id", "born_step", "speed_mps", "direction_rad", "region", "hull")
+    __slots__ = ("front_id", "born_step", "speed_mps", "direction_rad", "region", "hull", "top_m", "hull_top_m")
     FRONT_ID_FIELD_NUMBER: _ClassVar[int]
     BORN_STEP_FIELD_NUMBER: _ClassVar[int]
     SPEED_MPS_FIELD_NUMBER: _ClassVar[int]
     DIRECTION_RAD_FIELD_NUMBER: _ClassVar[int]
     REGION_FIELD_NUMBER: _ClassVar[int]
     HULL_FIELD_NUMBER: _ClassVar[int]
+    TOP_M_FIELD_NUMBER: _ClassVar[int]
+    HULL_TOP_M_FIELD_NUMBER: _ClassVar[int]
     front_id: int
     born_step: int
     speed_mps: float
     direction_rad: float
     region: _common_pb2.Rect
     hull: _common_pb2.Polygon
-    def __init__(self, front_id: _Optional[int] = ..., born_step: _Optional[int] = ..., speed_mps: _Optional[float] = ..., direction_rad: _Optional[float] = ..., region: _Optional[_Union[_common_pb2.Rect, _Mapping]] = ..., hull: _Optional[_Union[_common_pb2.Polygon, _Mapping]] = ...) -> None: ...
+    top_m: float
+    hull_top_m: float
+    def __init__(self, front_id: _Optional[int] = ..., born_step: _Optional[int] = ..., speed_mps: _Optional[float] = ..., direction_rad: _Optional[float] = ..., region: _Optional[_Union[_common_pb2.Rect, _Mapping]] = ..., hull: _Optional[_Union[_common_pb2.Polygon, _Mapping]] = ..., top_m: _Optional[float] = ..., hull_top_m: _Optional[float] = ...) -> None: ...
 
 class FireState(_message.Message):
-    __slots__ = ("header", "step", "substeps_done", "substep_s", "fronts", "extinct_hulls")
+    __slots__ = ("header", "step", "substeps_done", "substep_s", "fronts", "extinct_hulls", "extinct_hull_tops_m")
     HEADER_FIELD_NUMBER: _ClassVar[int]
     STEP_FIELD_NUMBER: _ClassVar[int]
     SUBSTEPS_DONE_FIELD_NUMBER: _ClassVar[int]
     SUBSTEP_S_FIELD_NUMBER: _ClassVar[int]
     FRONTS_FIELD_NUMBER: _ClassVar[int]
     EXTINCT_HULLS_FIELD_NUMBER: _ClassVar[int]
+    EXTINCT_HULL_TOPS_M_FIELD_NUMBER: _ClassVar[int]
     header: _common_pb2.Header
     step: int
     substeps_done: int
     substep_s: float
     fronts: _containers.RepeatedCompositeFieldContainer[FireFront]
     extinct_hulls: _containers.RepeatedCompositeFieldContainer[_common_pb2.Polygon]
-    def __init__(self, header: _Optional[_Union[_common_pb2.Header, _Mapping]] = ..., step: _Optional[int] = ..., substeps_done: _Optional[int] = ..., substep_s: _Optional[float] = ..., fronts: _Optional[_Iterable[_Union[FireFront, _Mapping]]] = ..., extinct_hulls: _Optional[_Iterable[_Union[_common_pb2.Polygon, _Mapping]]] = ...) -> None: ...
+    extinct_hull_tops_m: _containers.RepeatedScalarFieldContainer[float]
+    def __init__(self, header: _Optional[_Union[_common_pb2.Header, _Mapping]] = ..., step: _Optional[int] = ..., substeps_done: _Optional[int] = ..., substep_s: _Optional[float] = ..., fronts: _Optional[_Iterable[_Union[FireFront, _Mapping]]] = ..., extinct_hulls: _Optional[_Iterable[_Union[_common_pb2.Polygon, _Mapping]]] = ..., extinct_hull_tops_m: _Optional[_Iterable[float]] = ...) -> None: ...
 
 class FireForecast(_message.Message):
     __slots__ = ("header", "substeps_done", "substep_s", "horizon_s", "fronts", "occupancy", "step", "compute_s")

@@ -49,20 +49,22 @@ SPEED_LIMIT_AXIS: SpeedLimit
 SPEED_LIMIT_NORM: SpeedLimit
 
 class Dynamics(_message.Message):
-    __slots__ = ("dt_s", "zeta", "mass_kg", "u_max_n", "v_max_mps", "speed_limit")
+    __slots__ = ("dt_s", "zeta", "mass_kg", "u_max_n", "v_max_mps", "speed_limit", "dim")
     DT_S_FIELD_NUMBER: _ClassVar[int]
     ZETA_FIELD_NUMBER: _ClassVar[int]
     MASS_KG_FIELD_NUMBER: _ClassVar[int]
     U_MAX_N_FIELD_NUMBER: _ClassVar[int]
     V_MAX_MPS_FIELD_NUMBER: _ClassVar[int]
     SPEED_LIMIT_FIELD_NUMBER: _ClassVar[int]
+    DIM_FIELD_NUMBER: _ClassVar[int]
     dt_s: float
     zeta: float
     mass_kg: float
     u_max_n: float
     v_max_mps: float
     speed_limit: SpeedLimit
-    def __init__(self, dt_s: _Optional[float] = ..., zeta: _Optional[float] = ..., mass_kg: _Optional[float] = ..., u_max_n: _Optional[float] = ..., v_max_mps: _Optional[float] = ..., speed_limit: _Optional[_Union[SpeedLimit, str]] = ...) -> None: ...
+    dim: int
+    def __init__(self, dt_s: _Optional[float] = ..., zeta: _Optional[float] = ..., mass_kg: _Optional[float] = ..., u_max_n: _Optional[float] = ..., v_max_mps: _Optional[float] = ..., speed_limit: _Optional[_Union[SpeedLimit, str]] = ..., dim: _Optional[int] = ...) -> None: ...
 
 class MissionSpec(_message.Message):
     __slots__ = ("mission_id", "seed", "goal", "area_size_m", "start", "d_safe_m", "clearance_m", "dynamics")
@@ -103,7 +105,7 @@ class PlanForecast(_message.Message):
     def __init__(self, step: _Optional[int] = ..., substeps_done: _Optional[int] = ..., substep_s: _Optional[float] = ..., substeps_per_step: _Optional[int] = ..., offset_substeps: _Optional[int] = ..., occupancy: _Optional[_Union[_fire_pb2.OccupancyGrid, _Mapping]] = ..., digest: _Optional[bytes] = ...) -> None: ...
 
 class PlanRequest(_message.Message):
-    __slots__ = ("header", "mission", "step", "system", "objective", "state", "prev_control", "deadline_s", "prepare", "mission_id", "obstacles", "waypoints_revision", "config", "forecast")
+    __slots__ = ("header", "mission", "step", "system", "objective", "state", "prev_control", "deadline_s", "prepare", "mission_id", "obstacles", "waypoints_revision", "config", "forecast", "obstacle_altitudes_m")
     HEADER_FIELD_NUMBER: _ClassVar[int]
     MISSION_FIELD_NUMBER: _ClassVar[int]
     STEP_FIELD_NUMBER: _ClassVar[int]
@@ -118,6 +120,7 @@ class PlanRequest(_message.Message):
     WAYPOINTS_REVISION_FIELD_NUMBER: _ClassVar[int]
     CONFIG_FIELD_NUMBER: _ClassVar[int]
     FORECAST_FIELD_NUMBER: _ClassVar[int]
+    OBSTACLE_ALTITUDES_M_FIELD_NUMBER: _ClassVar[int]
     header: _common_pb2.Header
     mission: MissionSpec
     step: int
@@ -132,7 +135,8 @@ class PlanRequest(_message.Message):
     waypoints_revision: int
     config: _config_pb2.MissionConfig
     forecast: PlanForecast
-    def __init__(self, header: _Optional[_Union[_common_pb2.Header, _Mapping]] = ..., mission: _Optional[_Union[MissionSpec, _Mapping]] = ..., step: _Optional[int] = ..., system: _Optional[int] = ..., objective: _Optional[_Union[Objective, str]] = ..., state: _Optional[_Union[_vehicle_pb2.VehicleState, _Mapping]] = ..., prev_control: _Optional[_Union[_common_pb2.Force2, _Mapping]] = ..., deadline_s: _Optional[float] = ..., prepare: _Optional[bool] = ..., mission_id: _Optional[str] = ..., obstacles: _Optional[_Iterable[_Union[_common_pb2.Polygon, _Mapping]]] = ..., waypoints_revision: _Optional[int] = ..., config: _Optional[_Union[_config_pb2.MissionConfig, _Mapping]] = ..., forecast: _Optional[_Union[PlanForecast, _Mapping]] = ...) -> None: ...
+    obstacle_altitudes_m: _containers.RepeatedScalarFieldContainer[float]
+    def __init__(self, header: _Optional[_Union[_common_pb2.Header, _Mapping]] = ..., mission: _Optional[_Union[MissionSpec, _Mapping]] = ..., step: _Optional[int] = ..., system: _Optional[int] = ..., objective: _Optional[_Union[Objective, str]] = ..., state: _Optional[_Union[_vehicle_pb2.VehicleState, _Mapping]] = ..., prev_control: _Optional[_Union[_common_pb2.Force2, _Mapping]] = ..., deadline_s: _Optional[float] = ..., prepare: _Optional[bool] = ..., mission_id: _Optional[str] = ..., obstacles: _Optional[_Iterable[_Union[_common_pb2.Polygon, _Mapping]]] = ..., waypoints_revision: _Optional[int] = ..., config: _Optional[_Union[_config_pb2.MissionConfig, _Mapping]] = ..., forecast: _Optional[_Union[PlanForecast, _Mapping]] = ..., obstacle_altitudes_m: _Optional[_Iterable[float]] = ...) -> None: ...
 
 class Plan(_message.Message):
     __slots__ = ("header", "step", "system", "status", "states", "controls", "compute_time_s", "objective", "cost", "path_m", "message", "info_json", "request_seq", "service_time_s", "bound", "certified_gap")

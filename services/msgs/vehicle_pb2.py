@@ -25,7 +25,7 @@ _sym_db = _symbol_database.Default()
 from services.msgs import common_pb2 as dualpilot_dot_v1_dot_common__pb2
 
 
-DESCRIPTOR = _descriptor_pool.Default().AddSerializedFile(b'\n\x1a\x64ualpilot/v1/vehicle.proto\x12\x0c\x64ualpilot.v1\x1a\x19\x64ualpilot/v1/common.proto\"\xae\x01\n\x0cVehicleState\x12$\n\x06header\x18\x01 \x01(\x0b\x32\x14.dualpilot.v1.Header\x12\x0c\n\x04step\x18\x02 \x01(\r\x12\x0e\n\x06\x65\x61st_m\x18\x03 \x01(\x01\x12\x0f\n\x07north_m\x18\x04 \x01(\x01\x12\x19\n\x11velocity_east_mps\x18\x05 \x01(\x01\x12\x1a\n\x12velocity_north_mps\x18\x06 \x01(\x01\x12\x12\n\naltitude_m\x18\x07 \x01(\x01\"\x86\x01\n\x11OperatorWaypoints\x12$\n\x06header\x18\x01 \x01(\x0b\x32\x14.dualpilot.v1.Header\x12%\n\twaypoints\x18\x02 \x03(\x0b\x32\x12.dualpilot.v1.Vec2\x12\x12\n\nmission_id\x18\x03 \x01(\t\x12\x10\n\x08revision\x18\x04 \x01(\rb\x06proto3')
+DESCRIPTOR = _descriptor_pool.Default().AddSerializedFile(b'\n\x1a\x64ualpilot/v1/vehicle.proto\x12\x0c\x64ualpilot.v1\x1a\x19\x64ualpilot/v1/common.proto\"\xd4\x01\n\x0cVehicleState\x12$\n\x06header\x18\x01 \x01(\x0b\x32\x14.dualpilot.v1.Header\x12\x0c\n\x04step\x18\x02 \x01(\r\x12\x0e\n\x06\x65\x61st_m\x18\x03 \x01(\x01\x12\x0f\n\x07north_m\x18\x04 \x01(\x01\x12\x19\n\x11velocity_east_mps\x18\x05 \x01(\x01\x12\x1a\n\x12velocity_north_mps\x18\x06 \x01(\x01\x12\x12\n\naltitude_m\x18\x07 \x01(\x01\x12\x17\n\x0fvelocity_up_mps\x18\x08 \x01(\x01\x12\x0b\n\x03\x64im\x18\t \x01(\r\"\x86\x01\n\x11OperatorWaypoints\x12$\n\x06header\x18\x01 \x01(\x0b\x32\x14.dualpilot.v1.Header\x12%\n\twaypoints\x18\x02 \x03(\x0b\x32\x12.dualpilot.v1.Vec2\x12\x12\n\nmission_id\x18\x03 \x01(\t\x12\x10\n\x08revision\x18\x04 \x01(\rb\x06proto3')
 
 _globals = globals()
 _builder.BuildMessageAndEnumDescriptors(DESCRIPTOR, _globals)
@@ -33,7 +33,7 @@ _builder.BuildTopDescriptorsAndMessages(DESCRIPTOR, 'dualpilot.v1.vehicle_pb2', 
 if not _descriptor._USE_C_DESCRIPTORS:
   DESCRIPTOR._loaded_options = None
   _globals['_VEHICLESTATE']._serialized_start=72
-  _globals['_VEHICLESTATE']._serialized_end=246
-  _globals['_OPERATORWAYPOINTS']._serialized_start=249
-  _globals['_OPERATORWAYPOINTS']._serialized_end=383
+  _globals['_VEHICLESTATE']._serialized_end=284
+  _globals['_OPERATORWAYPOINTS']._serialized_start=287
+  _globals['_OPERATORWAYPOINTS']._serialized_end=421
 # @@protoc_insertion_point(module_scope)

@@ -8,7 +8,7 @@ from typing import ClassVar as _ClassVar, Optional as _Optional, Union as _Union
 DESCRIPTOR: _descriptor.FileDescriptor
 
 class VehicleState(_message.Message):
-    __slots__ = ("header", "step", "east_m", "north_m", "velocity_east_mps", "velocity_north_mps", "altitude_m")
+    __slots__ = ("header", "step", "east_m", "north_m", "velocity_east_mps", "velocity_north_mps", "altitude_m", "velocity_up_mps", "dim")
     HEADER_FIELD_NUMBER: _ClassVar[int]
     STEP_FIELD_NUMBER: _ClassVar[int]
     EAST_M_FIELD_NUMBER: _ClassVar[int]
@@ -16,6 +16,8 @@ class VehicleState(_message.Message):
     VELOCITY_EAST_MPS_FIELD_NUMBER: _ClassVar[int]
     VELOCITY_NORTH_MPS_FIELD_NUMBER: _ClassVar[int]
     ALTITUDE_M_FIELD_NUMBER: _ClassVar[int]
+    VELOCITY_UP_MPS_FIELD_NUMBER: _ClassVar[int]
+    DIM_FIELD_NUMBER: _ClassVar[int]
     header: _common_pb2.Header
     step: int
     east_m: float
@@ -23,7 +25,9 @@ class VehicleState(_message.Message):
     velocity_east_mps: float
     velocity_north_mps: float
     altitude_m: float
-    def __init__(self, header: _Optional[_Union[_common_pb2.Header, _Mapping]] = ..., step: _Optional[int] = ..., east_m: _Optional[float] = ..., north_m: _Optional[float] = ..., velocity_east_mps: _Optional[float] = ..., velocity_north_mps: _Optional[float] = ..., altitude_m: _Optional[float] = ...) -> None: ...
+    velocity_up_mps: float
+    dim: int
+    def __init__(self, header: _Optional[_Union[_common_pb2.Header, _Mapping]] = ..., step: _Optional[int] = ..., east_m: _Optional[float] = ..., north_m: _Optional[float] = ..., velocity_east_mps: _Optional[float] = ..., velocity_north_mps: _Optional[float] = ..., altitude_m: _Optional[float] = ..., velocity_up_mps: _Optional[float] = ..., dim: _Optional[int] = ...) -> None: ...
 
 class OperatorWaypoints(_message.Message):
     __slots__ = ("header", "waypoints", "mission_id", "revision")

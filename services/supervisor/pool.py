@@ -334,7 +334,8 @@ class PlannerPool:
         log.debug("plan reply received", extra=fields(system=system, step=job.step,
                                                       replica=zid or "any",
                                                       seq=reply.request_seq))
-        plan = plan_convert.plan_from_msg(reply, system)
+        dim = 3 if job.msg.state.dim == 3 else 2  # the request's: its plan's rows
+        plan = plan_convert.plan_from_msg(reply, system, dim)
         job.service_s = reply.service_time_s
         if job.account:
             self.service_s += reply.service_time_s

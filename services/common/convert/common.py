@@ -123,7 +123,13 @@ def _ccw_polytope(v: Array) -> Polytope | None:
     return Polytope(vertices=v, A=normals, b=b)
 
 
-def force_from_msg(m: common_pb2.Force2, what: str = "force") -> Array:
+def force_from_msg(m: common_pb2.Force2, what: str = "force", dim: int = 2) -> Array:
+    """A force of ``dim`` entries (N); a planar one (``dim`` 2) with an ``up_n`` is refused."""
+    if dim == 3:
+        return finite((m.east_n, m.north_n, m.up_n), what, MAX_FORCE_N)
+    if m.up_n != 0.0:
+        raise invalid(f"{what}: a planar force carries no up_n, got {m.up_n!r}",
+                      Reason.OUT_OF_RANGE)
     return finite((m.east_n, m.north_n), what, MAX_FORCE_N)
 
 

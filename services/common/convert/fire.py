@@ -2,7 +2,10 @@
 
 Decoders check counts, finiteness and ranges (services/common/limits.py) and raise
 :class:`~services.common.rejections.CodecError` for a bad message; a reset's
-mission configuration is decoded by services/common/convert/config.py.
+mission configuration is decoded by services/common/convert/config.py. In 3-D each front
+carries its cuboid's top and its hull's (``top_m``, ``hull_top_m``) and each extinct hull
+its top (``extinct_hull_tops_m``): every front has both or none, each top lies within
+[0, MAX_ALTITUDE_M] m, positive, the hull's at least the cuboid's; a 2-D state has none.
 """
 
 from __future__ import annotations
@@ -17,9 +20,10 @@ import numpy as np
 
 from dualpilot.mission.config import MissionConfig
 from dualpilot.mission.ports import KeepOut
-from dualpilot.model.fire import FireFront, FireSnapshot
+from dualpilot.model.fire import FireFront, FireSnapshot, Region
 from dualpilot.model.forecast import OccupancyForecast
 from dualpilot.model.geometry import Polytope, Rect
+from dualpilot.model.prism import Cuboid
 from services.common.clock import Anchor, SimClock
 from services.common.convert.common import (
     clock_from_msg,
@@ -38,6 +42,7 @@ from services.common.limits import (
     MAX_SPEED_MPS,
     MAX_SUBSTEP_S,
     MAX_SUBSTEPS,
+    check_altitudes,
     check_count,
     check_floats,
     check_int,
@@ -52,8 +57,10 @@ from services.msgs import fire_pb2
 def fire_state_msg(
     fronts: Sequence[FireFront], extinct_hulls: Sequence[Polytope], step: int, substeps_done: int,
     substep_s: float, stamper: Stamper, sim_time_s: float,
+    extinct_tops: Sequence[float] = (),
 ) -> fire_pb2.FireState:
-    """The EWS's FireField as a FireState message."""
+    """The EWS's FireField as a FireState message (in 3-D with the fronts' tops and
+    ``extinct_tops``, one per extinct hull)."""
     msg = fire_pb2.FireState(step=step, substeps_done=substeps_done, substep_s=substep_s)
     stamper.stamp(msg.header, sim_time_s)
     for f in fronts:
@@ -61,13 +68,42 @@ def fire_state_msg(
                             direction_rad=f.direction_rad)
         rect_to_msg(f.region, fm.region)
         polygon_to_msg(f.hull, fm.hull)
+        if f.top_m is not None:
+            fm.top_m = float(f.top_m)
+        if f.hull_top_m is not None:
+            fm.hull_top_m = float(f.hull_top_m)
     for h in extinct_hulls:
         polygon_to_msg(h, msg.extinct_hulls.add())
+    msg.extinct_hull_tops_m.extend(float(t) for t in extinct_tops)
     return msg
 
 
+def _front_tops(m: fire_pb2.FireState) -> tuple[tuple[float, ...], tuple[float, ...]] | None:
+    """(each front's top, each front's hull top then each extinct hull's) of a 3-D state,
+    None for a planar one; CodecError for a top out of range, or when only some carry them."""
+    tops = [f.top_m for f in m.fronts if f.HasField("top_m")]
+    hull_tops = [f.hull_top_m for f in m.fronts if f.HasField("hull_top_m")]
+    extinct = list(m.extinct_hull_tops_m)
+    given = [*tops, *hull_tops, *extinct]
+    if not given:
+        return None
+    check_altitudes(given, "fire tops")
+    if any(t <= 0.0 for t in given):
+        raise invalid("a fire's top must lie above the ground (> 0 m)", Reason.OUT_OF_RANGE)
+    if len(tops) != len(m.fronts) or len(hull_tops) != len(m.fronts):
+        raise invalid("a fire state's fronts carry top_m and hull_top_m all, or none",
+                      Reason.SIZE)
+    if len(extinct) != len(m.extinct_hulls):
+        raise invalid(f"{len(extinct)} extinct hull tops for {len(m.extinct_hulls)} extinct "
+                      f"hulls", Reason.SIZE)
+    if any(h < t for t, h in zip(tops, hull_tops, strict=True)):
+        raise invalid("a front's hull top lies below its cuboid's top", Reason.OUT_OF_RANGE)
+    return tuple(tops), tuple(hull_tops) + tuple(extinct)
+
+
 def snapshot_from_msg(m: fire_pb2.FireState) -> FireSnapshot:
-    """A FireState as the core's FireSnapshot (front hulls first, then extinct hulls)."""
+    """A FireState as the core's FireSnapshot (front hulls first, then extinct hulls; in 3-D
+    with their tops)."""
     check_count(len(m.fronts), "fronts", MAX_FRONTS)
     check_count(len(m.extinct_hulls), "extinct hulls", MAX_FRONTS)
     check_floats([m.substep_s], "substep_s", MAX_SUBSTEP_S)
@@ -84,14 +120,28 @@ def snapshot_from_msg(m: fire_pb2.FireState) -> FireSnapshot:
     if len(set(ids)) != len(ids):
         raise invalid("front ids must be unique")
     hulls += [polygon_from_msg(h, f"extinct hull {i}") for i, h in enumerate(m.extinct_hulls)]
+    tops = _front_tops(m)
     return FireSnapshot(regions=tuple(regions), hulls=tuple(hulls), front_ids=tuple(ids),
-                        born_steps=tuple(born))
+                        born_steps=tuple(born), tops_m=() if tops is None else tops[0],
+                        hull_tops_m=() if tops is None else tops[1])
 
 
 def regions_from_msg(m: fire_pb2.FireState) -> tuple[Rect, ...]:
-    """Only the current regions of a FireState (validated)."""
+    """Only the current regions of a FireState (validated, their tops too), as rectangles."""
     check_count(len(m.fronts), "fronts", MAX_FRONTS)
-    return tuple(rect_from_msg(f.region, f"front {i} region") for i, f in enumerate(m.fronts))
+    rects = tuple(rect_from_msg(f.region, f"front {i} region") for i, f in enumerate(m.fronts))
+    _front_tops(m)
+    return rects
+
+
+def current_from_msg(m: fire_pb2.FireState) -> tuple[Region, ...]:
+    """The current regions of a FireState as the step measures them (validated): rectangles,
+    or in 3-D the cuboids C_t over them (:meth:`FireSnapshot.current`)."""
+    rects = regions_from_msg(m)
+    tops = _front_tops(m)
+    if tops is None:
+        return rects
+    return tuple(Cuboid(r, t) for r, t in zip(rects, tops[0], strict=True))
 
 
 def occupancy_to_msg(fc: OccupancyForecast, out: fire_pb2.OccupancyGrid,

@@ -1,5 +1,12 @@
 """plan.proto ↔ core types: the mission spec, plan requests (and prepares), plans.
 
+In 3-D (docs/three_d.md) the spec's ``Dynamics.dim`` is 3 (its altitude band and goal
+reading are the configuration's, which the prepare carries whole), a request's state is
+a 3-D one (``VehicleState.dim`` 3), its previous control has ``up_n`` and each obstacle its
+altitudes (``obstacle_altitudes_m``: a :class:`~dualpilot.model.prism.Prism`), and a plan's
+states and controls are 6 and 3 packed doubles a row; a 2-D message has none of these
+fields, byte for byte as before.
+
 A plan request decodes to the core's :class:`~dualpilot.mission.ports.PlanRequest`
 inside a :class:`PlanQuery` (its mission, sequence number, deadline and waypoint
 revision), or to a :class:`Prepare` (the mission's spec and configuration). A risk-aware
@@ -13,7 +20,7 @@ from __future__ import annotations
 
 import json
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any, cast
 
 import numpy as np
@@ -21,8 +28,10 @@ import numpy as np
 from dualpilot.mission.config import MissionConfig
 from dualpilot.mission.ports import PlanRequest
 from dualpilot.model.dynamics import DynamicsParams, SpeedLimit
+from dualpilot.model.geometry import Polytope
+from dualpilot.model.prism import Prism
 from dualpilot.model.risk import ForecastView
-from dualpilot.plan import Objective, Plan, PlanStatus, certified_gap, planar_obstacles
+from dualpilot.plan import Objective, Obstacles, Plan, PlanStatus, certified_gap
 from dualpilot.spec import MissionSpec
 from services.common.convert.common import (
     force_from_msg,
@@ -45,6 +54,7 @@ from services.common.limits import (
     MAX_SUBSTEP_S,
     MAX_SUBSTEPS,
     MAX_TEXT,
+    check_altitudes,
     check_count,
     check_floats,
     check_in_box,
@@ -115,6 +125,8 @@ def spec_to_msg(mission_id: str, spec: MissionSpec, out: plan_pb2.MissionSpec) -
     out.dynamics.dt_s, out.dynamics.zeta, out.dynamics.mass_kg = d.dt_s, d.zeta, d.mass_kg
     out.dynamics.u_max_n, out.dynamics.v_max_mps = d.u_max_n, d.v_max_mps
     out.dynamics.speed_limit = _SPEED_LIMITS[d.speed_limit]
+    if d.dim != 2:  # a planar spec's bytes are as before
+        out.dynamics.dim = d.dim
 
 
 def spec_from_msg(m: plan_pb2.MissionSpec) -> tuple[str, MissionSpec]:
@@ -131,6 +143,8 @@ def spec_from_msg(m: plan_pb2.MissionSpec) -> tuple[str, MissionSpec]:
     dyn = check_floats([d.dt_s, d.zeta, d.mass_kg, d.u_max_n, d.v_max_mps], "dynamics",
                         MAX_FORCE_N)
     speed_limit = speed_limit_from_msg(d.speed_limit)
+    if d.dim not in (0, 2, 3):
+        raise invalid(f"dynamics dim must be 2 or 3, got {d.dim}", Reason.OUT_OF_RANGE)
     start = finite((m.start.east_m, m.start.north_m), "start", MAX_ABS_M)
     try:
         spec = MissionSpec(start=(float(start[0]), float(start[1])),
@@ -138,7 +152,8 @@ def spec_from_msg(m: plan_pb2.MissionSpec) -> tuple[str, MissionSpec]:
                            clearance_m=clear, seed=int(m.seed),
                            dynamics=DynamicsParams(dt_s=dyn[0], zeta=dyn[1], mass_kg=dyn[2],
                                                    u_max_n=dyn[3], v_max_mps=dyn[4],
-                                                   speed_limit=speed_limit))
+                                                   speed_limit=speed_limit,
+                                                   dim=int(d.dim) or 2))
     except ValueError as err:
         raise invalid(f"mission spec: {err}", Reason.OUT_OF_RANGE) from err
     return mission_id, spec
@@ -206,12 +221,51 @@ def plan_query_msg(query: PlanQuery, stamper: Stamper, sim_time_s: float,
     _envelope(m, req.system, query.mission_id, query.deadline_s, stamper, sim_time_s)
     stamper.stamp(m.state.header, sim_time_s)
     state_to_msg(req.state, req.t, m.state)
-    m.prev_control.east_n, m.prev_control.north_n = (float(v) for v in req.prev_control)
-    for poly in planar_obstacles(req.obstacles):  # the wire carries no tops yet
-        polygon_to_msg(poly, m.obstacles.add())
+    u = [float(v) for v in req.prev_control]
+    m.prev_control.east_n, m.prev_control.north_n = u[:2]
+    if len(u) == 3:
+        m.prev_control.up_n = u[2]
+    _obstacles_to_msg(req.obstacles, m)
     if req.forecast is not None:
         forecast_to_msg(req.forecast, req.t, m.forecast, by_reference)
     return m
+
+
+def _obstacles_to_msg(obstacles: Obstacles, m: plan_pb2.PlanRequest) -> None:
+    """Each obstacle's polygon; a prism's altitudes (bottom, top) beside it, in order."""
+    for o in obstacles:
+        if isinstance(o, Prism):
+            polygon_to_msg(o.base, m.obstacles.add())
+            m.obstacle_altitudes_m.extend((float(o.z_lo), float(o.z_hi)))
+        else:
+            polygon_to_msg(o, m.obstacles.add())
+    if len(m.obstacle_altitudes_m) not in (0, 2 * len(m.obstacles)):
+        raise ValueError("a plan request's obstacles are all prisms (3-D) or all planar")
+
+
+def _obstacles_from_msg(m: plan_pb2.PlanRequest, dim: int) -> Obstacles:
+    """The request's obstacles: polygons (2-D), or prisms over their altitudes (3-D: a pair
+    per polygon, each within [0, MAX_ALTITUDE_M] m, bottom below top); CodecError else."""
+    check_count(len(m.obstacles), "obstacles", MAX_FRONTS * 2)
+    polys = tuple(polygon_from_msg(p, f"obstacle {i}") for i, p in enumerate(m.obstacles))
+    alts = list(m.obstacle_altitudes_m)
+    if dim == 2:
+        if alts:
+            raise invalid(f"a planar plan request (state dim 2) carries {len(alts)} obstacle "
+                          f"altitudes", Reason.SIZE)
+        return polys
+    if len(alts) != 2 * len(polys):
+        raise invalid(f"a 3-D plan request needs (bottom, top) for each of its {len(polys)} "
+                      f"obstacles, got {len(alts)} values", Reason.SIZE)
+    check_altitudes(alts, "obstacle altitudes")
+    prisms = []
+    for i, poly in enumerate(polys):
+        lo, hi = alts[2 * i], alts[2 * i + 1]
+        if not lo < hi:
+            raise invalid(f"obstacle {i}: bottom {lo!r} m is not below its top {hi!r} m",
+                          Reason.OUT_OF_RANGE)
+        prisms.append(Prism(poly, lo, hi))
+    return tuple(prisms)
 
 
 def forecast_to_msg(view: ForecastView, step: int, out: plan_pb2.PlanForecast,
@@ -310,7 +364,26 @@ def _prepare_from_msg(m: plan_pb2.PlanRequest) -> Prepare:
     if (config.seed, config.goal, config.area_size_m) != (spec.seed, spec.goal,
                                                           spec.area_size_m):
         raise invalid("the mission spec's seed, goal or area differs from its configuration's")
+    spec = _with_vertical(spec, config)
     return Prepare(mission_id, int(m.system), spec, config, int(m.header.seq), _deadline(m))
+
+
+def _with_vertical(spec: MissionSpec, config: MissionConfig) -> MissionSpec:
+    """``spec`` with its configuration's altitude band and goal reading (3-D); CodecError when
+    the two say different dimensions."""
+    try:
+        own = config.spec()
+    except ValueError as err:
+        raise invalid(f"mission configuration: {err}", Reason.OUT_OF_RANGE) from err
+    if own.dim != spec.dim:
+        raise invalid(f"the mission spec's dim {spec.dim} differs from its configuration's "
+                      f"{own.dim}", Reason.OUT_OF_RANGE)
+    if spec.dim == 2:
+        return spec
+    try:
+        return replace(spec, band=own.band, goal_vertical=own.goal_vertical)
+    except ValueError as err:
+        raise invalid(f"mission spec: {err}", Reason.OUT_OF_RANGE) from err
 
 
 def plan_request_from_msg(m: plan_pb2.PlanRequest) -> PlanQuery | Prepare:
@@ -329,8 +402,9 @@ def plan_request_from_msg(m: plan_pb2.PlanRequest) -> PlanQuery | Prepare:
     check_header(m.state.header)
     objective = objective_from_msg(m.objective)
     assert objective is not None
-    check_count(len(m.obstacles), "obstacles", MAX_FRONTS * 2)
-    obstacles = tuple(polygon_from_msg(p, f"obstacle {i}") for i, p in enumerate(m.obstacles))
+    state = state_from_msg(m.state)
+    dim = 3 if len(state) == 6 else 2
+    obstacles = _obstacles_from_msg(m, dim)
     forecast: ForecastView | None = None
     ref: ForecastRef | None = None
     if m.HasField("forecast"):  # whole, or named by reference (no grid: a digest)
@@ -338,21 +412,28 @@ def plan_request_from_msg(m: plan_pb2.PlanRequest) -> PlanQuery | Prepare:
             forecast = forecast_from_msg(m.forecast, int(m.step))
         else:
             ref = forecast_ref_from_msg(m.forecast, int(m.step))
-    request = PlanRequest(t=int(m.step), system=int(m.system), state=state_from_msg(m.state),
-                          prev_control=force_from_msg(m.prev_control, "prev_control"),
+    request = PlanRequest(t=int(m.step), system=int(m.system), state=state,
+                          prev_control=force_from_msg(m.prev_control, "prev_control", dim),
                           obstacles=obstacles, objective=objective, forecast=forecast)
     return PlanQuery(request, mission_id, int(m.header.seq), deadline,
                      int(m.waypoints_revision), ref)
 
 
 def check_in_area(req: PlanRequest, spec: MissionSpec) -> None:
-    """Everything in a request lies near the mission's area [0, A]²: the state and the
-    obstacles within ``AREA_MARGIN``·A of it (anything farther is not this mission's)."""
+    """A request is of the mission's dimension (its state's and its obstacles' kind) and
+    everything in it lies near the mission's area [0, A]²: the state and the obstacles
+    within ``AREA_MARGIN``·A of it (anything farther is not this mission's)."""
+    dim = len(req.state) // 2
+    if dim != spec.dim:
+        raise invalid(f"a plan request of dim {dim} for a mission of dim {spec.dim}",
+                      Reason.OUT_OF_RANGE)
     area = spec.area_size_m
     lo, hi = -AREA_MARGIN * area, (1 + AREA_MARGIN) * area
     check_in_box(req.state[None, :2], lo, hi, "the vehicle state")
-    for i, h in enumerate(planar_obstacles(req.obstacles)):
-        check_in_box(h.vertices, lo, hi, f"obstacle {i}")
+    for i, o in enumerate(req.obstacles):
+        base = o.base if isinstance(o, Prism) else o
+        assert isinstance(base, Polytope)
+        check_in_box(base.vertices, lo, hi, f"obstacle {i}")
 
 
 def _json_default(v: Any) -> Any:
@@ -390,13 +471,17 @@ def plan_to_msg(plan: Plan, step: int, request_seq: int, stamper: Stamper,
     return m
 
 
-def plan_from_msg(m: plan_pb2.Plan, expected_system: int | None = None) -> Plan:
+def plan_from_msg(m: plan_pb2.Plan, expected_system: int | None = None, dim: int = 2) -> Plan:
+    """A plan in core types, its states and controls (and path) rows of the mission's ``dim``
+    (2·dim, dim and dim values); CodecError for a bad one."""
     if m.system not in (1, 2) or (expected_system is not None and m.system != expected_system):
         raise invalid(f"plan from system {m.system}, expected {expected_system}",
                       Reason.OUT_OF_RANGE)
     status = status_from_msg(m.status)
-    states = packed_from_msg(m.states, "plan states", 4, MAX_HORIZON + 1, MAX_ABS_M)
-    controls = packed_from_msg(m.controls, "plan controls", 2, MAX_HORIZON, MAX_FORCE_N)
+    states = packed_from_msg(m.states, "plan states", 2 * dim, MAX_HORIZON + 1, MAX_ABS_M)
+    controls = packed_from_msg(m.controls, "plan controls", dim, MAX_HORIZON, MAX_FORCE_N)
+    if dim == 3:
+        check_altitudes(states[:, 2].tolist(), "plan states' altitudes")
     if status is PlanStatus.OK and (len(controls) < 1 or len(states) != len(controls) + 1):
         raise invalid(f"an OK plan needs T >= 1 controls and T+1 states, got "
                       f"{len(controls)} / {len(states)}", Reason.SIZE)
@@ -411,7 +496,7 @@ def plan_from_msg(m: plan_pb2.Plan, expected_system: int | None = None) -> Plan:
     if m.HasField("cost"):
         check_floats([m.cost], "plan cost", math.inf)
     bound = _bound_from_msg(m)
-    path = (packed_from_msg(m.path_m, "plan path", 2, MAX_HORIZON * 10, MAX_ABS_M)
+    path = (packed_from_msg(m.path_m, "plan path", dim, MAX_HORIZON * 10, MAX_ABS_M)
             if len(m.path_m) else None)
     info_json = check_text(m.info_json, "plan info_json")
     try:

@@ -13,20 +13,39 @@ import numpy as np
 from dualpilot.model.dynamics import Array
 from services.common.convert.common import points_from_msg, points_to_msg
 from services.common.limits import MAX_ABS_M, MAX_WAYPOINTS, check_state_values, check_text, finite
+from services.common.rejections import Reason, invalid
 from services.common.wire import Stamper
 from services.msgs import vehicle_pb2
 
 
 def state_to_msg(x: Array, step: int, out: vehicle_pb2.VehicleState,
                  altitude_m: float = 0.0) -> vehicle_pb2.VehicleState:
+    """A core state as a VehicleState: a planar one (4 entries) at the fixed ``altitude_m``,
+    or a 3-D one (6 entries: its own altitude and climb rate, ``dim`` 3)."""
     x = check_state_values(x)
     out.step = step
+    if len(x) == 6:
+        (out.east_m, out.north_m, out.altitude_m, out.velocity_east_mps,
+         out.velocity_north_mps, out.velocity_up_mps) = (float(v) for v in x)
+        out.dim = 3
+        return out
     out.east_m, out.north_m, out.velocity_east_mps, out.velocity_north_mps = (float(v) for v in x)
     out.altitude_m = float(altitude_m)
     return out
 
 
 def state_from_msg(m: vehicle_pb2.VehicleState) -> Array:
+    """The core state of a VehicleState: 4 entries (``dim`` 0 or 2), 6 (``dim`` 3); CodecError
+    for another dim, a planar state with a climb rate, values out of range."""
+    if m.dim == 3:
+        x = np.array([m.east_m, m.north_m, m.altitude_m, m.velocity_east_mps,
+                      m.velocity_north_mps, m.velocity_up_mps])
+        return check_state_values(x)
+    if m.dim not in (0, 2):
+        raise invalid(f"vehicle state dim must be 2 or 3, got {m.dim}", Reason.OUT_OF_RANGE)
+    if m.velocity_up_mps != 0.0:
+        raise invalid("a planar vehicle state (dim 2) carries no velocity_up_mps",
+                      Reason.OUT_OF_RANGE)
     x = np.array([m.east_m, m.north_m, m.velocity_east_mps, m.velocity_north_mps])
     return check_state_values(x)
 

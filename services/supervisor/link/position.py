@@ -1,10 +1,12 @@
 """Where the vehicle is: LOCAL_POSITION_NED on its own clock, its GPS fix and geodetic origin.
 
 The newest LOCAL_POSITION_NED is kept with its ``time_boot_ms`` (the
-vehicle's simulated clock); a frame that moves the state without a new time
-is counted (lockstep: only a step moves the vehicle). GLOBAL_POSITION_INT
-not at 0/0 is a valid fix; GPS_GLOBAL_ORIGIN (asked at 1 Hz until it comes)
-is the origin of the local frame, which converts the operator's mission.
+vehicle's simulated clock), as the state of the mission's dimension
+(:meth:`Position.set_dim`: in 3-D with its z and vz, down positive, as the altitude and
+the climb); a frame that moves the state without a new time is counted (lockstep: only a
+step moves the vehicle). GLOBAL_POSITION_INT not at 0/0 is a valid fix; GPS_GLOBAL_ORIGIN
+(asked at 1 Hz until it comes) is the origin of the local frame, which converts the
+operator's mission.
 """
 
 from __future__ import annotations
@@ -41,6 +43,15 @@ class Position:
         self.origin: tuple[float, float] | None = None
         #: LOCAL_POSITION_NED that changed the state without a new time_boot_ms (no step)
         self.moved_without_step = 0
+        self.dim = 2  #: of the states kept (the mission's: :meth:`set_dim`)
+
+    def set_dim(self, dim: int) -> None:
+        """Keep states of ``dim`` (2: planar, 3: with the altitude and climb) from now on; a
+        state of the other dimension is forgotten (the next LOCAL_POSITION_NED brings one)."""
+        with self.cond:
+            if dim != self.dim:
+                self.dim = dim
+                self.state, self.state_time_ms = None, -1
 
     def on_message(self, msg: Any) -> None:
         kind = msg.get_type()
@@ -55,7 +66,10 @@ class Position:
 
     def _on_local(self, msg: Any) -> None:
         try:
-            x = mavlink_codec.state_from_ned(msg.x, msg.y, msg.vx, msg.vy)
+            if self.dim == 3:
+                x = mavlink_codec.state_from_ned(msg.x, msg.y, msg.vx, msg.vy, msg.z, msg.vz)
+            else:
+                x = mavlink_codec.state_from_ned(msg.x, msg.y, msg.vx, msg.vy)
         except rejections.CodecError as err:
             rejections.rejected("LOCAL_POSITION_NED", err, log)
             return

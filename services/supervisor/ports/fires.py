@@ -11,9 +11,8 @@ import numpy as np
 from dualpilot.mission.config import MissionConfig
 from dualpilot.mission.ports import KeepOut
 from dualpilot.model.field_forecast import forecast_step_substeps
-from dualpilot.model.fire import FireParams, FireSnapshot
+from dualpilot.model.fire import FireParams, FireSnapshot, Region
 from dualpilot.model.forecast import OccupancyForecast
-from dualpilot.model.geometry import Rect
 from dualpilot.model.stale_fire import credible_margin_m
 from dualpilot.spec import MissionSpec
 from services.common import bus, keys, rejections, wire
@@ -156,8 +155,9 @@ class StackFires:
             return 0.0
         return credible_margin_m(self.age_s(), self.params, self.b.stack.stale)
 
-    def advance(self, t: int, n: int, keep_out: KeepOut | None) -> list[tuple[Rect, ...]]:
-        """Propagate ``n`` sub-steps from τ_t (now); each sub-step's regions, [] when owed."""
+    def advance(self, t: int, n: int, keep_out: KeepOut | None) -> list[tuple[Region, ...]]:
+        """Propagate ``n`` sub-steps from τ_t (now); each sub-step's regions (cuboids in 3-D),
+        [] when owed."""
         self.history.append((t, n, keep_out))
         if self.owed or not self.b.alive("ews"):
             self.owed += n
@@ -179,8 +179,8 @@ class StackFires:
         last = len(update.states) - 1
         for k, msg in enumerate(update.states):
             try:  # the intermediate sub-steps only matter through their regions
-                out.append(self._take(msg).regions if k == last
-                           else fire_convert.regions_from_msg(msg))
+                out.append(self._take(msg).current() if k == last
+                           else fire_convert.current_from_msg(msg))
             except rejections.CodecError as err:
                 rejections.rejected("FireState", err, log)
                 raise Aborted(f"EWS sent an invalid fire state: {err}") from err
