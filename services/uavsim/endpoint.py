@@ -247,8 +247,9 @@ class Endpoint:
             return None
         try:
             area = None if self.realtime is not None else self.setup.area_size_m
-            target = mavlink_codec.setpoint_from_mavlink(
-                normalised(msg), area, lead, FREE_RANGE_M if area is None else None)
+            target = mavlink_codec.setpoint_from_mavlink(  # 3-D in lockstep under dim=3
+                normalised(msg), area, lead, FREE_RANGE_M if area is None else None,
+                self.vehicle.dyn.dim)
         except rejections.CodecError as err:
             self.reject(link, err, "setpoint")
             return None

@@ -9,6 +9,10 @@ speed-limit reading, ``config.spec().dynamics``) and checks setpoints and
 uploaded waypoints against its area, exactly as the in-process mission does:
 the vehicle reads no reading of its own. Until a configuration arrives it flies
 the default configuration's (a vehicle on its own: a ground station, MAVSDK).
+A 3-D configuration (``dim=3``, docs/three_d.md) makes the lockstep vehicle fly
+Eq. (1) in 3-D from the band's start altitude (:func:`vertical`: its lockstep climb
+is instantaneous, as its take-off to SIM_ALT_M is in 2-D); on its own clock the
+vehicle keeps the planar Eq. (1) and its altitude controller.
 
 The callback only enqueues; the vehicle's loop takes the configuration between
 two passes (:meth:`MissionConfigs.poll`, so no step runs half on the old
@@ -23,9 +27,12 @@ from __future__ import annotations
 import logging
 from dataclasses import replace
 
+import numpy as np
 import zenoh
 
 from dualpilot.mission.config import MissionConfig
+from dualpilot.model.altitude import lift_state, planar_state
+from dualpilot.model.dynamics import DynamicsParams
 from services.common import bus, keys, rejections, wire
 from services.common.convert import common as common_convert
 from services.common.convert import config as config_convert
@@ -49,8 +56,10 @@ def apply(endpoint: Endpoint, config: MissionConfig) -> None:
     if endpoint.realtime is not None and dyn.dt_s != v.dyn.dt_s:
         raise ValueError(f"a vehicle on its own clock steps every {v.dyn.dt_s:g} s; the "
                          f"mission's ΔT is {dyn.dt_s:g} s")
+    if endpoint.realtime is not None:
+        dyn = replace(dyn, dim=2)  # its own clock: the altitude controller flies z (climb)
     fly_plant(v, config, own_clock=endpoint.realtime is not None)
-    v.dyn = dyn
+    vertical(v, dyn, config.spec().band.start_altitude_m)
     if endpoint.realtime is None:
         endpoint.setup = replace(endpoint.setup, area_size_m=config.area_size_m)
         endpoint.ap.mission.bounds = PlanningBounds(endpoint.setup.home, config.area_size_m)
@@ -67,6 +76,20 @@ def fly_plant(v: Vehicle, config: MissionConfig, own_clock: bool) -> None:
     v.plant_config = config if v.plant is not None else None
     if v.plant is not None:
         v.state = v.plant.measured()
+
+
+def vertical(v: Vehicle, dyn: DynamicsParams, start_altitude_m: float) -> None:
+    """Fly ``dyn`` (Eq. (1) of its dimension): a planar vehicle taking a 3-D Eq. (1) is lifted
+    to ``start_altitude_m`` (m above home), climbing at 0; a 3-D one taking a planar Eq. (1)
+    keeps its position and velocity in the plane (its altitude: the lockstep SIM_ALT_M)."""
+    if dyn.dim == 3:
+        x = v.state if len(v.state) == 4 else planar_state(v.state)
+        v.state = lift_state(x, start_altitude_m)
+        v.control = np.zeros(3)
+    elif len(v.state) == 6:
+        v.state = planar_state(v.state)
+        v.control = np.zeros(2)
+    v.dyn = dyn
 
 
 class MissionConfigs:

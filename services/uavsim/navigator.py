@@ -18,7 +18,8 @@ speed (:func:`approach`). The vehicle moves horizontally only in the air.
 
 In lockstep (``--clock lockstep``, the stack) the companion's stamps are the
 only clock: a new setpoint is one step of Eq. (1) (:meth:`Navigator.fly_setpoint`),
-the altitude is SIM_ALT_M in the air (Sec. IV is 2-D), a take-off and a
+the altitude is SIM_ALT_M in the air (Sec. IV is 2-D) or, flying a 3-D Eq. (1)
+(a mission of ``dim=3``), the state's own p_z, a take-off and a
 landing are instantaneous, and states that need flight time cannot run.
 """
 
@@ -93,7 +94,9 @@ class Navigator:
     def alt(self) -> float:
         if self.own_clock:
             return self.v.alt_m
-        return self.p["SIM_ALT_M"] if self.in_air_lockstep else 0.0
+        if not self.in_air_lockstep:
+            return 0.0
+        return float(self.v.state[2]) if self.v.dyn.dim == 3 else self.p["SIM_ALT_M"]
 
     @property
     def landed(self) -> bool:

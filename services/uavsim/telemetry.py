@@ -7,7 +7,8 @@ services/uavsim/wind.py) at 1 Hz (services/uavsim/intervals.py,
 changed by SET_MESSAGE_INTERVAL); a message on request (REQUEST_MESSAGE).
 Altitudes: LOCAL_POSITION_NED ``z`` is −(height above home), GLOBAL_POSITION_INT
 ``alt`` is above mean sea level (home's AMSL altitude + the height),
-``relative_alt`` above home.
+``relative_alt`` above home; ``vz`` (down positive) the altitude controller's on the
+vehicle's own clock, the 3-D Eq. (1)'s −v_z in lockstep under ``dim=3``, else 0.
 """
 
 from __future__ import annotations
@@ -58,8 +59,12 @@ class Telemetry:
         """LOCAL_POSITION_NED, GLOBAL_POSITION_INT and ATTITUDE (or ``only`` that one)."""
         v = self.ap.vehicle
         alt = self.ap.nav.alt
-        n, e, d, vn, ve, _ = mavlink_codec.state_to_ned(v.state, alt)
-        vd = -v.vz_mps if self.ap.own_clock else 0.0
+        n, e, _, vn, ve, vd = mavlink_codec.state_to_ned(v.state, alt)
+        d = -alt  # 3-D in lockstep: the state's p_z in the air (Navigator.alt)
+        if self.ap.own_clock:
+            vd = -v.vz_mps
+        elif self.ap.nav.landed:
+            vd = 0.0
         t_ms = v.time_ms
         if only in (None, m.MAVLINK_MSG_ID_LOCAL_POSITION_NED):
             self.outbox.send(link, "local_position_ned", t_ms, n, e, d, vn, ve, vd)
@@ -88,9 +93,10 @@ class Telemetry:
                              0, min(int(self.ap.params["SIG_REJECTED"]), 65535), 0, 0, 0, 0)
         if only in (None, m.MAVLINK_MSG_ID_GPS_RAW_INT):
             lat, lon = mav.to_geodetic(float(v.state[0]), float(v.state[1]), self.origin)
-            speed = math.hypot(float(v.state[2]), float(v.state[3]))
-            cog = (int(math.degrees(math.atan2(float(v.state[2]), float(v.state[3]))) % 360
-                       * 100) if speed else 0)
+            k = v.dyn.dim  # the velocity's first entry
+            ve, vn = float(v.state[k]), float(v.state[k + 1])
+            speed = math.hypot(ve, vn)
+            cog = int(math.degrees(math.atan2(ve, vn)) % 360 * 100) if speed else 0
             self.outbox.send(link, "gps_raw_int", v.time_ms * 1000, m.GPS_FIX_TYPE_3D_FIX,
                              int(lat * 1e7), int(lon * 1e7),
                              int((self.home_amsl_m + self.ap.nav.alt) * 1000), 80, 120,

@@ -20,7 +20,9 @@ axis. On its own clock the vehicle still climbs and descends like a
 multicopter's altitude controller: each ΔT the altitude moves towards its
 target by at most ``up`` (climb) or ``down`` (sink) m/s × ΔT
 (:meth:`Vehicle.climb`; PX4's MPC_Z_VEL_MAX_UP / _DN, services/uavsim/params.py).
-In lockstep the altitude is the fixed one (services/uavsim/navigator.py).
+In lockstep the altitude is the fixed one (services/uavsim/navigator.py), or under a 3-D
+mission configuration the state's own: Eq. (1) with 3×3 blocks, the same :meth:`apply`
+(services/uavsim/missionconfig.py).
 
 Battery: the charge used is the impulse Σ‖u_t‖ΔT (N·s) of the flown controls
 against a capacity of ``BATTERY_CAPACITY_NS`` = 1000 N·s (about five of the
