@@ -58,6 +58,11 @@ log = logging.getLogger(__name__)
 __all__ = ["Aborted", "StackSession", "StorageFault", "VehicleGone"]
 
 
+#: how far (m) the vehicle's altitude may lie from a 3-D mission's start altitude (a float32
+#: LOCAL_POSITION_NED z of an altitude up to the band's ceiling is within 1e-5 m of it)
+START_ALTITUDE_TOL_M = 1e-3
+
+
 class StackSession:
     """One mission of ``config`` flown through the services; ``run()`` flies it."""
 
@@ -176,6 +181,9 @@ class StackSession:
         self.record.claim()
         configure_vehicle(self.b, self.config)
         self.watch.take()
+        # the states of the mission's dimension, from the vehicle in the air (in 3-D its z:
+        # the lockstep take-off to the start altitude is instantaneous)
+        self.link.position.set_dim(self.spec.dim)
         if not self.link.mission.wait_downloaded(self.b.stack.mission_wait_s, self.b.stop):
             log.warning("the vehicle's mission was not downloaded before the start")
         self._update_waypoints()
@@ -186,6 +194,7 @@ class StackSession:
         vehicle_ms, x0 = got
         if prior is None:  # at rest at boot: the in-process mission's hover_state(start)
             self.spec = self.config.spec(start=self.vehicle.start_position(x0))
+            self._check_start_altitude(x0)
         else:
             head = next(e for e in prior if e.get("kind") == "mission")
             start = cast(list[float], head["start"])
@@ -207,6 +216,16 @@ class StackSession:
             mission=self.b.mission_id, controller=self.config.controller_name,
             seed=self.spec.seed, timing=self.config.timing.value,
             start_east_m=float(x0[0]), start_north_m=float(x0[1])))
+
+    def _check_start_altitude(self, x0: Array) -> None:
+        """A 3-D mission starts at the band's start altitude (the vehicle climbs there when it
+        takes the mission's configuration: services/uavsim/missionconfig.py); Aborted else."""
+        if self.spec.dim != 3:
+            return
+        want = self.spec.band.start_altitude_m
+        if abs(float(x0[2]) - want) > START_ALTITUDE_TOL_M:
+            raise Aborted(f"the vehicle is at {float(x0[2]):.6g} m, the mission starts at the "
+                          f"band's start altitude {want:g} m (start_altitude_m)")
 
     def _ports(self) -> None:
         """The fire and planner ports of the mission's spec (the pool over Zenoh)."""

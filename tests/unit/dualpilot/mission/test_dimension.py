@@ -120,12 +120,15 @@ def test_an_evaluation_and_a_sweep_refuse_before_any_mission(tmp_path: Path) -> 
     assert not (tmp_path / "s").exists()
 
 
-def test_the_stack_refuses_a_3d_mission_where_it_enters(
+def test_the_stack_takes_a_3d_mission_its_controller_flies_and_refuses_the_others(
         capsys: pytest.CaptureFixture[str]) -> None:
+    opts = parse(["--controller", "s2", "--set", "dim=3"], "supervisor", environ={})
+    assert opts.mission.spec().dim == 3
     with pytest.raises(SystemExit) as exited:
-        parse(["--controller", "s2", "--set", "dim=3"], "supervisor", environ={})
+        parse(["--controller", "concurrent", "--set", "dim=3"], "supervisor", environ={})
     assert exited.value.code == 2
-    assert "the stack flies planar missions only (dim=2), not dim=3" in capsys.readouterr().err
+    assert ("controller 'concurrent' does not fly dim=3: the concurrent supervisor supervises "
+            "missions in 2-D only") in capsys.readouterr().err
 
 
 @pytest.fixture
@@ -155,7 +158,10 @@ def test_a_method_that_says_3d_flies_and_is_listed(lifted_rrt: str) -> None:
     a = local_mission(flat).run()
     assert a.success and a.steps == 97
     assert_same_mission(a, local_mission(tall).run())
-    # the stack still flies planar missions only
-    with pytest.raises(ValueError, match=r"the stack flies planar missions only \(dim=2\), "
-                                         r"not dim=3"):
-        check_stack_dimension(tall)
+    # the stack flies the 3-D mission of a controller that flies it, and refuses the others
+    # with the controller's own refusal, before any service is asked
+    check_stack_dimension(tall)
+    with pytest.raises(ValueError, match=r"controller 'concurrent' does not fly dim=3: the "
+                                         r"concurrent supervisor supervises missions in 2-D"):
+        check_stack_dimension(MissionConfig.named("concurrent", system1_method=lifted_rrt,
+                                                  profile="today-3d"))
