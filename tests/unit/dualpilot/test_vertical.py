@@ -196,16 +196,17 @@ def test_a_mission_names_each_planner_that_refuses_3d() -> None:
                                           system2_method="certified"))
 
 
-@pytest.mark.parametrize("name", ["concurrent", "lookahead"])
-def test_a_planar_supervisor_refuses_a_3d_mission_by_name(name: str) -> None:
+def test_a_planar_supervisor_refuses_a_3d_mission_by_name() -> None:
+    """The example package's "proximity" says 2-D only; every built-in supervisor says 3."""
     from dualpilot.supervisor.registry import build_supervisor
 
-    config = MissionConfig.named(name, profile="today-3d")
-    with pytest.raises(ValueError, match=f"the {name} supervisor supervises missions in 2-D "
+    config = MissionConfig.named("proximity", profile="today-3d")
+    with pytest.raises(ValueError, match="the proximity supervisor supervises missions in 2-D "
                                          "only, not dim=3"):
         build_supervisor(config, config.spec())
-    paper = MissionConfig.named("cc", profile="today-3d")
-    assert build_supervisor(paper, paper.spec()) is not None
+    for name in ("cc", "concurrent", "lookahead"):
+        built = MissionConfig.named(name, profile="today-3d")
+        assert build_supervisor(built, built.spec()) is not None
 
 
 def test_the_oracle_refuses_a_3d_mission_by_name() -> None:
