@@ -176,7 +176,7 @@ def test_a_2d_mission_has_no_heights() -> None:
     assert VerticalParams().fire_heights(spec, "paper") is None
 
 
-@pytest.mark.parametrize(("system", "method"), [(2, "fast+exact"), (2, "certified")])
+@pytest.mark.parametrize(("system", "method"), [(2, "certified")])
 def test_a_planar_method_refuses_a_3d_mission_by_name(system: int, method: str) -> None:
     from dualpilot.planners import build_planner
 
@@ -189,8 +189,8 @@ def test_a_planar_method_refuses_a_3d_mission_by_name(system: int, method: str) 
 def test_a_mission_names_each_planner_that_refuses_3d() -> None:
     from dualpilot.mission.local import local_mission
 
-    with pytest.raises(ValueError, match="System 2 method 'fast\\+exact' plans in 2-D only"):
-        local_mission(MissionConfig.named("s2", profile="today-3d", system2_method="fast+exact"))
+    with pytest.raises(ValueError, match="System 2 method 'certified' plans in 2-D only"):
+        local_mission(MissionConfig.named("s2", profile="today-3d", system2_method="certified"))
     with pytest.raises(ValueError, match="System 2 method 'certified' plans in 2-D only"):
         local_mission(MissionConfig.named("cc", profile="today-3d",  # System 1 plans in 3-D
                                           system2_method="certified"))
