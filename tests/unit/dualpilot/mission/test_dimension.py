@@ -124,13 +124,15 @@ def test_an_evaluation_and_a_sweep_refuse_before_any_mission(tmp_path: Path) -> 
 
 def test_the_stack_takes_a_3d_mission_its_controller_flies_and_refuses_the_others(
         capsys: pytest.CaptureFixture[str]) -> None:
-    opts = parse(["--controller", "s2", "--set", "dim=3"], "supervisor", environ={})
-    assert opts.mission.spec().dim == 3
+    for name in ("s2", "concurrent", "lookahead"):
+        opts = parse(["--controller", name, "--set", "dim=3"], "supervisor", environ={})
+        assert opts.mission.spec().dim == 3
     with pytest.raises(SystemExit) as exited:
-        parse(["--controller", "concurrent", "--set", "dim=3"], "supervisor", environ={})
+        parse(["--controller", "concurrent", "--s2-method", "certified", "--set", "dim=3"],
+              "supervisor", environ={})
     assert exited.value.code == 2
-    assert ("controller 'concurrent' does not fly dim=3: the concurrent supervisor supervises "
-            "missions in 2-D only") in capsys.readouterr().err
+    assert ("controller 'concurrent' does not fly dim=3: System 2 method 'certified' plans "
+            "in 2-D only") in capsys.readouterr().err
 
 
 @pytest.fixture
@@ -161,7 +163,10 @@ def test_a_method_that_says_3d_flies_and_is_listed(lifted_rrt: str) -> None:
     # the stack flies the 3-D mission of a controller that flies it, and refuses the others
     # with the controller's own refusal, before any service is asked
     check_stack_dimension(tall)
-    with pytest.raises(ValueError, match=r"controller 'concurrent' does not fly dim=3: the "
-                                         r"concurrent supervisor supervises missions in 2-D"):
+    check_stack_dimension(MissionConfig.named("concurrent", system1_method=lifted_rrt,
+                                              profile="today-3d"))
+    with pytest.raises(ValueError, match=r"controller 'concurrent' does not fly dim=3: System "
+                                         r"2 method 'certified' plans in 2-D only"):
         check_stack_dimension(MissionConfig.named("concurrent", system1_method=lifted_rrt,
+                                                  system2_method="certified",
                                                   profile="today-3d"))
