@@ -137,8 +137,10 @@ RRT_DU = PlannerMethod(1, _rrt_du, _rrt_du_risk, "Alg. 1 with LQR tracking under
                        frozenset({2, 3}))
 FAST = PlannerMethod(2, _fast, _fast_risk, "(P2) by homotopy-seeded convex restrictions",
                      dims=frozenset({2, 3}))
-EXACT = PlannerMethod(2, _exact, None, "(P2) as the cvxpy MIQP, in a killable worker process")
-ANYTIME = PlannerMethod(2, _anytime, None, "the fast plan, then SCIP seeded with it")
+EXACT = PlannerMethod(2, _exact, None, "(P2) as the cvxpy MIQP, in a killable worker process",
+                      dims=frozenset({2, 3}))
+ANYTIME = PlannerMethod(2, _anytime, None, "the fast plan, then SCIP seeded with it",
+                        dims=frozenset({2, 3}))
 THOROUGH = PlannerMethod(2, _thorough, None, "the fast method, every homotopy to convergence",
                          dims=frozenset({2, 3}))
 CERTIFIED = PlannerMethod(2, _certified, None, "the fast plan with a lower bound on (P2) "

@@ -5,7 +5,8 @@ native SCIP, tight big-M, the fast plan of :mod:`dualpilot.system2.fast.planner`
 as the starting incumbent) within ``exact_budget_s`` (its time limit is set a little
 below); the better verified plan is returned. A worker crash or overrun leaves the
 fast plan as the answer. Not the default: its latency is the exact budget whenever
-SCIP cannot prove optimality quickly.
+SCIP cannot prove optimality quickly. In 3-D both plan with prisms within the band
+(docs/three_d.md, 6), and the exact plan is checked with the band.
 """
 
 from __future__ import annotations
@@ -18,6 +19,7 @@ import numpy as np
 
 from dualpilot.arrays import Array
 from dualpilot.model.geometry import Polytope
+from dualpilot.model.prism import Prism
 from dualpilot.plan import Objective, Plan, PlanStatus
 from dualpilot.spec import MissionSpec
 from dualpilot.system2.fast.params import FastParams
@@ -50,9 +52,9 @@ class AnytimeSystem2:
     def __init__(self, spec: MissionSpec, params: System2Params = System2Params(), *,
                  exact_budget_s: float = 2.0, worker: Worker | None = None,
                  fast: FastParams = FastParams()) -> None:
-        if spec.dim != 2:
-            raise ValueError(f"System 2 method 'fast+exact' plans in 2-D only, not "
-                             f"dim={spec.dim}: its exact worker solves the planar (P2)")
+        if spec.dim == 3 and spec.dynamics.speed_limit == "norm":
+            raise ValueError("System 2 method 'fast+exact' plans in 3-D under speed_limit = "
+                             "'axis' only")
         if exact_budget_s <= 0:
             raise ValueError("exact_budget_s must be positive")
         self.spec, self.params, self.dynamics = spec, params, spec.dynamics
@@ -66,10 +68,11 @@ class AnytimeSystem2:
         self.worker = worker
         worker.start()  # imports and model set-up happen before the first request
 
-    def plan(self, state: Array, hulls: Sequence[Polytope],
+    def plan(self, state: Array, hulls: Sequence[Polytope] | Sequence[Prism],
              objective: Objective = Objective.MISSION_TIME,
              prev_control: Array | None = None) -> Plan:
-        """Plan from ``state`` avoiding ``hulls``; ``prev_control`` is u_{t|t} (N)."""
+        """Plan from ``state`` avoiding ``hulls`` (polygons in 2-D, prisms in 3-D);
+        ``prev_control`` is u_{t|t} (N)."""
         t0 = time.perf_counter()
         fast = self.fast_planner.plan(state, hulls, objective, prev_control)
         if fast.status in (PlanStatus.INVALID_INPUT, PlanStatus.INFEASIBLE):
@@ -92,7 +95,8 @@ class AnytimeSystem2:
             spec = self.spec
             area = spec.area_size_m if self.params.keep_in_area else None
             verdict = verify_p2_plan(exact.states, exact.controls, tuple(hulls), self.dynamics,
-                                     spec.clearance_m, spec.d_safe_m, area, tol=1e-3)
+                                     spec.clearance_m, spec.d_safe_m, area, tol=1e-3,
+                                     band=spec.band if spec.dim == 3 else None)
             if verdict.ok and (
                     not fast.ok or fast.cost is None or exact.cost < fast.cost):
                 best = exact

@@ -15,6 +15,10 @@ optimum:
 The quadratic objective is moved into one convex constraint J(X, U) ≤ t.
 SCIP's dual bound gives a certified lower bound on the optimum even when the
 time limit stops it.
+
+In 3-D (``dynamics.dim == 3``) the hulls are prisms (every face: a cuboid's six), the
+altitude band bounds every planned z and is part of the box the tightest M is taken over,
+as in :class:`dualpilot.system2.exact.ExactSystem2` (docs/three_d.md, 6).
 """
 
 from __future__ import annotations
@@ -29,6 +33,7 @@ from typing import Any
 import numpy as np
 
 from dualpilot.arrays import AnyArray
+from dualpilot.model.altitude import AltitudeBand
 from dualpilot.model.dynamics import (
     DynamicsParams,
     reach_boxes,
@@ -36,10 +41,9 @@ from dualpilot.model.dynamics import (
     speed_polygon,
     transition_matrices,
 )
-from dualpilot.model.geometry import Polytope
 from dualpilot.plan import Objective, Plan, PlanStatus
 from dualpilot.spec import MissionSpec
-from dualpilot.system2.problem import System2Params, p2_cost, verify_p2_plan
+from dualpilot.system2.problem import Obstacle, System2Params, p2_cost, verify_p2_plan
 
 
 @dataclass(frozen=True)
@@ -55,13 +59,15 @@ class ScipResult:
     n_binaries: int
 
 
-def solve_seeded(x0: AnyArray, hulls: Sequence[Polytope], goal: AnyArray,
+def solve_seeded(x0: AnyArray, hulls: Sequence[Obstacle], goal: AnyArray,
                  kappa: tuple[float, float], u_prev: AnyArray, params: System2Params,
                  dyn: DynamicsParams, incumbent: AnyArray | None, time_limit_s: float,
-                 epsilon_m: float, area_size_m: float | None) -> ScipResult:
-    """Solve (P2) with SCIP from the incumbent controls (T, 2); see the module docstring.
+                 epsilon_m: float, area_size_m: float | None,
+                 band: AltitudeBand | None = None) -> ScipResult:
+    """Solve (P2) with SCIP from the incumbent controls (T, dim); see the module docstring.
 
-    ``epsilon_m`` is ε of Eq. (P2_3); ``area_size_m`` None plans without the area bounds.
+    ``epsilon_m`` is ε of Eq. (P2_3); ``area_size_m`` None plans without the area bounds;
+    ``band`` bounds z in 3-D (default: the default band).
     """
     from pyscipopt import Model
 
@@ -71,10 +77,13 @@ def solve_seeded(x0: AnyArray, hulls: Sequence[Polytope], goal: AnyArray,
     m = Model("P2")
     m.hideOutput()
     m.setParam("limits/time", max(0.1, float(time_limit_s)))
-    u, x = _add_dynamics(m, x0, T, dyn, area_size_m)
+    if dyn.dim == 3 and dyn.speed_limit == "norm":
+        raise ValueError("the seeded exact method plans in 3-D under speed_limit = 'axis' only")
+    band = AltitudeBand() if band is None else band
+    u, x = _add_dynamics(m, x0, T, dyn, area_size_m, band)
     if dyn.speed_limit == "norm":
         _add_speed_polygon(m, x, params.speed_polygon_sides, dyn)
-    binaries = _add_avoidance(m, x, x0, hulls, T, dyn, eps, area_size_m)
+    binaries = _add_avoidance(m, x, x0, hulls, T, dyn, eps, area_size_m, band)
     t = _add_objective(m, x, u, goal, kappa, u_prev)
     if incumbent is not None:
         _add_incumbent(m, incumbent, x0, hulls, goal, kappa, u_prev, eps, dyn, u, x, binaries,
@@ -86,27 +95,31 @@ def solve_seeded(x0: AnyArray, hulls: Sequence[Polytope], goal: AnyArray,
                       time.perf_counter() - t0, len(binaries))
 
 
-def _add_dynamics(m: Any, x0: AnyArray, T: int, dyn: DynamicsParams,
-                  area: float | None) -> tuple[list[list[Any]], list[list[Any]]]:
-    """Controls u (T, 2) in ±u_max (N), states x (T, 4) and Eq. (P2_1)-(P2_2), x_{k+1} = Φx_k + Γu.
+def _add_dynamics(m: Any, x0: AnyArray, T: int, dyn: DynamicsParams, area: float | None,
+                  band: AltitudeBand) -> tuple[list[list[Any]], list[list[Any]]]:
+    """Controls u (T, dim) in ±u_max (N), states x (T, 2·dim) and Eq. (P2_1)-(P2_2),
+    x_{k+1} = Φx_k + Γu.
 
-    Positions lie in [0, ``area``] m (unbounded for None), velocities in ±v_max (m/s).
+    Positions x, y lie in [0, ``area``] m (unbounded for None), z (3-D) in ``band``,
+    velocities in ±v_max (m/s).
     """
     from pyscipopt import quicksum
 
+    n = dyn.dim
     phi, gamma = transition_matrices(dyn)
     inf = m.infinity()
-    u = [[m.addVar(lb=-dyn.u_max_n, ub=dyn.u_max_n, name=f"u{k}_{a}") for a in range(2)]
+    u = [[m.addVar(lb=-dyn.u_max_n, ub=dyn.u_max_n, name=f"u{k}_{a}") for a in range(n)]
          for k in range(T)]
     pos_lb, pos_ub = (0.0, area) if area is not None else (-inf, inf)
-    x = [[m.addVar(lb=pos_lb if a < 2 else -dyn.v_max_mps,
-                   ub=pos_ub if a < 2 else dyn.v_max_mps, name=f"x{k}_{a}")
-          for a in range(4)] for k in range(T)]
+    lb = [pos_lb, pos_lb] + [band.floor_m] * (n - 2) + [-dyn.v_max_mps] * n
+    ub = [pos_ub, pos_ub] + [band.ceiling_m] * (n - 2) + [dyn.v_max_mps] * n
+    x = [[m.addVar(lb=lb[a], ub=ub[a], name=f"x{k}_{a}") for a in range(2 * n)]
+         for k in range(T)]
     for k in range(T):
         prev = [float(v) for v in x0] if k == 0 else x[k - 1]
-        for r in range(4):
-            m.addCons(x[k][r] == quicksum(phi[r, c] * prev[c] for c in range(4) if phi[r, c])
-                      + quicksum(gamma[r, c] * u[k][c] for c in range(2) if gamma[r, c]))
+        for r in range(2 * n):
+            m.addCons(x[k][r] == quicksum(phi[r, c] * prev[c] for c in range(2 * n) if phi[r, c])
+                      + quicksum(gamma[r, c] * u[k][c] for c in range(n) if gamma[r, c]))
     return u, x
 
 
@@ -118,19 +131,24 @@ def _add_speed_polygon(m: Any, x: list[list[Any]], sides: int, dyn: DynamicsPara
             m.addCons(nx * xk[2] + ny * xk[3] <= dyn.v_max_mps * cos_k)
 
 
-def _add_avoidance(m: Any, x: list[list[Any]], x0: AnyArray, hulls: Sequence[Polytope],
-                   T: int, dyn: DynamicsParams, eps: float,
-                   area: float | None) -> list[tuple[int, int, int, Any]]:
-    """Eq. (P2_3)-(P2_4), big-M per face with the tightest M over p_τ's reach box.
+def _add_avoidance(m: Any, x: list[list[Any]], x0: AnyArray, hulls: Sequence[Obstacle],
+                   T: int, dyn: DynamicsParams, eps: float, area: float | None,
+                   band: AltitudeBand) -> list[tuple[int, int, int, Any]]:
+    """Eq. (P2_3)-(P2_4), big-M per face with the tightest M over p_τ's reach box (in 3-D
+    cut to the band).
 
     Returns the binaries b as (k, hull, face, variable); (τ, i) pairs whose box
     keeps some face clear by ε (m) everywhere get none.
     """
     from pyscipopt import quicksum
 
+    n = dyn.dim
     lo, hi = reach_boxes(x0, T, dyn)
     if area is not None:
-        lo, hi = np.maximum(lo, 0.0), np.minimum(hi, area)
+        lo[:, :2], hi[:, :2] = np.maximum(lo[:, :2], 0.0), np.minimum(hi[:, :2], area)
+    if n == 3:
+        lo[:, 2] = np.maximum(lo[:, 2], band.floor_m)
+        hi[:, 2] = np.minimum(hi[:, 2], band.ceiling_m)
     binaries: list[tuple[int, int, int, Any]] = []
     for i, h in enumerate(hulls):
         for k in range(T):
@@ -142,8 +160,9 @@ def _add_avoidance(m: Any, x: list[list[Any]], x0: AnyArray, hulls: Sequence[Pol
             bs = []
             for l_ in range(h.n_faces):
                 b = m.addVar(vtype="B", name=f"b{k}_{i}_{l_}")
-                m.addCons(h.A[l_, 0] * x[k][0] + h.A[l_, 1] * x[k][1]
-                          >= h.b[l_] + eps - need[l_] * b)
+                lhs = (h.A[l_, 0] * x[k][0] + h.A[l_, 1] * x[k][1] if n == 2 else
+                       quicksum(float(h.A[l_, a]) * x[k][a] for a in range(n)))
+                m.addCons(lhs >= h.b[l_] + eps - need[l_] * b)
                 bs.append(b)
                 binaries.append((k, i, l_, b))
             m.addCons(quicksum(bs) <= h.n_faces - 1)
@@ -155,24 +174,29 @@ def _add_objective(m: Any, x: list[list[Any]], u: list[list[Any]], goal: AnyArra
     """Eq. (S2) as the convex constraint J(X, U) ≤ t; minimises t and returns it."""
     from pyscipopt import quicksum
 
-    T = len(x)
+    T, n = len(x), len(u[0])
     t = m.addVar(lb=0.0, ub=m.infinity(), name="J")
     k1, k2 = kappa
-    expr = quicksum(k1 * ((x[k][0] - goal[0]) ** 2 + (x[k][1] - goal[1]) ** 2) for k in range(T))
-    expr += quicksum(k2 * ((u[0][a] - float(u_prev[a])) ** 2) for a in range(2))
-    expr += quicksum(k2 * ((u[k][a] - u[k - 1][a]) ** 2) for k in range(1, T) for a in range(2))
+    if n == 2:
+        expr = quicksum(k1 * ((x[k][0] - goal[0]) ** 2 + (x[k][1] - goal[1]) ** 2)
+                        for k in range(T))
+    else:
+        expr = quicksum(k1 * quicksum((x[k][a] - goal[a]) ** 2 for a in range(n))
+                        for k in range(T))
+    expr += quicksum(k2 * ((u[0][a] - float(u_prev[a])) ** 2) for a in range(n))
+    expr += quicksum(k2 * ((u[k][a] - u[k - 1][a]) ** 2) for k in range(1, T) for a in range(n))
     m.addCons(expr <= t)
     m.setObjective(t, "minimize")
     return t
 
 
 def _read_solution(m: Any, u: list[list[Any]]) -> tuple[AnyArray | None, float, float]:
-    """The best controls (T, 2) (None if none), their objective and SCIP's dual bound."""
+    """The best controls (T, dim) (None if none), their objective and SCIP's dual bound."""
     controls: AnyArray | None = None
     obj = math.inf
     if m.getNSols() > 0:
         sol = m.getBestSol()
-        controls = np.array([[m.getSolVal(sol, uk[a]) for a in range(2)] for uk in u])
+        controls = np.array([[m.getSolVal(sol, uk[a]) for a in range(len(uk))] for uk in u])
         obj = float(m.getSolObjVal(sol))
     try:
         dual = float(m.getDualbound())
@@ -181,7 +205,7 @@ def _read_solution(m: Any, u: list[list[Any]]) -> tuple[AnyArray | None, float, 
     return controls, obj, dual
 
 
-def _add_incumbent(m: Any, controls: AnyArray, x0: AnyArray, hulls: Sequence[Polytope],
+def _add_incumbent(m: Any, controls: AnyArray, x0: AnyArray, hulls: Sequence[Obstacle],
                    goal: AnyArray, kappa: tuple[float, float], u_prev: AnyArray, eps: float,
                    dyn: DynamicsParams,
                    u: list[list[Any]], x: list[list[Any]],
@@ -189,14 +213,15 @@ def _add_incumbent(m: Any, controls: AnyArray, x0: AnyArray, hulls: Sequence[Pol
     ctrl = np.clip(np.asarray(controls, dtype=float), -dyn.u_max_n, dyn.u_max_n)
     states = rollout(x0, ctrl, dyn)
     sol = m.createSol()
+    n = dyn.dim
     for k in range(len(ctrl)):
-        for a in range(2):
+        for a in range(n):
             m.setSolVal(sol, u[k][a], float(ctrl[k, a]))
-        for r in range(4):
+        for r in range(2 * n):
             m.setSolVal(sol, x[k][r], float(states[k + 1, r]))
     for k, i, l_, b in binaries:
         h = hulls[i]
-        ok = float(h.A[l_] @ states[k + 1, :2]) >= h.b[l_] + eps - 1e-9
+        ok = float(h.A[l_] @ states[k + 1, :n]) >= h.b[l_] + eps - 1e-9
         m.setSolVal(sol, b, 0.0 if ok else 1.0)
     m.setSolVal(sol, t, p2_cost(states, ctrl, goal, kappa, u_prev) * (1 + 1e-9) + 1e-9)
     m.addSol(sol, free=True)
@@ -217,33 +242,38 @@ class SeededExactSystem2:
     def __init__(self, spec: MissionSpec, params: System2Params = System2Params()) -> None:
         self.spec, self.params = spec, params
         self.goal, self.dynamics = spec.goal, spec.dynamics
+        self.goal_o = spec.goal_center  # G_o of Eq. (S2), at its altitude in 3-D
         self.area = spec.area_size_m if params.keep_in_area else None
 
-    def plan(self, state: AnyArray, hulls: Sequence[Polytope],
+    def plan(self, state: AnyArray, hulls: Sequence[Obstacle],
              objective: Objective = Objective.MISSION_TIME,
              prev_control: AnyArray | None = None, incumbent: AnyArray | None = None) -> Plan:
         t0 = time.perf_counter()
         x0 = np.asarray(state, dtype=float)
-        u_prev = np.zeros(2) if prev_control is None else np.asarray(prev_control, dtype=float)
+        n = self.dynamics.dim
+        u_prev = np.zeros(n) if prev_control is None else np.asarray(prev_control, dtype=float)
         kappa = self.params.kappa(objective)
         eps = self.spec.clearance_m
-        res = solve_seeded(x0, tuple(hulls), self.goal.center, kappa, u_prev, self.params,
-                           self.dynamics, incumbent, self.params.time_limit_s, eps, self.area)
+        res = solve_seeded(x0, tuple(hulls), self.goal_o, kappa, u_prev, self.params,
+                           self.dynamics, incumbent, self.params.time_limit_s, eps, self.area,
+                           self.spec.band)
         info: dict[str, object] = {"solver_status": res.status, "optimal": res.optimal,
                                    "dual_bound": res.dual_bound, "n_binaries": res.n_binaries,
                                    "solver_objective": res.objective}
         if res.controls is None:
             status = PlanStatus.INFEASIBLE if res.status == "infeasible" else PlanStatus.TIMEOUT
-            plan = Plan.failed(2, status, time.perf_counter() - t0, f"SCIP: {res.status}")
+            plan = Plan.failed(2, status, time.perf_counter() - t0, f"SCIP: {res.status}",
+                               dim=n)
             return dataclasses.replace(plan, objective=objective, info=info)
         controls = np.clip(res.controls, -self.dynamics.u_max_n, self.dynamics.u_max_n)
         states = rollout(x0, controls, self.dynamics)
         verdict = verify_p2_plan(states, controls, tuple(hulls), self.dynamics, eps,
-                                 self.spec.d_safe_m, self.area, tol=1e-3)
-        cost = p2_cost(states, controls, self.goal.center, kappa, u_prev)
+                                 self.spec.d_safe_m, self.area, tol=1e-3,
+                                 band=self.spec.band if n == 3 else None)
+        cost = p2_cost(states, controls, self.goal_o, kappa, u_prev)
         if not verdict.ok:
             plan = Plan.failed(2, PlanStatus.UNSAFE, time.perf_counter() - t0,
-                               f"SCIP plan failed verification: {verdict.reason}")
+                               f"SCIP plan failed verification: {verdict.reason}", dim=n)
             return dataclasses.replace(plan, objective=objective, info=info)
         return Plan(system=2, status=PlanStatus.OK, states=states, controls=controls,
                     compute_time_s=time.perf_counter() - t0, objective=objective, cost=cost,

@@ -4,7 +4,7 @@ The compiled problem has ``max_hulls`` slots of ``max_faces`` faces each: the hu
 within reach of the horizon are kept, nearest first; a hull with more faces is
 replaced by a containing polygon with ``max_faces`` faces (:func:`outer_simplify`),
 and big-M must relax Eq. (P2_3) everywhere a planned position can be (:func:`big_m_ok`).
-Lengths m.
+In 3-D a hull is a prism: its base is simplified, its top and bottom kept. Lengths m.
 """
 
 from __future__ import annotations
@@ -14,10 +14,12 @@ from collections.abc import Sequence
 import numpy as np
 
 from dualpilot.arrays import Array
+from dualpilot.model.altitude import AltitudeBand
 from dualpilot.model.dynamics import DynamicsParams, reach_radius
 from dualpilot.model.geometry import Polytope
+from dualpilot.model.prism import Prism
 from dualpilot.system2.fast.geometry import Inflated
-from dualpilot.system2.problem import System2Params
+from dualpilot.system2.problem import Obstacle, System2Params
 
 
 def face_inflated(poly: Polytope, eps: float) -> Polytope:
@@ -67,34 +69,60 @@ def outer_simplify(poly: Polytope, max_faces: int) -> Polytope:
     return Polytope.from_vertices(np.array(verts))
 
 
-def select_hulls(state: Array, hulls: Sequence[Polytope], params: System2Params,
+def _fitted(hull: Obstacle, max_faces: int) -> Obstacle:
+    """``hull`` with at most ``max_faces`` faces (a prism's base), containing it."""
+    if isinstance(hull, Prism):
+        if hull.base.n_faces <= max_faces:
+            return hull
+        return Prism(outer_simplify(hull.base, max_faces), hull.z_lo, hull.z_hi)
+    return hull if hull.n_faces <= max_faces else outer_simplify(hull, max_faces)
+
+
+def _inflated_distance(hull: Obstacle, eps: float, position: Array) -> float:
+    """The distance (m) from ``position`` to the region Eq. (P2_3)-(P2_4) forbid around
+    ``hull``: its faces pushed out by ε (a prism's base, top and bottom)."""
+    if isinstance(hull, Prism):
+        grown = Prism(face_inflated(hull.base, eps), hull.z_lo - eps, hull.z_hi + eps)
+        return grown.distance(position[:3])
+    return face_inflated(hull, eps).distance(position[:2])
+
+
+def select_hulls(state: Array, hulls: Sequence[Obstacle], params: System2Params,
                  dynamics: DynamicsParams, epsilon_m: float
-                 ) -> tuple[list[tuple[int, Polytope]], list[int]]:
-    """Reachable hulls (index, polygon ≤ max_faces) sorted by distance; simplified indices."""
-    reach = reach_radius(state[2:], params.horizon, dynamics)
-    kept: list[tuple[float, int, Polytope]] = []
+                 ) -> tuple[list[tuple[int, Obstacle]], list[int]]:
+    """Reachable hulls (index, polygon or prism whose base has ≤ max_faces faces) sorted by
+    distance; simplified indices. ``state`` is x_t of 2·dim numbers."""
+    n = dynamics.dim
+    reach = reach_radius(state[n:], params.horizon, dynamics)
+    kept: list[tuple[float, int, Obstacle]] = []
     simplified: list[int] = []
     for i, hull in enumerate(hulls):
-        poly = hull
-        if poly.n_faces > params.max_faces:
-            poly = outer_simplify(poly, params.max_faces)
+        poly = _fitted(hull, params.max_faces)
+        if poly is not hull:
             simplified.append(i)
-        dist = face_inflated(poly, epsilon_m).distance(state[:2])
+        dist = _inflated_distance(poly, epsilon_m, state)
         if dist <= reach + 1e-6:
             kept.append((dist, i, poly))
     kept.sort(key=lambda item: item[0])
     return [(i, poly) for _, i, poly in kept], simplified
 
 
-def big_m_ok(state: Array, polys: Sequence[Polytope], params: System2Params,
-             dynamics: DynamicsParams, epsilon_m: float, area_size_m: float) -> bool:
-    """M must relax Eq. (P2_3) everywhere a planned position can be (the area, or the reach)."""
+def big_m_ok(state: Array, polys: Sequence[Obstacle], params: System2Params,
+             dynamics: DynamicsParams, epsilon_m: float, area_size_m: float,
+             band: AltitudeBand | None = None) -> bool:
+    """M must relax Eq. (P2_3) everywhere a planned position can be (the area, or the reach;
+    in 3-D over the ``band``'s altitudes)."""
+    n = dynamics.dim
     if params.keep_in_area:
         lo, hi = np.zeros(2), np.full(2, area_size_m)
     else:
-        r = reach_radius(state[2:], params.horizon, dynamics)
+        r = reach_radius(state[n:], params.horizon, dynamics)
         lo, hi = state[:2] - r, state[:2] + r
     corners = np.array([[lo[0], lo[1]], [hi[0], lo[1]], [hi[0], hi[1]], [lo[0], hi[1]]])
+    if n == 3:
+        zs = (AltitudeBand() if band is None else band)
+        corners = np.vstack([np.column_stack([corners, np.full(4, z)])
+                             for z in (zs.floor_m, zs.ceiling_m)])
     for poly in polys:
         need = np.max(poly.b[:, None] + epsilon_m - poly.A @ corners.T)
         if need > params.big_m:

@@ -2,7 +2,8 @@
 
 The rule is in :mod:`dualpilot.supervisor.concurrent.rule`; this is its state over
 a mission: the plan being flown, the System 2 plan being deliberated, the
-online Q. Times are simulated seconds of the mission (the step's clock).
+online Q. Times are simulated seconds of the mission (the step's clock). In 3-D the
+obstacles are the fronts' prisms (:meth:`~dualpilot.model.fire.FireSnapshot.obstacles`).
 :class:`ConcurrentSupervisor` is the registry's "concurrent" supervisor (:data:`ENTRY`,
 :mod:`dualpilot.supervisor.registry`); it runs the cognitive controller only.
 """
@@ -23,7 +24,6 @@ from dualpilot.mission.ports import ForecastPort, PlannerPort, PlanRequest
 from dualpilot.model.dynamics import Array
 from dualpilot.model.fire import FireParams, FireSnapshot, substeps_for
 from dualpilot.model.forecast import OccupancyForecast
-from dualpilot.model.geometry import Polytope
 from dualpilot.model.risk import ForecastView, RiskMap
 from dualpilot.model.stale_fire import grown_snapshot
 from dualpilot.plan import Objective, Plan
@@ -33,6 +33,7 @@ from dualpilot.supervisor.concurrent.rule import (
     ConcurrentParams,
     Deliberation,
     Flown,
+    Obstacles,
     OnlineQ,
     check_near,
     forecast_threatened,
@@ -91,7 +92,7 @@ class ConcurrentSupervisor:
         choice = self.choose(t, step.sim_time_s, step.state, step.prev_control, snapshot, seen,
                              step.planners, step.record_time, forecast)
         if choice.plan is not None:  # the run-time monitor has the last word, as for the paper's
-            obstacles = seen.obstacles_for(step.state[:2], step.spec.clearance_m)
+            obstacles = seen.obstacles(step.state[: step.spec.dim], step.spec.clearance_m)
             k = self.params.check_steps  # a kept plan is re-checked every step
             verdict = monitor.check_plan(choice.plan.states[: k + 1], choice.plan.controls[:k],
                                          step.state, obstacles, step.spec)
@@ -149,7 +150,7 @@ class ConcurrentSupervisor:
         threat rule and the risk-aware planners (None: neither is used).
         """
         p, spec = self.params, self.spec
-        obstacles = seen.obstacles_for(state[: spec.dynamics.dim], spec.clearance_m)
+        obstacles = seen.obstacles(state[: spec.dynamics.dim], spec.clearance_m)
         choice = Choice(plan=None)
         known_now = frozenset(snapshot.front_ids)
         n_step = self._step_substeps()
@@ -180,7 +181,7 @@ class ConcurrentSupervisor:
         return choice
 
     def _ask_now(self, t: int, state: Array, prev_control: Array,
-                 obstacles: tuple[Polytope, ...], planners: PlannerPort, choice: Choice,
+                 obstacles: Obstacles, planners: PlannerPort, choice: Choice,
                  record_time: Callable[[int, float], None], known: frozenset[int],
                  kept: Flown | None) -> list[Flown]:
         """Nothing safe to fly: System 1 now; else the kept plan if it still verifies; else,
@@ -223,7 +224,7 @@ class ConcurrentSupervisor:
 
         return max(options, key=score)
 
-    def _collect(self, t: int, sim_s: float, state: Array, obstacles: tuple[Polytope, ...],
+    def _collect(self, t: int, sim_s: float, state: Array, obstacles: Obstacles,
                  planners: PlannerPort, choice: Choice,
                  record_time: Callable[[int, float], None]) -> Flown | None:
         """The deliberated System 2 plan, once due: re-anchored and verified, or None."""
@@ -255,7 +256,7 @@ class ConcurrentSupervisor:
             return None
         return Flown(anchored, 0, d.known, d.view)
 
-    def _kept(self, state: Array, obstacles: tuple[Polytope, ...],
+    def _kept(self, state: Array, obstacles: Obstacles,
               choice: Choice) -> Flown | None:
         """The flown plan's remainder from the UAV's state, if it still verifies."""
         if self.flown is None:
@@ -269,7 +270,7 @@ class ConcurrentSupervisor:
         return Flown(anchored, 0, self.flown.known, self.flown.view)
 
     def _ask(self, system: int, t: int, state: Array, prev_control: Array,
-             obstacles: tuple[Polytope, ...], planners: PlannerPort, choice: Choice,
+             obstacles: Obstacles, planners: PlannerPort, choice: Choice,
              record_time: Callable[[int, float], None]) -> Plan | None:
         """A plan now (the UAV waits its response time); None unless it is OK and verifies."""
         if not planners.available(system):
@@ -312,7 +313,7 @@ class ConcurrentSupervisor:
         x_hat = plan.states[k]
         dim = self.spec.dynamics.dim
         try:
-            obstacles = seen.obstacles_for(x_hat[:dim], self.spec.clearance_m)
+            obstacles = seen.obstacles(x_hat[:dim], self.spec.clearance_m)
         except ValueError:
             return
         view = None if self.view is None else replace(
@@ -325,8 +326,9 @@ class ConcurrentSupervisor:
         choice.answers.append(Answer(2, S.LAUNCHED))
 
     def after_flight(self, system: int, p0: Array, p1: Array, du2: float) -> None:
-        """One step flown by ``system`` from p0 to p1 with ‖u_t − u_{t−1}‖² = du2."""
-        goal = self.spec.goal.center
+        """One step flown by ``system`` from p0 to p1 (m, the spec's dimension) with
+        ‖u_t − u_{t−1}‖² = du2; progress is towards G_o (at its altitude in 3-D)."""
+        goal = self.spec.goal_center
         progress = float(np.linalg.norm(goal - p0) - np.linalg.norm(goal - p1))
         if system:
             self.q.flown(system, progress, du2)
@@ -343,4 +345,5 @@ def _build(config: SupervisorSettings, spec: MissionSpec) -> Supervisor:
 #: The registry's "concurrent" supervisor. It hands over between the systems every few
 #: steps, so its System 1 tracks with the Δu penalty (dualpilot/system1/lqr.py: "rrt+du").
 ENTRY = SupervisorEntry(_build, frozenset({Controller.CC}), "rrt+du",
-                        "System 2 deliberates while the UAV flies; System 1 answers at once")
+                        "System 2 deliberates while the UAV flies; System 1 answers at once",
+                        dims=frozenset({2, 3}))

@@ -35,6 +35,12 @@ supervisor never waits for System 2:
   utility over the mission-time and energy attributes, weighted by the
   attention's mean p̄ = Ξ_t / ΣΞ_t (:meth:`OnlineQ.utility`), flies, with a
   hysteresis margin so that a switch must pay for itself.
+
+In 3-D (``spec.dim == 3``, docs/three_d.md, 8) the obstacles are prisms and every distance
+is the exact 3-D one (a front below the plan's altitude threatens it only within the
+margin in 3-D); a plan is verified with the altitude band; the forecast's risk zones stay
+planar and as tall as every altitude (the run-time monitor's ``check_risk`` reading), so
+the forecast threat rule reads the plan's ground track.
 """
 
 from __future__ import annotations
@@ -49,10 +55,15 @@ from dualpilot.mission.answers import Answer
 from dualpilot.model.dynamics import Array, DynamicsParams, rollout
 from dualpilot.model.fire import FireParams, FireSnapshot
 from dualpilot.model.geometry import Polytope, path_clearance
+from dualpilot.model.prism import Prism
 from dualpilot.model.risk import ForecastView, RiskMap, RiskParams, path_risk_clearance
+from dualpilot.model.segment3 import prism_path_clearance
 from dualpilot.plan import Plan
 from dualpilot.spec import MissionSpec
 from dualpilot.verify import verify_trajectory
+
+#: What a planner avoids: polygons (2-D) or the fronts' prisms (3-D).
+Obstacles = tuple[Polytope, ...] | tuple[Prism, ...]
 
 
 @dataclass(frozen=True)
@@ -197,28 +208,34 @@ def threatened(plan: Plan, seen: FireSnapshot, known: frozenset[int], margin_m: 
     """
     dim = plan.states.shape[1] // 2
     pts = plan.states[: steps + 1, :dim]
-    unknown = [o for o, fid in zip(seen.obstacles_for(pts[0], margin_m), seen.front_ids,
+    unknown = [o for o, fid in zip(seen.obstacles(pts[0], margin_m), seen.front_ids,
                                    strict=False) if fid not in known]
-    return bool(unknown) and path_clearance(pts, unknown) < margin_m
+    if not unknown:
+        return False
+    if dim == 3:  # prisms: the exact 3-D distances
+        return prism_path_clearance(pts, [o for o in unknown if isinstance(o, Prism)]) < margin_m
+    return path_clearance(pts, [o for o in unknown if isinstance(o, Polytope)]) < margin_m
 
 
 def forecast_threatened(plan: Plan, risk: RiskMap, margin_m: float, steps: int) -> bool:
     """A segment p_{τ−1}–p_τ of the next ``steps`` steps of ``plan`` comes within ``margin_m``
-    of step τ's risk zones (row τ of the plan is τ steps from now)."""
-    dim = plan.states.shape[1] // 2
-    return path_risk_clearance(risk, plan.states[: steps + 1, :dim]) < margin_m
+    of step τ's risk zones (row τ of the plan is τ steps from now); in 3-D its ground track
+    (the zones as tall as every altitude)."""
+    return path_risk_clearance(risk, plan.states[: steps + 1, :2]) < margin_m
 
 
-def check_near(plan: Plan, state: Array, obstacles: tuple[Polytope, ...], spec: MissionSpec,
+def check_near(plan: Plan, state: Array, obstacles: Obstacles, spec: MissionSpec,
                steps: int) -> str:
-    """"" when ``plan`` starts at ``state`` and its next ``steps`` steps verify; else why not."""
+    """"" when ``plan`` starts at ``state`` and its next ``steps`` steps verify (in 3-D against
+    prisms and within the band); else why not."""
     if not plan.ok or len(plan.states) < 2:
         return "no plan"
     if not np.allclose(plan.states[0], state, atol=1e-6):
         return "does not start at the UAV's state"
     k = min(steps, len(plan.controls))
     verdict = verify_trajectory(plan.states[: k + 1], plan.controls[:k], obstacles,
-                                spec.dynamics, spec.d_safe_m)
+                                spec.dynamics, spec.d_safe_m,
+                                band=spec.band if spec.dim == 3 else None)
     return "" if verdict.ok else verdict.reason
 
 
@@ -241,5 +258,6 @@ def steps_until(response_s: float, step_s: float) -> int:
     return max(1, ceil(response_s / step_s - 1e-9))
 
 
-__all__ = ["Choice", "ConcurrentParams", "Deliberation", "Flown", "OnlineQ", "check_near",
+__all__ = ["Choice", "ConcurrentParams", "Deliberation", "Flown", "Obstacles", "OnlineQ",
+           "check_near",
            "forecast_threatened", "reanchor", "threatened", "steps_until", "wait_hazard"]

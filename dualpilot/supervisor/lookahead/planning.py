@@ -5,7 +5,9 @@ The rule is in :mod:`dualpilot.supervisor.lookahead.rule`: the concurrent superv
 choice is flown only if it is sound on the known future; else the supervisor's space-time
 plan is flown, kept while it stays clear, for at most ``guard_steps`` steps. It runs the
 cognitive controller only (the registry's "lookahead", :data:`ENTRY`,
-:mod:`dualpilot.supervisor.registry`).
+:mod:`dualpilot.supervisor.registry`). In 3-D the known future is the footprints' and the
+space-time plans are planar, flown at the UAV's altitude
+(:mod:`dualpilot.supervisor.lookahead.vertical`).
 """
 
 from __future__ import annotations
@@ -23,14 +25,20 @@ from dualpilot.mission.ports import FirePort, ForecastPort, PlannerPort
 from dualpilot.model.dynamics import Array
 from dualpilot.model.fire import FireParams, FireSnapshot
 from dualpilot.model.forecast import OccupancyForecast
-from dualpilot.model.geometry import Polytope
+from dualpilot.model.prism import Prism
 from dualpilot.plan import Plan
 from dualpilot.spacetime.known import growing, growth_per_substep, known_future
 from dualpilot.spacetime.plan import FutureBoxes, arrival, lattice_plan, plan_clear
 from dualpilot.spacetime.smooth import smooth
 from dualpilot.spec import MissionSpec
 from dualpilot.supervisor.concurrent.planning import ConcurrentSupervisor
-from dualpilot.supervisor.concurrent.rule import Choice, ConcurrentParams, Flown, check_near
+from dualpilot.supervisor.concurrent.rule import (
+    Choice,
+    ConcurrentParams,
+    Flown,
+    Obstacles,
+    check_near,
+)
 from dualpilot.supervisor.interface import (
     Planned,
     StepView,
@@ -39,6 +47,15 @@ from dualpilot.supervisor.interface import (
     SupervisorSettings,
 )
 from dualpilot.supervisor.lookahead.rule import LookaheadParams
+from dualpilot.supervisor.lookahead.vertical import (
+    footprints,
+    lift_plan,
+    low,
+    low_clear,
+    planar,
+    planar_spec,
+    spanning,
+)
 from dualpilot.supervisor.paper.decision import SupervisorParams
 
 #: the notes of the supervisor's own plans' answers in the records ("s1:ok[space-time]")
@@ -61,6 +78,12 @@ class LookaheadSupervisor(ConcurrentSupervisor):
         self.max_steps = mission.max_steps
         #: how far a region's edge can move in a sub-step (m), for escapes
         self.growth_m = growth_per_substep(fire)
+        #: the mission the lattice plans in: its plane in 3-D
+        self.flat_spec = spec if spec.dim == 2 else planar_spec(spec)
+        #: 3-D: the known future of the prisms that span the band (None: every prism does, the
+        #: search's future) and the low prisms of now, for :meth:`sound`
+        self.tall: FutureBoxes | None = None
+        self.low: tuple[Prism, ...] = ()
 
     def plan(self, step: StepView, t: int, d_t: float, snapshot: FireSnapshot) -> Planned:
         """Step t as the concurrent supervisor's (it calls :meth:`choose`)."""
@@ -75,7 +98,7 @@ class LookaheadSupervisor(ConcurrentSupervisor):
         supervisor's choice if it is sound on the known future; else a new space-time plan
         (else the concurrent supervisor's choice all the same)."""
         spec = self.spec
-        obstacles = seen.obstacles_for(state[: spec.dynamics.dim], spec.clearance_m)
+        obstacles = seen.obstacles(state[: spec.dynamics.dim], spec.clearance_m)
         known = self.known(t, obstacles)
         d = spec.d_safe_m + self.lookahead.margin_m
         kept = self._kept_guard(state, known, obstacles, d)
@@ -106,13 +129,20 @@ class LookaheadSupervisor(ConcurrentSupervisor):
         return choice
 
     # -- the known future and what is sound on it ----------------------------------------------
-    def known(self, t: int, obstacles: tuple[Polytope, ...]) -> FutureBoxes:
-        """The known future from step t to the step limit (:mod:`dualpilot.spacetime.known`)."""
+    def known(self, t: int, obstacles: Obstacles) -> FutureBoxes:
+        """The known future from step t to the step limit (:mod:`dualpilot.spacetime.known`),
+        of every obstacle's footprint in 3-D; the prisms that span the band and the low ones
+        are kept apart for :meth:`sound`."""
         per_step = self._step_substeps()
         fires = self.fires
         fc = fires.forecast(per_step) if isinstance(fires, ForecastPort) else None
         substeps = (self.max_steps - t + 1) * per_step
-        return known_future(obstacles, fc, substeps, self.lookahead.alpha, per_step)
+        alpha = self.lookahead.alpha
+        band = self.spec.band
+        self.low = low(obstacles, band)
+        self.tall = None if not self.low else known_future(
+            spanning(obstacles, band), fc, substeps, alpha, per_step)
+        return known_future(footprints(obstacles), fc, substeps, alpha, per_step)
 
     def sound(self, plan: Plan, state: Array, known: FutureBoxes, d: float) -> bool:
         """Whether ``plan`` is clear of the known future over its next ``check_steps`` flights,
@@ -123,9 +153,11 @@ class LookaheadSupervisor(ConcurrentSupervisor):
                 p.stall_radius_m):
             return False
         steps = arrives if arrives is not None and arrives <= p.arrive_steps else p.check_steps
-        return plan_clear(plan, known, d, steps)
+        if self.tall is None:
+            return plan_clear(plan, known, d, steps)
+        return plan_clear(plan, self.tall, d, steps) and low_clear(plan, self.low, d, steps)
 
-    def _kept_guard(self, state: Array, known: FutureBoxes, obstacles: tuple[Polytope, ...],
+    def _kept_guard(self, state: Array, known: FutureBoxes, obstacles: Obstacles,
                     d: float) -> Plan | None:
         """The rest of the space-time plan being flown, while it starts at the UAV's state, is
         sound and verifies, for at most ``guard_steps`` steps."""
@@ -141,13 +173,16 @@ class LookaheadSupervisor(ConcurrentSupervisor):
 
     # -- the space-time search -------------------------------------------------------------------
     def search(self, t: int, state: Array, prev_control: Array, known: FutureBoxes,
-               obstacles: tuple[Polytope, ...], d: float,
+               obstacles: Obstacles, d: float,
                record_time: Callable[[int, float], None]) -> Plan | None:
-        """A space-time plan into G on the known future, smoothed when it can be; timed as a
-        System 1 answer. None when none is found or it does not verify."""
+        """A space-time plan into G on the known future, smoothed when it can be (in 3-D
+        planar, flown at the UAV's altitude); timed as a System 1 answer. None when none is
+        found or it does not verify."""
         spec = self.spec
         t0 = time.perf_counter()
-        plan = self._lattice(t, state, prev_control, known, d)
+        plan = self._lattice(t, planar(state), prev_control[:2], known, d)
+        if plan is not None and spec.dim == 3:
+            plan = lift_plan(plan, state, spec.dynamics)
         seconds = time.perf_counter() - t0
         record_time(1, seconds)
         if plan is None or check_near(plan, state, obstacles, spec, self.params.check_steps):
@@ -158,8 +193,8 @@ class LookaheadSupervisor(ConcurrentSupervisor):
     def _lattice(self, t: int, state: Array, prev_control: Array, known: FutureBoxes,
                  d: float) -> Plan | None:
         """The lattice plan: found keeping the tube's margin more and smoothed in it, else
-        found keeping ``d`` and flown as it is."""
-        p, spec = self.lookahead, self.spec
+        found keeping ``d`` and flown as it is (``state`` planar, its plane's mission)."""
+        p, spec = self.lookahead, self.flat_spec
         steps = self.max_steps - t
         wide = d + math.sqrt(2.0) * p.tube_m
         static = known.boxes[known.offsets[0]:known.offsets[1]]  # the hulls: every sub-step
@@ -177,7 +212,7 @@ class LookaheadSupervisor(ConcurrentSupervisor):
                 return found
         return None
 
-    def escape(self, t: int, state: Array, obstacles: tuple[Polytope, ...], d: float,
+    def escape(self, t: int, state: Array, obstacles: Obstacles, d: float,
                record_time: Callable[[int, float], None]) -> Plan | None:
         """``escape_steps`` flights anywhere that keep ``d`` from the obstacles of now, each
         grown as fast as a front can grow (:func:`~dualpilot.spacetime.known.growing`);
@@ -185,9 +220,12 @@ class LookaheadSupervisor(ConcurrentSupervisor):
         p, spec = self.lookahead, self.spec
         t0 = time.perf_counter()
         per_step = self._step_substeps()
-        near = growing(obstacles, (p.escape_steps + 1) * per_step, self.growth_m, per_step)
-        plan, _ = lattice_plan(state, near, spec, p.escape_stage, self.max_steps - t, d,
-                               survive=p.escape_steps)
+        near = growing(footprints(obstacles), (p.escape_steps + 1) * per_step, self.growth_m,
+                       per_step)
+        plan, _ = lattice_plan(planar(state), near, self.flat_spec, p.escape_stage,
+                               self.max_steps - t, d, survive=p.escape_steps)
+        if plan is not None and spec.dim == 3:
+            plan = lift_plan(plan, state, spec.dynamics)
         seconds = time.perf_counter() - t0
         record_time(1, seconds)
         if plan is None or check_near(plan, state, obstacles, spec, self.params.check_steps):
@@ -212,4 +250,5 @@ def _build(config: SupervisorSettings, spec: MissionSpec) -> Supervisor:
 #: The registry's "lookahead" supervisor (System 1 tracking under the Δu penalty, as the
 #: concurrent supervisor's).
 ENTRY = SupervisorEntry(_build, frozenset({Controller.CC}), "rrt+du",
-                        "the concurrent choice, guarded by the known future")
+                        "the concurrent choice, guarded by the known future",
+                        dims=frozenset({2, 3}))

@@ -176,8 +176,7 @@ def test_a_2d_mission_has_no_heights() -> None:
     assert VerticalParams().fire_heights(spec, "paper") is None
 
 
-@pytest.mark.parametrize(("system", "method"), [(2, "exact"), (2, "fast+exact"),
-                                                (2, "certified")])
+@pytest.mark.parametrize(("system", "method"), [(2, "certified")])
 def test_a_planar_method_refuses_a_3d_mission_by_name(system: int, method: str) -> None:
     from dualpilot.planners import build_planner
 
@@ -190,23 +189,24 @@ def test_a_planar_method_refuses_a_3d_mission_by_name(system: int, method: str) 
 def test_a_mission_names_each_planner_that_refuses_3d() -> None:
     from dualpilot.mission.local import local_mission
 
-    with pytest.raises(ValueError, match="System 2 method 'fast\\+exact' plans in 2-D only"):
-        local_mission(MissionConfig.named("s2", profile="today-3d", system2_method="fast+exact"))
-    with pytest.raises(ValueError, match="System 2 method 'exact' plans in 2-D only"):
+    with pytest.raises(ValueError, match="System 2 method 'certified' plans in 2-D only"):
+        local_mission(MissionConfig.named("s2", profile="today-3d", system2_method="certified"))
+    with pytest.raises(ValueError, match="System 2 method 'certified' plans in 2-D only"):
         local_mission(MissionConfig.named("cc", profile="today-3d",  # System 1 plans in 3-D
-                                          system2_method="exact"))
+                                          system2_method="certified"))
 
 
-@pytest.mark.parametrize("name", ["concurrent", "lookahead"])
-def test_a_planar_supervisor_refuses_a_3d_mission_by_name(name: str) -> None:
+def test_a_planar_supervisor_refuses_a_3d_mission_by_name() -> None:
+    """The example package's "proximity" says 2-D only; every built-in supervisor says 3."""
     from dualpilot.supervisor.registry import build_supervisor
 
-    config = MissionConfig.named(name, profile="today-3d")
-    with pytest.raises(ValueError, match=f"the {name} supervisor supervises missions in 2-D "
+    config = MissionConfig.named("proximity", profile="today-3d")
+    with pytest.raises(ValueError, match="the proximity supervisor supervises missions in 2-D "
                                          "only, not dim=3"):
         build_supervisor(config, config.spec())
-    paper = MissionConfig.named("cc", profile="today-3d")
-    assert build_supervisor(paper, paper.spec()) is not None
+    for name in ("cc", "concurrent", "lookahead"):
+        built = MissionConfig.named(name, profile="today-3d")
+        assert build_supervisor(built, built.spec()) is not None
 
 
 def test_the_oracle_refuses_a_3d_mission_by_name() -> None:

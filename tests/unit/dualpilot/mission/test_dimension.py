@@ -2,10 +2,11 @@
 
 A controller flies a 3-D mission when its supervisor and the planning method of every
 system it asks say they plan in 3-D; of the built-in parts System 1's methods, System 2's
-"fast" and the paper's supervisor do (so cc, s1, s2 and their risk-aware forms fly), and
-the concurrent and lookahead supervisors are refused before their missions start, by name,
-with every part that plans in 2-D only and that its 3-D planning is not built yet; an
-evaluation, a sweep and the stack refuse before any mission. A method that says it plans
+"fast", "thorough", "exact" and "fast+exact" and every built-in supervisor do (so every
+built-in controller name flies with its default methods), and a controller asking System
+2's "certified" is refused before its mission starts, by name, with every part
+that plans in 2-D only and that its 3-D planning is not built yet; an evaluation, a sweep
+and the stack refuse before any mission. A method that says it plans
 in 3-D (here System 1's rrt under the reduction, a real registry's entry point) flies,
 and the refusals then name it among the controllers that fly.
 """
@@ -30,37 +31,40 @@ from services.supervisor.options import parse
 from tests.support.lifted import assert_same_mission
 
 NOT_BUILT = r"3-D planning for (it|these) is not built yet \(docs/three_d.md, Status\)"
-#: the parts of each built-in controller that plan in 2-D only, worked out from its
-#: supervisor (docs/concurrent.md: the concurrent and lookahead supervisors fly System 1
-#: under the Δu penalty, "rrt+du") and the systems it asks (cc both, s1 and s2 one)
-#: (System 1's rrt and rrt+du and System 2's fast plan in 3-D: docs/three_d.md, 5 and 6)
-PARTS = {
-    "concurrent": ["the concurrent supervisor"],
-    "lookahead": ["the lookahead supervisor"],
-}
-FLYING = "Controllers that fly dim=3: cc, s1, s2, cc+risk, s1+risk, s2+risk"
+#: every built-in controller name, flying dim=3 with its default methods (System 1's rrt and
+#: rrt+du and System 2's fast plan in 3-D, and every built-in supervisor supervises it:
+#: docs/three_d.md, 5, 6 and 8)
+ALL = ("cc", "s1", "s2", "concurrent", "cc+risk", "s1+risk", "s2+risk", "concurrent+risk",
+       "lookahead", "lookahead+risk")
+FLYING = "Controllers that fly dim=3: " + ", ".join(ALL)
+#: System 2's methods that plan in 2-D only: every controller that asks System 2 (all but
+#: s1) is refused with one of them, naming it, and the list of those that fly is s1's
+PLANAR_S2 = ("certified",)
+FLYING_PLANAR_S2 = "Controllers that fly dim=3: s1, s1+risk"
 
 
-@pytest.mark.parametrize("name", sorted(PARTS))
+@pytest.mark.parametrize("method", PLANAR_S2)
+@pytest.mark.parametrize("name", ["cc", "s2", "concurrent", "lookahead"])
 @pytest.mark.parametrize("risk", ["", "+risk"])
-def test_every_built_in_controller_refuses_a_3d_mission_by_name(name: str, risk: str) -> None:
-    config = MissionConfig.named(name + risk, profile="today-3d")
-    assert [r.split(" plans in")[0].split(" supervises")[0] for r in refusals(config)] == \
-        PARTS[name]
+def test_a_controller_asking_a_planar_method_refuses_a_3d_mission_by_name(
+        name: str, risk: str, method: str) -> None:
+    config = MissionConfig.named(name + risk, profile="today-3d", system2_method=method)
+    assert refusals(config) == (f"System 2 method '{method}' plans in 2-D only",)
     with pytest.raises(ValueError) as err:
         local_mission(config)
     text = str(err.value)
-    assert text.startswith(f"controller '{name + risk}' does not fly dim=3: ")
-    assert all(f"{part} plans in 2-D only" in text or f"{part} supervises missions in 2-D only"
-               in text for part in PARTS[name])
-    assert text.endswith(FLYING)
+    assert text.startswith(f"controller '{name + risk}' does not fly dim=3: System 2 method "
+                           f"'{method}' plans in 2-D only: ")
+    assert text.endswith(FLYING_PLANAR_S2)
     assert re.search(NOT_BUILT, text)
 
 
-@pytest.mark.parametrize("name", ["cc", "s1", "s2"])
+@pytest.mark.parametrize("name", ["cc", "s1", "s2", "concurrent", "lookahead"])
 @pytest.mark.parametrize("risk", ["", "+risk"])
-def test_the_paper_s_controllers_fly_a_3d_mission(name: str, risk: str) -> None:
-    config = MissionConfig.named(name + risk, profile="today-3d")
+@pytest.mark.parametrize("method", ["fast", "thorough", "exact", "fast+exact"])
+def test_every_built_in_controller_flies_a_3d_mission(name: str, risk: str,
+                                                      method: str) -> None:
+    config = MissionConfig.named(name + risk, profile="today-3d", system2_method=method)
     assert refusals(config) == ()
     check_dimension(config)
 
@@ -71,8 +75,7 @@ def test_the_2d_mission_is_not_refused() -> None:
         assert refusals(config) == ()
         check_dimension(config)
     assert flying_controllers(MissionConfig()) == controller_names()
-    assert flying_controllers(MissionConfig(profile="today-3d")) == (
-        "cc", "s1", "s2", "cc+risk", "s1+risk", "s2+risk")
+    assert flying_controllers(MissionConfig(profile="today-3d")) == ALL
 
 
 def test_an_installed_part_is_named_as_one() -> None:
@@ -91,44 +94,45 @@ def test_an_installed_part_is_named_as_one() -> None:
 def test_the_command_line_refuses_with_a_message_not_a_traceback(
         tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     out = tmp_path / "m"
-    code = main(["mission", "--controller", "concurrent", "--seed", "26", "--timing", "paper",
-                 "--set", "dim=3", "--out", str(out), "--quiet"])
+    code = main(["mission", "--controller", "concurrent", "--s2-method", "certified", "--seed",
+                 "26", "--timing", "paper", "--set", "dim=3", "--out", str(out), "--quiet"])
     err = capsys.readouterr().err
     assert code == 2 and not out.exists()
-    assert err.startswith("dualpilot: error: controller 'concurrent' does not fly dim=3: the "
-                          "concurrent supervisor supervises missions in 2-D only: 3-D planning "
-                          "for it is not built "
-                          "yet")
+    assert err.startswith("dualpilot: error: controller 'concurrent' does not fly dim=3: System "
+                          "2 method 'certified' plans in 2-D only: 3-D planning for it is not "
+                          "built yet")
     assert "Traceback" not in err
 
 
 def test_an_evaluation_and_a_sweep_refuse_before_any_mission(tmp_path: Path) -> None:
-    base = MissionConfig(profile="today-3d")
+    base = MissionConfig(profile="today-3d", system2_method="certified")
     with pytest.raises(ValueError) as err:
-        evaluate(2, tmp_path / "e", base, controllers=["concurrent", "s2", "oracle"],
+        evaluate(2, tmp_path / "e", base, controllers=["concurrent", "s1", "oracle"],
                  progress=False)
     lines = str(err.value).splitlines()
     assert lines[0] == "dim=3: these controllers do not fly it"
     assert [line.split(":")[0] for line in lines[1:3]] == ["  concurrent", "  oracle"]
     assert "the oracle (its lattice search and impossibility certificate) judges planar " \
         "missions only (dim=2), not dim=3: its 3-D search is not built yet" in lines[2]
-    assert lines[3] == FLYING
+    assert lines[3] == FLYING_PLANAR_S2
     assert not (tmp_path / "e").exists()
     with pytest.raises(ValueError, match="dim=3: these controllers do not fly it"):
         sweep([Point(0, "today", (("dim", 3),))], 1, tmp_path / "s",
-              controllers=["lookahead"], progress=False)
+              controllers=["oracle"], progress=False)
     assert not (tmp_path / "s").exists()
 
 
 def test_the_stack_takes_a_3d_mission_its_controller_flies_and_refuses_the_others(
         capsys: pytest.CaptureFixture[str]) -> None:
-    opts = parse(["--controller", "s2", "--set", "dim=3"], "supervisor", environ={})
-    assert opts.mission.spec().dim == 3
+    for name in ("s2", "concurrent", "lookahead"):
+        opts = parse(["--controller", name, "--set", "dim=3"], "supervisor", environ={})
+        assert opts.mission.spec().dim == 3
     with pytest.raises(SystemExit) as exited:
-        parse(["--controller", "concurrent", "--set", "dim=3"], "supervisor", environ={})
+        parse(["--controller", "concurrent", "--s2-method", "certified", "--set", "dim=3"],
+              "supervisor", environ={})
     assert exited.value.code == 2
-    assert ("controller 'concurrent' does not fly dim=3: the concurrent supervisor supervises "
-            "missions in 2-D only") in capsys.readouterr().err
+    assert ("controller 'concurrent' does not fly dim=3: System 2 method 'certified' plans "
+            "in 2-D only") in capsys.readouterr().err
 
 
 @pytest.fixture
@@ -148,20 +152,21 @@ def test_a_method_that_says_3d_flies_and_is_listed(lifted_rrt: str) -> None:
     tall = MissionConfig.named("s1", seed=1, system1_method=lifted_rrt, settings=settings
                                ).with_settings({"dim": 3, "fire_height": "above-ceiling"})
     assert refusals(tall) == ()
-    # s1 asks System 1 only, s2 System 2's fast (3-D), cc both (and each has a risk-aware
-    # variant); the concurrent and lookahead supervisors plan in 2-D, with their own rrt+du
-    assert flying_controllers(tall) == ("cc", "s1", "s2", "cc+risk", "s1+risk", "s2+risk")
-    with pytest.raises(ValueError, match=r"Controllers that fly dim=3: cc, s1, s2, cc\+risk, "
-                                         r"s1\+risk, s2\+risk$"):
+    # every supervisor flies the named System 1 method, and System 2's fast plans in 3-D
+    assert flying_controllers(tall) == ALL
+    with pytest.raises(ValueError, match=r"Controllers that fly dim=3: s1, s1\+risk$"):
         check_dimension(MissionConfig.named("concurrent", system1_method=lifted_rrt,
-                                            profile="today-3d"))
+                                            system2_method="certified", profile="today-3d"))
     a = local_mission(flat).run()
     assert a.success and a.steps == 97
     assert_same_mission(a, local_mission(tall).run())
     # the stack flies the 3-D mission of a controller that flies it, and refuses the others
     # with the controller's own refusal, before any service is asked
     check_stack_dimension(tall)
-    with pytest.raises(ValueError, match=r"controller 'concurrent' does not fly dim=3: the "
-                                         r"concurrent supervisor supervises missions in 2-D"):
+    check_stack_dimension(MissionConfig.named("concurrent", system1_method=lifted_rrt,
+                                              profile="today-3d"))
+    with pytest.raises(ValueError, match=r"controller 'concurrent' does not fly dim=3: System "
+                                         r"2 method 'certified' plans in 2-D only"):
         check_stack_dimension(MissionConfig.named("concurrent", system1_method=lifted_rrt,
+                                                  system2_method="certified",
                                                   profile="today-3d"))

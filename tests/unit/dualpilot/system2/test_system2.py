@@ -239,8 +239,8 @@ def test_bad_construction():
         ExactSystem2(SPEC, System2Params(horizon=0))
     with pytest.raises(ValueError, match="solver"):
         ExactSystem2(SPEC, params(), solver="CPLEX")
-    with pytest.raises(ValueError, match="2-D"):
-        ExactSystem2(MissionSpec(dynamics=DynamicsParams(dim=3)), params())
+    with pytest.raises(ValueError, match="3-D under speed_limit = 'axis' only"):
+        ExactSystem2(MissionSpec(dynamics=DynamicsParams(dim=3, speed_limit="norm")), params())
     with pytest.raises(ValueError, match="max_faces"):
         outer_simplify(BLOCK, 3)
     if not gurobi_available():
