@@ -46,6 +46,7 @@ def _mission(args: argparse.Namespace) -> int:
             {
                 k: summary[k]
                 for k in (
+                    "controller_name",
                     "controller",
                     "seed",
                     "timing",

@@ -132,6 +132,10 @@ class MissionResult:
     controller: str
     timing: str
     spec: MissionSpec
+    #: the controller's name as ``dualpilot evaluate`` spells it (``lookahead+risk``: the
+    #: supervisor and the forecast with it; ``controller`` alone says which systems fly);
+    #: empty where a record does not say (``summary()`` then gives ``controller``)
+    controller_name: str = ""
     #: how the mission ended (None while it flies)
     ending: Ending | None = None
     steps: int = 0
@@ -212,4 +216,6 @@ class MissionResult:
             # and its flight's tracking error, when one was recorded
             **({"tracking_error_p50_m": tracked[0], "tracking_error_p99_m": tracked[1]}
                if (tracked := self.tracking_percentiles()) is not None else {}),
+            # the controller as dualpilot evaluate names it (cc, lookahead+risk, …)
+            "controller_name": self.controller_name or self.controller,
         }

@@ -217,7 +217,8 @@ class Mission:
         self.state = np.asarray(state, dtype=float).copy()
         self.prev_control = np.zeros(self.dyn.dim)
         self.result = MissionResult(controller=config.controller.value,
-                                    timing=config.timing.value, spec=spec)
+                                    timing=config.timing.value, spec=spec,
+                                    controller_name=config.controller_name)
         self.done = False
         #: front id → distance (m) at the last fire check (the "become" failure rule)
         self.front_distances: dict[int, float] = {}

@@ -23,7 +23,7 @@ def report(cfg: StackConfig, outcome: Outcome, codes: dict[str, int], wall: floa
     summary_path = cfg.run_dir / "summary.json"
     if summary_path.is_file():
         s = json.loads(summary_path.read_text())
-        keep = ("controller", "seed", "timing", "success", "ending", "steps",
+        keep = ("controller_name", "controller", "seed", "timing", "success", "ending", "steps",
                 "mission_time_s", "energy", "switches")
         print(json.dumps({k: s.get(k) for k in keep}))
         overhead = s.get("stack", {}).get("setpoint_overhead", {})

@@ -56,6 +56,16 @@ def test_a_successful_mission_s_summary_has_no_cause(tmp_path: Path) -> None:
     assert list(summary)[:6] == ["controller", "seed", "timing", "success", "ending", "steps"]
 
 
+def test_the_summary_names_the_controller_as_evaluate_does() -> None:
+    # "controller" says which systems fly (the lookahead supervisor flies both: cc);
+    # "controller_name" the name the mission was asked with
+    config = MissionConfig.named("lookahead+risk", seed=7, settings=(("max_steps", 2),))
+    summary = local_mission(config).run().summary()
+    assert (summary["controller"], summary["controller_name"]) == ("cc", "lookahead+risk")
+    old = MissionResult(controller="s1", timing="paper", spec=config.spec())
+    assert old.summary()["controller_name"] == "s1"  # a record that does not say
+
+
 def test_a_failed_mission_s_summary_has_its_cause(tmp_path: Path) -> None:
     result = flown("s2", tmp_path)
     summary, trace = _json(tmp_path / "summary.json"), _json(tmp_path / "trace.json")
