@@ -17,6 +17,8 @@ band (System 1's samples), so the missions are compared in pairs, per controller
   (``scipy.stats.wilcoxon``; "-" when every pair is equal).
 
 Prints a Markdown table; the two runs' directories stay under ``--out`` (``2d/``, ``3d/``).
+``--fire-height reading`` keeps the mission's own heights in 3-D (on a scenario the fire's
+physics: flame and plume) to measure what altitude buys over the plane.
 """
 
 from __future__ import annotations
@@ -64,14 +66,19 @@ def main() -> None:
     ap.add_argument("--controllers", default="cc,s1,s2,cc+risk,s1+risk,s2+risk")
     ap.add_argument("--profile", help="a readings profile (evaluate's --profile)")
     ap.add_argument("--scenario", help="a fire-behaviour scenario (evaluate's --scenario)")
+    ap.add_argument("--fire-height", default="above-ceiling",
+                    help="the 3-D run's fire_height reading; 'reading': the mission's own "
+                         "(the physics tops on a scenario): what altitude buys")
     ap.add_argument("--out", type=Path, default=Path("runs/paired3d"))
     args = ap.parse_args()
     args.where = ([f"--profile={args.profile}"] if args.profile else []) + (
         [f"--scenario={args.scenario}"] if args.scenario else [])
     flat = evaluate(args, args.out / "2d", [])
-    tall = evaluate(args, args.out / "3d", ["--set", "dim=3", "--set",
-                                            "fire_height=above-ceiling"])
-    print(f"{args.missions} missions from seed {args.seed}, {' '.join(args.where) or 'paper'}\n")
+    heights = [] if args.fire_height == "reading" else ["--set",
+                                                         f"fire_height={args.fire_height}"]
+    tall = evaluate(args, args.out / "3d", ["--set", "dim=3", *heights])
+    print(f"{args.missions} missions from seed {args.seed}, {' '.join(args.where) or 'paper'}, "
+          f"3-D fire_height {args.fire_height}\n")
     print("| controller | identical | success 2-D | success 3-D | Δ points | discordant "
           "(2-D only / 3-D only) | McNemar p | time p | energy p |")
     print("|---|---|---|---|---|---|---|---|---|")
