@@ -205,9 +205,11 @@ def build_planner(system: int, spec: MissionSpec, method: str | None = None,
     """
     if system not in (1, 2):
         raise ValueError(f"unknown system {system!r}; choose 1 or 2")
-    from dualpilot.warmup import warm_up
+    from dualpilot.warmup import warm_up, warm_up_3d
 
     warm_up()  # the compiled kernels, once a process, before any plan is timed
+    if spec.dim == 3:
+        warm_up_3d()  # and the 3-D ones, where a 3-D mission is planned
     method = default_method(system) if method is None else method
     entry = _method_of(system, method)
     if risk and entry.build_risk is None:

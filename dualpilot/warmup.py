@@ -4,9 +4,10 @@ The kernels (the fast QP's iterations, the hull, the reach boxes, the LQR
 trackers) compile on their first call, seconds on a fresh checkout and about
 a tenth of a second from the cache. :func:`warm_up` flies one plan of each
 system under both speed limits, so neither a planner service's first answer
-nor a measured planning time includes it. ``python -m dualpilot.warmup``
-fills the cache (``make setup`` runs it). It is thread-safe: a second
-thread waits until the first has finished.
+nor a measured planning time includes it; :func:`warm_up_3d` does the same for the
+3-D kernels (the prisms' distances, the 3-D segment test) where a 3-D planner is made.
+``python -m dualpilot.warmup`` fills the cache for both (``make setup`` runs it). It is
+thread-safe: a second thread waits until the first has finished.
 """
 
 from __future__ import annotations
@@ -60,6 +61,45 @@ def _warm() -> float:
     return time.perf_counter() - t0
 
 
+_3d_done = False
+
+
+def warm_up_3d() -> float:
+    """The 3-D kernels once a process (a no-op after the first call), after :func:`warm_up`;
+    seconds taken. Without it a 3-D mission's first plan would compile them inside System 1's
+    wall cap (``RrtParams.max_wall_s``) and could end early on a slow machine."""
+    global _3d_done
+    with _lock:
+        if _3d_done:
+            return 0.0
+        _3d_done = True
+        t0 = time.perf_counter()
+        warm_up()
+        _warm_3d()
+        return time.perf_counter() - t0
+
+
+def _warm_3d() -> None:
+    from dualpilot.model.dynamics import DynamicsParams, hover_state
+    from dualpilot.model.geometry import Rect
+    from dualpilot.model.prism import Prism
+    from dualpilot.plan import Objective
+    from dualpilot.spec import MissionSpec
+    from dualpilot.system1.planner import System1, System1Params
+    from dualpilot.system2.fast.planner import FastSystem2
+    from dualpilot.system2.problem import System2Params
+
+    wall = Prism.cuboid(Rect(500.0, 450.0, 1000.0, 100.0), 0.0, 40.0)  # under the start's 50 m
+    for limit in ("axis", "norm"):
+        spec = MissionSpec(dynamics=DynamicsParams(dim=3, speed_limit=limit))
+        state = hover_state(spec.start_position, spec.dynamics)
+        for altitude in ("slice-first", "volume"):
+            System1(spec, System1Params(altitude=altitude)).plan(state, (wall,),
+                                                                 Objective.MISSION_TIME)
+        if limit == "axis":  # the fast method's 3-D QP splits under "axis" only
+            FastSystem2(spec, System2Params()).plan(state, (wall,), Objective.ENERGY)
+
+
 _certificate_done = False
 
 
@@ -90,4 +130,4 @@ def _warm_certificate() -> None:
 
 
 if __name__ == "__main__":
-    print(f"kernels ready in {warm_up() + warm_certificate():.1f} s")
+    print(f"kernels ready in {warm_up() + warm_up_3d() + warm_certificate():.1f} s")

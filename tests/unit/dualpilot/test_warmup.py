@@ -1,4 +1,6 @@
-"""dualpilot.warmup: after it, flying missions compiles nothing (no first plan waits for Numba)."""
+"""dualpilot.warmup: after it, flying missions compiles nothing (no first plan waits for Numba);
+after :func:`~dualpilot.warmup.warm_up_3d`, 3-D missions neither (System 1's wall cap would
+otherwise count the compilation of the 3-D kernels)."""
 
 from __future__ import annotations
 
@@ -47,3 +49,47 @@ def test_missions_after_the_warm_up_compile_nothing() -> None:
         assert report["after"][name] >= 1, name
     assert min(report["steps"]) >= 10  # real missions flew
     assert report["new"] == {}  # and none of them compiled a new specialisation
+
+
+_CHECK_3D = r"""
+import json
+from numba.core.registry import CPUDispatcher
+import dualpilot.model.dynamics as d, dualpilot.model.geometry as g, dualpilot.model.prism as p
+import dualpilot.model.segment3 as s3
+import dualpilot.system1.lqr as l, dualpilot.system2.fast.mehrotra as m
+from dualpilot.warmup import warm_up_3d
+
+def counts():
+    return {f"{mod.__name__}.{k}": len(v.signatures) for mod in (g, d, p, s3, l, m)
+            for k, v in vars(mod).items() if isinstance(v, CPUDispatcher)}
+
+warm_up_3d()
+after = counts()
+from dualpilot.mission.config import MissionConfig
+from dualpilot.mission.local import local_mission
+from dualpilot.mission.params import Controller
+steps, climbs = [], []
+settings = (("dim", 3), ("fire_height", "uniform"), ("fire_height_min_m", 10.0),
+            ("fire_height_max_m", 40.0), ("s1_altitude", "volume"))
+for ctl in (Controller.CC, Controller.S1, Controller.S2):
+    res = local_mission(MissionConfig(controller=ctl, seed=0, settings=settings)).run()
+    steps.append(res.steps)
+    z = [r.state[2] for r in res.records]
+    climbs.append(float(max(z) - min(z)))
+new = {k: v - after[k] for k, v in counts().items() if v != after[k]}
+print(json.dumps({"after": after, "new": new, "steps": steps, "climbs": climbs}))
+"""
+
+
+@pytest.mark.slow  # a process of its own
+def test_3d_missions_after_the_3d_warm_up_compile_nothing() -> None:
+    out = subprocess.run([sys.executable, "-c", _CHECK_3D], capture_output=True, text=True,
+                         timeout=300, check=True)
+    report = json.loads(out.stdout.strip().splitlines()[-1])
+    # the entry points a 3-D plan calls from Python (the kernels they call compile with them)
+    entry = ("dualpilot.model.segment3._one_prism_d2", "dualpilot.model.segment3._prism_distances")
+    for name in entry:  # every 3-D kernel a plan calls is ready
+        assert report["after"][name] >= 1, name
+    assert min(report["steps"]) >= 10  # real missions flew
+    assert max(report["climbs"]) > 5.0  # and used the third dimension
+    assert report["new"] == {}  # none of them compiled a new specialisation
