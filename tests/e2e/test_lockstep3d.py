@@ -10,16 +10,22 @@ tests (tests/e2e/test_lockstep.py): the decision, the system flown, the plan sta
 the fire sub-steps, the planned positions, the state (x, y, z, vx, vy, vz) and the control
 (ux, uy, uz) to 1e-3 (float32 on MAVLink), the outcome.
 
-The missions are cc with paper timing, picked so that the UAV really uses altitude (the
-in-process missions climb and descend; each test asserts it):
+The missions have paper timing, picked so that the UAV really uses altitude (the
+in-process missions climb and descend; each test asserts it). cc:
 
 * the paper's process, seed 0, fronts U[10, 40] m tall (``fire_height=uniform``) and System 1
   searching the volume (``s1_altitude=volume``): 69 steps, altitude 44.5–65.4 m;
 * grass-5, seed 2, starting at the band's floor (``start_altitude_m=20``) under the plume's
   tops (``fire_height`` auto): 84 steps, altitude 20–31.3 m;
+* the same with the fire forecast (``cc+risk``: the forecast's cells on the wire, the risk
+  planners in 3-D): 78 steps to the goal, altitude range 16.9 m;
 * shrub, seed 1: at the start altitude 50 m under the default reading (its plume is 190 m
   tall, above the 120 m ceiling: the top-down world), and from the floor with System 1
   searching the volume (75 steps, altitude 20–40.1 m).
+
+And the other supervisors on the paper's process with fronts U[5, 40] m tall: ``concurrent``
+seed 13 (64 steps to the goal, altitude range 11.2 m) and ``lookahead`` seed 8 (60 steps to
+the goal, 22.1 m).
 
 On physics fires the missions are compared given the vehicle's measurements
 (:class:`~tests.e2e.test_lockstep.ReplayedStates`), as the 2-D ones are.
@@ -46,30 +52,39 @@ from tests.support.waits import check, logs_in
 
 pytestmark = [pytest.mark.slow, pytest.mark.timeout(600)]
 
-#: name: (seed, scenario ("" the paper's process), settings beyond dim=3, altitude used)
-MISSIONS: dict[str, tuple[int, str, tuple[tuple[str, object], ...], bool]] = {
-    "paper-uniform": (0, "", (("fire_height", "uniform"), ("fire_height_min_m", 10.0),
-                              ("fire_height_max_m", 40.0), ("s1_altitude", "volume")), True),
-    "grass-5-floor": (2, "grass-5", (("start_altitude_m", 20.0),), True),
-    "shrub": (1, "shrub", (), False),
-    "shrub-floor": (1, "shrub", (("start_altitude_m", 20.0), ("s1_altitude", "volume")), True),
+#: fronts U[5, 40] m tall on the paper's process
+LOW_FRONTS = (("fire_height", "uniform"), ("fire_height_min_m", 5.0), ("fire_height_max_m", 40.0))
+
+#: name: (controller, seed, scenario ("" the paper's process), settings beyond dim=3,
+#: altitude used)
+MISSIONS: dict[str, tuple[str, int, str, tuple[tuple[str, object], ...], bool]] = {
+    "paper-uniform": ("cc", 0, "", (("fire_height", "uniform"), ("fire_height_min_m", 10.0),
+                                    ("fire_height_max_m", 40.0), ("s1_altitude", "volume")),
+                      True),
+    "grass-5-floor": ("cc", 2, "grass-5", (("start_altitude_m", 20.0),), True),
+    "grass-5-floor-risk": ("cc+risk", 2, "grass-5", (("start_altitude_m", 20.0),), True),
+    "shrub": ("cc", 1, "shrub", (), False),
+    "shrub-floor": ("cc", 1, "shrub", (("start_altitude_m", 20.0), ("s1_altitude", "volume")),
+                    True),
+    "concurrent-low": ("concurrent", 13, "", LOW_FRONTS, True),
+    "lookahead-low": ("lookahead", 8, "", LOW_FRONTS, True),
 }
 
 
 def config_of(name: str) -> MissionConfig:
-    """The cc mission ``name`` of :data:`MISSIONS` with paper timing, in 3-D."""
-    seed, scenario, extra, _ = MISSIONS[name]
+    """The mission ``name`` of :data:`MISSIONS` with paper timing, in 3-D."""
+    controller, seed, scenario, extra, _ = MISSIONS[name]
     settings: list[tuple[str, object]] = [("dim", 3), *extra]
     if scenario:
         settings.append(("scenario", scenario))
-    return MissionConfig.named("cc", seed=seed, timing=Timing.PAPER, settings=tuple(settings))
+    return MissionConfig.named(controller, seed=seed, timing=Timing.PAPER, settings=tuple(settings))
 
 
 def in_process(name: str, run_dir: Path) -> MissionResult:
     """The in-process twin of mission ``name``; on a scenario given the states the stack's
     vehicle measured (checked against Eq. (1) to ATOL each step)."""
     mission = local_mission(config_of(name))
-    if MISSIONS[name][1]:
+    if MISSIONS[name][2]:
         vehicle = mission.vehicle
         assert isinstance(vehicle, LocalVehicle)
         mission.vehicle = ReplayedStates(vehicle, measured_states(run_dir), name)
@@ -112,7 +127,7 @@ def fly(fleet: launch.Fleet, out: Path) -> dict[str, tuple[Path, MissionResult]]
     mission_ids, dirs = {}, {}
     for uav, name in zip(fleet.uav_ids, MISSIONS, strict=True):
         dirs[uav] = out / name
-        mission_ids[uav] = fleet.start_vehicle(uav, MISSIONS[name][0], dirs[uav],
+        mission_ids[uav] = fleet.start_vehicle(uav, MISSIONS[name][1], dirs[uav],
                                                env={"SPEED_FACTOR": "0"},
                                                config=config_of(name)).mission_id
     outcomes = fleet.wait_end(mission_ids, 300.0)
@@ -143,7 +158,7 @@ def test_a_3d_mission_through_the_stack_is_the_in_process_one(flown: dict[str, A
     z = np.array([r.state[2] for r in stack.records])
     start = config_of(name).spec().band.start_altitude_m
     assert z[0] == pytest.approx(start, abs=ATOL)
-    uses_altitude = MISSIONS[name][3]
+    uses_altitude = MISSIONS[name][4]
     # the altitude the UAV flew: climbing and descending where the fires are low enough,
     # kept at the start altitude where every front is taller than the band
     assert (float(np.ptp(z)) > 5.0) == uses_altitude, (name, float(np.ptp(z)))
