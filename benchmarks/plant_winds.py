@@ -6,7 +6,8 @@
 
 Runs ``dualpilot evaluate`` on the same missions (``--seed``, paper timing) once with the
 ideal plant (``OUT/ideal``) and once per mean wind with the multirotor plant
-(``OUT/w<wind>``: ``--turbulence``, ``--gps-sigma``, the "auto" tube); a directory that
+(``OUT/w<wind>``: ``--turbulence``, ``--gps-sigma``, the "auto" tube; on a fire-behaviour
+``--scenario`` the one mean wind is the scenario's own, that of its fire); a directory that
 already holds a results.csv is read, not run again (``--reuse``). Prints a Markdown table per
 controller and plant: success, ``tracking_breach``, ``fire_contact``, mean time and energy
 over the missions completed, the tracking error (median over the missions that flew of each
@@ -28,6 +29,8 @@ from pathlib import Path
 
 import harness
 from scipy.stats import binomtest
+
+from dualpilot.model.scenarios import get_scenario
 
 Rows = dict[tuple[str, str], dict[str, str]]
 
@@ -107,7 +110,8 @@ def main() -> None:
     ap.add_argument("--controllers", default="s1,s2,cc,concurrent,lookahead+risk")
     ap.add_argument("--profile", help="a readings profile (evaluate's --profile)")
     ap.add_argument("--scenario", help="a fire-behaviour scenario (evaluate's --scenario)")
-    ap.add_argument("--winds", default="0,5,10", help="mean winds (m/s), comma-separated")
+    ap.add_argument("--winds", default="0,5,10",
+                    help="mean winds (m/s), comma-separated (on a --scenario: its own wind)")
     ap.add_argument("--turbulence", default="moderate")
     ap.add_argument("--gps-sigma", type=float, default=1.5, help="gps_sigma_m (m)")
     ap.add_argument("--reuse", action="store_true", help="read a run that already has rows")
@@ -116,13 +120,15 @@ def main() -> None:
     args = ap.parse_args()
     args.where = ([f"--profile={args.profile}"] if args.profile else []) + (
         [f"--scenario={args.scenario}"] if args.scenario else [])
-    winds = [float(w) for w in args.winds.split(",")]
     names = args.controllers.split(",")
+    own = get_scenario(args.scenario).params.wind_speed_mps if args.scenario else None
+    winds = [own] if own is not None else [float(w) for w in args.winds.split(",")]
     ideal = evaluate(args, args.out / "ideal", [])
     runs = {w: evaluate(args, args.out / f"w{w:g}",
-                        ["--set", "plant=multirotor", "--set", f"wind_speed_mps={w:g}",
-                         "--set", f"turbulence={args.turbulence}",
-                         "--set", f"gps_sigma_m={args.gps_sigma:g}"]) for w in winds}
+                        ["--set", "plant=multirotor", "--set", f"turbulence={args.turbulence}",
+                         "--set", f"gps_sigma_m={args.gps_sigma:g}",
+                         *([] if own is not None else ["--set", f"wind_speed_mps={w:g}"])])
+            for w in winds}
     where = ", ".join(f"{k} {v}" for k, v in (("profile", args.profile),
                                                ("scenario", args.scenario)) if v) or "paper"
     print(f"{args.missions} missions from seed {args.seed}, {where}, paper timing; multirotor: "
