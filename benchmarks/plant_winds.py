@@ -83,19 +83,22 @@ def figure(path: Path, names: list[str], winds: list[float],
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, ax = plt.subplots(figsize=(6.4, 4.2))
+    fig, ax = plt.subplots(figsize=(7.6, 4.2))
+    at = min(winds) - 0.3 * max(max(winds) - min(winds), 5.0)  # the ideal plant's column
     for i, name in enumerate(names):
         colour = f"C{i}"
         ax.plot(winds, success[name], "o-", color=colour, label=name)
-        ax.axhline(ideal[name], color=colour, linestyle="--", linewidth=1.0)
-    ax.plot([], [], "k--", linewidth=1.0, label="ideal plant (no wind)")
+        ax.axhline(ideal[name], color=colour, linestyle="--", linewidth=0.8, alpha=0.7)
+        ax.plot([at], [ideal[name]], "s", color=colour, markerfacecolor="none")
+    ax.plot([], [], "ks--", markerfacecolor="none", linewidth=0.8,
+            label="ideal plant (no wind)")
     ax.set_xlabel("mean wind (m/s), multirotor plant")
     ax.set_ylabel("success (%)")
-    ax.set_xticks(winds)
+    ax.set_xticks([at, *winds], ["ideal", *(f"{w:g}" for w in winds)])
     ax.set_ylim(-2, 102)
     ax.set_title(title, fontsize=9)
     ax.grid(alpha=0.3)
-    ax.legend(fontsize=8, loc="best")
+    ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0))
     fig.tight_layout()
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=120)
