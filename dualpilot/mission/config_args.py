@@ -151,6 +151,8 @@ def _typed(cls: type, name: str, text: str) -> Any:
     kind = str(field.type)
     if text.strip().lower() in ("none", "") and "None" in kind:
         return None
+    if kind.startswith("Literal"):  # a word (its values are the dataclass's to check)
+        return text.strip()
     return int(text) if kind.startswith("int") else float(text)
 
 
@@ -172,10 +174,16 @@ def concurrent_params(items: Iterable[str]) -> ConcurrentParams:
     return ConcurrentParams(**top, risk=RiskParams(**risk))
 
 
+def _text(value: object) -> str:
+    """A parameter's value as ``--concurrent`` reads it back: a word as it is, a number
+    exact (its repr)."""
+    return value if isinstance(value, str) else repr(value)
+
+
 def _concurrent_items(params: ConcurrentParams) -> list[str]:
     """The parameters that differ from the defaults, as ``name=value`` (exact: repr)."""
     base = ConcurrentParams()
-    out = [f"{f.name}={getattr(params, f.name)!r}" for f in dataclasses.fields(params)
+    out = [f"{f.name}={_text(getattr(params, f.name))}" for f in dataclasses.fields(params)
            if f.name not in ("risk", "threat") and getattr(params, f.name) != getattr(base, f.name)]
     out += [f"risk.{f.name}={getattr(params.risk, f.name)!r}"
             for f in dataclasses.fields(params.risk)

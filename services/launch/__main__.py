@@ -24,7 +24,7 @@ from pathlib import Path
 from dualpilot.mission.config_args import add_config_arguments, config_from_args
 from services.common.stack_dims import check_stack_dimension
 from services.launch.compose import COMPOSE, REPO
-from services.launch.roles import ROLES
+from services.launch.roles import AIR_CONCURRENT, ROLES
 from services.launch.runs import report, run_fleet, run_replicas
 from services.launch.stack import StackConfig, parse_scale, run_mission
 
@@ -90,6 +90,11 @@ def parser() -> argparse.ArgumentParser:
 
 def stack_config(args: argparse.Namespace) -> StackConfig:
     """The stack to run (ValueError for a bad flag)."""
+    if args.role == "air" and not any(item.partition("=")[0].strip() == "s2_unavailable"
+                                      for item in args.concurrent):
+        # the air host flies onboard while System 2 is behind a dead link: System 1 plans
+        # (docs/deployment.md; ``--concurrent s2_unavailable=keep`` says otherwise)
+        args.concurrent = [*AIR_CONCURRENT, *args.concurrent]
     mission = config_from_args(args)
     check_stack_dimension(mission)
     scale = parse_scale(args.scale)

@@ -31,6 +31,10 @@ from services.launch.compose import COMPOSE
 #: the placements a launcher can run (``gcs`` runs a ground station, not a service of ours)
 ROLES = ("air", "ground")
 PLACEMENTS = (*ROLES, "gcs")
+#: the air host's concurrent supervisor (``--concurrent`` items, before the mission's own):
+#: while System 2 is behind a dead link, System 1 plans every step onboard
+#: (docs/deployment.md; docker-compose.air.yml says the same in CONCURRENT_PARAMS)
+AIR_CONCURRENT = ("s2_unavailable=system1",)
 
 
 def role_file(role: str, compose: Path = COMPOSE) -> Path:

@@ -114,3 +114,22 @@ def test_a_role_keeps_its_processes_traffic_in_the_run(tmp_path: Path) -> None:
     env = launch.Stack(cfg).service_env("ews")
     assert env["TRAFFIC_PATH"] == str(tmp_path / "traffic" / "{service}-{pid}.json")
     assert json.loads(json.dumps(cfg.services)) == []
+
+
+def test_the_air_host_flies_system1_while_system2_is_unavailable(tmp_path: Path) -> None:
+    """The air role's concurrent supervisor plans with System 1 without System 2
+    (``s2_unavailable=system1``), in the launcher and in compose alike; a mission's own
+    ``--concurrent s2_unavailable=keep`` wins; no other host or launch changes it."""
+    def concurrent(argv: list[str]) -> str:
+        cfg = stack_config(parser().parse_args([*argv, "--out", str(tmp_path)]))
+        return cfg.mission.concurrent.s2_unavailable
+
+    air = ["--role", "air", "--join", GROUND_ZENOH]
+    assert concurrent(air) == "system1"
+    assert concurrent([*air, "--concurrent", "check_steps=5"]) == "system1"
+    assert concurrent([*air, "--concurrent", "s2_unavailable=keep"]) == "keep"
+    assert concurrent([]) == concurrent(["--role", "ground"]) == "keep"
+    env = role_doc("air")["services"]["supervisor"]["environment"]
+    assert env["CONCURRENT_PARAMS"].split(";")[0] == "s2_unavailable=system1"
+    assert "CONCURRENT_PARAMS" not in role_doc("ground")["services"]["supervisor"].get(
+        "environment", {})

@@ -65,6 +65,10 @@ def test_a_bad_config_is_refused_with_its_reason() -> None:
                           (lambda m: setattr(m, "timing", 7), "timing 7 is not one of"),
                           (lambda m: m.settings.add(name="p_birth", value="2"), "p_birth"),
                           (lambda m: setattr(m.concurrent, "q_rate", 0.0), "q_rate"),
+                          (lambda m: setattr(m.concurrent, "s2_unavailable", "ground"),
+                           "s2_unavailable must be 'keep' or 'system1', not 'ground'"),
+                          (lambda m: setattr(m.concurrent, "s2_unavailable", "k" * 17),
+                           "longer than 16"),
                           (lambda m: setattr(m.concurrent, "reanchor_tol_m", float("nan")),
                            "finite"),
                           (lambda m: m.ClearField("goal"), "without a goal"),
@@ -82,3 +86,15 @@ def test_a_bad_config_is_refused_with_its_reason() -> None:
         change(bad)
         with pytest.raises(rejections.CodecError, match=match):
             config_convert.config_from_msg(bad)
+
+
+def test_what_flies_without_system2_crosses_the_wire_and_empty_is_the_default() -> None:
+    """``s2_unavailable`` on the wire as its word; a sender that leaves it empty (one built
+    before the field) means the default, "keep"."""
+    onboard = MissionConfig.named("concurrent", concurrent=ConcurrentParams(
+        s2_unavailable="system1"))
+    msg = config_convert.config_to_msg(onboard, config_pb2.MissionConfig())
+    assert msg.concurrent.s2_unavailable == "system1"
+    assert config_convert.config_from_msg(msg).concurrent.s2_unavailable == "system1"
+    msg.concurrent.s2_unavailable = ""
+    assert config_convert.config_from_msg(msg).concurrent == ConcurrentParams()

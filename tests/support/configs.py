@@ -25,6 +25,7 @@ def _concurrent() -> st.SearchStrategy[ConcurrentParams]:
         reanchor_tol_mps=st.floats(0.0, 5.0), max_wait_hazard=unit,
         q_rate=st.floats(0.01, 1.0), switch_margin=st.floats(-1.0, 1.0),
         energy_scale_n2=st.floats(0.1, 100.0),
+        s2_unavailable=st.sampled_from(["keep", "system1"]),
         risk=st.builds(RiskParams, alpha=st.floats(0.0, 0.99)))
 
 

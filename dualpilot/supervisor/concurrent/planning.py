@@ -165,9 +165,11 @@ class ConcurrentSupervisor:
                 return False
             return risk is None or not forecast_threatened(f.plan, risk, margin, p.check_steps)
 
+        # without System 2 (its port says so), System 1 plans every step: "system1"
+        onboard = p.s2_unavailable == "system1" and not planners.available(2)
         due = self._collect(t, sim_s, state, obstacles, planners, choice, record_time)
         kept = self._kept(state, obstacles, choice)
-        options = [f for f in (due, kept) if f is not None and safe(f)]
+        options = [] if onboard else [f for f in (due, kept) if f is not None and safe(f)]
         if not options:
             options = self._ask_now(t, state, prev_control, obstacles, planners, choice,
                                     record_time, known_now, kept)
@@ -176,7 +178,7 @@ class ConcurrentSupervisor:
                 self.flown.plan, seen, self.pending.known, margin, p.check_steps):
             self.pending = None  # deliberating on a picture without a front that matters
             choice.answers.append(Answer(2, S.RESTARTED))
-        if self.pending is None:
+        if self.pending is None and not onboard:
             self._launch(t, sim_s, state, seen, known_now, planners, choice)
         return choice
 

@@ -29,6 +29,12 @@ supervisor never waits for System 2:
   cells whose forecast occupancy exceeds α while the UAV is there,
   :mod:`dualpilot.model.risk`) is threatened: known fronts count too, by
   where they are going, not only where they have been.
+* **Without System 2** (``s2_unavailable = "system1"``). While System 2 cannot be
+  asked (its port says it is unavailable: a split deployment's dead air–ground link),
+  System 1 plans every step from the fires the step has, stale ones grown by their
+  credible spread, instead of the rest of the last System 2 plan: that plan was made
+  on a picture no System 2 will correct. Once System 2 is available again it is
+  launched as before.
 * **Q online.** The performance matrix Q of Eq. (Psi) is updated after every
   step from measured response time, progress and energy (:class:`OnlineQ`);
   when a kept plan and a due plan are both safe, the system with the larger
@@ -91,6 +97,12 @@ class ConcurrentParams:
     #: forecast's risk zones along it ("forecast", at ``risk.alpha``)
     threat: Literal["current", "forecast"] = "current"
     risk: RiskParams = field(default_factory=RiskParams)
+    #: what flies while System 2 is unavailable (its planner port says so: gone, demoted
+    #: after missed deadlines, behind a dead air–ground link): "keep" the rest of the flown
+    #: plan while it is safe, System 1 asked only when it is not (the rule above); "system1":
+    #: System 1 plans every step, onboard, on the fires the step has (stale ones grown), and
+    #: System 2 is asked again once it is available (docs/deployment.md: the air role's)
+    s2_unavailable: Literal["keep", "system1"] = "keep"
 
     def __post_init__(self) -> None:
         if min(self.threat_margin_m or 0.0, self.reanchor_tol_m, self.reanchor_tol_mps) < 0:
@@ -101,6 +113,9 @@ class ConcurrentParams:
             raise ValueError("max_wait_hazard must be in [0, 1]")
         if self.threat not in ("current", "forecast"):
             raise ValueError(f"threat must be 'current' or 'forecast', not {self.threat!r}")
+        if self.s2_unavailable not in ("keep", "system1"):
+            raise ValueError("s2_unavailable must be 'keep' or 'system1', not "
+                             f"{self.s2_unavailable!r}")
 
 
 def wait_hazard(n_substeps: int, fire: FireParams, area_size_m: float, d_safe_m: float,

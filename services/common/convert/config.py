@@ -38,8 +38,10 @@ _TIMINGS = {Timing.PAPER: config_pb2.TIMING_PAPER, Timing.MEASURED: config_pb2.T
 #: ConcurrentParams' fields on the wire (its ``threat`` follows ``MissionConfig.risk``)
 CONCURRENT_WIRE = tuple(f.name for f in dataclasses.fields(ConcurrentParams)
                         if f.name not in ("threat", "risk"))
+#: those that are words (``s2_unavailable``: empty on the wire is its default)
+_WORDS = ("s2_unavailable",)
 #: those that are always numbers (``threat_margin_m`` may be absent: the spec's clearance)
-_NUMBERS = tuple(n for n in CONCURRENT_WIRE if n != "threat_margin_m")
+_NUMBERS = tuple(n for n in CONCURRENT_WIRE if n not in ("threat_margin_m", *_WORDS))
 
 
 
@@ -62,6 +64,7 @@ def config_to_msg(config: MissionConfig, out: config_pb2.MissionConfig
     for name in _NUMBERS:
         setattr(out.concurrent, name, getattr(p, name))
     out.concurrent.risk.alpha = p.risk.alpha
+    out.concurrent.s2_unavailable = p.s2_unavailable
     f = c.forecast
     out.forecast.members, out.forecast.resolution_m = f.members, f.resolution_m
     out.forecast.horizon_s, out.forecast.interval_s = f.horizon_s, f.interval_s
@@ -114,8 +117,10 @@ def _concurrent_from_msg(m: config_pb2.ConcurrentParams, risk: bool) -> Concurre
               if m.HasField("threat_margin_m") else None)
     typed: dict[str, Any] = {n: (int(v) if n == "check_steps" else float(v))
              for n, v in zip(names, values, strict=False)}
+    words: dict[str, Any] = {n: check_text(getattr(m, n), n, 16)
+                             or getattr(ConcurrentParams, n) for n in _WORDS}
     try:
-        return ConcurrentParams(threat_margin_m=margin, **typed,
+        return ConcurrentParams(threat_margin_m=margin, **typed, **words,
                                 threat="forecast" if risk else "current",
                                 risk=RiskParams(alpha=float(values[-1])))
     except ValueError as err:

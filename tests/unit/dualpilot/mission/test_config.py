@@ -138,6 +138,16 @@ def test_bad_flags_are_clear_errors() -> None:
     with pytest.raises(ValueError, match="contradicts"):
         parse_config(["--controller", "concurrent", "--supervisor", "paper"])
     assert "risk.alpha" in concurrent_names() and "threat" not in concurrent_names()
+    with pytest.raises(ValueError, match="s2_unavailable must be 'keep' or 'system1'"):
+        parse_config(["--concurrent", "s2_unavailable=ground"])
+
+
+def test_what_flies_without_system2_is_a_word_of_the_concurrent_flag() -> None:
+    onboard = parse_config(["--controller", "concurrent", "--concurrent",
+                            "s2_unavailable=system1"])
+    assert onboard.concurrent == ConcurrentParams(s2_unavailable="system1")
+    assert "--concurrent=s2_unavailable=system1" in config_to_argv(onboard)
+    assert parse_config([]).concurrent.s2_unavailable == "keep"
 
 
 def test_a_mission_id_that_reads_as_a_flag_is_refused() -> None:

@@ -16,7 +16,8 @@ from dualpilot.mission.params import Controller
 from dualpilot.mission.step import Mission, MissionPorts
 from dualpilot.model.dynamics import hover_state
 from dualpilot.model.fire import FireParams
-from dualpilot.planners import build_planner, build_planners
+from dualpilot.plan import Plan, PlanStatus
+from dualpilot.planners import Planner, build_planner, build_planners
 from dualpilot.spec import MissionSpec
 from dualpilot.supervisor.concurrent.planning import ConcurrentSupervisor
 from dualpilot.supervisor.concurrent.rule import ConcurrentParams, steps_until, wait_hazard
@@ -42,14 +43,37 @@ class NudgedVehicle(LocalVehicle):
         return x
 
 
-def mission(seed: int = 3, vehicle: LocalVehicle | None = None) -> Mission:
+class CutPlanners(LocalPlanners):
+    """The planners in this process, System 2 cut off while ``cut`` (as behind a dead link:
+    unavailable, and what it was asked before never answers, a TIMEOUT)."""
+
+    def __init__(self, planners: dict[int, Planner]):
+        super().__init__(planners)
+        self.cut = False
+
+    def available(self, system: int) -> bool:
+        return not (system == 2 and self.cut) and super().available(system)
+
+    def collect(self, ticket: object) -> Plan:
+        if self.cut:
+            return Plan.failed(2, PlanStatus.TIMEOUT, 0.0, "no answer: cut off")
+        return super().collect(ticket)
+
+
+def mission(seed: int = 3, vehicle: LocalVehicle | None = None,
+            params: ConcurrentParams | None = None) -> Mission:
     spec = MissionSpec(seed=seed)
     x0 = hover_state(np.array(spec.start), spec.dynamics)
     planners = build_planners(spec, {1: "rrt+du", 2: "fast"})
-    config = config_for(spec, "concurrent", fire=QUIET)
-    ports = MissionPorts(LocalFires(spec, QUIET), LocalPlanners(planners),
+    config = config_for(spec, "concurrent", fire=QUIET, concurrent=params or ConcurrentParams())
+    ports = MissionPorts(LocalFires(spec, QUIET), CutPlanners(planners),
                          vehicle or LocalVehicle(x0, spec.dynamics))
     return Mission(config, spec, ports, x0)
+
+
+def cut(m: Mission, on: bool) -> None:
+    assert isinstance(m.planners, CutPlanners)
+    m.planners.cut = on
 
 
 def fly(m: Mission, steps: int) -> list:
@@ -157,3 +181,38 @@ def test_only_the_cognitive_controller_takes_the_concurrent_supervisor() -> None
     with pytest.raises(ValueError,
                        match="unknown supervisor 'ours'; installed: paper, concurrent, lookahead"):
         config_for(spec, Controller.CC, supervisor="ours")
+
+
+def test_without_system2_system1_plans_every_step_and_system2_flies_again_once_back() -> None:
+    """``s2_unavailable = "system1"``: System 2 flies from step 4 (the first test); cut off
+    after step 8 (its plan launched at 8 is due at 12), every step plans with System 1 and
+    flies it, System 2 is not asked, the plan due at 12 is a TIMEOUT; back at step 15, it is
+    launched at once and adopted when due, 4 steps later (19)."""
+    m = mission(params=ConcurrentParams(s2_unavailable="system1"))
+    before = fly(m, 9)
+    assert before[8].system == 2 and "s2:adopted" in before[8].plan_status
+    cut(m, True)
+    during = fly(m, 6)  # steps 9..14
+    assert [r.system for r in during] == [1] * 6
+    assert all("s1:ok" in r.plan_status and "s2:launched" not in r.plan_status
+               for r in during), [r.plan_status for r in during]
+    assert all(r.planning_time_s > 0 for r in during)  # a fresh plan each step: S1's 155 ms
+    assert "s2:timeout" in during[12 - 9].plan_status, during[3].plan_status
+    cut(m, False)
+    after = fly(m, 5)  # steps 15..19
+    assert "s2:launched" in after[0].plan_status, after[0].plan_status
+    assert "s2:adopted" in after[4].plan_status and after[4].system == 2, after[4].plan_status
+
+
+def test_by_default_the_rest_of_the_system2_plan_flies_while_system2_is_unavailable() -> None:
+    """``s2_unavailable = "keep"`` (the default, unchanged): cut off after step 8, the kept
+    System 2 plan flies on, no planner is asked (it is safe: no front), System 2 not launched."""
+    assert ConcurrentParams().s2_unavailable == "keep"
+    m = mission()
+    fly(m, 9)
+    cut(m, True)
+    during = fly(m, 6)
+    assert [r.system for r in during] == [2] * 6
+    assert [r.plan_status for r in during] == ["", "", "", "s2:timeout", "", ""]
+    with pytest.raises(ValueError, match="s2_unavailable must be 'keep' or 'system1'"):
+        ConcurrentParams(s2_unavailable="ground")  # type: ignore[arg-type]
