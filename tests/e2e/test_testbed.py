@@ -8,10 +8,12 @@ bed's own (services/testbed/mission.py MISSION: concurrent+risk, seed 26, measur
 twice real time).
 
 1. The radio link goes down for 10 s mid-mission. The mission must go on and end (not abort);
-   every step is in the record, in order; the steps of the outage name ``link_lost`` and are
-   flown by System 1 onboard (or brake), never with a setpoint gap of COM_OF_LOSS_T on the air
-   side; after the outage the ground's services are alive again and the fires caught up
-   (the Zenoh session across the link came back by itself: nothing was restarted).
+   every step is in the record, in order; the steps of the outage name ``link_lost``; from
+   its third step at the latest each plans with System 1 onboard and flies that fresh plan
+   (the air role's ``s2_unavailable=system1``) on fires named stale, never with a setpoint
+   gap of COM_OF_LOSS_T on the air side; after the outage the ground's services are alive
+   again, the fires caught up and System 2 flies again (the Zenoh session across the link
+   came back by itself: nothing was restarted).
 2. A ground station (MAVProxy) on the gcs host, over its own telemetry link with 10 % loss each
    way, sees the vehicle, takes it over (the hold mode: the mission pauses, the hold is a fault
    of its step) and hands it back (the mission resumes and ends).
@@ -61,6 +63,12 @@ def records(flown: Flown) -> tuple[list[dict[str, Any]], dict[str, Any]]:
     return lines, json.loads(summary_path.read_text())
 
 
+def onboard_steps(lost: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """The steps of an outage from the first that System 1 planned (none: [])."""
+    s1 = ["s1:ok" in e["plan_status"].split(";") for e in lost]
+    return lost[s1.index(True):] if True in s1 else []
+
+
 def test_a_mission_across_the_hosts_survives_a_10_s_outage_of_the_air_ground_link(
         testbed: TestBed, tmp_path: Path) -> None:
     out = run_dir(tmp_path)
@@ -93,6 +101,20 @@ def test_a_mission_across_the_hosts_survives_a_10_s_outage_of_the_air_ground_lin
                if {"s2:ok", "s2:adopted"} & set(e["plan_status"].split(";"))]
     assert not crossed, crossed
     assert all(e["after"] != e["state"] for e in lost), "the vehicle stopped in the outage"
+    # System 1 flew onboard (the air role's s2_unavailable=system1): from the outage's third
+    # step at the latest (the step the link died in, then the one whose System 2 request
+    # timed out), every step of it planned with System 1, asked System 2 nothing new and
+    # flew that fresh plan, on the stale fires named as such
+    onboard = onboard_steps(lost)
+    check(bool(onboard) and onboard[0]["t"] <= lost[0]["t"] + 2,
+          "System 1 planning from the outage's third step at the latest", logs,
+          [(e["t"], e["system"], e["plan_status"]) for e in lost])
+    fresh = [(e["t"], e["system"], e["plan_status"], e["planning_time_s"]) for e in onboard]
+    assert all(e["system"] == 1 and "s1:ok" in e["plan_status"].split(";")
+               and "s2:launched" not in e["plan_status"].split(";")
+               and e["planning_time_s"] > 0 for e in onboard), fresh
+    assert all(e["fire_stale"] and "fire_stale" in e["faults"]
+               for e in onboard if e["t"] > lost[0]["t"]), [e["faults"] for e in onboard]
     assert stack["stream"]["max_gap_ms"] < COM_OF_LOSS_T_MS, stack["stream"]
     assert not any(f.startswith("vehicle_hold") for e in steps for f in e["faults"])
     # after the outage: the ground's services alive again through the same processes, the
@@ -103,6 +125,9 @@ def test_a_mission_across_the_hosts_survives_a_10_s_outage_of_the_air_ground_lin
           "the ground's services alive after the outage", logs, after[-1:] if after else None)
     assert any(e.get("kind") == "fires_caught_up" for e in lines)
     assert not after[-1]["fire_stale"]
+    # and System 2 planned again: a plan of it adopted and flown after the outage
+    assert any(e["system"] == 2 and "s2:adopted" in e["plan_status"].split(";")
+               for e in after), [(e["t"], e["system"], e["plan_status"]) for e in after]
     # what crossed the link per step, measured (link.json)
     link = json.loads((out / "link.json").read_text())
     assert link["steps"] == len(steps) and link["payload"]
