@@ -61,11 +61,11 @@ class CutPlanners(LocalPlanners):
 
 
 def mission(seed: int = 3, vehicle: LocalVehicle | None = None,
-            params: ConcurrentParams | None = None) -> Mission:
+            params: ConcurrentParams | None = None, name: str = "concurrent") -> Mission:
     spec = MissionSpec(seed=seed)
     x0 = hover_state(np.array(spec.start), spec.dynamics)
     planners = build_planners(spec, {1: "rrt+du", 2: "fast"})
-    config = config_for(spec, "concurrent", fire=QUIET, concurrent=params or ConcurrentParams())
+    config = config_for(spec, name, fire=QUIET, concurrent=params or ConcurrentParams())
     ports = MissionPorts(LocalFires(spec, QUIET), CutPlanners(planners),
                          vehicle or LocalVehicle(x0, spec.dynamics))
     return Mission(config, spec, ports, x0)
@@ -202,6 +202,18 @@ def test_without_system2_system1_plans_every_step_and_system2_flies_again_once_b
     after = fly(m, 5)  # steps 15..19
     assert "s2:launched" in after[0].plan_status, after[0].plan_status
     assert "s2:adopted" in after[4].plan_status and after[4].system == 2, after[4].plan_status
+
+
+def test_the_lookahead_supervisor_flies_system1_without_system2_too() -> None:
+    """It chooses through the concurrent supervisor's rule: cut off after step 8, System 1
+    plans every step (or the guard's own plan flies, answered as System 1's)."""
+    m = mission(params=ConcurrentParams(s2_unavailable="system1"), name="lookahead")
+    assert fly(m, 9)[8].system == 2
+    cut(m, True)
+    during = fly(m, 6)
+    assert [r.system for r in during] == [1] * 6
+    assert all("s1:ok" in r.plan_status and "s2:launched" not in r.plan_status
+               for r in during), [r.plan_status for r in during]
 
 
 def test_by_default_the_rest_of_the_system2_plan_flies_while_system2_is_unavailable() -> None:
