@@ -52,7 +52,8 @@ from dualpilot.mission.result import MissionResult
 from dualpilot.mission.step import Mission
 from dualpilot.plan import Plan
 from services import launch
-from tests.support.waits import check, logs_in
+from tests.support.fleet import FleetRun, fly_fleet
+from tests.support.waits import check
 
 pytestmark = [pytest.mark.slow, pytest.mark.timeout(600)]
 
@@ -224,41 +225,23 @@ def fly(fleet: launch.Fleet, runs: Sequence[Run], out: Path,
     in-process twin, worked out in a thread of this process while the stack flies: each once
     its mission has ended and its records are written (``from_records``: the twin replays
     them), else all from the start."""
-    mission_ids, dirs = {}, {}
-    for k, run in enumerate(runs):
-        seed, controller, timing, clear, *scenario = run
-        uav = fleet.uav_ids[k]
-        dirs[uav] = out / "-".join(str(v) for v in (controller, timing, f"s{seed}",
-                                                    f"ic{clear}", *scenario))
+    dirs = [out / "-".join(str(v) for v in (run[1], run[2], f"s{run[0]}", f"ic{run[3]}",
+                                            *run[4:])) for run in runs]
+    fleet_runs = [FleetRun(f"the mission {run}", run[0], run_dir, {"SPEED_FACTOR": "0"},
+                           config_of(*run)) for run, run_dir in zip(runs, dirs, strict=True)]
     with ThreadPoolExecutor(max_workers=1, thread_name_prefix="in-process") as pool:
-        twins: dict[str, Future[MissionResult]] = {}
+        twins: dict[int, Future[MissionResult]] = {}
 
-        def work_out(uav: str) -> None:
-            if reference is not None and uav not in twins:
-                twins[uav] = pool.submit(reference, runs[fleet.uav_ids.index(uav)], dirs[uav])
+        def work_out(k: int) -> None:
+            if reference is not None and k not in twins:
+                twins[k] = pool.submit(reference, runs[k], dirs[k])
 
+        flown = fly_fleet(fleet, fleet_runs, on_start=None if from_records else work_out,
+                          on_end=work_out)
+        results = {run: Flown(run_dir, result_from_log(read_step_log(run_dir / "steps.jsonl")))
+                   for run, run_dir in zip(runs, flown, strict=True)}
         for k, run in enumerate(runs):
-            uav = fleet.uav_ids[k]
-            mission_ids[uav] = fleet.start_vehicle(uav, run[0], dirs[uav],
-                                                   env={"SPEED_FACTOR": "0"},
-                                                   config=config_of(*run)).mission_id
-            if not from_records:
-                work_out(uav)
-        outcomes = fleet.wait_end(mission_ids, 300.0, on_end=lambda uav, o: (
-            work_out(uav) if o.ended else None))
-        results = {}
-        for k, run in enumerate(runs):
-            uav = fleet.uav_ids[k]
-            v = fleet.vehicles[uav]
-            logs = [*logs_in(v.run_dir), *logs_in(fleet.stack.logs)]
-            check(outcomes[uav].ended, f"the mission {run} to end", logs, outcomes[uav])
-            codes = fleet.stop_vehicle(uav)
-            check(all(code == 0 for code in codes.values()), f"the processes of {run} to exit "
-                  f"with 0", logs, codes)
-            results[run] = Flown(v.run_dir, result_from_log(read_step_log(v.run_dir /
-                                                                          "steps.jsonl")))
-        for k, run in enumerate(runs):
-            twin = twins.get(fleet.uav_ids[k])
+            twin = twins.get(k)
             results[run].reference = twin.result() if twin is not None else None
     return results
 
@@ -392,24 +375,10 @@ def fly_cc_on_stack(fleet: Any, seeds: tuple[int, ...], env: dict[str, str], tag
     f, out = fleet
     base = {"CONTROLLER": "cc", "TIMING": "paper", "SPEED_FACTOR": "0",
             "IGNITION_CLEARANCE_M": "", "SUPERVISOR": "paper"}
-    mission_ids = {}
-    for k, seed in enumerate(seeds):
-        uav = f.uav_ids[k]
-        v = f.start_vehicle(uav, seed, out / f"{tag}-s{seed}", env={**base, **env})
-        mission_ids[uav] = v.mission_id
-    outcomes = f.wait_end(mission_ids, 300.0)
-    flown = []
-    for k, seed in enumerate(seeds):
-        uav = f.uav_ids[k]
-        run_dir = f.vehicles[uav].run_dir
-        logs = [*logs_in(run_dir), *logs_in(f.stack.logs)]
-        check(outcomes[uav].ended, f"the {tag} mission of seed {seed} to end", logs,
-              outcomes[uav])
-        codes = f.stop_vehicle(uav)
-        check(all(code == 0 for code in codes.values()), f"the processes of the {tag} mission "
-              f"of seed {seed} to exit with 0", logs, codes)
-        flown.append((seed, run_dir, result_from_log(read_step_log(run_dir / "steps.jsonl"))))
-    return flown
+    runs = [FleetRun(f"the {tag} mission of seed {seed}", seed, out / f"{tag}-s{seed}",
+                     {**base, **env}) for seed in seeds]
+    return [(seed, run_dir, result_from_log(read_step_log(run_dir / "steps.jsonl")))
+            for seed, run_dir in zip(seeds, fly_fleet(f, runs), strict=True)]
 
 
 @pytest.mark.parametrize("profile", ["literal", "fig-r5"])

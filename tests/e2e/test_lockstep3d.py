@@ -48,7 +48,7 @@ from dualpilot.mission.result import MissionResult
 from services import launch
 from services.common import mav
 from tests.e2e.test_lockstep import ATOL, ReplayedStates, measured_states, unpaced_fleet
-from tests.support.waits import check, logs_in
+from tests.support.fleet import FleetRun, fly_fleet
 
 pytestmark = [pytest.mark.slow, pytest.mark.timeout(600)]
 
@@ -124,22 +124,10 @@ def assert_same_3d_mission(stack: MissionResult, local: MissionResult, what: str
 def fly(fleet: launch.Fleet, out: Path) -> dict[str, tuple[Path, MissionResult]]:
     """Every mission of :data:`MISSIONS` through the stack at once, one vehicle each: its
     run directory and its records as a result."""
-    mission_ids, dirs = {}, {}
-    for uav, name in zip(fleet.uav_ids, MISSIONS, strict=True):
-        dirs[uav] = out / name
-        mission_ids[uav] = fleet.start_vehicle(uav, MISSIONS[name][1], dirs[uav],
-                                               env={"SPEED_FACTOR": "0"},
-                                               config=config_of(name)).mission_id
-    outcomes = fleet.wait_end(mission_ids, 300.0)
-    flown = {}
-    for uav, name in zip(list(fleet.uav_ids), MISSIONS, strict=True):
-        logs = [*logs_in(dirs[uav]), *logs_in(fleet.stack.logs)]
-        check(outcomes[uav].ended, f"the 3-D mission {name} to end", logs, outcomes[uav])
-        codes = fleet.stop_vehicle(uav)
-        check(all(code == 0 for code in codes.values()), f"the processes of {name} to exit "
-              f"with 0", logs, codes)
-        flown[name] = (dirs[uav], result_from_log(read_step_log(dirs[uav] / "steps.jsonl")))
-    return flown
+    runs = [FleetRun(f"the 3-D mission {name}", MISSIONS[name][1], out / name,
+                     {"SPEED_FACTOR": "0"}, config_of(name)) for name in MISSIONS]
+    return {name: (run_dir, result_from_log(read_step_log(run_dir / "steps.jsonl")))
+            for name, run_dir in zip(MISSIONS, fly_fleet(fleet, runs), strict=True)}
 
 
 @pytest.fixture(scope="module")

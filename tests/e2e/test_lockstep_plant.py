@@ -41,6 +41,7 @@ from services.launch.processes import free_port
 from tests.e2e.sitl import Watch
 from tests.e2e.test_ground_station import MavProxy
 from tests.e2e.test_lockstep import ATOL, assert_same_mission, unpaced_fleet
+from tests.support.fleet import FleetRun, fly_fleet
 from tests.support.waits import check, logs_in, wait_for
 
 pytestmark = [pytest.mark.slow, pytest.mark.timeout(600)]
@@ -75,25 +76,9 @@ def fly_plant_missions(fleet: Any, seeds: tuple[int, ...],
     """The cc missions of ``seeds`` under ``settings`` through the stack, one vehicle each:
     (seed, run dir)."""
     f, out = fleet
-    mission_ids = {}
-    for k, seed in enumerate(seeds):
-        uav = f.uav_ids[k]
-        v = f.start_vehicle(uav, seed, out / f"{tag}-s{seed}", env={"SPEED_FACTOR": "0"},
-                            config=plant_config(seed, settings))
-        mission_ids[uav] = v.mission_id
-    outcomes = f.wait_end(mission_ids, 300.0)
-    flown = []
-    for k, seed in enumerate(seeds):
-        uav = f.uav_ids[k]
-        run_dir = f.vehicles[uav].run_dir
-        logs = [*logs_in(run_dir), *logs_in(f.stack.logs)]
-        check(outcomes[uav].ended, f"the plant mission of seed {seed} to end", logs,
-              outcomes[uav])
-        codes = f.stop_vehicle(uav)
-        check(all(code == 0 for code in codes.values()), f"the processes of seed {seed} to "
-              "exit with 0", logs, codes)
-        flown.append((seed, run_dir))
-    return flown
+    runs = [FleetRun(f"the plant mission of seed {seed}", seed, out / f"{tag}-s{seed}",
+                     {"SPEED_FACTOR": "0"}, plant_config(seed, settings)) for seed in seeds]
+    return list(zip(seeds, fly_fleet(f, runs), strict=True))
 
 
 def assert_same_plant_mission(run_dir: Path, local: MissionResult, what: str) -> MissionResult:
