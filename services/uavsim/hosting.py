@@ -23,10 +23,11 @@ from . import flavour as fl
 from .autopilot import VehicleSetup
 from .endpoint import SIGNED_ONLY, Endpoint
 from .host import Host
-from .missionconfig import MissionConfigs
+from .missionconfig import mission_configs
 from .options import VehicleOptions
+from .sidechannel import SideChannel
 from .storage import open_tlog
-from .truth import FlightTruths
+from .truth import flight_truths
 from .vehicle import Vehicle
 
 log = logging.getLogger("services.uavsim")
@@ -89,8 +90,8 @@ class HostedVehicle:
     tlog: Any
     tlog_path: str
     stats: StatsFile | None
-    configs: MissionConfigs | None = None  #: the mission configurations it takes (Zenoh)
-    truths: FlightTruths | None = None  #: its plant's ground truth (Zenoh)
+    configs: SideChannel | None = None  #: the mission configurations it takes (Zenoh)
+    truths: SideChannel | None = None  #: its plant's ground truth (Zenoh)
 
     def tick(self, now: float) -> None:
         """Between two passes of the vehicle's loop: a new mission configuration, the
@@ -147,8 +148,8 @@ def open_vehicle(ctx: bus.Context, opts: VehicleOptions, boot: float) -> HostedV
     stats = StatsFile(stats_path, endpoint) if stats_path else None
     configs = truths = None
     if ctx.session is not None:
-        configs = MissionConfigs(ctx.session, uav, endpoint)
-        truths = FlightTruths(ctx.session, uav, vehicle)
+        configs = mission_configs(ctx.session, uav, endpoint)
+        truths = flight_truths(ctx.session, uav, vehicle)
         ctx.announce()
     return HostedVehicle(uav, endpoint, links, tlog, tlog_path, stats, configs, truths)
 

@@ -15,7 +15,7 @@ is instantaneous, as its take-off to SIM_ALT_M is in 2-D); on its own clock the
 vehicle keeps the planar Eq. (1) and its altitude controller.
 
 The callback only enqueues; the vehicle's loop takes the configuration between
-two passes (:meth:`MissionConfigs.poll`, so no step runs half on the old
+two passes (services/uavsim/sidechannel.py, so no step runs half on the old
 dynamics), decodes and checks it (services/common/convert/config.py), applies
 it and answers with the configuration it now flies. Only the session that holds
 the vehicle's ``alive/supervisor`` token may configure it; anything else gets an
@@ -34,7 +34,6 @@ from dualpilot.mission.config import MissionConfig
 from dualpilot.model.altitude import lift_state, planar_state
 from dualpilot.model.dynamics import DynamicsParams
 from services.common import bus, keys, rejections, wire
-from services.common.convert import common as common_convert
 from services.common.convert import config as config_convert
 from services.common.effective import EFFECTIVE
 from services.common.log import fields
@@ -43,6 +42,7 @@ from services.msgs import config_pb2
 from .endpoint import Endpoint
 from .mission import PlanningBounds
 from .plantsim import PlantSim
+from .sidechannel import SideChannel
 from .vehicle import Vehicle
 
 log = logging.getLogger("services.uavsim")
@@ -93,36 +93,23 @@ def vertical(v: Vehicle, dyn: DynamicsParams, start_altitude_m: float) -> None:
 
 
 class MissionConfigs:
-    """The ``uavsim/mission`` queryable of one vehicle and the configurations it takes."""
+    """The configurations one vehicle takes: those its supervisor sends, applied and answered
+    with the configuration it now flies (:func:`mission_configs`: their queryable)."""
 
-    def __init__(self, session: zenoh.Session, uav: str, endpoint: Endpoint):
+    def __init__(self, uav: str, endpoint: Endpoint, live: bus.Liveliness):
         self.uav = uav
         self.endpoint = endpoint
-        self.key = keys.sim_mission(uav)
-        self.stamper = wire.Stamper("uavsim", uav)
-        self.live = bus.Liveliness(session, uav)
-        self.inbox = bus.Inbox(self.key, max_items=16, max_bytes=1024 * 1024)
-        self.queryable = session.declare_queryable(self.key, self.inbox.on_query)
+        self.live = live
 
-    def poll(self, _now: float = 0.0) -> None:
-        """Take what arrived (the vehicle loop's tick, between two passes)."""
-        while (item := self.inbox.get(timeout=0)) is not None:
-            if item.query is None:
-                continue
-            try:
-                config = self._check(item)
-                try:
-                    apply(self.endpoint, config)
-                except ValueError as bad:
-                    raise rejections.invalid(str(bad), rejections.Reason.OUT_OF_RANGE) from bad
-            except rejections.CodecError as err:
-                rejections.rejected("MissionConfig", err, log, key=self.key)
-                bus.reply_error(item.query, common_convert.error_msg(self.stamper, err.code,
-                                                                     str(err)))
-                continue
-            self._took(config)
-            bus.reply(item.query, config_convert.config_to_msg(config,
-                                                               config_pb2.MissionConfig()))
+    def answer(self, item: bus.Received) -> config_pb2.MissionConfig:
+        """Take the configuration of ``item``; the one now flown (CodecError: refused)."""
+        config = self._check(item)
+        try:
+            apply(self.endpoint, config)
+        except ValueError as bad:
+            raise rejections.invalid(str(bad), rejections.Reason.OUT_OF_RANGE) from bad
+        self._took(config)
+        return config_convert.config_to_msg(config, config_pb2.MissionConfig())
 
     def _check(self, item: bus.Received) -> MissionConfig:
         """The configuration of ``item`` from the vehicle's supervisor (CodecError else)."""
@@ -148,5 +135,9 @@ class MissionConfigs:
             speed_limit=dyn.speed_limit, area_size_m=self.endpoint.setup.area_size_m,
             plant=config.reading().plant.plant))
 
-    def close(self) -> None:
-        self.queryable.undeclare()
+
+def mission_configs(session: zenoh.Session, uav: str, endpoint: Endpoint) -> SideChannel:
+    """The ``uavsim/mission`` queryable of one vehicle, answered from its loop."""
+    configs = MissionConfigs(uav, endpoint, bus.Liveliness(session, uav))
+    return SideChannel(session, keys.sim_mission(uav), configs.answer, "MissionConfig",
+                       wire.Stamper("uavsim", uav), max_items=16, max_bytes=1024 * 1024)

@@ -8,25 +8,21 @@ flight ended at or after a time on the vehicle's clock (``PlantFlightRequest``) 
 judges it as the in-process loop judges its plant's flight (dualpilot/mission/flight.py).
 
 The callback only enqueues; the vehicle's loop answers between two passes
-(:meth:`FlightTruths.poll`), so a reply never sees half a flight. A request that does
+(services/uavsim/sidechannel.py), so a reply never sees half a flight. A request that does
 not decode, a vehicle flying the ideal plant (it has no truth apart from its state) and
 a flight not flown yet get an error reply (a bad request counted per key and reason).
 """
 
 from __future__ import annotations
 
-import logging
-
 import zenoh
 
-from services.common import bus, keys, rejections, wire
-from services.common.convert import common as common_convert
+from services.common import keys, rejections, wire
 from services.common.convert import plant as plant_convert
 from services.msgs import common_pb2, plant_pb2
 
+from .sidechannel import SideChannel
 from .vehicle import Vehicle
-
-log = logging.getLogger("services.uavsim")
 
 
 def unavailable(message: str) -> rejections.CodecError:
@@ -50,30 +46,9 @@ def answer(vehicle: Vehicle, stamper: wire.Stamper, payload: bytes,
     return plant_convert.flight_msg(truth, stamper)
 
 
-class FlightTruths:
-    """The ``uavsim/flight`` queryable of one vehicle."""
-
-    def __init__(self, session: zenoh.Session, uav: str, vehicle: Vehicle):
-        self.vehicle = vehicle
-        self.key = keys.sim_flight(uav)
-        self.stamper = wire.Stamper("uavsim", uav)
-        self.inbox = bus.Inbox(self.key, max_items=64, max_bytes=64 * 1024)
-        self.queryable = session.declare_queryable(self.key, self.inbox.on_query)
-
-    def poll(self, _now: float = 0.0) -> None:
-        """Answer what arrived (the vehicle loop's tick, between two passes)."""
-        while (item := self.inbox.get(timeout=0)) is not None:
-            if item.query is None:
-                continue
-            try:
-                reply = answer(self.vehicle, self.stamper, item.payload, item.encoding)
-            except rejections.CodecError as err:
-                if err.code != common_pb2.ERROR_CODE_UNAVAILABLE:  # a bad request, counted
-                    rejections.rejected("PlantFlightRequest", err, log, key=self.key)
-                bus.reply_error(item.query, common_convert.error_msg(self.stamper, err.code,
-                                                                     str(err)))
-                continue
-            bus.reply(item.query, reply)
-
-    def close(self) -> None:
-        self.queryable.undeclare()
+def flight_truths(session: zenoh.Session, uav: str, vehicle: Vehicle) -> SideChannel:
+    """The ``uavsim/flight`` queryable of one vehicle, answered from its loop."""
+    stamper = wire.Stamper("uavsim", uav)
+    return SideChannel(session, keys.sim_flight(uav),
+                       lambda item: answer(vehicle, stamper, item.payload, item.encoding),
+                       "PlantFlightRequest", stamper, max_items=64, max_bytes=64 * 1024)
