@@ -21,8 +21,7 @@ from concurrent.futures import ProcessPoolExecutor
 
 import harness  # noqa: F401  (the repository on the path: before its packages)
 
-from tests.support.lifted import assert_same_mission
-from tests.unit.dualpilot.mission.test_consistency3d import LIFTED, SCENARIOS, flown_pair
+from tests.support.lifted import LIFTED, SCENARIOS, assert_same_mission, flown_pair
 
 
 def compare(case: tuple[str, str, int]) -> tuple[str, str, int, str, float]:

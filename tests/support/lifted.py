@@ -7,7 +7,10 @@ that reduction around a real 2-D planner, for the step-level consistency test: i
 refuses any other input, and its answer is the 2-D planner's plan, lifted.
 :data:`LIFTED_RRT` is System 1's "rrt" so reduced, as a planning method that says it plans
 in 2-D and 3-D (where a 3-D planner plugs in), and :func:`assert_same_mission` says a 3-D
-mission is a 2-D one at one altitude, row for row.
+mission is a 2-D one at one altitude, row for row. :func:`flown_pair` flies a 2-D mission and
+its 3-D mission (fires above the ceiling) by the same 2-D planners so reduced
+(:func:`lifted_planners`), for the consistency tests and their sweep
+(benchmarks/consistency3d.py).
 """
 
 from __future__ import annotations
@@ -18,12 +21,21 @@ from typing import Any
 import numpy as np
 
 from dualpilot.arrays import Array
+from dualpilot.mission.config import MissionConfig
+from dualpilot.mission.local import local_mission
 from dualpilot.mission.result import MissionResult
 from dualpilot.model.altitude import lift_controls, lift_state, planar_state
 from dualpilot.model.prism import Prism
 from dualpilot.plan import Objective, Plan, Planner
 from dualpilot.planners import PlannerMethod, build_planner
 from dualpilot.spec import MissionSpec
+
+#: the paper's fire process and two scenarios, the consistency tests' missions
+SCENARIOS = ("paper", "grass-5", "shrub")
+#: the 3-D mission of a 2-D one under the reduction: every cuboid taller than the ceiling
+THREE_D = {"dim": 3, "fire_height": "above-ceiling"}
+#: the controllers whose 2-D planners fly under the reduction
+LIFTED = ("cc", "s1", "s2", "cc+risk")
 
 
 class LiftedPlanner:
@@ -64,6 +76,33 @@ class LiftedPlanner:
         return Plan(plan.system, plan.status, states, lift_controls(plan.controls),
                     plan.compute_time_s, plan.objective, plan.cost, plan.path, plan.message,
                     dict(plan.info), plan.bound)
+
+
+def lifted_planners(config: MissionConfig, flat: MissionConfig) -> dict[int, Planner]:
+    """The 2-D planners of ``flat``'s mission, as planners of ``config``'s 3-D mission."""
+    spec2, spec3 = flat.spec(), config.spec()
+    methods = flat.methods()
+    return {s: LiftedPlanner(build_planner(s, spec2, methods[s], flat.system2_params() if s == 2
+                                           else None, flat.risk), spec3)  # type: ignore
+            for s in flat.systems()}
+
+
+def config_pair(name: str, seed: int, scenario: str, max_steps: int = 150) -> tuple[
+        MissionConfig, MissionConfig]:
+    """Seed ``seed``'s configuration of ``name`` on ``scenario`` in 2-D, and its 3-D one
+    (:data:`THREE_D`)."""
+    flat = MissionConfig.named(name, seed=seed, settings=(("scenario", scenario),
+                                                          ("max_steps", max_steps)))
+    return flat, flat.with_settings(THREE_D)
+
+
+def flown_pair(name: str, seed: int, scenario: str) -> tuple[MissionResult, MissionResult]:
+    """Seed ``seed``'s 2-D mission of ``name`` on ``scenario``, and its 3-D mission (fires
+    above the ceiling) flown by the same 2-D planners under the reduction."""
+    flat, tall = config_pair(name, seed, scenario)
+    a = local_mission(flat).run()
+    b = local_mission(tall, planners=lifted_planners(tall, flat)).run()
+    return a, b
 
 
 def planar_spec(spec: MissionSpec) -> MissionSpec:

@@ -14,24 +14,12 @@ from __future__ import annotations
 import pytest
 
 from dualpilot.mission.config import MissionConfig
-from dualpilot.mission.local import LocalFires, LocalPlanners, LocalVehicle, local_mission
+from dualpilot.mission.local import LocalFires, LocalPlanners, LocalVehicle
 from dualpilot.mission.result import MissionResult
 from dualpilot.mission.step import Mission, MissionPorts
 from dualpilot.model.altitude import lift_state, planar_state
 from dualpilot.model.dynamics import hover_state
-from dualpilot.plan import Planner
-from dualpilot.planners import build_planner
-from tests.support.lifted import LiftedPlanner, assert_same_mission
-
-SCENARIOS = ("paper", "grass-5", "shrub")
-THREE_D = {"dim": 3, "fire_height": "above-ceiling"}
-
-
-def _pair(name: str, seed: int, scenario: str, max_steps: int = 150) -> tuple[
-        MissionConfig, MissionConfig]:
-    flat = MissionConfig.named(name, seed=seed, settings=(("scenario", scenario),
-                                                          ("max_steps", max_steps)))
-    return flat, flat.with_settings(THREE_D)
+from tests.support.lifted import LIFTED, SCENARIOS, assert_same_mission, config_pair, flown_pair
 
 
 def _braking(config: MissionConfig, velocity: tuple[float, float]) -> MissionResult:
@@ -49,29 +37,11 @@ def _braking(config: MissionConfig, velocity: tuple[float, float]) -> MissionRes
 @pytest.mark.parametrize("scenario", SCENARIOS)
 def test_braking_missions_in_3d_are_the_2d_missions(scenario: str) -> None:
     for seed in range(3):
-        flat, tall = _pair("cc", seed, scenario, max_steps=40)
+        flat, tall = config_pair("cc", seed, scenario, max_steps=40)
         a = _braking(flat, (12.0, 9.0))
         assert_same_mission(a, _braking(tall, (12.0, 9.0)))
         assert planar_state(lift_state(a.records[-1].state, 50.0)).tolist() == \
             a.records[-1].state.tolist()
-
-
-def _lifted(config: MissionConfig, flat: MissionConfig) -> dict[int, Planner]:
-    """The 2-D planners of ``flat``'s mission, as planners of ``config``'s 3-D mission."""
-    spec2, spec3 = flat.spec(), config.spec()
-    methods = flat.methods()
-    return {s: LiftedPlanner(build_planner(s, spec2, methods[s], flat.system2_params() if s == 2
-                                           else None, flat.risk), spec3)  # type: ignore
-            for s in flat.systems()}
-
-
-def flown_pair(name: str, seed: int, scenario: str) -> tuple[MissionResult, MissionResult]:
-    """Seed ``seed``'s 2-D mission of ``name`` on ``scenario``, and its 3-D mission (fires
-    above the ceiling) flown by the same 2-D planners under the reduction."""
-    flat, tall = _pair(name, seed, scenario)
-    a = local_mission(flat).run()
-    b = local_mission(tall, planners=_lifted(tall, flat)).run()
-    return a, b
 
 
 def _flown(name: str, seed: int, scenario: str) -> None:
@@ -88,9 +58,8 @@ def test_missions_of_the_2d_planners_reduced_are_the_2d_missions(name: str, scen
     _flown(name, seed, scenario)
 
 
-#: the controllers whose 2-D planners fly under the reduction, and the seeds ``make test``
-#: flies of each (the 40-seed sweep: ``benchmarks/consistency3d.py``, docs/three_d.md)
-LIFTED = ("cc", "s1", "s2", "cc+risk")
+#: the seeds ``make test`` flies of each controller under the reduction (the 40-seed sweep:
+#: ``benchmarks/consistency3d.py``, docs/three_d.md)
 SEEDS = (0, 1)
 
 

@@ -21,12 +21,13 @@ from dualpilot.mission.records import (
     write_trace,
 )
 from dualpilot.mission.result import MissionResult
-from tests.unit.dualpilot.mission.test_consistency3d import _lifted, _pair
+from tests.support.lifted import config_pair, lifted_planners
 
 
 def _missions() -> tuple[MissionResult, MissionResult]:
-    flat, tall = _pair("s1", 1, "paper", max_steps=30)
-    return local_mission(flat).run(), local_mission(tall, planners=_lifted(tall, flat)).run()
+    flat, tall = config_pair("s1", 1, "paper", max_steps=30)
+    return (local_mission(flat).run(),
+            local_mission(tall, planners=lifted_planners(tall, flat)).run())
 
 
 def test_the_3d_columns() -> None:
