@@ -20,6 +20,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
+from dualpilot.model.altitude import AltitudeBand
 from dualpilot.model.dynamics import Array
 from services.common import mav, rejections
 from services.common.log import fields
@@ -60,6 +61,9 @@ class VehicleSetup:
     clock: str = LOCKSTEP  #: lockstep or realtime (services/uavsim/clock.py)
     speed_factor: float = 1.0  #: realtime: simulated s per wall s
     home_amsl_m: float = 0.0  #: the origin's altitude above mean sea level
+    #: lockstep, a 3-D mission: its altitude band, which setpoints' altitudes must lie in
+    #: (grown by services/common/mavlink_codec.py's SETPOINT_BAND_MARGIN_M); None: no band known
+    band: AltitudeBand | None = None
 
 
 

@@ -49,9 +49,11 @@ log = logging.getLogger("services.uavsim")
 
 
 def apply(endpoint: Endpoint, config: MissionConfig) -> None:
-    """Fly ``config``'s Eq. (1), or its plant, and, in lockstep, check against its area
-    (ValueError: a vehicle on its own clock cannot change its ΔT; a plant it cannot fly)."""
-    dyn = config.spec().dynamics
+    """Fly ``config``'s Eq. (1), or its plant, and, in lockstep, check against its area (and,
+    in 3-D, its altitude band) (ValueError: a vehicle on its own clock cannot change its ΔT; a
+    plant it cannot fly)."""
+    spec = config.spec()
+    dyn = spec.dynamics
     v = endpoint.vehicle
     if endpoint.realtime is not None and dyn.dt_s != v.dyn.dt_s:
         raise ValueError(f"a vehicle on its own clock steps every {v.dyn.dt_s:g} s; the "
@@ -59,9 +61,10 @@ def apply(endpoint: Endpoint, config: MissionConfig) -> None:
     if endpoint.realtime is not None:
         dyn = replace(dyn, dim=2)  # its own clock: the altitude controller flies z (climb)
     fly_plant(v, config, own_clock=endpoint.realtime is not None)
-    vertical(v, dyn, config.spec().band.start_altitude_m)
+    vertical(v, dyn, spec.band.start_altitude_m)
     if endpoint.realtime is None:
-        endpoint.setup = replace(endpoint.setup, area_size_m=config.area_size_m)
+        endpoint.setup = replace(endpoint.setup, area_size_m=config.area_size_m,
+                                 band=spec.band if spec.dim == 3 else None)
         endpoint.ap.mission.bounds = PlanningBounds(endpoint.setup.home, config.area_size_m)
     endpoint.repeat = None  # a setpoint accepted under the old limits is checked again
 

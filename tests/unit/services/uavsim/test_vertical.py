@@ -110,3 +110,43 @@ def test_on_its_own_clock_a_3d_configuration_keeps_the_altitude_controller() -> 
     ep = endpoint(REALTIME)
     apply(ep, CONFIG3)
     assert ep.vehicle.dyn.dim == 2 and ep.vehicle.state.shape == (4,)
+
+
+def test_the_lockstep_endpoint_keeps_3d_setpoints_in_the_mission_band_grown_by_its_margin(
+        ) -> None:
+    """CONFIG3's band is the default [20, 120] m; grown by 20 m: [0, 140] m. A setpoint at
+    139.5 m is flown, one at 140.5 m is a counted ``out_of_range`` rejection, not flown."""
+    ep = endpoint(LOCKSTEP)
+    assert ep.setup.band is None  # no mission yet: the 10 km sanity bound
+    apply(ep, CONFIG3)
+    assert ep.setup.band is not None
+    assert (ep.setup.band.floor_m, ep.setup.band.ceiling_m) == (20.0, 120.0)
+    ap, v = ep.ap, ep.vehicle
+    assert ap.decide(lambda c: ap.commander.request(Nav.OFFBOARD, c), 0.0).accepted
+    assert ap.decide(ap.commander.arm, 0.0).accepted
+
+    def at(altitude_m: float, time_ms: int) -> object:
+        return wire(m.MAVLink_set_position_target_local_ned_message(
+            time_ms, 1, 1, m.MAV_FRAME_LOCAL_NED, mav.TYPE_MASK_POS, 110.0, 105.0,
+            -altitude_m, 0, 0, 0, 0, 0, 0, 0, 0), COMPANION[1:])
+
+    def out_of_range() -> int:
+        return rejections.REJECTED.snapshot().get("mavlink/offboard", {}).get("out_of_range", 0)
+
+    before = out_of_range()
+    assert ep.on_setpoint("offboard", COMPANION, at(139.5, 1000), 0.1)
+    # flown: one step towards 104.5 m above, the force up at u_max = 7.5 N: v_z = ΔT/m · 7.5
+    assert v.time_ms == 1000 and v.control[2] == 7.5
+    assert v.state[5] == pytest.approx(7.5 / 1.05)
+    x = v.state.copy()
+    assert not ep.on_setpoint("offboard", COMPANION, at(140.5, 2000), 0.2)
+    assert np.array_equal(v.state, x)  # refused, not flown
+    assert out_of_range() == before + 1
+    apply(ep, MissionConfig())  # a planar mission: no band, its setpoints as before
+    assert ep.setup.band is None
+
+
+def test_on_its_own_clock_no_band_is_kept() -> None:
+    ep = endpoint(REALTIME)
+    apply(ep, CONFIG3)
+    assert ep.setup.band is None
