@@ -17,8 +17,9 @@ from typing import Any
 
 import numpy as np
 
+from dualpilot.mission.braking import braking_overshoot_m
 from dualpilot.model.altitude import AltitudeBand
-from dualpilot.model.dynamics import Array
+from dualpilot.model.dynamics import Array, DynamicsParams
 from services.common import mav
 from services.common.limits import check_state_values, finite
 from services.common.rejections import Reason, invalid
@@ -30,8 +31,17 @@ SETPOINT_AREA_MARGIN = 0.1
 #: [floor_m, ceiling_m] (docs/three_d.md), where the vehicle knows it (else [0,
 #: MAX_SETPOINT_ALT_M]): planners keep their plans in the band, and braking from the band
 #: at the speed limit overshoots it by 19.86 m at the paper's Eq. (1) values (p_(t+1) = p_t +
-#: ΔT v_t: 15 m, then 0.8·15 − 7.5/1.05 = 4.86 m, then at rest).
+#: ΔT v_t: 15 m, then 0.8·15 − 7.5/1.05 = 4.86 m, then at rest). A vehicle that knows the
+#: mission's Eq. (1) grows the band by :func:`setpoint_band_margin_m` (never less than this).
 SETPOINT_BAND_MARGIN_M = 20.0
+
+
+def setpoint_band_margin_m(dynamics: DynamicsParams) -> float:
+    """How far (m) a 3-D setpoint may lie outside the band under ``dynamics``: the braking
+    overshoot from the speed limit (:func:`dualpilot.mission.braking.braking_overshoot_m`)
+    rounded up to the metre (a µm of floating-point error aside), at least
+    :data:`SETPOINT_BAND_MARGIN_M`."""
+    return max(SETPOINT_BAND_MARGIN_M, float(math.ceil(braking_overshoot_m(dynamics) - 1e-6)))
 MAX_SETPOINT_SPEED_MPS = 100.0
 MAX_SETPOINT_ALT_M = 10_000.0
 #: The longest a setpoint may be stamped ahead of the vehicle's clock (s of simulated time):
@@ -65,11 +75,12 @@ def state_from_ned(n: float, e: float, vn: float, ve: float,
 
 def setpoint_from_mavlink(msg: Any, area_size_m: float | None = None,
                           lead_ms: int | None = None, range_m: float | None = None,
-                          dim: int = 2, band: AltitudeBand | None = None) -> Array:
+                          dim: int = 2, band: AltitudeBand | None = None,
+                          band_margin_m: float = SETPOINT_BAND_MARGIN_M) -> Array:
     """A SET_POSITION_TARGET_LOCAL_NED as the core target state [p_e, p_n, v_e, v_n] (with
     ``dim`` 3: [p_e, p_n, p_up, v_e, v_n, v_up], p_up = −z, v_up = −vz, the altitude within
     [0, :data:`MAX_SETPOINT_ALT_M`], with ``band`` (a planning mission's) within the band
-    grown by :data:`SETPOINT_BAND_MARGIN_M` too, and the climb within
+    grown by ``band_margin_m`` too, and the climb within
     :data:`MAX_SETPOINT_SPEED_MPS` whatever the other checks; ``band`` is unused in 2-D).
 
     Accepts LOCAL_NED with type_mask 3520 (position + velocity) or 3576
@@ -95,7 +106,7 @@ def setpoint_from_mavlink(msg: Any, area_size_m: float | None = None,
                       f"{mav.TYPE_MASK_POS} are supported")
     if dim == 3:
         return _setpoint3(msg, msg.vz if msg.type_mask == mav.TYPE_MASK_POS_VEL else 0.0,
-                          area_size_m, lead_ms, range_m, band)
+                          area_size_m, lead_ms, range_m, band, band_margin_m)
     if area_size_m is not None or range_m is not None:
         finite([msg.z], "setpoint z", MAX_SETPOINT_ALT_M)
         if area_size_m is not None:
@@ -117,9 +128,9 @@ def setpoint_from_mavlink(msg: Any, area_size_m: float | None = None,
 
 
 def _setpoint3(msg: Any, vz: float, area_size_m: float | None, lead_ms: int | None,
-               range_m: float | None, band: AltitudeBand | None) -> Array:
+               range_m: float | None, band: AltitudeBand | None, band_margin_m: float) -> Array:
     """The 3-D target of a setpoint: the planar checks on its horizontal part, then its
-    altitude (and the ``band``'s, grown by :data:`SETPOINT_BAND_MARGIN_M`) and climb
+    altitude (and the ``band``'s, grown by ``band_margin_m``) and climb
     (CodecError ``not_finite`` or ``out_of_range``)."""
     horizontal = setpoint_from_mavlink(msg, area_size_m, lead_ms, range_m)
     finite([msg.z], "setpoint z", MAX_SETPOINT_ALT_M)
@@ -127,10 +138,10 @@ def _setpoint3(msg: Any, vz: float, area_size_m: float | None, lead_ms: int | No
     if not -msg.z >= 0.0:
         raise invalid(f"setpoint altitude {-msg.z:.6g} m (z = {msg.z:.6g}) is below the "
                       f"ground", Reason.OUT_OF_RANGE)
-    if band is not None and not band.contains(-float(msg.z), SETPOINT_BAND_MARGIN_M):
+    if band is not None and not band.contains(-float(msg.z), band_margin_m):
         raise invalid(f"setpoint altitude {-msg.z:.6g} m is outside the band "
                       f"[{band.floor_m:g}, {band.ceiling_m:g}] m grown by "
-                      f"{SETPOINT_BAND_MARGIN_M:g} m", Reason.OUT_OF_RANGE)
+                      f"{band_margin_m:g} m", Reason.OUT_OF_RANGE)
     return check_state_values(np.array([horizontal[0], horizontal[1], -float(msg.z),
                                         horizontal[2], horizontal[3], -float(vz)]),
                               "setpoint")

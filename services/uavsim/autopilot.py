@@ -24,6 +24,7 @@ from dualpilot.model.altitude import AltitudeBand
 from dualpilot.model.dynamics import Array
 from services.common import mav, rejections
 from services.common.log import fields
+from services.common.mavlink_codec import SETPOINT_BAND_MARGIN_M
 
 from . import geofence, missionrun
 from .clock import LOCKSTEP, REALTIME
@@ -62,8 +63,11 @@ class VehicleSetup:
     speed_factor: float = 1.0  #: realtime: simulated s per wall s
     home_amsl_m: float = 0.0  #: the origin's altitude above mean sea level
     #: lockstep, a 3-D mission: its altitude band, which setpoints' altitudes must lie in
-    #: (grown by services/common/mavlink_codec.py's SETPOINT_BAND_MARGIN_M); None: no band known
+    #: (grown by ``band_margin_m``); None: no band known
     band: AltitudeBand | None = None
+    #: m, how far outside the band a setpoint may lie: the mission's braking overshoot
+    #: (services/common/mavlink_codec.py, ``setpoint_band_margin_m``)
+    band_margin_m: float = SETPOINT_BAND_MARGIN_M
 
 
 

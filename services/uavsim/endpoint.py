@@ -250,7 +250,7 @@ class Endpoint:
             band = None if self.realtime is not None else self.setup.band
             target = mavlink_codec.setpoint_from_mavlink(  # 3-D in lockstep under dim=3
                 normalised(msg), area, lead, FREE_RANGE_M if area is None else None,
-                self.vehicle.dyn.dim, band)
+                self.vehicle.dyn.dim, band, self.setup.band_margin_m)
         except rejections.CodecError as err:
             self.reject(link, err, "setpoint")
             return None

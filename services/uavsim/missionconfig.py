@@ -37,6 +37,7 @@ from services.common import bus, keys, rejections, wire
 from services.common.convert import config as config_convert
 from services.common.effective import EFFECTIVE
 from services.common.log import fields
+from services.common.mavlink_codec import setpoint_band_margin_m
 from services.msgs import config_pb2
 
 from .endpoint import Endpoint
@@ -64,7 +65,8 @@ def apply(endpoint: Endpoint, config: MissionConfig) -> None:
     vertical(v, dyn, spec.band.start_altitude_m)
     if endpoint.realtime is None:
         endpoint.setup = replace(endpoint.setup, area_size_m=config.area_size_m,
-                                 band=spec.band if spec.dim == 3 else None)
+                                 band=spec.band if spec.dim == 3 else None,
+                                 band_margin_m=setpoint_band_margin_m(dyn))
         endpoint.ap.mission.bounds = PlanningBounds(endpoint.setup.home, config.area_size_m)
     endpoint.repeat = None  # a setpoint accepted under the old limits is checked again
 

@@ -14,9 +14,15 @@ from typing import Any
 import numpy as np
 import pytest
 
+from dualpilot.mission.braking import braking_overshoot_m
 from dualpilot.model.altitude import AltitudeBand
+from dualpilot.model.dynamics import DynamicsParams
 from services.common import mav, mavlink_codec, rejections
-from services.common.mavlink_codec import SETPOINT_BAND_MARGIN_M, setpoint_from_mavlink
+from services.common.mavlink_codec import (
+    SETPOINT_BAND_MARGIN_M,
+    setpoint_band_margin_m,
+    setpoint_from_mavlink,
+)
 
 BAND = AltitudeBand(floor_m=40.0, ceiling_m=90.0, start_altitude_m=50.0)
 
@@ -37,6 +43,21 @@ def rejected(altitude_m: float, band: AltitudeBand | None = BAND,
 
 def test_the_margin_is_20_m() -> None:
     assert SETPOINT_BAND_MARGIN_M == 20.0  # the hand values below are worked out with it
+
+
+def test_a_vehicle_grows_the_band_by_the_braking_overshoot_rounded_up() -> None:
+    """Braking from v_max along one axis (Eq. (1): v' = 0.8 v + u/1.05, |u| <= 7.5 N, the brake
+    u = -1.05·0.8·v clipped): from 15 m/s, 15 m then 0.8·15 - 7.5/1.05 = 4.857 m (19.857 m:
+    20 m); from 25 m/s, 25, then 12.857, then 0.8·12.857 - 7.5/1.05 = 3.143 m (41 m)."""
+    assert braking_overshoot_m(DynamicsParams(dim=3)) == pytest.approx(15.0 + 12.0 - 7.5 / 1.05)
+    assert braking_overshoot_m(DynamicsParams(dim=3, v_max_mps=25.0)) == pytest.approx(41.0)
+    assert setpoint_band_margin_m(DynamicsParams(dim=3)) == SETPOINT_BAND_MARGIN_M == 20.0
+    assert setpoint_band_margin_m(DynamicsParams(dim=3, v_max_mps=25.0)) == 41.0
+    grown = setpoint_from_mavlink(setpoint(130.5), 1000.0, 0, dim=3, band=BAND,
+                                  band_margin_m=41.0)  # [40, 90] grown by 41: up to 131 m
+    assert grown[2] == pytest.approx(130.5)
+    with pytest.raises(rejections.CodecError, match="grown by 41 m"):
+        setpoint_from_mavlink(setpoint(131.5), 1000.0, 0, dim=3, band=BAND, band_margin_m=41.0)
 
 
 @pytest.mark.parametrize("altitude_m", [109.5, 110.0, 90.0, 40.0, 20.0, 20.5])

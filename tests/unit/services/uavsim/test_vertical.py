@@ -146,6 +146,16 @@ def test_the_lockstep_endpoint_keeps_3d_setpoints_in_the_mission_band_grown_by_i
     assert ep.setup.band is None
 
 
+def test_a_faster_mission_grows_the_band_by_its_braking_overshoot() -> None:
+    """v_max 25 m/s: braking from it along z carries the vehicle 25 + 12.857 + 3.143 = 41 m
+    (tests/unit/services/common/test_setpoint_band.py): the band grows by 41 m, not 20."""
+    ep = endpoint(LOCKSTEP)
+    apply(ep, CONFIG3)
+    assert ep.setup.band_margin_m == 20.0
+    apply(ep, replace(CONFIG3, settings=(*CONFIG3.settings, ("v_max_mps", 25.0))))
+    assert ep.setup.band_margin_m == 41.0
+
+
 def test_on_its_own_clock_no_band_is_kept() -> None:
     ep = endpoint(REALTIME)
     apply(ep, CONFIG3)
