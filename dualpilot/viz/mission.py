@@ -10,7 +10,9 @@
   Eq. (categorical), over bands showing the system that flew each step;
 * ``fig_r2_dirichlet.png`` – 200 samples of P_t ~ Dirichlet(Ξ_t), Eq. (dir), on the simplex;
 * ``fig_r3_psi.png`` – Ψ_t of Eq. (Psi) and S_t = argmax Ψ_t, Eq. (maxPsi);
-* ``fig3_attention_profiles.png`` – Fig. 3: ξ1 against d and ξ2, ξ3 against t.
+* ``fig3_attention_profiles.png`` – Fig. 3: ξ1 against d and ξ2, ξ3 against t;
+* ``fig_altitude.png`` – a 3-D mission's only: its side view and its ground track coloured
+  by altitude (:mod:`dualpilot.viz.altitude`).
 
 Figures are built on :class:`matplotlib.figure.Figure` with the Agg canvas: no
 pyplot state, no display. Time is in steps (ΔT = 1 s), distances in metres.
@@ -39,6 +41,7 @@ from dualpilot.mission.records import read_steps_csv
 from dualpilot.mission.result import Ending
 from dualpilot.model.dynamics import Array
 from dualpilot.supervisor.paper.attention import AttentionParams, xi
+from dualpilot.viz.altitude import FIG_ALTITUDE, draw_altitude
 
 DPI = 120
 #: Seed of the Dirichlet samples of Fig. r2 (combined with t, so each panel is reproducible).
@@ -542,9 +545,19 @@ def plot_attention_profiles(path: Path, params: AttentionParams = AttentionParam
         return _save(figure_attention_profiles(params), Path(path))
 
 
+# -- a 3-D mission's altitude ------------------------------------------------------------------
+def figure_altitude(run: RunData) -> Figure:
+    """A 3-D mission's side view and altitude-coloured ground track (ValueError in 2-D)."""
+    fig = _new_figure(13.0, 5.4)
+    draw_altitude(fig, run.trace)
+    fig.suptitle(run.title())
+    return fig
+
+
 # -- all figures of a run ------------------------------------------------------------------------
 def make_figures(run_dir: Path, steps: Sequence[int] | None = None) -> list[Path]:
-    """Write the five PNGs of a mission run into ``run_dir``; returns their paths.
+    """Write the five PNGs of a mission run into ``run_dir`` (a 3-D mission's six: its
+    altitude too); returns their paths.
 
     ``steps`` overrides the step indices of the trajectory panels of Fig. r1.
     """
@@ -557,5 +570,7 @@ def make_figures(run_dir: Path, steps: Sequence[int] | None = None) -> list[Path
             _save(figure_dirichlet(run), out / FIG_DIRICHLET),
             _save(figure_psi(run), out / FIG_PSI),
         ]
+        if "altitude" in run.trace:
+            paths.append(_save(figure_altitude(run), out / FIG_ALTITUDE))
     paths.append(plot_attention_profiles(out / FIG_PROFILES))
     return paths
