@@ -30,6 +30,7 @@ from dualpilot.viz.scene import (
     OccupancyView,
     PlanView,
     RiskView,
+    altitude_text,
     area_view,
     circle,
     commanded_system,
@@ -41,6 +42,7 @@ from dualpilot.viz.scene import (
     risk_view,
     start_text,
     step_text,
+    top_down,
 )
 
 #: name of the mission's Foxglove recording in a run directory
@@ -249,11 +251,14 @@ class VehicleChannels:
                                flown=v.flown))]), log_time=t_ns)
 
     def vehicle(self, state: Array, t: int, d_safe_m: float, t_ns: int) -> None:
-        """The UAV (a cube), its d_safe disc and a label, at step ``t``'s state."""
+        """The UAV (a cube), its d_safe disc and a label, at step ``t``'s state (2-D or 3-D:
+        a 3-D one's altitude and climb in the metadata, ``altitude_m`` and ``v_up_mps``, and
+        its altitude in the label)."""
         m = _m()
-        x = np.asarray(state, dtype=float)
+        x, z, vz = top_down(state)
         e, n = float(x[0]), float(x[1])
         yellow = _color(1.0, 0.85, 0.1)
+        up = {} if z is None else {"altitude_m": z, "v_up_mps": vz}
         self.uav_ch.log(self._update([self._entity(
             t_ns, "uav", cubes=[m.CubePrimitive(
                 pose=_pose(e, n, Z_UAV), size=m.Vector3(x=UAV_SIZE_M, y=UAV_SIZE_M, z=4.0),
@@ -261,9 +266,9 @@ class VehicleChannels:
             lines=[_line(circle(x[:2], d_safe_m), Z_UAV, _color(1.0, 0.85, 0.1, 0.7), True)],
             texts=[m.TextPrimitive(pose=_pose(e, n, Z_UAV + 10.0), billboard=True,
                                    font_size=14.0, scale_invariant=True, color=yellow,
-                                   text=f"{self.uav} t={t}")],
+                                   text=f"{self.uav} t={t}" + altitude_text(z))],
             metadata=_meta(step=t, east_m=e, north_m=n, v_east_mps=float(x[2]),
-                           v_north_mps=float(x[3]))),
+                           v_north_mps=float(x[3]), **up)),
         ]), log_time=t_ns)
 
     def path(self, positions: Array, t_ns: int) -> None:

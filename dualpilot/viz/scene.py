@@ -19,6 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from dualpilot.mission.answers import Answer, PlanView, statuses_by_system
+from dualpilot.model.altitude import planar_state
 from dualpilot.model.dynamics import Array
 from dualpilot.model.fire import FireSnapshot
 from dualpilot.model.forecast import OccupancyForecast
@@ -87,6 +88,20 @@ def plan_views(answers: tuple[Answer, ...], flown: int, positions: Array
     empty = np.empty((0, 2))
     return tuple(PlanView(k, statuses.get(k, ""), pts if k == flown else empty, k == flown)
                  for k in SYSTEMS)
+
+
+def top_down(state: Array) -> tuple[Array, float | None, float | None]:
+    """A 2-D or 3-D state as the scene shows it: [east, north, v_east, v_north] (m, m/s), the
+    altitude p_z (m) and the climb v_z (m/s); both None for a 2-D state."""
+    x = np.asarray(state, dtype=float).reshape(-1)
+    if len(x) == 6:
+        return planar_state(x), float(x[2]), float(x[5])
+    return x, None, None
+
+
+def altitude_text(z_m: float | None) -> str:
+    """The altitude beside a vehicle's label: `` z=65.4 m`` (m, one decimal); none in 2-D."""
+    return "" if z_m is None else f" z={z_m:.1f} m"
 
 
 def _finite_or_none(v: float) -> float | None:

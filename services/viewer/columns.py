@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 
 from dualpilot.model.dynamics import Array
-from dualpilot.viz.scene import OccupancyView, circle
+from dualpilot.viz.scene import OccupancyView, altitude_text, circle
 
 from .picture import Frame, VehicleFrame
 
@@ -157,9 +157,10 @@ def heading_rad(state: Array) -> float:
 
 
 def vehicle_columns(frame: Frame) -> dict[str, Columns]:
-    """Every vehicle (position, heading, who flies, Ψ), its d_safe disc, trail and plan."""
+    """Every vehicle (position, heading, who flies, Ψ, altitude: NaN in 2-D, in its label in
+    3-D), its d_safe disc, trail and plan."""
     cols: Columns = {k: [] for k in ("x", "y", "angle", "uav", "step", "flies", "color",
-                                     "speed", "psi1", "psi2", "label")}
+                                     "speed", "psi1", "psi2", "altitude", "label")}
     safe: Columns = {"xs": [], "ys": [], "uav": []}
     for v in frame.vehicles:
         if v.state is None:
@@ -173,7 +174,9 @@ def vehicle_columns(frame: Frame) -> dict[str, Columns]:
                            ("color", flown_color(flown)),
                            ("speed", float(math.hypot(v.state[2], v.state[3]))),
                            ("psi1", psi[0]), ("psi2", psi[1]),
-                           ("label", f"{v.uav} {flown_name(flown)} t={v.step}")):
+                           ("altitude", math.nan if v.altitude_m is None else v.altitude_m),
+                           ("label", f"{v.uav} {flown_name(flown)} t={v.step}"
+                                     + altitude_text(v.altitude_m))):
             cols[key].append(value)
         if v.d_safe_m > 0:
             xs, ys = _shift(v, circle(v.state[:2], v.d_safe_m, 48))

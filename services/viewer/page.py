@@ -82,7 +82,8 @@ def map_figure(src: dict[str, ColumnDataSource], mapper: LogColorMapper) -> Any:
     fig.add_tools(HoverTool(renderers=[uavs], tooltips=[
         ("uav", "@uav"), ("step", "@step"), ("flies", "@flies"),
         ("east, north", "@x{0.0}, @y{0.0} m"),
-        ("speed", "@speed{0.0} m/s"), ("Ψ", "@psi1{0.000}, @psi2{0.000}")]))
+        ("speed", "@speed{0.0} m/s"), ("altitude", "@altitude{0.0} m"),
+        ("Ψ", "@psi1{0.000}, @psi2{0.000}")]))
     fig.add_tools(HoverTool(renderers=[fires], tooltips=[
         ("uav", "@uav"), ("front", "@front_id"), ("born at step", "@born_step")]))
     fig.add_layout(ColorBar(color_mapper=mapper, title="P(fire) at the horizon", width=12),

@@ -23,7 +23,7 @@ import numpy as np
 
 from dualpilot.mission.answers import PlanView
 from dualpilot.model.dynamics import Array
-from dualpilot.viz.scene import AreaView, FireView, OccupancyView, RiskView
+from dualpilot.viz.scene import AreaView, FireView, OccupancyView, RiskView, top_down
 
 #: decisions kept per vehicle (the Ψ plot's history); a mission has a few hundred steps
 MAX_DECISIONS = 2000
@@ -46,6 +46,7 @@ class VehicleFrame:
     plans: tuple[PlanView, ...] = ()
     plan_step: int = -1
     state: Array | None = None  # (4,): east, north (m), v_east, v_north (m/s)
+    altitude_m: float | None = None  # a 3-D mission's p_z (m); None in 2-D
     step: int = -1
     d_safe_m: float = 0.0
     path: Array = field(default_factory=lambda: np.empty((0, 2)))
@@ -118,8 +119,10 @@ class VehicleScene:
         self._set("plans", t_ns, plans=tuple(views), plan_step=int(t))
 
     def vehicle(self, state: Array, t: int, d_safe_m: float, t_ns: int) -> None:
-        self._set("vehicle", t_ns, state=np.array(state, dtype=float), step=int(t),
-                  d_safe_m=float(d_safe_m))
+        """The vehicle's state (2-D, or 3-D: kept from above, with its altitude)."""
+        planar, z, _ = top_down(state)
+        self._set("vehicle", t_ns, state=np.array(planar, dtype=float), altitude_m=z,
+                  step=int(t), d_safe_m=float(d_safe_m))
 
     def path(self, positions: Array, t_ns: int) -> None:
         self._set("path", t_ns, path=np.array(positions, dtype=float).reshape(-1, 2))

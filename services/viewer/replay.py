@@ -102,10 +102,13 @@ def fires_of(update: Any) -> FireView:
 
 
 def vehicle_of(update: Any) -> tuple[Array, int, float]:
-    """The UAV's state (east, north, v_east, v_north), its step and d_safe (the disc's radius)."""
+    """The UAV's state (east, north, v_east, v_north; a 3-D mission's east, north, altitude,
+    v_east, v_north, v_up), its step and d_safe (the disc's radius)."""
     e = update.entities[0]
     m = _meta(e)
-    x = np.array([float(m[k]) for k in ("east_m", "north_m", "v_east_mps", "v_north_mps")])
+    keys = (("east_m", "north_m", "altitude_m", "v_east_mps", "v_north_mps", "v_up_mps")
+            if "altitude_m" in m else ("east_m", "north_m", "v_east_mps", "v_north_mps"))
+    x = np.array([float(m[k]) for k in keys])
     disc = _points(e.lines[0]) if e.lines else np.empty((0, 2))
     d_safe = float(np.hypot(*(disc[0] - x[:2]))) if len(disc) else 0.0
     return x, int(m["step"]), d_safe

@@ -13,7 +13,6 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from dualpilot.model.altitude import planar_state
 from dualpilot.spec import MissionSpec
 from services.common import bus, keys, rejections
 from services.common.convert import fire as fire_convert
@@ -101,7 +100,7 @@ class Viewer:
                 self.vehicle(uav, plans.spec.area_size_m).step_plans(plans, t_ns)
         elif kind == "vehicle/state":
             st = bus.accept(item, vehicle_pb2.VehicleState,
-                            lambda m: (_top_down(vehicle_convert.state_from_msg(m)),
+                            lambda m: (vehicle_convert.state_from_msg(m),
                                        int(m.step), log_time_ns(m.header)),
                             key=item.key, logger=log)
             if st is not None:
@@ -127,12 +126,6 @@ class Viewer:
     def _for(self, uav: str) -> LiveVehicle:
         known = self.vehicles.get(uav)
         return known if known is not None else self.vehicle(uav, MissionSpec().area_size_m)
-
-
-def _top_down(x: Any) -> Any:
-    """The page's state: a 3-D one seen from above (its altitude and climb dropped; the page
-    draws the plane)."""
-    return planar_state(x) if len(x) == 6 else x
 
 
 def batch(inbox: bus.Inbox, first: bus.Received) -> list[tuple[bus.Received, bool]]:

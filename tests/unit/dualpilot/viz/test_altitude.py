@@ -105,7 +105,8 @@ def run_3d(out: Path) -> Path:
             time_s=float(t)))
     final = np.array([220.0, 100.0, 68.0, 40.0, 0.0, 6.0])
     write_all(MissionResult(controller="s1", timing="paper", spec=spec, steps=3,
-                            records=records, final_state=final, ending=Ending.STEP_LIMIT), out)
+                            records=records, final_state=final, ending=Ending.STEP_LIMIT,
+                            sim_time_s=3.0), out)
     return out
 
 

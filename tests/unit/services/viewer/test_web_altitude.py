@@ -1,0 +1,82 @@
+"""A 3-D mission's altitude on the web page: from the stack's VehicleState (which carries it)
+and from a mission.mcap, to the vehicle's label and hover; a 2-D mission's page unchanged."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from dualpilot.viz import scene
+from services.common import bus, keys, wire
+from services.common.convert import vehicle as vehicle_convert
+from services.msgs import vehicle_pb2
+from services.viewer import columns as C
+from services.viewer.picture import Picture
+from services.viewer.replay import load, read_messages, vehicle_of
+from tests.unit.dualpilot.viz.test_altitude import run_3d
+
+
+def test_a_3d_state_is_drawn_from_above_with_its_altitude() -> None:
+    pic = Picture()
+    s = pic.scene("uav1")
+    s.vehicle(np.array([60.0, 70.0, 65.44, 3.0, 4.0, -1.5]), 5, 20.0, 1)
+    v = pic.frame().vehicles[0]
+    assert v.state is not None and v.state.tolist() == [60.0, 70.0, 3.0, 4.0]
+    assert v.altitude_m == 65.44
+    cols = C.vehicle_columns(pic.frame())["vehicles"]
+    assert (cols["x"], cols["y"], cols["speed"]) == ([60.0], [70.0], [5.0])  # |(3, 4)|
+    assert cols["angle"] == [pytest.approx(math.atan2(4.0, 3.0) - math.pi / 2)]
+    assert cols["altitude"] == [65.44] and cols["label"] == ["uav1 - t=5 z=65.4 m"]
+
+
+def test_a_2d_state_has_no_altitude() -> None:
+    pic = Picture()
+    pic.scene("uav1").vehicle(np.array([60.0, 70.0, 3.0, 4.0]), 5, 20.0, 1)
+    assert pic.frame().vehicles[0].altitude_m is None
+    cols = C.vehicle_columns(pic.frame())["vehicles"]
+    assert math.isnan(cols["altitude"][0]) and cols["label"] == ["uav1 - t=5"]
+    assert scene.altitude_text(None) == "" and scene.altitude_text(44.51) == " z=44.5 m"
+
+
+def test_the_live_viewer_keeps_the_altitude_a_vehicle_state_carries() -> None:
+    import foxglove
+
+    from services.viewer.serve import Viewer
+
+    pic = Picture()
+    viewer = Viewer(foxglove.Context(), pic)
+    msg = vehicle_convert.state_to_msg(np.array([115.0, 125.0, 58.5, 15.0, 0.0, 2.0]), 4,
+                                       vehicle_pb2.VehicleState())
+    wire.Stamper("uavsim", "uav3").stamp(msg.header, 4.0)
+    viewer.handle(bus.Received(key=keys.vehicle_state("uav3"),
+                               payload=msg.SerializeToString(), encoding=""))
+    (v,) = pic.frame().vehicles
+    assert (v.uav, v.step, v.altitude_m) == ("uav3", 4, 58.5)
+    assert v.state is not None and v.state.tolist() == [115.0, 125.0, 15.0, 0.0]
+    assert v.path.tolist() == [[115.0, 125.0]]
+    assert C.vehicle_columns(pic.frame())["vehicles"]["label"] == ["uav3 - t=4 z=58.5 m"]
+
+
+def test_a_3d_recording_replays_with_its_altitude(tmp_path: Path) -> None:
+    run = run_3d(tmp_path / "r3")  # at 40 m/s east and 6 m/s up: 50, 56, 62 m, ending at 68 m
+    tl = load([run / "mission.mcap"])
+    seen = [(v.step, v.altitude_m, None if v.state is None else v.state.tolist())
+            for v in (f.vehicles[0] for f in tl.frames)]  # one frame a second: a step, the end
+    assert seen == [(0, 50.0, [100.0, 100.0, 40.0, 0.0]), (1, 56.0, [140.0, 100.0, 40.0, 0.0]),
+                    (2, 62.0, [180.0, 100.0, 40.0, 0.0]), (3, 68.0, [220.0, 100.0, 40.0, 0.0])]
+    assert C.vehicle_columns(tl.frames[-1])["vehicles"]["altitude"] == [68.0]
+
+
+def test_a_3d_recording_keeps_the_altitude_and_climb_in_the_uavs_metadata(tmp_path: Path) -> None:
+    run = run_3d(tmp_path / "r3")
+    uav = [m for m in read_messages(run / "mission.mcap") if m.kind == "uav"]
+    (e,) = uav[1].body.entities  # step 1: (140, 100, 56) m, (40, 0, 6) m/s
+    meta = {kv.key: kv.value for kv in e.metadata}
+    assert meta == {"step": "1", "east_m": "140.0", "north_m": "100.0", "v_east_mps": "40.0",
+                    "v_north_mps": "0.0", "altitude_m": "56.0", "v_up_mps": "6.0"}
+    assert e.texts[0].text == "uav1 t=1 z=56.0 m"
+    x, step, _ = vehicle_of(uav[1].body)
+    assert step == 1 and x.tolist() == [140.0, 100.0, 56.0, 40.0, 0.0, 6.0]
