@@ -4,7 +4,8 @@
 trace.json carries ``altitude``, i.e. a 3-D mission, docs/three_d.md) has two panels:
 
 * (a) top-down: the flown ground track coloured by the altitude flown (colour bar, m), the
-  fronts of (b) where they were when the UAV passed them, with their tops, the start and G;
+  front of (b) at the first step of each passage over or near fronts, with its top, the
+  start and G;
 * (b) side view: altitude (m) against the time-step t (ΔT = 1 s): the band's floor and
   ceiling, the flown altitude p_z at each step (and at the end), each flown plan's altitudes
   z^p_{t..t+T|t} in the colour of the system that made it, and the top of the tallest front
@@ -137,15 +138,14 @@ def _draw_top_down(fig: Figure, ax: Axes, trace: dict[str, Any], sv: SideView) -
     gx, gy, gw, gh = trace["goal"]
     ax.add_patch(Rectangle((gx - gw / 2, gy - gh / 2), gw, gh, fc=GOAL_FACE, ec=GOAL_EDGE,
                            lw=1.2, alpha=0.8, zorder=1))
-    for k, region in enumerate(sv.fire_region):  # the fronts the side view shows
-        if not region:
+    for k, region in enumerate(sv.fire_region):  # each passage over fronts: its first step's
+        if not region or (k > 0 and sv.fire_region[k - 1]):
             continue
         cx, cy, w, h = region
         ax.add_patch(Rectangle((cx - w / 2, cy - h / 2), w, h, fc=FIRE_FACE, ec=FIRE_EDGE,
                                alpha=0.35, lw=0.8, zorder=2))
-        if k == 0 or not sv.fire_region[k - 1]:  # label the first step of each passage
-            ax.text(cx + w / 2, cy + h / 2, f" t={sv.step_t[k]:g}: {sv.fire_top_m[k]:.0f} m",
-                    ha="left", va="bottom", fontsize=8, color=FIRE_EDGE, zorder=3)
+        ax.text(cx + w / 2, cy + h / 2, f" t={sv.step_t[k]:g}: {sv.fire_top_m[k]:.0f} m",
+                ha="left", va="bottom", fontsize=8, color=FIRE_EDGE, zorder=3)
     xy = [s["position"][:2] for s in trace["steps"]]
     if len(sv.t) > len(xy):
         xy.append(trace["final_position"][:2])
@@ -156,15 +156,20 @@ def _draw_top_down(fig: Figure, ax: Axes, trace: dict[str, Any], sv: SideView) -
                            norm=norm, lw=3.0, zorder=5, capstyle="round")
     track.set_array(0.5 * (sv.flown_m[:-1] + sv.flown_m[1:]))  # each segment: its mean altitude
     ax.add_collection(track)
+    over = np.isfinite(sv.fire_top_m)  # the steps of (b)'s bars, as a halo under the track
+    ax.plot(pts[: len(over)][over, 0], pts[: len(over)][over, 1], "o", color=FIRE_FACE, ms=9,
+            alpha=0.6, ls="", zorder=4, label=f"over or within {NEAR_M:g} m of a front (b)")
     ax.plot(*pts[0], "o", color="k", ms=5, zorder=6)
+    if np.any(over):
+        ax.legend(loc="lower right", fontsize=8, framealpha=0.9)
     fig.colorbar(track, ax=ax, label="flown altitude (m)", shrink=0.85)
     ax.set_xlim(0, area)
     ax.set_ylim(0, area)
     ax.set_aspect("equal")
     ax.set_xlabel("x (m)")
     ax.set_ylabel("y (m)")
-    ax.set_title(f"(a) ground track, coloured by altitude;\nfronts within {NEAR_M:g} m of it "
-                 "(t: their tops)")
+    ax.set_title(f"(a) ground track, coloured by altitude;\nthe front within {NEAR_M:g} m of it "
+                 "as each passage began (t: its top)")
 
 
 def draw_altitude(fig: Figure, trace: dict[str, Any]) -> None:

@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from bokeh.models import HoverTool
 
 from dualpilot.viz import scene
 from services.common import bus, keys, wire
@@ -80,3 +81,19 @@ def test_a_3d_recording_keeps_the_altitude_and_climb_in_the_uavs_metadata(tmp_pa
     assert e.texts[0].text == "uav1 t=1 z=56.0 m"
     x, step, _ = vehicle_of(uav[1].body)
     assert step == 1 and x.tolist() == [140.0, 100.0, 56.0, 40.0, 0.0, 6.0]
+
+
+def test_the_pages_document_holds_the_altitude() -> None:
+    from bokeh.document import Document
+
+    from services.viewer.page import Page
+
+    pic = Picture()
+    page = Page(Document(), "live", frames=pic.frame)
+    pic.scene("uav1").vehicle(np.array([60.0, 70.0, 44.5, 0.0, 1.0, 0.0]), 2, 20.0, 1)
+    page.refresh()
+    data = page.src["vehicles"].data
+    assert data["altitude"] == [44.5] and data["label"] == ["uav1 - t=2 z=44.5 m"]
+    hover = [t for t in page.doc.select({"type": HoverTool}) if ("altitude", "@altitude{0.0} m")
+             in t.tooltips]
+    assert len(hover) == 1  # the vehicles' tooltip shows it
