@@ -184,7 +184,24 @@ def vehicle_columns(frame: Frame) -> dict[str, Columns]:
             safe["ys"].append(ys + ys[:1])
             safe["uav"].append(v.uav)
     trails = _outlines(frame, lambda v: [v.path] if len(v.path) > 1 else [])
-    return {"vehicles": cols, "safety": safe, "trails": trails, "plans": plan_columns(frame)}
+    return {"vehicles": cols, "safety": safe, "trails": trails,
+            "altitude_trails": altitude_trail_columns(frame), "plans": plan_columns(frame)}
+
+
+def altitude_trail_columns(frame: Frame) -> Columns:
+    """A 3-D mission's trail as segments, each with the mean altitude (m) of its two ends (the
+    page colours them by it); nothing for a 2-D mission."""
+    cols: Columns = {"xs": [], "ys": [], "uav": [], "altitude": []}
+    for v in frame.vehicles:
+        z = v.path_altitudes
+        if len(z) != len(v.path):
+            continue
+        for i in range(len(z) - 1):
+            xs, ys = _shift(v, v.path[i:i + 2])
+            for key, value in (("xs", xs), ("ys", ys), ("uav", v.uav),
+                               ("altitude", 0.5 * (z[i] + z[i + 1]))):
+                cols[key].append(value)
+    return cols
 
 
 def plan_columns(frame: Frame) -> Columns:

@@ -106,7 +106,7 @@ class LiveVehicle:
     def state(self, x: Array, step: int, t_ns: int) -> None:
         if step == 0:
             self.path.clear()
-        self.path.append(np.asarray(x[:2], dtype=float))
+        self.path.append(np.asarray(x[:3] if len(x) == 6 else x[:2], dtype=float))  # 3-D: z
         path = np.array(self.path)
         for s in self.sinks:
             s.vehicle(x, step, self.spec.d_safe_m, t_ns)

@@ -24,10 +24,11 @@ from collections.abc import Callable
 from typing import Any
 
 from bokeh.layouts import column, row
-from bokeh.models import ColumnDataSource, HoverTool, LogColorMapper
+from bokeh.models import ColumnDataSource, HoverTool, LinearColorMapper, LogColorMapper
 from bokeh.models.annotations import ColorBar, LabelSet
 from bokeh.models.glyphs import Image
 from bokeh.models.widgets import Button, Div, Select, Slider, Toggle
+from bokeh.palettes import Viridis256
 from bokeh.plotting import figure
 
 from . import columns as C
@@ -39,8 +40,10 @@ REFRESH_MS = 250
 PLAY_MS = 200
 FIRE_FILL, FIRE_LINE, HULL_LINE = "#ff4019", "#d62410", "#ff9900"
 RISK_LINE, TRAIL_LINE, SAFETY_LINE = "#b34dff", "#333333", "#d4a000"
-SOURCES = ("area", "goal", "start", "fires", "hulls", "risk", "forecast", "trails", "plans",
-           "safety", "vehicles", "psi")
+SOURCES = ("area", "goal", "start", "fires", "hulls", "risk", "forecast", "trails",
+           "altitude_trails", "plans", "safety", "vehicles", "psi")
+#: the altitude colour scale's range (m) before a 3-D trail sets it: the default band
+ALTITUDE_RANGE_M = (20.0, 120.0)
 
 
 def _sources() -> dict[str, ColumnDataSource]:
@@ -51,8 +54,10 @@ def _sources() -> dict[str, ColumnDataSource]:
     return {name: ColumnDataSource(data=data[name], name=name) for name in SOURCES}
 
 
-def map_figure(src: dict[str, ColumnDataSource], mapper: LogColorMapper) -> Any:
-    """The map: areas, forecast, fires, hulls, risk zones, trails, plans, vehicles."""
+def map_figure(src: dict[str, ColumnDataSource], mapper: LogColorMapper,
+               altitude: LinearColorMapper) -> Any:
+    """The map: areas, forecast, fires, hulls, risk zones, trails (a 3-D one coloured by
+    altitude, with its colour bar), plans, vehicles."""
     fig = figure(title="operations picture (east/north, m)", match_aspect=True,
                  sizing_mode="stretch_both", min_width=500, min_height=500,
                  tools="pan,wheel_zoom,box_zoom,reset,save", active_scroll="wheel_zoom",
@@ -71,6 +76,9 @@ def map_figure(src: dict[str, ColumnDataSource], mapper: LogColorMapper) -> Any:
                    line_dash="dashed")
     fig.multi_line("xs", "ys", source=src["trails"], line_color=TRAIL_LINE, line_width=2,
                    name="trail_lines")
+    fig.multi_line("xs", "ys", source=src["altitude_trails"], line_width=4,
+                   line_color={"field": "altitude", "transform": altitude},
+                   name="altitude_trail_lines")
     fig.multi_line("xs", "ys", source=src["plans"], line_color="color", line_width=3,
                    line_dash="dashed", name="plan_lines")
     fig.multi_line("xs", "ys", source=src["safety"], line_color=SAFETY_LINE, line_alpha=0.8)
@@ -88,6 +96,8 @@ def map_figure(src: dict[str, ColumnDataSource], mapper: LogColorMapper) -> Any:
         ("uav", "@uav"), ("front", "@front_id"), ("born at step", "@born_step")]))
     fig.add_layout(ColorBar(color_mapper=mapper, title="P(fire) at the horizon", width=12),
                    "right")
+    fig.add_layout(ColorBar(color_mapper=altitude, title="altitude (m)", width=12,
+                            visible=False, name="altitude_bar"), "right")
     return fig
 
 
@@ -169,6 +179,8 @@ class Page:
         self.drawn: dict[str, object] = {}
         self.mapper = LogColorMapper(palette=C.heat_palette(), low=C.HEAT_LOW_P, high=1.0,
                                      nan_color="#00000000", low_color="#00000000")
+        self.altitude = LinearColorMapper(palette=Viridis256, low=ALTITUDE_RANGE_M[0],
+                                          high=ALTITUDE_RANGE_M[1], name="altitude_mapper")
         self.header = Div(text="", sizing_mode="stretch_width", name="header")
         self.events = Div(text="", sizing_mode="stretch_width", name="events")
         self.fleet = Div(text="", sizing_mode="stretch_width", name="fleet")
@@ -196,7 +208,7 @@ class Page:
         side = column(self.fleet, psi_figure(self.src["psi"]), self.events,
                       sizing_mode="stretch_width", width=560)
         doc.add_root(column(self.header, row(*controls),
-                            row(map_figure(self.src, self.mapper), side,
+                            row(map_figure(self.src, self.mapper, self.altitude), side,
                                 sizing_mode="stretch_both"),
                             sizing_mode="stretch_both"))
         doc.title = title
@@ -260,6 +272,7 @@ class Page:
         self._assign("vehicles", tuple(f.layer_key(x) for x in ("vehicle", "path", "plans",
                                                                    "decision")),
                      lambda: C.vehicle_columns(f))
+        self._altitude_scale()
         fleet_key = tuple(f.layer_key(x) for x in ("vehicle", "decision", "plans", "event"))
         if self.drawn.get("fleet") != fleet_key:
             self.fleet.text = fleet_html(f)
@@ -271,6 +284,17 @@ class Page:
             self.events.text = events_html(f)
             self.drawn["events_html"] = f.layer_key("event")
         self.header.text = self.header_html(f)
+
+    def _altitude_scale(self) -> None:
+        """The altitude colours span the 3-D trails' altitudes (1 m at least); their colour bar
+        shows only while there is one."""
+        z = self.src["altitude_trails"].data["altitude"]
+        bar = self.doc.select_one({"name": "altitude_bar"})
+        if bar is not None and bar.visible != bool(z):
+            bar.visible = bool(z)
+        if z:
+            low, high = float(min(z)), float(max(z))
+            self.altitude.update(low=low, high=max(high, low + 1.0))
 
     def _widgets(self, f: Frame) -> None:
         """The vehicle and horizon choices follow the vehicles and forecasts seen."""

@@ -50,6 +50,7 @@ class VehicleFrame:
     step: int = -1
     d_safe_m: float = 0.0
     path: Array = field(default_factory=lambda: np.empty((0, 2)))
+    path_altitudes: tuple[float, ...] = ()  # a 3-D mission's p_z (m) at each point of path
     decisions: tuple[dict[str, Any], ...] = ()  # decision_doc of each step, oldest first
     events: tuple[tuple[int, str, str], ...] = ()  # (log time ns, level, text), oldest first
     versions: tuple[int, ...] = (0,) * len(LAYERS)  # one counter a layer (LAYERS)
@@ -125,7 +126,13 @@ class VehicleScene:
                   step=int(t), d_safe_m=float(d_safe_m))
 
     def path(self, positions: Array, t_ns: int) -> None:
-        self._set("path", t_ns, path=np.array(positions, dtype=float).reshape(-1, 2))
+        """The flown path: (n, 2) positions, or a 3-D mission's (n, 3) with its altitudes."""
+        p = np.array(positions, dtype=float)
+        if p.ndim == 2 and p.shape[1] == 3:
+            self._set("path", t_ns, path=p[:, :2].copy(),
+                      path_altitudes=tuple(float(z) for z in p[:, 2]))
+        else:
+            self._set("path", t_ns, path=p.reshape(-1, 2), path_altitudes=())
 
     def decision(self, doc: dict[str, object], t_ns: int) -> None:
         with self._picture.lock:

@@ -33,9 +33,24 @@ def test_a_3d_state_is_drawn_from_above_with_its_altitude() -> None:
     assert cols["altitude"] == [65.44] and cols["label"] == ["uav1 - t=5 z=65.4 m"]
 
 
+def test_a_3d_trail_is_cut_into_segments_with_their_mean_altitude() -> None:
+    pic = Picture()
+    s = pic.scene("uav2", (1100.0, 0.0))
+    s.path(np.array([[50.0, 50.0, 50.0], [60.0, 50.0, 54.0], [70.0, 60.0, 60.0]]), 1)
+    (v,) = pic.frame().vehicles
+    assert v.path.tolist() == [[50.0, 50.0], [60.0, 50.0], [70.0, 60.0]]
+    assert C.vehicle_columns(pic.frame())["trails"]["xs"] == [[1150.0, 1160.0, 1170.0]]
+    assert C.altitude_trail_columns(pic.frame()) == {
+        "xs": [[1150.0, 1160.0], [1160.0, 1170.0]], "ys": [[50.0, 50.0], [50.0, 60.0]],
+        "uav": ["uav2", "uav2"], "altitude": [52.0, 57.0]}
+
+
 def test_a_2d_state_has_no_altitude() -> None:
     pic = Picture()
     pic.scene("uav1").vehicle(np.array([60.0, 70.0, 3.0, 4.0]), 5, 20.0, 1)
+    pic.scene("uav1").path(np.array([[50.0, 50.0], [60.0, 70.0]]), 2)
+    assert pic.frame().vehicles[0].path_altitudes == ()
+    assert C.altitude_trail_columns(pic.frame())["xs"] == []
     assert pic.frame().vehicles[0].altitude_m is None
     cols = C.vehicle_columns(pic.frame())["vehicles"]
     assert math.isnan(cols["altitude"][0]) and cols["label"] == ["uav1 - t=5"]
@@ -59,6 +74,17 @@ def test_the_live_viewer_keeps_the_altitude_a_vehicle_state_carries() -> None:
     assert v.state is not None and v.state.tolist() == [115.0, 125.0, 15.0, 0.0]
     assert v.path.tolist() == [[115.0, 125.0]]
     assert C.vehicle_columns(pic.frame())["vehicles"]["label"] == ["uav3 - t=4 z=58.5 m"]
+    msg = vehicle_convert.state_to_msg(np.array([130.0, 125.0, 61.5, 15.0, 0.0, 3.0]), 5,
+                                       vehicle_pb2.VehicleState())
+    wire.Stamper("uavsim", "uav3").stamp(msg.header, 5.0)
+    viewer.handle(bus.Received(key=keys.vehicle_state("uav3"),
+                               payload=msg.SerializeToString(), encoding=""))
+    (v,) = pic.frame().vehicles
+    assert v.path.tolist() == [[115.0, 125.0], [130.0, 125.0]] and v.path_altitudes == (58.5,
+                                                                                          61.5)
+    trail = C.altitude_trail_columns(pic.frame())
+    assert trail == {"xs": [[115.0, 130.0]], "ys": [[125.0, 125.0]], "uav": ["uav3"],
+                     "altitude": [60.0]}  # the segment's mean altitude
 
 
 def test_a_3d_recording_replays_with_its_altitude(tmp_path: Path) -> None:
@@ -90,10 +116,18 @@ def test_the_pages_document_holds_the_altitude() -> None:
 
     pic = Picture()
     page = Page(Document(), "live", frames=pic.frame)
+    bar = page.doc.select_one({"name": "altitude_bar"})
     pic.scene("uav1").vehicle(np.array([60.0, 70.0, 44.5, 0.0, 1.0, 0.0]), 2, 20.0, 1)
+    pic.scene("uav1").path(np.array([[60.0, 50.0], [60.0, 70.0]]), 1)  # 2-D: no colours
     page.refresh()
     data = page.src["vehicles"].data
     assert data["altitude"] == [44.5] and data["label"] == ["uav1 - t=2 z=44.5 m"]
+    assert page.src["altitude_trails"].data["xs"] == [] and not bar.visible
+    pic.scene("uav1").path(np.array([[60.0, 50.0, 40.0], [60.0, 60.0, 42.0], [60.0, 70.0, 44.5]]),
+                           2)
+    page.refresh()
+    assert page.src["altitude_trails"].data["altitude"] == [41.0, 43.25] and bar.visible
+    assert (page.altitude.low, page.altitude.high) == (41.0, 43.25)  # the trail's range
     hover = [t for t in page.doc.select({"type": HoverTool}) if ("altitude", "@altitude{0.0} m")
              in t.tooltips]
     assert len(hover) == 1  # the vehicles' tooltip shows it
