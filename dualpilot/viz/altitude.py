@@ -120,7 +120,8 @@ def _draw_side(ax: Axes, sv: SideView) -> list[Any]:
         ax.text(1.0, z, f" {name} {z:g} m", transform=ax.get_yaxis_transform(), va="center",
                 ha="left", fontsize=8, color=BAND_COLOR, clip_on=False)
     ax.set_xlim(sv.t[0] - 0.5, sv.t[-1] + 0.5)
-    ax.set_ylim(0.0, sv.ceiling_m * 1.08)
+    tallest = float(np.max(sv.fire_top_m[seen])) if np.any(seen) else 0.0
+    ax.set_ylim(0.0, max(sv.ceiling_m, tallest) * 1.08)  # a front above the band: all of it
     ax.set_xlabel("time-step t (ΔT = 1 s)")
     ax.set_ylabel("altitude (m)")
     ax.set_title("(b) side view: altitude against time")

@@ -10,6 +10,7 @@ from typing import Any
 import numpy as np
 import pytest
 from matplotlib.collections import LineCollection
+from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.patches import Rectangle
 
@@ -131,6 +132,17 @@ def test_a_3d_run_gets_its_altitude_figure(tmp_path: Path) -> None:
     assert xs(flown) == [0.0, 1.0, 2.0, 3.0]  # the final position at t = 3
     assert ys(flown) == [50.0, 56.0, 62.0, 68.0]
     assert ys(floor) == [20.0, 20.0] and ys(ceiling) == [120.0, 120.0]
+    assert side.get_ylim() == (0.0, pytest.approx(120.0 * 1.08))  # the band, the 30 m front in it
+
+
+def test_a_front_above_the_band_is_drawn_whole(tmp_path: Path) -> None:
+    doc = two_steps()
+    doc["steps"][0]["tops"] = [30.0, 145.0, 90.0]  # the near front taller than the ceiling
+    fig = Figure()
+    altitude.draw_altitude(fig, doc)
+    side = fig.axes[1]
+    assert [p.get_height() for p in side.patches if isinstance(p, Rectangle)] == [145.0]
+    assert side.get_ylim() == (0.0, pytest.approx(145.0 * 1.08))
 
 
 def test_a_2d_run_gets_the_five_figures_as_before(tmp_path: Path) -> None:
