@@ -4,21 +4,26 @@ Every script in benchmarks/ imports this module first (``import harness``): it
 puts the repository on ``sys.path`` (a script run as ``python benchmarks/x.py``
 finds ``dualpilot`` and ``services`` without an install), starts and stops the
 busy processes a measurement under load runs beside (:func:`busy`), sums a sample
-up the same way everywhere (:func:`quantiles`) and writes its figures
-(:func:`emit`). Figures are reported, never asserted (docs/benchmarks.md).
+up the same way everywhere (:func:`quantiles`), writes its figures
+(:func:`emit`), runs ``dualpilot evaluate`` and reads its rows (:func:`run_evaluate`,
+:func:`read_results`) and pairs two runs' successes (:func:`mcnemar`). Figures are
+reported, never asserted (docs/benchmarks.md).
 """
 
 from __future__ import annotations
 
 import contextlib
+import csv
 import json
 import subprocess
 import sys
-from collections.abc import Iterable, Iterator
+import time
+from collections.abc import Iterable, Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+from scipy.stats import binomtest
 
 REPO = Path(__file__).resolve().parent.parent
 if str(REPO) not in sys.path:
@@ -67,3 +72,35 @@ def emit(doc: Any, out: Path | None = None, indent: int | None = 2) -> None:
     if out is not None:
         out.parent.mkdir(parents=True, exist_ok=True)
         out.write_text(text + "\n")
+
+
+#: one row of an evaluation's results.csv, column → text
+Row = dict[str, str]
+
+
+def run_evaluate(missions: int, seed: int, jobs: int, controllers: str, out: Path,
+                 extra: Sequence[str] = ()) -> float:
+    """Run ``dualpilot evaluate`` with the paper's timing into ``out`` (``extra``: its further
+    flags, e.g. ``--profile``, ``--set``); the run's wall time (s)."""
+    cmd = [sys.executable, "-m", "dualpilot.cli", "evaluate", "--missions", str(missions),
+           "--seed", str(seed), "--jobs", str(jobs), "--timing", "paper", "--controllers",
+           controllers, "--out", str(out), *extra]
+    start = time.perf_counter()
+    subprocess.run(cmd, check=True, stdout=subprocess.DEVNULL, cwd=REPO)
+    return time.perf_counter() - start
+
+
+def read_results(out: Path) -> dict[tuple[str, str], Row]:
+    """The rows of the evaluation in ``out`` (its results.csv), keyed (mission, controller)."""
+    with (out / "results.csv").open() as f:
+        return {(r["mission"], r["controller"]): r for r in csv.DictReader(f)}
+
+
+def mcnemar(pairs: Iterable[tuple[Row, Row]]) -> tuple[int, int, float | None]:
+    """McNemar's exact test on paired missions: (successes of the first run only, of the second
+    only, the two-sided binomial p on those discordant pairs; None when there are none)."""
+    flags = [(a["success"] == "1", b["success"] == "1") for a, b in pairs]
+    only_a = sum(a and not b for a, b in flags)
+    only_b = sum(b and not a for a, b in flags)
+    p = float(binomtest(only_a, only_a + only_b).pvalue) if only_a + only_b else None
+    return only_a, only_b, p

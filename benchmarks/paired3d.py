@@ -24,27 +24,21 @@ physics: flame and plume) to measure what altitude buys over the plane.
 from __future__ import annotations
 
 import argparse
-import csv
-import subprocess
-import sys
 from pathlib import Path
 
 import harness  # noqa: F401  (the repository on the path: before its packages)
-from scipy.stats import binomtest, wilcoxon
+from scipy.stats import wilcoxon
 
 #: columns that differ run to run on one machine (times of the wall clock)
 UNPAIRED = {"wall_s", "planning_time_s_median", "planning_time_s_p95", "planning_time_s_total"}
 
 
 def evaluate(args: argparse.Namespace, out: Path, extra: list[str]) -> dict[tuple[str, str],
-                                                                          dict[str, str]]:
+                                                                          harness.Row]:
     """Rows of one ``dualpilot evaluate`` run, keyed (mission, controller)."""
-    cmd = [sys.executable, "-m", "dualpilot.cli", "evaluate", "--missions", str(args.missions),
-           "--seed", str(args.seed), "--jobs", str(args.jobs), "--timing", "paper",
-           "--controllers", args.controllers, "--out", str(out), *args.where, *extra]
-    subprocess.run(cmd, check=True, stdout=subprocess.DEVNULL, cwd=harness.REPO)
-    with (out / "results.csv").open() as f:
-        return {(r["mission"], r["controller"]): r for r in csv.DictReader(f)}
+    harness.run_evaluate(args.missions, args.seed, args.jobs, args.controllers, out,
+                         [*args.where, *extra])
+    return harness.read_results(out)
 
 
 def p_text(p: float | None) -> str:
@@ -89,9 +83,7 @@ def main() -> None:
         same = sum(all(a[c] == b[c] for c in shared) for a, b in pairs)
         s2d = sum(a["success"] == "1" for a, _ in pairs)
         s3d = sum(b["success"] == "1" for _, b in pairs)
-        only2 = sum(a["success"] == "1" and b["success"] != "1" for a, b in pairs)
-        only3 = sum(a["success"] != "1" and b["success"] == "1" for a, b in pairs)
-        mcnemar = binomtest(only2, only2 + only3).pvalue if only2 + only3 else None
+        only2, only3, mcnemar = harness.mcnemar(pairs)
         both = [(a, b) for a, b in pairs if a["success"] == b["success"] == "1"]
         p_time = wilcoxon_p([float(a["mission_time_s"]) for a, _ in both],
                             [float(b["mission_time_s"]) for _, b in both])

@@ -19,9 +19,6 @@ from __future__ import annotations
 
 import argparse
 import statistics
-import subprocess
-import sys
-import time
 from pathlib import Path
 
 import harness
@@ -29,13 +26,8 @@ import harness
 
 def evaluate(args: argparse.Namespace, out: Path, plant: list[str]) -> float:
     """Wall time (s) of one ``dualpilot evaluate`` run into ``out``."""
-    cmd = [sys.executable, "-m", "dualpilot.cli", "evaluate", "--missions", str(args.missions),
-           "--seed", str(args.seed), "--jobs", str(args.jobs), "--timing", "paper",
-           "--controllers", args.controllers, "--profile", args.profile, "--out", str(out),
-           *plant]
-    start = time.perf_counter()
-    subprocess.run(cmd, check=True, stdout=subprocess.DEVNULL, cwd=harness.REPO)
-    return time.perf_counter() - start
+    return harness.run_evaluate(args.missions, args.seed, args.jobs, args.controllers, out,
+                                ["--profile", args.profile, *plant])
 
 
 def main() -> None:

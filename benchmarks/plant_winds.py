@@ -21,14 +21,10 @@ success a dashed line of the same colour.
 from __future__ import annotations
 
 import argparse
-import csv
 import statistics
-import subprocess
-import sys
 from pathlib import Path
 
 import harness
-from scipy.stats import binomtest
 
 from dualpilot.model.scenarios import get_scenario
 
@@ -38,13 +34,9 @@ Rows = dict[tuple[str, str], dict[str, str]]
 def evaluate(args: argparse.Namespace, out: Path, extra: list[str]) -> Rows:
     """Rows of one ``dualpilot evaluate`` run, keyed (mission, controller); run unless reused."""
     if not (args.reuse and (out / "results.csv").exists()):
-        cmd = [sys.executable, "-m", "dualpilot.cli", "evaluate", "--missions",
-               str(args.missions), "--seed", str(args.seed), "--jobs", str(args.jobs),
-               "--timing", "paper", "--controllers", args.controllers, "--out", str(out),
-               *args.where, *extra]
-        subprocess.run(cmd, check=True, stdout=subprocess.DEVNULL, cwd=harness.REPO)
-    with (out / "results.csv").open() as f:
-        return {(r["mission"], r["controller"]): r for r in csv.DictReader(f)}
+        harness.run_evaluate(args.missions, args.seed, args.jobs, args.controllers, out,
+                             [*args.where, *extra])
+    return harness.read_results(out)
 
 
 def _mean(values: list[float]) -> str:
@@ -62,10 +54,8 @@ def row(name: str, plant: str, rows: list[dict[str, str]], ideal: list[dict[str,
              f"({max(p99):.2f})") if p99 and max(p99) > 0 else "0"
     paired = "- | - | -"
     if rows is not ideal:
-        pairs = list(zip(ideal, rows, strict=True))
-        only_i = sum(a["success"] == "1" and b["success"] != "1" for a, b in pairs)
-        only_m = sum(a["success"] != "1" and b["success"] == "1" for a, b in pairs)
-        p = f"{binomtest(only_i, only_i + only_m).pvalue:.3f}" if only_i + only_m else "-"
+        only_i, only_m, mcnemar = harness.mcnemar(zip(ideal, rows, strict=True))
+        p = "-" if mcnemar is None else f"{mcnemar:.3f}"
         paired = f"{100 * (only_m - only_i) / n:+.1f} | {only_i} / {only_m} | {p}"
     return (f"| {name} | {plant} | {100 * len(ok) / n:.1f} % | "
             f"{sum(r['tracking_breach'] == '1' for r in rows)} | "
