@@ -64,21 +64,20 @@ def test_the_live_viewer_keeps_the_altitude_a_vehicle_state_carries() -> None:
 
     pic = Picture()
     viewer = Viewer(foxglove.Context(), pic)
-    msg = vehicle_convert.state_to_msg(np.array([115.0, 125.0, 58.5, 15.0, 0.0, 2.0]), 4,
-                                       vehicle_pb2.VehicleState())
-    wire.Stamper("uavsim", "uav3").stamp(msg.header, 4.0)
-    viewer.handle(bus.Received(key=keys.vehicle_state("uav3"),
-                               payload=msg.SerializeToString(), encoding=""))
+
+    def receive(state: list[float], step: int) -> None:  # uav3's VehicleState at ``step``
+        msg = vehicle_convert.state_to_msg(np.array(state), step, vehicle_pb2.VehicleState())
+        wire.Stamper("uavsim", "uav3").stamp(msg.header, float(step))
+        viewer.handle(bus.Received(key=keys.vehicle_state("uav3"),
+                                   payload=msg.SerializeToString(), encoding=""))
+
+    receive([115.0, 125.0, 58.5, 15.0, 0.0, 2.0], 4)
     (v,) = pic.frame().vehicles
     assert (v.uav, v.step, v.altitude_m) == ("uav3", 4, 58.5)
     assert v.state is not None and v.state.tolist() == [115.0, 125.0, 15.0, 0.0]
     assert v.path.tolist() == [[115.0, 125.0]]
     assert C.vehicle_columns(pic.frame())["vehicles"]["label"] == ["uav3 - t=4 z=58.5 m"]
-    msg = vehicle_convert.state_to_msg(np.array([130.0, 125.0, 61.5, 15.0, 0.0, 3.0]), 5,
-                                       vehicle_pb2.VehicleState())
-    wire.Stamper("uavsim", "uav3").stamp(msg.header, 5.0)
-    viewer.handle(bus.Received(key=keys.vehicle_state("uav3"),
-                               payload=msg.SerializeToString(), encoding=""))
+    receive([130.0, 125.0, 61.5, 15.0, 0.0, 3.0], 5)
     (v,) = pic.frame().vehicles
     assert v.path.tolist() == [[115.0, 125.0], [130.0, 125.0]] and v.path_altitudes == (58.5,
                                                                                           61.5)
