@@ -17,8 +17,8 @@ import csv
 import math
 from pathlib import Path
 
+import harness  # the repository on the path
 import numpy as np
-from scipy import stats
 
 PAIRS = (("cc", "cc+risk"), ("s1", "s1+risk"), ("s2", "s2+risk"),
          ("concurrent", "concurrent+risk"))
@@ -51,12 +51,11 @@ def main() -> None:
                 continue
             flags = [(a["success"] == "1", b["success"] == "1") for a, b in pairs]
             ok = np.array(flags, dtype=bool)
-            b_only = int(np.sum(~ok[:, 0] & ok[:, 1]))
-            c_only = int(np.sum(ok[:, 0] & ~ok[:, 1]))
+            c_only, b_only, p_or_none = harness.mcnemar(pairs)
+            p = 1.0 if p_or_none is None else p_or_none
             n = len(pairs)
             d = ok[:, 1].astype(float) - ok[:, 0].astype(float)
             dm, dlo, dhi = mean_ci(d.tolist())
-            p = (stats.binomtest(b_only, b_only + c_only).pvalue if b_only + c_only else 1.0)
             both = [(a, b) for (a, b), (fa, fb) in zip(pairs, flags, strict=True) if fa and fb]
             tm = mean_ci([float(b["mission_time_s"]) - float(a["mission_time_s"])
                           for a, b in both])

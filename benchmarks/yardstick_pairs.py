@@ -16,9 +16,8 @@ import argparse
 import csv
 from pathlib import Path
 
-import harness  # noqa: F401 - the repository on the path
+import harness  # the repository on the path
 import numpy as np
-from scipy import stats
 
 OTHERS = ("s1", "s2", "cc", "concurrent")
 
@@ -33,10 +32,8 @@ def pair_line(rows: dict[tuple[str, str], dict[str, str]], missions: list[str], 
     pairs = [(rows[(m, mine)], rows[(m, other)]) for m in missions
              if (m, mine) in rows and (m, other) in rows]
     ok = np.array([(a["success"] == "1", b["success"] == "1") for a, b in pairs], dtype=bool)
-    only_mine = int(np.sum(ok[:, 0] & ~ok[:, 1]))
-    only_other = int(np.sum(~ok[:, 0] & ok[:, 1]))
-    p = stats.binomtest(only_mine, only_mine + only_other).pvalue if only_mine + only_other \
-        else 1.0
+    only_mine, only_other, p_or_none = harness.mcnemar(pairs)
+    p = 1.0 if p_or_none is None else p_or_none
     d = 100.0 * (ok[:, 0].mean() - ok[:, 1].mean())
     return (f"| {other} | {100 * ok[:, 1].mean():.1f} % | {only_mine} / {only_other} | "
             f"{p:.3f} | {d:+.1f} |")
