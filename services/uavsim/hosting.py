@@ -23,7 +23,7 @@ from . import flavour as fl
 from .autopilot import VehicleSetup
 from .endpoint import SIGNED_ONLY, Endpoint
 from .host import Host
-from .missionconfig import mission_configs
+from .missionconfig import MissionConfigs, mission_configs
 from .options import VehicleOptions
 from .sidechannel import SideChannel
 from .storage import open_tlog
@@ -148,7 +148,8 @@ def open_vehicle(ctx: bus.Context, opts: VehicleOptions, boot: float) -> HostedV
     stats = StatsFile(stats_path, endpoint) if stats_path else None
     configs = truths = None
     if ctx.session is not None:
-        configs = mission_configs(ctx.session, uav, endpoint)
+        configs = mission_configs(ctx.session, MissionConfigs(
+            uav, endpoint, bus.Liveliness(ctx.session, uav)))
         truths = flight_truths(ctx.session, uav, vehicle)
         ctx.announce()
     return HostedVehicle(uav, endpoint, links, tlog, tlog_path, stats, configs, truths)

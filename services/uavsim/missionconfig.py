@@ -141,8 +141,8 @@ class MissionConfigs:
             plant=config.reading().plant.plant))
 
 
-def mission_configs(session: zenoh.Session, uav: str, endpoint: Endpoint) -> SideChannel:
-    """The ``uavsim/mission`` queryable of one vehicle, answered from its loop."""
-    configs = MissionConfigs(uav, endpoint, bus.Liveliness(session, uav))
-    return SideChannel(session, keys.sim_mission(uav), configs.answer, "MissionConfig",
-                       wire.Stamper("uavsim", uav), max_items=16, max_bytes=1024 * 1024)
+def mission_configs(session: zenoh.Session, configs: MissionConfigs) -> SideChannel:
+    """The ``uavsim/mission`` queryable of ``configs``'s vehicle, answered from its loop."""
+    return SideChannel(session, keys.sim_mission(configs.uav), configs.answer, "MissionConfig",
+                       wire.Stamper("uavsim", configs.uav), max_items=16,
+                       max_bytes=1024 * 1024)

@@ -105,7 +105,8 @@ def test_the_mission_channel_takes_a_configuration_from_the_supervisor_only(
     setup = VehicleSetup(sysid=1, altitude_m=50.0, home=HOME, offboard_loss_s=1.0,
                          clock=LOCKSTEP, home_amsl_m=HOME_AMSL_M)
     ep = Endpoint(Vehicle.at(100.0, 100.0), {}, setup, boot=0.0)
-    channel = mission_configs(session, UAV, ep)
+    configs = MissionConfigs(UAV, ep, bus.Liveliness(session, UAV))
+    channel = mission_configs(session, configs)
     key = keys.sim_mission(UAV)
     msg = MissionConfig(settings=(("dim", 3),))
     try:
@@ -119,8 +120,6 @@ def test_the_mission_channel_takes_a_configuration_from_the_supervisor_only(
         assert ep.vehicle.dyn.dim == 2  # not taken
         zid = str(session.info.zid())
         token = session.liveliness().declare_token(keys.holder(UAV, "supervisor", zid))
-        configs = channel.answer.__self__  # type: ignore[attr-defined]  # a bound method
-        assert isinstance(configs, MissionConfigs)
         deadline = time.monotonic() + 5.0
         while configs.live.holder("supervisor") != zid:
             assert time.monotonic() < deadline, "the supervisor's token was never seen"
