@@ -39,7 +39,7 @@ READINGS = ("life_base", "extent", "redraw_clearance", "keep_extinct_hulls",
             "ignition_clearance_m", "d_t_reading", "failure_rule", "fire_substeps_per_motion",
             "attention_draw", "speed_limit", "dim", "ceiling_m", "floor_m", "start_altitude_m",
             "goal_altitude_m", "goal_vertical", "fire_height", "plume_intensity", "uav_limit_c",
-            "s1_altitude")
+            "s1_altitude", "risk_zone_height")
 
 #: The plant's readings (not the paper's: dualpilot/plant/reading.py), in field order.
 PLANT_READINGS = tuple(f.name for f in dataclasses.fields(PlantReading))
@@ -138,10 +138,10 @@ class Profile:
         return replace(self, name=name or self.name, **parts)
 
     def spec(self, base: MissionSpec) -> MissionSpec:
-        """``base`` flown with this profile's dynamics (Eq. (1) and its limits), altitude band
-        and goal reading (read in 3-D only), its plans keeping the plant's tube margin
-        (``tracking_margin_m``; 0 for the ideal plant) and checked with its measurements'
-        tolerance (``measurement_tol``; 0 when exact)."""
+        """``base`` flown with this profile's dynamics (Eq. (1) and its limits), altitude band,
+        goal reading and risk zones' heights (read in 3-D only), its plans keeping the plant's
+        tube margin (``tracking_margin_m``; 0 for the ideal plant) and checked with its
+        measurements' tolerance (``measurement_tol``; 0 when exact)."""
         self.plant_params()  # ValueError: a wind that is not the fire scenario's
         a = self.altitude
         spec = base
@@ -152,7 +152,9 @@ class Profile:
         tol = measurement_tol(self.plant, self.dynamics.dt_s)
         if tol != spec.measurement_tol:
             spec = replace(spec, measurement_tol=tol)
-        return spec.with_tracking_margin(self.plant.margin_m())
+        spec = spec.with_tracking_margin(self.plant.margin_m())
+        zones = a.zone_heights(spec, self.fire.scenario)
+        return spec if zones == spec.zone_heights else replace(spec, zone_heights=zones)
 
 
 def part_of(name: str) -> str:
@@ -332,6 +334,11 @@ _TODAY_3D = replace(
         "human intuition', and Sec. IV flies it 'assuming a fixed altitude' → s1_altitude "
         "= slice-first: System 1 plans at the UAV's altitude and climbs only when the "
         "fires leave no path there.",
+        "The paper's planners have no forecast (the risk-aware variants are this project's, "
+        "dualpilot/model/risk.py) and Sec. II-B's cuboids have no height on the paper's "
+        "process → risk_zone_height = band: a forecast risk zone is as tall as every "
+        "altitude (its footprint against the ground track), the conservative reading; "
+        "'fire' gives a zone the height of the fires it forecasts.",
     ),
 )
 

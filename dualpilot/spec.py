@@ -24,6 +24,7 @@ from dualpilot.arrays import Array
 from dualpilot.model.altitude import AltitudeBand, GoalBox, GoalVertical
 from dualpilot.model.dynamics import DynamicsParams
 from dualpilot.model.geometry import Rect
+from dualpilot.model.zone_heights import BAND, ZoneHeights
 
 #: Sec. IV: "a predefined safety threshold (denoted as d_safe = 20 m)".
 D_SAFE_M = 20.0
@@ -105,6 +106,9 @@ class MissionSpec:
     #: how far (m and m/s, ∞-norm) two measurements of one state may differ: the run-time
     #: monitor's "starts at the measured state" tolerance grows by it (0: exact measurements)
     measurement_tol: float = 0.0
+    #: how tall the forecast's risk zones are in 3-D (``risk_zone_height``,
+    #: dualpilot/model/zone_heights.py), read by every consumer of the zones alike
+    zone_heights: ZoneHeights = BAND
 
     def __post_init__(self) -> None:
         if not (np.isfinite(self.area_size_m) and self.area_size_m > 0):

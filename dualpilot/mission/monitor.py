@@ -25,9 +25,11 @@ A risk-aware plan that says it met the fire forecast's chance constraint
 (``info["risk"] == "met"``, dualpilot/model/risk.py) is also checked against the
 zones of the forecast the step sent with its request (:func:`check_risk`): System
 2's positions p_τ (τ ≥ 2) keep ε from the zones of their steps, and System 1's
-trajectory keeps from the zones of its steps the distance it reports. The zones are
-planar (the forecast's footprints); in 3-D they are checked against the plan's planar
-positions, as zones taller than any altitude (the stricter check).
+trajectory keeps from the zones of its steps the distance it reports. In 3-D the zones
+are as tall as the spec's ``zone_heights`` says (dualpilot/model/zone_heights.py): under
+the default ``risk_zone_height = "band"`` they are footprints checked against the plan's
+planar positions (zones taller than any altitude, the stricter check); with heights they
+are prisms and the distances are the exact 3-D ones, as the planners measure them.
 
 The honest planners verify their own plans with stricter checks (the
 planners' clearance, dualpilot/verify.py), so the monitor rejects none of
@@ -48,7 +50,7 @@ from dualpilot.mission.answers import MONITOR_TAG, Answer, SystemStatus
 from dualpilot.model.dynamics import Array, DynamicsParams, transition_matrices
 from dualpilot.model.geometry import Polytope, path_clearance
 from dualpilot.model.prism import Prism
-from dualpilot.model.risk import ForecastView, RiskMap, RiskParams, path_risk_clearance
+from dualpilot.model.risk import ForecastView, RiskParams, path_risk_clearance, risk_map
 from dualpilot.model.segment3 import prism_path_clearance
 from dualpilot.plan import Plan
 from dualpilot.spec import MissionSpec
@@ -174,8 +176,8 @@ def check_risk(plan: Plan, view: ForecastView | None, spec: MissionSpec,
     """
     if view is None or plan.info.get("risk") != "met":
         return MonitorVerdict(True, "ok")
-    zones = RiskMap(view, risk)
-    pos = np.asarray(plan.states, dtype=float)[:, :2]
+    zones = risk_map(view, risk, spec)
+    pos = np.asarray(plan.states, dtype=float)[:, :2 if zones.planar else 3]
     if plan.system == 1:
         worst = path_risk_clearance(zones, pos)
         said = plan.info.get("risk_clearance_m")

@@ -12,6 +12,9 @@ named reading with its source in the module that defines it:
   (:class:`PlumeParams`, dualpilot/model/plume.py).
 * where System 1 flies (``s1_altitude``, :data:`S1Altitude`,
   dualpilot/system1/altitude.py).
+* how tall the forecast's risk zones are (``risk_zone_height``,
+  :data:`~dualpilot.model.zone_heights.ZoneReading`, dualpilot/model/zone_heights.py): as
+  tall as every altitude (``"band"``) or as the fires they forecast (``"fire"``).
 
 :mod:`dualpilot.readings` addresses every field of the three by its bare name
 (``--set ceiling_m=100 --set fire_height=uniform``); a 2-D mission reads none of them.
@@ -20,11 +23,13 @@ named reading with its source in the module that defines it:
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import cache
 from typing import Literal, get_args
 
 from dualpilot.model.altitude import AltitudeBand, GoalVertical
 from dualpilot.model.fire_height import FireHeightParams, FireHeights
-from dualpilot.model.plume import PlumeParams
+from dualpilot.model.plume import PlumeParams, fire_top_m
+from dualpilot.model.zone_heights import BAND, ZoneHeights, ZoneReading, check_reading
 from dualpilot.spec import MissionSpec, Stream
 
 #: Where System 1 plans in 3-D (dualpilot/system1/altitude.py): "slice-first" (in the
@@ -45,8 +50,10 @@ class VerticalParams:
     heights: FireHeightParams = field(default_factory=FireHeightParams)
     plume: PlumeParams = field(default_factory=PlumeParams)
     s1_altitude: S1Altitude = "slice-first"
+    risk_zone_height: ZoneReading = "band"
 
     def __post_init__(self) -> None:
+        check_reading(self.risk_zone_height)
         if self.goal_vertical not in get_args(GoalVertical):
             raise ValueError(f"goal_vertical must be one of {get_args(GoalVertical)}, "
                              f"not {self.goal_vertical!r}")
@@ -62,3 +69,33 @@ class VerticalParams:
         return FireHeights(self.heights, spec.band, spec.clearance_m,
                            spec.rng(Stream.FIRE_HEIGHT), self.heights.resolved(scenario),
                            self.plume)
+
+    def zone_heights(self, spec: MissionSpec, scenario: str) -> ZoneHeights:
+        """The forecast's risk zones' heights for the mission of ``spec`` on ``scenario``
+        (dualpilot/model/zone_heights.py): :data:`BAND` in 2-D and under ``"band"``; under
+        ``"fire"`` the fronts' own reading's: above the ceiling (ceiling + ε), the uniform
+        law, or a scenario's head fire's top (m)."""
+        if spec.dim != 3 or self.risk_zone_height == "band":
+            return BAND
+        reading = self.heights.resolved(scenario)
+        if reading == "uniform":
+            h = self.heights
+            return ZoneHeights(uniform=(h.fire_height_min_m, h.fire_height_max_m))
+        if reading == "plume":
+            intensity_kw_m, wind_mps = head_fire(scenario)
+            return ZoneHeights(top_m=fire_top_m(intensity_kw_m, wind_mps, self.plume))
+        return ZoneHeights(top_m=spec.above_ceiling_m)
+
+
+@cache
+def head_fire(scenario: str) -> tuple[float, float]:
+    """(head fireline intensity kW/m, midflame wind m/s) of the fire-behaviour scenario
+    ``scenario`` on flat ground (pyretechnics' Rothermel surface fire)."""
+    from dualpilot.model.physics_fire import (  # pyretechnics: only for a scenario's zones
+        fireline_intensities_kw_m,
+        midflame_wind_m_min,
+    )
+    from dualpilot.model.scenarios import get_scenario
+    physics = get_scenario(scenario).params
+    _, head = fireline_intensities_kw_m(physics)
+    return head, midflame_wind_m_min(physics.fuel_model, physics.wind_speed_mps) / 60.0

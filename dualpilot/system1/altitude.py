@@ -16,10 +16,11 @@ Two readings, :data:`~dualpilot.model.vertical.S1Altitude`:
   grown.
 * ``"volume"``: the 3-D tree at once.
 
-The forecast's risk zones (the risk-aware variant) are planar and timed along planar
-paths: they are met in the slice only; a risk-aware plan that needs the third dimension
-is not made (its planner then flies the plain plan, :class:`~dualpilot.system1.planner.
-RiskSystem1`). Lengths m.
+The forecast's risk zones (the risk-aware variant) are timed along planar paths: they
+are met in the slice only (footprints, or with heights, ``risk_zone_height = "fire"``,
+the zones' prisms measured from the slice's altitude); a risk-aware plan that needs the
+third dimension is not made (its planner then flies the plain plan,
+:class:`~dualpilot.system1.planner.RiskSystem1`). Lengths m.
 """
 
 from __future__ import annotations
@@ -92,7 +93,7 @@ def plan_in_band(start: Array, prisms: Sequence[Prism], rng: np.random.Generator
         sliced = _in_slice(p, prisms, rng, spec, params, risk)
         if sliced is not None and (sliced.found or all(x.spans(spec.band) for x in prisms)):
             return sliced
-    if risk is not None:  # the risk zones are planar: no risk-aware plan leaves the slice
+    if risk is not None:  # zones timed along planar paths: no risk-aware plan leaves the slice
         return sliced or RrtResult(None, "risk_planar", 0, time.perf_counter() - t0)
     left = params.max_wall_s - (time.perf_counter() - t0)  # one wall cap for slice and tree
     res = plan_path3(p, spec.goal_box, prisms, rng, spec.clearance_m, spec.area_size_m,

@@ -41,7 +41,7 @@ import numpy as np
 from dualpilot.arrays import Array
 from dualpilot.model.dynamics import check_state
 from dualpilot.model.prism import Prism
-from dualpilot.model.risk import ArcRisk, ForecastView, RiskMap, RiskParams, path_risk_clearance
+from dualpilot.model.risk import ArcRisk, ForecastView, RiskParams, path_risk_clearance, risk_map
 from dualpilot.model.segment3 import SegmentChecker3
 from dualpilot.model.vertical import S1Altitude
 from dualpilot.plan import Objective, Obstacles, Plan, PlanStatus
@@ -375,8 +375,9 @@ class System1:
             return False
         if self._arc is None:
             return True
-        if ref.shape[1] == 3:  # the planar zones, timed along level paths only
-            return bool(np.all(ref[:, 2] == ref[0, 2])) and self._arc.path_clear(ref[:, :2])
+        if ref.shape[1] == 3:  # the zones, timed along level paths only
+            return bool(np.all(ref[:, 2] == ref[0, 2])) and self._arc.at(
+                float(ref[0, 2])).path_clear(ref[:, :2])
         return self._arc.path_clear(ref)
 
     def _run_rrt(self, pos: Array, hulls: Obstacles,
@@ -464,8 +465,9 @@ class RiskSystem1(System1):
         if forecast is None:
             return super().plan(state, hulls, objective, prev_control)
         t0 = time.perf_counter()
-        risk = RiskMap(forecast, self.risk)
-        self._arc = ArcRisk(risk, self.params.ref_speed_mps, self.dyn.dt_s, self.clearance_m)
+        risk = risk_map(forecast, self.risk, self.spec)
+        self._arc = ArcRisk(risk, self.params.ref_speed_mps, self.dyn.dt_s, self.clearance_m,
+                            None if risk.planar else float(state[2]))
         try:
             plan = super().plan(state, hulls, objective, prev_control)
         finally:
@@ -475,6 +477,6 @@ class RiskSystem1(System1):
             note["risk"] = f"unmet ({plan.status.value})"
             plan = super().plan(state, hulls, objective, prev_control)
         if plan.ok:
-            note["risk_clearance_m"] = path_risk_clearance(risk, plan.states[:, :2])
+            note["risk_clearance_m"] = path_risk_clearance(risk, plan.states[:, :self.dyn.dim])
         return replace(plan, compute_time_s=time.perf_counter() - t0,
                        info={**plan.info, **note})

@@ -24,7 +24,7 @@ from dualpilot.mission.ports import ForecastPort, PlannerPort, PlanRequest
 from dualpilot.model.dynamics import Array
 from dualpilot.model.fire import FireParams, FireSnapshot, substeps_for
 from dualpilot.model.forecast import OccupancyForecast
-from dualpilot.model.risk import ForecastView, RiskMap
+from dualpilot.model.risk import ForecastView, risk_map
 from dualpilot.model.stale_fire import grown_snapshot
 from dualpilot.plan import Objective, Plan
 from dualpilot.spec import MissionSpec
@@ -156,8 +156,8 @@ class ConcurrentSupervisor:
         n_step = self._step_substeps()
         fc = forecast(n_step) if forecast is not None else None
         self.view = None if fc is None else ForecastView(fc, n_step)
-        risk = (RiskMap(self.view, p.risk) if self.view is not None and p.threat == "forecast"
-                else None)
+        risk = (risk_map(self.view, p.risk, spec) if self.view is not None
+                and p.threat == "forecast" else None)
         margin = spec.clearance_m if p.threat_margin_m is None else p.threat_margin_m
 
         def safe(f: Flown) -> bool:

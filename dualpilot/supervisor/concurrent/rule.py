@@ -44,9 +44,11 @@ supervisor never waits for System 2:
 
 In 3-D (``spec.dim == 3``, docs/three_d.md, 8) the obstacles are prisms and every distance
 is the exact 3-D one (a front below the plan's altitude threatens it only within the
-margin in 3-D); a plan is verified with the altitude band; the forecast's risk zones stay
-planar and as tall as every altitude (the run-time monitor's ``check_risk`` reading), so
-the forecast threat rule reads the plan's ground track.
+margin in 3-D); a plan is verified with the altitude band; the forecast's risk zones are
+as tall as the spec's ``zone_heights`` (the run-time monitor's ``check_risk`` reading,
+:func:`dualpilot.model.risk.risk_map`): under the default ``"band"`` as tall as every
+altitude, the forecast threat rule reading the plan's ground track; with heights the
+exact 3-D distances of the plan's positions.
 """
 
 from __future__ import annotations
@@ -235,8 +237,9 @@ def threatened(plan: Plan, seen: FireSnapshot, known: frozenset[int], margin_m: 
 def forecast_threatened(plan: Plan, risk: RiskMap, margin_m: float, steps: int) -> bool:
     """A segment p_{τ−1}–p_τ of the next ``steps`` steps of ``plan`` comes within ``margin_m``
     of step τ's risk zones (row τ of the plan is τ steps from now); in 3-D its ground track
-    (the zones as tall as every altitude)."""
-    return path_risk_clearance(risk, plan.states[: steps + 1, :2]) < margin_m
+    against footprints, its positions against zones with heights."""
+    dim = plan.states.shape[1] // 2
+    return path_risk_clearance(risk, plan.states[: steps + 1, :dim]) < margin_m
 
 
 def check_near(plan: Plan, state: Array, obstacles: Obstacles, spec: MissionSpec,

@@ -27,7 +27,7 @@ from typing import cast
 
 import numpy as np
 
-from dualpilot.arrays import Array
+from dualpilot.arrays import AnyArray, Array
 from dualpilot.model.dynamics import DynamicsParams, reach_radius, rollout
 from dualpilot.model.geometry import Polytope, SegmentChecker, hull_boxes
 from dualpilot.model.prism import Prism
@@ -46,6 +46,19 @@ from dualpilot.system2.problem import (
     p2_cost,
     verify_p2_plan,
 )
+
+#: A planar keep-out of some plan steps only: (polygon, bool mask over τ = 0..T).
+PlanarZone = tuple[Polytope, AnyArray]
+
+
+def _planar_zones(zones: Sequence[Zone]) -> list[PlanarZone]:
+    """The zones of a 2-D plan (ValueError for a prism: a 2-D plan has no altitude)."""
+    out: list[PlanarZone] = []
+    for z, m in zones:
+        if not isinstance(z, Polytope):
+            raise ValueError("a 2-D plan keeps out planar risk zones, not prisms")
+        out.append((z, m))
+    return out
 
 
 class FastSystem2:
@@ -133,7 +146,7 @@ class FastSystem2:
         if early is not None:
             return _failed(early[0], early[1], t0, objective)
         try:
-            plan = self._plan(x0, hull_t, objective, u_prev, t0, zones)
+            plan = self._plan(x0, hull_t, objective, u_prev, t0, _planar_zones(zones))
         except Exception as exc:  # noqa: BLE001 - a crash becomes an ERROR plan, never a raise
             plan = _failed(PlanStatus.ERROR, f"{type(exc).__name__}: {exc}", t0, objective)
         self._last = plan if plan.ok else None
@@ -141,7 +154,7 @@ class FastSystem2:
 
     # --------------------------------------------------------------- method
     def _plan(self, x0: Array, hulls: tuple[Polytope, ...], objective: Objective,
-              u_prev: Array, t0: float, zones: Sequence[Zone]) -> Plan:
+              u_prev: Array, t0: float, zones: Sequence[PlanarZone]) -> Plan:
         kappa = self.params.kappa(objective)
         keepouts, static, zone_rows, info = self._keepouts(x0, hulls, zones)
         solve = CountedSolve(self.qp, x0, u_prev, self.goal.center, kappa)
@@ -170,8 +183,8 @@ class FastSystem2:
         msg = "no verified candidate" + (f": {'; '.join(reasons[:3])}" if reasons else "")
         return _failed(PlanStatus.UNSAFE, msg, t0, objective, info)
 
-    def _keepouts(self, x0: Array, hulls: tuple[Polytope, ...], zones: Sequence[Zone]
-                  ) -> tuple[KeepOuts, KeepOuts, list[Zone], dict[str, object]]:
+    def _keepouts(self, x0: Array, hulls: tuple[Polytope, ...], zones: Sequence[PlanarZone]
+                  ) -> tuple[KeepOuts, KeepOuts, list[PlanarZone], dict[str, object]]:
         """The ε-inflated hulls within reach of this plan, with the zones within reach.
 
         Returns (keep-outs, the hulls alone, the zones kept, the plan's info): the
@@ -221,7 +234,7 @@ class FastSystem2:
     def _finish(self, cand: Candidate, x0: Array, hulls: tuple[Polytope, ...],
                 objective: Objective, kappa: tuple[float, float], u_prev: Array, t0: float,
                 info: dict[str, object], reasons: list[str],
-                zones: Sequence[Zone] = ()) -> Plan | None:
+                zones: Sequence[PlanarZone] = ()) -> Plan | None:
         """Roll out, verify and package one candidate; None (with a reason) if it fails."""
         d = self.dynamics
         controls = np.clip(cand.controls, -d.u_max_n, d.u_max_n)

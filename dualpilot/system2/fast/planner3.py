@@ -8,9 +8,12 @@ footprints and its plan is lifted (the 2-D plan bit for bit). Otherwise the rela
 the references (:mod:`dualpilot.system2.fast.references3`) and their CFS runs
 (:mod:`dualpilot.system2.fast.cfs3`) over the split QP (:mod:`dualpilot.system2.fast.split`),
 and the cheapest candidate that passes :func:`verify_p2_plan` with the band and the prisms.
-Risk zones (:class:`dualpilot.system2.fast.risk.RiskSystem2`'s, planar) are kept out at
-their steps as prisms taller than the band (around only), the reading of the run-time
-monitor's ``check_risk``: a zone is as tall as any altitude, the stricter test.
+Risk zones (:class:`dualpilot.system2.fast.risk.RiskSystem2`'s) are kept out at their
+steps: a footprint (the default ``risk_zone_height = "band"``) or a zone prism that cannot
+be passed over within the band as a prism taller than the band (around only, its
+footprint checked in the plane: the stricter test); a lower zone prism (``"fire"``) is
+passed around or over like a front's, and checked by its six faces. The run-time
+monitor's ``check_risk`` reads the same zones.
 """
 
 from __future__ import annotations
@@ -45,8 +48,8 @@ from dualpilot.system2.problem import (
     verify_p2_plan,
 )
 
-Zone = tuple[Polytope, AnyArray]
-"""A keep-out of some plan steps only: (polygon, bool mask over τ = 0..T)."""
+Zone = tuple[Polytope | Prism, AnyArray]
+"""A keep-out of some plan steps only: (footprint or prism, bool mask over τ = 0..T)."""
 
 
 class PlanarFast(Protocol):
@@ -91,7 +94,8 @@ class Fast3:
         if isinstance(checked, str):
             return _failed(PlanStatus.INVALID_INPUT, checked, t0, objective)
         x0, u_prev, prisms = checked
-        if self._reduces(x0, u_prev, prisms):
+        zones = self._footprints(zones)
+        if self._reduces(x0, u_prev, prisms) and all(isinstance(z, Polytope) for z, _ in zones):
             plan = self._planar_plan(x0, u_prev, prisms, objective, t0, zones)
         else:
             early = self._start_checks(x0, prisms)
@@ -119,6 +123,12 @@ class Fast3:
         top = prism.z_hi + self.epsilon_m
         return top if top + self.level_margin <= self.band.ceiling_m else float("inf")
 
+    def _footprints(self, zones: Sequence[Zone]) -> list[Zone]:
+        """``zones`` with each prism that cannot be passed over within the band as its
+        footprint (a zone as tall as every altitude: the ``"band"`` reading's)."""
+        return [(z.base if isinstance(z, Prism) and self.over_level(z) == float("inf") else z,
+                 m) for z, m in zones]
+
     # ------------------------------------------------------------- reduction
     def _reduces(self, x0: Array, u_prev: Array, prisms: tuple[Prism, ...]) -> bool:
         """Every prism passed around only, and the UAV at G_o's altitude at rest vertically."""
@@ -130,7 +140,8 @@ class Fast3:
         """The plane's plan on the footprints, lifted to the UAV's altitude."""
         xy0 = np.array([x0[0], x0[1], x0[3], x0[4]])
         bases = [p.base for p in prisms]
-        flat = (self.planar.plan_with_zones(xy0, bases, objective, u_prev[:2], zones) if zones
+        flat = (self.planar.plan_with_zones(xy0, bases, objective, u_prev[:2], zones)
+                if zones
                 else self.planar.plan(xy0, bases, objective, u_prev[:2]))
         if not flat.ok:
             failed = Plan.failed(2, flat.status, time.perf_counter() - t0, flat.message, dim=3)
@@ -188,11 +199,12 @@ class Fast3:
         near = [p for p in prisms if float(p.margins(x0[:3])[0]) - self.epsilon_m <= reach]
         keep = KeepOuts3.of_prisms(near, self.epsilon_m, T, self.area, self.band,
                                    self.level_margin)
-        kept = [(z, m) for z, m in zones if z.distance(x0[:2]) - self.epsilon_m <= reach]
+        kept = [(z, m) for z, m in zones if _footprint(z).distance(x0[:2]) - self.epsilon_m
+                <= reach]
         if not kept:
             return keep, keep, []
         tall = self.band.above_ceiling_m(self.epsilon_m + self.level_margin)
-        walls = [Prism(z, -tall, tall) for z, _ in kept]
+        walls = [z if isinstance(z, Prism) else Prism(z, -tall, tall) for z, _ in kept]
         mask = np.vstack([np.ones((len(near), T + 1), dtype=bool)]
                          + [m[None, : T + 1] for _, m in kept])
         both = KeepOuts3.of_prisms(near + walls, self.epsilon_m, T, self.area, self.band,
@@ -254,13 +266,10 @@ class Fast3:
         if not verdict.ok:
             reasons.append(f"{cand.name}: {verdict.reason}")
             return None
-        if zones:  # each zone at its own steps, ε as for the hulls, at every altitude
-            faces = FaceStack.of([z for z, _ in zones]).margins(states[:, :2])
-            steps = np.stack([m for _, m in zones], axis=1)
-            worst = float(np.min(np.where(steps, faces, np.inf))) - self.epsilon_m
-            if worst < -1e-6:
-                reasons.append(f"{cand.name}: {-worst:.3g} m inside a risk zone's ε")
-                return None
+        worst = _zone_margin(states, zones) - self.epsilon_m
+        if worst < -1e-6:
+            reasons.append(f"{cand.name}: {-worst:.3g} m inside a risk zone's ε")
+            return None
         margin = disjunction_margin(states[1:, :3], prisms, self.epsilon_m)
         cost = p2_cost(states, controls, self.goal, kappa, u_prev)
         out = dict(info)
@@ -273,6 +282,27 @@ class Fast3:
         return Plan(system=2, status=PlanStatus.OK, states=states, controls=controls,
                     compute_time_s=time.perf_counter() - t0, objective=objective, cost=cost,
                     info=out)
+
+
+def _footprint(zone: Polytope | Prism) -> Polytope:
+    """A zone's footprint."""
+    return zone.base if isinstance(zone, Prism) else zone
+
+
+def _zone_margin(states: Array, zones: Sequence[Zone]) -> float:
+    """The least margin (m) of the positions of ``states`` from each zone at its steps: a
+    footprint's in the plane (at every altitude), a prism's by its six faces (+inf: none)."""
+    worst = float("inf")
+    flat = [(z, m) for z, m in zones if isinstance(z, Polytope)]
+    if flat:
+        faces = FaceStack.of([z for z, _ in flat]).margins(states[:, :2])
+        steps = np.stack([m for _, m in flat], axis=1)
+        worst = float(np.min(np.where(steps, faces, np.inf)))
+    for z, m in zones:
+        if isinstance(z, Prism):
+            worst = min(worst, float(np.min(np.where(m[: len(states)], z.margins(
+                states[:, :3]), np.inf))))
+    return worst
 
 
 def planar_spec(spec: MissionSpec) -> MissionSpec:

@@ -4,9 +4,11 @@ Each planned position p_τ (τ = 2..T) also keeps ε from the risk zones of its
 step (:mod:`dualpilot.model.risk`: the cells whose forecast occupancy exceeds
 α while the UAV is there), as keep-outs of that step only in the same convex
 restrictions (:meth:`dualpilot.system2.fast.planner.FastSystem2.plan_with_zones`);
-homotopies and the target still come from the hulls. In 3-D the zones stay planar (the
-forecast is a map of the ground) and are kept out as prisms taller than the band, the
-run-time monitor's reading (:mod:`dualpilot.system2.fast.planner3`).
+homotopies and the target still come from the hulls. In 3-D the zones are as tall as the
+spec's ``zone_heights`` (:func:`dualpilot.model.risk.risk_map`, the run-time monitor's
+reading): footprints kept out as prisms taller than the band under the default
+``"band"``, or prisms passed around or over like the fronts'
+(:mod:`dualpilot.system2.fast.planner3`).
 """
 
 from __future__ import annotations
@@ -18,7 +20,7 @@ from collections.abc import Sequence
 from dualpilot.arrays import Array
 from dualpilot.model.geometry import Polytope
 from dualpilot.model.prism import Prism
-from dualpilot.model.risk import ForecastView, RiskMap, RiskParams
+from dualpilot.model.risk import ForecastView, RiskParams, risk_map
 from dualpilot.plan import Objective, Plan
 from dualpilot.spec import MissionSpec
 from dualpilot.system2.fast.params import FastParams
@@ -50,7 +52,7 @@ class RiskSystem2(FastSystem2):
         if forecast is None:
             return super().plan(state, hulls, objective, prev_control)
         t0 = time.perf_counter()
-        zones = RiskMap(forecast, self.risk).step_masks(self.params.horizon, first=2)
+        zones = risk_map(forecast, self.risk, self.spec).step_masks(self.params.horizon, first=2)
         plan = self.plan_with_zones(state, hulls, objective, prev_control, zones)
         note: dict[str, object] = {"risk_zones": len(zones)}
         if not plan.ok and zones:

@@ -369,8 +369,8 @@ def _prepare_from_msg(m: plan_pb2.PlanRequest) -> Prepare:
 
 
 def _with_vertical(spec: MissionSpec, config: MissionConfig) -> MissionSpec:
-    """``spec`` with its configuration's altitude band and goal reading (3-D); CodecError when
-    the two say different dimensions."""
+    """``spec`` with its configuration's altitude band, goal reading and risk zones' heights
+    (3-D); CodecError when the two say different dimensions."""
     try:
         own = config.spec()
     except ValueError as err:
@@ -381,7 +381,8 @@ def _with_vertical(spec: MissionSpec, config: MissionConfig) -> MissionSpec:
     if spec.dim == 2:
         return spec
     try:
-        return replace(spec, band=own.band, goal_vertical=own.goal_vertical)
+        return replace(spec, band=own.band, goal_vertical=own.goal_vertical,
+                       zone_heights=own.zone_heights)
     except ValueError as err:
         raise invalid(f"mission spec: {err}", Reason.OUT_OF_RANGE) from err
 
