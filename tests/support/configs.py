@@ -45,6 +45,7 @@ SETTINGS: dict[str, st.SearchStrategy[Any]] = {
     "fire_height": st.sampled_from(["auto", "above-ceiling"]),
     "plume_intensity": st.sampled_from(["front", "head"]),
     "uav_limit_c": st.floats(31.0, 80.0),
+    "risk_zone_height": st.sampled_from(["band", "fire"]),
 }
 
 

@@ -3,6 +3,8 @@ counted, a malformed one or one of another dimension (services/common/planning.p
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -11,6 +13,7 @@ from dualpilot.mission.ports import PlanRequest
 from dualpilot.model.dynamics import hover_state
 from dualpilot.model.geometry import Rect
 from dualpilot.model.prism import Prism
+from dualpilot.model.zone_heights import BAND, ZoneHeights
 from dualpilot.plan import Objective, Obstacles, PlanStatus
 from dualpilot.planners import build_planner
 from services.common import rejections, wire
@@ -69,3 +72,23 @@ def test_a_3d_mission_is_planned_over_the_wire_and_a_bad_request_refused_counted
     assert isinstance(err, common_pb2.Error)
     assert "dim 2 for a mission of dim 3" in err.message
     assert counted("out_of_range") == before + 2
+
+
+def test_the_prepared_spec_carries_the_risk_zones_heights_of_its_configuration() -> None:
+    """``risk_zone_height=fire`` reaches a planner service by the configuration: its spec's
+    zone heights are the configuration's (fronts U[10, 40] m: the uniform law), and "band"
+    (the default) leaves them as tall as every altitude."""
+    s = PlannerService(2, lambda spec, c: build_planner(2, spec, c.methods()[2], risk=True),
+                       "u")
+    for reading, want in (("fire", ZoneHeights(uniform=(10.0, 40.0))), ("band", BAND)):
+        config = MissionConfig.named("s2+risk", seed=3, settings=(
+            ("dim", 3), ("fire_height", "uniform"), ("fire_height_min_m", 10.0),
+            ("fire_height_max_m", 40.0), ("risk_zone_height", reading)))
+        spec = config.spec()
+        assert spec.zone_heights == want
+        on_wire = dataclasses.replace(spec, zone_heights=BAND)  # the spec message has none
+        prep = plan_convert.prepare_msg(plan_convert.Prepare(f"z-{reading}", 2, on_wire, config),
+                                        STAMP, 0.0)
+        ready = handle(s, prep)
+        assert isinstance(ready, plan_pb2.Plan) and ready.message == "prepared"
+        assert s.missions[f"z-{reading}"].spec == spec
