@@ -18,7 +18,9 @@ in-process missions climb and descend; each test asserts it). cc:
 * grass-5, seed 2, starting at the band's floor (``start_altitude_m=20``) under the plume's
   tops (``fire_height`` auto): 84 steps, altitude 20–31.3 m;
 * the same with the fire forecast (``cc+risk``: the forecast's cells on the wire, the risk
-  planners in 3-D): 78 steps to the goal, altitude range 16.9 m;
+  planners in 3-D): 78 steps to the goal, altitude range 16.9 m; and with the forecast's
+  zones as tall as grass-5's head fire (``risk_zone_height=fire``, 10.7 m: every process
+  reads the same heights from the configuration): 78 steps, altitude 20–38.0 m;
 * shrub, seed 1: at the start altitude 50 m under the default reading (its plume is 190 m
   tall, above the 120 m ceiling: the top-down world), and from the floor with System 1
   searching the volume (75 steps, altitude 20–40.1 m).
@@ -63,6 +65,8 @@ MISSIONS: dict[str, tuple[str, int, str, tuple[tuple[str, object], ...], bool]] 
                       True),
     "grass-5-floor": ("cc", 2, "grass-5", (("start_altitude_m", 20.0),), True),
     "grass-5-floor-risk": ("cc+risk", 2, "grass-5", (("start_altitude_m", 20.0),), True),
+    "grass-5-floor-risk-fire": ("cc+risk", 2, "grass-5", (("start_altitude_m", 20.0),
+                                                          ("risk_zone_height", "fire")), True),
     "shrub": ("cc", 1, "shrub", (), False),
     "shrub-floor": ("cc", 1, "shrub", (("start_altitude_m", 20.0), ("s1_altitude", "volume")),
                     True),
