@@ -18,7 +18,8 @@ mission's spec (:attr:`dualpilot.spec.MissionSpec.zone_heights`). Two readings,
   - a fire-behaviour scenario's ``"plume"``: as tall as the scenario's head fire
     (:func:`dualpilot.model.plume.fire_top_m` of its head fireline intensity and midflame
     wind, a constant per scenario; no front of a uniform fuel bed on flat ground burns
-    hotter than its head);
+    hotter than its head: on grass-5 the fronts' tops reach 10.6895 m, the head fire's
+    top to 2e-6 m, pyretechnics' level set against its flat-ground formula);
   - ``"above-ceiling"``: the fronts' top, the ceiling + ε, above the band: the ``"band"``
     zones exactly;
   - the paper's process with ``"uniform"`` heights U[lo, hi]: a front's height is drawn
