@@ -74,13 +74,13 @@ mission: setup
 proto: setup
 	$(BIN)/python -m services.protogen --clean
 
-# every tier (unit, integration, e2e; tests/conftest.py), one test at a time, the slowest 25
-# listed at the end. TEST_WORKERS=3 runs them on pytest-xdist's workers instead: the e2e tests
-# in E2E_LANES lanes of one test at a time, the unit and integration tests beside them
-# (tests/support/parallel.py; docs/testing.md: not yet reliable on 2 cores)
-E2E_LANES ?= 2
+# every tier (unit, integration, e2e; tests/conftest.py) on pytest-xdist's workers, the slowest
+# 25 listed at the end: the integration and e2e tests in E2E_LANES lanes of one test at a time,
+# the unit tests beside them in a lane of their own (tests/support/parallel.py); TEST_WORKERS
+# is E2E_LANES + 1. TEST_WORKERS=0 runs every test one at a time in one process.
+E2E_LANES ?= 1
 export E2E_LANES
-TEST_WORKERS ?= 0
+TEST_WORKERS ?= $(shell echo $$(($(E2E_LANES) + 1)))
 PARALLEL = $(if $(filter-out 0,$(TEST_WORKERS)),-n $(TEST_WORKERS) --dist loadgroup --no-loadscope-reorder,)
 test: setup browser
 	$(BIN)/python -m pytest -q --durations=25 $(PARALLEL)

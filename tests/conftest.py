@@ -7,8 +7,9 @@ through the stack, ground stations and SDKs as real clients. ``slow`` marks the
 long suites of any tier. ``make test-fast`` runs ``unit and not slow``; ``make test``
 runs everything.
 
-``make test`` runs the tiers side by side on pytest-xdist's workers: the e2e tests in two lanes
-of one test at a time, the others beside them (tests/support/parallel.py).
+``make test`` runs the tiers side by side on pytest-xdist's workers: the integration and e2e
+tests in a lane of one test at a time, the unit tests beside them in a lane of their own
+(tests/support/parallel.py).
 
 Hypothesis runs with no deadline: a property is a statement about values, never
 about how long an example took (a loaded machine must not fail it).

@@ -1,15 +1,18 @@
 """How ``make test`` spreads the tiers over pytest-xdist's workers (``--dist loadgroup``).
 
-The e2e tier is CPU-bound on two cores (one serial run of it: ~0.85 of a core on average)
-and its wall-clock checks (the offboard-loss failsafe, plan deadlines, the web page's
-updates) fail when several of its stacks share the cores with each other. So it runs in
-:data:`E2E_LANES` lanes, each an xdist group (one worker, one test at a time), its modules
-dealt to the lanes longest first by their measured time (:data:`E2E_SECONDS`), a module
-whole, so that its module-scoped fixtures (a stack several tests fly on) start once; the
-other workers take the integration and unit tests, a test at a time, or a module at a
-time when its tests share a fixture (:func:`group`). Half of test_lockstep.py is a unit of
-its own (:data:`SPLIT`), with a fleet of its own.
-:func:`ordered` puts the lanes first, so that they start at once on workers of their own.
+Every test runs in a lane: an xdist group, so one worker and one test at a time.
+
+* **Stack lanes** (:data:`E2E_LANES`, one by default): the integration and e2e tests. They
+  start real processes, and some check wall-clock behaviour (the offboard-loss failsafe,
+  plan deadlines, the web page's updates), so they run at the machine's normal priority,
+  as in a serial run. Their modules are dealt to the lanes longest first by their measured
+  time (:data:`E2E_SECONDS`), a module whole, so that a stack its tests share starts once;
+  half of test_lockstep.py is a unit of its own (:data:`SPLIT`), with a fleet of its own.
+* **The unit lane** (:data:`UNIT_LANE`): every unit test, on a worker of its own beside
+  them (no unit test checks a duration: docs/testing.md). Two e2e stacks side by side fail
+  wall-clock checks on 2 cores (docs/testing.md); one stack beside the unit tests does not.
+
+``make test`` runs ``E2E_LANES + 1`` workers; :func:`assign` marks and orders the lanes.
 """
 
 from __future__ import annotations
@@ -19,12 +22,13 @@ from pathlib import Path
 
 import pytest
 
-#: fixture scopes wider than a test and narrower than a worker's session
-SHARED_SCOPES = frozenset({"class", "module", "package"})
-
-#: how many e2e tests run at once (environment ``E2E_LANES``, from make test; its TEST_WORKERS
-#: is this plus the workers of the other tiers)
-E2E_LANES = max(1, int(os.environ.get("E2E_LANES", "2")))
+#: how many stack lanes (integration and e2e tests) run at once (environment ``E2E_LANES``,
+#: from make test; its TEST_WORKERS is this plus one, the unit lane's)
+E2E_LANES = max(1, int(os.environ.get("E2E_LANES", "1")))
+#: the xdist group of every unit test
+UNIT_LANE = "unit-lane"
+#: the tiers that run in the stack lanes
+STACK_TIERS = ("integration", "e2e")
 
 #: seconds of each e2e unit (a module, or a group a test names) in one serial run of the
 #: integration and e2e tiers (``pytest tests/integration tests/e2e --durations=120``, 2 cores,
@@ -51,7 +55,7 @@ SPLIT: dict[str, str] = {
 
 
 def unit_of(item: pytest.Item, rel: Path) -> str:
-    """The e2e unit of ``item`` (at ``rel`` under tests/): its module's path, or the unit
+    """The stack unit of ``item`` (at ``rel`` under tests/): its module's path, or the unit
     :data:`SPLIT` names for it."""
     module = rel.as_posix()
     for prefix, unit in SPLIT.items():
@@ -61,43 +65,27 @@ def unit_of(item: pytest.Item, rel: Path) -> str:
 
 
 def lanes(units: list[str]) -> dict[str, str]:
-    """Each e2e unit's lane (``e2e-lane-<k>``): longest first, into the least loaded lane."""
+    """Each stack unit's lane (``stack-lane-<k>``): longest first, into the least loaded
+    lane."""
     load = [0.0] * E2E_LANES
     out: dict[str, str] = {}
     for unit in sorted(set(units), key=lambda u: -E2E_SECONDS.get(u, UNLISTED_S)):
         k = load.index(min(load))
         load[k] += E2E_SECONDS.get(unit, UNLISTED_S)
-        out[unit] = f"e2e-lane-{k}"
+        out[unit] = f"stack-lane-{k}"
     return out
 
 
-def group(item: pytest.Item, rel: Path) -> str | None:
-    """The xdist group of a test that is not an e2e test (at ``rel`` under tests/): its own,
-    if it names one (None: xdist reads the mark), else its module's when it uses a shared
-    fixture, else None (a unit of its own)."""
-    if any(item.iter_markers("xdist_group")):
-        return None
-    info = getattr(item, "_fixtureinfo", None)
-    defs = info.name2fixturedefs.values() if info is not None else ()
-    if any(d and d[-1].scope in SHARED_SCOPES for d in defs):
-        return rel.as_posix()
-    return None
-
-
 def assign(items: list[pytest.Item], root: Path) -> list[pytest.Item]:
-    """Mark every test's xdist group (the e2e tests' lanes) and order them: the lanes'
-    tests first, each lane's units longest first, then the rest in the collection's order."""
+    """Mark every test's lane (its xdist group) and order them: the stack lanes' units
+    longest first, then the unit lane in the collection's order."""
     rels = {id(it): _rel(it, root) for it in items}
-    e2e = [it for it in items if rels[id(it)].parts[:1] == ("e2e",)]
-    units = {id(it): unit_of(it, rels[id(it)]) for it in e2e}
+    stack = [it for it in items if rels[id(it)].parts[:1] in {(t,) for t in STACK_TIERS}]
+    units = {id(it): unit_of(it, rels[id(it)]) for it in stack}
     lane = lanes(list(units.values()))
     for it in items:
-        if id(it) in units:
-            it.add_marker(pytest.mark.xdist_group(lane[units[id(it)]]))
-        elif rels[id(it)].parts:
-            named = group(it, rels[id(it)])
-            if named is not None:
-                it.add_marker(pytest.mark.xdist_group(named))
+        named = lane[units[id(it)]] if id(it) in units else UNIT_LANE
+        it.add_marker(pytest.mark.xdist_group(named))
 
     def key(it: pytest.Item) -> tuple[int, float]:
         if id(it) in units:

@@ -21,7 +21,7 @@ UNIT = ROOT / "tests" / "unit"
 #: plug-ins' source folders (dualpilot_example)
 SOURCES = (ROOT, *sorted(ROOT.glob("examples/*/src")))
 #: tests of the repository as a whole: the manual, the import graph, this rule
-ROOT_TESTS = frozenset({"test_docs.py", "test_import_cycles.py", "test_layout.py",
+ROOT_TESTS = frozenset({"test_docs.py", "test_import_cycles.py", "test_lanes.py", "test_layout.py",
                         "test_rooms.py"})
 #: folders of test data, not of tests
 DATA = "data"

@@ -1,0 +1,65 @@
+"""make test's lanes (tests/support/parallel.py): each test's xdist group and order."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from tests.support import parallel
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+class Item:
+    """What :func:`parallel.assign` reads of a collected test: its path, name and marks."""
+
+    def __init__(self, rel: str, name: str = "test_a") -> None:
+        self.path = ROOT / rel
+        self.name = name
+        self.marks: list[pytest.Mark] = []
+
+    def add_marker(self, marker: pytest.MarkDecorator) -> None:
+        self.marks.append(marker.mark)
+
+    def iter_markers(self, name: str) -> list[pytest.Mark]:
+        return [m for m in self.marks if m.name == name]
+
+    def group(self) -> str:
+        (mark,) = self.iter_markers("xdist_group")
+        return str(mark.args[0])
+
+
+def test_unit_tests_share_one_lane_and_the_stack_tiers_the_stack_lane() -> None:
+    items = [Item("unit/dualpilot/test_x.py"), Item("e2e/test_soak.py"),
+             Item("integration/test_uavsim.py"), Item("unit/services/test_y.py"),
+             Item("e2e/test_lockstep.py", "test_risk_aware_controllers_fly[cc]"),
+             Item("e2e/test_lockstep.py", "test_stack_and_in_process[cc]")]
+    ordered = parallel.assign(items, ROOT)  # type: ignore[arg-type]
+    groups = {(it.path.relative_to(ROOT).as_posix(), it.name): it.group() for it in items}
+    assert groups[("unit/dualpilot/test_x.py", "test_a")] == parallel.UNIT_LANE
+    assert groups[("unit/services/test_y.py", "test_a")] == parallel.UNIT_LANE
+    assert {g for (rel, _), g in groups.items() if not rel.startswith("unit/")} == \
+        {"stack-lane-0"}  # E2E_LANES = 1: one stack lane
+    # the stack lane's units longest first (E2E_SECONDS: 166, 146, 61 s; integration 10 s),
+    # then the unit lane in the collection's order
+    assert [(it.path.name, it.name) for it in ordered] == [
+        ("test_lockstep.py", "test_stack_and_in_process[cc]"),
+        ("test_lockstep.py", "test_risk_aware_controllers_fly[cc]"),
+        ("test_soak.py", "test_a"), ("test_uavsim.py", "test_a"), ("test_x.py", "test_a"),
+        ("test_y.py", "test_a")]
+
+
+def test_two_stack_lanes_take_the_longest_units_apart() -> None:
+    lanes = dict(zip(("e2e/test_lockstep.py", "e2e/test_lockstep.py:risk", "e2e/test_faults.py",
+                      "integration/test_uavsim.py"), ("a", "b", "c", "d"), strict=True))
+    original = parallel.E2E_LANES
+    parallel.E2E_LANES = 2
+    try:
+        got = parallel.lanes(list(lanes))
+    finally:
+        parallel.E2E_LANES = original
+    # 166 → lane 0; 146 → lane 1; 98 → lane 1 (146 < 166); 10 → lane 0 (166 < 244)
+    assert got == {"e2e/test_lockstep.py": "stack-lane-0", "e2e/test_lockstep.py:risk":
+                   "stack-lane-1", "e2e/test_faults.py": "stack-lane-1",
+                   "integration/test_uavsim.py": "stack-lane-0"}
