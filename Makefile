@@ -76,8 +76,9 @@ proto: setup
 
 # every tier (unit, integration, e2e; tests/conftest.py) on pytest-xdist's workers, the slowest
 # 25 listed at the end: the integration and e2e tests in E2E_LANES lanes of one test at a time,
-# the unit tests beside them in a lane of their own (tests/support/parallel.py); TEST_WORKERS
-# is E2E_LANES + 1. TEST_WORKERS=0 runs every test one at a time in one process.
+# the unit tests beside them in a lane of their own at the lowest CPU priority (nice 19:
+# tests/support/parallel.py); TEST_WORKERS is E2E_LANES + 1. TEST_WORKERS=0 runs every test
+# one at a time in one process (on a machine kept busy by other work, the unit lane waits).
 E2E_LANES ?= 1
 export E2E_LANES
 TEST_WORKERS ?= $(shell echo $$(($(E2E_LANES) + 1)))

@@ -8,8 +8,8 @@ long suites of any tier. ``make test-fast`` runs ``unit and not slow``; ``make t
 runs everything.
 
 ``make test`` runs the tiers side by side on pytest-xdist's workers: the integration and e2e
-tests in a lane of one test at a time, the unit tests beside them in a lane of their own
-(tests/support/parallel.py).
+tests in a lane of one test at a time, the unit tests beside them in a lane of their own at
+the lowest CPU priority (tests/support/parallel.py).
 
 Hypothesis runs with no deadline: a property is a statement about values, never
 about how long an example took (a loaded machine must not fail it).
@@ -45,3 +45,8 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
             item.add_marker(getattr(pytest.mark, rel.parts[0]))
     if getattr(config.option, "numprocesses", None):  # on xdist's workers (TEST_WORKERS)
         items[:] = parallel.assign(items, root)
+
+
+@pytest.hookimpl(tryfirst=True)
+def pytest_runtest_setup(item: pytest.Item) -> None:
+    parallel.yield_cpu(item)  # the unit lane's worker, before its first test

@@ -1,7 +1,11 @@
-"""make test's lanes (tests/support/parallel.py): each test's xdist group and order."""
+"""make test's lanes (tests/support/parallel.py): each test's xdist group and order, and the
+unit lane's priority."""
 
 from __future__ import annotations
 
+import os
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -63,3 +67,34 @@ def test_two_stack_lanes_take_the_longest_units_apart() -> None:
     assert got == {"e2e/test_lockstep.py": "stack-lane-0", "e2e/test_lockstep.py:risk":
                    "stack-lane-1", "e2e/test_faults.py": "stack-lane-1",
                    "integration/test_uavsim.py": "stack-lane-0"}
+
+
+YIELD = """
+import os, sys
+sys.path.insert(0, {root!r})
+import pytest
+from tests.support import parallel
+class Item:
+    def __init__(self, group): self.group = group
+    def iter_markers(self, name): return [pytest.mark.xdist_group(self.group).mark]
+before = os.nice(0)
+parallel.yield_cpu(Item("stack-lane-0"))
+stack = os.nice(0)
+parallel.yield_cpu(Item(parallel.UNIT_LANE))
+print(before, stack, os.nice(0))
+"""
+
+
+@pytest.mark.parametrize(("worker", "unit_lane_nice"), [("gw1", 19), (None, 0)])
+def test_only_the_unit_lanes_worker_lowers_its_priority(worker: str | None,
+                                                        unit_lane_nice: int) -> None:
+    """Off a worker (a serial run) nothing changes; on one, the unit lane's test lowers the
+    priority to 19 and a stack lane's does not. (Run inside the unit lane, which already has
+    19, the test sees 19 throughout.)"""
+    env = {k: v for k, v in os.environ.items() if k != "PYTEST_XDIST_WORKER"}
+    if worker is not None:
+        env["PYTEST_XDIST_WORKER"] = worker
+    base = os.nice(0)
+    out = subprocess.run([sys.executable, "-c", YIELD.format(root=str(ROOT.parent))], env=env,
+                         capture_output=True, text=True, check=True).stdout.split()
+    assert [int(v) for v in out] == [base, base, max(base, unit_lane_nice)]
