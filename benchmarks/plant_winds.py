@@ -8,12 +8,16 @@ Runs ``dualpilot evaluate`` on the same missions (``--seed``, paper timing) once
 ideal plant (``OUT/ideal``) and once per mean wind with the multirotor plant
 (``OUT/w<wind>``: ``--turbulence``, ``--gps-sigma``, the "auto" tube; on a fire-behaviour
 ``--scenario`` the one mean wind is the scenario's own, that of its fire); a directory that
-already holds a results.csv is read, not run again (``--reuse``). Prints a Markdown table per
+already holds a results.csv is read, not run again (``--reuse``). ``--concurrent NAME=VALUE``
+(repeatable) is passed to every run, the ideal plant's too (e.g. ``reanchor_tol=tube``, the
+re-anchoring reading of docs/plant.md). Prints a Markdown table per
 controller and plant: success, ``tracking_breach``, ``fire_contact``, mean time and energy
 over the missions completed, the tracking error (median over the missions that flew of each
 mission's p50 and p99, and the largest p99), the missions' summed wall time, and the success
 paired with the ideal plant's on the same missions: the difference in points, the discordant
-pairs and McNemar's exact test (a two-sided binomial test on them, ``scipy.stats.binomtest``).
+pairs and McNemar's exact test (a two-sided binomial test on them, ``scipy.stats.binomtest``);
+then System 2's share of the plans each run computed (``s2_plans`` / (``s1_plans`` +
+``s2_plans``) over its missions).
 With ``--figure``: success against wind speed, one line per controller, the ideal plant's
 success a dashed line of the same colour.
 """
@@ -65,6 +69,14 @@ def row(name: str, plant: str, rows: list[dict[str, str]], ideal: list[dict[str,
             f"{sum(float(r['wall_s']) for r in rows):.1f} | {paired} |")
 
 
+def plans_share(rows: Rows, name: str) -> str:
+    """System 2's share (%) of the plans controller ``name`` computed over ``rows``."""
+    mine = [r for (_, controller), r in rows.items() if controller == name]
+    s1 = sum(int(r["s1_plans"]) for r in mine)
+    s2 = sum(int(r["s2_plans"]) for r in mine)
+    return f"{100 * s2 / (s1 + s2):.1f} %" if s1 + s2 else "-"
+
+
 def figure(path: Path, names: list[str], winds: list[float],
            success: dict[str, list[float]], ideal: dict[str, float], title: str) -> None:
     """Success (%) against wind speed, one line per controller, the ideal plant dashed."""
@@ -107,12 +119,15 @@ def main() -> None:
                     help="mean winds (m/s), comma-separated (on a --scenario: its own wind)")
     ap.add_argument("--turbulence", default="moderate")
     ap.add_argument("--gps-sigma", type=float, default=1.5, help="gps_sigma_m (m)")
+    ap.add_argument("--concurrent", action="append", default=[], metavar="NAME=VALUE",
+                    help="a concurrent supervisor parameter for every run (evaluate's)")
     ap.add_argument("--reuse", action="store_true", help="read a run that already has rows")
     ap.add_argument("--out", type=Path, default=Path("runs/plant-winds"))
     ap.add_argument("--figure", type=Path, help="write the success-against-wind figure here")
     args = ap.parse_args()
     args.where = ([f"--profile={args.profile}"] if args.profile else []) + (
-        [f"--scenario={args.scenario}"] if args.scenario else [])
+        [f"--scenario={args.scenario}"] if args.scenario else []) + [
+        f"--concurrent={item}" for item in args.concurrent]
     names = args.controllers.split(",")
     own = get_scenario(args.scenario).params.wind_speed_mps if args.scenario else None
     winds = [own] if own is not None else [float(w) for w in args.winds.split(",")]
@@ -142,6 +157,11 @@ def main() -> None:
             rows = [runs[w][k] for k in keys]
             print(row(name, f"multirotor, {w:g} m/s", rows, ideal_rows))
             success[name].append(100 * sum(r["success"] == "1" for r in rows) / len(keys))
+    print("\n| controller | plant, wind | System 2's share of the plans |\n|---|---|---|")
+    for name in names:
+        for plant, rows_of in (("ideal", ideal), *((f"multirotor, {w:g} m/s", runs[w])
+                                                   for w in winds)):
+            print(f"| {name} | {plant} | {plans_share(rows_of, name)} |")
     if args.figure:
         figure(args.figure, names, winds, success, base,
                f"{args.missions} missions, {where}: multirotor, {args.turbulence} turbulence, "

@@ -30,7 +30,12 @@ from dualpilot.model.dynamics import DynamicsParams
 from dualpilot.model.fire import FireParams
 from dualpilot.model.vertical import VerticalParams
 from dualpilot.plant.plant import PlantParams
-from dualpilot.plant.reading import PlantReading, measurement_tol, plant_params
+from dualpilot.plant.reading import (
+    PlantReading,
+    auto_velocity_margin_mps,
+    measurement_tol,
+    plant_params,
+)
 from dualpilot.spec import MissionSpec
 from dualpilot.supervisor.paper.decision import SupervisorParams
 
@@ -140,8 +145,10 @@ class Profile:
     def spec(self, base: MissionSpec) -> MissionSpec:
         """``base`` flown with this profile's dynamics (Eq. (1) and its limits), altitude band,
         goal reading and risk zones' heights (read in 3-D only), its plans keeping the plant's
-        tube margin (``tracking_margin_m``; 0 for the ideal plant) and checked with its
-        measurements' tolerance (``measurement_tol``; 0 when exact)."""
+        tube margin (``tracking_margin_m``; 0 for the ideal plant), its velocity counterpart
+        (``tracking_margin_mps``, :func:`~dualpilot.plant.reading.auto_velocity_margin_mps`;
+        read only by ``reanchor_tol = "tube"``) and checked with its measurements'
+        tolerance (``measurement_tol``; 0 when exact)."""
         self.plant_params()  # ValueError: a wind that is not the fire scenario's
         a = self.altitude
         spec = base
@@ -152,6 +159,9 @@ class Profile:
         tol = measurement_tol(self.plant, self.dynamics.dt_s)
         if tol != spec.measurement_tol:
             spec = replace(spec, measurement_tol=tol)
+        vel = auto_velocity_margin_mps(self.plant)
+        if vel != spec.tracking_margin_mps:
+            spec = replace(spec, tracking_margin_mps=vel)
         spec = spec.with_tracking_margin(self.plant.margin_m())
         zones = a.zone_heights(spec, self.fire.scenario)
         return spec if zones == spec.zone_heights else replace(spec, zone_heights=zones)

@@ -109,6 +109,10 @@ class MissionSpec:
     #: how tall the forecast's risk zones are in 3-D (``risk_zone_height``,
     #: dualpilot/model/zone_heights.py), read by every consumer of the zones alike
     zone_heights: ZoneHeights = BAND
+    #: the tube's velocity counterpart (m/s): how far a flying plant's velocity may depart
+    #: from its plan's (:func:`dualpilot.plant.reading.auto_velocity_margin_mps`; 0: the ideal
+    #: plant); read only by the concurrent supervisor's ``reanchor_tol = "tube"``
+    tracking_margin_mps: float = 0.0
 
     def __post_init__(self) -> None:
         if not (np.isfinite(self.area_size_m) and self.area_size_m > 0):
@@ -122,6 +126,8 @@ class MissionSpec:
                              f"{self.d_safe_m}")
         if not (math.isfinite(self.measurement_tol) and self.measurement_tol >= 0.0):
             raise ValueError(f"measurement_tol must be >= 0, got {self.measurement_tol}")
+        if not (math.isfinite(self.tracking_margin_mps) and self.tracking_margin_mps >= 0.0):
+            raise ValueError(f"tracking_margin_mps must be >= 0, got {self.tracking_margin_mps}")
         if not self.goal.inside(self.area):
             raise ValueError(f"goal {self.goal} lies outside the {self.area_size_m} m area")
         if not self.area.contains(np.array(self.start)):

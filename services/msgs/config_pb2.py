@@ -25,25 +25,25 @@ _sym_db = _symbol_database.Default()
 from services.msgs import common_pb2 as dualpilot_dot_v1_dot_common__pb2
 
 
-DESCRIPTOR = _descriptor_pool.Default().AddSerializedFile(b'\n\x19\x64ualpilot/v1/config.proto\x12\x0c\x64ualpilot.v1\x1a\x19\x64ualpilot/v1/common.proto\"&\n\x07Setting\x12\x0c\n\x04name\x18\x01 \x01(\t\x12\r\n\x05value\x18\x02 \x01(\t\"\x1b\n\nRiskParams\x12\r\n\x05\x61lpha\x18\x01 \x01(\x01\"\xa4\x02\n\x10\x43oncurrentParams\x12\x1c\n\x0fthreat_margin_m\x18\x01 \x01(\x01H\x00\x88\x01\x01\x12\x13\n\x0b\x63heck_steps\x18\x02 \x01(\r\x12\x16\n\x0ereanchor_tol_m\x18\x03 \x01(\x01\x12\x18\n\x10reanchor_tol_mps\x18\x04 \x01(\x01\x12\x17\n\x0fmax_wait_hazard\x18\x05 \x01(\x01\x12\x0e\n\x06q_rate\x18\x06 \x01(\x01\x12\x15\n\rswitch_margin\x18\x07 \x01(\x01\x12\x17\n\x0f\x65nergy_scale_n2\x18\x08 \x01(\x01\x12&\n\x04risk\x18\t \x01(\x0b\x32\x18.dualpilot.v1.RiskParams\x12\x16\n\x0es2_unavailable\x18\n \x01(\tB\x12\n\x10_threat_margin_m\"^\n\x0e\x46orecastParams\x12\x0f\n\x07members\x18\x01 \x01(\r\x12\x14\n\x0cresolution_m\x18\x02 \x01(\x01\x12\x11\n\thorizon_s\x18\x03 \x01(\x01\x12\x12\n\ninterval_s\x18\x04 \x01(\x01\"\x87\x04\n\rMissionConfig\x12\x12\n\nmission_id\x18\x01 \x01(\t\x12\x0e\n\x06uav_id\x18\x02 \x01(\t\x12\x0c\n\x04seed\x18\x03 \x01(\x04\x12\x30\n\ncontroller\x18\x04 \x01(\x0e\x32\x1c.dualpilot.v1.ControllerKind\x12\x0c\n\x04risk\x18\x06 \x01(\x08\x12$\n\x06timing\x18\x07 \x01(\x0e\x32\x14.dualpilot.v1.Timing\x12\x0f\n\x07profile\x18\x08 \x01(\t\x12\'\n\x08settings\x18\t \x03(\x0b\x32\x15.dualpilot.v1.Setting\x12\x16\n\x0esystem1_method\x18\n \x01(\t\x12\x16\n\x0esystem2_method\x18\x0b \x01(\t\x12\x32\n\nconcurrent\x18\x0c \x01(\x0b\x32\x1e.dualpilot.v1.ConcurrentParams\x12 \n\x04goal\x18\r \x01(\x0b\x32\x12.dualpilot.v1.Rect\x12\x13\n\x0b\x61rea_size_m\x18\x0e \x01(\x01\x12!\n\x05start\x18\x0f \x01(\x0b\x32\x12.dualpilot.v1.Vec2\x12.\n\x08\x66orecast\x18\x10 \x01(\x0b\x32\x1c.dualpilot.v1.ForecastParams\x12\x1c\n\x14system2_time_limit_s\x18\x11 \x01(\x01\x12\x12\n\nsupervisor\x18\x12 \x01(\tJ\x04\x08\x05\x10\x06*y\n\x0e\x43ontrollerKind\x12\x1f\n\x1b\x43ONTROLLER_KIND_UNSPECIFIED\x10\x00\x12\x16\n\x12\x43ONTROLLER_KIND_CC\x10\x01\x12\x16\n\x12\x43ONTROLLER_KIND_S1\x10\x02\x12\x16\n\x12\x43ONTROLLER_KIND_S2\x10\x03*G\n\x06Timing\x12\x16\n\x12TIMING_UNSPECIFIED\x10\x00\x12\x10\n\x0cTIMING_PAPER\x10\x01\x12\x13\n\x0fTIMING_MEASURED\x10\x02\x62\x06proto3')
+DESCRIPTOR = _descriptor_pool.Default().AddSerializedFile(b'\n\x19\x64ualpilot/v1/config.proto\x12\x0c\x64ualpilot.v1\x1a\x19\x64ualpilot/v1/common.proto\"&\n\x07Setting\x12\x0c\n\x04name\x18\x01 \x01(\t\x12\r\n\x05value\x18\x02 \x01(\t\"\x1b\n\nRiskParams\x12\r\n\x05\x61lpha\x18\x01 \x01(\x01\"\xba\x02\n\x10\x43oncurrentParams\x12\x1c\n\x0fthreat_margin_m\x18\x01 \x01(\x01H\x00\x88\x01\x01\x12\x13\n\x0b\x63heck_steps\x18\x02 \x01(\r\x12\x16\n\x0ereanchor_tol_m\x18\x03 \x01(\x01\x12\x18\n\x10reanchor_tol_mps\x18\x04 \x01(\x01\x12\x17\n\x0fmax_wait_hazard\x18\x05 \x01(\x01\x12\x0e\n\x06q_rate\x18\x06 \x01(\x01\x12\x15\n\rswitch_margin\x18\x07 \x01(\x01\x12\x17\n\x0f\x65nergy_scale_n2\x18\x08 \x01(\x01\x12&\n\x04risk\x18\t \x01(\x0b\x32\x18.dualpilot.v1.RiskParams\x12\x16\n\x0es2_unavailable\x18\n \x01(\t\x12\x14\n\x0creanchor_tol\x18\x0b \x01(\tB\x12\n\x10_threat_margin_m\"^\n\x0e\x46orecastParams\x12\x0f\n\x07members\x18\x01 \x01(\r\x12\x14\n\x0cresolution_m\x18\x02 \x01(\x01\x12\x11\n\thorizon_s\x18\x03 \x01(\x01\x12\x12\n\ninterval_s\x18\x04 \x01(\x01\"\x87\x04\n\rMissionConfig\x12\x12\n\nmission_id\x18\x01 \x01(\t\x12\x0e\n\x06uav_id\x18\x02 \x01(\t\x12\x0c\n\x04seed\x18\x03 \x01(\x04\x12\x30\n\ncontroller\x18\x04 \x01(\x0e\x32\x1c.dualpilot.v1.ControllerKind\x12\x0c\n\x04risk\x18\x06 \x01(\x08\x12$\n\x06timing\x18\x07 \x01(\x0e\x32\x14.dualpilot.v1.Timing\x12\x0f\n\x07profile\x18\x08 \x01(\t\x12\'\n\x08settings\x18\t \x03(\x0b\x32\x15.dualpilot.v1.Setting\x12\x16\n\x0esystem1_method\x18\n \x01(\t\x12\x16\n\x0esystem2_method\x18\x0b \x01(\t\x12\x32\n\nconcurrent\x18\x0c \x01(\x0b\x32\x1e.dualpilot.v1.ConcurrentParams\x12 \n\x04goal\x18\r \x01(\x0b\x32\x12.dualpilot.v1.Rect\x12\x13\n\x0b\x61rea_size_m\x18\x0e \x01(\x01\x12!\n\x05start\x18\x0f \x01(\x0b\x32\x12.dualpilot.v1.Vec2\x12.\n\x08\x66orecast\x18\x10 \x01(\x0b\x32\x1c.dualpilot.v1.ForecastParams\x12\x1c\n\x14system2_time_limit_s\x18\x11 \x01(\x01\x12\x12\n\nsupervisor\x18\x12 \x01(\tJ\x04\x08\x05\x10\x06*y\n\x0e\x43ontrollerKind\x12\x1f\n\x1b\x43ONTROLLER_KIND_UNSPECIFIED\x10\x00\x12\x16\n\x12\x43ONTROLLER_KIND_CC\x10\x01\x12\x16\n\x12\x43ONTROLLER_KIND_S1\x10\x02\x12\x16\n\x12\x43ONTROLLER_KIND_S2\x10\x03*G\n\x06Timing\x12\x16\n\x12TIMING_UNSPECIFIED\x10\x00\x12\x10\n\x0cTIMING_PAPER\x10\x01\x12\x13\n\x0fTIMING_MEASURED\x10\x02\x62\x06proto3')
 
 _globals = globals()
 _builder.BuildMessageAndEnumDescriptors(DESCRIPTOR, _globals)
 _builder.BuildTopDescriptorsAndMessages(DESCRIPTOR, 'dualpilot.v1.config_pb2', _globals)
 if not _descriptor._USE_C_DESCRIPTORS:
   DESCRIPTOR._loaded_options = None
-  _globals['_CONTROLLERKIND']._serialized_start=1052
-  _globals['_CONTROLLERKIND']._serialized_end=1173
-  _globals['_TIMING']._serialized_start=1175
-  _globals['_TIMING']._serialized_end=1246
+  _globals['_CONTROLLERKIND']._serialized_start=1074
+  _globals['_CONTROLLERKIND']._serialized_end=1195
+  _globals['_TIMING']._serialized_start=1197
+  _globals['_TIMING']._serialized_end=1268
   _globals['_SETTING']._serialized_start=70
   _globals['_SETTING']._serialized_end=108
   _globals['_RISKPARAMS']._serialized_start=110
   _globals['_RISKPARAMS']._serialized_end=137
   _globals['_CONCURRENTPARAMS']._serialized_start=140
-  _globals['_CONCURRENTPARAMS']._serialized_end=432
-  _globals['_FORECASTPARAMS']._serialized_start=434
-  _globals['_FORECASTPARAMS']._serialized_end=528
-  _globals['_MISSIONCONFIG']._serialized_start=531
-  _globals['_MISSIONCONFIG']._serialized_end=1050
+  _globals['_CONCURRENTPARAMS']._serialized_end=454
+  _globals['_FORECASTPARAMS']._serialized_start=456
+  _globals['_FORECASTPARAMS']._serialized_end=550
+  _globals['_MISSIONCONFIG']._serialized_start=553
+  _globals['_MISSIONCONFIG']._serialized_end=1072
 # @@protoc_insertion_point(module_scope)

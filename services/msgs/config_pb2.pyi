@@ -43,7 +43,7 @@ class RiskParams(_message.Message):
     def __init__(self, alpha: _Optional[float] = ...) -> None: ...
 
 class ConcurrentParams(_message.Message):
-    __slots__ = ("threat_margin_m", "check_steps", "reanchor_tol_m", "reanchor_tol_mps", "max_wait_hazard", "q_rate", "switch_margin", "energy_scale_n2", "risk", "s2_unavailable")
+    __slots__ = ("threat_margin_m", "check_steps", "reanchor_tol_m", "reanchor_tol_mps", "max_wait_hazard", "q_rate", "switch_margin", "energy_scale_n2", "risk", "s2_unavailable", "reanchor_tol")
     THREAT_MARGIN_M_FIELD_NUMBER: _ClassVar[int]
     CHECK_STEPS_FIELD_NUMBER: _ClassVar[int]
     REANCHOR_TOL_M_FIELD_NUMBER: _ClassVar[int]
@@ -54,6 +54,7 @@ class ConcurrentParams(_message.Message):
     ENERGY_SCALE_N2_FIELD_NUMBER: _ClassVar[int]
     RISK_FIELD_NUMBER: _ClassVar[int]
     S2_UNAVAILABLE_FIELD_NUMBER: _ClassVar[int]
+    REANCHOR_TOL_FIELD_NUMBER: _ClassVar[int]
     threat_margin_m: float
     check_steps: int
     reanchor_tol_m: float
@@ -64,7 +65,8 @@ class ConcurrentParams(_message.Message):
     energy_scale_n2: float
     risk: RiskParams
     s2_unavailable: str
-    def __init__(self, threat_margin_m: _Optional[float] = ..., check_steps: _Optional[int] = ..., reanchor_tol_m: _Optional[float] = ..., reanchor_tol_mps: _Optional[float] = ..., max_wait_hazard: _Optional[float] = ..., q_rate: _Optional[float] = ..., switch_margin: _Optional[float] = ..., energy_scale_n2: _Optional[float] = ..., risk: _Optional[_Union[RiskParams, _Mapping]] = ..., s2_unavailable: _Optional[str] = ...) -> None: ...
+    reanchor_tol: str
+    def __init__(self, threat_margin_m: _Optional[float] = ..., check_steps: _Optional[int] = ..., reanchor_tol_m: _Optional[float] = ..., reanchor_tol_mps: _Optional[float] = ..., max_wait_hazard: _Optional[float] = ..., q_rate: _Optional[float] = ..., switch_margin: _Optional[float] = ..., energy_scale_n2: _Optional[float] = ..., risk: _Optional[_Union[RiskParams, _Mapping]] = ..., s2_unavailable: _Optional[str] = ..., reanchor_tol: _Optional[str] = ...) -> None: ...
 
 class ForecastParams(_message.Message):
     __slots__ = ("members", "resolution_m", "horizon_s", "interval_s")

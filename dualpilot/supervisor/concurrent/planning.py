@@ -247,7 +247,7 @@ class ConcurrentSupervisor:
         late = t - d.due_t
         plan = got if not late else replace(got, states=got.states[late:],
                                             controls=got.controls[late:])
-        anchored = reanchor(plan, state, self.params, self.spec.dynamics)
+        anchored = reanchor(plan, state, self.params, self.spec)
         if anchored is None:
             choice.answers.append(Answer(2, S.STALE_START))
             return None
@@ -264,8 +264,7 @@ class ConcurrentSupervisor:
         if self.flown is None:
             return None
         rest = self.flown.remainder(state)
-        anchored = None if rest is None else reanchor(rest, state, self.params,
-                                                      self.spec.dynamics)
+        anchored = None if rest is None else reanchor(rest, state, self.params, self.spec)
         if anchored is None or check_near(anchored, state, obstacles, self.spec,
                                           self.params.check_steps):
             return None

@@ -60,7 +60,7 @@ from typing import Literal
 import numpy as np
 
 from dualpilot.mission.answers import Answer
-from dualpilot.model.dynamics import Array, DynamicsParams, rollout
+from dualpilot.model.dynamics import Array, rollout
 from dualpilot.model.fire import FireParams, FireSnapshot
 from dualpilot.model.geometry import Polytope, path_clearance
 from dualpilot.model.prism import Prism
@@ -84,9 +84,15 @@ class ConcurrentParams:
     threat_margin_m: float | None = None
     #: steps of a plan verified against the current obstacles before it is (kept) flown
     check_steps: int = 10
-    #: a due System 2 plan starting this close to the UAV's state is re-anchored
+    #: a due System 2 plan (or the flown plan's remainder) starting this close to the UAV's
+    #: state is re-anchored (:func:`reanchor`)
     reanchor_tol_m: float = 2.0
     reanchor_tol_mps: float = 1.0
+    #: the re-anchoring tolerances (:meth:`tolerances`): "fixed", the two above whatever
+    #: flies; "tube", the larger of those and the spec's tube (``tracking_margin_m``,
+    #: ``tracking_margin_mps``), the flying plant's error model (a reading of the plant,
+    #: docs/plant.md; the same as "fixed" for the ideal plant, whose tube is 0)
+    reanchor_tol: Literal["fixed", "tube"] = "fixed"
     #: wait for System 2 only while its wait's hazard (:func:`wait_hazard`) is below this
     max_wait_hazard: float = 0.01
     #: rate of the online update of Q (EMA weight of the newest measurement)
@@ -118,6 +124,25 @@ class ConcurrentParams:
         if self.s2_unavailable not in ("keep", "system1"):
             raise ValueError("s2_unavailable must be 'keep' or 'system1', not "
                              f"{self.s2_unavailable!r}")
+        if self.reanchor_tol not in ("fixed", "tube"):
+            raise ValueError(f"reanchor_tol must be 'fixed' or 'tube', not {self.reanchor_tol!r}")
+
+    def tolerances(self, spec: MissionSpec) -> tuple[float, float]:
+        """(m, m/s): how far the UAV's state may be from a plan's start, in position and in
+        velocity (Euclidean), for the plan to be re-anchored (:func:`reanchor`).
+
+        "fixed": (``reanchor_tol_m``, ``reanchor_tol_mps``), made for Eq. (1)'s vehicle,
+        which flies its plan exactly. "tube": at least the spec's tube,
+        (max(``reanchor_tol_m``, ``tracking_margin_m``), max(``reanchor_tol_mps``,
+        ``tracking_margin_mps``)): a flying plant lags Eq. (1) by up to its tube, and a plan
+        that expected it there is no more off than its own flight will be (8.58 m and
+        3.686 m/s for the multirotor at ``gps_sigma_m`` = 1.5, moderate turbulence; 2 m and
+        1 m/s for the ideal plant, as "fixed").
+        """
+        if self.reanchor_tol == "fixed":
+            return self.reanchor_tol_m, self.reanchor_tol_mps
+        return (max(self.reanchor_tol_m, spec.tracking_margin_m),
+                max(self.reanchor_tol_mps, spec.tracking_margin_mps))
 
 
 def wait_hazard(n_substeps: int, fire: FireParams, area_size_m: float, d_safe_m: float,
@@ -258,17 +283,28 @@ def check_near(plan: Plan, state: Array, obstacles: Obstacles, spec: MissionSpec
 
 
 def reanchor(plan: Plan, state: Array, params: ConcurrentParams,
-             dynamics: DynamicsParams) -> Plan | None:
+             spec: MissionSpec) -> Plan | None:
     """``plan`` moved to start at ``state`` (its controls rolled out again by Eq. 1), or None
-    when ``state`` is farther than the re-anchoring tolerances from the plan's start."""
-    n = dynamics.dim
+    when ``state`` is farther than the re-anchoring tolerances
+    (:meth:`ConcurrentParams.tolerances`) from the plan's start.
+
+    The tolerances decide which plans are worth re-checking, never whether one is safe:
+    every re-anchored plan is verified before it flies, twice. The supervisor flies it only
+    if :func:`check_near` passes (its next ``check_steps`` steps of Eq. (1) and the limits,
+    every segment keeping ``spec.d_safe_m``, the paper's d_safe plus the tube, from the
+    current obstacles, in 3-D within the band), and the run-time monitor then checks the
+    same steps again (:func:`dualpilot.mission.monitor.check_plan`: it starts at the measured
+    state, follows Eq. (1), keeps the limits, the area and d_safe with the tube).
+    """
+    n = spec.dynamics.dim
+    tol_m, tol_mps = params.tolerances(spec)
     d = np.asarray(state, dtype=float) - plan.states[0]
-    if np.linalg.norm(d[:n]) > params.reanchor_tol_m or (
-            np.linalg.norm(d[n:]) > params.reanchor_tol_mps):
+    if np.linalg.norm(d[:n]) > tol_m or np.linalg.norm(d[n:]) > tol_mps:
         return None
     if not np.any(d):
         return plan
-    return replace(plan, states=rollout(np.asarray(state, dtype=float), plan.controls, dynamics))
+    return replace(plan, states=rollout(np.asarray(state, dtype=float), plan.controls,
+                                        spec.dynamics))
 
 
 def steps_until(response_s: float, step_s: float) -> int:

@@ -38,8 +38,8 @@ _TIMINGS = {Timing.PAPER: config_pb2.TIMING_PAPER, Timing.MEASURED: config_pb2.T
 #: ConcurrentParams' fields on the wire (its ``threat`` follows ``MissionConfig.risk``)
 CONCURRENT_WIRE = tuple(f.name for f in dataclasses.fields(ConcurrentParams)
                         if f.name not in ("threat", "risk"))
-#: those that are words (``s2_unavailable``: empty on the wire is its default)
-_WORDS = ("s2_unavailable",)
+#: those that are words (``s2_unavailable``, ``reanchor_tol``: empty on the wire is the default)
+_WORDS = ("s2_unavailable", "reanchor_tol")
 #: those that are always numbers (``threat_margin_m`` may be absent: the spec's clearance)
 _NUMBERS = tuple(n for n in CONCURRENT_WIRE if n not in ("threat_margin_m", *_WORDS))
 
@@ -64,7 +64,8 @@ def config_to_msg(config: MissionConfig, out: config_pb2.MissionConfig
     for name in _NUMBERS:
         setattr(out.concurrent, name, getattr(p, name))
     out.concurrent.risk.alpha = p.risk.alpha
-    out.concurrent.s2_unavailable = p.s2_unavailable
+    for name in _WORDS:
+        setattr(out.concurrent, name, getattr(p, name))
     f = c.forecast
     out.forecast.members, out.forecast.resolution_m = f.members, f.resolution_m
     out.forecast.horizon_s, out.forecast.interval_s = f.horizon_s, f.interval_s
