@@ -15,9 +15,7 @@ controller and plant: success, ``tracking_breach``, ``fire_contact``, mean time 
 over the missions completed, the tracking error (median over the missions that flew of each
 mission's p50 and p99, and the largest p99), the missions' summed wall time, and the success
 paired with the ideal plant's on the same missions: the difference in points, the discordant
-pairs and McNemar's exact test (a two-sided binomial test on them, ``scipy.stats.binomtest``);
-then System 2's share of the plans each run computed (``s2_plans`` / (``s1_plans`` +
-``s2_plans``) over its missions).
+pairs and McNemar's exact test (a two-sided binomial test on them, ``scipy.stats.binomtest``).
 With ``--figure``: success against wind speed, one line per controller, the ideal plant's
 success a dashed line of the same colour.
 """
@@ -67,14 +65,6 @@ def row(name: str, plant: str, rows: list[dict[str, str]], ideal: list[dict[str,
             f"{_mean([float(r['mission_time_s']) for r in ok])} | "
             f"{_mean([float(r['energy']) for r in ok])} | {track} | "
             f"{sum(float(r['wall_s']) for r in rows):.1f} | {paired} |")
-
-
-def plans_share(rows: Rows, name: str) -> str:
-    """System 2's share (%) of the plans controller ``name`` computed over ``rows``."""
-    mine = [r for (_, controller), r in rows.items() if controller == name]
-    s1 = sum(int(r["s1_plans"]) for r in mine)
-    s2 = sum(int(r["s2_plans"]) for r in mine)
-    return f"{100 * s2 / (s1 + s2):.1f} %" if s1 + s2 else "-"
 
 
 def figure(path: Path, names: list[str], winds: list[float],
@@ -140,7 +130,8 @@ def main() -> None:
     where = ", ".join(f"{k} {v}" for k, v in (("profile", args.profile),
                                                ("scenario", args.scenario)) if v) or "paper"
     print(f"{args.missions} missions from seed {args.seed}, {where}, paper timing; multirotor: "
-          f"{args.turbulence} turbulence, gps_sigma_m = {args.gps_sigma:g}, the auto tube\n")
+          f"{args.turbulence} turbulence, gps_sigma_m = {args.gps_sigma:g}, the auto tube"
+          + "".join(f"; --concurrent {item}" for item in args.concurrent) + "\n")
     print("| controller | plant, wind | success | `tracking_breach` | fire contact | time (s) | "
           "energy (N²) | tracking error p50 / p99 (max p99), m | wall, s | Δ success vs "
           "ideal, points | discordant (ideal only / multirotor only) | McNemar p |")
@@ -157,11 +148,6 @@ def main() -> None:
             rows = [runs[w][k] for k in keys]
             print(row(name, f"multirotor, {w:g} m/s", rows, ideal_rows))
             success[name].append(100 * sum(r["success"] == "1" for r in rows) / len(keys))
-    print("\n| controller | plant, wind | System 2's share of the plans |\n|---|---|---|")
-    for name in names:
-        for plant, rows_of in (("ideal", ideal), *((f"multirotor, {w:g} m/s", runs[w])
-                                                   for w in winds)):
-            print(f"| {name} | {plant} | {plans_share(rows_of, name)} |")
     if args.figure:
         figure(args.figure, names, winds, success, base,
                f"{args.missions} missions, {where}: multirotor, {args.turbulence} turbulence, "

@@ -69,6 +69,10 @@ def test_a_bad_config_is_refused_with_its_reason() -> None:
                            "s2_unavailable must be 'keep' or 'system1', not 'ground'"),
                           (lambda m: setattr(m.concurrent, "s2_unavailable", "k" * 17),
                            "longer than 16"),
+                          (lambda m: setattr(m.concurrent, "reanchor_tol", "wide"),
+                           "reanchor_tol must be 'fixed' or 'tube', not 'wide'"),
+                          (lambda m: setattr(m.concurrent, "reanchor_tol", "t" * 17),
+                           "longer than 16"),
                           (lambda m: setattr(m.concurrent, "reanchor_tol_m", float("nan")),
                            "finite"),
                           (lambda m: m.ClearField("goal"), "without a goal"),
@@ -98,3 +102,18 @@ def test_what_flies_without_system2_crosses_the_wire_and_empty_is_the_default() 
     assert config_convert.config_from_msg(msg).concurrent.s2_unavailable == "system1"
     msg.concurrent.s2_unavailable = ""
     assert config_convert.config_from_msg(msg).concurrent == ConcurrentParams()
+
+
+def test_the_reanchoring_reading_crosses_the_wire_and_empty_is_the_default() -> None:
+    """``reanchor_tol`` on the wire as its word; a sender that leaves it empty (one built
+    before the field) means the default, "fixed"."""
+    tube = MissionConfig.named("lookahead+risk", concurrent=ConcurrentParams(
+        reanchor_tol="tube"))
+    msg = config_convert.config_to_msg(tube, config_pb2.MissionConfig())
+    assert msg.concurrent.reanchor_tol == "tube"
+    assert config_convert.config_from_msg(msg) == tube
+    assert _through_the_wire(tube) == tube
+    msg.concurrent.reanchor_tol = ""
+    assert config_convert.config_from_msg(msg).concurrent.reanchor_tol == "fixed"
+    default = config_convert.config_to_msg(MissionConfig(), config_pb2.MissionConfig())
+    assert default.concurrent.reanchor_tol == "fixed"

@@ -26,6 +26,7 @@ def _concurrent() -> st.SearchStrategy[ConcurrentParams]:
         q_rate=st.floats(0.01, 1.0), switch_margin=st.floats(-1.0, 1.0),
         energy_scale_n2=st.floats(0.1, 100.0),
         s2_unavailable=st.sampled_from(["keep", "system1"]),
+        reanchor_tol=st.sampled_from(["fixed", "tube"]),
         risk=st.builds(RiskParams, alpha=st.floats(0.0, 0.99)))
 
 

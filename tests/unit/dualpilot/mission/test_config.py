@@ -150,6 +150,17 @@ def test_what_flies_without_system2_is_a_word_of_the_concurrent_flag() -> None:
     assert parse_config([]).concurrent.s2_unavailable == "keep"
 
 
+def test_the_reanchoring_reading_is_a_word_of_the_concurrent_flag() -> None:
+    tube = parse_config(["--controller", "lookahead+risk", "--concurrent", "reanchor_tol=tube"])
+    assert tube.concurrent == ConcurrentParams(reanchor_tol="tube", threat="forecast")
+    assert "--concurrent=reanchor_tol=tube" in config_to_argv(tube)
+    assert parse_config(config_to_argv(tube)) == tube
+    assert parse_config([]).concurrent.reanchor_tol == "fixed"
+    assert not any("reanchor_tol" in a for a in config_to_argv(parse_config([])))
+    with pytest.raises(ValueError, match="reanchor_tol must be 'fixed' or 'tube', not 'wide'"):
+        parse_config(["--concurrent", "reanchor_tol=wide"])
+
+
 def test_a_mission_id_that_reads_as_a_flag_is_refused() -> None:
     """argparse reads ``--mission-id=--`` as the end of the flags (an empty list), so an id
     that starts with "-" cannot travel as a flag: the configuration refuses it."""

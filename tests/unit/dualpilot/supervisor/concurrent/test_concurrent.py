@@ -61,8 +61,9 @@ class CutPlanners(LocalPlanners):
 
 
 def mission(seed: int = 3, vehicle: LocalVehicle | None = None,
-            params: ConcurrentParams | None = None, name: str = "concurrent") -> Mission:
-    spec = MissionSpec(seed=seed)
+            params: ConcurrentParams | None = None, name: str = "concurrent",
+            spec: MissionSpec | None = None) -> Mission:
+    spec = spec or MissionSpec(seed=seed)
     x0 = hover_state(np.array(spec.start), spec.dynamics)
     planners = build_planners(spec, {1: "rrt+du", 2: "fast"})
     config = config_for(spec, name, fire=QUIET, concurrent=params or ConcurrentParams())
