@@ -207,8 +207,13 @@ def test_the_margin_widens_what_plans_keep_not_what_the_flight_is_judged_by() ->
     assert m == pytest.approx(1.5 * 3.7169 + 3.0, abs=1e-3)
     assert spec.d_safe_m == 20.0 + m and spec.clearance_m == 25.0 + m
     assert spec.flight_d_safe_m == 20.0  # exactly
-    assert spec.with_tracking_margin(0.0) == replace(MissionSpec(),
-                                                     measurement_tol=spec.measurement_tol)
+    # the velocity tube (re-anchoring's, ConcurrentParams.reanchor_tol): the Rayleigh p99.9
+    # of the 0.05 m/s velocity error plus the flight's own 3.5 m/s; the position margin does
+    # not touch it
+    assert spec.tracking_margin_mps == pytest.approx(0.05 * 3.7169 + 3.5, abs=1e-3)
+    assert spec.with_tracking_margin(0.0) == replace(
+        MissionSpec(), measurement_tol=spec.measurement_tol,
+        tracking_margin_mps=spec.tracking_margin_mps)
     set_by_hand = configured(plant="multirotor", tracking_margin_m="3")
     assert set_by_hand.spec().d_safe_m == 23.0 and set_by_hand.spec().clearance_m == 28.0
     with pytest.raises(ValueError, match="tracking_margin_m"):
