@@ -74,17 +74,16 @@ mission: setup
 proto: setup
 	$(BIN)/python -m services.protogen --clean
 
-# every tier (unit, integration, e2e; tests/conftest.py) on pytest-xdist's workers, the slowest
-# 25 listed at the end: the integration and e2e tests in E2E_LANES lanes of one test at a time,
-# the unit tests beside them in a lane of their own at the lowest CPU priority (nice 19:
-# tests/support/parallel.py); TEST_WORKERS is E2E_LANES + 1. TEST_WORKERS=0 runs every test
-# one at a time in one process (on a machine kept busy by other work, the unit lane waits).
+# every tier (unit, integration, e2e; tests/conftest.py): the integration and e2e tests one at a
+# time, their 25 slowest listed at the end, and the unit tests beside them in a second pytest
+# process at the lowest CPU priority (nice 19; scripts/test_lanes.sh, docs/testing.md).
+# TEST_WORKERS=N runs every tier on N pytest-xdist workers instead (tests/support/parallel.py).
 E2E_LANES ?= 1
 export E2E_LANES
-TEST_WORKERS ?= $(shell echo $$(($(E2E_LANES) + 1)))
+TEST_WORKERS ?= 0
 PARALLEL = $(if $(filter-out 0,$(TEST_WORKERS)),-n $(TEST_WORKERS) --dist loadgroup --no-loadscope-reorder,)
 test: setup browser
-	$(BIN)/python -m pytest -q --durations=25 $(PARALLEL)
+	$(if $(PARALLEL),$(BIN)/python -m pytest -q --durations=25 $(PARALLEL),scripts/test_lanes.sh)
 
 # the inner loop: the unit tier without its slow tests (under 2 min)
 test-fast: setup

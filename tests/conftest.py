@@ -43,7 +43,7 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
             continue
         if rel.parts[0] in TIERS:
             item.add_marker(getattr(pytest.mark, rel.parts[0]))
-    if getattr(config.option, "numprocesses", None):  # on xdist's workers (TEST_WORKERS)
+    if parallel.on_workers(config):  # TEST_WORKERS: on the controller and every worker
         items[:] = parallel.assign(items, root)
 
 

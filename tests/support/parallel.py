@@ -82,6 +82,14 @@ def lanes(units: list[str]) -> dict[str, str]:
     return out
 
 
+def on_workers(config: pytest.Config) -> bool:
+    """Whether this run spreads its tests over xdist's workers: on the controller ``-n``
+    says so; on a worker xdist clears ``-n`` and leaves ``workerinput``. The lanes must be
+    marked where the tests are collected, on every worker."""
+    return bool(getattr(config.option, "numprocesses", None)) or hasattr(config,
+                                                                         "workerinput")
+
+
 def assign(items: list[pytest.Item], root: Path) -> list[pytest.Item]:
     """Mark every test's lane (its xdist group) and order them: the stack lanes' units
     longest first, then the unit lane in the collection's order."""

@@ -69,6 +69,24 @@ def test_two_stack_lanes_take_the_longest_units_apart() -> None:
                    "integration/test_uavsim.py": "stack-lane-0"}
 
 
+class Config:
+    """What :func:`parallel.on_workers` reads of pytest's configuration."""
+
+    def __init__(self, numprocesses: int | None, worker: bool) -> None:
+        self.option = type("Option", (), {"numprocesses": numprocesses})()
+        if worker:
+            self.workerinput = {"workerid": "gw0"}
+
+
+def test_the_lanes_are_marked_on_the_controller_and_on_every_worker() -> None:
+    """xdist clears ``-n`` on its workers (``numprocesses = None``), where the tests are
+    collected: the lanes must be marked there too, or every test is a scope of its own."""
+    assert parallel.on_workers(Config(2, worker=False))  # type: ignore[arg-type]
+    assert parallel.on_workers(Config(None, worker=True))  # type: ignore[arg-type]
+    assert not parallel.on_workers(Config(None, worker=False))  # type: ignore[arg-type]
+    assert not parallel.on_workers(Config(0, worker=False))  # type: ignore[arg-type]
+
+
 YIELD = """
 import os, sys
 sys.path.insert(0, {root!r})
