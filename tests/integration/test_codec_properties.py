@@ -167,9 +167,13 @@ def ok_regions(rs: tuple[Rect, ...]) -> None:
 
 
 def ok_state(x: np.ndarray) -> None:
-    assert x.shape == (4,) and np.all(np.isfinite(x))
+    """[p_e, p_n, v_e, v_n], or with ``dim`` = 3 [p_e, p_n, p_up, v_e, v_n, v_up]."""
+    assert x.shape in ((4,), (6,)) and np.all(np.isfinite(x))
+    dim = x.shape[0] // 2
     assert np.all(np.abs(x[:2]) <= limits.MAX_ABS_M)
-    assert np.all(np.abs(x[2:]) <= limits.MAX_SPEED_MPS)
+    if dim == 3:
+        assert 0.0 <= x[2] <= limits.MAX_ALTITUDE_M
+    assert np.all(np.abs(x[dim:]) <= limits.MAX_SPEED_MPS)
 
 
 def ok_plan_request(q: plan_convert.PlanQuery | plan_convert.Prepare) -> None:
