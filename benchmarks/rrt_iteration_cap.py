@@ -84,9 +84,9 @@ def main(n: int) -> None:
     # Plain Alg. 1 (no corridor guidance) and ours (guided after the paper's 500 samples). A
     # run with a smaller cap is a prefix of the 20 000 run in both: the guidance starts at
     # sample 500 whatever the cap.
-    cap_table(n, RrtParams(max_iterations=20_000, max_wall_s=60.0, try_direct=False,
+    cap_table(n, RrtParams(max_iterations=20_000, max_cpu_s=60.0, try_direct=False,
                            guide_after=20_000), "plain")
-    cap_table(n, RrtParams(max_iterations=20_000, max_wall_s=60.0, try_direct=False), "guided")
+    cap_table(n, RrtParams(max_iterations=20_000, max_cpu_s=60.0, try_direct=False), "guided")
     # System1.plan with the defaults, first plan from a hover state
     times: list[float] = []
     statuses: dict[str, int] = {}

@@ -67,7 +67,7 @@ _3d_done = False
 def warm_up_3d() -> float:
     """The 3-D kernels once a process (a no-op after the first call), after :func:`warm_up`;
     seconds taken. Without it a 3-D mission's first plan would compile them inside System 1's
-    wall cap (``RrtParams.max_wall_s``) and could end early on a slow machine."""
+    CPU cap (``RrtParams.max_cpu_s``) and could end early on a slow machine."""
     global _3d_done
     with _lock:
         if _3d_done:

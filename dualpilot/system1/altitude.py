@@ -81,10 +81,10 @@ def plan_in_band(start: Array, prisms: Sequence[Prism], rng: np.random.Generator
     clearance from every prism, by the reading ``altitude`` (module docstring).
 
     Edges leaving the start keep d_safe at least (an escape, as in the plane); the slice
-    and the tree share ``params.max_wall_s``. ValueError
+    and the tree share ``params.max_cpu_s``. ValueError
     as :func:`dualpilot.system1.rrt3.plan_path3` says; an unknown reading is one too.
     """
-    t0 = time.perf_counter()
+    t0, cpu0 = time.perf_counter(), time.thread_time()
     if altitude not in ("slice-first", "volume"):
         raise ValueError(f"s1_altitude must be 'slice-first' or 'volume', not {altitude!r}")
     p = np.asarray(start, dtype=float)
@@ -95,9 +95,9 @@ def plan_in_band(start: Array, prisms: Sequence[Prism], rng: np.random.Generator
             return sliced
     if risk is not None:  # zones timed along planar paths: no risk-aware plan leaves the slice
         return sliced or RrtResult(None, "risk_planar", 0, time.perf_counter() - t0)
-    left = params.max_wall_s - (time.perf_counter() - t0)  # one wall cap for slice and tree
+    left = params.max_cpu_s - (time.thread_time() - cpu0)  # one CPU cap for slice and tree
     res = plan_path3(p, spec.goal_box, prisms, rng, spec.clearance_m, spec.area_size_m,
-                     spec.band, replace(params, max_wall_s=max(left, 1e-3)),
+                     spec.band, replace(params, max_cpu_s=max(left, 1e-3)),
                      start_clearance_m=spec.d_safe_m, checker=checker)
     if sliced is not None:  # the slice's samples and time count
         return RrtResult(res.path, res.status, sliced.iterations + res.iterations,

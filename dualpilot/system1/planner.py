@@ -57,7 +57,7 @@ class System1Params:
     """Sec. IV-A values (step 15 m, Q = 2·I, R = 0.1·I, T = 80) and our readings.
 
     ``max_iterations`` is 2000 instead of the paper's 500 (see
-    :class:`dualpilot.system1.rrt.RrtParams`); ``max_wall_s`` bounds the RRT's time.
+    :class:`dualpilot.system1.rrt.RrtParams`); ``max_cpu_s`` bounds the RRT's CPU time (s).
     ``ref_speed_mps`` is the speed along the path (≤ 15 m/s per axis holds
     for any heading); ``speed_retries`` halvings are tried when the tracked
     trajectory fails verification at the spec's d_safe. The clearance of
@@ -79,7 +79,7 @@ class System1Params:
     q_lqr: float = 2.0
     r_lqr: float = 0.1
     goal_bias: float = 0.05
-    max_wall_s: float = 2.0
+    max_cpu_s: float = 2.0
     speed_retries: int = 2
     feedforward: bool = True
     accel_mps2: float = 3.0
@@ -112,7 +112,7 @@ class System1Params:
     def rrt_params(self) -> RrtParams:
         return RrtParams(
             step_size_m=self.step_size_m, max_iterations=self.max_iterations,
-            goal_bias=self.goal_bias, max_wall_s=self.max_wall_s,
+            goal_bias=self.goal_bias, max_cpu_s=self.max_cpu_s,
             shortcut=self.shortcut, aim_goal_center=self.aim_goal_center,
             reach_check=self.reach_check,
         )

@@ -39,7 +39,10 @@ class RrtParams:
     ``max_iterations`` defaults to 2000 rather than the paper's 500: on
     random fire fields of Sec. IV-A with a path to G, 500 samples failed on
     19 % of instances and 2000 on 0.6 % (median 311, p95 ≈ 1130 iterations;
-    README, "System 1's iteration cap"). ``max_wall_s`` is a safety cap.
+    README, "System 1's iteration cap"). ``max_cpu_s`` is a safety cap on the planning
+    thread's CPU time (s, ``time.thread_time``), not wall time: a search ends where it
+    would on an idle machine however loaded the machine is, so a mission is the same
+    mission under load (the in-process loop, the stack and the tests).
     ``reach_check`` runs the grid test of :mod:`dualpilot.system1.reach` on cells of
     ``reach_cell_m`` before the tree is grown; ``sample_reachable`` then
     draws area samples from the start's possibly-free component only.
@@ -48,7 +51,7 @@ class RrtParams:
     step_size_m: float = 15.0
     max_iterations: int = 2000
     goal_bias: float = 0.05
-    max_wall_s: float = 2.0
+    max_cpu_s: float = 2.0
     shortcut: bool = True
     aim_goal_center: bool = True
     try_direct: bool = True
@@ -60,9 +63,9 @@ class RrtParams:
     guide_window: int = 5
 
     def __post_init__(self) -> None:
-        if not (self.step_size_m > 0 and self.max_iterations >= 1 and self.max_wall_s > 0
+        if not (self.step_size_m > 0 and self.max_iterations >= 1 and self.max_cpu_s > 0
                 and self.reach_cell_m > 0 and self.guide_after >= 1 and self.guide_window >= 1):
-            raise ValueError("step_size_m, max_iterations, max_wall_s, reach_cell_m, "
+            raise ValueError("step_size_m, max_iterations, max_cpu_s, reach_cell_m, "
                              "guide_after and guide_window must be > 0")
         if not (0.0 <= self.goal_bias <= 1.0 and 0.0 <= self.guide_share <= 1.0):
             raise ValueError("goal_bias and guide_share in [0, 1] are required")
@@ -321,7 +324,8 @@ class _Query:
     """One :func:`plan_path` call: the validated start ``p`` and what every stage needs.
 
     ``root_clearance_m`` is what edges leaving the start keep (m); ``t0`` the
-    call's start (``time.perf_counter``).
+    call's start (``time.perf_counter``), ``cpu0`` its thread's CPU time then
+    (``time.thread_time``, s), from which ``params.max_cpu_s`` counts.
     """
 
     p: Array
@@ -334,6 +338,7 @@ class _Query:
     params: RrtParams
     risk: ArcRisk | None
     t0: float
+    cpu0: float
 
     def result(self, status: str, iterations: int) -> RrtResult:
         """No path: ``status`` after ``iterations`` samples."""
@@ -379,13 +384,14 @@ class _OmplRrt:
         self.validator, self.sampler, self.pdef, self.rrt = validator, sampler, pdef, rrt
 
     def grow(self, samples: int) -> bool:
-        """Run RRT on the same tree until G is reached, ``samples`` samples or the wall cap.
+        """Run RRT on the same tree until G is reached, ``samples`` samples or the CPU cap.
 
-        The wall-clock cap is OMPL's own (no Python call per iteration); the
-        sampler ends the solve itself once it has drawn ``samples`` samples.
+        OMPL asks the termination condition once per iteration, on this thread: it
+        compares the thread's CPU time with the query's ``max_cpu_s``. The sampler
+        ends the solve itself once it has drawn ``samples`` samples.
         """
-        left = self._q.params.max_wall_s - (time.perf_counter() - self._q.t0)
-        ptc = ob.timedPlannerTerminationCondition(max(left, 1e-6))
+        cpu_end = self._q.cpu0 + self._q.params.max_cpu_s
+        ptc = ob.PlannerTerminationCondition(lambda: time.thread_time() > cpu_end)
         self.sampler.stop_after(samples, ptc)
         status = self.rrt.solve(ptc)
         return bool(status.getStatus() == ob.PlannerStatus.EXACT_SOLUTION)
@@ -503,12 +509,12 @@ def plan_path(
     outside the area, or a start nearer than ``start_clearance_m`` to a hull.
     No path within the caps is a result (``path is None``), not an error.
     """
-    t0 = time.perf_counter()
+    t0, cpu0 = time.perf_counter(), time.thread_time()
     p = _validate(start, goal, area_size_m)
     checker = SegmentChecker(hulls) if checker is None else checker
     root_clearance = _root_clearance(p, checker, clearance_m, start_clearance_m)
     q = _Query(p, goal, hulls, checker, clearance_m, root_clearance, area_size_m, params,
-               risk, t0)
+               risk, t0, cpu0)
     direct = _direct(q)
     if direct is not None:
         return direct

@@ -233,7 +233,7 @@ def _query(start: Array, goal: GoalBox, prisms: Sequence[Prism], band: AltitudeB
            clearance_m: float, area_size_m: float, params: RrtParams,
            start_clearance_m: float | None, checker: SegmentChecker3 | None) -> Query3:
     """The validated :class:`Query3` (ValueError as :func:`plan_path3` says)."""
-    t0 = time.perf_counter()
+    t0, cpu0 = time.perf_counter(), time.thread_time()
     p = _validate3(start, goal, band, area_size_m)
     checker = SegmentChecker3(prisms) if checker is None else checker
     if clearance_m < 0:
@@ -246,7 +246,7 @@ def _query(start: Array, goal: GoalBox, prisms: Sequence[Prism], band: AltitudeB
     root = min(clearance_m, d_start)
     blockers = band_blockers(prisms, band)
     planar = _Query(p[:2].copy(), goal.rect, blockers, SegmentChecker(blockers), clearance_m,
-                    root, area_size_m, params, None, t0)
+                    root, area_size_m, params, None, t0, cpu0)
     return Query3(p, goal, band, checker, tuple(prisms), clearance_m, root, planar)
 
 

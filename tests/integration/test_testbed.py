@@ -30,6 +30,7 @@ from services.testbed.bed import TestBed
 from services.testbed.impairment import Impairment
 from services.testbed.topology import LinkSpec, Topology, owner
 from tests.support.testbed import SKIP_PREFIX
+from tests.support.waits import wait_for
 
 REPO = Path(__file__).resolve().parents[2]
 NOBODY = ["setpriv", "--reuid=65534", "--regid=65534", "--clear-groups"]
@@ -65,7 +66,10 @@ def test_a_process_started_in_a_host_runs_there_and_stops_with_the_bed(tmp_path:
     with TestBed(logs=tmp_path) as bed:
         proc = bed.host("ground").start("sleeper", [sys.executable, "-c",
                                                     "import time; time.sleep(600)"])
-        assert proc.popen.pid in [int(p) for p in netns.pids(bed.host("ground").netns)]
+        # ``ip netns exec`` enters the namespace after the fork: the pid is listed once it has
+        wait_for(lambda: proc.popen.pid in netns.pids(bed.host("ground").netns), 10.0,
+                 "the sleeper's pid among the ground namespace's",
+                 last=lambda: netns.pids(bed.host("ground").netns))
     assert proc.popen.returncode is not None and mine(bed) == []
 
 

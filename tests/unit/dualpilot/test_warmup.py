@@ -1,5 +1,5 @@
 """dualpilot.warmup: after it, flying missions compiles nothing (no first plan waits for Numba);
-after :func:`~dualpilot.warmup.warm_up_3d`, 3-D missions neither (System 1's wall cap would
+after :func:`~dualpilot.warmup.warm_up_3d`, 3-D missions neither (System 1's CPU cap would
 otherwise count the compilation of the 3-D kernels)."""
 
 from __future__ import annotations

@@ -39,7 +39,7 @@ def test_gap_widths_worked_by_hand(gap_m: float, proved: bool) -> None:
 
 def test_a_wide_gap_is_really_passable() -> None:
     result = plan_path(START, GOAL, wall_with_gap(60.0), np.random.default_rng(1), 25.0, AREA,
-                       RrtParams(max_iterations=20_000, max_wall_s=30.0))
+                       RrtParams(max_iterations=20_000, max_cpu_s=30.0))
     assert result.found
 
 

@@ -176,7 +176,7 @@ def test_goal_covered_by_fire_is_a_result_not_an_error() -> None:
     assert result.path is None and not result.found
     assert result.status == "iteration_cap" and result.iterations == 300
     timed = plan_path(START, GOAL, hulls, np.random.default_rng(0), CLEAR, AREA,
-                      RrtParams(max_iterations=10_000, max_wall_s=1e-9, reach_check=False))
+                      RrtParams(max_iterations=10_000, max_cpu_s=1e-9, reach_check=False))
     assert timed.status == "time_cap" and timed.path is None
 
 
