@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import io
 import math
+import os
 import signal
 import subprocess
 import sys
@@ -41,6 +42,9 @@ SEED = 26
 #: sees most steps and fires (41 of the 56 steps in one run; the test asks for 10)
 SPEED = 20.0
 FIGURES = REPO / "docs" / "figures"
+#: set to 1 to refresh docs/figures' screenshots from this run (each run keeps its own in its
+#: run directory either way, so a test run leaves the checkout as it found it)
+REFRESH_DOCS = "DUALPILOT_REFRESH_DOCS_FIGURES"
 #: the page's fills (services/viewer/page.py): each fire region #ff4019 at opacity 0.55 and the
 #: goal #1fcc4d at 0.35, over a white background. One fire region over white shows
 #: 0.55 × (255, 64, 25) + 0.45 × 255 = (255, 150, 129); two overlapping ones (255, 103, 72);
@@ -184,13 +188,20 @@ def watch_live(browser: Browser, stack: launch.Stack, w: Watched) -> None:
     w.outcome = result.get("outcome", launch.Outcome(False, message="follow raised"))
 
 
+def keep_figure(w: Watched, name: str, png: bytes) -> None:
+    """``png`` as ``name`` in the run directory, and in docs/figures with :data:`REFRESH_DOCS`."""
+    (w.run_dir / name).write_bytes(png)
+    if os.environ.get(REFRESH_DOCS) == "1":
+        (FIGURES / name).write_bytes(png)
+
+
 def save_live_figure(w: Watched) -> None:
-    """docs/figures/web_view_live.png: of the moments with fires, the one nearest mid-mission
-    (a trail behind the vehicle, its plan ahead)."""
+    """web_view_live.png: of the moments with fires, the one nearest mid-mission (a trail
+    behind the vehicle, its plan ahead)."""
     if w.docs_shots:
         mid = max(s["step"][0] for s in w.samples) / 2
         best = min(w.docs_shots, key=lambda d: abs(d.sample["step"][0] - mid))
-        (FIGURES / "web_view_live.png").write_bytes(best.png)
+        keep_figure(w, "web_view_live.png", best.png)
 
 
 def watch_replay(browser: Browser, w: Watched) -> None:
@@ -217,7 +228,7 @@ def watch_replay(browser: Browser, w: Watched) -> None:
         page.wait_for_function(f"() => Bokeh.documents[0].get_model_by_name('vehicles')"
                                f".data.x[0] == {w.replay['last']['x'][0]}", timeout=20_000)
         time.sleep(0.5)
-        page.screenshot(path=str(FIGURES / "web_view_replay.png"))
+        keep_figure(w, "web_view_replay.png", page.screenshot())
         w.replay["port"] = port
         page.close()
     finally:
