@@ -12,10 +12,13 @@ Every test runs in a lane: an xdist group, so one worker and one test at a time.
   CPU priority to :data:`UNIT_NICE` at its first test (:func:`yield_cpu`). It takes the
   cycles the stack lane leaves idle (a serial run of the stack tiers uses ~0.9 of a core on
   average), not the time the stack's processes need: no unit test checks a duration
-  (docs/testing.md). Two e2e stacks side by side fail wall-clock checks on 2 cores
-  (docs/testing.md), and so did one stack beside the unit tests at the same priority.
+  (docs/testing.md).
 
-``make test`` runs ``E2E_LANES + 1`` workers; :func:`assign` marks and orders the lanes.
+With the pytest this project pins, xdist's loadgroup does not keep these groups
+(docs/testing.md: pytest-xdist issue #1386); ``make test`` runs two pytest processes instead
+(scripts/test_lanes.sh).
+
+``TEST_WORKERS=N make test`` runs N workers; :func:`assign` marks and orders the lanes.
 """
 
 from __future__ import annotations
