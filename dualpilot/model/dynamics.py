@@ -13,7 +13,6 @@ from functools import lru_cache
 from typing import Literal, get_args
 
 import numpy as np
-from numba import njit
 
 from dualpilot.arrays import AnyArray, Array
 
@@ -193,22 +192,7 @@ def reach_boxes(x0: Array, horizon: int, dyn: DynamicsParams) -> tuple[Array, Ar
     x = np.asarray(x0, dtype=float)
     if x.shape != (dyn.state_dim,):
         raise ValueError(f"state must have shape ({dyn.state_dim},), got {x.shape}")
-    return _reach(x, int(horizon), dyn.dim, 1.0 - dyn.zeta,
-                  dyn.dt_s / dyn.mass_kg * dyn.u_max_n, float(dyn.v_max_mps), float(dyn.dt_s))
+    from dualpilot.model.reach_kernel import reach  # numba only where a plan needs it
 
-
-@njit(cache=True)
-def _reach(x0: Array, horizon: int, dim: int, keep: float, acc: float, vmax: float,
-           dt: float) -> tuple[Array, Array]:
-    lo, hi = np.empty((horizon, dim)), np.empty((horizon, dim))
-    for a in range(dim):
-        v_hi = v_lo = x0[dim + a]
-        p_hi = p_lo = x0[a] + dt * v_hi
-        lo[0, a], hi[0, a] = p_lo, p_hi
-        for k in range(1, horizon):
-            v_hi = min(keep * v_hi + acc, vmax)
-            v_lo = max(keep * v_lo - acc, -vmax)
-            p_hi = p_hi + dt * v_hi
-            p_lo = p_lo + dt * v_lo
-            lo[k, a], hi[k, a] = p_lo, p_hi
-    return lo, hi
+    return reach(x, int(horizon), dyn.dim, 1.0 - dyn.zeta,
+                 dyn.dt_s / dyn.mass_kg * dyn.u_max_n, float(dyn.v_max_mps), float(dyn.dt_s))

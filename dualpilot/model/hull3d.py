@@ -30,7 +30,8 @@ from numpy.typing import ArrayLike
 from scipy.spatial import ConvexHull, QhullError
 
 from dualpilot.arrays import Array
-from dualpilot.model.prism import Prism, segment_meets, segment_segment_d2
+from dualpilot.model.prism import Prism, segment_meets
+from dualpilot.model.segment_kernels import segment_segment_d2
 
 #: Two of Qhull's facet planes are one face when their (α, β) agree to this (unit α; m).
 _SAME_PLANE = 1e-9

@@ -32,15 +32,11 @@ from dataclasses import dataclass
 from functools import cached_property
 
 import numpy as np
-from numba import njit
 from numpy.typing import ArrayLike
 
 from dualpilot.arrays import Array
 from dualpilot.model.altitude import AltitudeBand
 from dualpilot.model.geometry import Polytope, Rect
-
-#: Segments whose direction's squared length is below this (m²) are points.
-_DEGENERATE_M2 = 1e-18
 
 
 @dataclass(frozen=True, eq=False)
@@ -179,8 +175,10 @@ class Prism:
             return self.base.segment_distance(a[:2], c[:2])
         if segment_meets(self.A, self.b, a, c - a):
             return 0.0
+        from dualpilot.model.segment_kernels import edges_d2
+
         starts, vecs = self.edges
-        d2 = _edges_d2(a, c - a, starts, vecs)
+        d2 = edges_d2(a, c - a, starts, vecs)
         return math.sqrt(min(d2, self.distance(a) ** 2, self.distance(c) ** 2))
 
 
@@ -255,50 +253,6 @@ def segment_meets(a_mat: Array, b: Array, p0: Array, d: Array) -> bool:
         if t_lo > t_hi:
             return False
     return True
-
-
-@njit(cache=True)
-def segment_segment_d2(p: Array, d: Array, q: Array, e: Array) -> float:
-    """Squared distance (m²) between the segments p + s·d and q + t·e, s, t ∈ [0, 1].
-
-    The closest pair of the two lines, clamped to the segments (Ericson, *Real-Time
-    Collision Detection*, 2005, §5.1.9); a degenerate segment is its point, and parallel
-    segments take s = 0 first (their distance is attained at an endpoint).
-    """
-    r0, r1, r2 = p[0] - q[0], p[1] - q[1], p[2] - q[2]
-    a = d[0] * d[0] + d[1] * d[1] + d[2] * d[2]
-    c_e = e[0] * e[0] + e[1] * e[1] + e[2] * e[2]
-    f = e[0] * r0 + e[1] * r1 + e[2] * r2
-    if a <= _DEGENERATE_M2 and c_e <= _DEGENERATE_M2:
-        s, t = 0.0, 0.0
-    elif a <= _DEGENERATE_M2:
-        s, t = 0.0, min(1.0, max(0.0, f / c_e))
-    else:
-        c = d[0] * r0 + d[1] * r1 + d[2] * r2
-        if c_e <= _DEGENERATE_M2:
-            s, t = min(1.0, max(0.0, -c / a)), 0.0
-        else:
-            b = d[0] * e[0] + d[1] * e[1] + d[2] * e[2]
-            denom = a * c_e - b * b
-            s = min(1.0, max(0.0, (b * f - c * c_e) / denom)) if denom > 1e-14 * a * c_e else 0.0
-            t = (b * s + f) / c_e
-            if t < 0.0:
-                t, s = 0.0, min(1.0, max(0.0, -c / a))
-            elif t > 1.0:
-                t, s = 1.0, min(1.0, max(0.0, (b - c) / a))
-    x = r0 + s * d[0] - t * e[0]
-    y = r1 + s * d[1] - t * e[1]
-    z = r2 + s * d[2] - t * e[2]
-    return x * x + y * y + z * z
-
-
-@njit(cache=True)
-def _edges_d2(p: Array, d: Array, starts: Array, vecs: Array) -> float:
-    """The least squared distance (m²) from the segment p + s·d to the edges (rows)."""
-    best = np.inf
-    for j in range(len(starts)):
-        best = min(best, segment_segment_d2(p, d, starts[j], vecs[j]))
-    return best
 
 
 def prism_clearance(points: ArrayLike, prisms: Sequence[Prism]) -> float:

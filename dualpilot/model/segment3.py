@@ -11,7 +11,7 @@ planar hull over [z_lo, z_hi], the fires' cuboids and hulls in 3-D) what
    bit** (a cuboid taller than the band seen from a UAV in the band: the top-down case);
 3. any other segment: 0 when it meets the prism (Cyrus–Beck on its k + 2 faces), else the
    least of its endpoints' distances and its distances to the prism's 3k edges
-   (:func:`~dualpilot.model.prism.segment_segment_d2`), as
+   (:func:`~dualpilot.model.segment_kernels.segment_segment_d2`), as
    :meth:`~dualpilot.model.prism.Prism.segment_distance` does.
 
 Lengths m; points (n, 3).
@@ -23,25 +23,23 @@ from collections.abc import Sequence
 from functools import cached_property
 
 import numpy as np
-from numba import njit
 
 from dualpilot.arrays import AnyArray, Array
 from dualpilot.model.geometry import (
     _HullEdges,
     _point_polygon_distance2,
-    _pseg_d2,  # the planar operations, so the planar numbers are the same
     _segment_near_polygon,
 )
-from dualpilot.model.prism import Prism, segment_segment_d2
-
-#: Below this |α·d| a face is parallel to the segment (as in prism.segment_meets).
-_PARALLEL = 1e-12
+from dualpilot.model.prism import Prism
 
 
 class SegmentChecker3:
     """Exact distances from 3-D segments and points to a set of prisms (module docstring)."""
 
     def __init__(self, prisms: Sequence[Prism]):
+        from dualpilot.model.segment_kernels import one_prism_d2, prism_distances
+
+        self._one_prism_d2, self._prism_distances = one_prism_d2, prism_distances
         self.prisms = tuple(prisms)
         self.n_prisms = len(self.prisms)
         lo = [p.box[0] for p in self.prisms]
@@ -88,7 +86,7 @@ class SegmentChecker3:
         b = np.ascontiguousarray(np.atleast_2d(np.asarray(p1, dtype=float)))
         if not self.prisms:
             return np.full(len(a), np.inf)
-        return _prism_distances(a, b, *self._kernel_args())
+        return self._prism_distances(a, b, *self._kernel_args())
 
     def clear(self, p0: Array, p1: Array, need_m: float) -> Array:
         """Whether each segment p0[i]–p1[i] keeps ``need_m`` from every prism (bool (n,))."""
@@ -130,8 +128,8 @@ class SegmentChecker3:
             if zlo <= lo[2] and hi[2] <= zhi:  # within its altitudes: the planar test
                 if _segment_near_polygon(x0, y0, x1, y1, faces, self._verts[k], need_m):
                     return False
-            elif _one_prism_d2(np.array([x0, y0, z0]), np.array([x1, y1, z1]), k,
-                               *self._kernel_args()) < need2:
+            elif self._one_prism_d2(np.array([x0, y0, z0]), np.array([x1, y1, z1]), k,
+                                    *self._kernel_args()) < need2:
                 return False
         return True
 
@@ -169,128 +167,3 @@ def prism_path_clearance(points: Array, prisms: Sequence[Prism]) -> float:
     if not prisms:
         return float("inf")
     return SegmentChecker3(prisms).path_clearance(points)
-
-
-@njit(cache=True)
-def _planar(p0: Array, p1: Array, fs: int, fe: int, ax: Array, ay: Array, dx: Array,
-            dy: Array, inv_len2: Array, nx: Array, ny: Array, offsets: Array) -> tuple[float, bool]:
-    """(least squared distance, contact) of the planar segment to one hull's edges fs..fe−1:
-    geometry._hull_distances for one hull."""
-    x0, y0, x1, y1 = p0[0], p0[1], p1[0], p1[1]
-    sx, sy = x1 - x0, y1 - y0
-    slen2 = sx * sx + sy * sy
-    inv = 1.0 / (slen2 if slen2 > 0 else 1.0)
-    best = np.inf
-    hit = False
-    for j in range(fs, fe):
-        d2 = min(_pseg_d2(x0, y0, ax[j], ay[j], dx[j], dy[j], inv_len2[j]),
-                 _pseg_d2(x1, y1, ax[j], ay[j], dx[j], dy[j], inv_len2[j]))
-        d2 = min(d2, _pseg_d2(ax[j], ay[j], x0, y0, sx, sy, inv))
-        if d2 < best:
-            best = d2
-        o1 = sx * (ay[j] - y0) - sy * (ax[j] - x0)
-        o2 = sx * (ay[j] + dy[j] - y0) - sy * (ax[j] + dx[j] - x0)
-        o3 = dx[j] * (y0 - ay[j]) - dy[j] * (x0 - ax[j])
-        o4 = dx[j] * (y1 - ay[j]) - dy[j] * (x1 - ax[j])
-        if (o1 * o2) < 0 and (o3 * o4) < 0:
-            hit = True
-    worst = -np.inf
-    for j in range(fs, fe):
-        slack = x0 * nx[j] + y0 * ny[j] - offsets[j]
-        if slack > worst:
-            worst = slack
-    if worst <= 0.0:
-        hit = True
-    return best, hit
-
-
-@njit(cache=True)
-def _meets(p0: Array, p1: Array, fs: int, fe: int, nx: Array, ny: Array, offsets: Array,
-           zlo: float, zhi: float) -> bool:
-    """Cyrus–Beck: does the segment meet the prism (base faces fs..fe−1, top, bottom)?"""
-    d0, d1, d2 = p1[0] - p0[0], p1[1] - p0[1], p1[2] - p0[2]
-    t_lo, t_hi = 0.0, 1.0
-    for j in range(fs, fe + 2):
-        if j < fe:
-            num = offsets[j] - (nx[j] * p0[0] + ny[j] * p0[1])
-            den = nx[j] * d0 + ny[j] * d1
-        elif j == fe:
-            num, den = zhi - p0[2], d2
-        else:
-            num, den = p0[2] - zlo, -d2
-        if abs(den) < _PARALLEL:
-            if num < 0:
-                return False
-            continue
-        t = num / den
-        if den > 0:
-            t_hi = min(t_hi, t)
-        else:
-            t_lo = max(t_lo, t)
-        if t_lo > t_hi:
-            return False
-    return True
-
-
-@njit(cache=True)
-def _point_d2(p: Array, fs: int, fe: int, ax: Array, ay: Array, dx: Array, dy: Array,
-              inv_len2: Array, nx: Array, ny: Array, offsets: Array, zlo: float,
-              zhi: float) -> float:
-    """Squared distance (m²) from the 3-D point p to one prism."""
-    inside = True
-    for j in range(fs, fe):
-        if p[0] * nx[j] + p[1] * ny[j] - offsets[j] > 0.0:
-            inside = False
-            break
-    d2 = 0.0
-    if not inside:
-        d2 = np.inf
-        for j in range(fs, fe):
-            d2 = min(d2, _pseg_d2(p[0], p[1], ax[j], ay[j], dx[j], dy[j], inv_len2[j]))
-    dz = max(0.0, zlo - p[2], p[2] - zhi)
-    return d2 + dz * dz
-
-
-@njit(cache=True)
-def _one_prism_d2(p0: Array, p1: Array, k: int, ax: Array, ay: Array, dx: Array, dy: Array,
-                  inv_len2: Array, nx: Array, ny: Array, offsets: Array, starts: AnyArray,
-                  zlo: Array, zhi: Array, e_start: Array, e_vec: Array,
-                  e_first: AnyArray) -> float:
-    """Squared distance (m²) from the segment p0–p1 to prism k (0 on contact)."""
-    h = len(starts)
-    fs = starts[k]
-    fe = starts[k + 1] if k + 1 < h else len(ax)
-    if zlo[k] <= p0[2] <= zhi[k] and zlo[k] <= p1[2] <= zhi[k]:
-        best, hit = _planar(p0, p1, fs, fe, ax, ay, dx, dy, inv_len2, nx, ny, offsets)
-        return 0.0 if hit else best
-    if _meets(p0, p1, fs, fe, nx, ny, offsets, zlo[k], zhi[k]):
-        return 0.0
-    d = p1 - p0
-    best = min(_point_d2(p0, fs, fe, ax, ay, dx, dy, inv_len2, nx, ny, offsets, zlo[k],
-                         zhi[k]),
-               _point_d2(p1, fs, fe, ax, ay, dx, dy, inv_len2, nx, ny, offsets, zlo[k],
-                         zhi[k]))
-    for j in range(e_first[k], e_first[k + 1]):
-        best = min(best, segment_segment_d2(p0, d, e_start[j], e_vec[j]))
-    return best
-
-
-@njit(cache=True)
-def _prism_distances(p0: Array, p1: Array, ax: Array, ay: Array, dx: Array, dy: Array,
-                     inv_len2: Array, nx: Array, ny: Array, offsets: Array, starts: AnyArray,
-                     zlo: Array, zhi: Array, e_start: Array, e_vec: Array,
-                     e_first: AnyArray) -> Array:
-    """Distance (m) from each segment p0[i]–p1[i] to the nearest prism (0 on contact)."""
-    n = len(p0)
-    out = np.empty(n)
-    for i in range(n):
-        best = np.inf
-        for k in range(len(starts)):
-            d2 = _one_prism_d2(p0[i], p1[i], k, ax, ay, dx, dy, inv_len2, nx, ny, offsets,
-                               starts, zlo, zhi, e_start, e_vec, e_first)
-            if d2 < best:
-                best = d2
-            if best == 0.0:
-                break
-        out[i] = np.sqrt(best)
-    return out

@@ -33,11 +33,8 @@ import numpy as np
 from numba import njit
 
 from dualpilot.arrays import Array
+from dualpilot.plant.layout import B3, STATE_LEN, VDOT, VINT, VPREV, P, T, V, W
 from dualpilot.plant.params import GRAVITY_MPS2, MultirotorParams
-
-#: Layout of the vehicle's state vector (see :func:`hover_vector`).
-P, V, B3, W, T, VINT, VPREV, VDOT = 0, 3, 6, 9, 12, 13, 16, 19
-STATE_LEN = 22
 
 
 def hover_vector(position: Array, velocity: Array, params: MultirotorParams) -> Array:

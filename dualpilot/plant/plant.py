@@ -20,7 +20,7 @@ import numpy as np
 
 from dualpilot.arrays import Array
 from dualpilot.model.dynamics import DynamicsParams, check_state, step
-from dualpilot.plant.multirotor import P, V, fly, hover_vector
+from dualpilot.plant.layout import P, V
 from dualpilot.plant.params import MultirotorParams
 from dualpilot.plant.sensors import GpsError, GpsParams
 from dualpilot.plant.setpoints import hermite_stream, segment_path, to_plant
@@ -135,6 +135,8 @@ class MultirotorPlant:
 
     def __init__(self, state: Array, dyn: DynamicsParams, rng: np.random.Generator,
                  params: PlantParams | None = None):
+        from dualpilot.plant.multirotor import hover_vector  # the compiled flight: here only
+
         params = params if params is not None else PlantParams(kind="multirotor")
         self.dyn = dyn
         self.params = params.multirotor
@@ -172,6 +174,8 @@ class MultirotorPlant:
         setpoint of its 20 Hz stream as it comes) under a stream of [p, v, a] setpoints
         (S, 9) at ``setpoint_hz``; the reference of the returned flight is the stream's
         positions, held."""
+        from dualpilot.plant.multirotor import fly as fly_multirotor  # compiled
+
         mr = self.params
         span = self.dyn.dt_s if duration_s is None else duration_s
         n = max(int(round(span * mr.rate_hz)), 1)
@@ -180,7 +184,7 @@ class MultirotorPlant:
         before = self.gps.error.copy()
         after = self.gps.sample(n, dt)
         seen = np.vstack([before[None, :], after[:-1]])
-        path = fly(self.x, setpoints, 1.0 / mr.setpoint_hz, wind, seen, mr)
+        path = fly_multirotor(self.x, setpoints, 1.0 / mr.setpoint_hz, wind, seen, mr)
         self._measured = self._measure()
         times = np.arange(n + 1, dtype=np.float64) * dt
         held = np.minimum((times * mr.setpoint_hz + 1e-9).astype(int), len(setpoints) - 1)

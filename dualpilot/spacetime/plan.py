@@ -17,8 +17,6 @@ import numpy as np
 from dualpilot.arrays import AnyArray, Array
 from dualpilot.model.dynamics import rollout
 from dualpilot.plan import Plan, PlanStatus
-from dualpilot.spacetime.field import no_field, static_field
-from dualpilot.spacetime.lattice import FOUND, astar, move_clear, reach_table
 from dualpilot.spec import MissionSpec
 
 #: the cells of the static distance field (m)
@@ -78,6 +76,8 @@ def arrival(plan: Plan, spec: MissionSpec) -> int | None:
 def plan_clear(plan: Plan, future: FutureBoxes, d: float, steps: int | None = None) -> bool:
     """Whether the plan's first ``steps`` flights (all: None) keep ``d`` from the boxes of their
     sub-steps (flights past the future's last step meet its last boxes)."""
+    from dualpilot.spacetime.lattice import move_clear  # compiled: loaded where a plan is checked
+
     pos = plan.states[:, :2]
     last = len(pos) - 1 if steps is None else min(steps, len(pos) - 1)
     k = future.per_step
@@ -102,6 +102,9 @@ def lattice_plan(state: Array, future: FutureBoxes, spec: MissionSpec, stage: St
     (:mod:`~dualpilot.spacetime.field`) sharpens the search's heuristic. With ``survive``
     > 0 the plan need not reach G: it keeps ``d`` for ``survive`` flights (an escape).
     """
+    from dualpilot.spacetime.field import no_field, static_field  # compiled: loaded here
+    from dualpilot.spacetime.lattice import FOUND, astar, move_clear, reach_table
+
     dyn = spec.dynamics
     n_vel = round(dyn.v_max_mps / stage.delta_mps)
     keep, acc = 1.0 - dyn.zeta, dyn.dt_s * dyn.u_max_n / dyn.mass_kg

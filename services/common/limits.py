@@ -16,7 +16,7 @@ from collections.abc import Iterable
 
 import numpy as np
 
-from dualpilot.model.dynamics import Array
+from dualpilot.arrays import Array
 from services.common.rejections import Reason, invalid
 
 MAX_ABS_M = 1.0e5  # positions and fire geometry (m)

@@ -13,7 +13,7 @@ import pytest
 _CHECK = r"""
 import json
 from numba.core.registry import CPUDispatcher
-import dualpilot.model.dynamics as d, dualpilot.model.geometry as g
+import dualpilot.model.hull_kernels as g, dualpilot.model.reach_kernel as d
 import dualpilot.system1.lqr as l, dualpilot.system2.fast.mehrotra as m
 from dualpilot.warmup import warm_up
 
@@ -41,8 +41,8 @@ def test_missions_after_the_warm_up_compile_nothing() -> None:
     out = subprocess.run([sys.executable, "-c", _CHECK], capture_output=True, text=True,
                          timeout=300, check=True)
     report = json.loads(out.stdout.strip().splitlines()[-1])
-    entry = ("dualpilot.model.geometry._monotone_chain", "dualpilot.model.geometry._faces",
-             "dualpilot.model.geometry._hull_distances", "dualpilot.model.dynamics._reach",
+    entry = ("dualpilot.model.hull_kernels.monotone_chain", "dualpilot.model.hull_kernels.faces",
+             "dualpilot.model.hull_kernels.hull_distances", "dualpilot.model.reach_kernel.reach",
              "dualpilot.system1.lqr._track_axes", "dualpilot.system1.lqr._norm_loop",
              "dualpilot.system1.lqr._arc_lengths", "dualpilot.system2.fast.mehrotra.mehrotra")
     for name in entry:  # every kernel a plan calls is ready
@@ -54,13 +54,13 @@ def test_missions_after_the_warm_up_compile_nothing() -> None:
 _CHECK_3D = r"""
 import json
 from numba.core.registry import CPUDispatcher
-import dualpilot.model.dynamics as d, dualpilot.model.geometry as g, dualpilot.model.prism as p
-import dualpilot.model.segment3 as s3
+import dualpilot.model.hull_kernels as g, dualpilot.model.reach_kernel as d
+import dualpilot.model.segment_kernels as s3
 import dualpilot.system1.lqr as l, dualpilot.system2.fast.mehrotra as m
 from dualpilot.warmup import warm_up_3d
 
 def counts():
-    return {f"{mod.__name__}.{k}": len(v.signatures) for mod in (g, d, p, s3, l, m)
+    return {f"{mod.__name__}.{k}": len(v.signatures) for mod in (g, d, s3, l, m)
             for k, v in vars(mod).items() if isinstance(v, CPUDispatcher)}
 
 warm_up_3d()
@@ -87,7 +87,8 @@ def test_3d_missions_after_the_3d_warm_up_compile_nothing() -> None:
                          timeout=300, check=True)
     report = json.loads(out.stdout.strip().splitlines()[-1])
     # the entry points a 3-D plan calls from Python (the kernels they call compile with them)
-    entry = ("dualpilot.model.segment3._one_prism_d2", "dualpilot.model.segment3._prism_distances")
+    entry = ("dualpilot.model.segment_kernels.one_prism_d2",
+             "dualpilot.model.segment_kernels.prism_distances")
     for name in entry:  # every 3-D kernel a plan calls is ready
         assert report["after"][name] >= 1, name
     assert min(report["steps"]) >= 10  # real missions flew

@@ -7,7 +7,8 @@ import pytest
 
 from dualpilot.model.altitude import AltitudeBand
 from dualpilot.model.geometry import Polytope, Rect, point_segment_d2
-from dualpilot.model.prism import Prism, prism_clearance, segment_segment_d2
+from dualpilot.model.prism import Prism, prism_clearance
+from dualpilot.model.segment_kernels import segment_segment_d2
 
 
 @pytest.fixture

@@ -18,7 +18,8 @@ import pytest
 _CHECK = r"""
 import json
 from numba.core.registry import CPUDispatcher
-import dualpilot.model.geometry as g, dualpilot.model.risk as r, dualpilot.spacetime.lattice as s
+import dualpilot.model.hull_kernels as g, dualpilot.model.risk_kernels as r
+import dualpilot.spacetime.lattice as s
 from services.supervisor.warm import warm_kernels
 
 def counts():
@@ -39,8 +40,8 @@ new = {k: v - after[k] for k, v in counts().items() if v != after[k] and k in KE
 print(json.dumps({"before": before, "after": after, "new": new, "steps": steps,
                   "took": took, "again": again}))
 """
-KERNELS = ("dualpilot.model.geometry._hull_distances", "dualpilot.model.risk._groups",
-           "dualpilot.model.risk._group_hulls", "dualpilot.spacetime.lattice.move_clear")
+KERNELS = ("dualpilot.model.hull_kernels.hull_distances", "dualpilot.model.risk_kernels.groups",
+           "dualpilot.model.risk_kernels.group_hulls", "dualpilot.spacetime.lattice.move_clear")
 
 
 @pytest.mark.slow  # a process of its own (make test-fast leaves it out)
