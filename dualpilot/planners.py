@@ -207,9 +207,9 @@ def build_planner(system: int, spec: MissionSpec, method: str | None = None,
         raise ValueError(f"unknown system {system!r}; choose 1 or 2")
     from dualpilot.warmup import warm_up, warm_up_3d
 
-    warm_up()  # the compiled kernels, once a process, before any plan is timed
+    warm_up((system,))  # this system's compiled kernels, once a process, before a plan is timed
     if spec.dim == 3:
-        warm_up_3d()  # and the 3-D ones, where a 3-D mission is planned
+        warm_up_3d((system,))  # and its 3-D ones, where a 3-D mission is planned
     method = default_method(system) if method is None else method
     entry = _method_of(system, method)
     if risk and entry.build_risk is None:

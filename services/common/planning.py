@@ -237,7 +237,7 @@ def run(ctx: bus.Context, system: int, make: PlannerMaker) -> None:
     """The body of a planner service: queryables ``<ns>/plan/system<k>`` (any replica) and
     ``<ns>/plan/system<k>/<zid>`` (this replica: the supervisor's) until stopped."""
     assert ctx.session is not None
-    warm_up()  # before the token: alive means ready to answer in time (once a process)
+    warm_up((system,))  # before the token: alive means ready to answer in time (once a process)
     session: zenoh.Session = ctx.session
     uav = ctx.settings.uav_id
     live = bus.Liveliness(session, uav)  # whose forecasts count: the EWS token holder's

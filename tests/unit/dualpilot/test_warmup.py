@@ -94,3 +94,56 @@ def test_3d_missions_after_the_3d_warm_up_compile_nothing() -> None:
     assert min(report["steps"]) >= 10  # real missions flew
     assert max(report["climbs"]) > 5.0  # and used the third dimension
     assert report["new"] == {}  # none of them compiled a new specialisation
+
+
+_CHECK_ONE = r"""
+import json, sys
+import numpy as np
+from numba.core.registry import CPUDispatcher
+from dualpilot.warmup import warm_up
+
+OTHER = {1: "dualpilot.system2.fast.planner", 2: "dualpilot.system1.planner"}[SYSTEM]
+
+def counts():
+    return {f"{name}.{k}": len(v.signatures) for name, mod in list(sys.modules.items())
+            if name.startswith("dualpilot") for k, v in vars(mod).items()
+            if isinstance(v, CPUDispatcher)}
+
+took = warm_up((SYSTEM,))
+after = counts()
+other_after_warm_up = OTHER in sys.modules
+from dualpilot.model.dynamics import DynamicsParams
+from dualpilot.model.geometry import Rect
+from dualpilot.plan import Objective
+from dualpilot.planners import build_planner
+from dualpilot.spec import MissionSpec
+hulls = (Rect(300.0, 300.0, 80.0, 60.0).polytope(), Rect(520.0, 610.0, 40.0, 120.0).polytope(),
+         Rect(700.0, 420.0, 90.0, 90.0).polytope())
+statuses = []
+for limit in ("axis", "norm"):
+    spec = MissionSpec(dynamics=DynamicsParams(speed_limit=limit))
+    for method in METHODS:
+        planner = build_planner(SYSTEM, spec, method)
+        for state in (np.array([*spec.start, 0.0, 0.0]), np.array([200.0, 150.0, 4.0, 3.0])):
+            for k in (1, 3):
+                plan = planner.plan(state, hulls[:k], Objective.ENERGY)
+                statuses.append(plan.status.value)
+new = {k: v - after.get(k, 0) for k, v in counts().items() if v != after.get(k, 0)}
+print(json.dumps({"took": took, "again": warm_up((SYSTEM,)), "other": other_after_warm_up,
+                  "other_after_plans": OTHER in sys.modules, "new": new,
+                  "statuses": statuses}))
+"""
+
+
+@pytest.mark.slow  # a process of its own
+@pytest.mark.parametrize(("system", "methods"), [(1, ("rrt", "rrt+du")), (2, ("fast",))])
+def test_one_systems_warm_up_loads_its_kernels_and_not_the_others(
+        system: int, methods: tuple[str, ...]) -> None:
+    code = f"SYSTEM = {system}\nMETHODS = {methods!r}\n{_CHECK_ONE}"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         timeout=300, check=True)
+    report = json.loads(out.stdout.strip().splitlines()[-1])
+    assert report["took"] > 0 and report["again"] == 0.0  # once a process
+    assert not report["other"] and not report["other_after_plans"]  # a planner service's own
+    assert len(report["statuses"]) == 2 * len(methods) * 2 * 2  # every plan was made
+    assert report["new"] == {}  # and none of them compiled a new specialisation
