@@ -51,7 +51,6 @@ from typing import Any, cast
 import numpy as np
 from numba import njit
 from numpy.typing import NDArray
-from scipy import ndimage
 
 from dualpilot.arrays import AnyArray
 from dualpilot.model.fire import FireParams
@@ -72,7 +71,7 @@ from dualpilot.model.scenarios import PhysicsFireParams
 _ALBINI_A, _ALBINI_B, _ALBINI_Z = 5.963, 4.563, 117.0
 #: the connectivity of a burned area (8) and of an unburned neighbour (4), as the process's
 _EIGHT = np.ones((3, 3), dtype=bool)
-_FOUR = ndimage.generate_binary_structure(2, 1)
+_FOUR = np.array([[False, True, False], [True, True, True], [False, True, False]])
 
 
 def albini_t_max_s(flame_length_m: float) -> float:
@@ -121,6 +120,8 @@ def regions_of(proc: PhysicsFire, burned: NDArray[np.bool_]) -> list[Rect]:
     pad and cut to the area (:meth:`PhysicsFire._update_fronts`); burned-out areas have none."""
     if not burned.any():
         return []
+    from scipy import ndimage  # 0.2 s to import: where a raster is read
+
     labels, _ = ndimage.label(burned, structure=_EIGHT)
     active = burned & ndimage.binary_dilation(~burned, structure=_FOUR, border_value=0)
     out = []
