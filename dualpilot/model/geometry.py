@@ -411,7 +411,7 @@ class _HullEdges:
     """Edges and faces of one or more hulls as flat arrays (components split for speed)."""
 
     def __init__(self, hulls: Sequence[Polytope]):
-        from dualpilot.model.hull_kernels import hull_distances
+        from dualpilot.model.hull_kernels import hull_distances  # Numba: loaded here, not at import
 
         self._kernel = hull_distances
         a = np.vstack([h.vertices for h in hulls])
@@ -430,6 +430,6 @@ class _HullEdges:
 
     def distances(self, p0: Array, p1: Array) -> Array:
         return self._kernel(np.ascontiguousarray(p0, dtype=float),
-                               np.ascontiguousarray(p1, dtype=float), self.ax, self.ay,
-                               self.dx, self.dy, self.inv_len2, self.nx, self.ny,
-                               self.offsets, np.asarray(self.starts, dtype=np.int64))
+                            np.ascontiguousarray(p1, dtype=float), self.ax, self.ay,
+                            self.dx, self.dy, self.inv_len2, self.nx, self.ny,
+                            self.offsets, np.asarray(self.starts, dtype=np.int64))
