@@ -412,14 +412,7 @@ class PhysicsFire:
                 self.next_id += 1
             fid = ids[0]
             self._owner.update((i, fid) for i in ids)
-            rows, cols = np.nonzero(act)
-            region = self._box(sl[0].start + int(rows.min()), sl[0].start + int(rows.max()),
-                               sl[1].start + int(cols.min()), sl[1].start + int(cols.max()))
-            pts = [self._cell_corners(mine, sl[0].start, sl[1].start), region.corners()]
-            pts += [self._hulls[i] for i in ids if i in self._hulls]
-            hull = Polytope.from_vertices(np.vstack(pts))
-            if hull.vertices.min() < 0.0 or hull.vertices.max() > self.area_size_m:
-                hull = Polytope.from_vertices(clip_to_box(hull.vertices, 0.0, self.area_size_m))
+            region, hull = _front_shape(self, mine, act, sl, ids)
             self._hulls[fid] = hull.vertices
             for merged in ids[1:]:  # merged into the oldest: its hull lives on in this one
                 self._retired.add(merged)
@@ -510,3 +503,18 @@ def measure(name: str, seeds: Sequence[int], checkpoints: Sequence[int],
                             "ms_per_substep": spent / max(done, 1) * 1e3})
     return [{"substeps": float(c), **{k: float(np.mean([r[k] for r in rows[c]]))
                                        for k in rows[c][0]}} for c in sorted(checkpoints)]
+
+
+def _front_shape(fire: PhysicsFire, mine: np.ndarray, act: np.ndarray,
+                 sl: tuple[slice, slice], ids: list[int]) -> tuple[Rect, Polytope]:
+    """The box of an area's burning cells ``act`` and the hull of its burned cells ``mine``
+    (within the slices ``sl``) with the hulls its fronts ``ids`` had, clipped to the area."""
+    rows, cols = np.nonzero(act)
+    region = fire._box(sl[0].start + int(rows.min()), sl[0].start + int(rows.max()),
+                       sl[1].start + int(cols.min()), sl[1].start + int(cols.max()))
+    pts = [fire._cell_corners(mine, sl[0].start, sl[1].start), region.corners()]
+    pts += [fire._hulls[i] for i in ids if i in fire._hulls]
+    hull = Polytope.from_vertices(np.vstack(pts))
+    if hull.vertices.min() < 0.0 or hull.vertices.max() > fire.area_size_m:
+        hull = Polytope.from_vertices(clip_to_box(hull.vertices, 0.0, fire.area_size_m))
+    return region, hull

@@ -110,6 +110,12 @@ def test_jitter_never_reorders(testbed: TestBed) -> None:
     assert flow.received == 1000 and flow.out_of_order == 0
 
 
+#: how long a datagram may wait for the impairer to read it on a loaded machine: one offered
+#: this little before the outage began may meet it (seen: one sent ms before, two tests
+#: side by side on 2 cores)
+READ_GRACE_S = 0.25
+
+
 def test_an_outage_at_run_time_blackholes_exactly_its_window(testbed: TestBed) -> None:
     radio, seconds = testbed.link("radio"), 2.0
     flows: list[measure.Flow] = []
@@ -127,7 +133,7 @@ def test_an_outage_at_run_time_blackholes_exactly_its_window(testbed: TestBed) -
             assert seq in flow.arrived_at, f"datagram {seq} sent after the outage was lost"
         elif sent >= after and seq in flow.arrived_at:   # offered inside or after the window
             assert flow.arrived_at[seq] >= before + seconds
-        elif sent < before:            # offered before: nothing else in the way
+        elif sent < before - READ_GRACE_S:  # offered well before: nothing else in the way
             assert seq in flow.arrived_at
     blackholed = radio.stats()["directions"]["air"]["blackholed"]
     assert blackholed == flow.sent - flow.received > 0
