@@ -6,6 +6,9 @@
 # runs/test-unit.log and printed at the end. Exit status: 0 when both passed.
 #
 #   scripts/test_lanes.sh [PYTEST_ARGS...]   (passed to both processes)
+#
+# STACK_WORKERS=N (default 1) runs the stack tiers on N pytest-xdist workers, a test file
+# whole on one worker (--dist loadfile), for machines with cores to spare (docs/testing.md).
 set -uo pipefail
 cd "$(dirname "$0")/.."
 mkdir -p runs
@@ -14,7 +17,10 @@ nice -n 19 .venv/bin/python -m pytest -q --durations=10 -o cache_dir=.pytest_cac
     "$@" tests/unit > "$log" 2>&1 &
 unit=$!
 trap 'kill "$unit" 2>/dev/null' EXIT INT TERM
-.venv/bin/python -m pytest -q --durations=25 "$@" tests/integration tests/e2e
+workers=${STACK_WORKERS:-1}
+spread=()
+if [ "$workers" -gt 1 ]; then spread=(-n "$workers" --dist loadfile); fi
+.venv/bin/python -m pytest -q --durations=25 "${spread[@]}" "$@" tests/integration tests/e2e
 stack=$?
 wait "$unit"
 unit_rc=$?
