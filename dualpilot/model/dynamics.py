@@ -15,6 +15,10 @@ from typing import Literal, get_args
 import numpy as np
 
 from dualpilot.arrays import AnyArray, Array
+from dualpilot.lazy import lazy_module
+
+#: the reach boxes' Numba kernel, loaded where a plan needs it
+_reach_kernel = lazy_module("dualpilot.model.reach_kernel")
 
 #: Readings of the speed limit X, see :attr:`DynamicsParams.speed_limit`.
 SpeedLimit = Literal["axis", "norm"]
@@ -192,7 +196,5 @@ def reach_boxes(x0: Array, horizon: int, dyn: DynamicsParams) -> tuple[Array, Ar
     x = np.asarray(x0, dtype=float)
     if x.shape != (dyn.state_dim,):
         raise ValueError(f"state must have shape ({dyn.state_dim},), got {x.shape}")
-    from dualpilot.model.reach_kernel import reach  # numba only where a plan needs it
-
-    return reach(x, int(horizon), dyn.dim, 1.0 - dyn.zeta,
+    return _reach_kernel().reach(x, int(horizon), dyn.dim, 1.0 - dyn.zeta,
                  dyn.dt_s / dyn.mass_kg * dyn.u_max_n, float(dyn.v_max_mps), float(dyn.dt_s))

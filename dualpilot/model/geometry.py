@@ -16,6 +16,10 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from dualpilot.arrays import AnyArray, Array
+from dualpilot.lazy import lazy_module
+
+#: the polygons' Numba kernels (dualpilot.model.hull_kernels), loaded at their first use
+_hull_kernels = lazy_module("dualpilot.model.hull_kernels")
 
 
 @dataclass(frozen=True)
@@ -81,10 +85,8 @@ class Rect:
     @cached_property
     def _polytope(self) -> Polytope:
         # the corners are already the hull, counter-clockwise from the lowest (x, y)
-        from dualpilot.model.hull_kernels import faces
-
         corners = self.corners()
-        normals, b = faces(corners)
+        normals, b = _hull_kernels().faces(corners)
         return Polytope(vertices=corners, A=normals, b=b)
 
 
@@ -96,10 +98,8 @@ def _xy(p: ArrayLike) -> tuple[float, float]:
 
 def convex_hull_vertices(points: Array) -> Array:
     """Counter-clockwise hull vertices of 2-D points (Andrew's monotone chain), shape (k, 2)."""
-    from dualpilot.model.hull_kernels import monotone_chain
-
     pts = np.ascontiguousarray(np.asarray(points, dtype=float).reshape(-1, 2))
-    hull, distinct = monotone_chain(pts)
+    hull, distinct = _hull_kernels().monotone_chain(pts)
     if distinct < 3:
         raise ValueError("a convex hull needs at least 3 distinct points")
     if len(hull) < 3:
@@ -118,10 +118,8 @@ class Polytope:
     @staticmethod
     def from_vertices(points: Array) -> Polytope:
         """The convex hull of ``points`` (any order, duplicates allowed)."""
-        from dualpilot.model.hull_kernels import faces
-
         v = convex_hull_vertices(points)
-        normals, b = faces(v)
+        normals, b = _hull_kernels().faces(v)
         return Polytope(vertices=v, A=normals, b=b)
 
     @property
@@ -411,9 +409,7 @@ class _HullEdges:
     """Edges and faces of one or more hulls as flat arrays (components split for speed)."""
 
     def __init__(self, hulls: Sequence[Polytope]):
-        from dualpilot.model.hull_kernels import hull_distances  # Numba: loaded here, not at import
-
-        self._kernel = hull_distances
+        self._kernel = _hull_kernels().hull_distances
         a = np.vstack([h.vertices for h in hulls])
         starts = _starts(hulls)
         following = np.arange(1, len(a) + 1)  # each vertex's successor, around its own hull

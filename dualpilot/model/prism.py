@@ -35,8 +35,12 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from dualpilot.arrays import Array
+from dualpilot.lazy import lazy_module
 from dualpilot.model.altitude import AltitudeBand
 from dualpilot.model.geometry import Polytope, Rect
+
+#: the 3-D segments' Numba kernels, loaded at their first use
+_segment_kernels = lazy_module("dualpilot.model.segment_kernels")
 
 
 @dataclass(frozen=True, eq=False)
@@ -175,10 +179,8 @@ class Prism:
             return self.base.segment_distance(a[:2], c[:2])
         if segment_meets(self.A, self.b, a, c - a):
             return 0.0
-        from dualpilot.model.segment_kernels import edges_d2
-
         starts, vecs = self.edges
-        d2 = edges_d2(a, c - a, starts, vecs)
+        d2 = _segment_kernels().edges_d2(a, c - a, starts, vecs)
         return math.sqrt(min(d2, self.distance(a) ** 2, self.distance(c) ** 2))
 
 

@@ -26,12 +26,16 @@ from typing import cast
 import numpy as np
 
 from dualpilot.arrays import AnyArray, Array
+from dualpilot.lazy import lazy_module
 from dualpilot.model.forecast import LEVELS, OccupancyForecast
 from dualpilot.model.geometry import Polytope, SegmentChecker
 from dualpilot.model.prism import Prism
 from dualpilot.model.segment3 import SegmentChecker3
 from dualpilot.model.zone_heights import BAND, ZoneHeights
 from dualpilot.spec import MissionSpec
+
+#: the risk zones' Numba kernels, loaded at their first use
+_risk_kernels = lazy_module("dualpilot.model.risk_kernels")
 
 #: A risk zone: its footprint (2-D, and 3-D under "band") or its prism (3-D with heights).
 Zone = Polytope | Prism
@@ -182,10 +186,8 @@ def risk_map(view: ForecastView, params: RiskParams, spec: MissionSpec) -> RiskM
 def group_max_levels(level: np.ndarray, threshold: int) -> AnyArray:
     """The largest forecast level of each 8-connected group of cells above ``threshold``, in
     :func:`cell_hulls`' order of the groups."""
-    from dualpilot.model.risk_kernels import groups
-
     risky = np.ascontiguousarray(np.asarray(level) > threshold, dtype=np.bool_)
-    comp, row, first, last = groups(risky)
+    comp, row, first, last = _risk_kernels().groups(risky)
     out = np.zeros(int(comp.max()) + 1 if len(comp) else 0, dtype=np.int64)
     for k, r, a, b in zip(comp.tolist(), row.tolist(), first.tolist(), last.tolist(),
                           strict=True):
@@ -201,12 +203,11 @@ def threshold_level(alpha: float) -> int:
 def cell_hulls(risky: np.ndarray, resolution_m: float,
                origin_m: tuple[float, float] = (0.0, 0.0)) -> tuple[Polytope, ...]:
     """The convex hull of the cell squares of each 8-connected group of ``risky`` cells."""
-    from dualpilot.model.risk_kernels import group_hulls, groups
-
-    comp, row, first, last = groups(np.ascontiguousarray(risky, dtype=np.bool_))
+    kernels = _risk_kernels()
+    comp, row, first, last = kernels.groups(np.ascontiguousarray(risky, dtype=np.bool_))
     if not len(comp):
         return ()
-    verts, normals, offsets, ends = group_hulls(comp, row, first, last, float(resolution_m),
+    verts, normals, offsets, ends = kernels.group_hulls(comp, row, first, last, float(resolution_m),
                                                 float(origin_m[0]), float(origin_m[1]))
     starts = np.concatenate([[0], ends[:-1]])
     return tuple(Polytope(vertices=verts[a:b], A=normals[a:b], b=offsets[a:b])
