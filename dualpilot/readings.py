@@ -156,13 +156,13 @@ class Profile:
                                                                a.goal_vertical):
             spec = replace(base, dynamics=self.dynamics, band=a.band,
                            goal_vertical=a.goal_vertical)
-        tol = measurement_tol(self.plant, self.dynamics.dt_s)
+        tol = measurement_tol(self.plant, self.dynamics.dt_s, self.dynamics.dim)
         if tol != spec.measurement_tol:
             spec = replace(spec, measurement_tol=tol)
         vel = auto_velocity_margin_mps(self.plant)
         if vel != spec.tracking_margin_mps:
             spec = replace(spec, tracking_margin_mps=vel)
-        spec = spec.with_tracking_margin(self.plant.margin_m())
+        spec = spec.with_tracking_margin(self.plant.margin_m(self.dynamics.dim))
         zones = a.zone_heights(spec, self.fire.scenario)
         return spec if zones == spec.zone_heights else replace(spec, zone_heights=zones)
 

@@ -25,10 +25,14 @@ straight segment by up to
 
 Safety is judged on the flight (:func:`judge_flight`): d_safe along the
 plant's true path, every integration step's segment checked exactly against the
-regions the step's failure rule counts. A flight that passes within d_safe of a
-region whose planned segment (Eq. (1)'s straight segment from the measured start)
-kept d_safe is a ``tracking_breach``; one whose planned segment did not is a
-``fire_contact``, as it always was. A vehicle that reports no path (the ideal plant's,
+regions the step's failure rule counts (the rectangles in the plane in 2-D; in 3-D the
+fronts' cuboids, at the exact 3-D distance,
+:class:`~dualpilot.model.segment3.SegmentChecker3`). In 3-D the plant's altitude is the
+model's z (up): the setpoints carry z and v_z, the measured state the vertical GPS error,
+and the tracking error is the 3-D distance. A flight that passes within d_safe of a region
+whose planned segment (Eq. (1)'s straight segment from the measured start) kept d_safe is
+a ``tracking_breach``; one whose planned segment did not is a ``fire_contact``, as it
+always was. A vehicle that reports no path (the ideal plant's,
 in-process or in the stack) is judged on its straight segment. The stack's vehicle
 flies the same plant (services/uavsim/plantsim.py: :func:`fly_ramp` towards each
 setpoint's velocity) and reports its true path on the simulator's side channel
@@ -37,7 +41,7 @@ setpoint's velocity) and reports its true path on the simulator's side channel
 
 from __future__ import annotations
 
-from typing import Protocol, runtime_checkable
+from typing import Protocol, cast, runtime_checkable
 
 import numpy as np
 
@@ -46,6 +50,8 @@ from dualpilot.mission.result import Ending
 from dualpilot.model.dynamics import Array, DynamicsParams, step
 from dualpilot.model.fire import Region
 from dualpilot.model.geometry import Rect, SegmentChecker
+from dualpilot.model.prism import Cuboid
+from dualpilot.model.segment3 import SegmentChecker3
 from dualpilot.plant.params import MultirotorParams
 from dualpilot.plant.plant import Flight, IdealPlant, MultirotorPlant
 from dualpilot.plant.setpoints import hermite_stream, segment_path
@@ -56,16 +62,16 @@ class FlownPath(Protocol):
     """What a vehicle port that flies a plant tells the step beyond the measured state."""
 
     def true_position(self) -> Array:
-        """Where the vehicle truly is (m, horizontal: x, y)."""
+        """Where the vehicle truly is (m, the mission's axes: x, y and, in 3-D, z)."""
         ...
 
     def flown_path(self) -> Array | None:
-        """The last flight's true horizontal path (k, 2) at the integration rate (None: none
-        flown, or a straight segment the step checks itself)."""
+        """The last flight's true path (k, dim) at the integration rate (None: none flown, or
+        a straight segment the step checks itself)."""
         ...
 
     def planned_path(self) -> Array:
-        """The last flight's planned segment (2, 2): Eq. (1) from the measured start."""
+        """The last flight's planned segment (2, dim): Eq. (1) from the measured start."""
         ...
 
 
@@ -109,8 +115,9 @@ def fly_plan(plant: IdealPlant | MultirotorPlant, start: Array, control: Array) 
 class PlantVehicle:
     """The in-process vehicle port flying a plant (module docstring).
 
-    ``tracking_error_m`` collects each flight's horizontal distance (m) between the true
-    path and the planned segment at every integration step.
+    ``tracking_error_m`` collects each flight's distance (m) between the true path and the
+    planned segment at every integration step, over the mission's axes (horizontal in 2-D,
+    what its d_safe measures; 3-D in 3-D).
     """
 
     def __init__(self, plant: IdealPlant | MultirotorPlant):
@@ -133,20 +140,20 @@ class PlantVehicle:
             self.flight = fly_plan(self.plant, self._start, self._control)
             self._control = None
             self._start = self.plant.measure()
-            self.tracking_error_m.append(self.flight.tracking_error_m(axes=2)[1:])
+            self.tracking_error_m.append(self.flight.tracking_error_m(axes=self.dim)[1:])
         return self._start.copy()
 
     def true_position(self) -> Array:
-        return np.asarray(self.plant.state[:2])
+        return np.asarray(self.plant.state[:self.dim])
 
     def flown_path(self) -> Array | None:
         if self.flight is None or isinstance(self.plant, IdealPlant):
             return None  # Eq. (1)'s path is the straight segment the step checks
-        return np.asarray(self.flight.positions[:, :2])
+        return np.asarray(self.flight.positions[:, :self.dim])
 
     def planned_path(self) -> Array:
         assert self.flight is not None
-        return np.asarray(self.flight.reference[[0, -1], :2])
+        return np.asarray(self.flight.reference[[0, -1], :self.dim])
 
 
 def true_position(vehicle: object, measured: Array) -> Array:
@@ -158,13 +165,20 @@ def true_position(vehicle: object, measured: Array) -> Array:
 
 
 def path_clear(path: Array, regions: tuple[Region, ...], d_m: float) -> bool:
-    """Whether the polyline ``path`` (k, 2) keeps at least ``d_m`` (m) from every region, each
-    of its segments checked exactly (:class:`~dualpilot.model.geometry.SegmentChecker`)."""
+    """Whether the polyline ``path`` (k, 2) or (k, 3) keeps at least ``d_m`` (m) from every
+    region, each of its segments checked exactly: rectangles in the plane
+    (:class:`~dualpilot.model.geometry.SegmentChecker`), cuboids in 3-D at the exact 3-D
+    distance (:class:`~dualpilot.model.segment3.SegmentChecker3`)."""
     if not regions:
         return True
+    if path.shape[1] == 3:
+        if not all(isinstance(r, Cuboid) for r in regions):
+            raise ValueError("a 3-D flown path is judged against cuboids")
+        checker3 = SegmentChecker3([cast(Cuboid, r).prism for r in regions])
+        return bool(checker3.clear(path[:-1], path[1:], d_m).all())
     checker = SegmentChecker([r.polytope() for r in regions if isinstance(r, Rect)])
     if checker.n_hulls != len(regions):
-        raise ValueError("a flown path is judged in the plane (2-D missions) only so far")
+        raise ValueError("a planar flown path is judged against rectangles")
     return bool(checker.clear(path[:-1], path[1:], d_m).all())
 
 
@@ -202,9 +216,10 @@ def tracking_errors(vehicle: object) -> list[Array]:
 def stack_refusal(config: MissionConfig) -> str:
     """Why the stack cannot fly ``config``'s plant ("" when it can): uavsim flies the ideal
     plant in every dimension and the multirotor (services/uavsim/plantsim.py) in the 2-D
-    missions, as the in-process loop does (:func:`dualpilot.mission.local.local_vehicle`)."""
+    missions; the in-process loop flies it in 3-D too
+    (:func:`dualpilot.mission.local.local_vehicle`)."""
     kind = config.reading().plant.plant
     if kind == "ideal" or config.spec().dim == 2:
         return ""
-    return (f"plant={kind} flies the 2-D missions only so far (dim=2), in the stack as "
-            "in-process")
+    return (f"plant={kind} flies the 3-D missions in-process only so far; through the stack "
+            "it flies the 2-D missions (dim=2)")

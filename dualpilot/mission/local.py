@@ -132,8 +132,6 @@ def local_vehicle(config: MissionConfig, spec: MissionSpec,
     params = config.reading().plant_params()
     if params.kind == "ideal":
         return LocalVehicle(state, spec.dynamics)
-    if spec.dim != 2:
-        raise ValueError(f"plant={params.kind} flies the 2-D missions only so far (dim=2)")
     return PlantVehicle(make_plant(params, state, spec.dynamics, spec.rng(Stream.PLANT)))
 
 

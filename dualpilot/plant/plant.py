@@ -130,7 +130,8 @@ class MultirotorPlant:
     """A quadrotor under PX4's cascaded controller, in wind, on a noisy estimate.
 
     ``rng`` is spawned into the wind's and the sensors' streams, so a seed
-    reproduces a flight exactly.
+    reproduces a flight exactly. The turbulence's scales are those at the start's altitude
+    (a 2-D state's ``altitude_m``; a 3-D state's z), kept for the whole flight.
     """
 
     def __init__(self, state: Array, dyn: DynamicsParams, rng: np.random.Generator,
@@ -143,7 +144,7 @@ class MultirotorPlant:
         wind_rng, gps_rng = rng.spawn(2)
         p, v = to_plant(check_state(state, dyn), dyn.dim, self.params.altitude_m)
         self.x = hover_vector(p, v, self.params)
-        self.air = Wind(params.wind, self.params.altitude_m, wind_rng)
+        self.air = Wind(params.wind, float(p[2]), wind_rng)
         self.gps = GpsError(params.gps, gps_rng)
         self._measured = self._measure()
 

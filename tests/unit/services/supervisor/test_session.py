@@ -373,13 +373,13 @@ def test_a_plant_vehicle_that_stops_giving_its_truth_ends_the_mission_after_its_
 
 def test_a_3d_mission_of_another_plant_than_the_ideal_is_refused_before_the_vehicle_is_taken(
         tmp_path: Path) -> None:
-    """The multirotor flies the 2-D missions only, in the stack as in-process: a 3-D one is
-    refused by name, nothing claimed, armed or recorded."""
+    """The stack flies the multirotor in the 2-D missions only (in-process it flies 3-D ones
+    too): a 3-D one is refused by name, nothing claimed, armed or recorded."""
     config = MissionConfig.named("cc", seed=SEED, profile="today-3d",
                                  settings=SHORT + (("plant", "multirotor"),))
     r = rig(config, tmp_path, autopilot=SimAutopilot(hover_state(np.array([50.0, 50.0]),
                                                                  DynamicsParams())))
-    with pytest.raises(Aborted, match="plant=multirotor flies the 2-D missions only"):
+    with pytest.raises(Aborted, match="plant=multirotor flies the 3-D missions in-process only"):
         r.session.run()
     assert r.session.result is None and not (tmp_path / "steps.jsonl").exists()
     assert r.stack.fire_commands == [] and r.stack.events() == []
