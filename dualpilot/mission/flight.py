@@ -45,7 +45,6 @@ from typing import Protocol, cast, runtime_checkable
 
 import numpy as np
 
-from dualpilot.mission.config import MissionConfig
 from dualpilot.mission.result import Ending
 from dualpilot.model.dynamics import Array, DynamicsParams, step
 from dualpilot.model.fire import Region
@@ -211,15 +210,3 @@ class TrackingLog(Protocol):
 def tracking_errors(vehicle: object) -> list[Array]:
     """The flights' tracking errors a :class:`TrackingLog` collected (else none)."""
     return vehicle.tracking_error_m if isinstance(vehicle, TrackingLog) else []
-
-
-def stack_refusal(config: MissionConfig) -> str:
-    """Why the stack cannot fly ``config``'s plant ("" when it can): uavsim flies the ideal
-    plant in every dimension and the multirotor (services/uavsim/plantsim.py) in the 2-D
-    missions; the in-process loop flies it in 3-D too
-    (:func:`dualpilot.mission.local.local_vehicle`)."""
-    kind = config.reading().plant.plant
-    if kind == "ideal" or config.spec().dim == 2:
-        return ""
-    return (f"plant={kind} flies the 3-D missions in-process only so far; through the stack "
-            "it flies the 2-D missions (dim=2)")

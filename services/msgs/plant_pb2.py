@@ -25,7 +25,7 @@ _sym_db = _symbol_database.Default()
 from services.msgs import common_pb2 as dualpilot_dot_v1_dot_common__pb2
 
 
-DESCRIPTOR = _descriptor_pool.Default().AddSerializedFile(b'\n\x18\x64ualpilot/v1/plant.proto\x12\x0c\x64ualpilot.v1\x1a\x19\x64ualpilot/v1/common.proto\"L\n\x12PlantFlightRequest\x12$\n\x06header\x18\x01 \x01(\x0b\x32\x14.dualpilot.v1.Header\x12\x10\n\x08\x61\x66ter_ms\x18\x02 \x01(\x03\"\xc8\x01\n\x0bPlantFlight\x12$\n\x06header\x18\x01 \x01(\x0b\x32\x14.dualpilot.v1.Header\x12\x0f\n\x07time_ms\x18\x02 \x01(\x03\x12$\n\x08position\x18\x03 \x01(\x0b\x32\x12.dualpilot.v1.Vec2\x12(\n\x0cvelocity_mps\x18\x04 \x01(\x0b\x32\x12.dualpilot.v1.Vec2\x12\x0e\n\x06path_m\x18\x05 \x03(\x01\x12\x11\n\tplanned_m\x18\x06 \x03(\x01\x12\x0f\n\x07\x66lights\x18\x07 \x01(\rb\x06proto3')
+DESCRIPTOR = _descriptor_pool.Default().AddSerializedFile(b'\n\x18\x64ualpilot/v1/plant.proto\x12\x0c\x64ualpilot.v1\x1a\x19\x64ualpilot/v1/common.proto\"L\n\x12PlantFlightRequest\x12$\n\x06header\x18\x01 \x01(\x0b\x32\x14.dualpilot.v1.Header\x12\x10\n\x08\x61\x66ter_ms\x18\x02 \x01(\x03\"\x82\x02\n\x0bPlantFlight\x12$\n\x06header\x18\x01 \x01(\x0b\x32\x14.dualpilot.v1.Header\x12\x0f\n\x07time_ms\x18\x02 \x01(\x03\x12$\n\x08position\x18\x03 \x01(\x0b\x32\x12.dualpilot.v1.Vec2\x12(\n\x0cvelocity_mps\x18\x04 \x01(\x0b\x32\x12.dualpilot.v1.Vec2\x12\x0e\n\x06path_m\x18\x05 \x03(\x01\x12\x11\n\tplanned_m\x18\x06 \x03(\x01\x12\x0f\n\x07\x66lights\x18\x07 \x01(\r\x12\x0b\n\x03\x64im\x18\x08 \x01(\r\x12\x12\n\naltitude_m\x18\t \x01(\x01\x12\x17\n\x0fvelocity_up_mps\x18\n \x01(\x01\x62\x06proto3')
 
 _globals = globals()
 _builder.BuildMessageAndEnumDescriptors(DESCRIPTOR, _globals)
@@ -35,5 +35,5 @@ if not _descriptor._USE_C_DESCRIPTORS:
   _globals['_PLANTFLIGHTREQUEST']._serialized_start=69
   _globals['_PLANTFLIGHTREQUEST']._serialized_end=145
   _globals['_PLANTFLIGHT']._serialized_start=148
-  _globals['_PLANTFLIGHT']._serialized_end=348
+  _globals['_PLANTFLIGHT']._serialized_end=406
 # @@protoc_insertion_point(module_scope)

@@ -16,7 +16,7 @@ class PlantFlightRequest(_message.Message):
     def __init__(self, header: _Optional[_Union[_common_pb2.Header, _Mapping]] = ..., after_ms: _Optional[int] = ...) -> None: ...
 
 class PlantFlight(_message.Message):
-    __slots__ = ("header", "time_ms", "position", "velocity_mps", "path_m", "planned_m", "flights")
+    __slots__ = ("header", "time_ms", "position", "velocity_mps", "path_m", "planned_m", "flights", "dim", "altitude_m", "velocity_up_mps")
     HEADER_FIELD_NUMBER: _ClassVar[int]
     TIME_MS_FIELD_NUMBER: _ClassVar[int]
     POSITION_FIELD_NUMBER: _ClassVar[int]
@@ -24,6 +24,9 @@ class PlantFlight(_message.Message):
     PATH_M_FIELD_NUMBER: _ClassVar[int]
     PLANNED_M_FIELD_NUMBER: _ClassVar[int]
     FLIGHTS_FIELD_NUMBER: _ClassVar[int]
+    DIM_FIELD_NUMBER: _ClassVar[int]
+    ALTITUDE_M_FIELD_NUMBER: _ClassVar[int]
+    VELOCITY_UP_MPS_FIELD_NUMBER: _ClassVar[int]
     header: _common_pb2.Header
     time_ms: int
     position: _common_pb2.Vec2
@@ -31,4 +34,7 @@ class PlantFlight(_message.Message):
     path_m: _containers.RepeatedScalarFieldContainer[float]
     planned_m: _containers.RepeatedScalarFieldContainer[float]
     flights: int
-    def __init__(self, header: _Optional[_Union[_common_pb2.Header, _Mapping]] = ..., time_ms: _Optional[int] = ..., position: _Optional[_Union[_common_pb2.Vec2, _Mapping]] = ..., velocity_mps: _Optional[_Union[_common_pb2.Vec2, _Mapping]] = ..., path_m: _Optional[_Iterable[float]] = ..., planned_m: _Optional[_Iterable[float]] = ..., flights: _Optional[int] = ...) -> None: ...
+    dim: int
+    altitude_m: float
+    velocity_up_mps: float
+    def __init__(self, header: _Optional[_Union[_common_pb2.Header, _Mapping]] = ..., time_ms: _Optional[int] = ..., position: _Optional[_Union[_common_pb2.Vec2, _Mapping]] = ..., velocity_mps: _Optional[_Union[_common_pb2.Vec2, _Mapping]] = ..., path_m: _Optional[_Iterable[float]] = ..., planned_m: _Optional[_Iterable[float]] = ..., flights: _Optional[int] = ..., dim: _Optional[int] = ..., altitude_m: _Optional[float] = ..., velocity_up_mps: _Optional[float] = ...) -> None: ...

@@ -33,7 +33,7 @@ from typing import cast
 import numpy as np
 
 from dualpilot.mission.config import MissionConfig
-from dualpilot.mission.flight import stack_refusal
+from dualpilot.mission.flight import true_position
 from dualpilot.mission.records import result_from_log
 from dualpilot.mission.result import Ending, MissionResult, StepRecord
 from dualpilot.mission.step import Mission, MissionPorts
@@ -176,8 +176,6 @@ class StackSession:
     # -- start ------------------------------------------------------------------------------------
     def start(self) -> None:
         """Take the vehicle, then start the mission from its state or resume its record."""
-        if refused := stack_refusal(self.config):
-            raise Aborted(refused)
         self.record.claim()
         configure_vehicle(self.b, self.config)
         self.watch.take()
@@ -194,7 +192,7 @@ class StackSession:
         vehicle_ms, x0 = got
         if prior is None:  # at rest at boot: the in-process mission's hover_state(start)
             self.spec = self.config.spec(start=self.vehicle.start_position(x0))
-            self._check_start_altitude(x0)
+            self._check_start_altitude(true_position(self.vehicle, x0[:self.spec.dim]))
         else:
             head = next(e for e in prior if e.get("kind") == "mission")
             start = cast(list[float], head["start"])
@@ -219,7 +217,8 @@ class StackSession:
 
     def _check_start_altitude(self, x0: Array) -> None:
         """A 3-D mission starts at the band's start altitude (the vehicle climbs there when it
-        takes the mission's configuration: services/uavsim/missionconfig.py); Aborted else."""
+        takes the mission's configuration: services/uavsim/missionconfig.py); Aborted else.
+        ``x0`` is where the vehicle truly is (a plant's truth, not its noisy estimate)."""
         if self.spec.dim != 3:
             return
         want = self.spec.band.start_altitude_m

@@ -61,8 +61,8 @@ def apply(endpoint: Endpoint, config: MissionConfig) -> None:
                          f"mission's ΔT is {dyn.dt_s:g} s")
     if endpoint.realtime is not None:
         dyn = replace(dyn, dim=2)  # its own clock: the altitude controller flies z (climb)
-    fly_plant(v, config, own_clock=endpoint.realtime is not None)
     vertical(v, dyn, spec.band.start_altitude_m)
+    fly_plant(v, config, own_clock=endpoint.realtime is not None)
     if endpoint.realtime is None:
         endpoint.setup = replace(endpoint.setup, area_size_m=config.area_size_m,
                                  band=spec.band if spec.dim == 3 else None,
@@ -73,12 +73,15 @@ def apply(endpoint: Endpoint, config: MissionConfig) -> None:
 
 def fly_plant(v: Vehicle, config: MissionConfig, own_clock: bool) -> None:
     """The plant of ``config`` flies ``v`` from where it is (services/uavsim/plantsim.py; the
-    ideal plant: Eq. (1), none); the same configuration again keeps the plant flying."""
-    if v.plant is not None and v.plant_config == config:
-        return
-    here = v.plant.plant.state if v.plant is not None else v.state  # the truth, not its estimate
-    v.plant = PlantSim.for_config(config, here, v.time_ms, own_clock)
-    v.plant_config = config if v.plant is not None else None
+    ideal plant: Eq. (1), none); the same configuration again keeps the plant flying. Called
+    after :func:`vertical`, so a 3-D plant is made at the band's start altitude; the vehicle
+    then reports the plant's estimate."""
+    if v.plant is None or v.plant_config != config:
+        here = v.state
+        if v.plant is not None and len(v.plant.plant.state) == len(v.state):
+            here = v.plant.plant.state  # the truth, not its estimate
+        v.plant = PlantSim.for_config(config, here, v.time_ms, own_clock)
+        v.plant_config = config if v.plant is not None else None
     if v.plant is not None:
         v.state = v.plant.measured()
 

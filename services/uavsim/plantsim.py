@@ -25,9 +25,11 @@ The vehicle's reported state (LOCAL_POSITION_NED, services/uavsim/telemetry.py) 
 then the plant's measurement, the autopilot's estimate; the truth of the latest
 flight (:class:`~services.common.convert.plant.FlightTruth`) goes to the supervisor
 on the simulator's side channel (services/uavsim/truth.py), and the air to a ground
-station (WIND_COV, WIND: :meth:`PlantSim.air`). The plant is 2-D here: it flies the
-horizontal at its own altitude (``MultirotorParams.altitude_m``); the altitude the
-vehicle reports is its navigator's, as before.
+station (WIND_COV, WIND: :meth:`PlantSim.air`). In a 2-D mission the plant flies the
+horizontal at its own altitude (``MultirotorParams.altitude_m``) and the altitude the
+vehicle reports is its navigator's, as before; in a 3-D mission (lockstep only so far) the
+model's z is the plant's altitude, the setpoints' z and v_z fly, the measured state carries
+the vertical GPS error, and the truth is 3-D.
 """
 
 from __future__ import annotations
@@ -56,8 +58,8 @@ class PlantSim:
         self.own_clock = own_clock
         self.flights = 0
         self.time_ms = int(time_ms)  #: the vehicle's clock at the end of the latest flight
-        self.path = np.empty((0, 2))
-        self.planned = np.empty((0, 2))
+        self.path = np.empty((0, self.dim))
+        self.planned = np.empty((0, self.dim))
         self.held: Array | None = None  #: own clock: the navigator's target [p*, v*]
         mr = plant.params
         self.air_samples = np.broadcast_to(plant.air.mean, (1, 3)).copy()
@@ -72,8 +74,9 @@ class PlantSim:
         if params.kind == "ideal":
             return None
         spec = config.spec()
-        if spec.dim != 2:
-            raise ValueError(f"plant={params.kind} flies the 2-D missions only so far (dim=2)")
+        if spec.dim != 2 and own_clock:
+            raise ValueError(f"plant={params.kind} flies a 3-D mission in lockstep only so far "
+                             "(on its own clock: dim=2)")
         plant = MultirotorPlant(np.asarray(state, dtype=float), spec.dynamics,
                                 spec.rng(Stream.PLANT), params)
         return PlantSim(plant, time_ms, own_clock)
@@ -106,7 +109,8 @@ class PlantSim:
             self.held = target
             return self.measured()
         flight = fly_ramp(self.plant, np.asarray(state, dtype=float), target[self.dim:])
-        self._took(flight.positions[:, :2], flight.reference[:, :2], flight.wind, due_ms)
+        d = self.dim
+        self._took(flight.positions[:, :d], flight.reference[:, :d], flight.wind, due_ms)
         return flight.measured.copy()
 
     def fly_held(self, target: Array, duration_s: float, end_ms: int) -> Array:
@@ -128,7 +132,7 @@ class PlantSim:
     def idle(self, end_ms: int) -> None:
         """Own clock: a period not flown (on the ground, disarmed), ending at ``end_ms``."""
         self.time_ms = int(end_ms)
-        self.path, self.planned = np.empty((0, 2)), np.empty((0, 2))
+        self.path, self.planned = np.empty((0, self.dim)), np.empty((0, self.dim))
 
     def _took(self, path: Array, planned: Array, wind: Array, end_ms: int) -> None:
         self.flights += 1

@@ -6,7 +6,8 @@ LOCAL_POSITION_NED carries (:class:`StackVehicle`), and judges the flight on the
 as the in-process :class:`~dualpilot.mission.flight.PlantVehicle` does: where the vehicle
 truly is, the path it flew at the integration rate and the planned segment from the
 measured start (:class:`~dualpilot.mission.flight.FlownPath`), and each flight's
-tracking error (:class:`~dualpilot.mission.flight.TrackingLog`). The truth comes from the
+tracking error (:class:`~dualpilot.mission.flight.TrackingLog`), in the mission's dimension
+(3-D in a 3-D mission). The truth comes from the
 simulator's side channel (``<ns>/uavsim/flight``, services/uavsim/truth.py): after each
 state, the flight that ended at its time; before the first, the plant at rest.
 """
@@ -83,7 +84,7 @@ class PlantStackVehicle(StackVehicle):
     def true_position(self) -> Array:
         if self.truth is None:
             self.truth = self.ask(0)
-        return np.asarray(self.truth.state[:2])
+        return np.asarray(self.truth.state[:self.truth.dim])
 
     def flown_path(self) -> Array | None:
         if self.truth is None or not len(self.truth.path):

@@ -24,7 +24,6 @@ import pytest
 from dualpilot.mission.config import MissionConfig
 from dualpilot.mission.local import local_mission
 from dualpilot.mission.result import Ending, MissionResult
-from dualpilot.model.dynamics import DynamicsParams, hover_state
 from services.common import keys, mav, mavmodes
 from services.supervisor.session import Aborted, VehicleGone
 from tests.support.stack import (
@@ -32,7 +31,6 @@ from tests.support.stack import (
     UAV,
     PlantAutopilot,
     Rig,
-    SimAutopilot,
     rig,
     serve_link,
 )
@@ -369,17 +367,3 @@ def test_a_plant_vehicle_that_stops_giving_its_truth_ends_the_mission_after_its_
         r.session.run()
     assert r.wall.now() - began >= r.bus.stack.vehicle_timeout_s
     assert r.session.result is not None and r.session.result.steps == 5
-
-
-def test_a_3d_mission_of_another_plant_than_the_ideal_is_refused_before_the_vehicle_is_taken(
-        tmp_path: Path) -> None:
-    """The stack flies the multirotor in the 2-D missions only (in-process it flies 3-D ones
-    too): a 3-D one is refused by name, nothing claimed, armed or recorded."""
-    config = MissionConfig.named("cc", seed=SEED, profile="today-3d",
-                                 settings=SHORT + (("plant", "multirotor"),))
-    r = rig(config, tmp_path, autopilot=SimAutopilot(hover_state(np.array([50.0, 50.0]),
-                                                                 DynamicsParams())))
-    with pytest.raises(Aborted, match="plant=multirotor flies the 3-D missions in-process only"):
-        r.session.run()
-    assert r.session.result is None and not (tmp_path / "steps.jsonl").exists()
-    assert r.stack.fire_commands == [] and r.stack.events() == []

@@ -23,7 +23,7 @@ from services.msgs import common_pb2, plant_pb2
 from services.uavsim import flavour as fl
 from services.uavsim import plantclock
 from services.uavsim.flavour import Nav
-from services.uavsim.missionconfig import fly_plant
+from services.uavsim.missionconfig import fly_plant, vertical
 from services.uavsim.truth import answer
 from services.uavsim.vehicle import Vehicle, tracking_control
 from tests.support.vehicles import COMPANION, rig
@@ -96,12 +96,79 @@ def test_the_same_configuration_keeps_its_plant_and_another_starts_from_the_trut
     assert v.plant is None
 
 
-def test_a_3d_mission_is_refused_by_the_plant() -> None:
+def test_a_3d_mission_on_the_vehicles_own_clock_is_refused_by_the_plant() -> None:
+    """The plant flies a 3-D mission in lockstep only so far (on its own clock the vehicle
+    keeps the planar Eq. (1) and its altitude controller)."""
     cfg = MissionConfig.named("cc", seed=0, profile="today-3d", settings=PLANT)
     v = Vehicle.at(50.0, 50.0)
-    with pytest.raises(ValueError, match="2-D missions only"):
-        fly_plant(v, cfg, own_clock=False)
+    with pytest.raises(ValueError, match="in lockstep only"):
+        fly_plant(v, cfg, own_clock=True)
     assert v.plant is None
+
+
+def test_lockstep_3d_flights_are_the_in_process_plant_vehicles_bit_for_bit() -> None:
+    """A 3-D configuration: the vehicle is lifted to the band's start altitude and the plant
+    made there (missionconfig's order: :func:`vertical`, then :func:`fly_plant`); under random
+    3-D controls it reports the in-process vehicle's measured states (z and v_z with the
+    vertical GPS error), and its truth is the in-process flight's 3-D path and segment."""
+    cfg = MissionConfig.named("cc", seed=3, profile="today-3d",
+                              settings=PLANT + (("start_altitude_m", 40.0),))
+    spec = cfg.spec()
+    assert spec.start_position[2] == 40.0
+    start = hover_state(np.array(spec.start_position), spec.dynamics)
+    inproc = local_vehicle(cfg, spec, start)
+    assert isinstance(inproc, PlantVehicle)
+    east, north = (float(c) for c in spec.start_position[:2])
+    v = Vehicle.at(east, north)
+    vertical(v, spec.dynamics, spec.band.start_altitude_m)
+    fly_plant(v, cfg, own_clock=False)
+    assert v.plant is not None and v.plant.plant.state[2] == 40.0
+    assert np.array_equal(inproc.observe(), v.state) and v.state[2] != 40.0  # the GPS error
+    rng = np.random.default_rng(1)
+    for k in range(8):
+        u = rng.uniform(-7.5, 7.5, 3)
+        target = step(v.state, u, spec.dynamics)
+        inproc.command(target, u, 1.0)
+        assert v.apply(target, 1000 * (k + 1))
+        assert np.array_equal(inproc.observe(), v.state)
+        truth = v.plant.truth()
+        assert inproc.flight is not None and truth.path.shape == (101, 3)
+        assert np.array_equal(truth.path, inproc.flight.positions)
+        assert np.array_equal(truth.planned, inproc.flight.reference)
+        assert np.array_equal(truth.tracking_error_m(), inproc.tracking_error_m[-1])
+        assert np.array_equal(truth.state[:3], inproc.true_position())
+        got = plant_convert.flight_from_msg(plant_convert.flight_msg(truth, STAMPER))
+        for a, b in ((got.state, truth.state), (got.path, truth.path),
+                     (got.planned, truth.planned)):
+            assert np.array_equal(a, b)
+    assert abs(float(v.plant.plant.state[2]) - 40.0) > 1.0  # it climbed or sank
+
+
+def test_a_bad_3d_truth_is_refused() -> None:
+    """A 3-D flight carries its altitude and climb and (east, north, up) triples; a planar
+    message with an altitude, a dimension other than 2 or 3, a path below the ground or
+    a path that does not end at the true altitude are refused."""
+    truth = plant_convert.FlightTruth(1000, np.array([10.0, 20.0, 45.0, 1.0, 0.0, -0.5]),
+                                      np.array([[9.0, 20.0, 45.5], [10.0, 20.0, 45.0]]),
+                                      np.array([[9.0, 20.0, 45.5], [10.0, 20.0, 47.0]]), 1)
+    msg = plant_convert.flight_msg(truth, STAMPER)
+    assert msg.dim == 3 and msg.altitude_m == 45.0 and msg.velocity_up_mps == -0.5
+    assert np.array_equal(plant_convert.flight_from_msg(msg).tracking_error_m(), [2.0])
+    flat = plant_convert.flight_msg(plant_convert.FlightTruth(
+        1000, np.array([10.0, 20.0, 1.0, 0.0]), np.array([[9.0, 20.0], [10.0, 20.0]]),
+        np.array([[9.0, 20.0], [10.0, 20.0]]), 1), STAMPER)
+    assert flat.dim == 0 and flat.altitude_m == 0.0 and flat.velocity_up_mps == 0.0
+    bad = [plant_pb2.PlantFlight() for _ in range(4)]
+    for b in bad[:3]:
+        b.CopyFrom(msg)
+    bad[0].dim = 4
+    bad[1].path_m[2] = -1.0  # below the ground
+    bad[2].altitude_m = 46.0  # the path ends at 45 m
+    bad[3].CopyFrom(flat)
+    bad[3].altitude_m = 50.0  # an altitude on a planar flight
+    for b in bad:
+        with pytest.raises(rejections.CodecError):
+            plant_convert.flight_from_msg(b)
 
 
 def test_on_its_own_clock_the_plant_flies_the_20_hz_stream_as_it_comes() -> None:
