@@ -9,6 +9,8 @@ wind of the flavour's own message, worked out by hand from the mean wind.
 from __future__ import annotations
 
 import math
+from collections.abc import Iterator
+from typing import Any
 
 import numpy as np
 import pytest
@@ -39,6 +41,28 @@ def config(*settings: tuple[str, object], seed: int = 3) -> MissionConfig:
     return MissionConfig.named("cc", seed=seed, settings=settings)
 
 
+def fly_both(v: Vehicle, inproc: PlantVehicle, dyn: DynamicsParams) -> Iterator[Any]:
+    """Eight random controls (seeded) flown by uavsim's vehicle ``v`` and the in-process
+    ``inproc`` alike: after each, the same measured state, and the vehicle's truth (yielded)
+    is the in-process flight's path, segment, tracking error and true position over the
+    mission's axes."""
+    assert v.plant is not None
+    rng = np.random.default_rng(1)
+    for k in range(8):
+        u = rng.uniform(-7.5, 7.5, dyn.dim)
+        target = step(v.state, u, dyn)
+        inproc.command(target, u, 1.0)
+        assert v.apply(target, 1000 * (k + 1))
+        assert np.array_equal(inproc.observe(), v.state)
+        truth = v.plant.truth()
+        assert inproc.flight is not None
+        assert np.array_equal(truth.path, inproc.flight.positions[:, :dyn.dim])
+        assert np.array_equal(truth.planned, inproc.flight.reference[:, :dyn.dim])
+        assert np.array_equal(truth.tracking_error_m(), inproc.tracking_error_m[-1])
+        assert np.array_equal(truth.state[:dyn.dim], inproc.true_position())
+        yield truth
+
+
 def test_lockstep_flights_are_the_in_process_plant_vehicles_bit_for_bit() -> None:
     """The same mission configuration, the same controls: uavsim's vehicle (flying towards each
     setpoint x_{t+1} = Eq. (1) from its measured state) reports the in-process vehicle's
@@ -53,20 +77,8 @@ def test_lockstep_flights_are_the_in_process_plant_vehicles_bit_for_bit() -> Non
     assert v.plant is not None
     assert np.array_equal(inproc.observe(), v.state)
     assert not np.array_equal(v.state[:2], spec.start_position)  # the GPS error
-    rng = np.random.default_rng(1)
-    for k in range(8):
-        u = rng.uniform(-7.5, 7.5, 2)
-        target = step(v.state, u, spec.dynamics)
-        inproc.command(target, u, 1.0)
-        assert v.apply(target, 1000 * (k + 1))
-        assert np.array_equal(inproc.observe(), v.state)
-        truth = v.plant.truth()
-        assert inproc.flight is not None and truth.time_ms == 1000 * (k + 1)
-        assert np.array_equal(truth.path, inproc.flight.positions[:, :2])
-        assert np.array_equal(truth.planned, inproc.flight.reference[:, :2])
-        assert np.array_equal(truth.tracking_error_m(), inproc.tracking_error_m[-1])
-        assert np.array_equal(truth.state[:2], inproc.true_position())
-        assert truth.flights == k + 1
+    for k, truth in enumerate(fly_both(v, inproc, spec.dynamics)):
+        assert truth.time_ms == 1000 * (k + 1) and truth.flights == k + 1
 
 
 def test_the_ideal_plant_leaves_the_vehicle_as_it_always_was() -> None:
@@ -124,19 +136,8 @@ def test_lockstep_3d_flights_are_the_in_process_plant_vehicles_bit_for_bit() -> 
     fly_plant(v, cfg, own_clock=False)
     assert v.plant is not None and v.plant.plant.state[2] == 40.0
     assert np.array_equal(inproc.observe(), v.state) and v.state[2] != 40.0  # the GPS error
-    rng = np.random.default_rng(1)
-    for k in range(8):
-        u = rng.uniform(-7.5, 7.5, 3)
-        target = step(v.state, u, spec.dynamics)
-        inproc.command(target, u, 1.0)
-        assert v.apply(target, 1000 * (k + 1))
-        assert np.array_equal(inproc.observe(), v.state)
-        truth = v.plant.truth()
-        assert inproc.flight is not None and truth.path.shape == (101, 3)
-        assert np.array_equal(truth.path, inproc.flight.positions)
-        assert np.array_equal(truth.planned, inproc.flight.reference)
-        assert np.array_equal(truth.tracking_error_m(), inproc.tracking_error_m[-1])
-        assert np.array_equal(truth.state[:3], inproc.true_position())
+    for truth in fly_both(v, inproc, spec.dynamics):
+        assert truth.path.shape == (101, 3)
         got = plant_convert.flight_from_msg(plant_convert.flight_msg(truth, STAMPER))
         for a, b in ((got.state, truth.state), (got.path, truth.path),
                      (got.planned, truth.planned)):
