@@ -27,6 +27,7 @@ from dualpilot.spec import MissionSpec
 from dualpilot.system2.problem import System2Params
 
 if TYPE_CHECKING:
+    from dualpilot.model.fire_height import FireHeightParams
     from dualpilot.system1.planner import System1Params
 
 __all__ = ["PlannerMethod", "Planner", "build_planner", "build_planners", "default_method",
@@ -35,6 +36,9 @@ __all__ = ["PlannerMethod", "Planner", "build_planner", "build_planners", "defau
 #: A constructor of the registry: (spec, that system's parameters or None for the defaults)
 #: -> Planner.
 Constructor = Callable[[MissionSpec, Any], Planner]
+#: Which 3-D missions a method of ``dims`` {2, 3} plans: (the 3-D spec, the fronts' height
+#: reading, the fire scenario) -> "" (it plans them) or why not, a sentence after its name.
+Scope3 = Callable[[MissionSpec, "FireHeightParams", str], str]
 
 
 @dataclass(frozen=True)
@@ -57,6 +61,9 @@ class PlannerMethod:
     #: the dimensions (``DynamicsParams.dim``) it plans in: 2 (the top-down evaluation)
     #: unless it says 3 too (docs/three_d.md)
     dims: frozenset[int] = frozenset({2})
+    #: for a method of 3-D missions over some fronts only: which (None: every one); read
+    #: before a mission starts (:mod:`dualpilot.mission.dimension`)
+    scope3: Scope3 | None = None
 
     def __post_init__(self) -> None:
         if self.system not in (1, 2):
@@ -117,6 +124,12 @@ def _certified(spec: MissionSpec, params: System2Params | None) -> Planner:
     return CertifiedSystem2(spec, params or System2Params())
 
 
+def _certified_scope(spec: MissionSpec, heights: FireHeightParams, scenario: str) -> str:
+    from dualpilot.system2.certify.planner3 import certifies_3d
+
+    return certifies_3d(spec, heights, scenario)
+
+
 def _rrt_risk(spec: MissionSpec, params: System1Params | None) -> Planner:
     from dualpilot.system1.planner import RiskSystem1, System1Params
 
@@ -144,7 +157,8 @@ ANYTIME = PlannerMethod(2, _anytime, None, "the fast plan, then SCIP seeded with
 THOROUGH = PlannerMethod(2, _thorough, None, "the fast method, every homotopy to convergence",
                          dims=frozenset({2, 3}))
 CERTIFIED = PlannerMethod(2, _certified, None, "the fast plan with a lower bound on (P2) "
-                          "proven by branch and bound")
+                          "proven by branch and bound", dims=frozenset({2, 3}),
+                          scope3=_certified_scope)
 
 #: The built-in methods: entry points of ``dualpilot.planners`` (name -> "module:attribute"),
 #: each system's default first.

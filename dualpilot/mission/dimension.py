@@ -3,8 +3,10 @@
 A controller flies a mission of ``dim`` = 3 when its supervisor and the planning method
 of every system it asks say they plan in 3-D (:attr:`SupervisorEntry.dims
 <dualpilot.supervisor.interface.SupervisorEntry.dims>`, :attr:`PlannerMethod.dims
-<dualpilot.planners.PlannerMethod.dims>`). A controller that does not is refused before
-its mission starts, by name, with every part that plans in 2-D only.
+<dualpilot.planners.PlannerMethod.dims>`). A method that plans some 3-D missions only says which
+(:attr:`PlannerMethod.scope3 <dualpilot.planners.PlannerMethod.scope3>`, read from the
+reading before the mission). A controller that does not fly its mission is refused before
+it starts, by name, with every part that does not plan it.
 """
 
 from __future__ import annotations
@@ -28,7 +30,8 @@ def _parts(config: MissionConfig) -> list[tuple[str, bool]]:
     """(sentence, built in) for each part of ``config``'s controller that does not plan in
     its spec's dimension (a method that is not installed, or does not load, is left to
     :func:`~dualpilot.planners.build_planner`, which names it as before)."""
-    dim = config.spec().dim
+    spec = config.spec()
+    dim = spec.dim
     out = []
     entry = supervisor_entry(config.supervisor)
     if dim not in entry.dims:
@@ -40,9 +43,15 @@ def _parts(config: MissionConfig) -> list[tuple[str, bool]]:
             method = planner_method(methods[system])
         except ValueError:  # unknown, or does not load: the mission's planner says so
             continue
+        name = f"System {system} method {methods[system]!r}"
         if dim not in method.dims:
-            out.append((f"System {system} method {methods[system]!r} plans in "
-                        f"{_only(method.dims)}", methods[system] in BUILTIN_METHODS))
+            out.append((f"{name} plans in {_only(method.dims)}",
+                        methods[system] in BUILTIN_METHODS))
+        elif dim == 3 and method.scope3 is not None:
+            reading = config.reading()
+            why = method.scope3(spec, reading.altitude.heights, reading.fire.scenario)
+            if why:
+                out.append((f"{name} {why}", methods[system] in BUILTIN_METHODS))
     return out
 
 

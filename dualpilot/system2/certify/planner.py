@@ -14,6 +14,12 @@ satisfies (P2) turns a failed fast plan into INFEASIBLE. Across the steps of a m
 search is warm-started twice: the fast method starts from the previous plan (the first
 incumbent), and the root convexifies at once, one step on, what the previous root did.
 
+In 3-D (``spec.dim == 3``, prisms for hulls) a request whose prisms are all taller than the
+ceiling less ε, from G_o's altitude at rest vertically, is the planar request on the
+footprints, planned by this class in 2-D and lifted with its bound; any other 3-D request
+gets the fast method's 3-D plan without a bound
+(:mod:`dualpilot.system2.certify.planner3`).
+
 After each plan, ``CertifiedSystem2.trace`` lists (seconds since the plan began, bound,
 incumbent cost) at every node: how the run's certified gap closed over time.
 """
@@ -24,21 +30,25 @@ import dataclasses
 import math
 import time
 from collections.abc import Sequence
+from typing import cast
 
 import numpy as np
 
 from dualpilot.arrays import Array
 from dualpilot.model.dynamics import rollout
 from dualpilot.model.geometry import Polytope
+from dualpilot.model.prism import Prism
 from dualpilot.plan import Objective, Plan, PlanStatus
 from dualpilot.spec import MissionSpec
 from dualpilot.system2.certify.bnb import BranchAndBound, CertifyParams, Outcome
 from dualpilot.system2.certify.model import Instance, controls, maps, positions
+from dualpilot.system2.certify.planner3 import Certified3
 from dualpilot.system2.certify.relaxation import NodeResult, Pair, Relaxation
 from dualpilot.system2.certify.repair import repair
 from dualpilot.system2.fast.geometry import Inflated
 from dualpilot.system2.fast.params import FastParams
 from dualpilot.system2.fast.planner import FastSystem2
+from dualpilot.system2.fast.planner3 import Fast3, planar_spec
 from dualpilot.system2.fast.qp import P2Qp
 from dualpilot.system2.problem import System2Params, p2_cost, verify_p2_plan
 
@@ -137,7 +147,16 @@ class CertifiedSystem2:
                  certify: CertifyParams = CertifyParams(),
                  fast: FastParams | None = None) -> None:
         self.spec, self.params, self.certify = spec, params, certify
-        self.fast_planner = FastSystem2(spec, params, fast or FastParams())
+        fast = fast or FastParams()
+        #: the 3-D method (None in 2-D): the plane's certified planner under the reduction
+        self.three: Certified3 | None = None
+        self.fast_planner: FastSystem2
+        if spec.dim == 3:
+            flat = CertifiedSystem2(planar_spec(spec), params, certify, fast)
+            self.three = Certified3(spec, flat, Fast3(spec, params, fast, flat.fast_planner))
+            self.fast_planner = flat.fast_planner
+        else:
+            self.fast_planner = FastSystem2(spec, params, fast)
         self.trace: list[tuple[float, float, float]] = []
         #: the previous plan's convexified (τ, hull centroid): the next root starts from them
         self._warm: list[tuple[int, Array]] = []
@@ -146,16 +165,24 @@ class CertifiedSystem2:
         """Forget the previous plan (the fast method's seed and the root's clusters)."""
         self.fast_planner.reset()
         self._warm = []
+        if self.three is not None:
+            self.three.reset()
 
-    def plan(self, state: Array, hulls: Sequence[Polytope],
+    def plan(self, state: Array, hulls: Sequence[Polytope] | Sequence[Prism],
              objective: Objective = Objective.MISSION_TIME,
              prev_control: Array | None = None) -> Plan:
-        """Plan from ``state`` avoiding ``hulls``; ``prev_control`` is u_{t|t} (N)."""
+        """Plan from ``state`` avoiding ``hulls`` (prisms in 3-D:
+        :class:`~dualpilot.system2.certify.planner3.Certified3`); ``prev_control`` is
+        u_{t|t} (N)."""
+        if self.three is not None:
+            plan = self.three.plan(state, cast(Sequence[Prism], hulls), objective, prev_control)
+            self.trace = list(self.three.trace)
+            return plan
         t0 = time.perf_counter()
         fast = self.fast_planner.plan(state, hulls, objective, prev_control)
         if fast.status in (PlanStatus.INVALID_INPUT, PlanStatus.INFEASIBLE):
             return fast
-        hull_t = tuple(hulls)
+        hull_t = tuple(cast(Sequence[Polytope], hulls))
         cost = fast.cost if fast.ok and fast.cost is not None else math.inf
         out = self._search(state, hull_t, objective, prev_control, cost,
                            self._warm_start(hull_t), t0, reach=False,

@@ -176,7 +176,7 @@ def test_a_2d_mission_has_no_heights() -> None:
     assert VerticalParams().fire_heights(spec, "paper") is None
 
 
-@pytest.mark.parametrize(("system", "method"), [(2, "certified")])
+@pytest.mark.parametrize(("system", "method"), [(1, "straight")])  # the example package's
 def test_a_planar_method_refuses_a_3d_mission_by_name(system: int, method: str) -> None:
     from dualpilot.planners import build_planner
 
@@ -189,11 +189,14 @@ def test_a_planar_method_refuses_a_3d_mission_by_name(system: int, method: str) 
 def test_a_mission_names_each_planner_that_refuses_3d() -> None:
     from dualpilot.mission.local import local_mission
 
-    with pytest.raises(ValueError, match="System 2 method 'certified' plans in 2-D only"):
-        local_mission(MissionConfig.named("s2", profile="today-3d", system2_method="certified"))
-    with pytest.raises(ValueError, match="System 2 method 'certified' plans in 2-D only"):
+    low = (("fire_height", "uniform"), ("fire_height_min_m", 5.0), ("fire_height_max_m", 40.0))
+    refused = "System 2 method 'certified' plans dim=3 only where every front's top is above"
+    with pytest.raises(ValueError, match=refused):
+        local_mission(MissionConfig.named("s2", profile="today-3d", system2_method="certified",
+                                          settings=low))
+    with pytest.raises(ValueError, match=refused):
         local_mission(MissionConfig.named("cc", profile="today-3d",  # System 1 plans in 3-D
-                                          system2_method="certified"))
+                                          system2_method="certified", settings=low))
 
 
 def test_a_planar_supervisor_refuses_a_3d_mission_by_name() -> None:
@@ -223,5 +226,9 @@ def test_a_method_says_the_dimensions_it_plans_in() -> None:
     # System 2's fast method and the one built on it plan in both
     # (tests/unit/dualpilot/system2/fast/test_system2_fast3.py)
     assert planner_method("fast").dims == planner_method("thorough").dims == frozenset({2, 3})
+    # the certified method plans 3-D missions over fronts taller than the ceiling only
+    # (tests/unit/dualpilot/system2/certify/test_certify3.py)
+    assert planner_method("certified").dims == frozenset({2, 3})
+    assert planner_method("certified").scope3 is not None and planner_method("fast").scope3 is None
     with pytest.raises(ValueError, match="2-D, 3-D or both"):
         PlannerMethod(1, lambda spec, params: None, dims=frozenset({4}))  # type: ignore
