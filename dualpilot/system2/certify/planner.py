@@ -17,7 +17,7 @@ incumbent), and the root convexifies at once, one step on, what the previous roo
 In 3-D (``spec.dim == 3``, prisms for hulls) a request whose prisms are all taller than the
 ceiling less ε, from G_o's altitude at rest vertically, is the planar request on the
 footprints, planned by this class in 2-D and lifted with its bound; any other 3-D request
-gets the fast method's 3-D plan without a bound
+gets the bound of the same search with the prisms that can be passed over dropped
 (:mod:`dualpilot.system2.certify.planner3`).
 
 After each plan, ``CertifiedSystem2.trace`` lists (seconds since the plan began, bound,
@@ -153,7 +153,8 @@ class CertifiedSystem2:
         self.fast_planner: FastSystem2
         if spec.dim == 3:
             flat = CertifiedSystem2(planar_spec(spec), params, certify, fast)
-            self.three = Certified3(spec, flat, Fast3(spec, params, fast, flat.fast_planner))
+            fast3 = Fast3(spec, params, fast, flat.fast_planner)
+            self.three = Certified3(spec, params, flat, fast3)
             self.fast_planner = flat.fast_planner
         else:
             self.fast_planner = FastSystem2(spec, params, fast)

@@ -14,17 +14,23 @@ within every prism's altitudes). Then the 3-D answer is the planar
 :class:`~dualpilot.system2.certify.planner.CertifiedSystem2`'s on the footprints, lifted:
 its plan bit for bit, its cost, bound and certified gap.
 
-**Otherwise** (a front lower than the ceiling less ε, or the UAV off G_o's altitude or
-climbing) the 2.5-D reach sets and relaxation are not built: the request gets the fast
-method's 3-D plan (:class:`~dualpilot.system2.fast.planner3.Fast3`) with **no bound**
-(``Plan.bound`` None, ``info["certify"]`` says why), never an unproven certificate. A
-mission is refused up front where that would be the rule (:func:`certifies_3d`, read by
-:mod:`dualpilot.mission.dimension`).
+**Otherwise** (a front that can be passed over, or the UAV off G_o's altitude or climbing)
+the designed 2.5-D reach sets and relaxation (docs/three_d.md) are not built. The request
+gets the better verified plan of two: the fast method's 3-D plan
+(:class:`~dualpilot.system2.fast.planner3.Fast3`) and the planar certified plan on the
+footprints of the prisms that cannot be passed over, lifted to the UAV's altitude where it
+keeps every prism in 3-D; and the planar search's bound. That bound holds for the 3-D
+(P2): dropping the prisms that can be passed over is a relaxation, and the rest is the
+reduction's argument (the z terms of Eq. (S2) are at least 0). It is weak where the
+optimum must climb high or go around what the relaxation drops. A mission whose fronts
+may be lower than the ceiling less ε is refused up front (:func:`certifies_3d`, read by
+:mod:`dualpilot.mission.dimension`) until that design is built.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import math
 import time
 from collections.abc import Sequence
 from typing import Protocol
@@ -39,7 +45,7 @@ from dualpilot.model.prism import Prism
 from dualpilot.plan import Objective, Plan
 from dualpilot.spec import MissionSpec
 from dualpilot.system2.fast.planner3 import Fast3
-from dualpilot.system2.problem import check_request
+from dualpilot.system2.problem import System2Params, check_request, p2_cost, verify_p2_plan
 
 
 def certifies_3d(spec: MissionSpec, heights: FireHeightParams, scenario: str) -> str:
@@ -84,8 +90,9 @@ class Certified3:
     for the requests outside the reduction (it seeds ``flat``'s fast planner, as the fast
     method's 3-D half seeds its plane's)."""
 
-    def __init__(self, spec: MissionSpec, flat: PlanarCertified, fast3: Fast3) -> None:
-        self.spec, self.flat, self.fast3 = spec, flat, fast3
+    def __init__(self, spec: MissionSpec, params: System2Params, flat: PlanarCertified,
+                 fast3: Fast3) -> None:
+        self.spec, self.params, self.flat, self.fast3 = spec, params, flat, fast3
         self.trace: list[tuple[float, float, float]] = []
 
     def reset(self) -> None:
@@ -104,30 +111,89 @@ class Certified3:
 
     def plan(self, state: Array, hulls: Sequence[Prism], objective: Objective,
              prev_control: Array | None) -> Plan:
-        """The plane's certified plan lifted under the reduction, else the fast 3-D plan
-        without a bound."""
+        """The plane's certified plan lifted under the reduction, else the better of the
+        fast 3-D plan and the relaxation's lifted plan, with the relaxation's bound."""
         t0 = time.perf_counter()
         checked = check_request(state, hulls, objective, prev_control, dim=3)
-        if isinstance(checked, str) or not self.reduces(*checked):
+        if isinstance(checked, str):
             plan = self.fast3.plan(state, tuple(hulls), objective, prev_control)
             self.trace = []
-            why = ("the request is invalid" if isinstance(checked, str) else
-                   "no bound: a front lower than the ceiling less ε, or the UAV off G_o's "
-                   "altitude or climbing (docs/three_d.md, 6. System 2, Certified)")
-            return dataclasses.replace(plan, bound=None, info={**plan.info, "certify": why})
+            return dataclasses.replace(plan, bound=None,
+                                       info={**plan.info, "certify": "the request is invalid"})
         x0, u_prev, prisms = checked
-        flat = self.flat.plan(np.array([x0[0], x0[1], x0[3], x0[4]]),
-                              [p.base for p in prisms], objective, u_prev[:2])
+        if not self.reduces(x0, u_prev, prisms):
+            return self._dropped(x0, u_prev, prisms, objective, t0)
+        flat = self.flat.plan(_planar(x0), [p.base for p in prisms], objective, u_prev[:2])
         self.trace = list(self.flat.trace)
         info = {**flat.info, "reduction": True}
         if not flat.ok:
             failed = Plan.failed(2, flat.status, time.perf_counter() - t0, flat.message, dim=3)
             plan = dataclasses.replace(failed, objective=flat.objective, info=info)
         else:
-            z = float(x0[2])
-            plan = dataclasses.replace(
-                flat, states=np.array([lift_state(s, z) for s in flat.states]),
-                controls=lift_controls(flat.controls),
-                compute_time_s=time.perf_counter() - t0, info=info)
+            plan = dataclasses.replace(flat, states=_lifted(flat, float(x0[2])),
+                                       controls=lift_controls(flat.controls),
+                                       compute_time_s=time.perf_counter() - t0, info=info)
         self.fast3.last = plan if plan.ok else None
         return plan
+
+    def _dropped(self, x0: Array, u_prev: Array, prisms: tuple[Prism, ...],
+                 objective: Objective, t0: float) -> Plan:
+        """Off the reduction (module docstring, "Otherwise"): the fast 3-D plan; the plane's
+        certified search on the footprints of the prisms that cannot be passed over (the
+        others dropped: a relaxation), whose bound holds for the 3-D (P2); its plan lifted
+        is a candidate where it keeps every prism in 3-D. The cheaper verified plan, with
+        that bound."""
+        band, eps = self.spec.band, self.spec.clearance_m
+        fast = self.fast3.plan(x0, prisms, objective, u_prev)
+        tall = [p.base for p in prisms if len(p.escape_faces(band, eps)) == p.base.n_faces]
+        started = time.perf_counter() - t0
+        flat = self.flat.plan(_planar(x0), tall, objective, u_prev[:2])
+        cost = fast.cost if fast.ok and fast.cost is not None else math.inf
+        best = fast if math.isfinite(cost) else None
+        if flat.ok and x0[5] == 0.0 and u_prev[2] == 0.0:
+            lifted = self._checked(flat, x0, u_prev, prisms, objective)
+            if lifted is not None and lifted.cost is not None and lifted.cost < cost:
+                best = lifted
+        self.trace = [(started + t, b, cost) for t, b, _ in self.flat.trace]
+        if best is None or best.cost is None:
+            self.trace = []
+            return dataclasses.replace(fast, bound=None, info={
+                **fast.info, "certify": "no bound: no verified plan"})
+        bound = None if flat.bound is None else min(flat.bound, best.cost)
+        elapsed = time.perf_counter() - t0
+        if bound is not None:
+            self.trace.append((elapsed, bound, best.cost))
+        else:
+            self.trace = []
+        info = {**best.info, "certify": "relaxation: the prisms that can be passed over "
+                "dropped", "certify_n_kept": len(tall), "fast_cost": fast.cost,
+                "certify_stop": flat.info.get("certify_stop")}
+        plan = dataclasses.replace(best, bound=bound, info=info, compute_time_s=elapsed)
+        self.fast3.last = plan
+        return plan
+
+    def _checked(self, flat: Plan, x0: Array, u_prev: Array, prisms: tuple[Prism, ...],
+                 objective: Objective) -> Plan | None:
+        """The plane's plan lifted to x0's altitude (v_z = 0, no vertical force) as a 3-D
+        plan with its 3-D Eq. (S2) cost, if it passes :func:`verify_p2_plan` with the band
+        and every prism; else None."""
+        states, controls = _lifted(flat, float(x0[2])), lift_controls(flat.controls)
+        spec = self.spec
+        area = spec.area_size_m if self.params.keep_in_area else None
+        verdict = verify_p2_plan(states, controls, prisms, spec.dynamics, spec.clearance_m,
+                                 spec.d_safe_m, area, rolled_out=False, band=spec.band)
+        if not verdict.ok:
+            return None
+        cost = p2_cost(states, controls, spec.goal_center, self.params.kappa(objective), u_prev)
+        return dataclasses.replace(flat, states=states, controls=controls, cost=cost,
+                                   info={**flat.info, "source": "relaxation, lifted"})
+
+
+def _planar(x0: Array) -> Array:
+    """The planar state [p_x, p_y, v_x, v_y] of a 3-D one."""
+    return np.array([x0[0], x0[1], x0[3], x0[4]])
+
+
+def _lifted(flat: Plan, z: float) -> Array:
+    """A planar plan's states at altitude ``z``, climbing at 0."""
+    return np.array([lift_state(s, z) for s in flat.states])

@@ -4,8 +4,10 @@ dualpilot/system2/certify/planner3.py).
 With every front taller than the ceiling less ε and the UAV at G_o's altitude at rest
 vertically, the 3-D plan is the 2-D certified plan on the footprints, lifted, bit for bit,
 with the same cost, bound and certified gap; that bound is below the proven optimum of the
-exact 3-D (P2) (SCIP, T = 20). Outside that case the method gives the fast 3-D plan and no
-bound. A mission is refused up front where its fronts may be lower (``certifies_3d``).
+exact 3-D (P2) (SCIP, T = 20). Outside that case the bound is a relaxation's (the fronts
+that can be passed over dropped), below SCIP's proven optimum too, and the plan the better
+of the fast 3-D plan and the relaxation's lifted. A mission is refused up front where its
+fronts may be lower (``certifies_3d``).
 
 The searches here stop by node count, not by the wall clock (``DETERMINISTIC``), so that
 two runs on the same instance do the same work whatever the machine's load.
@@ -121,7 +123,20 @@ def test_tall_fronts_give_the_2d_certified_plans_200() -> None:
 
 
 # ------------------------------------------------------------------ soundness against SCIP
-def _check_against_scip(n: int, seed: int) -> int:
+def _low_instance(rng: np.random.Generator
+                  ) -> tuple[np.ndarray, tuple[Prism, ...], np.ndarray]:
+    """As :func:`_instance`, each cuboid's top one of 10.7, 30.8, 50, 80, 95 m (the ceiling
+    less ε) or taller than the ceiling, and on every other instance the UAV off G_o's
+    altitude, climbing, with a vertical force."""
+    x0, prisms, u_prev = _instance(rng)
+    tops = (10.7, 30.8, 50.0, 80.0, BAND.ceiling_m - EPS, TALL)
+    prisms = tuple(Prism(p.base, 0.0, float(rng.choice(tops))) for p in prisms)
+    if rng.random() < 0.5:
+        x0[2], x0[5], u_prev[2] = rng.uniform(40.0, 90.0), rng.uniform(-2, 2), rng.uniform(-1, 1)
+    return x0, prisms, u_prev
+
+
+def _check_against_scip(n: int, seed: int, low: bool = False) -> int:
     """At T = 20, where SCIP proves the exact 3-D (P2) optimal: the certified bound is at
     most that optimum (1e-5 relative: SCIP's tolerances, docs/certify.md), and the certified
     plan costs no less than it. The count of instances SCIP proved."""
@@ -131,7 +146,7 @@ def _check_against_scip(n: int, seed: int) -> int:
     exact = ExactSystem2(SPEC3, params)
     proved = 0
     for k in range(n):
-        x0, prisms, u_prev = _instance(rng)
+        x0, prisms, u_prev = _low_instance(rng) if low else _instance(rng)
         # bring the start near enough for the fronts to matter within 20 steps
         x0[:2] = SPEC3.goal_center[:2] - rng.uniform(150, 400, 2)
         prisms = tuple(p for p in prisms if p.distance(x0[:3]) > 60.0)
@@ -162,31 +177,74 @@ def test_the_bound_is_below_scips_3d_optimum_many() -> None:
     assert _check_against_scip(16, 22) >= 12
 
 
+def test_over_low_fronts_the_bound_is_below_scips_3d_optimum() -> None:
+    """Off the reduction (fronts that can be passed over, a UAV off G_o's altitude): the
+    relaxation's bound, against SCIP's proven optimum."""
+    assert _check_against_scip(3, 23, low=True) >= 2
+
+
+@pytest.mark.slow
+def test_over_low_fronts_the_bound_is_below_scips_3d_optimum_many() -> None:
+    assert _check_against_scip(40, 24, low=True) >= 30
+
+
 # ------------------------------------------------------------------ outside the reduction
-@pytest.mark.parametrize("top", [30.8, BAND.ceiling_m - EPS])
-def test_a_front_that_can_be_passed_over_gets_the_fast_plan_and_no_bound(top: float) -> None:
-    """A cuboid 30.8 m tall, or exactly the ceiling less ε (95 m: z = 120 m keeps ε above
-    it, so (P2) may pass over it; the fast method's own reduction does not try, its over-row
-    needing a margin below the ceiling): the fast method's 3-D plan, bit for bit, no bound."""
+@pytest.mark.parametrize("top", [10.0, 30.8, BAND.ceiling_m - EPS])
+def test_a_front_that_can_be_passed_over_is_dropped_from_the_bound(top: float) -> None:
+    """A cuboid 10 m, 30.8 m tall, or exactly the ceiling less ε (95 m: z = 120 m keeps ε
+    above it, so (P2) may pass over it; the fast method's own reduction does not try, its
+    over-row needing a margin below the ceiling): the bound is the planar search's with no
+    hull, at most the free planar optimum, an independent QP (Clarabel); the plan is the
+    better of the fast 3-D plan and the free planar plan lifted where it keeps the cuboid
+    (top + ε ≤ 50 m: the 10 m one, whose gap then closes), and flies."""
     rect = Rect(450.0, 450.0, 250.0, 250.0)
     x0 = np.array([150.0, 150.0, 50.0, 5.0, 5.0, 0.0])
     prisms = (Prism.cuboid(rect, 0.0, top),)
     plan = CertifiedSystem2(SPEC3, certify=DETERMINISTIC).plan(x0, prisms)
     fast = FastSystem2(SPEC3).plan(x0, prisms)
-    assert plan.ok and fast.ok
-    assert plan.bound is None and plan.certified_gap is None
-    assert str(plan.info["certify"]).startswith("no bound")
-    assert np.array_equal(plan.states, fast.states) and plan.cost == fast.cost
+    assert plan.ok and fast.ok and plan.cost is not None and fast.cost is not None
+    assert plan.bound is not None and plan.bound <= plan.cost
+    assert plan.bound <= _free_planar_optimum(x0) * (1 + 1e-6)
+    assert plan.info["certify_n_kept"] == 0 and plan.cost <= fast.cost
+    if top + EPS <= 50.0:  # passed over at 50 m: the free optimum flies, the gap closes
+        assert plan.certified_gap is not None and plan.certified_gap <= 0.01
     _assert_flies(plan, x0, prisms)
 
 
-def test_a_climbing_uav_gets_no_bound() -> None:
-    """Tall fronts, but the UAV climbing (v_z = 1 m/s): not the reduction, no bound."""
+def _free_planar_optimum(x0: np.ndarray) -> float:
+    """(P2) with no hull in the plane (Eq. (1), U, X and the area), by Clarabel: the planar
+    relaxation's optimum, which the planar certified bound never exceeds."""
+    import cvxpy as cp
+
+    from dualpilot.model.dynamics import transition_matrices
+
+    T, dyn = System2Params().horizon, SPEC2.dynamics
+    phi, gamma = transition_matrices(dyn)
+    k1, k2 = System2Params().kappa(Objective.MISSION_TIME)
+    x = cp.Variable((T + 1, 4))
+    u = cp.Variable((T, 2))
+    cons = [x[0] == x0[[0, 1, 3, 4]], cp.abs(u) <= dyn.u_max_n, cp.abs(x[1:, 2:]) <= dyn.v_max_mps,
+            x[1:, :2] >= 0.0, x[1:, :2] <= SPEC2.area_size_m]
+    cons += [x[k + 1] == phi @ x[k] + gamma @ u[k] for k in range(T)]
+    du = cp.vstack([u[0], u[1:] - u[:-1]])
+    goal = np.ones((T, 1)) @ SPEC2.goal.center[None, :]
+    prob = cp.Problem(cp.Minimize(k1 * cp.sum_squares(x[1:, :2] - goal)
+                                  + k2 * cp.sum_squares(du)), cons)
+    prob.solve(solver=cp.CLARABEL)
+    assert prob.status == "optimal"
+    return float(prob.value)
+
+
+def test_a_climbing_uav_gets_the_relaxations_bound() -> None:
+    """Tall fronts, but the UAV climbing (v_z = 1 m/s): not the reduction; the fast 3-D
+    plan (the planar one cannot be lifted) with the planar search's bound on the footprint."""
     rect = Rect(450.0, 450.0, 250.0, 250.0)
     x0 = np.array([150.0, 150.0, 50.0, 5.0, 5.0, 1.0])
     prisms = (Prism.cuboid(rect, 0.0, TALL),)
     plan = CertifiedSystem2(SPEC3, certify=DETERMINISTIC).plan(x0, prisms)
-    assert plan.ok and plan.bound is None and str(plan.info["certify"]).startswith("no bound")
+    assert plan.ok and plan.cost is not None and plan.bound is not None
+    assert plan.bound <= plan.cost and "reduction" not in plan.info
+    assert plan.info["certify_n_kept"] == 1
     _assert_flies(plan, x0, prisms)
 
 
