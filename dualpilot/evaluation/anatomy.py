@@ -145,11 +145,18 @@ def no_escape(result: MissionResult, config: MissionConfig, front_id: int) -> bo
     """Whether no position survives :data:`ESCAPE_SUBSTEPS` sub-steps from the UAV's state at
     the first step ``front_id`` was in its snapshot, on the mission's fire future (the oracle's
     certificate from a moving state). Only where that future is the flight's own: fires free
-    of the step length, or a flight whose steps each took one planning sub-step."""
+    of the step length, or a flight whose steps each took one planning sub-step; in 3-D only
+    where the oracle judges the mission (every front taller than a UAV flies), on its planar
+    twin (:mod:`dualpilot.oracle.reduction`)."""
+    from dualpilot.model.altitude import planar_state
     from dualpilot.oracle.certificate import ReachableSet
     from dualpilot.oracle.future import FireFuture
+    from dualpilot.oracle.reduction import planar_twin, refusal
 
-    future = FireFuture(config)
+    if refusal(config):  # a 3-D mission with fronts lower than a UAV flies: no certificate
+        return False
+    planar = planar_twin(config)  # in 3-D every distance is then the planar one
+    future = FireFuture(planar)
     seen = next((k for k, r in enumerate(result.records) if front_id in r.snapshot.front_ids),
                 None)
     if seen is None:
@@ -159,7 +166,9 @@ def no_escape(result: MissionResult, config: MissionConfig, front_id: int) -> bo
     if not future.schedule_free and any(r.fire_substeps != 1 for r in result.records):
         return False
     substep0 = sum(r.fire_substeps + motion for r in before)
-    reach = ReachableSet(config, future, state=result.records[seen].state, substep0=substep0)
+    state = result.records[seen].state
+    state = planar_state(state) if len(state) == 6 else state
+    reach = ReachableSet(planar, future, state=state, substep0=substep0)
     got = reach.run(ESCAPE_SUBSTEPS)
     return got is not None and got.verdict == "impossible" and got.reason.startswith("no position")
 

@@ -3,7 +3,9 @@
 :func:`solve` searches for a witness (:mod:`~dualpilot.oracle.search`) and flies it
 through the mission step (:mod:`~dualpilot.oracle.witness`); without one it runs the
 certificate (:mod:`~dualpilot.oracle.certificate`). Both read the same fire future
-(:mod:`~dualpilot.oracle.future`).
+(:mod:`~dualpilot.oracle.future`). A 3-D mission is judged when every front is taller than
+the band, by the planar oracle of its 2-D twin, the witness lifted and flown in 3-D
+(:mod:`~dualpilot.oracle.reduction`); any other is refused.
 """
 
 from __future__ import annotations
@@ -17,6 +19,7 @@ from dualpilot.mission.ports import FirePort
 from dualpilot.mission.result import MissionResult
 from dualpilot.oracle.certificate import Certificate, CertificateParams, ReachableSet
 from dualpilot.oracle.future import FireFuture, Future
+from dualpilot.oracle.reduction import lift, planar_twin, refusal
 from dualpilot.oracle.search import SearchParams, search
 from dualpilot.oracle.witness import fly_witness
 
@@ -50,17 +53,20 @@ class Verdict:
     seconds: float = 0.0
 
 
-#: the dimensions (``DynamicsParams.dim``) of the missions the oracle judges
-DIMS = frozenset({2})
+#: the dimensions (``DynamicsParams.dim``) of the missions the oracle judges: a 3-D one only
+#: when every front is taller than any UAV can fly (:func:`~dualpilot.oracle.reduction.refusal`)
+DIMS = frozenset({2, 3})
 
 
 def check_dimension(config: MissionConfig) -> None:
-    """Nothing if the oracle judges ``config``'s mission; else ValueError naming it."""
+    """Nothing if the oracle judges ``config``'s mission; else ValueError naming why not
+    (:func:`~dualpilot.oracle.reduction.refusal`)."""
     dim = config.spec().dim
     if dim not in DIMS:
-        raise ValueError(f"the oracle (its lattice search and impossibility certificate) "
-                         f"judges planar missions only (dim=2), not dim={dim}: its "
-                         f"{dim}-D search is not built yet (docs/three_d.md, Status)")
+        raise ValueError(f"the oracle judges missions of dim {sorted(DIMS)}, not dim={dim}")
+    why = refusal(config)
+    if why:
+        raise ValueError(why)
 
 
 def solve(config: MissionConfig, params: OracleParams = OracleParams(),
@@ -74,17 +80,18 @@ def solve(config: MissionConfig, params: OracleParams = OracleParams(),
     """
     t0 = time.perf_counter()
     check_dimension(config)
-    future = FireFuture(config) if future is None else future
-    reach = ReachableSet(config, future, params.certificate)
-    cert = reach.run(config.reading().mission.max_steps * future.substeps_per_step)
+    planar = planar_twin(config)  # a 3-D mission with every front taller than the band
+    future = FireFuture(planar) if future is None else future
+    reach = ReachableSet(planar, future, params.certificate)
+    cert = reach.run(planar.reading().mission.max_steps * future.substeps_per_step)
     if cert is not None and cert.verdict == IMPOSSIBLE:
         return Verdict(IMPOSSIBLE, cert.reason, None, 0, cert, seconds=time.perf_counter() - t0)
     expansions, why, problem = 0, "not run: G out of reach of one sub-step steps", ""
     if cert is not None:  # G within reach, or the certificate cannot tell: search
-        found = search(config, future, params.search)
+        found = search(planar, future, params.search)
         expansions, why = found.expansions, found.reason
         if found.witness is not None:
-            flight, replay = fly_witness(config, found.witness, fires)
+            flight, replay = fly_witness(config, lift(found.witness, config), fires)
             if flight.success:
                 return Verdict(FEASIBLE, "witness flown to G", flight, expansions, cert,
                                seconds=time.perf_counter() - t0)

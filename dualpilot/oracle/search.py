@@ -46,7 +46,9 @@ class SearchParams:
 
 @dataclass(frozen=True)
 class Witness:
-    """A trajectory through the fires: states x_0..x_T (T+1, 4) and controls u_0..u_{T−1}."""
+    """A trajectory through the fires: states x_0..x_T (T+1, 2·dim) and controls u_0..u_{T−1}
+    (T, dim); the search's are planar (:func:`dualpilot.oracle.reduction.lift` flies them in
+    3-D)."""
 
     states: Array
     controls: Array

@@ -12,8 +12,6 @@ rules then say whether the witness reaches G: nothing of the search is trusted.
 
 from __future__ import annotations
 
-import numpy as np
-
 from dualpilot.mission import monitor
 from dualpilot.mission.answers import Answer, SystemStatus
 from dualpilot.mission.config import MissionConfig
@@ -65,7 +63,7 @@ def fly_witness(config: MissionConfig, witness: Witness,
         mission = local_mission(config, planners={})
     else:
         spec = config.spec()
-        state = hover_state(np.array(spec.start), spec.dynamics)
+        state = hover_state(spec.start_position, spec.dynamics)
         ports = MissionPorts(fires, LocalPlanners({}), LocalVehicle(state, spec.dynamics))
         mission = Mission(config, spec, ports, state)
     replay = WitnessReplay(witness)

@@ -212,11 +212,13 @@ def test_a_planar_supervisor_refuses_a_3d_mission_by_name() -> None:
         assert build_supervisor(built, built.spec()) is not None
 
 
-def test_the_oracle_refuses_a_3d_mission_by_name() -> None:
+def test_the_oracle_refuses_a_3d_mission_with_low_fronts_by_name() -> None:
     from dualpilot.oracle.oracle import solve
 
-    with pytest.raises(ValueError, match=r"the oracle .* planar missions only \(dim=2\)"):
-        solve(MissionConfig.named("s1", profile="today-3d"))
+    with pytest.raises(ValueError, match=r"the oracle judges a 3-D mission only when every "
+                                         r"front is taller than any UAV can fly"):
+        solve(MissionConfig.named("s1", profile="today-3d",
+                                  settings=(("fire_height", "uniform"),)))
 
 
 def test_a_method_says_the_dimensions_it_plans_in() -> None:
