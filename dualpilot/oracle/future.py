@@ -23,7 +23,10 @@ it matters:
   whether they do not; when they do, this future is that of a controller whose
   steps take one planning sub-step (System 1's pace under the paper's timing).
 
-Regions are kept as arrays of bounds (x_lo, y_lo, x_hi, y_hi) in m, per sub-step.
+Regions are kept as arrays of bounds (x_lo, y_lo, x_hi, y_hi) in m, per sub-step; of a 3-D
+mission (its heights' own stream, :meth:`dualpilot.model.vertical.VerticalParams.fire_heights`)
+with the cuboid's top as a fifth column (x_lo, y_lo, x_hi, y_hi, top), the rectangles the
+same.
 """
 
 from __future__ import annotations
@@ -38,8 +41,6 @@ from dualpilot.model.fire import FireParams
 from dualpilot.model.fire_field import FireField
 from dualpilot.model.scenarios import PAPER
 from dualpilot.spec import Stream
-
-_NO_BOXES = np.empty((0, 4))
 
 
 class Future(Protocol):
@@ -81,7 +82,11 @@ class FireFuture:
         self.area_size_m = spec.area_size_m
         #: sub-steps a step of the oracle takes: one to plan, then those in flight
         self.substeps_per_step = 1 + reading.mission.fire_substeps_per_motion
-        self._field = FireField(params=reading.fire, area_size_m=spec.area_size_m)
+        heights = reading.altitude.fire_heights(spec, reading.fire.scenario)
+        #: columns of a region's row: 4, or 5 with the top in 3-D
+        self.width = 4 if heights is None else 5
+        self._field = FireField(params=reading.fire, area_size_m=spec.area_size_m,
+                                heights=heights)
         self._rng = spec.rng(Stream.FIRE)
         self._seen: set[int] = set()
         self._regions: list[Array] = []
@@ -100,11 +105,13 @@ class FireFuture:
 
     def _record(self) -> None:
         fronts = self._field.fronts
-        boxes = np.array([f.region.bounds for f in fronts], dtype=float).reshape(-1, 4)
+        rows = [f.region.bounds if self.width == 4 else (*f.region.bounds, f.top_m)
+                for f in fronts]
+        boxes = np.array(rows, dtype=float).reshape(-1, self.width)
         fresh = [k for k, f in enumerate(fronts) if f.front_id not in self._seen]
         self._seen.update(f.front_id for f in fronts)
         self._regions.append(boxes)
-        self._newborn.append(boxes[fresh] if fresh else _NO_BOXES)
+        self._newborn.append(boxes[fresh] if fresh else np.empty((0, self.width)))
 
     def extend(self, substeps: int) -> None:
         """Run the fires until ``substeps`` sub-steps are known."""
@@ -114,7 +121,8 @@ class FireFuture:
             self._record()
 
     def regions(self, s: int) -> Array:
-        """Bounds (k, 4) of the active regions after ``s`` sub-steps (m)."""
+        """Bounds (k, 4) of the active regions after ``s`` sub-steps (m); (k, 5) with the
+        tops in 3-D."""
         self.extend(s)
         return self._regions[s]
 
@@ -130,5 +138,5 @@ class FireFuture:
         parts = self._regions[: substeps + 1]
         offsets = np.zeros(len(parts) + 1, dtype=np.int64)
         offsets[1:] = np.cumsum([len(p) for p in parts])
-        bounds = np.vstack(parts) if offsets[-1] else np.empty((0, 4))
+        bounds = np.vstack(parts) if offsets[-1] else np.empty((0, self.width))
         return np.ascontiguousarray(bounds, dtype=float), offsets

@@ -79,6 +79,40 @@ class ScriptedFire:
         """A fire port at sub-step 0 of these fires."""
         return ScriptedFirePort(self)
 
+    def cuboids(self) -> ScriptedCuboids:
+        """These fires as the oracle's 3-D future reads them: rows with the tops."""
+        return ScriptedCuboids(self)
+
+
+class ScriptedCuboids:
+    """A :class:`ScriptedFire` of fronts with tops whose regions are rows (x_lo, y_lo, x_hi,
+    y_hi, top) (m): the oracle's future of a 3-D mission (dualpilot/oracle/future.py)."""
+
+    schedule_free = True
+    width = 5
+
+    def __init__(self, fire: ScriptedFire):
+        if any(f.top_m is None for f in fire.fronts):
+            raise ValueError("every front needs a top")
+        self.fire = fire
+        self.substeps_per_step = fire.substeps_per_step
+
+    def _rows(self, s: int, newborn: bool) -> Array:
+        return np.array([(*r.bounds, f.top_m) for f, r in self.fire.active(s)
+                         if not newborn or f.born == s], dtype=float).reshape(-1, 5)
+
+    def regions(self, s: int) -> Array:
+        return self._rows(s, False)
+
+    def newborn(self, s: int) -> Array:
+        return self._rows(s, True)
+
+    def packed(self, substeps: int) -> tuple[Array, AnyArray]:
+        parts = [self.regions(s) for s in range(substeps + 1)]
+        offsets = np.zeros(len(parts) + 1, dtype=np.int64)
+        offsets[1:] = np.cumsum([len(p) for p in parts])
+        return np.vstack(parts), offsets
+
 
 class ScriptedFirePort:
     """The fire port of a :class:`ScriptedFire` (dualpilot.mission.ports.FirePort)."""
