@@ -45,7 +45,7 @@ from dualpilot.mission.answers import MONITOR_TAG
 from dualpilot.mission.config import MissionConfig
 from dualpilot.mission.result import Ending, MissionResult
 from dualpilot.mission.step import segment_region_distance
-from dualpilot.model.fire import FireSnapshot
+from dualpilot.model.fire import FireSnapshot, Region
 
 CLASSES = ("out_of_steps", "deliberating", "ignition", "refused", "no_plan", "known_front",
            "other")
@@ -92,12 +92,16 @@ def replay(config: MissionConfig) -> tuple[MissionResult, FireSnapshot]:
 def culprit(result: MissionResult, final: FireSnapshot, d_safe_m: float) -> tuple[int, int, str]:
     """(front id, born step, where) of the front that ended the mission: the nearest region
     within d_safe of the idle UAV ("idle"), else of its last segment ("path"); (−1, −1, "")
-    when none is (it has moved off again)."""
+    when none is (it has moved off again). In 3-D the distances are to the cuboids."""
     last = result.records[-1]
-    idle = last.state[:2]
-    end = result.final_state[:2] if result.final_state is not None else idle
+    dim = result.spec.dim
+    idle = last.state[:dim]
+    end = result.final_state[:dim] if result.final_state is not None else idle
+    regions: tuple[Region, ...] = final.regions
+    if dim == 3:  # the cuboids' 3-D distances (a snapshot without tops: above the ceiling)
+        regions = final.with_tops(result.spec.above_ceiling_m).cuboids()
     best: tuple[float, int, int, str] | None = None
-    for region, fid, born in zip(final.regions, final.front_ids, final.born_steps, strict=True):
+    for region, fid, born in zip(regions, final.front_ids, final.born_steps, strict=True):
         d_idle = region.distance(idle)
         d_path = segment_region_distance(idle, end, (region,))
         if d_idle < d_safe_m and (best is None or d_idle < best[0]):
@@ -145,17 +149,18 @@ def no_escape(result: MissionResult, config: MissionConfig, front_id: int) -> bo
     """Whether no position survives :data:`ESCAPE_SUBSTEPS` sub-steps from the UAV's state at
     the first step ``front_id`` was in its snapshot, on the mission's fire future (the oracle's
     certificate from a moving state). Only where that future is the flight's own: fires free
-    of the step length, or a flight whose steps each took one planning sub-step; in 3-D only
-    where the oracle judges the mission (every front taller than a UAV flies), on its planar
-    twin (:mod:`dualpilot.oracle.reduction`)."""
+    of the step length, or a flight whose steps each took one planning sub-step. In 3-D the
+    planar certificate of the mission's planar twin where every front is taller than a UAV
+    flies (:mod:`dualpilot.oracle.reduction`), else the certificate's columns
+    (:mod:`dualpilot.oracle.columns`)."""
     from dualpilot.model.altitude import planar_state
     from dualpilot.oracle.certificate import ReachableSet
+    from dualpilot.oracle.columns import ReachableColumns
     from dualpilot.oracle.future import FireFuture
-    from dualpilot.oracle.reduction import planar_twin, refusal
+    from dualpilot.oracle.reduction import not_reduced, planar_twin
 
-    if refusal(config):  # a 3-D mission with fronts lower than a UAV flies: no certificate
-        return False
-    planar = planar_twin(config)  # in 3-D every distance is then the planar one
+    over_band = config.spec().dim == 3 and bool(not_reduced(config))
+    planar = config if over_band else planar_twin(config)  # reduced: the planar distances
     future = FireFuture(planar)
     seen = next((k for k, r in enumerate(result.records) if front_id in r.snapshot.front_ids),
                 None)
@@ -167,8 +172,12 @@ def no_escape(result: MissionResult, config: MissionConfig, front_id: int) -> bo
         return False
     substep0 = sum(r.fire_substeps + motion for r in before)
     state = result.records[seen].state
-    state = planar_state(state) if len(state) == 6 else state
-    reach = ReachableSet(planar, future, state=state, substep0=substep0)
+    if over_band:
+        reach: ReachableSet | ReachableColumns = ReachableColumns(config, future, state=state,
+                                                                  substep0=substep0)
+    else:
+        reach = ReachableSet(planar, future, state=planar_state(state) if len(state) == 6
+                             else state, substep0=substep0)
     got = reach.run(ESCAPE_SUBSTEPS)
     return got is not None and got.verdict == "impossible" and got.reason.startswith("no position")
 

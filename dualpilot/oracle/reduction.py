@@ -22,8 +22,9 @@ box's footprint. The planar search's witness, flown at the start's altitude with
 vertical velocity or force, is a 3-D trajectory of Eq. (1) (docs/three_d.md, "The 2-D case
 and the consistency test", 1), and it is flown through the 3-D mission step to be believed.
 
-Every other 3-D mission is refused by name (:func:`refusal`): the oracle's lattice over
-altitudes and its certificate over columns (§9) are not built.
+Every other 3-D mission (:func:`not_reduced` says why) is judged over the band: the
+certificate's columns (:mod:`~dualpilot.oracle.columns`) and the 3-D lattice
+(:mod:`~dualpilot.oracle.search3`).
 """
 
 from __future__ import annotations
@@ -36,7 +37,7 @@ from dualpilot.mission.monitor import MonitorParams
 from dualpilot.model.altitude import lift_controls, lift_state
 from dualpilot.oracle.search import Witness
 
-__all__ = ["highest_uav_m", "lift", "lowest_top_m", "planar_twin", "refusal"]
+__all__ = ["highest_uav_m", "lift", "lowest_top_m", "not_reduced", "planar_twin"]
 
 
 def lowest_top_m(config: MissionConfig) -> float | None:
@@ -60,15 +61,13 @@ def highest_uav_m(config: MissionConfig) -> float:
             + braking_overshoot_m(spec.dynamics))
 
 
-def refusal(config: MissionConfig) -> str:
-    """Why the oracle does not judge ``config``'s mission ("" when it does): a planar mission
-    always; a 3-D one when every front is taller than any UAV can fly and the start and G_o
-    are at one altitude."""
+def not_reduced(config: MissionConfig) -> str:
+    """Why ``config``'s 3-D mission does not reduce to the plane ("" when it does, and for a
+    planar mission): a front may be lower than a UAV can fly, or the start and G_o are at
+    different altitudes."""
     spec = config.spec()
     if spec.dim == 2:
         return ""
-    if spec.dim != 3:
-        return f"the oracle judges dim=2 and dim=3 missions, not dim={spec.dim}"
     why = []
     top, high = lowest_top_m(config), highest_uav_m(config)
     reading = config.reading().altitude.heights
@@ -82,13 +81,7 @@ def refusal(config: MissionConfig) -> str:
     if spec.band.start_altitude_m != spec.band.goal_z_m:
         why.append(f"the start ({spec.band.start_altitude_m:g} m) and G_o "
                    f"({spec.band.goal_z_m:g} m) are at different altitudes")
-    if not why:
-        return ""
-    return ("the oracle judges a 3-D mission only when every front is taller than any UAV "
-            "can fly (fire_height=above-ceiling, or uniform with fire_height_min_m >= "
-            f"{high:.2f} m) and the start and G_o are at one altitude: here "
-            + " and ".join(why) + "; its lattice over altitudes and its certificate over "
-            "columns are not built yet (docs/three_d.md, Status)")
+    return " and ".join(why)
 
 
 def planar_twin(config: MissionConfig) -> MissionConfig:

@@ -212,13 +212,14 @@ def test_a_planar_supervisor_refuses_a_3d_mission_by_name() -> None:
         assert build_supervisor(built, built.spec()) is not None
 
 
-def test_the_oracle_refuses_a_3d_mission_with_low_fronts_by_name() -> None:
-    from dualpilot.oracle.oracle import solve
+def test_the_oracle_judges_a_3d_mission() -> None:
+    """docs/three_d.md §9 (its verdicts: tests/unit/dualpilot/oracle/test_oracle3d.py)."""
+    from dualpilot.oracle.oracle import DIMS, check_dimension
 
-    with pytest.raises(ValueError, match=r"the oracle judges a 3-D mission only when every "
-                                         r"front is taller than any UAV can fly"):
-        solve(MissionConfig.named("s1", profile="today-3d",
-                                  settings=(("fire_height", "uniform"),)))
+    assert sorted(DIMS) == [2, 3]
+    check_dimension(MissionConfig.named("s1", profile="today-3d"))
+    check_dimension(MissionConfig.named("s1", profile="today-3d",
+                                        settings=(("fire_height", "uniform"),)))
 
 
 def test_a_method_says_the_dimensions_it_plans_in() -> None:

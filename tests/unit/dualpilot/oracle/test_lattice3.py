@@ -168,3 +168,48 @@ def test_the_columns_never_call_a_flown_witness_impossible_on_1000_futures(
         case: tuple[MissionConfig, ScriptedFire]) -> None:
     check_sound(case)
 
+
+def low_pair(index: int) -> tuple[str, str]:
+    """The oracle's verdicts on mission ``index`` of seed 200 in 2-D and in 3-D over fronts
+    5-40 m tall (the same rectangles)."""
+    from dualpilot.oracle.oracle import solve
+
+    low = Task.of(index, 200, "s1", MissionConfig(settings=LOW)).mission()
+    flat, got = solve(planar_twin(low)), solve(low)
+    assert not got.problem and (got.flight is None or got.flight.success)
+    return flat.verdict, got.verdict
+
+
+def assert_altitude_helps(pairs: list[tuple[str, str]]) -> None:
+    """A UAV is never nearer a cuboid than its footprint, so a 2-D witness is a 3-D one and
+    the columns keep at least the planar cells: 3-D impossible only where 2-D is."""
+    for flat, got in pairs:
+        assert not (flat == "feasible" and got == "impossible"), (flat, got)
+        assert got != "impossible" or flat == "impossible", (flat, got)
+
+
+def test_over_low_fronts_the_oracle_never_says_less_than_in_2d() -> None:
+    assert_altitude_helps([low_pair(i) for i in range(3)])
+
+
+@pytest.mark.slow
+def test_over_low_fronts_the_oracle_never_says_less_than_in_2d_on_100_missions() -> None:
+    assert_altitude_helps([low_pair(i) for i in range(100)])
+
+
+def test_the_anatomy_names_the_front_by_its_3d_distance() -> None:
+    """A UAV braking at rest at (50, 500, 50 m): front 0, 10 m tall, right under it (0 m off
+    in the plane, 40 m in 3-D); front 1, born at sub-step 1, 45 m tall, 10 m off in the
+    plane: √(10² + 5²) = 11.2 m < d_safe. The mission fails on front 1, and the anatomy's
+    culprit is front 1 (the plane would name front 0)."""
+    from dualpilot.evaluation.anatomy import culprit
+    from dualpilot.oracle.search import Witness
+
+    fire = ScriptedFire([ScriptedFront(0, moving_box(30.0, 480.0, 70.0, 520.0), top_m=10.0),
+                         ScriptedFront(1, moving_box(60.0, 480.0, 100.0, 520.0), born=1,
+                                       top_m=45.0)])
+    port = fire.port()
+    idle = Witness(np.zeros((1, 6)), np.zeros((0, 3)))  # no plan: the UAV brakes at rest
+    flight, _ = fly_witness(config(), idle, port)  # START is (50, 500)
+    assert not flight.success and flight.records[-1].state[2] == 50.0
+    assert culprit(flight, port.snapshot(), 20.0)[0] == 1

@@ -1,6 +1,6 @@
 """The oracle in 3-D where every front is taller than any UAV can fly: the planar oracle's
 verdicts, its witnesses flown at one altitude through the 3-D mission; every other 3-D
-mission refused, by name, before it starts (docs/three_d.md §9)."""
+mission judged over the band (docs/three_d.md §9; tests/unit/dualpilot/oracle/test_lattice3.py)."""
 
 from __future__ import annotations
 
@@ -10,8 +10,8 @@ import pytest
 from dualpilot.evaluation.missions import Task
 from dualpilot.mission.config import MissionConfig
 from dualpilot.oracle.certificate import scope_of
-from dualpilot.oracle.oracle import FEASIBLE, IMPOSSIBLE, Verdict, check_dimension, solve
-from dualpilot.oracle.reduction import highest_uav_m, lowest_top_m, planar_twin, refusal
+from dualpilot.oracle.oracle import FEASIBLE, IMPOSSIBLE, Verdict, solve
+from dualpilot.oracle.reduction import highest_uav_m, lowest_top_m, not_reduced, planar_twin
 from tests.support.lifted import assert_same_mission
 from tests.support.scripted_fires import ScriptedFire, ScriptedFront
 from tests.unit.dualpilot.oracle.test_oracle import GOAL, START, corridor
@@ -130,8 +130,8 @@ def test_a_uav_flies_no_higher_than_the_ceiling_and_braking_from_the_speed_limit
     assert highest_uav_m(three_d()) == pytest.approx(139.858143, abs=1e-6)
     assert lowest_top_m(three_d()) == 145.0
     assert lowest_top_m(three_d(settings=DRAWN)) == 140.0
-    assert refusal(three_d()) == "" and refusal(three_d(settings=DRAWN)) == ""
-    assert refusal(MissionConfig()) == ""
+    assert not_reduced(three_d()) == "" and not_reduced(three_d(settings=DRAWN)) == ""
+    assert not_reduced(MissionConfig()) == ""
 
 
 @pytest.mark.parametrize(("settings", "why"), [
@@ -144,18 +144,25 @@ def test_a_uav_flies_no_higher_than_the_ceiling_and_braking_from_the_speed_limit
     ((("dim", 3), ("goal_altitude_m", 80.0)),
      "the start (50 m) and G_o (80 m) are at different altitudes"),
 ])
-def test_other_3d_missions_are_refused_by_name_before_they_start(
+def test_other_3d_missions_do_not_reduce_to_the_plane_and_say_why(
         settings: tuple[tuple[str, object], ...], why: str) -> None:
-    config = MissionConfig(settings=settings)
-    with pytest.raises(ValueError) as err:
-        check_dimension(config)
-    text = str(err.value)
-    assert text.startswith("the oracle judges a 3-D mission only when every front is taller "
-                           "than any UAV can fly (fire_height=above-ceiling, or uniform with "
-                           "fire_height_min_m >= 139.86 m)")
-    assert why in text and "not built yet (docs/three_d.md, Status)" in text
-    with pytest.raises(ValueError, match="only when every front is taller"):
-        solve(config)
+    assert why in not_reduced(MissionConfig(settings=settings))
+
+
+def test_a_mission_to_a_higher_g_o_is_judged_over_the_band() -> None:
+    """G_o at 110 m under the "cube" reading (the goal box within 50 m of it: 60-120 m), the
+    start at 50 m, fronts above the ceiling: the reduction does not apply, the lattice over
+    the band flies a witness that climbs at least 10 m into the box, through the 3-D mission
+    step, to G."""
+    config = Task.of(0, 0, "s1", MissionConfig(settings=TALL + (
+        ("goal_altitude_m", 110.0), ("goal_vertical", "cube")))).mission()
+    assert config.spec().goal_box.z_lo == 60.0
+    verdict = solve(config)
+    assert verdict.verdict == FEASIBLE, verdict.reason
+    flight = verdict.flight
+    assert flight is not None and flight.success and flight.final_state is not None
+    assert flight.final_state[2] >= 60.0 and config.spec().goal_box.contains(
+        flight.final_state[:3])
 
 
 def test_the_planar_twin_is_the_same_mission_in_2d() -> None:
@@ -165,7 +172,6 @@ def test_the_planar_twin_is_the_same_mission_in_2d() -> None:
     assert twin.spec() == MissionConfig.named("s1", start=START, goal=GOAL, seed=5).spec()
     flat = MissionConfig()
     assert planar_twin(flat) is flat
-
 
 
 @pytest.mark.parametrize("index", [21, 35])
