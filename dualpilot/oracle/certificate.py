@@ -49,6 +49,7 @@ from dualpilot.mission.config import MissionConfig
 from dualpilot.model.dynamics import hover_state, reach_boxes
 from dualpilot.model.scenarios import PAPER
 from dualpilot.oracle.future import Future, schedule_free
+from dualpilot.spec import MissionSpec
 
 
 @dataclass(frozen=True)
@@ -209,7 +210,56 @@ class _Grid:
         return False
 
 
-class ReachableSet:
+class SubstepSweep:
+    """The certificate's sweep: a reachable set advanced sub-step by sub-step until one sub-step
+    answers (:class:`ReachableSet` in the plane, ``ReachableColumns`` over the band).
+
+    A subclass sets :attr:`spec`, :attr:`grid`, :attr:`clearance`, :attr:`riding`,
+    :attr:`last`, :attr:`unsupported` and ``s`` = 0, and writes :meth:`_substep`.
+    """
+
+    spec: MissionSpec
+    grid: _Grid
+    clearance: float | None
+    riding: bool
+    last: int
+    unsupported: str
+    s: int
+
+    def run(self, until: int | None = None) -> Certificate | None:
+        """Advance to sub-step ``until`` (None: the scope's last); the answer once there is
+        one, None when ``until`` came first."""
+        if self.unsupported:
+            return Certificate("gave up", self.unsupported, 0)
+        end = self.last if until is None else min(until, self.last)
+        while self.s < end:
+            self.s += 1
+            done = self._substep(self.s)
+            if done is not None:
+                return done
+        if self.s >= self.last:
+            return Certificate("impossible", f"G out of reach for {self.last} sub-steps",
+                               self.last)
+        return None
+
+    def _substep(self, s: int) -> Certificate | None:
+        raise NotImplementedError
+
+    def _births(self, s: int, born: Array, cells: AnyArray) -> Certificate | None:
+        """Give up at sub-step ``s`` when a front ``born`` (rows x0, y0, x1, y1) could be
+        redrawn off the UAV (the ignition clearance) or be born on it (rule "become"): a point
+        of ``cells`` near it."""
+        if len(born) and self.clearance is not None and self.grid.near(cells, born,
+                                                                       self.clearance):
+            return Certificate("gave up", f"a birth could be redrawn off the UAV at sub-step {s}",
+                               s)
+        if len(born) and self.riding and self.grid.near(cells, born, self.spec.d_safe_m):
+            return Certificate("gave up", f"a front born on the UAV at sub-step {s} "
+                               "(rule become)", s)
+        return None
+
+
+class ReachableSet(SubstepSweep):
     """D_s of a mission over a fire future, advanced sub-step by sub-step (module docstring).
 
     By default from the start at rest at sub-step 0; with ``state`` from that state (m, m/s)
@@ -240,32 +290,11 @@ class ReachableSet:
         self.s = 0  # sub-steps done
         self.unsupported = unsupported(config)
 
-    def run(self, until: int | None = None) -> Certificate | None:
-        """Advance to sub-step ``until`` (None: the scope's last); the answer once there is
-        one, None when ``until`` came first."""
-        if self.unsupported:
-            return Certificate("gave up", self.unsupported, 0)
-        end = self.last if until is None else min(until, self.last)
-        while self.s < end:
-            self.s += 1
-            done = self._substep(self.s)
-            if done is not None:
-                return done
-        if self.s >= self.last:
-            return Certificate("impossible", f"G out of reach for {self.last} sub-steps",
-                               self.last)
-        return None
-
     def _substep(self, s: int) -> Certificate | None:
         grid, spec = self.grid, self.spec
-        born = self.future.newborn(self.substep0 + s)
-        if len(born) and self.clearance is not None and grid.near(self.reach, born,
-                                                                   self.clearance):
-            return Certificate("gave up", f"a birth could be redrawn off the UAV at sub-step {s}",
-                               s)
-        if len(born) and self.riding and grid.near(self.reach, born, spec.d_safe_m):
-            return Certificate("gave up", f"a front born on the UAV at sub-step {s} "
-                               "(rule become)", s)
+        births = self._births(s, self.future.newborn(self.substep0 + s), self.reach)
+        if births is not None:
+            return births
         grid.drop_failing(self.reach, self.future.regions(self.substep0 + s), spec.d_safe_m)
         if not self.reach.any():
             return Certificate("impossible", f"no position survives sub-step {s}", s)

@@ -40,6 +40,7 @@ from dualpilot.model.dynamics import hover_state, reach_boxes
 from dualpilot.oracle.certificate import (
     Certificate,
     CertificateParams,
+    SubstepSweep,
     _Grid,
     scope_of,
     unsupported,
@@ -95,7 +96,7 @@ def grown3(lo: Array, hi: Array, r: int, mz: float) -> tuple[Array, Array]:
     return olo, ohi
 
 
-class ReachableColumns:
+class ReachableColumns(SubstepSweep):
     """D_s of a 3-D mission over a fire future of cuboids (module docstring), advanced
     sub-step by sub-step; from the start at rest, or from ``state`` (6,) after ``substep0``
     sub-steps, as :class:`~dualpilot.oracle.certificate.ReachableSet`."""
@@ -134,31 +135,11 @@ class ReachableColumns:
         """The cells whose column is not empty."""
         return self.lo <= self.hi
 
-    def run(self, until: int | None = None) -> Certificate | None:
-        """As :meth:`ReachableSet.run <dualpilot.oracle.certificate.ReachableSet.run>`."""
-        if self.unsupported:
-            return Certificate("gave up", self.unsupported, 0)
-        end = self.last if until is None else min(until, self.last)
-        while self.s < end:
-            self.s += 1
-            done = self._substep(self.s)
-            if done is not None:
-                return done
-        if self.s >= self.last:
-            return Certificate("impossible", f"G out of reach for {self.last} sub-steps",
-                               self.last)
-        return None
-
     def _substep(self, s: int) -> Certificate | None:
         grid, spec = self.grid, self.spec
-        born = self.future.newborn(self.substep0 + s)[:, :4]
-        if len(born) and self.clearance is not None and grid.near(self.cells, born,
-                                                                   self.clearance):
-            return Certificate("gave up", f"a birth could be redrawn off the UAV at sub-step {s}",
-                               s)
-        if len(born) and self.riding and grid.near(self.cells, born, spec.d_safe_m):
-            return Certificate("gave up", f"a front born on the UAV at sub-step {s} "
-                               "(rule become)", s)
+        births = self._births(s, self.future.newborn(self.substep0 + s)[:, :4], self.cells)
+        if births is not None:
+            return births
         boxes = np.ascontiguousarray(self.future.regions(self.substep0 + s), dtype=float)
         drop_failing3(self.lo, self.hi, boxes, grid.lo, grid.c, spec.d_safe_m)
         if not self.cells.any():
