@@ -17,8 +17,8 @@ incumbent), and the root convexifies at once, one step on, what the previous roo
 In 3-D (``spec.dim == 3``, prisms for hulls) a request whose prisms are all taller than the
 ceiling less ε, from G_o's altitude at rest vertically, is the planar request on the
 footprints, planned by this class in 2-D and lifted with its bound; any other 3-D request
-gets the bound of the same search with the prisms that can be passed over dropped
-(:mod:`dualpilot.system2.certify.planner3`).
+gets the least over the branches "over or around" of the same search on the footprints a
+branch keeps plus its altitude's bound (:mod:`dualpilot.system2.certify.planner3`).
 
 After each plan, ``CertifiedSystem2.trace`` lists (seconds since the plan began, bound,
 incumbent cost) at every node: how the run's certified gap closed over time.

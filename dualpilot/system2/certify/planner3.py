@@ -15,16 +15,21 @@ within every prism's altitudes). Then the 3-D answer is the planar
 its plan bit for bit, its cost, bound and certified gap.
 
 **Otherwise** (a front that can be passed over, or the UAV off G_o's altitude or climbing)
-the designed 2.5-D reach sets and relaxation (docs/three_d.md) are not built. The request
-gets the better verified plan of two: the fast method's 3-D plan
-(:class:`~dualpilot.system2.fast.planner3.Fast3`) and the planar certified plan on the
-footprints of the prisms that cannot be passed over, lifted to the UAV's altitude where it
-keeps every prism in 3-D; and the planar search's bound. That bound holds for the 3-D
-(P2): dropping the prisms that can be passed over is a relaxation, and the rest is the
-reduction's argument (the z terms of Eq. (S2) are at least 0). It is weak where the
-optimum must climb high or go around what the relaxation drops. A mission whose fronts
-may be lower than the ceiling less ε is refused up front (:func:`certifies_3d`, read by
-:mod:`dualpilot.mission.dimension`) until that design is built.
+the designed 2.5-D reach sets (docs/three_d.md) are not built. The request gets the better
+verified plan of the fast method's 3-D plan (:class:`~dualpilot.system2.fast.planner3.Fast3`)
+and the planar certified plans of the branches' searches, lifted to the UAV's altitude
+where they keep every prism in 3-D; and the bound of "over or around"
+(:mod:`~dualpilot.system2.certify.branches`): a prism is kept at every τ by a base face
+(around), or at some τ by its top or bottom, whose altitude costs at least its bound of
+:mod:`~dualpilot.system2.certify.over`; the bound is the least over the branches of the
+planar certified bound on the footprints a branch keeps plus its altitude's bound. The
+reduction's argument (the z terms of Eq. (S2) apart, Eq. (1), U and X per axis) makes
+each branch's sum a lower bound on every 3-D trajectory in it. It is weak where the
+optimum stays high for long (the climb is counted at one step and the steps X ties to
+it) or the plans found go round a
+front the optimum passes over (measured in docs/three_d.md). A mission whose fronts may be
+lower than the ceiling less ε is refused up front (:func:`certifies_3d`, read by
+:mod:`dualpilot.mission.dimension`).
 """
 
 from __future__ import annotations
@@ -44,6 +49,9 @@ from dualpilot.model.geometry import Polytope
 from dualpilot.model.prism import Prism
 from dualpilot.plan import Objective, Plan
 from dualpilot.spec import MissionSpec
+from dualpilot.system2.certify.bnb import CertifyParams
+from dualpilot.system2.certify.branches import Branches
+from dualpilot.system2.certify.over import altitude_costs
 from dualpilot.system2.fast.planner3 import Fast3
 from dualpilot.system2.problem import System2Params, check_request, p2_cost, verify_p2_plan
 
@@ -77,6 +85,7 @@ class PlanarCertified(Protocol):
     """The plane's certified planner, as :class:`Certified3` uses it."""
 
     trace: list[tuple[float, float, float]]
+    certify: CertifyParams
 
     def plan(self, state: Array, hulls: Sequence[Polytope], objective: Objective,
              prev_control: Array | None) -> Plan: ...
@@ -139,38 +148,55 @@ class Certified3:
     def _dropped(self, x0: Array, u_prev: Array, prisms: tuple[Prism, ...],
                  objective: Objective, t0: float) -> Plan:
         """Off the reduction (module docstring, "Otherwise"): the fast 3-D plan; the plane's
-        certified search on the footprints of the prisms that cannot be passed over (the
-        others dropped: a relaxation), whose bound holds for the 3-D (P2); its plan lifted
-        is a candidate where it keeps every prism in 3-D. The cheaper verified plan, with
-        that bound."""
-        band, eps = self.spec.band, self.spec.clearance_m
+        certified searches on the branches' footprints (:class:`Branches`), the least
+        branch's set first, while the budget lasts and the gap is open; each search's plan
+        lifted is a candidate where it keeps every prism in 3-D. The cheaper verified plan,
+        with the least branch's bound."""
         fast = self.fast3.plan(x0, prisms, objective, u_prev)
-        tall = [p.base for p in prisms if len(p.escape_faces(band, eps)) == p.base.n_faces]
-        started = time.perf_counter() - t0
-        flat = self.flat.plan(_planar(x0), tall, objective, u_prev[:2])
+        z0, climb = altitude_costs(self.spec, x0, prisms, self.params.kappa(objective)[0],
+                                   self.params.horizon)
+        branches = Branches(z0, climb)
         cost = fast.cost if fast.ok and fast.cost is not None else math.inf
         best = fast if math.isfinite(cost) else None
-        if flat.ok and x0[5] == 0.0 and u_prev[2] == 0.0:
-            lifted = self._checked(flat, x0, u_prev, prisms, objective)
-            if lifted is not None and lifted.cost is not None and lifted.cost < cost:
-                best = lifted
-        self.trace = [(started + t, b, cost) for t, b, _ in self.flat.trace]
+        certify = self.flat.certify
+        deadline = t0 + certify.time_budget_s
+        self.trace, stop = [], None
+        while (hulls := branches.next_set(cost, certify.tolerance)) is not None:
+            left = deadline - time.perf_counter()
+            if branches.known and left <= 0.0:
+                break
+            share = left / 2.0 if len(branches.known) == 0 and hulls != branches.every else left
+            flat = self._search(x0, u_prev, [prisms[i].base for i in sorted(hulls)],
+                                objective, share)
+            branches.add(hulls, 0.0 if flat.bound is None else flat.bound)
+            stop = flat.info.get("certify_stop")
+            if flat.ok and x0[5] == 0.0 and u_prev[2] == 0.0:
+                lifted = self._checked(flat, x0, u_prev, prisms, objective)
+                if lifted is not None and lifted.cost is not None and lifted.cost < cost:
+                    best, cost = lifted, lifted.cost
+            if best is not None:
+                self.trace.append((time.perf_counter() - t0, min(branches.bound(), cost), cost))
         if best is None or best.cost is None:
             self.trace = []
             return dataclasses.replace(fast, bound=None, info={
                 **fast.info, "certify": "no bound: no verified plan"})
-        bound = None if flat.bound is None else min(flat.bound, best.cost)
-        elapsed = time.perf_counter() - t0
-        if bound is not None:
-            self.trace.append((elapsed, bound, best.cost))
-        else:
-            self.trace = []
-        info = {**best.info, "certify": "relaxation: the prisms that can be passed over "
-                "dropped", "certify_n_kept": len(tall), "fast_cost": fast.cost,
-                "certify_stop": flat.info.get("certify_stop")}
-        plan = dataclasses.replace(best, bound=bound, info=info, compute_time_s=elapsed)
+        info = {**best.info, "certify": "over or around: the least branch's bound",
+                "certify_n_kept": len(branches.kept), "certify_searches": len(branches.known),
+                "fast_cost": fast.cost, "certify_stop": stop}
+        plan = dataclasses.replace(best, bound=min(branches.bound(), best.cost), info=info,
+                                   compute_time_s=time.perf_counter() - t0)
         self.fast3.last = plan
         return plan
+
+    def _search(self, x0: Array, u_prev: Array, hulls: list[Polytope], objective: Objective,
+                budget_s: float) -> Plan:
+        """The plane's certified plan on ``hulls`` within ``budget_s`` (s)."""
+        certify = self.flat.certify
+        self.flat.certify = dataclasses.replace(certify, time_budget_s=max(budget_s, 1e-3))
+        try:
+            return self.flat.plan(_planar(x0), hulls, objective, u_prev[:2])
+        finally:
+            self.flat.certify = certify
 
     def _checked(self, flat: Plan, x0: Array, u_prev: Array, prisms: tuple[Prism, ...],
                  objective: Objective) -> Plan | None:
