@@ -44,6 +44,7 @@ import numpy as np
 
 from dualpilot.arrays import Array
 from dualpilot.model.altitude import lift_controls, lift_state
+from dualpilot.model.dynamics import rollout
 from dualpilot.model.fire_height import FireHeightParams
 from dualpilot.model.geometry import Polytope
 from dualpilot.model.prism import Prism
@@ -150,12 +151,13 @@ class Certified3:
         """Off the reduction (module docstring, "Otherwise"): the fast 3-D plan; the plane's
         certified searches on the branches' footprints (:class:`Branches`), the least
         branch's set first, while the budget lasts and the gap is open; each search's plan
-        lifted is a candidate where it keeps every prism in 3-D. The cheaper verified plan,
-        with the least branch's bound."""
+        lifted, and climbed over the prisms it crosses, are candidates where they keep
+        every prism in 3-D (:meth:`_candidates`). The cheapest verified plan, with the
+        least branch's bound."""
         fast = self.fast3.plan(x0, prisms, objective, u_prev)
-        z0, climb = altitude_costs(self.spec, x0, prisms, self.params.kappa(objective)[0],
-                                   self.params.horizon)
-        branches = Branches(z0, climb)
+        z0, per = altitude_costs(self.spec, x0, float(u_prev[2]), prisms,
+                                 self.params.kappa(objective), self.params.horizon)
+        branches = Branches(z0, per.min(axis=1))
         cost = fast.cost if fast.ok and fast.cost is not None else math.inf
         best = fast if math.isfinite(cost) else None
         certify = self.flat.certify
@@ -165,14 +167,13 @@ class Certified3:
             left = deadline - time.perf_counter()
             if branches.known and left <= 0.0:
                 break
-            share = left / 2.0 if len(branches.known) == 0 and hulls != branches.every else left
+            first = not branches.known and hulls != branches.every
             flat = self._search(x0, u_prev, [prisms[i].base for i in sorted(hulls)],
-                                objective, share)
+                                objective, left / 2.0 if first else left)
             branches.add(hulls, 0.0 if flat.bound is None else flat.bound)
             stop = flat.info.get("certify_stop")
-            if flat.ok and x0[5] == 0.0 and u_prev[2] == 0.0:
-                lifted = self._checked(flat, x0, u_prev, prisms, objective)
-                if lifted is not None and lifted.cost is not None and lifted.cost < cost:
+            for lifted in self._candidates(flat, x0, u_prev, prisms, objective):
+                if lifted.cost is not None and lifted.cost < cost:
                     best, cost = lifted, lifted.cost
             if best is not None:
                 self.trace.append((time.perf_counter() - t0, min(branches.bound(), cost), cost))
@@ -198,12 +199,53 @@ class Certified3:
         finally:
             self.flat.certify = certify
 
-    def _checked(self, flat: Plan, x0: Array, u_prev: Array, prisms: tuple[Prism, ...],
-                 objective: Objective) -> Plan | None:
-        """The plane's plan lifted to x0's altitude (v_z = 0, no vertical force) as a 3-D
-        plan with its 3-D Eq. (S2) cost, if it passes :func:`verify_p2_plan` with the band
-        and every prism; else None."""
-        states, controls = _lifted(flat, float(x0[2])), lift_controls(flat.controls)
+    def _candidates(self, flat: Plan, x0: Array, u_prev: Array, prisms: tuple[Prism, ...],
+                    objective: Objective) -> list[Plan]:
+        """A planar plan as 3-D plans that pass :func:`verify_p2_plan` with the band and
+        every prism: at x0's altitude (v_z = 0 and no vertical force only), and over the
+        prisms its ground track crosses (the altitude's QP of the split QP with rows
+        z_τ ≥ top + ε where the track is within ε of a footprint, and the steps beside)."""
+        if not flat.ok:
+            return []
+        out: list[Plan] = []
+        xy = flat.states[:, :2]
+        if x0[5] == 0.0 and u_prev[2] == 0.0:
+            lifted = self._checked(_lifted(flat, float(x0[2])), lift_controls(flat.controls),
+                                   flat, u_prev, prisms, objective, "relaxation, lifted")
+            if lifted is not None:
+                out.append(lifted)
+        band, eps, T = self.spec.band, self.spec.clearance_m, self.params.horizon
+        need = np.full(T + 1, -np.inf)
+        for p in prisms:
+            near = np.all(xy @ p.base.A.T <= p.base.b + eps + 1.0, axis=1)
+            if not np.any(near[1:]):
+                continue
+            if p.z_hi + eps > band.ceiling_m:
+                return out  # the track crosses a prism that cannot be passed over
+            near = near | np.r_[near[1:], False] | np.r_[False, near[:-1]]
+            need[near] = np.maximum(need[near], p.z_hi + eps + 0.5)
+        tau = np.flatnonzero(np.isfinite(need[2:])) + 2
+        if not len(tau) or (np.isfinite(need[1]) and x0[2] < need[1]):
+            return out
+        res = self.fast3.qp.vertical.solve(np.array([x0[2], x0[5]]), u_prev[2:],
+                                           np.array([self.spec.goal_center[2]]),
+                                           self.params.kappa(objective), tau,
+                                           np.ones((len(tau), 1)), need[tau], None, None,
+                                           confirm=True)
+        if not res.ok:
+            return out
+        controls = np.column_stack([flat.controls, res.controls[:, 0]])
+        dyn = self.spec.dynamics
+        controls = np.clip(controls, -dyn.u_max_n, dyn.u_max_n)
+        climbed = self._checked(rollout(x0, controls, dyn), controls, flat, u_prev, prisms,
+                                objective, "relaxation, climbed over")
+        return out if climbed is None else [*out, climbed]
+
+    def _checked(self, states: Array, controls: Array, flat: Plan, u_prev: Array,
+                 prisms: tuple[Prism, ...], objective: Objective, source: str) -> Plan | None:
+        """The 3-D plan (``states``, ``controls``) from the plane's plan ``flat``, with its
+        3-D Eq. (S2) cost, if it passes :func:`verify_p2_plan` with the band and every
+        prism; else None."""
         spec = self.spec
         area = spec.area_size_m if self.params.keep_in_area else None
         verdict = verify_p2_plan(states, controls, prisms, spec.dynamics, spec.clearance_m,
@@ -212,7 +254,7 @@ class Certified3:
             return None
         cost = p2_cost(states, controls, spec.goal_center, self.params.kappa(objective), u_prev)
         return dataclasses.replace(flat, states=states, controls=controls, cost=cost,
-                                   info={**flat.info, "source": "relaxation, lifted"})
+                                   info={**flat.info, "source": source})
 
 
 def _planar(x0: Array) -> Array:
