@@ -5,8 +5,9 @@ fires, 1-10 hulls, and the fire-behaviour scenarios' at T = 80) are planned with
 method's defaults (tolerance 1 %, 1 s budget) in 2-D and in 3-D with each hull a prism
 taller than the band ("tall": the reduction, the UAV at G_o's altitude at rest), and
 again with every prism 30.8 m tall ("low": grass-15's head fire, passable over), where the
-method's bound is the relaxation's that drops the prisms that can be passed over (the
-better of the fast 3-D plan and the planar plan lifted); "high", every prism 80 m tall
+method's bound is the least over the branches "over or around" (the planar bound on the
+footprints a branch keeps plus its altitude's bound; the cheapest verified of the fast
+3-D plan and the searches' plans lifted or climbed over); "high", every prism 80 m tall
 (passed over only at 105 m or more), and "mixed", taller than the band and 30.8 m
 alternating, the same. Per case: the share of instances whose
 certified gap at 1 s (the run's trace) is at most 1 %, the median and 90th-percentile wall

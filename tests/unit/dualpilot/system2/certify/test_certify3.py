@@ -4,10 +4,11 @@ dualpilot/system2/certify/planner3.py).
 With every front taller than the ceiling less ε and the UAV at G_o's altitude at rest
 vertically, the 3-D plan is the 2-D certified plan on the footprints, lifted, bit for bit,
 with the same cost, bound and certified gap; that bound is below the proven optimum of the
-exact 3-D (P2) (SCIP, T = 20). Outside that case the bound is a relaxation's (the fronts
-that can be passed over dropped), below SCIP's proven optimum too, and the plan the better
-of the fast 3-D plan and the relaxation's lifted. A mission is refused up front where its
-fronts may be lower (``certifies_3d``).
+exact 3-D (P2) (SCIP, T = 20). Outside that case the bound is the least over the branches
+"over or around" (dualpilot/system2/certify/branches.py), below SCIP's proven optimum too
+and never below the relaxation that drops the fronts that can be passed over, and the plan
+the cheapest verified of the fast 3-D plan and the searches' plans lifted or climbed over.
+A mission is refused up front where its fronts may be lower (``certifies_3d``).
 
 The searches here stop by node count, not by the wall clock (``DETERMINISTIC``), so that
 two runs on the same instance do the same work whatever the machine's load.
