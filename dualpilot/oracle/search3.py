@@ -17,9 +17,7 @@ the search, proves impossibility). Lengths m, speeds m/s.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
-from typing import Literal
 
 import numpy as np
 
@@ -28,17 +26,7 @@ from dualpilot.mission.config import MissionConfig
 from dualpilot.oracle.future import Future
 from dualpilot.oracle.search import SearchOutcome, Witness
 from dualpilot.spacetime.plan import Stage
-
-#: the altitudes a stage searches: between the two levels, or the whole band
-Levels = Literal["two", "band"]
-
-
-@dataclass(frozen=True)
-class Stage3:
-    """A stage of the 3-D search: its lattice and budget, and the altitudes it may fly."""
-
-    stage: Stage
-    levels: Levels
+from dualpilot.spacetime.plan3 import Levels, Stage3, altitude_indices
 
 
 @dataclass(frozen=True)
@@ -77,14 +65,7 @@ def altitude_range(config: MissionConfig, tops: Array, levels: Levels, h: float,
     the band's, or those between the start's and the lowest at least ``d`` above the tallest
     of ``tops`` that leaves room under the ceiling (``levels`` "two")."""
     band = config.spec().band
-    z0 = band.start_altitude_m
-    lo = math.ceil((band.floor_m - z0) / h - 1e-9)
-    hi = math.floor((band.ceiling_m - z0) / h + 1e-9)
-    if levels == "band":
-        return lo, hi
-    over = [t + d for t in tops if t + d <= band.ceiling_m]
-    level = math.ceil((max(over) - z0) / h - 1e-9) if over else 0
-    return max(lo, min(0, level)), min(hi, max(0, level))
+    return altitude_indices(band, band.start_altitude_m, tops, levels, h, d)
 
 
 def _run_stage(config: MissionConfig, future: Future, stage3: Stage3,
@@ -114,10 +95,10 @@ def _run_stage(config: MissionConfig, future: Future, stage3: Stage3,
     box = spec.goal_box
     goal = np.concatenate([box.lo + 1e-6, box.hi - 1e-6])
     outcome, path, expansions = astar3(
-        np.asarray(spec.start_position, dtype=float), np.ascontiguousarray(boxes), offsets,
-        future.substeps_per_step, goal, spec.area_size_m, iz_lo, iz_hi, d, stage.delta_mps,
-        dyn.dt_s, n_vel, keep, acc, dyn.speed_limit == "norm", steps, stage.budget, table,
-        round(16 * stage.weight))
+        np.asarray(spec.start_position, dtype=float), 0, np.zeros((1, 3), dtype=np.int64),
+        np.ascontiguousarray(boxes), offsets, future.substeps_per_step, goal, spec.area_size_m,
+        iz_lo, iz_hi, d, stage.delta_mps, dyn.dt_s, n_vel, keep, acc, dyn.speed_limit == "norm",
+        steps, stage.budget, table, round(16 * stage.weight))
     if outcome == FOUND:
         return path, "found", expansions
     return None, {EXHAUSTED: "exhausted", BUDGET: "budget"}[outcome], expansions

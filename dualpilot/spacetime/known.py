@@ -26,7 +26,9 @@ from dualpilot.arrays import AnyArray, Array
 from dualpilot.model.fire import FireParams
 from dualpilot.model.forecast import LEVELS, OccupancyForecast
 from dualpilot.model.geometry import Polytope
+from dualpilot.model.prism import Prism
 from dualpilot.model.scenarios import PAPER
+from dualpilot.model.zone_heights import ZoneHeights
 from dualpilot.spacetime.plan import FutureBoxes
 
 
@@ -105,3 +107,59 @@ def growing(obstacles: Sequence[Polytope], substeps: int, growth_m: float,
     static = hull_boxes(obstacles)
     grow = np.array([-1.0, -1.0, 1.0, 1.0])
     return FutureBoxes.of([static + grow * growth_m * s for s in range(substeps + 1)], per_step)
+
+
+#: the top (m) of a cuboid as tall as every altitude: a polygon's, or a forecast cell's under
+#: ``risk_zone_height = "band"`` (finite, for the 3-D kernels; far above any band)
+TALL_M = 1.0e4
+
+
+def tops_of(obstacles: Sequence[Polytope | Prism]) -> Array:
+    """Each obstacle's top (m): a prism's z_hi (its bottom taken as the ground, conservative),
+    a polygon's :data:`TALL_M`."""
+    return np.array([o.z_hi if isinstance(o, Prism) else TALL_M for o in obstacles],
+                    dtype=float)
+
+
+def zone_tops(forecast: OccupancyForecast, i: int, alpha: float, runs: Array,
+              heights: ZoneHeights) -> Array:
+    """The tops (m) of slice i's risky runs ``runs`` (:func:`risky_boxes`, grown): each as
+    tall as its highest cell (``heights.top_for`` of the run's largest P_xy), :data:`TALL_M`
+    under the ``"band"`` reading (dualpilot/model/zone_heights.py)."""
+    if heights.planar or not len(runs):
+        return np.full(len(runs), TALL_M)
+    res = forecast.resolution_m
+    level = forecast.level(i)
+    ox, oy = forecast.origin_m
+    out = np.empty(len(runs))
+    for r, (x0, y0, x1, _) in enumerate(runs):  # a run's cells: one row, its columns
+        row = int(round((y0 + res / 2 - oy) / res))
+        c0, c1 = int(round((x0 + res / 2 - ox) / res)), int(round((x1 - res / 2 - ox) / res))
+        p_xy = float(level[row, c0:c1].max()) / LEVELS
+        out[r] = min(TALL_M, heights.top_for(p_xy, alpha))
+    return out
+
+
+def known_future3(obstacles: Sequence[Polytope | Prism], forecast: OccupancyForecast | None,
+                  substeps: int, alpha: float, heights: ZoneHeights,
+                  per_step: int = 1) -> FutureBoxes:
+    """:func:`known_future` with each box's top (rows x_lo, y_lo, x_hi, y_hi, top): a prism's
+    over its footprint's box, a risky run's by ``heights`` (docs/three_d.md §8)."""
+    static = np.column_stack([hull_boxes([footprint(o) for o in obstacles]), tops_of(obstacles)]) \
+        if obstacles else np.empty((0, 5))
+    parts = [static]
+    last = len(forecast.horizons) - 1 if forecast is not None else -1
+    for s in range(1, substeps + 1):
+        if forecast is None:
+            parts.append(static)
+            continue
+        slices = list(forecast.slices(s, s)) or [last]
+        cells = [np.column_stack([runs, zone_tops(forecast, i, alpha, runs, heights)])
+                 for i in slices for runs in (risky_boxes(forecast, i, alpha),)]
+        parts.append(np.vstack([static, *cells]))
+    return FutureBoxes.of(parts, per_step)
+
+
+def footprint(obstacle: Polytope | Prism) -> Polytope:
+    """An obstacle in the plane: a prism's base, a polygon as it is."""
+    return obstacle.base if isinstance(obstacle, Prism) else obstacle

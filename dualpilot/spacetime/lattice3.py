@@ -175,29 +175,21 @@ def _successors3(t: int, p: Array, j: AnyArray, rel: Array, iz_next: int, iz_lo:
 
 
 @njit(cache=True)
-def astar3(origin: Array, boxes: Array, offsets: AnyArray, k: int, goal: Array, area: float,
-           iz_lo: int, iz_hi: int, d: float, delta: float, dt: float, n_vel: int, keep: float,
-           acc: float, norm: bool, max_steps: int, budget: int, table: Array, weight16: int
-           ) -> tuple[int, AnyArray, int]:
-    """Time-expanded A* from ``origin`` (3,) at rest at step 0 to a flight that ends in
-    ``goal`` (x_lo, y_lo, z_lo, x_hi, y_hi, z_hi), the failure rules at ``d`` from the
-    cuboids (module docstring), positions i_z within [``iz_lo``, ``iz_hi``] (lattice
-    indices from the origin). Priority t + (weight16/16)·h; one node per step, position and
-    velocity. Returns (outcome, path rows (t, i_x, i_y, i_z, j_x, j_y, j_z), expansions)."""
+def astar3(origin: Array, t0: int, v_init: AnyArray, boxes: Array, offsets: AnyArray, k: int,
+           goal: Array, area: float, iz_lo: int, iz_hi: int, d: float, delta: float, dt: float,
+           n_vel: int, keep: float, acc: float, norm: bool, max_steps: int, budget: int,
+           table: Array, weight16: int) -> tuple[int, AnyArray, int]:
+    """Time-expanded A* from ``origin`` (3,) at step ``t0`` with any velocity of ``v_init``
+    (rows j_x, j_y, j_z; the oracle's: at rest at step 0) to a flight that ends in ``goal``
+    (x_lo, y_lo, z_lo, x_hi, y_hi, z_hi), the failure rules at ``d`` from the cuboids
+    (module docstring), positions i_z within [``iz_lo``, ``iz_hi``] (lattice indices from
+    the origin). Priority t + (weight16/16)·h; one node per step, position and velocity.
+    Returns (outcome, path rows (t, i_x, i_y, i_z, j_x, j_y, j_z), expansions)."""
     h = delta * dt
     rel = goal - np.concatenate((origin, origin))
     seen = Dict.empty(key_type=nbt.int64, value_type=nbt.int8)
-    nodes = np.empty((1 << 14, 8), dtype=np.int64)  # t, i (3), j (3), parent
-    goal_node = np.zeros(1 << 14, dtype=np.bool_)
-    heap = np.empty(1 << 14, dtype=np.int64)
-    first = max(flights_needed(0.0, 0, rel[0], rel[3], table, n_vel, max_steps),
-                flights_needed(0.0, 0, rel[1], rel[4], table, n_vel, max_steps),
-                flights_needed(0.0, 0, rel[2], rel[5], table, n_vel, max_steps))
-    if first > max_steps:
-        return EXHAUSTED, np.empty((0, 7), dtype=np.int64), 0
-    nodes[0] = (0, 0, 0, 0, 0, 0, 0, -1)
-    heap = _heap_push(heap, 0, _entry(0, first, weight16, max_steps, 0))
-    n, size, expansions = 1, 1, 0
+    nodes, goal_node, heap, n = _start3(v_init, t0, rel, table, n_vel, max_steps, weight16)
+    size, expansions = n, 0
     a, b = np.empty(3), np.empty(3)
     while size > 0:
         if expansions >= budget or n >= (1 << _ID_BITS) - 64:
@@ -253,6 +245,26 @@ def _children3(nodes: AnyArray, goal_node: AnyArray, heap: AnyArray, n: int, siz
         heap = _heap_push(heap, size, _entry(t + 1, succ[r, 3], weight16, max_steps, n))
         n, size = n + 1, size + 1
     return nodes, goal_node, heap, n, size
+
+
+@njit(cache=True)
+def _start3(v_init: AnyArray, t0: int, rel: Array, table: Array, n_vel: int, max_steps: int,
+            weight16: int) -> tuple[AnyArray, AnyArray, AnyArray, int]:
+    """The queue at the start: the origin at step ``t0`` with each velocity of ``v_init`` that
+    can still reach G (``rel``, relative to the origin) within ``max_steps``."""
+    nodes = np.empty((1 << 14, 8), dtype=np.int64)  # t, i (3), j (3), parent
+    goal_node = np.zeros(1 << 14, dtype=np.bool_)
+    heap = np.empty(1 << 14, dtype=np.int64)
+    n, left = 0, max_steps - t0
+    for r in range(len(v_init)):
+        first = max(flights_needed(0.0, v_init[r, 0], rel[0], rel[3], table, n_vel, left),
+                    flights_needed(0.0, v_init[r, 1], rel[1], rel[4], table, n_vel, left),
+                    flights_needed(0.0, v_init[r, 2], rel[2], rel[5], table, n_vel, left))
+        if t0 + first <= max_steps:
+            nodes[n] = (t0, 0, 0, 0, v_init[r, 0], v_init[r, 1], v_init[r, 2], -1)
+            heap = _heap_push(heap, n, _entry(t0, first, weight16, max_steps, n))
+            n += 1
+    return nodes, goal_node, heap, n
 
 
 @njit(cache=True)

@@ -57,10 +57,12 @@ class FutureBoxes:
 
     @staticmethod
     def of(parts: list[Array], per_step: int = 1) -> FutureBoxes:
-        """The future whose boxes after sub-step s are ``parts[s]`` (each (k, 4))."""
+        """The future whose boxes after sub-step s are ``parts[s]`` (each (k, 4), or (k, 5) with
+        the cuboids' tops)."""
         offsets = np.zeros(len(parts) + 1, dtype=np.int64)
         offsets[1:] = np.cumsum([len(p) for p in parts])
-        boxes = np.vstack(parts) if offsets[-1] else np.empty((0, 4))
+        width = parts[0].shape[1] if parts else 4
+        boxes = np.vstack(parts) if offsets[-1] else np.empty((0, width))
         return FutureBoxes(np.ascontiguousarray(boxes, dtype=float), offsets, per_step)
 
 

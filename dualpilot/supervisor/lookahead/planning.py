@@ -5,9 +5,10 @@ The rule is in :mod:`dualpilot.supervisor.lookahead.rule`: the concurrent superv
 choice is flown only if it is sound on the known future; else the supervisor's space-time
 plan is flown, kept while it stays clear, for at most ``guard_steps`` steps. It runs the
 cognitive controller only (the registry's "lookahead", :data:`ENTRY`,
-:mod:`dualpilot.supervisor.registry`). In 3-D the known future is the footprints' and the
-space-time plans are planar, flown at the UAV's altitude
-(:mod:`dualpilot.supervisor.lookahead.vertical`).
+:mod:`dualpilot.supervisor.registry`). In 3-D, where every front and forecast cell is as
+tall as the band, the known future is the footprints' and the space-time plans are planar,
+flown at the UAV's altitude (:mod:`dualpilot.supervisor.lookahead.vertical`); else it keeps
+each box's top and the search runs over the band (:mod:`dualpilot.spacetime.plan3`).
 """
 
 from __future__ import annotations
@@ -27,8 +28,9 @@ from dualpilot.model.fire import FireParams, FireSnapshot
 from dualpilot.model.forecast import OccupancyForecast
 from dualpilot.model.prism import Prism
 from dualpilot.plan import Plan
-from dualpilot.spacetime.known import growing, growth_per_substep, known_future
+from dualpilot.spacetime.known import growing, growth_per_substep, known_future, known_future3
 from dualpilot.spacetime.plan import FutureBoxes, arrival, lattice_plan, plan_clear
+from dualpilot.spacetime.plan3 import lattice_plan3, plan_clear3
 from dualpilot.spacetime.smooth import smooth
 from dualpilot.spec import MissionSpec
 from dualpilot.supervisor.concurrent.planning import ConcurrentSupervisor
@@ -84,6 +86,9 @@ class LookaheadSupervisor(ConcurrentSupervisor):
         #: search's future) and the low prisms of now, for :meth:`sound`
         self.tall: FutureBoxes | None = None
         self.low: tuple[Prism, ...] = ()
+        #: 3-D: the known future's cuboids (rows with tops) when a front or a forecast cell
+        #: is lower than the band (None: the planar search and rules, :meth:`known`)
+        self.cuboids: FutureBoxes | None = None
 
     def plan(self, step: StepView, t: int, d_t: float, snapshot: FireSnapshot) -> Planned:
         """Step t as the concurrent supervisor's (it calls :meth:`choose`)."""
@@ -132,7 +137,9 @@ class LookaheadSupervisor(ConcurrentSupervisor):
     def known(self, t: int, obstacles: Obstacles) -> FutureBoxes:
         """The known future from step t to the step limit (:mod:`dualpilot.spacetime.known`),
         of every obstacle's footprint in 3-D; the prisms that span the band and the low ones
-        are kept apart for :meth:`sound`."""
+        are kept apart for :meth:`sound`. In 3-D, when a front or a forecast cell (its height
+        by ``risk_zone_height``) is lower than the ceiling, the cuboids' future
+        (:attr:`cuboids`) too."""
         per_step = self._step_substeps()
         fires = self.fires
         fc = fires.forecast(per_step) if isinstance(fires, ForecastPort) else None
@@ -140,6 +147,12 @@ class LookaheadSupervisor(ConcurrentSupervisor):
         alpha = self.lookahead.alpha
         band = self.spec.band
         self.low = low(obstacles, band)
+        self.cuboids = None
+        if self.spec.dim == 3 and (self.low or not self.spec.zone_heights.planar):
+            cuboids = known_future3(obstacles, fc, substeps, alpha, self.spec.zone_heights,
+                                    per_step)
+            if len(cuboids.boxes) and cuboids.boxes[:, 4].min() < band.ceiling_m:
+                self.cuboids = cuboids
         self.tall = None if not self.low else known_future(
             spanning(obstacles, band), fc, substeps, alpha, per_step)
         return known_future(footprints(obstacles), fc, substeps, alpha, per_step)
@@ -153,6 +166,8 @@ class LookaheadSupervisor(ConcurrentSupervisor):
                 p.stall_radius_m):
             return False
         steps = arrives if arrives is not None and arrives <= p.arrive_steps else p.check_steps
+        if self.cuboids is not None:
+            return plan_clear3(plan, self.cuboids, d, steps)
         if self.tall is None:
             return plan_clear(plan, known, d, steps)
         return plan_clear(plan, self.tall, d, steps) and low_clear(plan, self.low, d, steps)
@@ -175,14 +190,19 @@ class LookaheadSupervisor(ConcurrentSupervisor):
     def search(self, t: int, state: Array, prev_control: Array, known: FutureBoxes,
                obstacles: Obstacles, d: float,
                record_time: Callable[[int, float], None]) -> Plan | None:
-        """A space-time plan into G on the known future, smoothed when it can be (in 3-D
+        """A space-time plan into G on the known future, smoothed when it can be (in 3-D over
+        the cuboids, from the UAV's state, flown as found; over fronts all as tall as the band
         planar, flown at the UAV's altitude); timed as a System 1 answer. None when none is
         found or it does not verify."""
         spec = self.spec
         t0 = time.perf_counter()
-        plan = self._lattice(t, planar(state), prev_control[:2], known, d)
-        if plan is not None and spec.dim == 3:
-            plan = lift_plan(plan, state, spec.dynamics)
+        if self.cuboids is not None:
+            plan, _ = lattice_plan3(state, self.cuboids, spec, self.lookahead.stages3,
+                                    self.max_steps - t, d)
+        else:
+            plan = self._lattice(t, planar(state), prev_control[:2], known, d)
+            if plan is not None and spec.dim == 3:
+                plan = lift_plan(plan, state, spec.dynamics)
         seconds = time.perf_counter() - t0
         record_time(1, seconds)
         if plan is None or check_near(plan, state, obstacles, spec, self.params.check_steps):

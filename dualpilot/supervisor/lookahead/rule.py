@@ -36,6 +36,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from dualpilot.spacetime.plan import Stage
+from dualpilot.spacetime.plan3 import Stage3
 
 
 @dataclass(frozen=True)
@@ -58,6 +59,11 @@ class LookaheadParams:
     tube_m: float = 3.0
     #: the lattice search's stages (weighted A*, a coarse lattice, a small budget)
     stages: tuple[Stage, ...] = field(default_factory=lambda: (Stage(5.0, 250_000, weight=2.0),))
+    #: the 3-D search's stages over low fronts (docs/three_d.md §8): the two altitude levels,
+    #: then the band (:mod:`dualpilot.spacetime.plan3`), the planar stage's budget between them
+    stages3: tuple[Stage3, ...] = field(default_factory=lambda: (
+        Stage3(Stage(5.0, 100_000, weight=2.0), "two"),
+        Stage3(Stage(5.0, 150_000, weight=2.0), "band")))
     #: flights an escape must last
     escape_steps: int = 10
     #: the escape search's budget (the same lattice)
@@ -68,5 +74,5 @@ class LookaheadParams:
             raise ValueError("check_steps, arrive_steps, guard_steps and escape_steps must be "
                              ">= 1")
         if not (0 <= self.alpha < 1 and self.margin_m >= 0 and self.tube_m >= 0
-                and self.stall_radius_m >= 0 and self.stages):
+                and self.stall_radius_m >= 0 and self.stages and self.stages3):
             raise ValueError(f"invalid lookahead parameters: {self}")
