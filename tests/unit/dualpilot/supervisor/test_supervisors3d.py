@@ -61,9 +61,10 @@ def test_tall_fires_give_the_2d_missions_eight_seeds(name: str, scenario: str) -
         assert_same_mission(*_pair(name, seed, scenario))
 
 
-def _low_fires(name: str, seed: int) -> MissionResult:
+def _low_fires(name: str, seed: int,
+               extra: tuple[tuple[str, object], ...] = ()) -> MissionResult:
     config = MissionConfig.named(name, seed=seed, timing=Timing.PAPER, profile="today-3d",
-                                 settings=LOW)
+                                 settings=LOW + extra)
     result = local_mission(config).run()
     spec = config.spec()
     for r in result.records:  # the flown path keeps d_safe from every cuboid, in 3-D
@@ -90,6 +91,22 @@ def test_lookahead_climbs_over_low_fronts() -> None:
     result = _low_fires("lookahead", 8)
     assert result.success
     assert max(float(r.state[2]) for r in result.records) > 70.0
+
+
+def test_lookahead_flies_over_a_low_front_with_the_zones_heights() -> None:
+    """Seed 13 under ``risk_zone_height = "fire"``: the known future's cuboids and its forecast
+    cells' heights (z* of the uniform law) make the concurrent choice over a front's footprint
+    sound; the UAV crosses the swept cuboid 37.1 m tall at 60.6 m, more than d_safe above
+    it, and reaches G in 64 steps (before the known future kept the heights the guard flew
+    around it: 87 steps, never above 50.01 m)."""
+    result = _low_fires("lookahead", 13, (("risk_zone_height", "fire"),))
+    assert result.success and result.steps == 64
+    d = result.spec.flight_d_safe_m
+    over = [(float(r.state[2]), top) for r in result.records
+            for hull, top in zip(r.snapshot.hulls, r.snapshot.hull_tops_m, strict=True)
+            if hull.distance(r.state[:2]) == 0.0 and top + d > 50.0]
+    assert over and all(z >= top + d for z, top in over)
+    assert max(z for z, _ in over) > 60.0 and max(top for _, top in over) > 37.0
 
 
 # -- the lookahead's planar plans in 3-D ---------------------------------------------------------
