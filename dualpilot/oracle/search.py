@@ -82,23 +82,47 @@ def search(config: MissionConfig, future: Future,
     return SearchOutcome(None, reason, spent)
 
 
+@dataclass(frozen=True)
+class LatticeTerms:
+    """What an A* run over a mission's lattice needs of its dynamics (Eq. (1)) and distances."""
+
+    steps: int  # the mission's step limit (flights)
+    n_vel: int  # velocities per axis side: v_max / δ
+    keep: float  # 1 − ζ: the velocity kept over a step
+    acc: float  # ΔT·u_max / m (m/s): the largest change of velocity a step
+    table: Array  # reach_table's rows: the heuristic's least steps
+    d: float  # the distance kept from every region (m): max(d_safe, the ignition clearance)
+    #: plus the search's margin
+
+
+def lattice_terms(config: MissionConfig, delta_mps: float, margin_m: float,
+                  dim: int) -> LatticeTerms:
+    """The :class:`LatticeTerms` of ``config``'s ``dim``-D mission on a lattice of velocity
+    spacing ``delta_mps`` (ValueError: another dimension, 4096 steps or more, or a v_max that is
+    not a multiple of the spacing)."""
+    reading, spec = config.reading(), config.spec()
+    dyn = spec.dynamics
+    steps = reading.mission.max_steps
+    if dyn.dim != dim or steps >= 4096:
+        raise ValueError(f"the oracle's {dim}-D search takes {dim}-D missions of fewer than "
+                         "4096 steps")
+    n_vel = round(dyn.v_max_mps / delta_mps)
+    if abs(n_vel * delta_mps - dyn.v_max_mps) > 1e-9:
+        raise ValueError(f"v_max {dyn.v_max_mps} is not a multiple of δ {delta_mps}")
+    keep = 1.0 - dyn.zeta
+    acc = dyn.dt_s * dyn.u_max_n / dyn.mass_kg
+    table = reach_table(n_vel, delta_mps, keep, acc, dyn.v_max_mps, dyn.dt_s, steps)
+    clear = reading.mission.ignition_clearance_m or 0.0
+    return LatticeTerms(steps, n_vel, keep, acc, table, max(spec.d_safe_m, clear) + margin_m)
+
+
 def _run_stage(config: MissionConfig, future: Future, stage: Stage,
                margin_m: float) -> tuple[Array | None, str, int]:
     """One A* run: (path or None, "found" / "exhausted" / "budget", expansions)."""
-    reading = config.reading()
     spec = config.spec()
     dyn = spec.dynamics
-    steps = reading.mission.max_steps
-    if dyn.dim != 2 or steps >= 4096:
-        raise ValueError("the oracle searches planar missions of fewer than 4096 steps")
-    n_vel = round(dyn.v_max_mps / stage.delta_mps)
-    if abs(n_vel * stage.delta_mps - dyn.v_max_mps) > 1e-9:
-        raise ValueError(f"v_max {dyn.v_max_mps} is not a multiple of δ {stage.delta_mps}")
-    keep = 1.0 - dyn.zeta
-    acc = dyn.dt_s * dyn.u_max_n / dyn.mass_kg
-    table = reach_table(n_vel, stage.delta_mps, keep, acc, dyn.v_max_mps, dyn.dt_s, steps)
-    clear = reading.mission.ignition_clearance_m or 0.0
-    d = max(spec.d_safe_m, clear) + margin_m
+    lt = lattice_terms(config, stage.delta_mps, margin_m, 2)
+    steps, n_vel, keep, acc, table, d = lt.steps, lt.n_vel, lt.keep, lt.acc, lt.table, lt.d
     boxes, offsets = future.packed(steps * future.substeps_per_step)
     g = np.array(spec.goal.bounds) + np.array([1, 1, -1, -1]) * 1e-6
     outcome, path, expansions = astar(

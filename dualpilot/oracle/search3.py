@@ -24,7 +24,7 @@ import numpy as np
 from dualpilot.arrays import Array
 from dualpilot.mission.config import MissionConfig
 from dualpilot.oracle.future import Future
-from dualpilot.oracle.search import SearchOutcome, Witness
+from dualpilot.oracle.search import SearchOutcome, Witness, lattice_terms
 from dualpilot.spacetime.plan import Stage
 from dualpilot.spacetime.plan3 import Levels, Stage3, altitude_indices
 
@@ -71,22 +71,13 @@ def altitude_range(config: MissionConfig, tops: Array, levels: Levels, h: float,
 def _run_stage(config: MissionConfig, future: Future, stage3: Stage3,
                margin_m: float) -> tuple[Array | None, str, int]:
     """One A* run: (path or None, "found" / "exhausted" / "budget", expansions)."""
-    from dualpilot.spacetime.lattice import BUDGET, EXHAUSTED, FOUND, reach_table
+    from dualpilot.spacetime.lattice import BUDGET, EXHAUSTED, FOUND
     from dualpilot.spacetime.lattice3 import astar3  # compiled: loaded where it runs
 
-    stage, reading, spec = stage3.stage, config.reading(), config.spec()
+    stage, spec = stage3.stage, config.spec()
     dyn = spec.dynamics
-    steps = reading.mission.max_steps
-    if dyn.dim != 3 or steps >= 4096:
-        raise ValueError("the 3-D search takes 3-D missions of fewer than 4096 steps")
-    n_vel = round(dyn.v_max_mps / stage.delta_mps)
-    if abs(n_vel * stage.delta_mps - dyn.v_max_mps) > 1e-9:
-        raise ValueError(f"v_max {dyn.v_max_mps} is not a multiple of δ {stage.delta_mps}")
-    keep = 1.0 - dyn.zeta
-    acc = dyn.dt_s * dyn.u_max_n / dyn.mass_kg
-    table = reach_table(n_vel, stage.delta_mps, keep, acc, dyn.v_max_mps, dyn.dt_s, steps)
-    clear = reading.mission.ignition_clearance_m or 0.0
-    d = max(spec.d_safe_m, clear) + margin_m
+    lt = lattice_terms(config, stage.delta_mps, margin_m, 3)
+    steps, n_vel, keep, acc, table, d = lt.steps, lt.n_vel, lt.keep, lt.acc, lt.table, lt.d
     boxes, offsets = future.packed(steps * future.substeps_per_step)
     if boxes.shape[1] != 5:
         raise ValueError("the 3-D search reads regions with their tops (x0, y0, x1, y1, top)")
