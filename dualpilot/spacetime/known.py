@@ -18,7 +18,7 @@ controller knows where the next fire ignites. Lengths m.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 import numpy as np
 
@@ -75,7 +75,15 @@ def known_future(obstacles: Sequence[Polytope], forecast: OccupancyForecast | No
     """The known future over the next ``substeps`` sub-steps (module docstring), steps of
     ``per_step`` sub-steps (the forecast's own assumption); ``grow`` False: the risky cells
     as they are (the cells' centres, not all a region may reach)."""
-    static = hull_boxes(obstacles)
+    return _over_substeps(hull_boxes(obstacles), forecast, substeps, per_step,
+                          lambda fc, i: risky_boxes(fc, i, alpha, grow))
+
+
+def _over_substeps(static: Array, forecast: OccupancyForecast | None, substeps: int,
+                   per_step: int,
+                   cells: Callable[[OccupancyForecast, int], Array]) -> FutureBoxes:
+    """The boxes of each of the next ``substeps`` sub-steps: ``static`` and, with a forecast,
+    ``cells`` of each forecast slice that sub-step falls in (its last beyond the horizons)."""
     parts = [static]
     last = len(forecast.horizons) - 1 if forecast is not None else -1
     for s in range(1, substeps + 1):
@@ -83,8 +91,7 @@ def known_future(obstacles: Sequence[Polytope], forecast: OccupancyForecast | No
             parts.append(static)
             continue
         slices = list(forecast.slices(s, s)) or [last]
-        parts.append(np.vstack([static, *(risky_boxes(forecast, i, alpha, grow)
-                                          for i in slices)]))
+        parts.append(np.vstack([static, *(cells(forecast, i) for i in slices)]))
     return FutureBoxes.of(parts, per_step)
 
 
@@ -147,17 +154,12 @@ def known_future3(obstacles: Sequence[Polytope | Prism], forecast: OccupancyFore
     over its footprint's box, a risky run's by ``heights`` (docs/three_d.md §8)."""
     static = np.column_stack([hull_boxes([footprint(o) for o in obstacles]), tops_of(obstacles)]) \
         if obstacles else np.empty((0, 5))
-    parts = [static]
-    last = len(forecast.horizons) - 1 if forecast is not None else -1
-    for s in range(1, substeps + 1):
-        if forecast is None:
-            parts.append(static)
-            continue
-        slices = list(forecast.slices(s, s)) or [last]
-        cells = [np.column_stack([runs, zone_tops(forecast, i, alpha, runs, heights)])
-                 for i in slices for runs in (risky_boxes(forecast, i, alpha),)]
-        parts.append(np.vstack([static, *cells]))
-    return FutureBoxes.of(parts, per_step)
+
+    def cells(fc: OccupancyForecast, i: int) -> Array:
+        runs = risky_boxes(fc, i, alpha)
+        return np.column_stack([runs, zone_tops(fc, i, alpha, runs, heights)])
+
+    return _over_substeps(static, forecast, substeps, per_step, cells)
 
 
 def footprint(obstacle: Polytope | Prism) -> Polytope:
