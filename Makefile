@@ -74,9 +74,10 @@ mission: setup
 proto: setup
 	$(BIN)/python -m services.protogen --clean
 
-# every tier (unit, integration, e2e; tests/conftest.py): the integration and e2e tests one at a
-# time, their 25 slowest listed at the end, and the unit tests beside them in a second pytest
-# process at the lowest CPU priority (nice 19; scripts/test_lanes.sh, docs/testing.md).
+# every tier (unit, integration, e2e; tests/conftest.py): the integration and e2e tests on two
+# pytest-xdist workers (a test file whole on one), their 25 slowest listed at the end, and the
+# unit tests beside them on two more at the lowest CPU priority (nice 19): scripts/test_lanes.sh
+# (STACK_WORKERS, UNIT_WORKERS), docs/testing.md.
 # TEST_WORKERS=N runs every tier on N pytest-xdist workers instead (tests/support/parallel.py).
 E2E_LANES ?= 1
 export E2E_LANES
@@ -94,7 +95,7 @@ RUNS ?= 10
 LOAD ?= 0
 TIER ?= fast
 flake-hunt: setup
-	scripts/flake_hunt.sh -n $(RUNS) -l $(LOAD) -t $(TIER) $(if $(filter all,$(TIER)),-- $(PARALLEL))
+	scripts/flake_hunt.sh -n $(RUNS) -l $(LOAD) -t $(TIER)
 
 lint: setup
 	$(BIN)/ruff check .

@@ -10,8 +10,9 @@
 #             a Python loop that never sleeps, killed when the hunt ends and bounded by
 #             timeout(1) to the hunt's budget in any case
 #   -t TIER   fast (make test-fast: unit and not slow, the default) or all (make test: every
-#             test; `make flake-hunt TIER=all` passes make test's xdist workers after --);
-#             or a pytest marker expression, e.g. "integration"
+#             test, as make test runs them: scripts/test_lanes.sh, the tiers side by side on
+#             their xdist workers, the unit tier at normal priority when LOAD > 0, so that
+#             the load competes with every tier); or a pytest marker expression
 #   -o OUT    where each run's JUnit XML and log go (default runs/flake-hunt/<date>)
 #
 # Exit status: 0 when no test failed in any run, 1 otherwise. The summary is printed and
@@ -55,7 +56,10 @@ echo "flake hunt: $RUNS runs of '${MARK:-every test}' beside $LOAD busy processe
 for k in $(seq 1 "$RUNS"); do
   start=$(date +%s)
   set +e
-  if [ -n "$MARK" ]; then
+  if [ "$TIER" = all ]; then
+    UNIT_NICE=$(( LOAD > 0 ? 0 : 19 )) LANES_JUNIT="$OUT/run-$k" \
+      scripts/test_lanes.sh -p no:cacheprovider "$@" >"$OUT/run-$k.log" 2>&1
+  elif [ -n "$MARK" ]; then
     "$PY" -m pytest -q -p no:cacheprovider -m "$MARK" --junitxml="$OUT/run-$k.xml" "$@" \
       >"$OUT/run-$k.log" 2>&1
   else
@@ -78,18 +82,24 @@ out, runs, load, tier = Path(sys.argv[1]), int(sys.argv[2]), int(sys.argv[3]), s
 failed: dict[str, list[int]] = {}
 totals = []
 for k in range(1, runs + 1):
-    path = out / f"run-{k}.xml"
-    if not path.is_file():
+    # one report a run, or one a tier (TIER=all: run-K-unit.xml and run-K-stack.xml)
+    lanes = ("unit", "stack") if tier == "all" else ("",)
+    paths = [out / f"run-{k}{'-' + lane if lane else ''}.xml" for lane in lanes]
+    if not all(p.is_file() for p in paths):
         failed.setdefault("(run produced no report)", []).append(k)
         continue
-    suite = ET.parse(path).getroot()
-    suite = suite if suite.tag == "testsuite" else suite.find("testsuite")
-    totals.append({a: int(suite.get(a, 0)) for a in ("tests", "failures", "errors", "skipped")}
-                  | {"time_s": float(suite.get("time", 0.0))})
-    for case in suite.iter("testcase"):
-        if case.find("failure") is not None or case.find("error") is not None:
-            name = f"{case.get('classname')}::{case.get('name')}"
-            failed.setdefault(name, []).append(k)
+    total = dict.fromkeys(("tests", "failures", "errors", "skipped"), 0) | {"time_s": 0.0}
+    for path in paths:
+        suite = ET.parse(path).getroot()
+        suite = suite if suite.tag == "testsuite" else suite.find("testsuite")
+        for a in ("tests", "failures", "errors", "skipped"):
+            total[a] += int(suite.get(a, 0))
+        total["time_s"] = max(total["time_s"], float(suite.get("time", 0.0)))
+        for case in suite.iter("testcase"):
+            if case.find("failure") is not None or case.find("error") is not None:
+                name = f"{case.get('classname')}::{case.get('name')}"
+                failed.setdefault(name, []).append(k)
+    totals.append(total)
 summary = {"runs": runs, "load_processes": load, "tier": tier, "per_run": totals,
            "failed": failed}
 (out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
