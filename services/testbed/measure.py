@@ -71,11 +71,12 @@ def _await_reply(s: socket.socket, ident: int, seq: int, start: float,
 class Flow:
     """A UDP flow: each datagram's send time and, if it came, its arrival time (s, this
     process's monotonic clock), by sequence number; arrivals with a lower sequence number
-    than one before them."""
+    than one before them; the newest arrival's time (0 before the first)."""
 
     sent_at: list[float] = field(default_factory=list)
     arrived_at: dict[int, float] = field(default_factory=dict)
     out_of_order: int = 0
+    last_arrival: float = 0.0
 
     @property
     def sent(self) -> int:
@@ -95,13 +96,24 @@ class Flow:
         return 1.0 - self.received / self.sent if self.sent else 0.0
 
 
+#: the receiving socket's buffer (bytes): a reader that falls behind on a loaded machine
+#: finds its datagrams waiting (the kernel's default, ~208 kB, holds a few hundred)
+RCVBUF_BYTES = 4 << 20
+#: the longest wait for stragglers after the last datagram left (s), however busy the flow
+DRAIN_CAP_S = 10.0
+
+
 def udp_flow(src: Host, dst: Host, count: int, rate_pps: float, size: int = 200,
              drain_s: float = 3.0) -> Flow:
     """``count`` datagrams of ``size`` bytes from ``src`` to ``dst`` at ``rate_pps``; waits
-    ``drain_s`` after the last for stragglers."""
+    for stragglers until none has arrived for ``drain_s`` (at most :data:`DRAIN_CAP_S` after
+    the last left), then reads what the socket still holds. A datagram counts as lost only
+    when it never reached the receiving socket: not when a loaded machine's reader or
+    impairer was slow."""
     flow = Flow()
     target = dst.address(src.name)
     with socket_in(dst.netns) as rx, socket_in(src.netns) as tx:
+        rx.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, RCVBUF_BYTES)
         rx.bind((target, 0))
         port = rx.getsockname()[1]
         done = threading.Event()
@@ -114,10 +126,46 @@ def udp_flow(src: Host, dst: Host, count: int, rate_pps: float, size: int = 200,
             now = time.monotonic()
             flow.sent_at.append(now)
             tx.sendto(UDP_HEADER.pack(seq, now) + pad, (target, port))
-        time.sleep(drain_s)
+        _await_quiet(flow, time.monotonic(), drain_s)
         done.set()
         reader.join()
+        rx.setblocking(False)
+        _take_waiting(rx, flow)
     return flow
+
+
+def _await_quiet(flow: Flow, last_sent: float, quiet_s: float) -> None:
+    """Sleep until nothing has arrived for ``quiet_s`` since the later of the last send and
+    the last arrival, or :data:`DRAIN_CAP_S` after the last send."""
+    cap = last_sent + DRAIN_CAP_S
+    while True:
+        newest = max(last_sent, flow.last_arrival)
+        wake = min(newest + quiet_s, cap)
+        now = time.monotonic()
+        if now >= wake:
+            return
+        time.sleep(wake - now)
+
+
+def _take_waiting(rx: socket.socket, flow: Flow) -> None:
+    """Record the datagrams the socket holds when the reader stopped (non-blocking)."""
+    last = max(flow.arrived_at, default=-1)
+    while True:
+        try:
+            data = rx.recv(65535)
+        except BlockingIOError:
+            return
+        last = _arrived(flow, data, time.monotonic(), last)
+
+
+def _arrived(flow: Flow, data: bytes, now: float, last: int) -> int:
+    """Record one datagram; the highest sequence number seen so far, this one's included."""
+    seq, _ = UDP_HEADER.unpack_from(data)
+    flow.arrived_at[seq] = now
+    flow.last_arrival = now
+    if seq < last:
+        flow.out_of_order += 1
+    return max(last, seq)
 
 
 def _receive(rx: socket.socket, flow: Flow, done: threading.Event) -> None:
@@ -128,12 +176,7 @@ def _receive(rx: socket.socket, flow: Flow, done: threading.Event) -> None:
             data = rx.recv(65535)
         except TimeoutError:
             continue
-        now = time.monotonic()
-        seq, _ = UDP_HEADER.unpack_from(data)
-        flow.arrived_at[seq] = now
-        if seq < last:
-            flow.out_of_order += 1
-        last = max(last, seq)
+        last = _arrived(flow, data, time.monotonic(), last)
 
 
 @dataclass(frozen=True)
