@@ -99,13 +99,19 @@ def watch(page: Any, stack: launch.Stack, w: Watched3d) -> None:
         w.samples.append(page.evaluate(SAMPLE_JS))
         time.sleep(0.15)
     follower.join()
+    # the page draws every 250 ms: it shows the final state (published as the mission's last
+    # step ended) before it is frozen for the steady screenshot
+    w.outcome = result.get("outcome", launch.Outcome(False, message="follow raised"))
+    if w.outcome.ended:
+        final = record(w.run_dir)[1]["steps"]
+        wait_for(lambda: page.evaluate(SAMPLE_JS)["step"] == [final], 10,
+                 f"the page to show the final state (step {final})", logs_in(stack.logs))
 
     def steady() -> Any:
         shot = frozen_shots(page)
         return None if shot is None else (shot[0].png, page.evaluate(SAMPLE_JS))
 
     w.end_png, w.end = wait_for(steady, 10, "a steady page after the mission's end")
-    w.outcome = result.get("outcome", launch.Outcome(False, message="follow raised"))
 
 
 @pytest.fixture(scope="module")
