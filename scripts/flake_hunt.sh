@@ -46,7 +46,8 @@ esac
 # the load: bounded in time whatever happens to this script (4 h at most)
 BUSY=()
 cleanup() { for pid in "${BUSY[@]}"; do kill "$pid" 2>/dev/null || true; done; }
-trap cleanup EXIT INT TERM
+trap cleanup EXIT
+trap 'exit 130' INT TERM  # stop the hunt (the EXIT trap ends the load), not just the load
 for _ in $(seq 1 "$LOAD"); do
   timeout 4h "$PY" -c "while True: pass" &
   BUSY+=($!)

@@ -34,8 +34,9 @@ E2E_LANES = max(1, int(os.environ.get("E2E_LANES", "1")))
 #: the xdist group of every unit test
 UNIT_LANE = "unit-lane"
 #: the niceness the unit lane's worker takes (nice(2); 19 is the lowest priority: it gets
-#: ~1.5 % of a core a niceness-0 process wants, all of a core nobody wants)
-UNIT_NICE = 19
+#: ~1.5 % of a core a niceness-0 process wants, all of a core nobody wants); the
+#: environment's UNIT_NICE, as scripts/test_lanes.sh's (the flake hunt's 0 beside its load)
+UNIT_NICE = int(os.environ.get("UNIT_NICE", "19"))
 #: the tiers that run in the stack lanes
 STACK_TIERS = ("integration", "e2e")
 
