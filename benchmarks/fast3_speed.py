@@ -28,7 +28,8 @@ SPEC3 = MissionSpec(dynamics=DynamicsParams(dim=3))
 LOW_TOP_M = 30.8  # grass-15's head fire (docs/three_d.md)
 
 
-def _tops(kind: str, n: int) -> list[float]:
+def prism_tops(kind: str, n: int) -> list[float]:
+    """The tops (m) of ``n`` prisms of ``kind``: "tall", "low" or "mixed" (low, tall, …)."""
     tall = SPEC3.above_ceiling_m
     if kind == "tall":
         return [tall] * n
@@ -59,7 +60,7 @@ def main() -> None:
         u3 = np.append(inst.prev_control, 0.0)
         for kind in kinds:
             prisms = tuple(Prism(h, 0.0, top) for h, top in
-                           zip(inst.hulls, _tops(kind, len(inst.hulls)), strict=True))
+                           zip(inst.hulls, prism_tops(kind, len(inst.hulls)), strict=True))
             p3.reset()
             t = time.perf_counter()
             plan3 = p3.plan(x3, prisms, inst.objective, u3)

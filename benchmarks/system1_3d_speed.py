@@ -19,30 +19,18 @@ import argparse
 import time
 
 import numpy as np
+from fast3_speed import SPEC3, prism_tops  # the same prisms as System 2's benchmark
 
 from dualpilot.evaluation.instances import SPEC, Instance, make_instance
 from dualpilot.model.altitude import lift_state
-from dualpilot.model.dynamics import DynamicsParams
 from dualpilot.model.prism import Prism
 from dualpilot.model.vertical import S1Altitude
 from dualpilot.plan import Plan
-from dualpilot.spec import MissionSpec
 from dualpilot.system1.planner import System1, System1Params
 from dualpilot.verify import verify_trajectory
 
-SPEC3 = MissionSpec(dynamics=DynamicsParams(dim=3))
-LOW_TOP_M = 30.8  # grass-15's head fire (docs/three_d.md)
 KINDS = ("tall", "low", "mixed")
 READINGS: tuple[S1Altitude, ...] = ("slice-first", "volume")
-
-
-def _tops(kind: str, n: int) -> list[float]:
-    tall = SPEC3.above_ceiling_m
-    if kind == "tall":
-        return [tall] * n
-    if kind == "low":
-        return [LOW_TOP_M] * n
-    return [LOW_TOP_M if k % 2 == 0 else tall for k in range(n)]
 
 
 def _rng(seed: int, index: int) -> np.random.Generator:
@@ -81,7 +69,7 @@ def main() -> None:
             params = System1Params(altitude=reading)
             for kind in KINDS:
                 prisms = tuple(Prism(h, 0.0, top) for h, top in
-                               zip(inst.hulls, _tops(kind, len(inst.hulls)), strict=True))
+                               zip(inst.hulls, prism_tops(kind, len(inst.hulls)), strict=True))
                 planner = System1(SPEC3, params, rng=_rng(args.seed, i))
                 plan3, wall = _timed(planner, x3, prisms, inst, u3)
                 if i < 2:
