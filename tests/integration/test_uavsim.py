@@ -187,11 +187,13 @@ def test_offboard_sequence_then_setpoints_fly_one_step_of_eq1_each(vehicle: Any)
     t_held, held = position(conn)
     assert t_held == due and np.allclose(held, x, atol=1e-3) and np.any(np.abs(x[2:]) > 0.1)
     assert param(conn, "SIM_FAILSAFES") == 1.0
-    # one new setpoint does not take control back; a live stream does (COM_OF_RSM_T)
+    # one new setpoint does not take control back; a live stream does (COM_OF_RSM_T). The
+    # stream is live from that first setpoint (the next follow within COM_OF_LOSS_T), so the
+    # lower bound below is measured from it
+    t_stream = time.monotonic()
     send_setpoint(conn, step(held, np.array([1.0, 0.0])), due + 1000)
     _, same = position(conn)
     assert np.allclose(same, held)
-    t_stream = time.monotonic()
     while time.monotonic() - t_stream < 3.0:
         send_setpoint(conn, step(held, np.array([1.0, 0.0])), due + 1000)
         t, got = position(conn)
