@@ -103,15 +103,19 @@ print(before, stack, os.nice(0))
 """
 
 
-@pytest.mark.parametrize(("worker", "unit_lane_nice"), [("gw1", 19), (None, 0)])
+@pytest.mark.parametrize(("worker", "unit_nice", "unit_lane_nice"),
+                         [("gw1", None, 19), (None, None, 0), ("gw1", "7", 7)])
 def test_only_the_unit_lanes_worker_lowers_its_priority(worker: str | None,
+                                                        unit_nice: str | None,
                                                         unit_lane_nice: int) -> None:
     """Off a worker (a serial run) nothing changes; on one, the unit lane's test lowers the
-    priority to 19 and a stack lane's does not. (Run inside the unit lane, which already has
-    19, the test sees 19 throughout.)"""
-    env = {k: v for k, v in os.environ.items() if k != "PYTEST_XDIST_WORKER"}
+    priority to UNIT_NICE (19 unless the environment says) and a stack lane's does not. (Run
+    inside the unit lane, which already has 19, the test sees 19 throughout.)"""
+    env = {k: v for k, v in os.environ.items() if k not in ("PYTEST_XDIST_WORKER", "UNIT_NICE")}
     if worker is not None:
         env["PYTEST_XDIST_WORKER"] = worker
+    if unit_nice is not None:
+        env["UNIT_NICE"] = unit_nice
     base = os.nice(0)
     out = subprocess.run([sys.executable, "-c", YIELD.format(root=str(ROOT.parent))], env=env,
                          capture_output=True, text=True, check=True).stdout.split()
