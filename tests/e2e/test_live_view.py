@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import asyncio
 import threading
+import time
 from pathlib import Path
 from typing import Any
 
@@ -32,6 +33,8 @@ UAV = "e2ev"
 SEED = 26
 TOPICS = ("tf", "area", "fires", "forecast", "plan/system1", "plan/system2", "path", "uav",
           "decision", "events")
+#: how long the client waits for the mission's end event after the mission ended (s)
+END_WAIT_S = 15.0
 SCHEMAS = {"tf": "foxglove.FrameTransform", "forecast": "foxglove.Grid",
            "decision": "dualpilot.Decision", "events": "foxglove.Log"}
 
@@ -55,11 +58,21 @@ class LiveClient(threading.Thread):
                     while not self.done.is_set():
                         await c.pump(0.05)
                         await c.subscribe(sorted(self.wanted))
+                    # the mission's end reaches the viewer and then this client after the
+                    # supervisor's records: on a loaded machine, well after 0.5 s
+                    deadline = time.monotonic() + END_WAIT_S
+                    while not self._saw_the_end(c) and time.monotonic() < deadline:
+                        await c.pump(0.05)
                     await c.pump(0.5)
                     return
             except OSError as err:
                 self.error = err  # the last refusal, if it never connects
                 await asyncio.sleep(0.1)
+
+    @staticmethod
+    def _saw_the_end(c: FoxgloveClient) -> bool:
+        return any(m.message.startswith("mission ended after")
+                   for _, m in c.received.get(f"/{UAV}/events", []))
 
     def run(self) -> None:
         try:
