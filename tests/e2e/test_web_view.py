@@ -220,8 +220,11 @@ def watch_replay(browser: Browser, w: Watched) -> None:
         w.replay["last"] = page.evaluate(SAMPLE_JS)
         w.replay["end"] = end
         page.evaluate("() => { Bokeh.documents[0].get_model_by_name('replay_step').value = 10 }")
-        page.wait_for_function("() => Bokeh.documents[0].get_model_by_name('vehicles')"
-                               ".data.step[0] == 10", timeout=20_000)
+        # the page sends its sources one at a time (the vehicles before Ψ): wait for both
+        page.wait_for_function("() => { const d = Bokeh.documents[0]; "
+                               "const t = d.get_model_by_name('psi').data.t; "
+                               "return d.get_model_by_name('vehicles').data.step[0] == 10 "
+                               "&& t.length > 0 && t[t.length - 1] == 10 }", timeout=20_000)
         w.replay["step10"] = page.evaluate(SAMPLE_JS)
         page.evaluate(f"() => {{ Bokeh.documents[0].get_model_by_name('replay_step').value = "
                       f"{end} }}")

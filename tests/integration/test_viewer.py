@@ -189,6 +189,8 @@ def check_web_page(url: str) -> None:
         page.wait_for_function("() => window.Bokeh !== undefined && Bokeh.documents.length > 0"
                                " && Bokeh.documents[0].get_model_by_name('vehicles')"
                                ".data.x.length == 2", timeout=30_000)
+        # the page sends its sources and the fleet table one at a time: wait for its rows too
+        page.locator("table.fleet td.uav").nth(1).wait_for(timeout=30_000)
         got = page.evaluate(FLEET_JS)
         rows = page.locator("table.fleet td.uav").all_inner_texts()
         flies = page.locator("table.fleet td.flies").all_inner_texts()
