@@ -1,5 +1,6 @@
 """Child processes of the launcher (each in its own session, stopped with SIGINT then SIGKILL)
-and free loopback ports."""
+and free loopback ports. A service may come from the fork server instead of a fresh
+interpreter (services/forking/server.py, the e2e tests' choice)."""
 
 from __future__ import annotations
 
@@ -13,6 +14,8 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import IO
+
+from services.forking import server as forkserver
 
 REPO = Path(__file__).resolve().parent.parent.parent
 STOP_GRACE_S = 2.0
@@ -50,7 +53,7 @@ def port_is_free(port: int, proto: str) -> bool:
 @dataclass
 class Proc:
     name: str
-    popen: subprocess.Popen[bytes]
+    popen: subprocess.Popen[bytes] | forkserver.ForkedProcess
     log_path: Path
     log_file: IO[bytes]
 
@@ -64,8 +67,9 @@ class ProcessGroup:
     def start(self, name: str, argv: list[str], env: Mapping[str, str], log_path: Path) -> Proc:
         log_path.parent.mkdir(parents=True, exist_ok=True)
         fh = log_path.open("wb")
-        popen = subprocess.Popen(argv, env=dict(env), cwd=REPO, stdin=subprocess.DEVNULL,
-                                 stdout=fh, stderr=subprocess.STDOUT, start_new_session=True)
+        popen = forkserver.start(argv, env, REPO, log_path) or subprocess.Popen(
+            argv, env=dict(env), cwd=REPO, stdin=subprocess.DEVNULL, stdout=fh,
+            stderr=subprocess.STDOUT, start_new_session=True)
         proc = Proc(name, popen, log_path, fh)
         self.procs.append(proc)
         return proc

@@ -23,6 +23,7 @@ from dualpilot.mission.config import MissionConfig
 from dualpilot.mission.result import MissionResult
 from services import launch
 from services.common import bus, keys, wire
+from services.forking import server as forkserver
 from services.msgs import fire_pb2, supervisor_pb2, vehicle_pb2
 from tests.support.waits import Logs, explain, logs_in, wait_for
 
@@ -113,6 +114,23 @@ def drain_messages(q: queue.Queue[bytes], cls: Any) -> list[Any]:
             out.append(wire.parse(q.get_nowait(), cls))
         except queue.Empty:
             return out
+
+
+@pytest.fixture(scope="module", autouse=True)
+def forked_services() -> Iterator[None]:
+    """The services of this tier's stacks come from the warm fork server
+    (services/forking/server.py: what ``python -m services.<name>`` would be, without a
+    second of start-up CPU each); the integration tier, run in the same pytest process,
+    starts fresh interpreters."""
+    forkserver.enable()
+    yield
+    forkserver.disable()
+
+
+def pytest_sessionfinish() -> None:
+    """The fork server ends with the session, waited for (an xdist worker may leave without
+    running atexit): the services' CPU time is then counted in the test run's."""
+    forkserver.stop()
 
 
 @pytest.fixture(scope="module")

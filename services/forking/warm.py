@@ -1,0 +1,28 @@
+"""What the fork server loads before it forks a service (services/forking/server.py).
+
+Importing this module imports every service's modules and warms the Numba kernels their
+first plans and checks would load (:func:`dualpilot.warmup.warm_up` and
+:func:`dualpilot.warmup.warm_up_3d` for both planning systems, the supervisor's
+:func:`services.supervisor.warm.warm_kernels`), so that a forked service starts with them
+in memory. It starts no thread that outlives it and opens no Zenoh session or socket: a fork
+copies the server as it is.
+"""
+
+from __future__ import annotations
+
+import importlib
+
+from dualpilot.warmup import warm_up, warm_up_3d
+from services.supervisor.warm import warm_kernels
+
+#: the services' entry modules (each imports its service's modules; the router, services/router.py,
+#: is a module run as __main__ itself and imports nothing these do not)
+SERVICES = ("services.ews.__main__", "services.system1.__main__",
+            "services.system2.__main__", "services.uavsim.__main__",
+            "services.supervisor.__main__", "services.viewer.__main__")
+
+for _name in SERVICES:
+    importlib.import_module(_name)
+warm_up()
+warm_up_3d()
+warm_kernels()
