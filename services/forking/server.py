@@ -13,8 +13,9 @@ what ``python -m <module> args`` would be (:func:`serve`): a session of its own;
 environment, working directory and argv; standard input from /dev/null, standard output
 and error appended to the log file (unbuffered under ``PYTHONUNBUFFERED``); the module run
 as ``__main__`` (:func:`runpy.run_module`); and on exit what the interpreter does:
-non-daemon threads joined, ``atexit`` handlers run, the status of ``SystemExit`` (1 and a
-traceback for an uncaught exception, death by SIGINT for an uncaught KeyboardInterrupt).
+non-daemon threads joined (idle executors stopped first), ``atexit`` handlers run, the
+status of ``SystemExit`` (1 and a traceback for an uncaught exception, death by SIGINT for an
+uncaught KeyboardInterrupt).
 
 What differs from a fresh interpreter: the modules the server imported were imported under
 its environment (of what they read at import, BLAS's thread limits are taken from the
@@ -178,12 +179,11 @@ def serve(module: str, args: list[str], env: dict[str, str], cwd: str, log_path:
 
 
 def _exit(code: int, interrupted: bool) -> None:
-    """End as the interpreter would: non-daemon threads joined, ``atexit`` run, streams
-    flushed; an uncaught KeyboardInterrupt dies by SIGINT."""
-    me = threading.current_thread()
-    for th in threading.enumerate():
-        if th is not me and not th.daemon:
-            th.join()
+    """End as the interpreter would (``Py_FinalizeEx``): ``threading._shutdown`` (the
+    threading module's exit hooks, which stop idle executors' workers, then every non-daemon
+    thread joined), ``atexit`` run, streams flushed; an uncaught KeyboardInterrupt dies by
+    SIGINT."""
+    threading._shutdown()  # type: ignore[attr-defined]  # as multiprocessing's own children do
     try:
         atexit._run_exitfuncs()
     finally:

@@ -90,6 +90,13 @@ def test_threads_are_joined_before_the_atexit_handlers_run(way: str, tmp_path: P
 
 
 @pytest.mark.parametrize("way", WAYS)
+def test_an_idle_executor_left_running_does_not_hold_the_exit(way: str, tmp_path: Path) -> None:
+    group, proc, log = start(way, "executor", tmp_path)
+    assert ended(group, proc, timeout_s=20.0) == 0
+    assert lines(log)[1:] == ["task ran"]
+
+
+@pytest.mark.parametrize("way", WAYS)
 def test_sigint_to_the_group_interrupts_the_program(way: str, tmp_path: Path) -> None:
     group, proc, log = start(way, "clean-sigint", tmp_path)
     wait_for(lambda: len(lines(log)) >= 1, 60.0, "the probe's report")

@@ -5,7 +5,8 @@ environment names, session and group ids, whether standard input is /dev/null, w
 is ``__main__``) and then does ACTION: ``exit3`` (SystemExit(3)), ``raise`` (an uncaught
 RuntimeError), ``sigint`` (waits for SIGINT, uncaught), ``clean-sigint`` (waits for SIGINT,
 caught: exit 0), ``atexit`` (an atexit handler and a non-daemon thread print after main
-returns), anything else: exit 0. tests/integration/test_forking.py runs it as a fresh
+returns), ``executor`` (a thread-pool executor left idle, not shut down), anything else:
+exit 0. tests/integration/test_forking.py runs it as a fresh
 interpreter and from the fork server and compares.
 """
 
@@ -17,6 +18,9 @@ import os
 import sys
 import threading
 import time
+from concurrent.futures import ThreadPoolExecutor
+
+POOLS: list[ThreadPoolExecutor] = []
 
 
 def report() -> dict[str, object]:
@@ -49,6 +53,9 @@ def main() -> None:
         except KeyboardInterrupt:
             print("interrupted", flush=True)
             return
+    if action == "executor":
+        POOLS.append(ThreadPoolExecutor(max_workers=1))  # kept: only the exit may stop it
+        print(POOLS[0].submit(lambda: "task ran").result(), flush=True)
     if action == "atexit":
         atexit.register(lambda: print("atexit ran", flush=True))
 
