@@ -9,7 +9,8 @@ service processes (docs/testing.md). After :func:`enable`,
 (``multiprocessing``'s "forkserver" context): one server per launcher process, which
 imported :data:`PRELOAD` once (the services' compute-thread limits, then every service's
 modules, their kernels warmed) and forks a copy of itself per service. The copy becomes
-what ``python -m <module> args`` would be (:func:`serve`): a session of its own; the given
+what ``python -m <module> args`` would be (:func:`serve`): the launcher's ignored signals
+ignored and the others at their defaults; a session of its own; the given
 environment, working directory and argv; standard input from /dev/null, standard output
 and error appended to the log file (unbuffered under ``PYTHONUNBUFFERED``); the module run
 as ``__main__`` (:func:`runpy.run_module`); and on exit what the interpreter does:
@@ -48,6 +49,9 @@ from typing import Any
 #: the modules the fork server imports, in order, before it forks anything
 PRELOAD = ("services.forking.threads", "services.forking.warm")
 
+#: the signals whose "ignored" a child inherits through exec, which a forked service takes
+#: from its launcher (else the default, and Python's KeyboardInterrupt for SIGINT)
+INHERITED_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGQUIT, signal.SIGHUP)
 _context: multiprocessing.context.ForkServerContext | None = None
 _stop_registered = False
 
@@ -126,9 +130,10 @@ def start(argv: Sequence[str], env: Mapping[str, str], cwd: Path,
     module = module_of(argv)
     if _context is None or module is None:
         return None
+    ignored = [int(sig) for sig in INHERITED_SIGNALS if signal.getsignal(sig) is signal.SIG_IGN]
     process = _context.Process(target=serve, name=module,
                                args=(module, list(argv[3:]), dict(env), str(cwd),
-                                     str(log_path)))
+                                     str(log_path), ignored))
     process.start()
     return ForkedProcess(process, argv)
 
@@ -140,9 +145,14 @@ def _stream(fd: int, unbuffered: bool) -> io.TextIOWrapper:
                             write_through=unbuffered)
 
 
-def serve(module: str, args: list[str], env: dict[str, str], cwd: str, log_path: str) -> None:
+def serve(module: str, args: list[str], env: dict[str, str], cwd: str, log_path: str,
+          ignored: list[int]) -> None:
     """In the forked child: become ``python -m module args`` and run it (module docstring);
-    never returns."""
+    ``ignored``: the signals the launcher ignored when it asked (an exec'd child would
+    inherit that). Never returns."""
+    for sig in INHERITED_SIGNALS:  # as exec leaves them: ignored stays ignored, else default
+        default = signal.default_int_handler if sig == signal.SIGINT else signal.SIG_DFL
+        signal.signal(sig, signal.SIG_IGN if int(sig) in ignored else default)
     os.setsid()
     fd = os.open(log_path, os.O_WRONLY | os.O_CREAT | os.O_APPEND, 0o644)
     os.dup2(fd, 1)

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import json
 import os
+import signal
 import subprocess
 import sys
 import time
@@ -30,7 +31,11 @@ WAYS = ["fresh", "forked"]
 
 @pytest.fixture(autouse=True)
 def fork_off_after() -> Iterator[None]:
+    """SIGINT as an interactive launcher has it (a test process may inherit it ignored: a
+    background job of a script), fork off afterwards."""
+    old = signal.signal(signal.SIGINT, signal.default_int_handler)
     yield
+    signal.signal(signal.SIGINT, old)
     server.disable()
 
 
@@ -107,6 +112,19 @@ def test_sigint_to_the_group_interrupts_the_program(way: str, tmp_path: Path) ->
     time.sleep(0.2)  # in its loop
     assert group.stop(proc) == -2  # uncaught: it dies by SIGINT
     assert lines(log)[-1] == "KeyboardInterrupt"
+
+
+@pytest.mark.parametrize("way", WAYS)
+def test_a_launcher_that_ignores_sigint_passes_it_on(way: str, tmp_path: Path) -> None:
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    group, proc, log = start(way, "clean-sigint", tmp_path)
+    signal.signal(signal.SIGINT, signal.default_int_handler)
+    wait_for(lambda: len(lines(log)) >= 1, 60.0, "the probe's report")
+    os.killpg(proc.popen.pid, signal.SIGINT)
+    time.sleep(0.5)
+    assert proc.popen.poll() is None  # ignored, as an exec'd child inherits it
+    assert group.stop(proc, grace_s=0.5) == -9
+    assert lines(log)[1:] == []
 
 
 def test_a_forked_program_still_running_times_out_like_popen(tmp_path: Path) -> None:
