@@ -32,7 +32,7 @@ WAYS = ["fresh", "forked"]
 @pytest.fixture(autouse=True)
 def fork_off_after() -> Iterator[None]:
     """SIGINT as an interactive launcher has it (a test process may inherit it ignored: a
-    background job of a script), fork off afterwards."""
+    script's nohup'd background job), fork off afterwards."""
     old = signal.signal(signal.SIGINT, signal.default_int_handler)
     yield
     signal.signal(signal.SIGINT, old)
