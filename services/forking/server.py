@@ -85,10 +85,6 @@ def disable() -> None:
     _context = None
 
 
-def enabled() -> bool:
-    return _context is not None
-
-
 def module_of(argv: Sequence[str]) -> str | None:
     """The module of ``<this python> -m <module> ...`` (None: another command)."""
     if len(argv) >= 3 and argv[0] == sys.executable and argv[1] == "-m":
