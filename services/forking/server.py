@@ -23,7 +23,8 @@ its environment (of what they read at import, BLAS's thread limits are taken fro
 compose file and MAVLink's ``MAVLINK20`` is 1 in both); ``/proc/<pid>/cmdline`` is the
 server's; the process is the server's child, not the launcher's (its exit status reaches
 the launcher through the server). A program that calls :func:`enable` must guard its own
-main (``if __name__ == "__main__"``): the server imports the program's main module.
+main (``if __name__ == "__main__"``): multiprocessing has each forked child import the
+program's main module (pytest's is guarded; an xdist worker's has no file).
 ``make run``, ``services.launch``, compose and the integration tier start services as fresh
 interpreters.
 """

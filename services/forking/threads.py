@@ -3,7 +3,8 @@
 docker-compose.yml gives every service ``OPENBLAS_NUM_THREADS`` and ``OMP_NUM_THREADS`` (its
 shared environment, ``x-env``); BLAS reads them once, when numpy loads it. A forked service
 inherits the server's BLAS, so the server takes the same values before anything imports
-numpy (:mod:`services.forking.warm` comes next).
+numpy (:mod:`services.forking.warm` comes next). It reads the file's ``x-env`` with yaml
+itself: :func:`services.launch.compose.load_compose` is in a package that imports numpy.
 """
 
 from __future__ import annotations

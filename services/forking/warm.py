@@ -1,8 +1,8 @@
 """What the fork server loads before it forks a service (services/forking/server.py).
 
 Importing this module imports every service's modules and warms the Numba kernels their
-first plans and checks would load (:func:`dualpilot.warmup.warm_up` and
-:func:`dualpilot.warmup.warm_up_3d` for both planning systems, the supervisor's
+first plans and checks would load (:func:`dualpilot.warmup.warm_up_3d` for both planning
+systems, which runs :func:`dualpilot.warmup.warm_up` first; the supervisor's
 :func:`services.supervisor.warm.warm_kernels`), so that a forked service starts with them
 in memory. It starts no thread that outlives it and opens no Zenoh session or socket: a fork
 copies the server as it is.
@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import importlib
 
-from dualpilot.warmup import warm_up, warm_up_3d
+from dualpilot.warmup import warm_up_3d
 from services.supervisor.warm import warm_kernels
 
 #: the services' entry modules (each imports its service's modules; the router, services/router.py,
@@ -23,6 +23,5 @@ SERVICES = ("services.ews.__main__", "services.system1.__main__",
 
 for _name in SERVICES:
     importlib.import_module(_name)
-warm_up()
-warm_up_3d()
+warm_up_3d()  # the planar kernels first (warm_up), then the 3-D ones
 warm_kernels()

@@ -66,7 +66,7 @@ class ProcessGroup:
 
     def start(self, name: str, argv: list[str], env: Mapping[str, str], log_path: Path) -> Proc:
         log_path.parent.mkdir(parents=True, exist_ok=True)
-        fh = log_path.open("wb")
+        fh = log_path.open("wb")  # a forked service appends to it by its path
         popen = forkserver.start(argv, env, REPO, log_path) or subprocess.Popen(
             argv, env=dict(env), cwd=REPO, stdin=subprocess.DEVNULL, stdout=fh,
             stderr=subprocess.STDOUT, start_new_session=True)
