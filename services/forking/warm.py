@@ -4,12 +4,15 @@ Importing this module imports every service's modules and warms the Numba kernel
 first plans and checks would load (:func:`dualpilot.warmup.warm_up_3d` for both planning
 systems, which runs :func:`dualpilot.warmup.warm_up` first; the supervisor's
 :func:`services.supervisor.warm.warm_kernels`), so that a forked service starts with them
-in memory. It starts no thread that outlives it and opens no Zenoh session or socket: a fork
+in memory; then it collects once and freezes the heap (what each service does at its start,
+:func:`services.common.bus.service.settle_heap`), so a forked service's collections walk only
+its own objects. It starts no thread that outlives it and opens no Zenoh session or socket: a fork
 copies the server as it is.
 """
 
 from __future__ import annotations
 
+import gc
 import importlib
 
 from dualpilot.warmup import warm_up_3d
@@ -25,3 +28,8 @@ for _name in SERVICES:
     importlib.import_module(_name)
 warm_up_3d()  # the planar kernels first (warm_up), then the 3-D ones
 warm_kernels()
+# what every service does once started (services.common.bus.service.settle_heap), done here
+# once: a forked service's collection then walks only the objects it made itself, and never
+# writes the server's objects' headers (which would copy their pages into each child)
+gc.collect()
+gc.freeze()
