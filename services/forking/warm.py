@@ -12,10 +12,10 @@ copies the server as it is.
 
 from __future__ import annotations
 
-import gc
 import importlib
 
 from dualpilot.warmup import warm_up_3d
+from services.common.bus.service import settle_heap
 from services.supervisor.warm import warm_kernels
 
 #: the services' entry modules (each imports its service's modules; the router, services/router.py,
@@ -28,8 +28,7 @@ for _name in SERVICES:
     importlib.import_module(_name)
 warm_up_3d()  # the planar kernels first (warm_up), then the 3-D ones
 warm_kernels()
-# what every service does once started (services.common.bus.service.settle_heap), done here
-# once: a forked service's collection then walks only the objects it made itself, and never
-# writes the server's objects' headers (which would copy their pages into each child)
-gc.collect()
-gc.freeze()
+# what every service does once started, done here once: a forked service's collection then
+# walks only the objects it made itself, and never writes the server's objects' headers
+# (which would copy their pages into each child)
+settle_heap()

@@ -127,6 +127,16 @@ def test_a_launcher_that_ignores_sigint_passes_it_on(way: str, tmp_path: Path) -
     assert lines(log)[1:] == []
 
 
+@pytest.mark.parametrize("way", WAYS)
+def test_a_forked_program_starts_with_the_servers_heap_frozen(way: str, tmp_path: Path) -> None:
+    # services/forking/warm.py freezes what the server loaded (about 240,000 objects the
+    # collector tracks), so a forked program's collections walk only the objects it makes
+    group, proc, log = start(way, "heap", tmp_path)
+    assert ended(group, proc) == 0
+    frozen = json.loads(lines(log)[1])["frozen"]
+    assert frozen > 100_000 if way == "forked" else frozen == 0
+
+
 def test_a_forked_program_still_running_times_out_like_popen(tmp_path: Path) -> None:
     group, proc, log = start("forked", "clean-sigint", tmp_path)
     with pytest.raises(subprocess.TimeoutExpired):

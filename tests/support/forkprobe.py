@@ -5,7 +5,8 @@ environment names, session and group ids, whether standard input is /dev/null, w
 is ``__main__``) and then does ACTION: ``exit3`` (SystemExit(3)), ``raise`` (an uncaught
 RuntimeError), ``sigint`` (waits for SIGINT, uncaught), ``clean-sigint`` (waits for SIGINT,
 caught: exit 0), ``atexit`` (an atexit handler and a non-daemon thread print after main
-returns), ``executor`` (a thread-pool executor left idle, not shut down), anything else:
+returns), ``executor`` (a thread-pool executor left idle, not shut down), ``heap`` (prints
+how many objects the collector holds frozen, ``gc.get_freeze_count()``), anything else:
 exit 0. tests/integration/test_forking.py runs it as a fresh
 interpreter and from the fork server and compares.
 """
@@ -13,6 +14,7 @@ interpreter and from the fork server and compares.
 from __future__ import annotations
 
 import atexit
+import gc
 import json
 import os
 import sys
@@ -56,6 +58,8 @@ def main() -> None:
     if action == "executor":
         POOLS.append(ThreadPoolExecutor(max_workers=1))  # kept: only the exit may stop it
         print(POOLS[0].submit(lambda: "task ran").result(), flush=True)
+    if action == "heap":
+        print(json.dumps({"frozen": gc.get_freeze_count()}), flush=True)
     if action == "atexit":
         atexit.register(lambda: print("atexit ran", flush=True))
 
