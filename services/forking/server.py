@@ -53,6 +53,7 @@ PRELOAD = ("services.forking.threads", "services.forking.warm")
 #: the signals whose "ignored" a child inherits through exec, which a forked service takes
 #: from its launcher (else the default, and Python's KeyboardInterrupt for SIGINT)
 INHERITED_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGQUIT, signal.SIGHUP)
+
 _context: multiprocessing.context.ForkServerContext | None = None
 _stop_registered = False
 

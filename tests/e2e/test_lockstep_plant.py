@@ -26,7 +26,7 @@ import json
 import math
 import re
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 import pytest
@@ -194,13 +194,20 @@ def watch_wind(fleet: Any, flavour: str, seed: int, kind: str, k: int,
     return got, printed
 
 
+#: the wind these tests fly: PLANT's mean (towards the east, the default direction), and the
+#: moderate turbulence's σ_u and σ_w at 50 m (m/s)
+WIND_EAST_MPS = cast(float, dict(PLANT)["wind_speed_mps"])
+SIGMA_U_MPS, SIGMA_W_MPS = 2.46, 1.54
+
+
 def test_a_px4_ground_station_sees_wind_cov(fleet: Any) -> None:
     """5 m/s towards the east: NED wind_y (σ_u = 2.46, σ_w = 1.54 m/s at 50 m, moderate);
     the report after the mission carries the turbulence of its last second of flight."""
     msgs, _ = watch_wind(fleet, "px4", SEEDS[0], "WIND_COV", 0)
     for msg in msgs:
-        assert abs(msg.wind_y - 5.0) < 3 * 2.46 and abs(msg.wind_x) < 3 * 2.46, msg
-        assert abs(msg.wind_z) < 3 * 1.54, msg
+        assert abs(msg.wind_y - WIND_EAST_MPS) < 3 * SIGMA_U_MPS, msg
+        assert abs(msg.wind_x) < 3 * SIGMA_U_MPS, msg
+        assert abs(msg.wind_z) < 3 * SIGMA_W_MPS, msg
         assert math.isnan(msg.horiz_accuracy) and math.isnan(msg.vert_accuracy), msg
     assert msg.var_horiz > 0.0 and msg.var_vert > 0.0, msg
 
@@ -216,7 +223,7 @@ def blows_east_at_5(direction_deg: float, speed: float) -> bool:
     """Within three σ_u = 2.46 m/s (moderate, at 50 m) of 5 m/s towards the east, per axis
     (the bound of the PX4 test above: a report is the air of its last second, turbulent)."""
     east, north = toward(direction_deg, speed)
-    return abs(east - 5.0) < 3 * 2.46 and abs(north) < 3 * 2.46
+    return abs(east - WIND_EAST_MPS) < 3 * SIGMA_U_MPS and abs(north) < 3 * SIGMA_U_MPS
 
 
 def test_an_ardupilot_ground_station_sees_wind(fleet: Any) -> None:
@@ -231,8 +238,8 @@ def test_an_ardupilot_ground_station_sees_wind(fleet: Any) -> None:
     msgs, printed = watch_wind(fleet, "ardupilot", SEEDS[0], "WIND", 1, mavproxy=True)
     for msg in msgs:
         assert blows_east_at_5(msg.direction, msg.speed), msg
-        assert abs(msg.speed_z) < 3 * 1.54, msg
-    assert msg.speed_z != 0.0 and msg.speed != 5.0, msg
+        assert abs(msg.speed_z) < 3 * SIGMA_W_MPS, msg
+    assert msg.speed_z != 0.0 and msg.speed != WIND_EAST_MPS, msg
     shown = re.search(r"direction : (-?[0-9.]+), speed : ([0-9.]+)", printed)
     assert shown is not None, printed
     assert blows_east_at_5(float(shown.group(1)), float(shown.group(2))), printed
