@@ -10,7 +10,8 @@ ideal plant (``OUT/ideal``) and once per mean wind with the multirotor plant
 ``--scenario`` the one mean wind is the scenario's own, that of its fire); a directory that
 already holds a results.csv is read, not run again (``--reuse``). ``--concurrent NAME=VALUE``
 (repeatable) is passed to every run, the ideal plant's too (e.g. ``reanchor_tol=tube``, the
-re-anchoring reading of docs/plant.md). Prints a Markdown table per
+re-anchoring reading of docs/plant.md), and ``--set NAME=VALUE`` (repeatable) likewise (e.g.
+``no_plan=escape``). Prints a Markdown table per
 controller and plant: success, ``tracking_breach``, ``fire_contact``, mean time and energy
 over the missions completed, the tracking error (median over the missions that flew of each
 mission's p50 and p99, and the largest p99), the missions' summed wall time, and the success
@@ -111,13 +112,16 @@ def main() -> None:
     ap.add_argument("--gps-sigma", type=float, default=1.5, help="gps_sigma_m (m)")
     ap.add_argument("--concurrent", action="append", default=[], metavar="NAME=VALUE",
                     help="a concurrent supervisor parameter for every run (evaluate's)")
+    ap.add_argument("--set", dest="settings", action="append", default=[],
+                    metavar="NAME=VALUE", help="a reading for every run (evaluate's --set)")
     ap.add_argument("--reuse", action="store_true", help="read a run that already has rows")
     ap.add_argument("--out", type=Path, default=Path("runs/plant-winds"))
     ap.add_argument("--figure", type=Path, help="write the success-against-wind figure here")
     args = ap.parse_args()
     args.where = ([f"--profile={args.profile}"] if args.profile else []) + (
         [f"--scenario={args.scenario}"] if args.scenario else []) + [
-        f"--concurrent={item}" for item in args.concurrent]
+        f"--concurrent={item}" for item in args.concurrent] + [
+        f"--set={item}" for item in args.settings]
     names = args.controllers.split(",")
     own = get_scenario(args.scenario).params.wind_speed_mps if args.scenario else None
     winds = [own] if own is not None else [float(w) for w in args.winds.split(",")]
@@ -131,7 +135,8 @@ def main() -> None:
                                                ("scenario", args.scenario)) if v) or "paper"
     print(f"{args.missions} missions from seed {args.seed}, {where}, paper timing; multirotor: "
           f"{args.turbulence} turbulence, gps_sigma_m = {args.gps_sigma:g}, the auto tube"
-          + "".join(f"; --concurrent {item}" for item in args.concurrent) + "\n")
+          + "".join(f"; --concurrent {item}" for item in args.concurrent)
+          + "".join(f"; --set {item}" for item in args.settings) + "\n")
     print("| controller | plant, wind | success | `tracking_breach` | fire contact | time (s) | "
           "energy (N²) | tracking error p50 / p99 (max p99), m | wall, s | Δ success vs "
           "ideal, points | discordant (ideal only / multirotor only) | McNemar p |")

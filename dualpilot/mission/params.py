@@ -10,6 +10,8 @@ from typing import Literal, get_args
 DtReading = Literal["active", "newborn", "hull"]
 #: Readings of the failure rule of Sec. IV, see :attr:`MissionParams.failure_rule`.
 FailureRule = Literal["any", "newborn", "become"]
+#: What the UAV flies with no OK plan, see :attr:`MissionParams.no_plan`.
+NoPlan = Literal["brake", "escape"]
 
 
 class Controller(enum.Enum):
@@ -50,6 +52,13 @@ class MissionParams:
     #: mission until it has been clear of the UAV once).
     failure_rule: FailureRule = "any"
     fallback: bool = True
+    #: What the UAV flies when no system gives an OK plan (the paper is silent: its plans
+    #: never fail to exist in Sec. IV). "brake": the force that stops it in one ΔT (Eq. 1);
+    #: "escape": braking, unless braking would leave it within the planners' clearance of a
+    #: hull, where no plan can start, and then the heading that lands it farthest from
+    #: the hulls (dualpilot/mission/braking.py). An estimate error or a tracking lag can
+    #: put a real vehicle there; Eq. (1) flown exactly rarely does.
+    no_plan: NoPlan = "brake"
     #: None: fronts ignite anywhere (b_t uniform over the area), so one can
     #: ignite on the UAV, a failure no planner can avoid. A distance (m): no
     #: front ignites with its region that close to the UAV (README, evaluation);
@@ -67,5 +76,7 @@ class MissionParams:
         if self.failure_rule not in get_args(FailureRule):
             raise ValueError(f"failure_rule must be one of {get_args(FailureRule)}, "
                              f"not {self.failure_rule!r}")
+        if self.no_plan not in get_args(NoPlan):
+            raise ValueError(f"no_plan must be one of {get_args(NoPlan)}, not {self.no_plan!r}")
         if self.ignition_clearance_m is not None and not self.ignition_clearance_m >= 0:
             raise ValueError("ignition_clearance_m must be >= 0 or None")

@@ -21,7 +21,9 @@ Each step t:
    plan did not make is a ``tracking_breach``); the planners plan from its
    measured state, the failure rules judge its true position.
 
-A plan that is not OK is never flown: with no OK plan the UAV brakes.
+A plan that is not OK is never flown: with no OK plan the UAV brakes, or under
+``no_plan = "escape"`` flies away from a hull too near to plan from
+(:func:`~dualpilot.mission.braking.no_plan_control`).
 The step is written once; :mod:`dualpilot.mission.local` runs it in one process,
 ``services/supervisor`` over Zenoh and MAVLink.
 
@@ -42,7 +44,7 @@ from typing import cast
 
 import numpy as np
 
-from dualpilot.mission.braking import brake_control
+from dualpilot.mission.braking import brake_control, no_plan_control
 from dualpilot.mission.config import MissionConfig
 from dualpilot.mission.flight import judge_flight, tracking_errors, true_position
 from dualpilot.mission.monitor import PLANNER_RISK
@@ -59,9 +61,10 @@ from dualpilot.mission.ports import (
 from dualpilot.mission.result import Ending, MissionResult, StepRecord
 from dualpilot.model.dynamics import Array, step
 from dualpilot.model.fire import FireSnapshot, Region, substeps_for
-from dualpilot.model.geometry import Rect
+from dualpilot.model.geometry import Rect, SegmentChecker
 from dualpilot.model.prism import Cuboid
 from dualpilot.model.risk import ForecastView, RiskNote, risk_note
+from dualpilot.model.segment3 import SegmentChecker3
 from dualpilot.spec import MissionSpec, Stream
 from dualpilot.supervisor.interface import Planned
 from dualpilot.supervisor.paper.decision import DecisionDynamics
@@ -359,8 +362,9 @@ class Mission:
         return risk_note(planned.forecast, PLANNER_RISK, len(planned.plan.states) - 1)
 
     def _command(self, planned: Planned) -> tuple[Array, Array, Array, dict[str, object]]:
-        """(control, target x_{t+1}, planned positions, info) of the plan to fly; braking
-        (Eq. 1's braking force, no positions) when there is none."""
+        """(control, target x_{t+1}, planned positions, info) of the plan to fly; with none,
+        braking (Eq. 1's braking force, no positions) or, under ``no_plan = "escape"``, an
+        escape (``info["source"] = "escape"``, steps.csv's ``source``)."""
         plan = planned.plan
         if plan is not None:
             info = dict(plan.info)
@@ -369,12 +373,27 @@ class Mission:
             positions = np.asarray(plan.states[:, : self.dyn.dim])
         else:
             info = {}
-            control = brake_control(self.state, self.dyn)
+            control, escaped = self._no_plan_control()
+            if escaped:
+                info["source"] = "escape"
             target = step(self.state, control, self.dyn)
             positions = np.empty((0, self.dyn.dim))
         if planned.note:
             info["supervisor"] = planned.note
         return control, target, positions, info
+
+    def _no_plan_control(self) -> tuple[Array, bool]:
+        """The force (N) flown with no OK plan, and whether it is an escape (``no_plan``)."""
+        if self.params.no_plan == "brake":
+            return brake_control(self.state, self.dyn), False
+        snapshot = self._snapshot()
+        if not snapshot.hulls:
+            return brake_control(self.state, self.dyn), False
+        checker: SegmentChecker | SegmentChecker3 = (
+            SegmentChecker3(snapshot.hull_prisms()) if self.dim == 3
+            else SegmentChecker(snapshot.hulls))
+        return no_plan_control(self.state, self.dyn, checker.point_distance,
+                               self.spec.clearance_m, self.spec.area)
 
     def _fly(self, t: int, control: Array, flown: int, record: StepRecord) -> StepRecord:
         """The vehicle's step of Eq. (1) towards the setpoint, then the flight's outcome."""
