@@ -22,6 +22,7 @@ from dataclasses import replace
 from pathlib import Path
 
 from dualpilot.mission.config_args import add_config_arguments, config_from_args
+from services.common import keys
 from services.common.stack_dims import check_stack_dimension
 from services.launch.compose import COMPOSE, REPO
 from services.launch.roles import AIR_CONCURRENT, ROLES
@@ -81,6 +82,9 @@ def parser() -> argparse.ArgumentParser:
     g.add_argument("--uav-ids", default="",
                    help="with --join or --role ground: the vehicle ids the services serve, "
                         "comma-separated (a fleet's: uav1,…,uavN; default --uav-id's, uav1)")
+    g.add_argument("--uav-id", default="uav1",
+                   help="the vehicle's id (one mission, or --role air): the key its services "
+                        "use, so that vehicles on shared ground services stay apart")
     g.add_argument("--timeout-s", type=float, default=600.0)
     g.add_argument("--log-format", choices=["json", "text"], default="json")
     g.add_argument("--no-figures", action="store_true")
@@ -108,6 +112,7 @@ def stack_config(args: argparse.Namespace) -> StackConfig:
     run_dir = (Path(args.out) if args.out else REPO / "runs" / run_id).resolve()
     mission_id = mission.mission_id or re.sub(r"[^A-Za-z0-9_\-]", "-", run_dir.name)[:64]
     return StackConfig(run_dir=run_dir, mission=replace(mission, mission_id=mission_id),
+                       uav_id=keys.check_id(args.uav_id),
                        speed_factor=args.speed_factor, waypoints=args.waypoints,
                        free_ports=args.free_ports, log_format=args.log_format,
                        tls=args.tls or args.tls_dir is not None,

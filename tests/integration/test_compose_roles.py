@@ -109,6 +109,17 @@ def test_the_launchers_role_flags_are_checked(argv: list[str], match: str) -> No
         stack_config(parser().parse_args(argv))
 
 
+def test_an_air_host_flies_the_vehicle_it_is_told(tmp_path: Path) -> None:
+    """``--uav-id``: a fleet's vehicles on shared ground services each fly under their own id."""
+    cfg = stack_config(parser().parse_args(["--role", "air", "--join", GROUND_ZENOH,
+                                            "--uav-id", "uav7", "--out", str(tmp_path)]))
+    assert cfg.uav_id == "uav7"
+    assert launch.Stack(cfg).service_env("supervisor")["UAV_ID"] == "uav7"
+    assert stack_config(parser().parse_args(["--out", str(tmp_path)])).uav_id == "uav1"
+    with pytest.raises(ValueError, match="vehicle id"):
+        stack_config(parser().parse_args(["--uav-id", "uav/1", "--out", str(tmp_path)]))
+
+
 def test_a_role_keeps_its_processes_traffic_in_the_run(tmp_path: Path) -> None:
     cfg = stack_config(parser().parse_args(["--role", "ground", "--out", str(tmp_path)]))
     env = launch.Stack(cfg).service_env("ews")
