@@ -7,7 +7,9 @@ links, addresses, names), :mod:`.netns` (``ip`` and sockets inside namespaces),
 :mod:`.shaping` (``tc``: tbf and netem), :mod:`.links` (a link's shaping at run time),
 :mod:`.impairer` (the user-space impairer, where the kernel has no netem), :mod:`.bed` (up
 and down as one), :mod:`.leftovers` (removal, also after a crash), :mod:`.availability`
-(whether namespaces can be made here), :mod:`.measure` (ping, UDP and TCP flows between hosts).
+(whether namespaces can be made here), :mod:`.measure` (ping, UDP and TCP flows between hosts),
+:mod:`.mission` and :mod:`.fleet` (missions across the hosts: one, or a fleet whose vehicles
+each have their own link), :mod:`.grid` (the cells of the link varied one factor at a time).
 See docs/testbed.md.
 
 Import what you use from its module (``from services.testbed.bed import TestBed``): this

@@ -97,31 +97,60 @@ def air_argv(endpoint: str, run_dir: Path, plan: FlightPlan) -> list[str]:
             "--log-format", "text", *plan.mission]
 
 
-class _Watch:
+class Watch:
     """Follows the record: the interface counters at the first step and at the end, and the
-    outage on cue."""
+    outage on cue (host ``host``'s link ``radio``: a fleet's vehicle has its own). Each poll
+    reads only the lines written since the last."""
 
-    def __init__(self, bed: TestBed, run_dir: Path, link: LinkPlan):
-        self.bed, self.run_dir, self.link = bed, run_dir, link
-        self.air_ns = bed.host("air").netns
+    def __init__(self, bed: TestBed, run_dir: Path, link: LinkPlan, host: str = "air",
+                 radio: str = "radio"):
+        self.bed, self.run_dir, self.link, self.radio = bed, run_dir, link, radio
+        self.air_ns = bed.host(host).netns
         self.first: linkbytes.Counters | None = None
         self.last: linkbytes.Counters | None = None
         self.outage: dict[str, Any] = {}
+        self.last_step: int | None = None
+        self.ended = False
+        self._offset = 0
+
+    def _new_lines(self) -> list[dict[str, Any]]:
+        """The record's whole lines written since the last call (a bad line is skipped)."""
+        path = self.run_dir / "steps.jsonl"
+        if not path.is_file():
+            return []
+        with path.open("rb") as fh:
+            fh.seek(self._offset)
+            data = fh.read()
+        cut = data.rfind(b"\n")
+        if cut < 0:
+            return []
+        self._offset += cut + 1
+        out = []
+        for line in data[:cut].splitlines():
+            try:
+                out.append(json.loads(line))
+            except json.JSONDecodeError:
+                continue
+        return out
 
     def poll(self) -> None:
-        lines = step_lines(self.run_dir)
-        steps = [e for e in lines if e.get("kind") == "step"]
-        if steps and self.first is None:
-            self.first = linkbytes.counters(self.air_ns, "radio")
+        for e in self._new_lines():
+            if e.get("kind") == "step":
+                self.last_step = max(int(e["t"]), self.last_step or 0)
+            elif e.get("kind") == "end":
+                self.ended = True
+        if self.last_step is not None and self.first is None:
+            self.first = linkbytes.counters(self.air_ns, self.radio)
         at = self.link.outage_at_step
-        if at is not None and not self.outage and any(e["t"] >= at for e in steps):
+        if (at is not None and not self.outage and self.last_step is not None
+                and self.last_step >= at):
             start = time.monotonic()
-            self.bed.link("radio").outage(self.link.outage_s)
-            self.outage = {"at_step": max(e["t"] for e in steps), "start": start,
+            self.bed.link(self.radio).outage(self.link.outage_s)
+            self.outage = {"at_step": self.last_step, "start": start,
                            "end": start + self.link.outage_s, "seconds": self.link.outage_s,
                            "wall_time_s": time.time()}
-        if self.last is None and any(e.get("kind") == "end" for e in lines):
-            self.last = linkbytes.counters(self.air_ns, "radio")
+        if self.last is None and self.ended:
+            self.last = linkbytes.counters(self.air_ns, self.radio)
 
 
 def fly(bed: TestBed, run_dir: Path, plan: FlightPlan,
@@ -137,7 +166,7 @@ def fly(bed: TestBed, run_dir: Path, plan: FlightPlan,
     g = ground.start("launch", ground_argv(endpoint, run_dir, UAV),
                      log_path=run_dir / "ground.out")
     a = air.start("launch", air_argv(endpoint, run_dir, plan), log_path=run_dir / "air.out")
-    watch = _Watch(bed, run_dir, plan.link)
+    watch = Watch(bed, run_dir, plan.link)
     deadline = time.monotonic() + plan.timeout_s + 60.0
     while a.popen.poll() is None and time.monotonic() < deadline:
         watch.poll()
@@ -153,7 +182,7 @@ def fly(bed: TestBed, run_dir: Path, plan: FlightPlan,
     return Flown(run_dir, air_exit, watch.outage, link)
 
 
-def _wire(c: linkbytes.Counters | None, steps: int) -> dict[str, Any]:
+def wire_per_step(c: linkbytes.Counters | None, steps: int) -> dict[str, Any]:
     """The air host's radio counters as air → ground and ground → air, in all and per step."""
     if c is None:
         return {}
@@ -165,7 +194,7 @@ def _wire(c: linkbytes.Counters | None, steps: int) -> dict[str, Any]:
             "ground_to_air_per_step": round(c.rx_bytes / n, 1)}
 
 
-def link_report(bed: TestBed, run_dir: Path, plan: FlightPlan, watch: _Watch,
+def link_report(bed: TestBed, run_dir: Path, plan: FlightPlan, watch: Watch,
                 before: linkbytes.Counters, after: linkbytes.Counters) -> dict[str, Any]:
     """``link.json``: the wire counters, the payload per key expression, the outage."""
     steps = sum(1 for e in step_lines(run_dir) if e.get("kind") == "step")
@@ -177,7 +206,8 @@ def link_report(bed: TestBed, run_dir: Path, plan: FlightPlan, watch: _Watch,
         "steps": steps, "mission": list(plan.mission), "speed_factor": plan.speed_factor,
         "radio": plan.link.radio.wire(), "telem": plan.link.telem.wire(),
         "outage": {k: v for k, v in watch.outage.items() if k not in ("start", "end")},
-        "wire_mission": _wire(mission, steps), "wire_run": _wire(after - before, steps),
+        "wire_mission": wire_per_step(mission, steps),
+        "wire_run": wire_per_step(after - before, steps),
         "payload": rows, "payload_per_step": _totals(rows, steps),
         "processes": sorted(f"{t['host']}/{t['service']}" for t in tables),
         "impairer": _stats(bed),

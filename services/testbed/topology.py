@@ -20,7 +20,7 @@ from dataclasses import dataclass
 
 PREFIX = "dptb"
 WIRE = "wire"
-_NAME = re.compile(rf"^{PREFIX}(\d+)-(\d+)-([a-z]+)$")
+_NAME = re.compile(rf"^{PREFIX}(\d+)-(\d+)-([a-z][a-z0-9]*)$")
 
 
 @dataclass(frozen=True)

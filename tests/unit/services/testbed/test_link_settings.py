@@ -11,7 +11,7 @@ import pytest
 from services.common import cli
 from services.common.bus.config import zenoh_config
 from services.testbed.linkbytes import Counters
-from services.testbed.mission import Flown, _wire, air_argv, describe, ground_argv
+from services.testbed.mission import Flown, air_argv, describe, ground_argv, wire_per_step
 
 
 def settings(*argv: str) -> cli.Settings:
