@@ -38,7 +38,8 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--all", action="store_true",
                    help="down: every test bed on the machine, not only those whose owner died")
     p.add_argument("--impairer", default="auto", choices=IMPAIRERS)
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--impairer-seed", type=int, default=0,
+                   help="the impairers' draws (loss, jitter); a mission's --seed is the mission's")
     p.add_argument("--link", default="radio", help="the link the shaping flags apply to")
     p.add_argument("--delay-ms", type=float, default=0.0)
     p.add_argument("--jitter-ms", type=float, default=0.0)
@@ -67,7 +68,7 @@ def _mission(args: argparse.Namespace, extra: list[str], shape: Impairment) -> i
     plan = FlightPlan(mission=tuple(extra) or MISSION, speed_factor=args.speed_factor,
                       link=LinkPlan(radio=shape, outage_at_step=args.outage_at_step,
                                     outage_s=args.outage_s), timeout_s=args.timeout_s)
-    with TestBed(impairer=args.impairer, seed=args.seed, logs=run_dir / "testbed") as bed:
+    with TestBed(impairer=args.impairer, seed=args.impairer_seed, logs=run_dir / "testbed") as bed:
         flown = fly(bed, run_dir.resolve(), plan)
     sys.stdout.write(describe(flown) + f"\nrun directory: {run_dir}\n")
     return 0 if flown.air_exit == 0 else 1
@@ -104,7 +105,7 @@ def main(argv: list[str] | None = None) -> int:
         return _mission(args, extra, shape)
     stop = threading.Event()
     _stop_on_signals(stop)
-    with TestBed(impairer=args.impairer, seed=args.seed) as bed:
+    with TestBed(impairer=args.impairer, seed=args.impairer_seed) as bed:
         bed.link(args.link).set(shape)
         sys.stdout.write(bed.describe() + f"\n  {args.link}: {shape}\n"
                          "up; Ctrl-C takes it down\n")

@@ -39,9 +39,10 @@ def test_the_lease_comes_from_the_environment(monkeypatch: pytest.MonkeyPatch) -
 
 
 def test_the_link_per_step_on_the_wire() -> None:
-    w = _wire(Counters(tx_bytes=12_000, rx_bytes=130_000, tx_packets=90, rx_packets=110), 10)
+    w = wire_per_step(Counters(tx_bytes=12_000, rx_bytes=130_000, tx_packets=90,
+                               rx_packets=110), 10)
     assert w["air_to_ground_per_step"] == 1200.0 and w["ground_to_air_per_step"] == 13000.0
-    assert w["bytes_per_step"] == 14200.0 and _wire(None, 10) == {}
+    assert w["bytes_per_step"] == 14200.0 and wire_per_step(None, 10) == {}
 
 
 def test_the_mission_across_the_hosts_is_the_launchers_roles(tmp_path: Path) -> None:
@@ -69,3 +70,15 @@ def test_a_flown_mission_is_described_in_a_few_lines(tmp_path: Path) -> None:
         "payload per step: 350 B up, 11913 B down",
         "  ground→ dualpilot/*/ews/command reply: 8517 B/step",
         "outage: 10 s from step 10"]
+
+
+def test_a_missions_seed_is_the_missions_not_the_impairers() -> None:
+    """``python -m services.testbed mission --controller lookahead+risk --seed 7`` flies seed 7
+    (the flags the test bed does not know are the mission's); the impairers' draws have
+    their own flag."""
+    from services.testbed.__main__ import parser
+
+    args, extra = parser().parse_known_args(
+        ["mission", "--controller", "lookahead+risk", "--seed", "7", "--impairer-seed", "3"])
+    assert extra == ["--controller", "lookahead+risk", "--seed", "7"]
+    assert args.impairer_seed == 3
