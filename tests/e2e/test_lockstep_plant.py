@@ -154,6 +154,29 @@ def test_the_stack_flies_the_in_process_3d_multirotor_mission(fleet: Any) -> Non
     assert summary["d_safe_m"] == pytest.approx(20.0 + 9.682370 + 3.5, abs=1e-3)
 
 
+#: the multirotor on grass-15 (its fire's own 15 m/s) escaping where it would brake: cc on
+#: seed 8 gets no plan within the tube's band of the fire and escapes at steps 16, 18, 20 and
+#: 21 (docs/plant.md, no plan: brake or escape)
+ESCAPE = (("scenario", "grass-15"), ("plant", "multirotor"), ("turbulence", "moderate"),
+          ("gps_sigma_m", 1.5), ("no_plan", "escape"))
+
+
+def test_the_stack_escapes_as_the_in_process_mission_does(fleet: Any) -> None:
+    """``no_plan=escape`` reaches the stack's supervisor with the configuration: every row of
+    the stack's mission is the in-process one, the escape steps (system 0, ``source`` escape,
+    a heading at the full 7.5 N) among them."""
+    (seed, run_dir), = fly_plant_missions(fleet, (8,), ESCAPE, "escape")
+    local = local_mission(plant_config(seed, ESCAPE)).run()
+    stack = assert_same_plant_mission(run_dir, local, "multirotor cc seed 8, escaping")
+    escapes = [r.t for r in local.records if r.info.get("source") == "escape"]
+    assert escapes, "the in-process mission escapes"
+    assert [r.t for r in stack.records if r.info.get("source") == "escape"] == escapes
+    for r in stack.records:
+        if r.t in escapes:
+            assert r.system == 0 and float(np.linalg.norm(r.control)) == pytest.approx(
+                7.5, abs=ATOL), (r.t, r.control)
+
+
 def watch_wind(fleet: Any, flavour: str, seed: int, kind: str, k: int,
                mavproxy: bool = False) -> tuple[list[Any], str]:
     """A plant mission of ``seed`` on the fleet's vehicle ``k`` claiming ``flavour``, a
