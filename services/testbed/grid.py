@@ -113,7 +113,9 @@ def row(cell: Cell, controller: str, seed: int, uav: str, round_no: int,
     ``steps.jsonl`` step lines, its link's bytes over the mission (``wire_per_step`` of
     services/testbed/mission.py) and the outage it got. System 2's steps are those whose
     flown plan was System 2's (``system`` 2); plan deadline misses are summary.json's
-    ``stack.faults.plan_deadline`` (the steps' ``plan_deadline`` faults without it)."""
+    ``stack.faults.plan_deadline`` (the steps' ``plan_deadline`` faults without it). The
+    failure cause is a failed mission's ending (results.csv's column), ``no_end`` for one that
+    never ended, empty for a success."""
     n = len(steps)
     s2 = sum(1 for s in steps if s.get("system") == 2)
     stack = (summary or {}).get("stack", {})
@@ -129,7 +131,8 @@ def row(cell: Cell, controller: str, seed: int, uav: str, round_no: int,
         "success": int(bool(summary and summary.get("success"))),
         "ended": int(bool((summary or {}).get("ending"))),
         "ending": (summary or {}).get("ending") or "",
-        "failure_cause": (summary or {}).get("failure_cause", ""), "steps": n,
+        "failure_cause": "" if summary and summary.get("success")
+        else (summary or {}).get("ending") or "no_end", "steps": n,
         "s2_steps": s2, "s2_share": f"{s2 / n:.4f}" if n else "",
         "plan_deadline": deadline,
         "link_lost_steps": int(link_steps.get("link_lost", _count_faults(steps, "link_lost"))),

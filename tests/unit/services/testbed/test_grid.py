@@ -75,7 +75,7 @@ def _step(t: int, system: int, faults: list[str] | None = None) -> dict[str, obj
 
 def test_a_row_reads_the_mission_and_its_link() -> None:
     cell = grid.cells(["goal-300ms-5pct"])[0]
-    summary = {"success": True, "ending": "goal", "failure_cause": "",
+    summary = {"success": True, "ending": "goal",
                "stack": {"faults": {"plan_deadline": 2, "fire_stale": 1},
                          "link": {"steps": {"ok": 2, "link_degraded": 1, "link_lost": 1}}}}
     steps = [_step(0, 2), _step(1, 2), _step(2, 1, ["link_lost"]), _step(3, 2)]
@@ -90,6 +90,12 @@ def test_a_row_reads_the_mission_and_its_link() -> None:
     assert (r["plan_deadline"], r["link_lost_steps"], r["link_degraded_steps"]) == ("2", "1", "1")
     assert (r["wire_bytes"], r["wire_bytes_per_step"], r["outage_at_step"]) == (
         "4000", "1000.0", "12")
+    assert r["failure_cause"] == ""
+    burnt = grid.row(cell, "lookahead+risk", 7, "uav2", 1, {**summary, "success": False,
+                                                             "ending": "fire_contact"},
+                     steps, wire, {}, 0, "d")
+    assert (burnt["success"], burnt["ending"], burnt["failure_cause"]) == (
+        "0", "fire_contact", "fire_contact")
 
 
 def test_a_mission_that_never_ended_is_a_failure_and_its_faults_come_from_its_steps() -> None:
@@ -98,6 +104,7 @@ def test_a_mission_that_never_ended_is_a_failure_and_its_faults_come_from_its_st
                                                           "link_lost"])]
     r = grid.row(cell, "concurrent+risk", 3, "uav1", 2, None, steps, {}, {}, None, "d")
     assert (r["success"], r["ended"], r["level"], r["s2_share"]) == ("0", "0", "0.2", "0.0000")
+    assert r["failure_cause"] == "no_end"
     assert (r["plan_deadline"], r["link_lost_steps"], r["wire_bytes"], r["air_exit"]) == (
         "2", "1", "", "")
     # a summary written when the mission's time limit ran out has no ending
