@@ -33,7 +33,7 @@ from services.launch import REPO
 from services.uavsim import flavour as fl
 from services.uavsim.params import PARAMS
 from tests.e2e.examples_common import plain
-from tests.e2e.sitl import Sitl, px4_sitl
+from tests.e2e.sitl import Sitl, px4_sitl, udp_free
 from tests.support.waits import check, wait_for
 
 grpc = pytest.importorskip("tests.e2e.examples_grpc")  # needs mavsdk<4
@@ -64,6 +64,10 @@ def run(sitl: Sitl, api: str, name: str, *args: Any, timeout_s: float = 90.0) ->
     if api == "native":
         return run_native(sitl, name, timeout_s)
     example: Callable[..., Any] = getattr(grpc, name)
+    # the previous example's mavsdk_server is killed, not waited for: its socket on the api
+    # port may outlive it by a moment, and a new server cannot bind it ("Address in use")
+    port = int(sitl.url.rsplit(":", 1)[1])
+    wait_for(lambda: udp_free(port), 10.0, f"the api port {port} released by the last example")
 
     async def bounded() -> Any:
         return await asyncio.wait_for(example(sitl.url, sitl.sim, *args), timeout_s)
