@@ -39,6 +39,7 @@ from typing import Any
 
 import harness  # the repository on the path: before its packages
 
+from dualpilot.evaluation.stats import wilson_interval
 from services.testbed import grid
 from services.testbed.fleet import FleetPlan, fly_fleet, topology
 
@@ -205,16 +206,6 @@ def table(summary: list[dict[str, Any]]) -> str:
     return "\n".join(lines)
 
 
-def wilson(k: int, n: int, z: float = 1.96) -> tuple[float, float]:
-    """Wilson's 95 % interval of a rate k / n."""
-    if not n:
-        return (math.nan, math.nan)
-    p = k / n
-    centre = (p + z * z / (2 * n)) / (1 + z * z / n)
-    half = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / (1 + z * z / n)
-    return (centre - half, centre + half)
-
-
 def figure(args: argparse.Namespace) -> int:
     import matplotlib
 
@@ -238,7 +229,7 @@ def figure(args: argparse.Namespace) -> int:
                     for i, v in enumerate(grid.FACTORS[factor])]
             xs = [i + 0.08 * (k - 0.5) for i, e in pts if e]
             ys = [e["success_rate"] for _, e in pts if e]
-            ci = [wilson(e["successes"], e["missions"]) for _, e in pts if e]
+            ci = [wilson_interval(e["successes"], e["missions"]) for _, e in pts if e]
             if not xs:
                 continue
             err = [[y - lo for y, (lo, _) in zip(ys, ci, strict=True)],
@@ -255,7 +246,7 @@ def figure(args: argparse.Namespace) -> int:
         for i, e in enumerate(cells):
             if e is None:
                 continue
-            lo, hi = wilson(e["successes"], e["missions"])
+            lo, hi = wilson_interval(e["successes"], e["missions"])
             y = e["success_rate"]
             ax.errorbar([i + 0.08 * (k - 0.5)], [y], yerr=[[y - lo], [hi - y]], fmt="s",
                         color=f"C{k}", capsize=3)

@@ -113,16 +113,15 @@ def no_plan_control(state: Array, dyn: DynamicsParams, distance: Callable[[Array
     escape (module docstring): braking unless braking lands within ``clearance_m`` (m) of a
     hull by ``distance`` (position → m to the nearest hull) and a heading lands strictly
     farther, inside ``area``."""
-    candidates = escape_candidates(state, dyn)
-    best = candidates[0]
-    best_m = distance(braked_landing(state, best, dyn))
+    brake = brake_control(state, dyn)
+    best, best_m = brake, distance(braked_landing(state, brake, dyn))
     if best_m >= clearance_m:
-        return best, False
-    for force in candidates[1:]:
+        return brake, False
+    for force in escape_candidates(state, dyn)[1:]:
         landing = braked_landing(state, force, dyn)
         if not area.contains(landing[:2]):
             continue
         d = distance(landing)
         if d > best_m + 1e-9:
             best, best_m = force, d
-    return best, best is not candidates[0]
+    return best, best is not brake

@@ -61,10 +61,9 @@ from dualpilot.mission.ports import (
 from dualpilot.mission.result import Ending, MissionResult, StepRecord
 from dualpilot.model.dynamics import Array, step
 from dualpilot.model.fire import FireSnapshot, Region, substeps_for
-from dualpilot.model.geometry import Rect, SegmentChecker
+from dualpilot.model.geometry import Rect
 from dualpilot.model.prism import Cuboid
 from dualpilot.model.risk import ForecastView, RiskNote, risk_note
-from dualpilot.model.segment3 import SegmentChecker3
 from dualpilot.spec import MissionSpec, Stream
 from dualpilot.supervisor.interface import Planned
 from dualpilot.supervisor.paper.decision import DecisionDynamics
@@ -111,6 +110,13 @@ def segment_within(p0: Array, p1: Array, regions: tuple[Region, ...], d_m: float
     return segment_region_distance(p0, p1, near) < d_m
 
 
+def hull_distance(position: Array, snapshot: FireSnapshot) -> float:
+    """Distance (m) from ``position`` to the nearest hull △(C^i_{1:t}) (inf: none): polygons
+    in the plane, prisms (a 3-D snapshot with tops)."""
+    hulls = snapshot.hull_prisms() if snapshot.has_tops else snapshot.hulls
+    return min((h.distance(position) for h in hulls), default=float("inf"))
+
+
 def attention_distance(
     position: Array, snapshot: FireSnapshot, t: int, params: MissionParams
 ) -> float:
@@ -122,8 +128,7 @@ def attention_distance(
     carry ``born_step == t - 1``.
     """
     if params.d_t_reading == "hull":
-        hulls = snapshot.hull_prisms() if snapshot.has_tops else snapshot.hulls
-        return min((h.distance(position) for h in hulls), default=float("inf"))
+        return hull_distance(position, snapshot)
     regions = snapshot.current()
     if params.d_t_reading == "newborn":
         regions = tuple(
@@ -387,12 +392,7 @@ class Mission:
         if self.params.no_plan == "brake":
             return brake_control(self.state, self.dyn), False
         snapshot = self._snapshot()
-        if not snapshot.hulls:
-            return brake_control(self.state, self.dyn), False
-        checker: SegmentChecker | SegmentChecker3 = (
-            SegmentChecker3(snapshot.hull_prisms()) if self.dim == 3
-            else SegmentChecker(snapshot.hulls))
-        return no_plan_control(self.state, self.dyn, checker.point_distance,
+        return no_plan_control(self.state, self.dyn, lambda p: hull_distance(p, snapshot),
                                self.spec.clearance_m, self.spec.area)
 
     def _fly(self, t: int, control: Array, flown: int, record: StepRecord) -> StepRecord:

@@ -22,6 +22,7 @@ from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
+from dualpilot.evaluation.stats import mean_interval
 from services.testbed.impairment import Impairment
 
 #: the step of each mission at which its link is cut in an outage cell (as make testbed-check)
@@ -197,11 +198,6 @@ def paired_difference(matched: Sequence[tuple[Mapping[str, str], Mapping[str, st
                       z: float = 1.96) -> tuple[float, float, float]:
     """The cell's success rate minus the baseline's over ``matched`` pairs, in points, with a
     normal interval of the paired differences (``z`` 1.96: 95 %); NaNs without pairs."""
-    d = [_int(b["success"]) - _int(a["success"]) for a, b in matched]
-    n = len(d)
-    if not n:
-        return (math.nan, math.nan, math.nan)
-    mean = sum(d) / n
-    sd = math.sqrt(sum((x - mean) ** 2 for x in d) / (n - 1)) if n > 1 else 0.0
-    half = z * sd / math.sqrt(n)
-    return (100 * mean, 100 * (mean - half), 100 * (mean + half))
+    mean, lo, hi = mean_interval([float(_int(b["success"]) - _int(a["success"]))
+                                  for a, b in matched], z)
+    return (100 * mean, 100 * lo, 100 * hi)
